@@ -1,0 +1,18 @@
+"""The project's named errors: each carries one line a person can act on."""
+
+
+class SandboxError(Exception):
+    """Base class: the CLI prints the message (one line) and exits non-zero, never a traceback."""
+
+
+class SceneError(SandboxError):
+    """A scene file (or an override) is invalid. The message names the file, the key and what was expected."""
+
+    def __init__(self, file: str, key: str, expected: str):
+        self.file, self.key, self.expected = file, key, expected
+        where = f"key '{key}'" if key else "file"
+        super().__init__(f"{file}: {where}: {expected}")
+
+
+class SimulationError(SandboxError):
+    """The simulation reached a state it cannot continue from (non-finite values, runaway energy)."""

@@ -1,0 +1,60 @@
+"""The domain box: minimum-image separations and walls (restitution and Coulomb friction) or periodic wrapping."""
+
+
+import taichi as ti
+
+
+@ti.data_oriented
+class Domain:
+    """Box lo..hi. Walls push a particle back to one radius from the wall; periodic boxes wrap positions."""
+
+    def __init__(self, lo, hi, periodic: bool, restitution: float, friction: float):
+        self.dim = len(lo)
+        self.periodic = periodic
+        self.lo = ti.Vector(list(lo))
+        self.hi = ti.Vector(list(hi))
+        self.box = ti.Vector([h - l for l, h in zip(lo, hi)])
+        self.restitution = ti.field(float, shape=())  # normal speed kept after a wall hit, in [0, 1]
+        self.friction = ti.field(float, shape=())  # Coulomb coefficient: tangential impulse <= mu * normal impulse
+        self.restitution[None] = restitution
+        self.friction[None] = friction
+
+    @ti.func
+    def separation(self, xi, xj):
+        """xj - xi, by the minimum-image convention in a periodic box."""
+        d = xj - xi
+        if ti.static(self.periodic):
+            d -= self.box * ti.round(d / self.box)
+        return d
+
+    @ti.func
+    def enforce(self, x, v, radius):
+        """Position and velocity after the walls (or the periodic wrap) act on a particle of the given radius."""
+        if ti.static(self.periodic):
+            x -= self.box * ti.floor((x - self.lo) / self.box)
+        else:
+            e, mu = self.restitution[None], self.friction[None]
+            for a in ti.static(range(self.dim)):
+                lo = self.lo[a] + radius
+                hi = self.hi[a] - radius
+                sign = 0.0
+                if x[a] < lo:
+                    x[a] = lo
+                    sign = 1.0
+                elif x[a] > hi:
+                    x[a] = hi
+                    sign = -1.0
+                vn = v[a] * sign  # negative: moving into the wall
+                if sign != 0.0 and vn < 0.0:
+                    impulse = -(1.0 + e) * vn
+                    v[a] = -e * v[a]
+                    vt2 = 0.0
+                    for b in ti.static(range(self.dim)):
+                        if b != a:
+                            vt2 += v[b] * v[b]
+                    if vt2 > 0.0:
+                        scale = ti.max(0.0, 1.0 - mu * impulse / ti.sqrt(vt2))
+                        for b in ti.static(range(self.dim)):
+                            if b != a:
+                                v[b] *= scale
+        return x, v

@@ -1,0 +1,115 @@
+"""Uniform cell grid for neighbour search, rebuilt by a counting sort (no float atomics).
+
+Cells are at least `reach` wide, so all neighbours of a particle within `reach` lie in the 3^D cells around its own.
+Build: count particles per cell with an integer atomic (the returned old count is the particle's slot in its cell),
+a serial prefix sum over cells, then a scatter of particle ids into `sorted_ids` in cell order.
+"""
+
+
+import math
+
+import numpy as np
+import taichi as ti
+
+
+@ti.data_oriented
+class CellGrid:
+    """Neighbour grid over the box lo..hi for particles x (a Vector field), interaction radius `reach`."""
+
+    def __init__(self, x, n_active, lo, hi, reach: float, periodic: bool, capacity: int):
+        """Grid for positions `x` (first n_active[None] entries) in the box lo..hi; cells at least `reach` wide."""
+        self.dim = len(lo)
+        self.periodic = periodic
+        self.lo = np.asarray(lo, dtype=np.float64)
+        self.hi = np.asarray(hi, dtype=np.float64)
+        extent = self.hi - self.lo
+        if periodic:
+            counts = np.maximum(np.floor(extent / reach).astype(int), 3)
+        else:
+            counts = np.maximum(np.ceil(extent / reach).astype(int), 1)
+        # Bound the cell count so a tiny radius in a huge domain cannot allocate gigabytes.
+        while np.prod(counts.astype(np.int64)) > max(4 * capacity, 1 << 16) and not periodic:
+            counts = np.maximum(counts // 2, 1)
+        self.counts = tuple(int(c) for c in counts)
+        self.cell_size = tuple(float(e / c) for e, c in zip(extent, counts))
+        self.n_cells = int(np.prod(counts))
+        self.reach = reach
+        self.x = x
+        self.n = n_active
+        self.cell_count = ti.field(ti.i32, shape=self.n_cells)  # particles per cell
+        self.cell_start = ti.field(ti.i32, shape=self.n_cells)  # index of the cell's first entry in sorted_ids
+        self.particle_cell = ti.field(ti.i32, shape=capacity)  # flat cell index of each particle
+        self.slot = ti.field(ti.i32, shape=capacity)  # position of the particle within its cell
+        self.sorted_ids = ti.field(ti.i32, shape=capacity)  # particle ids in cell order
+        self._lo = ti.Vector(list(self.lo))
+        self._inv = ti.Vector([1.0 / c for c in self.cell_size])
+        self._ncell = ti.Vector(list(self.counts))
+
+    @staticmethod
+    def footprint_bytes(capacity: int, n_cells: int) -> int:
+        return 4 * (2 * n_cells + 3 * capacity)
+
+    def rebuild(self):
+        self._count()
+        self._prefix_sum()
+        self._scatter()
+
+    @ti.kernel
+    def _count(self):
+        for c in self.cell_count:
+            self.cell_count[c] = 0
+        for i in range(self.n[None]):
+            c = self.flat(self.cell_of(self.x[i]))
+            self.particle_cell[i] = c
+            self.slot[i] = ti.atomic_add(self.cell_count[c], 1)
+
+    @ti.kernel
+    def _prefix_sum(self):
+        total = 0
+        ti.loop_config(serialize=True)
+        for c in range(self.n_cells):
+            self.cell_start[c] = total
+            total += self.cell_count[c]
+
+    @ti.kernel
+    def _scatter(self):
+        for i in range(self.n[None]):
+            self.sorted_ids[self.cell_start[self.particle_cell[i]] + self.slot[i]] = i
+
+    @ti.func
+    def cell_of(self, p):
+        """Integer cell coordinates of position p, clamped into the grid (walls keep particles inside anyway)."""
+        c = ti.cast(ti.floor((p - self._lo) * self._inv), ti.i32)
+        return ti.math.clamp(c, 0, self._ncell - 1)
+
+    @ti.func
+    def flat(self, c):
+        idx = 0
+        for k in ti.static(range(self.dim)):
+            idx = idx * self.counts[k] + c[k]
+        return idx
+
+    @ti.func
+    def neighbour_cell(self, c, off):
+        """Flat index of cell c + off, wrapped on periodic grids; -1 when outside a walled grid."""
+        nc = c + off
+        result = 0
+        if ti.static(self.periodic):
+            nc = (nc + self._ncell) % self._ncell
+            result = self.flat(nc)
+        else:
+            inside = True
+            for k in ti.static(range(self.dim)):
+                if nc[k] < 0 or nc[k] >= self.counts[k]:
+                    inside = False
+            result = self.flat(nc) if inside else -1
+        return result
+
+    def offsets(self):
+        """The 3^D cell offsets to visit (for ti.static loops)."""
+        import itertools
+
+        return [ti.Vector(list(o)) for o in itertools.product((-1, 0, 1), repeat=self.dim)]
+
+    def describe(self) -> str:
+        return f"cell grid {'x'.join(map(str, self.counts))} ({math.prod(self.counts)} cells of {self.cell_size[0]:.3g})"

@@ -1,0 +1,171 @@
+"""The generalized pair force between particles not joined by a live spring.
+
+Force on i from j, with d = x_j - x_i, r = |d| (attraction positive along d):
+
+    F_i = m_i m_j ( alpha / (r + eps)^a  -  beta / r^b ) d          for core <= r < cutoff
+
+The 12-6 Lennard-Jones force is the case a = 8, b = 14, eps = 0, alpha = 24 e s^6, beta = 48 e s^12 (unit masses).
+Below r_core = core * r_eq (r_eq: where the force vanishes) the force keeps its magnitude at r_core, so two particles
+at (almost) the same point get a large but finite push; at r = 0 exactly the push is along the first axis, in
+opposite directions for i and j (by index order). The energy is continued linearly there, so dU/dr still equals the
+force. Energy is shifted to zero at the cutoff.
+
+A viscous term -gamma ((v_i - v_j) . n) n w(r), w = 1 - r/cutoff, gives the melt its viscosity; it is antisymmetric,
+so momentum is conserved. Materials mix by geometric means of alpha and beta, arithmetic means of eps and gamma.
+"""
+
+
+import math
+
+import numpy as np
+import taichi as ti
+
+
+def radial_force(r, alpha, beta, eps, a, b):
+    """Radial force factor g(r) such that F_i = g(r) d (NumPy/float; unit masses)."""
+    return alpha / (r + eps) ** a - beta / r**b
+
+
+def equilibrium_distance(alpha: float, beta: float, eps: float, a: float, b: float) -> float:
+    """The r where the force vanishes (alpha/(r+eps)^a = beta/r^b), by bisection; inf without attraction."""
+    if alpha <= 0:
+        return math.inf
+    if beta <= 0:
+        return 0.0
+    f = lambda r: math.log(alpha) - a * math.log(r + eps) - math.log(beta) + b * math.log(r)  # noqa: E731
+    lo, hi = 1e-6, 1.0
+    while f(hi) < 0:
+        hi *= 2
+        if hi > 1e12:
+            return math.inf
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) < 0 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def _antiderivative(r: float, eps: float, a: float) -> float:
+    """A(r) with A'(r) = r / (r + eps)^a."""
+    u = r + eps
+    if a == 2:
+        return math.log(u) + eps / u
+    if a == 1:
+        return u - eps * math.log(u)
+    return u ** (2 - a) / (2 - a) - eps * u ** (1 - a) / (1 - a)
+
+
+def pair_energy(r: float, alpha: float, beta: float, eps: float, a: float, b: float, cutoff: float) -> float:
+    """Unshifted-at-core, shifted-at-cutoff potential U(r) with dU/dr = r g(r) (unit masses, r >= core)."""
+
+    def raw(s):
+        rep = -beta * math.log(s) if b == 2 else beta * s ** (2 - b) / (b - 2)
+        return alpha * _antiderivative(s, eps, a) + rep
+
+    return raw(r) - raw(cutoff)
+
+
+@ti.data_oriented
+class PairForce:
+    """Pair-force parameters per material pair (n_mat x n_mat tables) and the per-pair force and energy funcs."""
+
+    def __init__(self, dim: int, materials: list, a: float, b: float, cutoff: float, core: float, mass, material, v):
+        n = len(materials)
+        self.dim = dim
+        self.a, self.b = float(a), float(b)
+        self.int_exponents = self.a.is_integer() and self.b.is_integer()
+        self.cutoff = float(cutoff)
+        alpha = np.array([m.pair_alpha for m in materials])
+        beta = np.array([m.pair_beta for m in materials])
+        eps = np.array([m.pair_soft for m in materials])
+        visc = np.array([m.viscosity for m in materials])
+        self.alpha_np = np.sqrt(np.outer(alpha, alpha))
+        self.beta_np = np.sqrt(np.outer(beta, beta))
+        self.eps_np = 0.5 * (eps[:, None] + eps[None, :])
+        self.visc_np = 0.5 * (visc[:, None] + visc[None, :])
+        self.r_eq_np = np.array([[equilibrium_distance(self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q],
+                                                       self.a, self.b) for q in range(n)] for p in range(n)])
+        finite_req = np.where(np.isfinite(self.r_eq_np), self.r_eq_np, 1.0)
+        self.r_core_np = np.maximum(core * finite_req, 1e-6)
+        # Energy shift so that U(cutoff) = 0, and U at the core for the linear continuation below it.
+        self.shift_np = np.array([[self._u(self.cutoff, p, q) for q in range(n)] for p in range(n)])
+        self.alpha = _table(self.alpha_np)
+        self.beta = _table(self.beta_np)
+        self.eps = _table(self.eps_np)
+        self.visc = _table(self.visc_np)
+        self.r_core = _table(self.r_core_np)
+        self.shift = _table(self.shift_np)
+        self.mass, self.material, self.v = mass, material, v
+
+    def _u(self, r, p, q):
+        """Unshifted potential per unit mass product at r (NumPy side; used for the cutoff shift)."""
+        alpha, beta, eps, a, b = self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q], self.a, self.b
+        rep = -beta * math.log(r) if b == 2 else beta * r ** (2 - b) / (b - 2)
+        return alpha * _antiderivative(r, eps, a) + rep
+
+    @ti.func
+    def _powneg(self, x, e: ti.template()):
+        """x^(-e): repeated multiplication when e is a whole number (exact and fast), else pow."""
+        result = 0.0 * x
+        if ti.static(float(e).is_integer() and e >= 0):
+            inv = 1.0 / x
+            result = 1.0 + 0.0 * x
+            for _ in ti.static(range(int(e))):
+                result *= inv
+        else:
+            result = ti.pow(x, -e)
+        return result
+
+    @ti.func
+    def force(self, i, j, d, r2):
+        """Force on particle i from particle j, d = x_j - x_i, r2 = |d|^2 (< cutoff^2): pair law plus viscosity."""
+        p, q = self.material[i], self.material[j]
+        r = ti.sqrt(r2)
+        rc = self.r_core[p, q]
+        n = d / ti.max(r, 1e-12)
+        if r < 1e-12:  # coincident: a deterministic, antisymmetric direction
+            n = ti.Vector.zero(float, self.dim)
+            n[0] = 1.0 if j > i else -1.0
+        re = ti.max(r, rc)
+        g = self.alpha[p, q] * self._powneg(re + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(re, self.b)
+        f = self.mass[i] * self.mass[j] * g * re * n
+        vrel = (self.v[j] - self.v[i]).dot(n)
+        f += self.visc[p, q] * (1.0 - r / self.cutoff) * vrel * n
+        return f
+
+    @ti.func
+    def energy(self, i, j, r2):
+        """Potential energy of the pair (i, j) at squared distance r2 (< cutoff^2), shifted to zero at the cutoff."""
+        p, q = self.material[i], self.material[j]
+        r = ti.sqrt(r2)
+        rc = self.r_core[p, q]
+        re = ti.max(r, rc)
+        u = self._u_func(re, p, q) - self.shift[p, q]
+        if r < rc:  # linear continuation: dU/dr stays equal to the (capped) force
+            g = self.alpha[p, q] * self._powneg(rc + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(
+                rc, self.b)
+            u += g * rc * (r - rc)
+        return self.mass[i] * self.mass[j] * u
+
+    @ti.func
+    def _u_func(self, r, p, q):
+        alpha, beta, eps = self.alpha[p, q], self.beta[p, q], self.eps[p, q]
+        u = r + eps
+        att = 0.0 * r
+        if ti.static(self.a == 2.0):
+            att = ti.log(u) + eps / u
+        elif ti.static(self.a == 1.0):
+            att = u - eps * ti.log(u)
+        else:
+            att = self._powneg(u, self.a - 2.0) / (2.0 - self.a) - eps * self._powneg(u, self.a - 1.0) / (1.0 - self.a)
+        rep = 0.0 * r
+        if ti.static(self.b == 2.0):
+            rep = -beta * ti.log(r)
+        else:
+            rep = beta * self._powneg(r, self.b - 2.0) / (self.b - 2.0)
+        return alpha * att + rep
+
+
+def _table(values: np.ndarray):
+    field = ti.field(float, shape=values.shape)
+    field.from_numpy(values.astype(np.float64 if field.dtype == ti.f64 else np.float32))
+    return field

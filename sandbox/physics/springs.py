@@ -1,0 +1,113 @@
+"""Spring-and-damper (Voigt) bonds with thermoelastic softening and breaking.
+
+For a spring between i and j, with d = x_j - x_i, n = d / |d|, the force on i is
+
+    f_i = k (|d| - l) n  +  c ((v_j - v_i) . n) n,        f_j = -f_i
+
+(the spring pulls i towards j when stretched; the damper resists the rate of stretching). Both ends compute the
+force from their own side with mirrored arithmetic, so f_j is exactly -f_i; forces are gathered per particle
+through its bond list, with no float atomics.
+
+Thermoelastic law, per material with softening temperature Ts and melting temperature Tm, for the mean temperature
+T of the two ends: k = k_s * s(T), c = k_d * s(T), with s = 1 below Ts, falling linearly to 0 at Tm; at T >= Tm
+the spring breaks for good. A spring also breaks when stretched beyond `break_stretch` times its rest length.
+"""
+
+
+import numpy as np
+import taichi as ti
+
+
+def bond_table(spring_i: np.ndarray, spring_j: np.ndarray, n_particles: int, max_bonds: int) -> np.ndarray:
+    """(n_particles, max_bonds) int32 table of spring ids at each particle, padded with -1."""
+    table = np.full((max(n_particles, 1), max(max_bonds, 1)), -1, dtype=np.int32)
+    ends = np.concatenate([spring_i, spring_j])
+    ids = np.concatenate([np.arange(len(spring_i))] * 2)
+    order = np.argsort(ends, kind="stable")
+    ends, ids = ends[order], ids[order]
+    first = np.searchsorted(ends, ends, side="left")
+    slot = np.arange(len(ends)) - first
+    table[ends, slot] = ids
+    return table
+
+
+@ti.data_oriented
+class Springs:
+    """Spring fields (S springs; bond table per particle) and their force, energy and update funcs."""
+
+    BREAK_STRETCH = 100.0  # a spring stretched beyond 100x its rest length breaks (documented clamp)
+
+    def __init__(self, built, capacity: int, particles, materials, heat_enabled: bool, periodic_sep):
+        self.count = built.spring_count
+        self.max_bonds = max(built.max_bonds(), 1)
+        s = max(self.count, 1)
+        self.i = ti.field(ti.i32, shape=s)  # first end
+        self.j = ti.field(ti.i32, shape=s)  # second end
+        self.rest = ti.field(float, shape=s)  # rest length l (length)
+        self.ks = ti.field(float, shape=s)  # base stiffness k_s (force / length)
+        self.kd = ti.field(float, shape=s)  # base damping k_d (force / speed)
+        self.factor = ti.field(float, shape=s)  # thermoelastic factor s(T) in [0, 1]
+        self.alive = ti.field(ti.i32, shape=s)  # 1 while the spring holds, 0 once broken (for good)
+        self.bonds = ti.field(ti.i32, shape=(capacity, self.max_bonds))  # spring ids at each particle, -1 padded
+        if self.count:
+            self.i.from_numpy(built.spring_i)
+            self.j.from_numpy(built.spring_j)
+            self.rest.from_numpy(built.rest_length)
+            self.ks.from_numpy(built.stiffness)
+            self.kd.from_numpy(built.damping)
+        self.factor.fill(1.0)
+        self.alive.fill(1 if self.count else 0)
+        table = np.full((capacity, self.max_bonds), -1, dtype=np.int32)
+        table[: built.count] = bond_table(built.spring_i, built.spring_j, built.count, self.max_bonds)[: built.count]
+        self.bonds.from_numpy(table)
+        self.p = particles
+        self.mats = materials
+        self.heat_enabled = heat_enabled
+        self.separation = periodic_sep
+        self.initial_alive = self.alive.to_numpy().copy()
+
+    @ti.kernel
+    def update(self):
+        """Thermoelastic softening and breaking (by temperature and by overstretch), once per step before forces."""
+        for s in range(self.count):
+            if self.alive[s]:
+                a, b = self.i[s], self.j[s]
+                factor = 1.0
+                if ti.static(self.heat_enabled):
+                    mat = self.p.material[a]
+                    t = 0.5 * (self.p.T[a] + self.p.T[b])
+                    t_soft, t_melt = self.mats.soften[mat], self.mats.melt[mat]
+                    if t >= t_melt:
+                        factor = -1.0
+                    elif t > t_soft:
+                        factor = (t_melt - t) / (t_melt - t_soft)
+                length = self.separation(self.p.x[a], self.p.x[b]).norm()
+                if length > self.BREAK_STRETCH * self.rest[s]:
+                    factor = -1.0
+                if factor < 0.0:
+                    self.alive[s] = 0
+                    self.factor[s] = 0.0
+                else:
+                    self.factor[s] = factor
+
+    @ti.func
+    def other_end(self, i, s):
+        return self.i[s] + self.j[s] - i
+
+    @ti.func
+    def force(self, i, j, s, d):
+        """Force on particle i from live spring s joining it to j, with d = x_j - x_i."""
+        r = d.norm()
+        n = d / ti.max(r, 1e-12)
+        vrel = (self.p.v[j] - self.p.v[i]).dot(n)
+        return self.factor[s] * (self.ks[s] * (r - self.rest[s]) + self.kd[s] * vrel) * n
+
+    @ti.func
+    def energy(self, s):
+        """Elastic energy 1/2 k (|d| - l)^2 of spring s at its current stiffness (0 once broken)."""
+        e = 0.0
+        if self.alive[s]:
+            a, b = self.i[s], self.j[s]
+            r = self.separation(self.p.x[a], self.p.x[b]).norm()
+            e = 0.5 * self.factor[s] * self.ks[s] * (r - self.rest[s]) ** 2
+        return e

@@ -1,0 +1,60 @@
+"""Taichi start-up: one place that calls ti.init, so the backend and float precision are chosen once per process.
+
+Taichi keeps one runtime per process; asking for a different backend or precision resets it, which invalidates every
+field allocated before (a Simulation built earlier must not be used after that).
+"""
+
+from __future__ import annotations
+
+import os
+
+import taichi as ti
+
+ARCHES = ("auto", "cpu", "cuda", "vulkan", "metal")
+PRECISIONS = ("f32", "f64")
+
+_current: tuple[str, str] | None = None
+
+
+def _arch_value(name: str):
+    return {"cpu": ti.cpu, "cuda": ti.cuda, "vulkan": ti.vulkan, "metal": ti.metal}[name]
+
+
+def init(arch: str = "cpu", precision: str = "f32") -> str:
+    """Start (or restart) Taichi on `arch` with default float `precision`; returns the backend actually running.
+
+    `auto` prefers CUDA and otherwise uses the CPU (a software Vulkan driver is slower than the CPU backend, so it
+    is only used when asked for by name). A backend that is not available falls back to the CPU, as Taichi does.
+    """
+    global _current
+    if arch not in ARCHES:
+        raise ValueError(f"unknown arch '{arch}'; expected one of {', '.join(ARCHES)}")
+    if precision not in PRECISIONS:
+        raise ValueError(f"unknown precision '{precision}'; expected one of {', '.join(PRECISIONS)}")
+    if _current == (arch, precision):
+        return running_arch()
+    fp = ti.f32 if precision == "f32" else ti.f64
+    kwargs = dict(default_fp=fp, log_level=ti.ERROR, offline_cache=True)
+    threads = os.environ.get("SANDBOX_CPU_THREADS")
+    if threads:
+        kwargs["cpu_max_num_threads"] = int(threads)
+    if _current is not None:
+        ti.reset()
+    if arch == "auto":
+        ti.init(arch=ti.cuda, **kwargs)
+    else:
+        ti.init(arch=_arch_value(arch), **kwargs)
+    _current = (arch, precision)
+    return running_arch()
+
+
+def running_arch() -> str:
+    """Name of the backend Taichi is running on now ('x64' and 'arm64' are reported as 'cpu')."""
+    name = ti.lang.impl.current_cfg().arch.name
+    return "cpu" if name in ("x64", "arm64") else name
+
+
+def real_dtype():
+    """The Taichi float type of the running precision (ti.f32 or ti.f64)."""
+    assert _current is not None, "runtime.init() must be called first"
+    return ti.f32 if _current[1] == "f32" else ti.f64

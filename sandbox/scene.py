@@ -1,0 +1,326 @@
+"""Scene files: TOML → a typed, validated, immutable Scene. Opening a scene never runs code.
+
+A scene is data: [scene], [world], optional [pair] and [heat] (a scene without them builds no pair or heat pass),
+[[bodies]], [render] and optional [materials.NAME] tables. Every error names the file, the key and what was expected;
+`sandbox keys` prints the full reference of keys with defaults and meanings.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import SceneError
+from .materials import ASSETS_DIR, Material, resolve_materials
+from .schema import at_least, non_negative, one_of, parse_table, positive, spec, unit_interval
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+INTEGRATORS = ("symplectic_euler", "forward_euler", "midpoint", "verlet", "velocity_verlet", "implicit_euler")
+SHAPES = ("box", "disk", "sphere", "mask")
+LATTICES = ("square", "hex", "cubic", "fcc")
+COLOR_BY = ("temperature", "material", "speed", "phase")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SceneInfo:
+    name: str = spec("", doc="scene name (default: the file name)")
+    description: str = spec("", doc="one paragraph shown by `sandbox list` and `sandbox check`")
+
+
+@dataclass(frozen=True, kw_only=True)
+class World:
+    dim: int = spec(2, doc="2 or 3 dimensions", check=lambda d: None if d in (2, 3) else f"expected 2 or 3, got {d}")
+    lo: tuple[float, ...] = spec(doc="lower corner of the domain box")
+    hi: tuple[float, ...] = spec(doc="upper corner of the domain box")
+    gravity: tuple[float, ...] = spec((), doc="gravitational acceleration vector (default zero)")
+    dt: float = spec(0.002, doc="time step (simulation seconds)", check=positive)
+    substeps: int = spec(10, doc="steps per rendered frame", check=at_least(1))
+    integrator: str = spec("symplectic_euler", doc="time integrator", check=one_of(*INTEGRATORS))
+    periodic: bool = spec(False, doc="periodic boundaries on every axis instead of walls")
+    restitution: float = spec(0.3, doc="normal velocity kept after hitting a wall", check=unit_interval)
+    friction: float = spec(0.1, doc="fraction of tangential velocity lost at a wall contact", check=unit_interval)
+    drag: float = spec(0.0, doc="linear drag rate on every particle (1/time)", check=non_negative)
+    precision: str = spec("f32", doc="float precision of the fields", check=one_of("f32", "f64"))
+    capacity: int = spec(0, doc="particle capacity (0: the initial count)", check=at_least(0))
+
+
+@dataclass(frozen=True, kw_only=True)
+class PairForce:
+    a: float = spec(2.0, doc="exponent of the attraction term alpha/(d+eps)^a", check=positive)
+    b: float = spec(4.0, doc="exponent of the repulsion term beta/d^b", check=positive)
+    cutoff: float = spec(2.5, doc="cutoff distance of the pair force (length)", check=positive)
+    core: float = spec(0.6, doc="below core * r_eq the force is held at its value there (caps the singularity)",
+                       check=lambda c: None if 0 < c < 1 else f"expected a number in (0, 1), got {c}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class HeatSource:
+    name: str = spec("plate", doc="label shown in the picture")
+    lo: tuple[float, ...] = spec(doc="lower corner of the source region")
+    hi: tuple[float, ...] = spec(doc="upper corner of the source region")
+    temperature: float = spec(doc="the source's temperature (degrees)")
+    conductance: float = spec(20.0, doc="heat flow per degree of difference into each particle in the region",
+                              check=non_negative)
+    reach: float = spec(1.0, doc="particles within this distance of the region exchange heat with it",
+                        check=non_negative)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Heat:
+    ambient: float = spec(20.0, doc="ambient temperature (degrees)")
+    ambient_exchange: float = spec(0.0, doc="heat flow per degree between each particle and the ambient",
+                                   check=non_negative)
+    radius: float = spec(2.5, doc="support radius of the heat-diffusion kernel (length)", check=positive)
+    sources: list[HeatSource] = spec(doc="hot or cold regions", factory=list)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Body:
+    name: str = spec("", doc="label (default body<N>)")
+    material: str = spec(doc="material name from the library or [materials]")
+    shape: str = spec("box", doc="box, disk (2D), sphere (3D) or mask (2D, a PNG)", check=one_of(*SHAPES))
+    lo: tuple[float, ...] = spec((), doc="box/mask: lower corner")
+    hi: tuple[float, ...] = spec((), doc="box/mask: upper corner")
+    center: tuple[float, ...] = spec((), doc="disk/sphere: centre")
+    radius: float = spec(0.0, doc="disk/sphere: radius", check=non_negative)
+    mask: str = spec("", doc="mask: PNG file (inside the scene's folder or assets/); opaque/bright pixels are inside")
+    lattice: str = spec("", doc="square or hex (2D), cubic or fcc (3D); default square/cubic", check=one_of("",
+                        *LATTICES))
+    spacing: float = spec(1.0, doc="nearest-neighbour distance of the lattice (length)", check=positive)
+    springs: bool = spec(True, doc="join neighbours by springs (a solid); false: a liquid from the start")
+    spring_radius: float = spec(1.5, doc="join lattice neighbours closer than this many spacings", check=at_least(1.0))
+    temperature: float | None = spec(None, doc="initial temperature (default: the ambient)")
+    velocity: tuple[float, ...] = spec((), doc="initial velocity")
+    random_velocity: float = spec(0.0, doc="std. dev. of random initial velocity per component", check=non_negative)
+    jitter: float = spec(0.0, doc="random displacement of lattice sites, as a fraction of spacing",
+                         check=unit_interval)
+    seed: int = spec(0, doc="random seed for velocity and jitter")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Render:
+    width: int = spec(1280, doc="image width (pixels)", check=at_least(16))
+    height: int = spec(720, doc="image height (pixels)", check=at_least(16))
+    fps: float = spec(30.0, doc="frames per second of the video", check=positive)
+    frames: int = spec(300, doc="frames in a headless run", check=at_least(1))
+    color_by: str = spec("temperature", doc="temperature, material, speed or phase", check=one_of(*COLOR_BY))
+    temperature_range: tuple[float, ...] = spec((20.0, 200.0), doc="[cold, hot] ends of the glow colour map")
+    speed_range: float = spec(10.0, doc="speed drawn brightest when colouring by speed", check=positive)
+    background: tuple[float, ...] = spec((0.06, 0.07, 0.09), doc="background colour [r, g, b]")
+    particle_scale: float = spec(1.0, doc="drawn radius as a multiple of the particle radius", check=positive)
+    camera_position: tuple[float, ...] = spec((), doc="3D: camera position (default: in front of the domain)")
+    camera_target: tuple[float, ...] = spec((), doc="3D: the point looked at (default: domain centre)")
+    fov: float = spec(40.0, doc="3D: vertical field of view in degrees", check=positive)
+    light_direction: tuple[float, ...] = spec((0.4, 0.8, 0.5), doc="3D: direction towards the light")
+
+
+@dataclass(frozen=True, kw_only=True)
+class _SceneFile:
+    scene: SceneInfo = spec(doc="[scene]", factory=SceneInfo)
+    world: World = spec(doc="[world]")
+    pair: PairForce | None = spec(None, doc="[pair]")
+    heat: Heat | None = spec(None, doc="[heat]")
+    bodies: list[Body] = spec(doc="[[bodies]]", factory=list)
+    render: Render = spec(doc="[render]", factory=Render)
+    materials: dict | None = spec(None, doc="[materials.NAME]")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scene:
+    """A validated scene: what to build and how to run and draw it."""
+
+    name: str
+    description: str
+    path: Path
+    world: World
+    pair: PairForce | None
+    heat: Heat | None
+    bodies: list[Body]
+    render: Render
+    materials: dict[str, Material] = field(repr=False)
+
+    @property
+    def dim(self) -> int:
+        return self.world.dim
+
+    def used_materials(self) -> list[str]:
+        """Names of the materials the bodies use, in first-use order (material ids follow this order)."""
+        return list(dict.fromkeys(b.material for b in self.bodies))
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Split `key=value` and read the value as TOML (number, bool, array, string); bare words become strings."""
+    if "=" not in text:
+        raise SceneError("--set", text, "expected key=value")
+    key, raw = (s.strip() for s in text.split("=", 1))
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key, value
+
+
+def apply_override(data: dict, key: str, value: Any) -> None:
+    """Set a dotted key (`world.dt`, `bodies.0.temperature`, `heat.sources.0.temperature`) in the raw scene table."""
+    parts = key.split(".")
+    node: Any = data
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        if isinstance(node, list):
+            if not part.isdigit() or int(part) >= len(node):
+                raise SceneError("--set", key, f"'{part}' is not an index below {len(node)}")
+            if last:
+                node[int(part)] = value
+            else:
+                node = node[int(part)]
+        elif isinstance(node, dict):
+            if last:
+                node[part] = value
+            else:
+                node = node.setdefault(part, {})
+        else:
+            raise SceneError("--set", key, f"'{'.'.join(parts[:i])}' is not a table or array")
+
+
+def load_scene(path: str | Path, overrides: list[str] | None = None) -> Scene:
+    """Read, override and validate a scene file. Raises SceneError naming the file, key and expectation."""
+    path = Path(path)
+    file = str(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError as exc:
+        raise SceneError(file, "", "no such scene file") from exc
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SceneError(file, "", f"not valid TOML: {exc}") from exc
+    for text in overrides or []:
+        key, value = parse_override(text)
+        apply_override(data, key, value)
+    return scene_from_dict(data, path)
+
+
+def scene_from_dict(data: dict, path: Path) -> Scene:
+    """Validate a raw scene table (as read from TOML) into a Scene; `path` names it in errors and anchors files."""
+    file = str(path)
+    raw = parse_table(_SceneFile, data, file)
+    materials = resolve_materials(raw.materials or {}, file)
+    world: World = raw.world
+    dim = world.dim
+    _check_vec(file, "world.lo", world.lo, dim)
+    _check_vec(file, "world.hi", world.hi, dim)
+    if any(h <= l for l, h in zip(world.lo, world.hi)):
+        raise SceneError(file, "world.hi", f"expected every component above world.lo {list(world.lo)}")
+    if world.gravity:
+        _check_vec(file, "world.gravity", world.gravity, dim)
+    else:
+        world = _replace(world, gravity=(0.0,) * dim)
+    if raw.pair is not None and raw.pair.b <= raw.pair.a:
+        raise SceneError(file, "pair.b", f"expected the repulsion exponent b above a = {raw.pair.a}")
+    heat = raw.heat
+    if heat is not None:
+        for i, src in enumerate(heat.sources):
+            _check_vec(file, f"heat.sources[{i}].lo", src.lo, dim)
+            _check_vec(file, f"heat.sources[{i}].hi", src.hi, dim)
+    if not raw.bodies:
+        raise SceneError(file, "bodies", "expected at least one [[bodies]] table")
+    bodies = [_check_body(file, f"bodies[{i}]", b, i, dim, materials, path) for i, b in enumerate(raw.bodies)]
+    if world.periodic:
+        reach = max(raw.pair.cutoff if raw.pair else 0.0, heat.radius if heat else 0.0)
+        if any((h - l) < 3 * reach for l, h in zip(world.lo, world.hi)):
+            raise SceneError(file, "world.periodic", f"expected every side of a periodic domain >= 3 x {reach}")
+    render = raw.render
+    _check_render(file, render, dim)
+    return Scene(
+        name=raw.scene.name or path.stem,
+        description=raw.scene.description,
+        path=path,
+        world=world,
+        pair=raw.pair,
+        heat=heat,
+        bodies=bodies,
+        render=render,
+        materials={name: materials[name] for name in dict.fromkeys(b.material for b in bodies)},
+    )
+
+
+def _replace(obj, **changes):
+    import dataclasses
+
+    return dataclasses.replace(obj, **changes)
+
+
+def _check_vec(file: str, key: str, vec: tuple, dim: int) -> None:
+    if len(vec) != dim:
+        raise SceneError(file, key, f"expected {dim} numbers (world.dim = {dim}), got {len(vec)}")
+
+
+def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials: dict, scene_path: Path) -> Body:
+    if body.material not in materials:
+        raise SceneError(file, f"{key}.material",
+                         f"unknown material {body.material!r}; expected one of: {', '.join(sorted(materials))}")
+    changes: dict[str, Any] = {}
+    if not body.name:
+        changes["name"] = f"body{index}"
+    lattice = body.lattice or ("square" if dim == 2 else "cubic")
+    if (dim == 2) != (lattice in ("square", "hex")):
+        raise SceneError(file, f"{key}.lattice", f"lattice {lattice!r} does not exist in {dim}D")
+    changes["lattice"] = lattice
+    if body.shape in ("box", "mask"):
+        _check_vec(file, f"{key}.lo", body.lo, dim)
+        _check_vec(file, f"{key}.hi", body.hi, dim)
+        if any(h <= l for l, h in zip(body.lo, body.hi)):
+            raise SceneError(file, f"{key}.hi", f"expected every component above {key}.lo {list(body.lo)}")
+    if body.shape in ("disk", "sphere"):
+        want = 2 if body.shape == "disk" else 3
+        if dim != want:
+            raise SceneError(file, f"{key}.shape", f"{body.shape!r} needs world.dim = {want}; use "
+                             f"{'sphere' if want == 2 else 'disk'}")
+        _check_vec(file, f"{key}.center", body.center, dim)
+        if body.radius <= 0:
+            raise SceneError(file, f"{key}.radius", "expected a radius > 0 for a disk or sphere")
+    if body.shape == "mask":
+        if dim != 2:
+            raise SceneError(file, f"{key}.shape", "a PNG mask shapes 2D bodies only")
+        changes["mask"] = str(resolve_data_file(file, f"{key}.mask", body.mask, scene_path))
+    if body.velocity:
+        _check_vec(file, f"{key}.velocity", body.velocity, dim)
+    else:
+        changes["velocity"] = (0.0,) * dim
+    return _replace(body, **changes)
+
+
+def resolve_data_file(file: str, key: str, name: str, scene_path: Path) -> Path:
+    """Resolve a file named in a scene; it must exist inside the scene's folder or the project's assets/ folder."""
+    if not name:
+        raise SceneError(file, key, "expected a file name")
+    scene_dir = scene_path.resolve().parent
+    assets = ASSETS_DIR.resolve()
+    if Path(name).is_absolute() or ".." in Path(name).parts:
+        raise SceneError(file, key, f"{name!r} points outside the scene's folder and assets/; expected a relative "
+                         "name of a file inside one of them")
+    for root in (scene_dir, assets.parent, assets):
+        cand = (root / name).resolve()  # resolve() follows links, so a link out of the folders is caught below
+        if cand.is_file() and (cand.is_relative_to(scene_dir) or cand.is_relative_to(assets)):
+            return cand
+    raise SceneError(file, key, f"file {name!r} not found in the scene's folder or assets/")
+
+
+def _check_render(file: str, render: Render, dim: int) -> None:
+    if len(render.temperature_range) != 2 or render.temperature_range[1] <= render.temperature_range[0]:
+        raise SceneError(file, "render.temperature_range", "expected [cold, hot] with hot > cold")
+    if len(render.background) != 3:
+        raise SceneError(file, "render.background", "expected [r, g, b]")
+    if dim == 3:
+        if render.camera_position:
+            _check_vec(file, "render.camera_position", render.camera_position, 3)
+        if render.camera_target:
+            _check_vec(file, "render.camera_target", render.camera_target, 3)
+        _check_vec(file, "render.light_direction", render.light_direction, 3)
+    if not math.isfinite(render.fps):
+        raise SceneError(file, "render.fps", "expected a finite number")

@@ -1,0 +1,394 @@
+"""The Simulation: builds only the passes a scene needs, steps them, measures them and guards against blow-ups.
+
+Per step, the integrator calls eval_rates() (neighbour grid rebuild -> spring update -> one fused kernel for pair
+force, heat flow, springs, gravity and drag) and then its own update kernel, which ends with finish_particle()
+(walls and the heat update) for each particle.
+"""
+
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from . import runtime
+from .build import build_particles
+from .errors import SimulationError
+from .integrators import make_integrator
+from .model import MaterialTable, ParticleFields
+from .physics.boundary import Domain
+from .physics.grid import CellGrid
+from .physics.heat import Heat
+from .physics.pair import PairForce
+from .physics.springs import Springs
+from .scene import Scene
+
+STAT_COLUMNS = (
+    "frame", "time", "kinetic_energy", "potential_energy", "total_energy", "spring_energy", "pair_energy",
+    "gravity_energy", "mean_temperature", "molten_fraction", "broken_springs", "max_speed", "particles",
+    "step_seconds",
+)
+
+_ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5}
+_COUNT = {"molten": 0, "broken": 1, "meltable": 2, "bad": 3}
+
+
+@dataclass
+class Stats:
+    """Measurements of one instant (energies in scaled units; temperature in degrees)."""
+
+    time: float
+    kinetic_energy: float
+    spring_energy: float
+    pair_energy: float
+    gravity_energy: float
+    mean_temperature: float
+    molten_fraction: float
+    broken_springs: int
+    max_speed: float
+    particles: int
+
+    @property
+    def potential_energy(self) -> float:
+        return self.spring_energy + self.pair_energy + self.gravity_energy
+
+    @property
+    def total_energy(self) -> float:
+        return self.kinetic_energy + self.potential_energy
+
+
+@ti.data_oriented
+class Simulation:
+    """A running scene: fields, passes, integrator, clock."""
+
+    def __init__(self, scene: Scene, arch: str = "cpu"):
+        self.scene = scene
+        self.arch = runtime.init(arch, scene.world.precision)
+        built = build_particles(scene)
+        self.built = built
+        world = scene.world
+        self.dim = scene.dim
+        self.dt = world.dt
+        self.capacity = max(world.capacity, built.count)
+        self.material_names = scene.used_materials()
+        materials = [scene.materials[name] for name in self.material_names]
+        self.materials = MaterialTable(materials)
+        self.particles = ParticleFields(self.dim, self.capacity, heat=scene.heat is not None)
+        self.particles.load(built, self.materials.colors)
+        self.domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
+        p = self.particles
+        self.pair = (
+            PairForce(self.dim, materials, scene.pair.a, scene.pair.b, scene.pair.cutoff, scene.pair.core,
+                      p.mass, p.material, p.v)
+            if scene.pair else None
+        )
+        self.heat = Heat(self.dim, scene.heat, p, self.materials) if scene.heat else None
+        self.springs = (
+            Springs(built, self.capacity, p, self.materials, scene.heat is not None, self.domain.separation)
+            if built.spring_count else None
+        )
+        reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat.radius if scene.heat else 0.0)
+        self.grid = (
+            CellGrid(p.x, p.n, world.lo, world.hi, reach, world.periodic, self.capacity) if reach > 0 else None
+        )
+        self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
+        self.has_heat, self.has_springs = self.heat is not None, self.springs is not None
+        self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
+        self.gravity[None] = world.gravity
+        self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
+        self.drag[None] = world.drag
+        acc = ti.f64 if self.arch in ("cpu", "cuda") else ti.f32
+        self._acc = ti.field(acc, shape=len(_ACC))  # sums for stats(), indexed by _ACC
+        self._count = ti.field(ti.i32, shape=len(_COUNT))  # counts for stats(), indexed by _COUNT
+        self.integrator = make_integrator(world.integrator, self)
+        self.time = 0.0
+        self.step_count = 0
+        self._initial = self.snapshot()
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, n: int = 1) -> None:
+        """Advance n steps of dt."""
+        for _ in range(n):
+            self.integrator.step(self.dt)
+            self.time += self.dt
+            self.step_count += 1
+
+    def eval_rates(self) -> None:
+        """Forces (p.f) and heat rates (p.dTdt) at the current state."""
+        if self.grid is not None:
+            self.grid.rebuild()
+        if self.springs is not None:
+            self.springs.update()
+        self._rates()
+
+    @ti.kernel
+    def _rates(self):
+        p = self.particles
+        for i in range(p.n[None]):
+            xi = p.x[i]
+            f = p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
+            q = 0.0
+            if ti.static(self.has_grid):
+                c = self.grid.cell_of(xi)
+                for off in ti.static(self.grid.offsets()):
+                    nc = self.grid.neighbour_cell(c, off)
+                    if nc >= 0:
+                        start = self.grid.cell_start[nc]
+                        for k in range(start, start + self.grid.cell_count[nc]):
+                            j = self.grid.sorted_ids[k]
+                            if j != i:
+                                d = self.domain.separation(xi, p.x[j])
+                                r2 = d.dot(d)
+                                if ti.static(self.has_pair):
+                                    if r2 < self.pair.cutoff**2:
+                                        f += self.pair.force(i, j, d, r2)
+                                if ti.static(self.has_heat):
+                                    if r2 < self.heat.support**2:
+                                        q += self.heat.flow(i, j, r2)
+            if ti.static(self.has_springs):
+                for k in range(self.springs.max_bonds):
+                    s = self.springs.bonds[i, k]
+                    if s < 0:
+                        break
+                    if self.springs.alive[s]:
+                        j = self.springs.other_end(i, s)
+                        d = self.domain.separation(xi, p.x[j])
+                        f += self.springs.force(i, j, s, d)
+                        if ti.static(self.has_pair):
+                            r2 = d.dot(d)
+                            if r2 < self.pair.cutoff**2:  # bonded pairs feel the spring, not the pair force
+                                f -= self.pair.force(i, j, d, r2)
+            p.f[i] = f
+            if ti.static(self.has_heat):
+                q += self.heat.source_flow(i)
+                p.dTdt[i] = q / (p.mass[i] * self.materials.specific_heat[p.material[i]])
+
+    @ti.func
+    def finish_particle(self, i, dt):
+        """Walls (or periodic wrap) and the explicit heat update for particle i, at the end of a step."""
+        p = self.particles
+        p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i])
+        if ti.static(self.has_heat):
+            p.T[i] += dt * p.dTdt[i]
+
+    # ------------------------------------------------------------------ measurements
+    @ti.kernel
+    def _measure(self):
+        p = self.particles
+        for k in self._acc:
+            self._acc[k] = 0
+        for k in self._count:
+            self._count[k] = 0
+        for i in range(p.n[None]):
+            v2 = p.v[i].dot(p.v[i])
+            self._acc[_ACC["ke"]] += 0.5 * p.mass[i] * v2
+            self._acc[_ACC["grav"]] += -p.mass[i] * self.gravity[None].dot(p.x[i])
+            ti.atomic_max(self._acc[_ACC["vmax"]], ti.sqrt(v2))
+            finite = 1
+            for a in ti.static(range(self.dim)):
+                if not (ti.abs(p.x[i][a]) < 1e30 and ti.abs(p.v[i][a]) < 1e30):
+                    finite = 0
+            if finite == 0:
+                self._count[_COUNT["bad"]] += 1
+            if ti.static(self.has_heat):
+                self._acc[_ACC["tsum"]] += p.T[i]
+                melt = self.materials.melt[p.material[i]]
+                if melt < 1e29:
+                    self._count[_COUNT["meltable"]] += 1
+                    if p.T[i] >= melt:
+                        self._count[_COUNT["molten"]] += 1
+        if ti.static(self.has_springs):
+            for s in range(self.springs.count):
+                self._acc[_ACC["spring"]] += self.springs.energy(s)
+                if self.springs.alive[s] == 0:
+                    self._count[_COUNT["broken"]] += 1
+        if ti.static(self.has_pair):
+            for i in range(p.n[None]):
+                e = 0.0
+                c = self.grid.cell_of(p.x[i])
+                for off in ti.static(self.grid.offsets()):
+                    nc = self.grid.neighbour_cell(c, off)
+                    if nc >= 0:
+                        start = self.grid.cell_start[nc]
+                        for k in range(start, start + self.grid.cell_count[nc]):
+                            j = self.grid.sorted_ids[k]
+                            if j > i:
+                                d = self.domain.separation(p.x[i], p.x[j])
+                                r2 = d.dot(d)
+                                if r2 < self.pair.cutoff**2:
+                                    e += self.pair.energy(i, j, r2)
+                if ti.static(self.has_springs):
+                    for k in range(self.springs.max_bonds):
+                        s = self.springs.bonds[i, k]
+                        if s < 0:
+                            break
+                        j = self.springs.other_end(i, s)
+                        if self.springs.alive[s] and j > i:
+                            d = self.domain.separation(p.x[i], p.x[j])
+                            r2 = d.dot(d)
+                            if r2 < self.pair.cutoff**2:
+                                e -= self.pair.energy(i, j, r2)
+                self._acc[_ACC["pair"]] += e
+
+    def stats(self) -> Stats:
+        """Energies, temperatures and counts now. Raises SimulationError if any particle is not finite."""
+        if self.grid is not None:
+            self.grid.rebuild()
+        self._measure()
+        acc_values, cnt_values = self._acc.to_numpy(), self._count.to_numpy()
+        acc = {k: float(acc_values[i]) for k, i in _ACC.items()}
+        cnt = {k: int(cnt_values[i]) for k, i in _COUNT.items()}
+        n = int(self.particles.n[None])
+        if cnt["bad"] or not all(math.isfinite(v) for v in acc.values()):
+            self._raise_blowup()
+        return Stats(
+            time=self.time,
+            kinetic_energy=acc["ke"],
+            spring_energy=acc["spring"],
+            pair_energy=acc["pair"],
+            gravity_energy=acc["grav"],
+            mean_temperature=acc["tsum"] / n if (self.heat is not None and n) else float("nan"),
+            molten_fraction=cnt["molten"] / cnt["meltable"] if cnt["meltable"] else 0.0,
+            broken_springs=cnt["broken"],
+            max_speed=acc["vmax"],
+            particles=n,
+        )
+
+    def _raise_blowup(self) -> None:
+        n = int(self.particles.n[None])
+        x = self.particles.x.to_numpy()[:n]
+        v = self.particles.v.to_numpy()[:n]
+        bad = np.flatnonzero(~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1) & (np.abs(x) < 1e30).all(
+            axis=1) & (np.abs(v) < 1e30).all(axis=1)))
+        who = f"particle {int(bad[0])}" if len(bad) else "an energy sum"
+        limit = self.stable_dt()
+        cause = (
+            f"dt {self.dt:g} is above the stable limit {limit:.3g} for the stiffest spring with {self.integrator.name}"
+            if limit < self.dt else "a force grew without bound (check stiffness, masses and the pair-force core)"
+        )
+        raise SimulationError(f"non-finite state at step {self.step_count} (t = {self.time:.4g}) in {who}: {cause}")
+
+    def stable_dt(self) -> float:
+        """Largest stable step for the springs, 2 / omega_max, with omega_max^2 <= max_i 2 sum_s k_s / m_i
+        (Gershgorin bound on the stiffness matrix); inf without springs."""
+        b = self.built
+        if b.spring_count == 0:
+            return math.inf
+        ksum = np.zeros(b.count)
+        np.add.at(ksum, b.spring_i, b.stiffness)
+        np.add.at(ksum, b.spring_j, b.stiffness)
+        omega2 = np.max(2 * ksum / b.mass)
+        return 2.0 / math.sqrt(omega2) if omega2 > 0 else math.inf
+
+    def heat_dt_limit(self) -> float:
+        """Largest stable explicit heat step on the initial particles (Gershgorin bound), inf without heat."""
+        if self.heat is None or self.built.count < 2:
+            return math.inf
+        from .physics.heat import wendland_grad_factor
+
+        b = self.built
+        rho = np.array([self.scene.materials[m].density for m in self.material_names])[b.material]
+        cap = np.array([self.scene.materials[m].specific_heat for m in self.material_names])[b.material] * b.mass
+        k = np.array([self.scene.materials[m].conductivity for m in self.material_names])[b.material]
+        # Probe a few particles: the diagonal coefficient sum of the heat matrix row.
+        probe = np.linspace(0, b.count - 1, num=min(b.count, 64)).astype(int)
+        worst = 0.0
+        for i in probe:
+            r = np.linalg.norm(b.x - b.x[i], axis=1)
+            near = (r > 0) & (r < self.heat.support)
+            vol = b.mass / rho
+            kij = 2 * k[i] * k[near] / np.maximum(k[i] + k[near], 1e-30)
+            grad = np.array([wendland_grad_factor(rr, self.heat.support, self.dim) for rr in r[near]])
+            row = np.sum(vol[i] * vol[near] * 2 * kij * grad) / cap[i]
+            worst = max(worst, row)
+        return 2.0 / (2.0 * worst) if worst > 0 else math.inf
+
+    # ------------------------------------------------------------------ state
+    def snapshot(self) -> dict[str, np.ndarray]:
+        """Copies of the state fields (for reset and tests)."""
+        p = self.particles
+        snap = {"n": int(p.n[None]), "x": p.x.to_numpy(), "v": p.v.to_numpy()}
+        if self.heat is not None:
+            snap["T"] = p.T.to_numpy()
+        if self.springs is not None:
+            snap["alive"] = self.springs.alive.to_numpy()
+            snap["factor"] = self.springs.factor.to_numpy()
+        snap["time"] = self.time
+        snap["step"] = self.step_count
+        return snap
+
+    def restore(self, snap: dict) -> None:
+        """Put the state back exactly as `snapshot()` saw it."""
+        p = self.particles
+        p.n[None] = snap["n"]
+        p.x.from_numpy(snap["x"])
+        p.v.from_numpy(snap["v"])
+        if self.heat is not None:
+            p.T.from_numpy(snap["T"])
+        if self.springs is not None:
+            self.springs.alive.from_numpy(snap["alive"])
+            self.springs.factor.from_numpy(snap["factor"])
+        self.time = snap["time"]
+        self.step_count = snap["step"]
+
+    def reset(self) -> None:
+        """Back to the scene's initial state."""
+        self.restore(self._initial)
+
+    def positions(self) -> np.ndarray:
+        """Active positions, (N, D) NumPy copy."""
+        return self.particles.x.to_numpy()[: int(self.particles.n[None])]
+
+    def velocities(self) -> np.ndarray:
+        return self.particles.v.to_numpy()[: int(self.particles.n[None])]
+
+    def temperatures(self) -> np.ndarray:
+        return self.particles.T.to_numpy()[: int(self.particles.n[None])]
+
+    def forces(self) -> np.ndarray:
+        """Forces of the last evaluation, (N, D)."""
+        return self.particles.f.to_numpy()[: int(self.particles.n[None])]
+
+    # ------------------------------------------------------------------ description
+    def pipeline(self) -> list[str]:
+        """The passes a step runs, in order."""
+        passes = []
+        if self.grid is not None:
+            passes.append(f"neighbour grid: counting sort into a {self.grid.describe()}")
+        if self.springs is not None:
+            what = "thermoelastic softening, breaking" if self.heat is not None else "overstretch breaking"
+            passes.append(f"spring update ({what}) over {self.springs.count} springs")
+        forces = []
+        if self.pair is not None:
+            forces.append(f"pair force (a={self.pair.a:g}, b={self.pair.b:g}, cutoff {self.pair.cutoff:g})")
+        if self.heat is not None:
+            forces.append(f"heat diffusion (kernel support {self.heat.support:g}, {self.heat.n_sources} sources)")
+        if self.springs is not None:
+            forces.append("spring-damper forces (gathered per particle)")
+        forces.append("gravity" + (" and drag" if self.scene.world.drag else ""))
+        passes.append("fused rates kernel: " + ", ".join(forces))
+        walls = "periodic wrap" if self.scene.world.periodic else "walls (restitution, friction)"
+        heat = ", explicit heat update" if self.heat is not None else ""
+        passes.append(f"integrator {self.integrator.name}, then {walls}{heat}")
+        return passes
+
+    def memory_bytes(self) -> dict[str, int]:
+        """Bytes of field memory by part."""
+        fbytes = 8 if self.scene.world.precision == "f64" else 4
+        out = {"particles": self.particles.nbytes()}
+        if self.springs is not None:
+            out["springs"] = self.springs.count * (3 * 4 + 4 * fbytes) + self.capacity * self.springs.max_bonds * 4
+        if self.grid is not None:
+            out["grid"] = CellGrid.footprint_bytes(self.capacity, self.grid.n_cells)
+        return out
+
+
+def timed_steps(sim: Simulation, n: int) -> float:
+    """Run n steps and return the wall seconds, synchronised with the device."""
+    ti.sync()
+    t0 = time.perf_counter()
+    sim.step(n)
+    ti.sync()
+    return time.perf_counter() - t0
