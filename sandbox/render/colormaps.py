@@ -1,0 +1,53 @@
+"""Colour maps as Taichi funcs (and NumPy twins for tests and legends). Inputs t are in [0, 1]."""
+
+import numpy as np
+import taichi as ti
+
+# Glow: a blackbody-like ramp for hot material (dark red -> orange -> yellow -> white).
+GLOW_STOPS = np.array(
+    [[0.0, 0.3, 0.02, 0.01], [0.35, 0.62, 0.06, 0.02], [0.6, 1.0, 0.35, 0.04], [0.82, 1.0, 0.78, 0.25],
+     [1.0, 1.0, 1.0, 0.85]], dtype=np.float32)
+# Speed: dark blue -> teal -> yellow (viridis-like).
+SPEED_STOPS = np.array(
+    [[0.0, 0.12, 0.1, 0.35], [0.35, 0.13, 0.45, 0.56], [0.7, 0.35, 0.78, 0.4], [1.0, 0.99, 0.9, 0.15]],
+    dtype=np.float32)
+
+
+def ramp_np(stops: np.ndarray, t: float) -> np.ndarray:
+    """Piecewise-linear colour ramp (NumPy twin of the Taichi funcs)."""
+    t = float(np.clip(t, 0.0, 1.0))
+    return np.array([np.interp(t, stops[:, 0], stops[:, k]) for k in (1, 2, 3)], dtype=np.float32)
+
+
+def _ramp_func(stops: np.ndarray):
+    pos = [float(s[0]) for s in stops]
+    cols = [ti.Vector([float(s[1]), float(s[2]), float(s[3])]) for s in stops]
+
+    @ti.func
+    def ramp(t):
+        t = ti.math.clamp(t, 0.0, 1.0)
+        c = cols[0]
+        for k in ti.static(range(1, len(pos))):
+            if t > pos[k - 1]:
+                u = ti.min((t - pos[k - 1]) / (pos[k] - pos[k - 1]), 1.0)
+                c = cols[k - 1] * (1.0 - u) + cols[k] * u
+        return c
+
+    return ramp
+
+
+glow = _ramp_func(GLOW_STOPS)
+speed_map = _ramp_func(SPEED_STOPS)
+
+
+def glow_over_base_np(base: np.ndarray, t: float) -> np.ndarray:
+    """Cold material keeps its base colour; from t = 0.12 the glow takes over (fully at 0.37) (NumPy twin of glow_over_base)."""
+    w = float(np.clip((t - 0.12) / 0.25, 0.0, 1.0))
+    return (1 - w) * np.asarray(base, dtype=np.float32) + w * ramp_np(GLOW_STOPS, t)
+
+
+@ti.func
+def glow_over_base(base, t):
+    """Temperature colour: the material's own colour when cold, a blackbody-like glow when hot."""
+    w = ti.math.clamp((t - 0.12) / 0.25, 0.0, 1.0)
+    return (1.0 - w) * base + w * glow(t)

@@ -1,0 +1,137 @@
+"""Frame writers chosen by the output path: .mp4 (H.264, yuv420p), .gif (palette per clip), .png (one still) or a
+folder (a numbered PNG sequence). MP4 and GIF use imageio-ffmpeg, whose wheel carries its own ffmpeg binary, so no
+system ffmpeg is needed. Frames are (H, W, 3) uint8 arrays, top row first. Every writer is a context manager: on
+any exit, including Ctrl-C, what was written so far is closed into a valid file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SandboxError
+
+VIDEO_HINT = "install the video extra: python3 -m pip install -e '.[video]'"
+
+
+def write_png(path: str | Path, frame: np.ndarray) -> None:
+    """Write one (H, W, 3) uint8 frame as a PNG (through Taichi's bundled image writer)."""
+    import taichi as ti
+
+    ti.tools.imwrite(np.ascontiguousarray(frame.transpose(1, 0, 2)[:, ::-1]), str(path))
+
+
+def read_png(path: str | Path) -> np.ndarray:
+    """Read a PNG as an (H, W, C) uint8 array, top row first."""
+    import taichi as ti
+
+    img = ti.tools.imread(str(path))
+    return np.ascontiguousarray(img.transpose(1, 0, 2)[::-1])
+
+
+class FrameWriter:
+    """Base: `write(frame)`, `close()`; `frames_written` counts frames."""
+
+    def __init__(self, path: Path, width: int, height: int, fps: float):
+        self.path, self.width, self.height, self.fps = path, width, height, fps
+        self.frames_written = 0
+
+    def write(self, frame: np.ndarray) -> None:
+        self._write(frame)
+        self.frames_written += 1
+
+    def _write(self, frame: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+class PngSequenceWriter(FrameWriter):
+    """frame_00000.png, frame_00001.png, ... in a folder."""
+
+    def __init__(self, path: Path, width: int, height: int, fps: float):
+        super().__init__(path, width, height, fps)
+        path.mkdir(parents=True, exist_ok=True)
+
+    def _write(self, frame):
+        write_png(self.path / f"frame_{self.frames_written:05d}.png", frame)
+
+
+class StillWriter(FrameWriter):
+    """Keeps the frame numbered `still_frame` (default: the last) and writes it as one PNG on close."""
+
+    def __init__(self, path: Path, width: int, height: int, fps: float, still_frame: int | None = None):
+        super().__init__(path, width, height, fps)
+        self.still_frame = still_frame
+        self._kept: np.ndarray | None = None
+
+    def _write(self, frame):
+        if self.still_frame is None or self.frames_written == self.still_frame:
+            self._kept = frame.copy()
+
+    def close(self):
+        if self._kept is not None:
+            write_png(self.path, self._kept)
+            self._kept = None
+
+
+class FfmpegWriter(FrameWriter):
+    """MP4 (libx264, yuv420p) or GIF (one palette for the clip, from ffmpeg's palettegen) through imageio-ffmpeg."""
+
+    def __init__(self, path: Path, width: int, height: int, fps: float):
+        super().__init__(path, width, height, fps)
+        import imageio_ffmpeg
+
+        if path.suffix.lower() == ".gif":
+            kwargs = dict(codec="gif", pix_fmt_out="rgb24", output_params=[
+                "-filter_complex", "split[a][b];[a]palettegen=stats_mode=diff[p];[b][p]paletteuse=dither=bayer"])
+        else:
+            kwargs = dict(codec="libx264", pix_fmt_out="yuv420p", quality=7, output_params=["-movflags", "+faststart"])
+        self._gen = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, macro_block_size=2,
+                                                ffmpeg_log_level="error", **kwargs)
+        self._gen.send(None)
+
+    def _write(self, frame):
+        self._gen.send(np.ascontiguousarray(frame))
+
+    def close(self):
+        if self._gen is not None:
+            self._gen.close()
+            self._gen = None
+
+
+def check_output(path: str | Path) -> None:
+    """Fail early (before any simulation) when the output kind needs a package that is missing."""
+    suffix = Path(path).suffix.lower()
+    if suffix in (".mp4", ".gif"):
+        try:
+            import imageio_ffmpeg  # noqa: F401
+        except ImportError as exc:
+            raise SandboxError(f"{path}: writing {suffix} needs imageio-ffmpeg; {VIDEO_HINT}") from exc
+    elif suffix not in ("", ".png"):
+        raise SandboxError(f"{path}: unknown output kind {suffix!r}; expected .mp4, .gif, .png or a folder")
+
+
+def open_writer(path: str | Path, width: int, height: int, fps: float, still_frame: int | None = None) -> FrameWriter:
+    """The writer for `path` by its extension; a path without extension is a folder of PNGs."""
+    path = Path(path)
+    check_output(path)
+    if path.parent and not path.parent.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+    suffix = path.suffix.lower()
+    if suffix in (".mp4", ".gif"):
+        if width % 2 or height % 2:
+            raise SandboxError(f"{path}: {suffix} needs an even width and height, got {width}x{height}")
+        return FfmpegWriter(path, width, height, fps)
+    if suffix == ".png":
+        return StillWriter(path, width, height, fps, still_frame)
+    return PngSequenceWriter(path, width, height, fps)
