@@ -18,7 +18,7 @@ from .simulation import STAT_COLUMNS, Simulation, Stats
 
 @dataclass
 class RunResult:
-    frames: int
+    frames: int  # frames written (or run, without an output)
     sim_time: float
     wall_seconds: float
     last: Stats | None
@@ -106,4 +106,5 @@ def run_headless(
             writer.close()
         if csv_file is not None:
             csv_file.close()
-    return RunResult(done, sim.time, time.perf_counter() - start, last, interrupted)
+    written = writer.frames_written if writer is not None else done
+    return RunResult(written, sim.time, time.perf_counter() - start, last, interrupted)

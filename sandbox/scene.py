@@ -22,7 +22,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-INTEGRATORS = ("symplectic_euler", "forward_euler", "midpoint", "verlet", "velocity_verlet", "implicit_euler")
+INTEGRATORS = ("symplectic_euler", "forward_euler", "velocity_verlet")  # kept equal to integrators.REGISTRY
 SHAPES = ("box", "disk", "sphere", "mask")
 LATTICES = ("square", "hex", "cubic", "fcc")
 COLOR_BY = ("temperature", "material", "speed", "phase")
@@ -230,6 +230,11 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     if not raw.bodies:
         raise SceneError(file, "bodies", "expected at least one [[bodies]] table")
     bodies = [_check_body(file, f"bodies[{i}]", b, i, dim, materials, path) for i, b in enumerate(raw.bodies)]
+    for i, body in enumerate(bodies):
+        lo, hi = _body_bounds(body)
+        if any(a < l - 1e-9 for a, l in zip(lo, world.lo)) or any(b > h + 1e-9 for b, h in zip(hi, world.hi)):
+            raise SceneError(file, f"bodies[{i}]", f"the body ({list(lo)}..{list(hi)}) lies outside the domain "
+                             f"{list(world.lo)}..{list(world.hi)}; expected it inside world.lo..world.hi")
     if world.periodic:
         reach = max(raw.pair.cutoff if raw.pair else 0.0, heat.radius if heat else 0.0)
         if any((h - l) < 3 * reach for l, h in zip(world.lo, world.hi)):
@@ -253,6 +258,12 @@ def _replace(obj, **changes):
     import dataclasses
 
     return dataclasses.replace(obj, **changes)
+
+
+def _body_bounds(body: Body) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    if body.shape in ("disk", "sphere"):
+        return tuple(c - body.radius for c in body.center), tuple(c + body.radius for c in body.center)
+    return body.lo, body.hi
 
 
 def _check_vec(file: str, key: str, vec: tuple, dim: int) -> None:

@@ -20,7 +20,7 @@ from .integrators import make_integrator
 from .model import MaterialTable, ParticleFields
 from .physics.boundary import Domain
 from .physics.grid import CellGrid
-from .physics.heat import Heat
+from .physics.heat import Heat, lattice_correction
 from .physics.pair import PairForce
 from .physics.springs import Springs
 from .scene import Scene
@@ -31,6 +31,7 @@ STAT_COLUMNS = (
     "step_seconds",
 )
 
+RUNAWAY_FACTOR = 1e4  # kinetic energy above this many natural energy scales stops the run (see stats())
 _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5}
 _COUNT = {"molten": 0, "broken": 1, "meltable": 2, "bad": 3}
 
@@ -84,7 +85,11 @@ class Simulation:
                       p.mass, p.material, p.v)
             if scene.pair else None
         )
-        self.heat = Heat(self.dim, scene.heat, p, self.materials) if scene.heat else None
+        self.heat = None
+        if scene.heat:
+            density = np.array([m.density for m in materials])[built.material]
+            correction = lattice_correction(built.x, built.mass / density, scene.heat.radius)
+            self.heat = Heat(self.dim, scene.heat, p, self.materials, correction)
         self.springs = (
             Springs(built, self.capacity, p, self.materials, scene.heat is not None, self.domain.separation)
             if built.spring_count else None
@@ -105,6 +110,7 @@ class Simulation:
         self.integrator = make_integrator(world.integrator, self)
         self.time = 0.0
         self.step_count = 0
+        self._energy_scale: float | None = None
         self._initial = self.snapshot()
 
     # ------------------------------------------------------------------ stepping
@@ -132,8 +138,8 @@ class Simulation:
             q = 0.0
             if ti.static(self.has_grid):
                 c = self.grid.cell_of(xi)
-                for off in ti.static(self.grid.offsets()):
-                    nc = self.grid.neighbour_cell(c, off)
+                for o in range(self.grid.n_offsets):
+                    nc = self.grid.neighbour_cell(c, self.grid.offset(o))
                     if nc >= 0:
                         start = self.grid.cell_start[nc]
                         for k in range(start, start + self.grid.cell_count[nc]):
@@ -208,8 +214,8 @@ class Simulation:
             for i in range(p.n[None]):
                 e = 0.0
                 c = self.grid.cell_of(p.x[i])
-                for off in ti.static(self.grid.offsets()):
-                    nc = self.grid.neighbour_cell(c, off)
+                for o in range(self.grid.n_offsets):
+                    nc = self.grid.neighbour_cell(c, self.grid.offset(o))
                     if nc >= 0:
                         start = self.grid.cell_start[nc]
                         for k in range(start, start + self.grid.cell_count[nc]):
@@ -242,7 +248,12 @@ class Simulation:
         cnt = {k: int(cnt_values[i]) for k, i in _COUNT.items()}
         n = int(self.particles.n[None])
         if cnt["bad"] or not all(math.isfinite(v) for v in acc.values()):
-            self._raise_blowup()
+            self._raise_blowup("non-finite state")
+        if self._energy_scale is None:
+            self._energy_scale = self._natural_energy(acc)
+        if acc["ke"] > RUNAWAY_FACTOR * self._energy_scale:
+            self._raise_blowup(f"runaway kinetic energy {acc['ke']:.3g} (over {RUNAWAY_FACTOR:g} x the scene's "
+                               f"natural scale {self._energy_scale:.3g})")
         return Stats(
             time=self.time,
             kinetic_energy=acc["ke"],
@@ -256,19 +267,31 @@ class Simulation:
             particles=n,
         )
 
-    def _raise_blowup(self) -> None:
+    def _natural_energy(self, acc: dict) -> float:
+        """Energy scale of the initial state: its kinetic and bound energies, the work gravity can do across the
+        domain, and every particle moving at one domain length per unit time."""
+        b = self.built
+        size = float(np.max(np.asarray(self.scene.world.hi) - np.asarray(self.scene.world.lo)))
+        g = float(np.linalg.norm(self.scene.world.gravity))
+        mass = float(b.mass.sum())
+        return acc["ke"] + abs(acc["spring"]) + abs(acc["pair"]) + mass * g * size + 0.5 * mass * size**2
+
+    def _raise_blowup(self, what: str) -> None:
         n = int(self.particles.n[None])
         x = self.particles.x.to_numpy()[:n]
         v = self.particles.v.to_numpy()[:n]
         bad = np.flatnonzero(~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1) & (np.abs(x) < 1e30).all(
             axis=1) & (np.abs(v) < 1e30).all(axis=1)))
-        who = f"particle {int(bad[0])}" if len(bad) else "an energy sum"
+        if len(bad):
+            who = f"particle {int(bad[0])}"
+        else:
+            who = f"particle {int(np.argmax(np.linalg.norm(v, axis=1)))} (the fastest)"
         limit = self.stable_dt()
         cause = (
             f"dt {self.dt:g} is above the stable limit {limit:.3g} for the stiffest spring with {self.integrator.name}"
             if limit < self.dt else "a force grew without bound (check stiffness, masses and the pair-force core)"
         )
-        raise SimulationError(f"non-finite state at step {self.step_count} (t = {self.time:.4g}) in {who}: {cause}")
+        raise SimulationError(f"{what} at step {self.step_count} (t = {self.time:.4g}) in {who}: {cause}")
 
     def stable_dt(self) -> float:
         """Largest stable step for the springs, 2 / omega_max, with omega_max^2 <= max_i 2 sum_s k_s / m_i
@@ -301,6 +324,7 @@ class Simulation:
             vol = b.mass / rho
             kij = 2 * k[i] * k[near] / np.maximum(k[i] + k[near], 1e-30)
             grad = np.array([wendland_grad_factor(rr, self.heat.support, self.dim) for rr in r[near]])
+            grad /= self.heat.correction
             row = np.sum(vol[i] * vol[near] * 2 * kij * grad) / cap[i]
             worst = max(worst, row)
         return 2.0 / (2.0 * worst) if worst > 0 else math.inf

@@ -1,0 +1,37 @@
+"""Shared helpers: scenes from Python dicts, and Taichi on the CPU backend."""
+
+import copy
+from pathlib import Path
+
+import pytest
+
+from sandbox.scene import Scene, scene_from_dict
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / "scenes"
+
+
+def scene_dict(dim: int = 2, **sections) -> dict:
+    """A minimal valid scene table: a 20^dim box domain with one small jelly body; sections replace tables."""
+    base = {
+        "world": {"dim": dim, "lo": [0.0] * dim, "hi": [20.0] * dim, "dt": 0.001, "substeps": 1},
+        "bodies": [{"material": "jelly", "shape": "box", "lo": [5.0] * dim, "hi": [8.0] * dim}],
+    }
+    base.update(copy.deepcopy(sections))
+    return base
+
+
+def make_scene(data: dict, name: str = "test.toml") -> Scene:
+    return scene_from_dict(data, ROOT / "tests" / name)
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    """Write TOML text to a scene file in a temporary folder; returns its path."""
+
+    def write(text: str, name: str = "scene.toml") -> Path:
+        path = tmp_path / name
+        path.write_text(text)
+        return path
+
+    return write

@@ -1,0 +1,122 @@
+"""Force laws: the Voigt spring-damper, the generalized pair force (and its 12-6 Lennard-Jones case), momentum."""
+
+import math
+
+import numpy as np
+import pytest
+
+from sandbox.physics.pair import equilibrium_distance, pair_energy, radial_force
+from sandbox.simulation import Simulation
+
+from .conftest import make_scene, scene_dict
+
+LJ_WORLD = {"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.001}
+
+
+def two_particles(pair=None, springs=True, material="jelly", **world):
+    """Two particles 1 apart at (10.5, 10.5) and (11.5, 10.5), optionally joined by one spring."""
+    w = {"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.001}
+    w.update(world)
+    data = scene_dict(world=w, bodies=[{"material": material, "shape": "box", "lo": [10, 10], "hi": [12, 11],
+                                        "springs": springs, "spring_radius": 1.0}])
+    if pair is not None:
+        data["pair"] = pair
+    return Simulation(make_scene(data))
+
+
+def place(sim, x, v=None):
+    x = np.asarray(x, dtype=np.float32)
+    full = sim.particles.x.to_numpy()
+    full[: len(x)] = x
+    sim.particles.x.from_numpy(full)
+    vel = sim.particles.v.to_numpy()
+    vel[: len(x)] = 0 if v is None else np.asarray(v, dtype=np.float32)
+    sim.particles.v.from_numpy(vel)
+    sim.eval_rates()
+    return sim.forces()
+
+
+def test_spring_force_law_and_equal_opposite():
+    sim = two_particles()
+    assert sim.springs.count == 1
+    k, c = sim.scene.materials["jelly"].stiffness, sim.scene.materials["jelly"].damping
+    d = np.array([1.3, 0.4])
+    f = place(sim, [[10.0, 10.0], [10.0 + d[0], 10.0 + d[1]]])
+    r = np.linalg.norm(d)
+    expected = k * (r - 1.0) * d / r  # stretched: pulls i towards j
+    assert np.allclose(f[0], expected, rtol=1e-5)
+    assert np.array_equal(f[1], -f[0])  # exactly, not just approximately
+    # Damper: j moving away along d at speed u adds c u d_hat on i, opposing the stretching rate
+    u = 0.7
+    f = place(sim, [[10.0, 10.0], [10.0 + d[0], 10.0 + d[1]]], v=[[0, 0], list(u * d / r)])
+    assert np.allclose(f[0], expected + c * u * d / r, rtol=1e-5)
+    assert np.array_equal(f[1], -f[0])
+
+
+def test_compressed_spring_pushes_apart():
+    sim = two_particles()
+    f = place(sim, [[10.0, 10.0], [10.6, 10.0]])
+    assert f[0][0] < 0 < f[1][0]
+
+
+def test_lennard_jones_is_the_generalized_form_with_a8_b14():
+    # 12-6 LJ with eps = sigma = 1: F(r) = 24 (2 r^-13 - r^-7) (repulsive positive); energy 4 (r^-12 - r^-6)
+    for r in (0.95, 1.0, 2 ** (1 / 6), 1.3, 1.8, 2.4):
+        f_lj = 24 * (2 * r**-13 - r**-7)
+        g = radial_force(r, 24.0, 48.0, 0.0, 8, 14)  # F_i = g d, d from i to j: repulsion is g < 0
+        assert -g * r == pytest.approx(f_lj, rel=1e-12)
+        u_lj = 4 * (r**-12 - r**-6) - 4 * (2.5**-12 - 2.5**-6)
+        assert pair_energy(r, 24.0, 48.0, 0.0, 8, 14, 2.5) == pytest.approx(u_lj, rel=1e-12, abs=1e-12)
+    assert equilibrium_distance(24.0, 48.0, 0.0, 8, 14) == pytest.approx(2 ** (1 / 6), rel=1e-9)
+
+
+def test_lj_in_taichi_matches_analytic_and_vanishes_at_equilibrium():
+    sim = two_particles(pair={"a": 8.0, "b": 14.0, "cutoff": 2.5}, springs=False, material="lj")
+    for r in (0.95, 1.1, 1.5, 2.2):
+        f = place(sim, [[10.0, 10.0], [10.0 + r, 10.0]])
+        f_lj = 24 * (2 * r**-13 - r**-7)  # repulsive positive: pushes i to -x
+        assert f[0][0] == pytest.approx(-f_lj, rel=1e-4, abs=1e-5)  # f32 positions
+        assert f[1][0] == -f[0][0]
+        e = sim.stats().pair_energy
+        assert e == pytest.approx(4 * (r**-12 - r**-6) - 4 * (2.5**-12 - 2.5**-6), rel=1e-4, abs=1e-5)
+    f = place(sim, [[10.0, 10.0], [10.0 + 2 ** (1 / 6), 10.0]])
+    assert abs(f[0][0]) < 1e-4  # force scale here is ~24
+    f = place(sim, [[10.0, 10.0], [12.6, 10.0]])
+    assert np.all(f == 0)  # beyond the cutoff
+
+
+def test_default_form_a2_b4_zero_at_equilibrium_and_energy_is_its_integral():
+    alpha, beta, eps = 3.0, 2.0, 0.1
+    r_eq = equilibrium_distance(alpha, beta, eps, 2, 4)
+    assert radial_force(r_eq, alpha, beta, eps, 2, 4) == pytest.approx(0, abs=1e-9)
+    for r in (0.9, 1.2, 1.7):
+        h = 1e-6
+        du = (pair_energy(r + h, alpha, beta, eps, 2, 4, 3.0) - pair_energy(r - h, alpha, beta, eps, 2, 4, 3.0)) / (2 * h)
+        assert du == pytest.approx(r * radial_force(r, alpha, beta, eps, 2, 4), rel=1e-6)
+
+
+def test_coincident_particles_get_finite_opposite_push():
+    sim = two_particles(pair={"a": 8.0, "b": 14.0, "cutoff": 2.5}, springs=False, material="lj")
+    for gap in (0.0, 1e-7, 0.3):
+        f = place(sim, [[10.0, 10.0], [10.0 + gap, 10.0]])
+        assert np.all(np.isfinite(f))
+        assert f[0][0] < 0 < f[1][0]
+        assert np.allclose(f[0], -f[1])
+    # the cap: below core * r_eq the force keeps its value at the core
+    core_r = 0.6 * 2 ** (1 / 6)
+    f_core = 24 * (2 * core_r**-13 - core_r**-7)
+    assert abs(f[0][0]) == pytest.approx(f_core, rel=1e-4)
+
+
+def test_total_force_vanishes_without_gravity():
+    data = scene_dict(world=LJ_WORLD, pair={"a": 8.0, "b": 14.0, "cutoff": 2.5},
+                      bodies=[{"material": "wax", "shape": "box", "lo": [5, 5], "hi": [15, 13], "jitter": 0.3,
+                               "seed": 3, "random_velocity": 0.5}, {"material": "lj", "shape": "box", "lo": [15, 5],
+                                                                  "hi": [22, 12], "springs": False, "jitter": 0.2}])
+    data["heat"] = {"ambient": 20.0}
+    sim = Simulation(make_scene(data))
+    sim.eval_rates()
+    f = sim.forces().astype(np.float64)
+    scale = np.abs(f).sum()
+    assert scale > 0
+    assert np.abs(f.sum(axis=0)).max() < 1e-5 * scale

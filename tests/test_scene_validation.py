@@ -1,0 +1,108 @@
+"""Scene files are validated data: each mistake gives one error naming the file, the key and the expectation."""
+
+import subprocess
+import sys
+
+import pytest
+
+from sandbox.cli import main
+from sandbox.errors import SceneError
+from sandbox.scene import apply_override, load_scene, parse_override
+
+GOOD = """
+[world]
+dim = 2
+lo = [0.0, 0.0]
+hi = [20.0, 20.0]
+
+[[bodies]]
+material = "jelly"
+lo = [5.0, 5.0]
+hi = [8.0, 8.0]
+"""
+
+
+def test_good_scene_loads_with_defaults(scene_file):
+    scene = load_scene(scene_file(GOOD))
+    assert scene.dim == 2 and scene.world.dt == 0.002 and scene.world.gravity == (0.0, 0.0)
+    assert scene.pair is None and scene.heat is None
+    assert scene.bodies[0].lattice == "square" and scene.bodies[0].name == "body0"
+
+
+@pytest.mark.parametrize(
+    "text, key, expectation",
+    [
+        (GOOD.replace("dim = 2", "dim = 2\ncolour = 3"), "world.colour", "unknown key"),
+        (GOOD.replace("dim = 2", 'dim = "two"'), "world.dim", "expected an integer"),
+        (GOOD.replace("dim = 2", "dim = 2\ndt = -0.1"), "world.dt", "expected a number > 0"),
+        (GOOD.replace("dim = 2", "dim = 2\ndt = 0.0"), "world.dt", "expected a number > 0"),
+        (GOOD.replace('material = "jelly"', 'material = "jely"'), "bodies[0].material", "unknown material 'jely'"),
+        (GOOD.replace("hi = [20.0, 20.0]", "hi = [20.0, 20.0, 20.0]"), "world.hi", "expected 2 numbers"),
+        (GOOD + '\n[materials.heavy]\nbased_on = "jelly"\nparticle_mass = -1.0\n', "materials.heavy.particle_mass",
+         "expected a number > 0"),
+        (GOOD + '\n[materials.soft]\nbased_on = "jelly"\nstiffness = -5.0\n', "materials.soft.stiffness",
+         "expected a number > 0"),
+        (GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "nope.png"'),
+         "bodies[0].mask", "not found"),
+        (GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "../../etc/passwd"'),
+         "bodies[0].mask", "outside the scene's folder"),
+        (GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "/etc/hostname"'),
+         "bodies[0].mask", "outside the scene's folder"),
+        (GOOD.replace("lo = [5.0, 5.0]", "lo = [15.0, 15.0]").replace("hi = [8.0, 8.0]", "hi = [25.0, 25.0]"),
+         "bodies[0]", "outside the domain"),
+        (GOOD + "\n[pair]\na = 4.0\nb = 2.0\n", "pair.b", "expected the repulsion exponent b above"),
+        (GOOD.replace("dim = 2", 'dim = 2\nintegrator = "leapfrog"'), "world.integrator", "expected one of"),
+    ],
+)
+def test_bad_scene_names_file_key_and_expectation(scene_file, text, key, expectation):
+    path = scene_file(text)
+    with pytest.raises(SceneError) as err:
+        load_scene(path)
+    message = str(err.value)
+    assert message.startswith(str(path)), message
+    assert f"'{key}'" in message, message
+    assert expectation in message, message
+
+
+def test_invalid_toml_is_one_error(scene_file):
+    with pytest.raises(SceneError, match="not valid TOML"):
+        load_scene(scene_file("[world\n"))
+
+
+def test_mask_in_scene_folder_is_accepted(scene_file, tmp_path):
+    import numpy as np
+
+    from sandbox.render.video import write_png
+
+    img = np.zeros((8, 8, 3), np.uint8)
+    img[2:6, 2:6] = 255
+    write_png(tmp_path / "square.png", img)
+    text = GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "square.png"')
+    scene = load_scene(scene_file(text))
+    assert scene.bodies[0].mask.endswith("square.png")
+
+
+def test_overrides_set_nested_values(scene_file):
+    scene = load_scene(scene_file(GOOD), ["world.dt=0.0005", "bodies.0.temperature=35", "render.color_by=speed"])
+    assert scene.world.dt == 0.0005 and scene.bodies[0].temperature == 35.0 and scene.render.color_by == "speed"
+    assert parse_override("a.b=[1, 2]") == ("a.b", [1, 2])
+    with pytest.raises(SceneError, match="not an index"):
+        apply_override({"bodies": []}, "bodies.3.x", 1)
+
+
+def test_cli_bad_scene_prints_one_line_and_exits_nonzero(scene_file, capsys):
+    path = scene_file(GOOD.replace("dim = 2", "dim = 2\nwibble = 1"))
+    code = main(["check", str(path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and err[0].startswith("error: ") and "world.wibble" in err[0]
+
+
+def test_cli_subprocess_exit_code(scene_file):
+    path = scene_file(GOOD.replace('material = "jelly"', 'material = "unobtainium"'))
+    proc = subprocess.run([sys.executable, "-m", "sandbox", "run", str(path), "--headless", "--frames", "1"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "unknown material 'unobtainium'" in lines[0]
+    assert "Traceback" not in proc.stderr
