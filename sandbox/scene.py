@@ -49,6 +49,9 @@ class World:
     drag: float = spec(0.0, doc="linear drag rate on every particle (1/time)", check=non_negative)
     precision: str = spec("f32", doc="float precision of the fields", check=one_of("f32", "f64"))
     capacity: int = spec(0, doc="particle capacity (0: the initial count)", check=at_least(0))
+    neighbor_list: bool = spec(True, doc="Verlet neighbour lists (false: scan the cell grid every step)")
+    skin: float = spec(0.3, doc="neighbour-list skin (length): lists are rebuilt after a particle moves skin/2",
+                       check=positive)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -8,6 +8,7 @@ force, heat flow, springs, gravity and drag) and then its own update kernel, whi
 
 import math
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +21,7 @@ from .integrators import make_integrator
 from .model import MaterialTable, ParticleFields
 from .physics.boundary import Domain
 from .physics.grid import CellGrid
+from .physics.neighbours import NeighbourList
 from .physics.heat import Heat, lattice_correction
 from .physics.pair import PairForce
 from .physics.springs import Springs
@@ -95,9 +97,15 @@ class Simulation:
             if built.spring_count else None
         )
         reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat.radius if scene.heat else 0.0)
+        skin = world.skin if world.neighbor_list else 0.0
         self.grid = (
-            CellGrid(p.x, p.n, world.lo, world.hi, reach, world.periodic, self.capacity) if reach > 0 else None
+            CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, self.capacity) if reach > 0 else None
         )
+        self.neighbours = (
+            NeighbourList(self.grid, self.domain, p.x, p.n, reach, skin, self.capacity)
+            if self.grid is not None and world.neighbor_list else None
+        )
+        self._warned_overflow = False
         self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
         self.has_heat, self.has_springs = self.heat is not None, self.springs is not None
         self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
@@ -123,36 +131,62 @@ class Simulation:
 
     def eval_rates(self) -> None:
         """Forces (p.f) and heat rates (p.dTdt) at the current state."""
-        if self.grid is not None:
+        use_list = False
+        if self.neighbours is not None:
+            use_list = self.neighbours.ensure_fresh()
+            if not use_list and not self._warned_overflow:
+                self._warned_overflow = True
+                warnings.warn("neighbour list overflow: some particle has more than "
+                              f"{self.neighbours.width} neighbours; scanning the cell grid instead (slower)")
+        elif self.grid is not None:
             self.grid.rebuild()
         if self.springs is not None:
             self.springs.update()
-        self._rates()
+        self._rates(use_list)
+
+    @ti.func
+    def _pair_terms(self, i, j, d, r2, f_scaled, f_visc, q):
+        """Add the pair force (scaled by 1/m_i), the viscous force and the heat flow of neighbour j to i."""
+        if ti.static(self.has_pair):
+            if r2 < self.pair.cutoff**2:
+                f_scaled += self.pair.scaled_force(i, j, d, r2)
+                f_visc += self.pair.viscous_force(i, j, d, r2)
+        if ti.static(self.has_heat):
+            if r2 < self.heat.support**2:
+                q += self.heat.flow(i, j, r2)
+        return f_scaled, f_visc, q
 
     @ti.kernel
-    def _rates(self):
+    def _rates(self, use_list: ti.template()):
         p = self.particles
-        for i in range(p.n[None]):
+        for ks in range(p.n[None]):
+            i = ks
+            if ti.static(self.has_grid):
+                i = self.grid.sorted_ids[ks]  # visit particles cell by cell: neighbours stay in cache
             xi = p.x[i]
             f = p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
             q = 0.0
             if ti.static(self.has_grid):
-                c = self.grid.cell_of(xi)
-                for o in range(self.grid.n_offsets):
-                    nc = self.grid.neighbour_cell(c, self.grid.offset(o))
-                    if nc >= 0:
-                        start = self.grid.cell_start[nc]
-                        for k in range(start, start + self.grid.cell_count[nc]):
-                            j = self.grid.sorted_ids[k]
-                            if j != i:
-                                d = self.domain.separation(xi, p.x[j])
-                                r2 = d.dot(d)
-                                if ti.static(self.has_pair):
-                                    if r2 < self.pair.cutoff**2:
-                                        f += self.pair.force(i, j, d, r2)
-                                if ti.static(self.has_heat):
-                                    if r2 < self.heat.support**2:
-                                        q += self.heat.flow(i, j, r2)
+                f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
+                f_visc = ti.Vector.zero(float, self.dim)
+                if ti.static(use_list):
+                    for k in range(self.neighbours.count[i]):
+                        j = self.neighbours.ids[i, k]
+                        d = self.domain.separation(xi, p.x[j])
+                        f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
+                else:
+                    c = self.grid.cell_of(xi)
+                    for o in range(self.grid.n_offsets):
+                        nc, shift = self.grid.neighbour_cell(c, self.grid.offset(o))
+                        if nc >= 0:
+                            start = self.grid.cell_start[nc]
+                            xs = xi - shift
+                            for k in range(start, start + self.grid.cell_count[nc]):
+                                j = self.grid.sorted_ids[k]
+                                if j != i:
+                                    d = self.grid.x_sorted[k] - xs
+                                    f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
+                f += p.mass[i] * f_scaled + f_visc
             if ti.static(self.has_springs):
                 for k in range(self.springs.max_bonds):
                     s = self.springs.bonds[i, k]
@@ -215,13 +249,13 @@ class Simulation:
                 e = 0.0
                 c = self.grid.cell_of(p.x[i])
                 for o in range(self.grid.n_offsets):
-                    nc = self.grid.neighbour_cell(c, self.grid.offset(o))
+                    nc, shift = self.grid.neighbour_cell(c, self.grid.offset(o))
                     if nc >= 0:
                         start = self.grid.cell_start[nc]
                         for k in range(start, start + self.grid.cell_count[nc]):
                             j = self.grid.sorted_ids[k]
                             if j > i:
-                                d = self.domain.separation(p.x[i], p.x[j])
+                                d = self.grid.x_sorted[k] + shift - p.x[i]
                                 r2 = d.dot(d)
                                 if r2 < self.pair.cutoff**2:
                                     e += self.pair.energy(i, j, r2)
@@ -356,6 +390,8 @@ class Simulation:
             self.springs.factor.from_numpy(snap["factor"])
         self.time = snap["time"]
         self.step_count = snap["step"]
+        if self.neighbours is not None:
+            self.neighbours.invalidate()
 
     def reset(self) -> None:
         """Back to the scene's initial state."""
@@ -379,8 +415,12 @@ class Simulation:
     def pipeline(self) -> list[str]:
         """The passes a step runs, in order."""
         passes = []
-        if self.grid is not None:
-            passes.append(f"neighbour grid: counting sort into a {self.grid.describe()}")
+        if self.neighbours is not None:
+            passes.append(f"neighbour lists (reach {self.neighbours.reach:g} + skin {self.neighbours.skin:g}, width "
+                          f"{self.neighbours.width}), rebuilt from a counting-sort {self.grid.describe()} when a "
+                          "particle has moved half the skin")
+        elif self.grid is not None:
+            passes.append(f"neighbour grid: counting sort into a {self.grid.describe()}, every step")
         if self.springs is not None:
             what = "thermoelastic softening, breaking" if self.heat is not None else "overstretch breaking"
             passes.append(f"spring update ({what}) over {self.springs.count} springs")
@@ -405,7 +445,9 @@ class Simulation:
         if self.springs is not None:
             out["springs"] = self.springs.count * (3 * 4 + 4 * fbytes) + self.capacity * self.springs.max_bonds * 4
         if self.grid is not None:
-            out["grid"] = CellGrid.footprint_bytes(self.capacity, self.grid.n_cells)
+            out["grid"] = CellGrid.footprint_bytes(self.capacity, self.grid.n_cells, self.dim)
+        if self.neighbours is not None:
+            out["neighbour lists"] = self.neighbours.nbytes()
         return out
 
 

@@ -86,8 +86,8 @@ def test_check_prints_the_pipeline(capsys):
     assert main(["check", "spring_lattice", "--arch", "cpu"]) == 0
     out = capsys.readouterr().out.split("pipeline per step:")[1]
     assert "spring update" in out and "spring-damper forces" in out
-    assert "pair force" not in out and "heat" not in out and "neighbour grid" not in out
+    assert "pair force" not in out and "heat" not in out and "neighbour" not in out
     assert main(["check", "melting_block", "--arch", "cpu"]) == 0
     out = capsys.readouterr().out
-    for part in ("neighbour grid", "thermoelastic", "pair force (a=8, b=14", "heat diffusion", "particles 1200"):
+    for part in ("neighbour lists", "thermoelastic", "pair force (a=8, b=14", "heat diffusion", "particles 1200"):
         assert part in out

@@ -14,6 +14,7 @@ class Domain:
         self.lo = ti.Vector(list(lo))
         self.hi = ti.Vector(list(hi))
         self.box = ti.Vector([h - l for l, h in zip(lo, hi)])
+        self.inv_box = ti.Vector([1.0 / (h - l) for l, h in zip(lo, hi)])
         self.restitution = ti.field(float, shape=())  # normal speed kept after a wall hit, in [0, 1]
         self.friction = ti.field(float, shape=())  # Coulomb coefficient: tangential impulse <= mu * normal impulse
         self.restitution[None] = restitution
@@ -24,7 +25,7 @@ class Domain:
         """xj - xi, by the minimum-image convention in a periodic box."""
         d = xj - xi
         if ti.static(self.periodic):
-            d -= self.box * ti.round(d / self.box)
+            d -= self.box * ti.round(d * self.inv_box)
         return d
 
     @ti.func

@@ -41,13 +41,15 @@ class CellGrid:
         self.particle_cell = ti.field(ti.i32, shape=capacity)  # flat cell index of each particle
         self.slot = ti.field(ti.i32, shape=capacity)  # position of the particle within its cell
         self.sorted_ids = ti.field(ti.i32, shape=capacity)  # particle ids in cell order
+        self.x_sorted = ti.Vector.field(self.dim, x.dtype, shape=capacity)  # positions in cell order (contiguous)
         self._lo = ti.Vector(list(self.lo))
         self._inv = ti.Vector([1.0 / c for c in self.cell_size])
         self._ncell = ti.Vector(list(self.counts))
+        self._box = ti.Vector(list(extent))
 
     @staticmethod
-    def footprint_bytes(capacity: int, n_cells: int) -> int:
-        return 4 * (2 * n_cells + 3 * capacity)
+    def footprint_bytes(capacity: int, n_cells: int, dim: int) -> int:
+        return 4 * (2 * n_cells + 3 * capacity) + 4 * dim * capacity
 
     def rebuild(self):
         self._count()
@@ -74,7 +76,9 @@ class CellGrid:
     @ti.kernel
     def _scatter(self):
         for i in range(self.n[None]):
-            self.sorted_ids[self.cell_start[self.particle_cell[i]] + self.slot[i]] = i
+            k = self.cell_start[self.particle_cell[i]] + self.slot[i]
+            self.sorted_ids[k] = i
+            self.x_sorted[k] = self.x[i]
 
     @ti.func
     def cell_of(self, p):
@@ -91,11 +95,20 @@ class CellGrid:
 
     @ti.func
     def neighbour_cell(self, c, off):
-        """Flat index of cell c + off, wrapped on periodic grids; -1 when outside a walled grid."""
+        """Flat index of cell c + off (-1 when outside a walled grid) and the shift to add to positions found
+        there: on periodic grids a cell that wraps around lies one box length away (minimum image without a
+        division or rounding per pair)."""
         nc = c + off
         result = 0
+        shift = ti.Vector.zero(self.x.dtype, self.dim)
         if ti.static(self.periodic):
-            nc = (nc + self._ncell) % self._ncell
+            for a in ti.static(range(self.dim)):
+                if nc[a] < 0:
+                    nc[a] += self.counts[a]
+                    shift[a] = -self._box[a]
+                elif nc[a] >= self.counts[a]:
+                    nc[a] -= self.counts[a]
+                    shift[a] = self._box[a]
             result = self.flat(nc)
         else:
             inside = True
@@ -103,7 +116,7 @@ class CellGrid:
                 if nc[k] < 0 or nc[k] >= self.counts[k]:
                     inside = False
             result = self.flat(nc) if inside else -1
-        return result
+        return result, shift
 
     @ti.func
     def offset(self, k):

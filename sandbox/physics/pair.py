@@ -94,6 +94,13 @@ class PairForce:
         self.visc = _table(self.visc_np)
         self.r_core = _table(self.r_core_np)
         self.shift = _table(self.shift_np)
+        # Force magnitude at the core radius, g(r_core) r_core per unit mass product (held below the core).
+        rc = self.r_core_np
+        g_core = self.alpha_np / (rc + self.eps_np) ** self.a - self.beta_np / rc**self.b
+        self.f_core = _table(g_core * rc)
+        self.single_material = n == 1
+        self.has_viscosity = bool(np.any(self.visc_np > 0))
+        self.even_fast_path = bool(np.all(self.eps_np == 0)) and self.a % 2 == 0 and self.b % 2 == 0
         self.mass, self.material, self.v = mass, material, v
 
     def _u(self, r, p, q):
@@ -116,21 +123,64 @@ class PairForce:
         return result
 
     @ti.func
-    def force(self, i, j, d, r2):
-        """Force on particle i from particle j, d = x_j - x_i, r2 = |d|^2 (< cutoff^2): pair law plus viscosity."""
-        p, q = self.material[i], self.material[j]
-        r = ti.sqrt(r2)
+    def _ipow(self, x, n: ti.template()):
+        """x^n for a whole number n >= 0, by binary exponentiation unrolled at compile time."""
+        result = 1.0 + 0.0 * x
+        base = x
+        for bit in ti.static(range(max(int(n).bit_length(), 1))):
+            if ti.static((int(n) >> bit) & 1):
+                result *= base
+            if ti.static((int(n) >> (bit + 1)) > 0):
+                base = base * base
+        return result
+
+    @ti.func
+    def _pair_ids(self, i, j):
+        p, q = 0, 0
+        if ti.static(not self.single_material):
+            p, q = self.material[i], self.material[j]
+        return p, q
+
+    @ti.func
+    def scaled_force(self, i, j, d, r2):
+        """Pair-law force on i from j divided by m_i (i.e. m_j g(r) d), with the core cap; r2 < cutoff^2."""
+        p, q = self._pair_ids(i, j)
         rc = self.r_core[p, q]
-        n = d / ti.max(r, 1e-12)
-        if r < 1e-12:  # coincident: a deterministic, antisymmetric direction
-            n = ti.Vector.zero(float, self.dim)
-            n[0] = 1.0 if j > i else -1.0
-        re = ti.max(r, rc)
-        g = self.alpha[p, q] * self._powneg(re + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(re, self.b)
-        f = self.mass[i] * self.mass[j] * g * re * n
-        vrel = (self.v[j] - self.v[i]).dot(n)
-        f += self.visc[p, q] * (1.0 - r / self.cutoff) * vrel * n
+        f = ti.Vector.zero(float, self.dim)
+        if r2 >= rc * rc:
+            g = 0.0
+            if ti.static(self.even_fast_path):  # eps = 0 and even exponents: powers of 1/r^2, no sqrt
+                inv2 = 1.0 / r2
+                g = self.alpha[p, q] * self._ipow(inv2, self.a // 2) - self.beta[p, q] * self._ipow(inv2, self.b // 2)
+            else:
+                r = ti.sqrt(r2)
+                g = self.alpha[p, q] * self._powneg(r + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(
+                    r, self.b)
+            f = g * d
+        else:  # inside the core: the force keeps its magnitude at the core radius
+            r = ti.sqrt(r2)
+            n = d / ti.max(r, 1e-12)
+            if r < 1e-12:  # coincident: a deterministic, antisymmetric direction
+                n = ti.Vector.zero(float, self.dim)
+                n[0] = 1.0 if j > i else -1.0
+            f = self.f_core[p, q] * n
+        return self.mass[j] * f
+
+    @ti.func
+    def viscous_force(self, i, j, d, r2):
+        """Viscous pair force on i from j: gamma (1 - r/cutoff) ((v_j - v_i) . n) n."""
+        f = ti.Vector.zero(float, self.dim)
+        if ti.static(self.has_viscosity):
+            p, q = self._pair_ids(i, j)
+            r = ti.sqrt(r2)
+            n = d / ti.max(r, 1e-12)
+            f = self.visc[p, q] * (1.0 - r / self.cutoff) * (self.v[j] - self.v[i]).dot(n) * n
         return f
+
+    @ti.func
+    def force(self, i, j, d, r2):
+        """Total pair force on particle i from particle j, d = x_j - x_i, r2 = |d|^2 < cutoff^2."""
+        return self.mass[i] * self.scaled_force(i, j, d, r2) + self.viscous_force(i, j, d, r2)
 
     @ti.func
     def energy(self, i, j, r2):

@@ -1,0 +1,101 @@
+"""Verlet neighbour lists with a skin, built from the cell grid and rebuilt only when needed.
+
+Each particle lists every particle within reach + skin. The list stays valid until some particle has moved more
+than skin / 2 since the build (then no pair within `reach` can be missing), or the particle count changes; a
+cheap check kernel decides each step. Lists have a fixed width (sized from the initial packing with a margin);
+if a particle ever has more neighbours than fit (say, a thousand particles crushed into one cell) the step falls
+back to scanning the cell grid directly, so no interaction is ever dropped.
+"""
+
+import math
+
+import taichi as ti
+
+
+@ti.data_oriented
+class NeighbourList:
+    """Per-particle lists of neighbour ids within reach + skin, over the cell grid `grid`."""
+
+    def __init__(self, grid, domain, x, n, reach: float, skin: float, capacity: int):
+        self.grid, self.domain, self.x, self.n = grid, domain, x, n
+        self.dim = grid.dim
+        self.reach, self.skin = reach, skin
+        self.capacity = capacity
+        self.count = ti.field(ti.i32, shape=capacity)  # neighbours of each particle (may exceed the width)
+        self.x_ref = ti.Vector.field(self.dim, x.dtype, shape=capacity)  # positions at the last build
+        self.stale = ti.field(ti.i32, shape=())  # 1 when the list must be rebuilt
+        self.overflow = ti.field(ti.i32, shape=())  # 1 when some particle has more neighbours than fit
+        self.n_built = -1
+        self.builds = 0
+        self.grid.rebuild()
+        self._count_only()
+        widest = int(self.count.to_numpy()[: int(n[None])].max(initial=0))
+        self.width = max(16, int(math.ceil(1.5 * widest)) + 8)
+        self.ids = ti.field(ti.i32, shape=(capacity, self.width))  # neighbour ids, first count[i] valid
+
+    def nbytes(self) -> int:
+        return self.capacity * (4 * self.width + 4 + 4 * self.dim)
+
+    def ensure_fresh(self) -> bool:
+        """Rebuild the list if it may miss a pair; returns True when it is usable (no overflow)."""
+        n = int(self.n[None])
+        if n != self.n_built or self._moved_too_far():
+            self.grid.rebuild()
+            self._fill()
+            self.n_built = n
+            self.builds += 1
+        return self.overflow[None] == 0
+
+    def invalidate(self) -> None:
+        self.n_built = -1
+
+    def _moved_too_far(self) -> bool:
+        self.stale[None] = 0
+        self._check()
+        return self.stale[None] != 0
+
+    @ti.kernel
+    def _check(self):
+        limit2 = (0.5 * self.skin) ** 2
+        for i in range(self.n[None]):
+            d = self.domain.separation(self.x_ref[i], self.x[i])
+            if d.dot(d) > limit2:
+                self.stale[None] = 1
+
+    @ti.kernel
+    def _count_only(self):
+        r2max = (self.reach + self.skin) ** 2
+        for i in range(self.n[None]):
+            self.count[i] = self._visit(i, r2max, False)
+
+    @ti.kernel
+    def _fill(self):
+        self.overflow[None] = 0
+        r2max = (self.reach + self.skin) ** 2
+        for i in range(self.n[None]):
+            c = self._visit(i, r2max, True)
+            self.count[i] = c
+            self.x_ref[i] = self.x[i]
+            if c > self.width:
+                self.overflow[None] = 1
+
+    @ti.func
+    def _visit(self, i, r2max, store: ti.template()):
+        xi = self.x[i]
+        cell = self.grid.cell_of(xi)
+        c = 0
+        for o in range(self.grid.n_offsets):
+            nc, shift = self.grid.neighbour_cell(cell, self.grid.offset(o))
+            if nc >= 0:
+                start = self.grid.cell_start[nc]
+                xs = xi - shift
+                for k in range(start, start + self.grid.cell_count[nc]):
+                    j = self.grid.sorted_ids[k]
+                    if j != i:
+                        d = self.grid.x_sorted[k] - xs
+                        if d.dot(d) < r2max:
+                            if ti.static(store):
+                                if c < self.width:
+                                    self.ids[i, c] = j
+                            c += 1
+        return c
