@@ -151,16 +151,21 @@ def build_particles(scene: Scene) -> Particles:
         pos, idx, basis = lattice_sites(body, dim)
         n = len(pos)
         if n == 0:
-            raise SceneError(str(scene.path), key, "the shape holds no lattice site; expected a larger shape or a "
-                             "smaller spacing")
+            raise SceneError(
+                str(scene.path), key, "the shape holds no lattice site; expected a larger shape or a smaller spacing"
+            )
         rng = np.random.default_rng(body.seed)
         if body.jitter > 0:
             pos = pos + rng.uniform(-0.5, 0.5, pos.shape) * body.jitter * body.spacing
         lo, hi = np.asarray(scene.world.lo), np.asarray(scene.world.hi)
         outside = np.any((pos < lo) | (pos > hi), axis=1)
         if outside.any():
-            raise SceneError(str(scene.path), key, f"{int(outside.sum())} of {n} particles lie outside the domain "
-                             f"{list(lo)}..{list(hi)}; expected the body inside world.lo..world.hi")
+            raise SceneError(
+                str(scene.path),
+                key,
+                f"{int(outside.sum())} of {n} particles lie outside the domain "
+                f"{list(lo)}..{list(hi)}; expected the body inside world.lo..world.hi",
+            )
         material = scene.materials[body.material]
         cell_volume = abs(np.linalg.det(basis))
         mass = material.particle_mass if material.particle_mass is not None else material.density * cell_volume
@@ -190,8 +195,16 @@ def build_particles(scene: Scene) -> Particles:
         return np.zeros((0,) if width is None else (0, width), dtype=dtype)
 
     return Particles(
-        x=cat("x"), v=cat("v"), mass=cat("m"), radius=cat("r"), temperature=cat("T"),
-        material=cat("mat", np.int32), body=cat("body", np.int32),
-        spring_i=cat("si", np.int32), spring_j=cat("sj", np.int32), rest_length=cat("l0"),
-        stiffness=cat("ks"), damping=cat("kd"),
+        x=cat("x"),
+        v=cat("v"),
+        mass=cat("m"),
+        radius=cat("r"),
+        temperature=cat("T"),
+        material=cat("mat", np.int32),
+        body=cat("body", np.int32),
+        spring_i=cat("si", np.int32),
+        spring_j=cat("sj", np.int32),
+        rest_length=cat("l0"),
+        stiffness=cat("ks"),
+        damping=cat("kd"),
     )

@@ -65,10 +65,23 @@ def cmd_run(args) -> int:
             out = out or f"out/{scene.name}.mp4"
     from .runner import run_headless
 
-    print(f"{scene.name}: {sim.built.count} particles, {sim.built.spring_count} springs, {frames} frames x "
-          f"{substeps} steps on {sim.arch} -> {out}", file=sys.stderr)
-    result = run_headless(sim, frames, substeps, out, args.stats, width=args.width, height=args.height,
-                          fps=args.fps, still_frame=args.still_frame, progress=not args.quiet)
+    print(
+        f"{scene.name}: {sim.built.count} particles, {sim.built.spring_count} springs, {frames} frames x "
+        f"{substeps} steps on {sim.arch} -> {out}",
+        file=sys.stderr,
+    )
+    result = run_headless(
+        sim,
+        frames,
+        substeps,
+        out,
+        args.stats,
+        width=args.width,
+        height=args.height,
+        fps=args.fps,
+        still_frame=args.still_frame,
+        progress=not args.quiet,
+    )
     last = result.last
     summary = f"wrote {out} ({result.frames} frames, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
     if last is not None and sim.heat is not None:
@@ -89,10 +102,14 @@ def cmd_check(args) -> int:
     print(f"scene {scene.name} ({scene.path}): valid")
     if scene.description:
         print(f"  {scene.description}")
-    print(f"  {scene.dim}D, domain {list(w.lo)} .. {list(w.hi)}{' periodic' if w.periodic else ''}, "
-          f"backend {sim.arch}, precision {w.precision}")
-    print(f"  particles {sim.built.count} (capacity {sim.capacity}), springs {sim.built.spring_count}, "
-          f"materials {', '.join(sim.material_names)}")
+    print(
+        f"  {scene.dim}D, domain {list(w.lo)} .. {list(w.hi)}{' periodic' if w.periodic else ''}, "
+        f"backend {sim.arch}, precision {w.precision}"
+    )
+    print(
+        f"  particles {sim.built.count} (capacity {sim.capacity}), springs {sim.built.spring_count}, "
+        f"materials {', '.join(sim.material_names)}"
+    )
     print(f"  dt {w.dt:g} x {w.substeps} substeps per frame, integrator {w.integrator}")
     print(f"  stable dt for the springs (2/omega_max): {sim.stable_dt():.4g}")
     if sim.heat is not None:
@@ -101,8 +118,11 @@ def cmd_check(args) -> int:
     for k, line in enumerate(sim.pipeline(), 1):
         print(f"  {k}. {line}")
     mem = sim.memory_bytes()
-    print("field memory: " + ", ".join(f"{k} {v / 1024:.1f} KiB" for k, v in mem.items())
-          + f" (total {sum(mem.values()) / 1024:.1f} KiB)")
+    print(
+        "field memory: "
+        + ", ".join(f"{k} {v / 1024:.1f} KiB" for k, v in mem.items())
+        + f" (total {sum(mem.values()) / 1024:.1f} KiB)"
+    )
     warnings = []
     if w.dt > sim.stable_dt():
         warnings.append(f"dt {w.dt:g} is above the springs' stable limit {sim.stable_dt():.3g}")
@@ -129,11 +149,19 @@ def cmd_list(args) -> int:
 
 def cmd_keys(args) -> int:
     from .materials import Material
-    from .schema import describe
     from .scene import Body, Heat, HeatSource, PairForce, Render, SceneInfo, World
+    from .schema import describe
 
-    sections = [("scene", SceneInfo), ("world", World), ("pair", PairForce), ("heat", Heat),
-                ("heat.sources[]", HeatSource), ("bodies[]", Body), ("render", Render), ("materials.NAME", Material)]
+    sections = [
+        ("scene", SceneInfo),
+        ("world", World),
+        ("pair", PairForce),
+        ("heat", Heat),
+        ("heat.sources[]", HeatSource),
+        ("bodies[]", Body),
+        ("render", Render),
+        ("materials.NAME", Material),
+    ]
     for prefix, cls in sections:
         print(f"[{prefix}]")
         for key, default, doc in describe(cls):
@@ -155,10 +183,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     def scene_args(p):
         p.add_argument("scene", help="scene file, or the name of a shipped scene (e.g. melting_block)")
-        p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a scene value, e.g. --set world.dt=0.001 --set bodies.0.temperature=30")
-        p.add_argument("--arch", default="auto", choices=["auto", "cpu", "cuda", "vulkan", "metal"],
-                       help="Taichi backend (auto: CUDA if present, else CPU)")
+        p.add_argument(
+            "--set",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="override a scene value, e.g. --set world.dt=0.001 --set bodies.0.temperature=30",
+        )
+        p.add_argument(
+            "--arch",
+            default="auto",
+            choices=["auto", "cpu", "cuda", "vulkan", "metal"],
+            help="Taichi backend (auto: CUDA if present, else CPU)",
+        )
 
     run = sub.add_parser("run", help="run a scene: a window where possible, else a headless video")
     scene_args(run)

@@ -6,7 +6,6 @@ Each integrator is a few lines over the simulation's shared pieces:
 Heat always advances by explicit Euler on the rates of the step's first evaluation.
 """
 
-
 import taichi as ti
 
 REGISTRY: dict[str, type] = {}

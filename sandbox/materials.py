@@ -37,7 +37,9 @@ class Material:
     density: float = spec(1.0, doc="mass per unit volume (per unit area in 2D)", check=positive)
     specific_heat: float = spec(1.0, doc="heat per unit mass per degree", check=positive)
     conductivity: float = spec(1.0, doc="thermal conductivity", check=non_negative)
-    stiffness: float = spec(1000.0, doc="spring stiffness k_s of bonds in this material (force per length)", check=positive)
+    stiffness: float = spec(
+        1000.0, doc="spring stiffness k_s of bonds in this material (force per length)", check=positive
+    )
     damping: float = spec(5.0, doc="spring damping k_d (force per speed)", check=non_negative)
     soften_temperature: float = spec(math.inf, doc="bonds start to lose stiffness above this temperature")
     melt_temperature: float = spec(math.inf, doc="bonds break at this mean temperature (inf: never melts)")
@@ -79,8 +81,11 @@ def resolve_materials(scene_tables: dict, file: str) -> dict[str, Material]:
         base_name = table.get("based_on", "")
         if base_name:
             if base_name not in library:
-                raise SceneError(file, f"{key}.based_on", f"unknown material {base_name!r}; expected one of: "
-                                 + ", ".join(sorted(library)))
+                raise SceneError(
+                    file,
+                    f"{key}.based_on",
+                    f"unknown material {base_name!r}; expected one of: " + ", ".join(sorted(library)),
+                )
             merged = {f.name: getattr(library[base_name], f.name) for f in dataclasses.fields(Material)}
             merged.update(table)
             merged = {k: list(v) if isinstance(v, tuple) else v for k, v in merged.items() if v is not None}

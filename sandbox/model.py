@@ -1,6 +1,5 @@
 """Taichi fields for particles and materials, allocated by capacity and only for what the scene uses."""
 
-
 import numpy as np
 import taichi as ti
 

@@ -50,8 +50,9 @@ class World:
     precision: str = spec("f32", doc="float precision of the fields", check=one_of("f32", "f64"))
     capacity: int = spec(0, doc="particle capacity (0: the initial count)", check=at_least(0))
     neighbor_list: bool = spec(True, doc="Verlet neighbour lists (false: scan the cell grid every step)")
-    skin: float = spec(0.3, doc="neighbour-list skin (length): lists are rebuilt after a particle moves skin/2",
-                       check=positive)
+    skin: float = spec(
+        0.3, doc="neighbour-list skin (length): lists are rebuilt after a particle moves skin/2", check=positive
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -59,8 +60,11 @@ class PairForce:
     a: float = spec(2.0, doc="exponent of the attraction term alpha/(d+eps)^a", check=positive)
     b: float = spec(4.0, doc="exponent of the repulsion term beta/d^b", check=positive)
     cutoff: float = spec(2.5, doc="cutoff distance of the pair force (length)", check=positive)
-    core: float = spec(0.6, doc="below core * r_eq the force is held at its value there (caps the singularity)",
-                       check=lambda c: None if 0 < c < 1 else f"expected a number in (0, 1), got {c}")
+    core: float = spec(
+        0.6,
+        doc="below core * r_eq the force is held at its value there (caps the singularity)",
+        check=lambda c: None if 0 < c < 1 else f"expected a number in (0, 1), got {c}",
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -69,17 +73,20 @@ class HeatSource:
     lo: tuple[float, ...] = spec(doc="lower corner of the source region")
     hi: tuple[float, ...] = spec(doc="upper corner of the source region")
     temperature: float = spec(doc="the source's temperature (degrees)")
-    conductance: float = spec(20.0, doc="heat flow per degree of difference into each particle in the region",
-                              check=non_negative)
-    reach: float = spec(1.0, doc="particles within this distance of the region exchange heat with it",
-                        check=non_negative)
+    conductance: float = spec(
+        20.0, doc="heat flow per degree of difference into each particle in the region", check=non_negative
+    )
+    reach: float = spec(
+        1.0, doc="particles within this distance of the region exchange heat with it", check=non_negative
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
 class Heat:
     ambient: float = spec(20.0, doc="ambient temperature (degrees)")
-    ambient_exchange: float = spec(0.0, doc="heat flow per degree between each particle and the ambient",
-                                   check=non_negative)
+    ambient_exchange: float = spec(
+        0.0, doc="heat flow per degree between each particle and the ambient", check=non_negative
+    )
     radius: float = spec(2.5, doc="support radius of the heat-diffusion kernel (length)", check=positive)
     sources: list[HeatSource] = spec(doc="hot or cold regions", factory=list)
 
@@ -94,16 +101,16 @@ class Body:
     center: tuple[float, ...] = spec((), doc="disk/sphere: centre")
     radius: float = spec(0.0, doc="disk/sphere: radius", check=non_negative)
     mask: str = spec("", doc="mask: PNG file (inside the scene's folder or assets/); opaque/bright pixels are inside")
-    lattice: str = spec("", doc="square or hex (2D), cubic or fcc (3D); default square/cubic", check=one_of("",
-                        *LATTICES))
+    lattice: str = spec(
+        "", doc="square or hex (2D), cubic or fcc (3D); default square/cubic", check=one_of("", *LATTICES)
+    )
     spacing: float = spec(1.0, doc="nearest-neighbour distance of the lattice (length)", check=positive)
     springs: bool = spec(True, doc="join neighbours by springs (a solid); false: a liquid from the start")
     spring_radius: float = spec(1.5, doc="join lattice neighbours closer than this many spacings", check=at_least(1.0))
     temperature: float | None = spec(None, doc="initial temperature (default: the ambient)")
     velocity: tuple[float, ...] = spec((), doc="initial velocity")
     random_velocity: float = spec(0.0, doc="std. dev. of random initial velocity per component", check=non_negative)
-    jitter: float = spec(0.0, doc="random displacement of lattice sites, as a fraction of spacing",
-                         check=unit_interval)
+    jitter: float = spec(0.0, doc="random displacement of lattice sites, as a fraction of spacing", check=unit_interval)
     seed: int = spec(0, doc="random seed for velocity and jitter")
 
 
@@ -236,8 +243,12 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     for i, body in enumerate(bodies):
         lo, hi = _body_bounds(body)
         if any(a < l - 1e-9 for a, l in zip(lo, world.lo)) or any(b > h + 1e-9 for b, h in zip(hi, world.hi)):
-            raise SceneError(file, f"bodies[{i}]", f"the body ({list(lo)}..{list(hi)}) lies outside the domain "
-                             f"{list(world.lo)}..{list(world.hi)}; expected it inside world.lo..world.hi")
+            raise SceneError(
+                file,
+                f"bodies[{i}]",
+                f"the body ({list(lo)}..{list(hi)}) lies outside the domain "
+                f"{list(world.lo)}..{list(world.hi)}; expected it inside world.lo..world.hi",
+            )
     if world.periodic:
         reach = max(raw.pair.cutoff if raw.pair else 0.0, heat.radius if heat else 0.0)
         if any((h - l) < 3 * reach for l, h in zip(world.lo, world.hi)):
@@ -276,8 +287,11 @@ def _check_vec(file: str, key: str, vec: tuple, dim: int) -> None:
 
 def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials: dict, scene_path: Path) -> Body:
     if body.material not in materials:
-        raise SceneError(file, f"{key}.material",
-                         f"unknown material {body.material!r}; expected one of: {', '.join(sorted(materials))}")
+        raise SceneError(
+            file,
+            f"{key}.material",
+            f"unknown material {body.material!r}; expected one of: {', '.join(sorted(materials))}",
+        )
     changes: dict[str, Any] = {}
     if not body.name:
         changes["name"] = f"body{index}"
@@ -293,8 +307,11 @@ def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials
     if body.shape in ("disk", "sphere"):
         want = 2 if body.shape == "disk" else 3
         if dim != want:
-            raise SceneError(file, f"{key}.shape", f"{body.shape!r} needs world.dim = {want}; use "
-                             f"{'sphere' if want == 2 else 'disk'}")
+            raise SceneError(
+                file,
+                f"{key}.shape",
+                f"{body.shape!r} needs world.dim = {want}; use {'sphere' if want == 2 else 'disk'}",
+            )
         _check_vec(file, f"{key}.center", body.center, dim)
         if body.radius <= 0:
             raise SceneError(file, f"{key}.radius", "expected a radius > 0 for a disk or sphere")
@@ -316,8 +333,12 @@ def resolve_data_file(file: str, key: str, name: str, scene_path: Path) -> Path:
     scene_dir = scene_path.resolve().parent
     assets = ASSETS_DIR.resolve()
     if Path(name).is_absolute() or ".." in Path(name).parts:
-        raise SceneError(file, key, f"{name!r} points outside the scene's folder and assets/; expected a relative "
-                         "name of a file inside one of them")
+        raise SceneError(
+            file,
+            key,
+            f"{name!r} points outside the scene's folder and assets/; expected a relative "
+            "name of a file inside one of them",
+        )
     for root in (scene_dir, assets.parent, assets):
         cand = (root / name).resolve()  # resolve() follows links, so a link out of the folders is caught below
         if cand.is_file() and (cand.is_relative_to(scene_dir) or cand.is_relative_to(assets)):

@@ -1,4 +1,4 @@
-"""A small typed validator: TOML tables → frozen dataclasses, with errors that name the file, the key and the expectation.
+"""A small typed validator: TOML tables → frozen dataclasses; errors name the file, the key and the expectation.
 
 A dataclass field declares its type by annotation (float, int, str, bool, tuple[float, ...] for a vector,
 list[SomeDataclass], SomeDataclass | None) and its constraint and one-line meaning through `spec(...)`.

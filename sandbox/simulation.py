@@ -5,7 +5,6 @@ force, heat flow, springs, gravity and drag) and then its own update kernel, whi
 (walls and the heat update) for each particle.
 """
 
-
 import math
 import time
 import warnings
@@ -21,15 +20,26 @@ from .integrators import make_integrator
 from .model import MaterialTable, ParticleFields
 from .physics.boundary import Domain
 from .physics.grid import CellGrid
-from .physics.neighbours import NeighbourList
 from .physics.heat import Heat, lattice_correction
+from .physics.neighbours import NeighbourList
 from .physics.pair import PairForce
 from .physics.springs import Springs
 from .scene import Scene
 
 STAT_COLUMNS = (
-    "frame", "time", "kinetic_energy", "potential_energy", "total_energy", "spring_energy", "pair_energy",
-    "gravity_energy", "mean_temperature", "molten_fraction", "broken_springs", "max_speed", "particles",
+    "frame",
+    "time",
+    "kinetic_energy",
+    "potential_energy",
+    "total_energy",
+    "spring_energy",
+    "pair_energy",
+    "gravity_energy",
+    "mean_temperature",
+    "molten_fraction",
+    "broken_springs",
+    "max_speed",
+    "particles",
     "step_seconds",
 )
 
@@ -83,9 +93,19 @@ class Simulation:
         self.domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
         p = self.particles
         self.pair = (
-            PairForce(self.dim, materials, scene.pair.a, scene.pair.b, scene.pair.cutoff, scene.pair.core,
-                      p.mass, p.material, p.v)
-            if scene.pair else None
+            PairForce(
+                self.dim,
+                materials,
+                scene.pair.a,
+                scene.pair.b,
+                scene.pair.cutoff,
+                scene.pair.core,
+                p.mass,
+                p.material,
+                p.v,
+            )
+            if scene.pair
+            else None
         )
         self.heat = None
         if scene.heat:
@@ -94,7 +114,8 @@ class Simulation:
             self.heat = Heat(self.dim, scene.heat, p, self.materials, correction)
         self.springs = (
             Springs(built, self.capacity, p, self.materials, scene.heat is not None, self.domain.separation)
-            if built.spring_count else None
+            if built.spring_count
+            else None
         )
         reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat.radius if scene.heat else 0.0)
         skin = world.skin if world.neighbor_list else 0.0
@@ -103,7 +124,8 @@ class Simulation:
         )
         self.neighbours = (
             NeighbourList(self.grid, self.domain, p.x, p.n, reach, skin, self.capacity)
-            if self.grid is not None and world.neighbor_list else None
+            if self.grid is not None and world.neighbor_list
+            else None
         )
         self._warned_overflow = False
         self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
@@ -134,15 +156,20 @@ class Simulation:
         use_list = False
         if self.neighbours is not None:
             use_list = self.neighbours.ensure_fresh()
+            if not use_list:
+                self.grid.rebuild()  # the fallback scans the grid, which must match the current positions
             if not use_list and not self._warned_overflow:
                 self._warned_overflow = True
-                warnings.warn("neighbour list overflow: some particle has more than "
-                              f"{self.neighbours.width} neighbours; scanning the cell grid instead (slower)")
+                warnings.warn(
+                    "neighbour list overflow: some particle has more than "
+                    f"{self.neighbours.width} neighbours; scanning the cell grid instead (slower)",
+                    stacklevel=2,
+                )
         elif self.grid is not None:
             self.grid.rebuild()
         if self.springs is not None:
             self.springs.update()
-        self._rates(use_list)
+        self._rates(use_list, self.neighbours.ids if use_list else None)
 
     @ti.func
     def _pair_terms(self, i, j, d, r2, f_scaled, f_visc, q):
@@ -157,7 +184,7 @@ class Simulation:
         return f_scaled, f_visc, q
 
     @ti.kernel
-    def _rates(self, use_list: ti.template()):
+    def _rates(self, use_list: ti.template(), ids: ti.template()):
         p = self.particles
         for ks in range(p.n[None]):
             i = ks
@@ -171,7 +198,7 @@ class Simulation:
                 f_visc = ti.Vector.zero(float, self.dim)
                 if ti.static(use_list):
                     for k in range(self.neighbours.count[i]):
-                        j = self.neighbours.ids[i, k]
+                        j = ids[i, k]
                         d = self.domain.separation(xi, p.x[j])
                         f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
                 else:
@@ -286,8 +313,10 @@ class Simulation:
         if self._energy_scale is None:
             self._energy_scale = self._natural_energy(acc)
         if acc["ke"] > RUNAWAY_FACTOR * self._energy_scale:
-            self._raise_blowup(f"runaway kinetic energy {acc['ke']:.3g} (over {RUNAWAY_FACTOR:g} x the scene's "
-                               f"natural scale {self._energy_scale:.3g})")
+            self._raise_blowup(
+                f"runaway kinetic energy {acc['ke']:.3g} (over {RUNAWAY_FACTOR:g} x the scene's "
+                f"natural scale {self._energy_scale:.3g})"
+            )
         return Stats(
             time=self.time,
             kinetic_energy=acc["ke"],
@@ -314,8 +343,14 @@ class Simulation:
         n = int(self.particles.n[None])
         x = self.particles.x.to_numpy()[:n]
         v = self.particles.v.to_numpy()[:n]
-        bad = np.flatnonzero(~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1) & (np.abs(x) < 1e30).all(
-            axis=1) & (np.abs(v) < 1e30).all(axis=1)))
+        bad = np.flatnonzero(
+            ~(
+                np.isfinite(x).all(axis=1)
+                & np.isfinite(v).all(axis=1)
+                & (np.abs(x) < 1e30).all(axis=1)
+                & (np.abs(v) < 1e30).all(axis=1)
+            )
+        )
         if len(bad):
             who = f"particle {int(bad[0])}"
         else:
@@ -323,7 +358,8 @@ class Simulation:
         limit = self.stable_dt()
         cause = (
             f"dt {self.dt:g} is above the stable limit {limit:.3g} for the stiffest spring with {self.integrator.name}"
-            if limit < self.dt else "a force grew without bound (check stiffness, masses and the pair-force core)"
+            if limit < self.dt
+            else "a force grew without bound (check stiffness, masses and the pair-force core)"
         )
         raise SimulationError(f"{what} at step {self.step_count} (t = {self.time:.4g}) in {who}: {cause}")
 
@@ -416,9 +452,11 @@ class Simulation:
         """The passes a step runs, in order."""
         passes = []
         if self.neighbours is not None:
-            passes.append(f"neighbour lists (reach {self.neighbours.reach:g} + skin {self.neighbours.skin:g}, width "
-                          f"{self.neighbours.width}), rebuilt from a counting-sort {self.grid.describe()} when a "
-                          "particle has moved half the skin")
+            passes.append(
+                f"neighbour lists (reach {self.neighbours.reach:g} + skin {self.neighbours.skin:g}, width "
+                f"{self.neighbours.width}), rebuilt from a counting-sort {self.grid.describe()} when a "
+                "particle has moved half the skin"
+            )
         elif self.grid is not None:
             passes.append(f"neighbour grid: counting sort into a {self.grid.describe()}, every step")
         if self.springs is not None:

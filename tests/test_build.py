@@ -33,8 +33,12 @@ def test_nearest_neighbours_only():
 
 
 def test_hex_lattice_has_six_neighbours_inside():
-    scene = make_scene(scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [40, 40]},
-                                  bodies=[_body(lattice="hex", lo=[5, 5], hi=[25, 25], spring_radius=1.0)]))
+    scene = make_scene(
+        scene_dict(
+            world={"dim": 2, "lo": [0, 0], "hi": [40, 40]},
+            bodies=[_body(lattice="hex", lo=[5, 5], hi=[25, 25], spring_radius=1.0)],
+        )
+    )
     built = build_particles(scene)
     deg = np.bincount(np.concatenate([built.spring_i, built.spring_j]), minlength=built.count)
     assert deg.max() == 6 and np.allclose(built.rest_length, 1.0)
@@ -43,13 +47,30 @@ def test_hex_lattice_has_six_neighbours_inside():
 
 
 def test_fcc_has_twelve_neighbours_and_disk_is_round():
-    scene = make_scene(scene_dict(dim=3, bodies=[{"material": "jelly", "shape": "box", "lattice": "fcc",
-                                                  "lo": [2, 2, 2], "hi": [14, 14, 14], "spring_radius": 1.0}]))
+    scene = make_scene(
+        scene_dict(
+            dim=3,
+            bodies=[
+                {
+                    "material": "jelly",
+                    "shape": "box",
+                    "lattice": "fcc",
+                    "lo": [2, 2, 2],
+                    "hi": [14, 14, 14],
+                    "spring_radius": 1.0,
+                }
+            ],
+        )
+    )
     built = build_particles(scene)
     deg = np.bincount(np.concatenate([built.spring_i, built.spring_j]), minlength=built.count)
     assert deg.max() == 12
-    disk = make_scene(scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [40, 40]},
-                                 bodies=[{"material": "jelly", "shape": "disk", "center": [20, 20], "radius": 8}]))
+    disk = make_scene(
+        scene_dict(
+            world={"dim": 2, "lo": [0, 0], "hi": [40, 40]},
+            bodies=[{"material": "jelly", "shape": "disk", "center": [20, 20], "radius": 8}],
+        )
+    )
     built = build_particles(disk)
     r = np.linalg.norm(built.x - 20, axis=1)
     assert r.max() <= 8 + 1e-9
@@ -65,8 +86,12 @@ def test_bond_table_lists_every_spring_at_both_ends():
 
 
 def test_random_velocity_has_zero_momentum_and_requested_spread():
-    scene = make_scene(scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [100, 100]},
-                                  bodies=[_body(lo=[0, 0], hi=[100, 100], springs=False, random_velocity=2.0)]))
+    scene = make_scene(
+        scene_dict(
+            world={"dim": 2, "lo": [0, 0], "hi": [100, 100]},
+            bodies=[_body(lo=[0, 0], hi=[100, 100], springs=False, random_velocity=2.0)],
+        )
+    )
     built = build_particles(scene)
     assert np.allclose(built.v.mean(axis=0), 0, atol=1e-12)
     assert built.v.std() == pytest.approx(2.0, rel=0.03)

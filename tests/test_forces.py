@@ -1,7 +1,5 @@
 """Force laws: the Voigt spring-damper, the generalized pair force (and its 12-6 Lennard-Jones case), momentum."""
 
-import math
-
 import numpy as np
 import pytest
 
@@ -17,8 +15,19 @@ def two_particles(pair=None, springs=True, material="jelly", **world):
     """Two particles 1 apart at (10.5, 10.5) and (11.5, 10.5), optionally joined by one spring."""
     w = {"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.001}
     w.update(world)
-    data = scene_dict(world=w, bodies=[{"material": material, "shape": "box", "lo": [10, 10], "hi": [12, 11],
-                                        "springs": springs, "spring_radius": 1.0}])
+    data = scene_dict(
+        world=w,
+        bodies=[
+            {
+                "material": material,
+                "shape": "box",
+                "lo": [10, 10],
+                "hi": [12, 11],
+                "springs": springs,
+                "spring_radius": 1.0,
+            }
+        ],
+    )
     if pair is not None:
         data["pair"] = pair
     return Simulation(make_scene(data))
@@ -91,7 +100,9 @@ def test_default_form_a2_b4_zero_at_equilibrium_and_energy_is_its_integral():
     assert radial_force(r_eq, alpha, beta, eps, 2, 4) == pytest.approx(0, abs=1e-9)
     for r in (0.9, 1.2, 1.7):
         h = 1e-6
-        du = (pair_energy(r + h, alpha, beta, eps, 2, 4, 3.0) - pair_energy(r - h, alpha, beta, eps, 2, 4, 3.0)) / (2 * h)
+        du = (pair_energy(r + h, alpha, beta, eps, 2, 4, 3.0) - pair_energy(r - h, alpha, beta, eps, 2, 4, 3.0)) / (
+            2 * h
+        )
         assert du == pytest.approx(r * radial_force(r, alpha, beta, eps, 2, 4), rel=1e-6)
 
 
@@ -109,10 +120,22 @@ def test_coincident_particles_get_finite_opposite_push():
 
 
 def test_total_force_vanishes_without_gravity():
-    data = scene_dict(world=LJ_WORLD, pair={"a": 8.0, "b": 14.0, "cutoff": 2.5},
-                      bodies=[{"material": "wax", "shape": "box", "lo": [5, 5], "hi": [15, 13], "jitter": 0.3,
-                               "seed": 3, "random_velocity": 0.5}, {"material": "lj", "shape": "box", "lo": [15, 5],
-                                                                  "hi": [22, 12], "springs": False, "jitter": 0.2}])
+    data = scene_dict(
+        world=LJ_WORLD,
+        pair={"a": 8.0, "b": 14.0, "cutoff": 2.5},
+        bodies=[
+            {
+                "material": "wax",
+                "shape": "box",
+                "lo": [5, 5],
+                "hi": [15, 13],
+                "jitter": 0.3,
+                "seed": 3,
+                "random_velocity": 0.5,
+            },
+            {"material": "lj", "shape": "box", "lo": [15, 5], "hi": [22, 12], "springs": False, "jitter": 0.2},
+        ],
+    )
     data["heat"] = {"ambient": 20.0}
     sim = Simulation(make_scene(data))
     sim.eval_rates()
@@ -120,3 +143,72 @@ def test_total_force_vanishes_without_gravity():
     scale = np.abs(f).sum()
     assert scale > 0
     assert np.abs(f.sum(axis=0)).max() < 1e-5 * scale
+
+
+def small_lj_box(**world):
+    w = {"dim": 2, "lo": [0, 0], "hi": [22.36, 22.36], "dt": 0.005, "periodic": True}
+    w.update(world)
+    data = scene_dict(
+        world=w,
+        pair={"a": 8.0, "b": 14.0, "cutoff": 2.5},
+        bodies=[
+            {
+                "material": "lj",
+                "shape": "box",
+                "lo": [0, 0],
+                "hi": [22.36, 22.36],
+                "spacing": 1.118,
+                "springs": False,
+                "random_velocity": 1.0,
+                "seed": 5,
+            }
+        ],
+    )
+    return Simulation(make_scene(data))
+
+
+def test_neighbour_lists_give_the_same_forces_as_a_cell_scan():
+    sim = small_lj_box()
+    assert sim.neighbours is not None
+    sim.step(200)  # particles cross the periodic boundary and the lists are rebuilt several times
+    assert sim.neighbours.builds > 2
+    sim.eval_rates()
+    with_lists = sim.forces().copy()
+    sim.grid.rebuild()
+    sim._rates(False, None)
+    assert np.allclose(with_lists, sim.forces(), rtol=1e-4, atol=1e-4)
+    plain = small_lj_box(neighbor_list=False)
+    assert plain.neighbours is None
+    plain.step(200)
+    # same trajectory either way (up to float summation order over a chaotic 200 steps: compare energies)
+    assert plain.stats().total_energy == pytest.approx(sim.stats().total_energy, rel=1e-3)
+
+
+def crowd(sim):
+    n = sim.built.count
+    rng = np.random.default_rng(0)
+    return np.full((n, 2), 11.0) + rng.uniform(-0.5, 0.5, (n, 2))  # every particle within one cell
+
+
+def test_crowding_widens_the_neighbour_lists():
+    sim = small_lj_box(periodic=False)
+    width = sim.neighbours.width
+    place(sim, crowd(sim))
+    assert sim.neighbours.grown == 1 and sim.neighbours.width >= sim.built.count - 1 > width
+    reference = sim.forces().copy()
+    sim.grid.rebuild()
+    sim._rates(False, None)
+    assert np.allclose(reference, sim.forces(), rtol=1e-4, atol=1e-3)
+
+
+def test_a_crowd_past_the_list_memory_cap_falls_back_to_the_grid_and_stays_finite(monkeypatch):
+    import sandbox.physics.neighbours as nb
+
+    monkeypatch.setattr(nb, "MAX_BYTES", 1)
+    sim = small_lj_box(periodic=False)
+    with pytest.warns(UserWarning, match="neighbour list overflow"):
+        place(sim, crowd(sim))
+    assert np.all(np.isfinite(sim.forces()))
+    sim.step(20)
+    s = sim.stats()
+    assert np.isfinite(s.total_energy) and np.all(np.isfinite(sim.positions()))

@@ -11,10 +11,12 @@ L = 41
 
 
 def lattice_scene(precision="f32", dt=0.02, heat=None, **extra):
-    data = scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [L, L], "dt": dt, "precision": precision},
-                      heat=heat or {"ambient": 0.0, "radius": 2.5},
-                      materials={"cond": {"based_on": "jelly", "conductivity": 1.0}},
-                      bodies=[{"material": "cond", "shape": "box", "lo": [0, 0], "hi": [L, L], "springs": False}])
+    data = scene_dict(
+        world={"dim": 2, "lo": [0, 0], "hi": [L, L], "dt": dt, "precision": precision},
+        heat=heat or {"ambient": 0.0, "radius": 2.5},
+        materials={"cond": {"based_on": "jelly", "conductivity": 1.0}},
+        bodies=[{"material": "cond", "shape": "box", "lo": [0, 0], "hi": [L, L], "springs": False}],
+    )
     data.update(extra)
     return Simulation(make_scene(data))
 
@@ -59,10 +61,14 @@ def test_heat_is_conserved_to_round_off_with_insulated_walls():
 
 
 def test_heat_conserved_in_a_moving_liquid_f32():
-    data = scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.002, "gravity": [0, -9.8]},
-                      pair={"a": 8.0, "b": 14.0, "cutoff": 2.5}, heat={"ambient": 20.0},
-                      bodies=[{"material": "wax", "shape": "box", "lo": [5, 5], "hi": [20, 15], "springs": False,
-                               "random_velocity": 1.0}])
+    data = scene_dict(
+        world={"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.002, "gravity": [0, -9.8]},
+        pair={"a": 8.0, "b": 14.0, "cutoff": 2.5},
+        heat={"ambient": 20.0},
+        bodies=[
+            {"material": "wax", "shape": "box", "lo": [5, 5], "hi": [20, 15], "springs": False, "random_velocity": 1.0}
+        ],
+    )
     sim = Simulation(make_scene(data))
     rng = np.random.default_rng(2)
     set_temperature(sim, rng.uniform(20, 200, sim.built.count))
@@ -74,8 +80,11 @@ def test_heat_conserved_in_a_moving_liquid_f32():
 
 
 def test_plate_heats_only_what_touches_it_and_ambient_pulls_back():
-    heat = {"ambient": 20.0, "radius": 2.5,
-            "sources": [{"lo": [0, 0], "hi": [L, 0.5], "temperature": 100.0, "conductance": 5.0, "reach": 0.0}]}
+    heat = {
+        "ambient": 20.0,
+        "radius": 2.5,
+        "sources": [{"lo": [0, 0], "hi": [L, 0.5], "temperature": 100.0, "conductance": 5.0, "reach": 0.0}],
+    }
     sim = lattice_scene(heat=heat, dt=0.01)
     set_temperature(sim, np.full(sim.built.count, 20.0))
     sim.step(10)

@@ -14,11 +14,19 @@ G = 9.8
 
 
 def falling(integrator, dt, precision="f64", **world):
-    w = {"dim": 2, "lo": [0, 0], "hi": [10, 1000], "dt": dt, "gravity": [0, -G], "integrator": integrator,
-         "precision": precision}
+    w = {
+        "dim": 2,
+        "lo": [0, 0],
+        "hi": [10, 1000],
+        "dt": dt,
+        "gravity": [0, -G],
+        "integrator": integrator,
+        "precision": precision,
+    }
     w.update(world)
-    data = scene_dict(world=w, bodies=[{"material": "jelly", "shape": "box", "lo": [4, 900], "hi": [5, 901],
-                                        "springs": False}])
+    data = scene_dict(
+        world=w, bodies=[{"material": "jelly", "shape": "box", "lo": [4, 900], "hi": [5, 901], "springs": False}]
+    )
     return Simulation(make_scene(data))
 
 
@@ -73,9 +81,11 @@ def test_extreme_speed_is_clamped_by_the_walls():
 
 
 def test_blow_up_stops_with_a_named_error():
-    data = scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [20, 20], "dt": 0.05},
-                      materials={"stiff": {"based_on": "jelly", "stiffness": 1e7, "damping": 0.0}},
-                      bodies=[{"material": "stiff", "shape": "box", "lo": [5, 5], "hi": [9, 9], "jitter": 0.2}])
+    data = scene_dict(
+        world={"dim": 2, "lo": [0, 0], "hi": [20, 20], "dt": 0.05},
+        materials={"stiff": {"based_on": "jelly", "stiffness": 1e7, "damping": 0.0}},
+        bodies=[{"material": "stiff", "shape": "box", "lo": [5, 5], "hi": [9, 9], "jitter": 0.2}],
+    )
     sim = Simulation(make_scene(data))
     assert sim.stable_dt() < 0.05
     with pytest.raises(SimulationError, match=r"dt 0.05 is above the stable limit .* symplectic_euler"):

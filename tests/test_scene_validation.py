@@ -38,18 +38,36 @@ def test_good_scene_loads_with_defaults(scene_file):
         (GOOD.replace("dim = 2", "dim = 2\ndt = 0.0"), "world.dt", "expected a number > 0"),
         (GOOD.replace('material = "jelly"', 'material = "jely"'), "bodies[0].material", "unknown material 'jely'"),
         (GOOD.replace("hi = [20.0, 20.0]", "hi = [20.0, 20.0, 20.0]"), "world.hi", "expected 2 numbers"),
-        (GOOD + '\n[materials.heavy]\nbased_on = "jelly"\nparticle_mass = -1.0\n', "materials.heavy.particle_mass",
-         "expected a number > 0"),
-        (GOOD + '\n[materials.soft]\nbased_on = "jelly"\nstiffness = -5.0\n', "materials.soft.stiffness",
-         "expected a number > 0"),
-        (GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "nope.png"'),
-         "bodies[0].mask", "not found"),
-        (GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "../../etc/passwd"'),
-         "bodies[0].mask", "outside the scene's folder"),
-        (GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "/etc/hostname"'),
-         "bodies[0].mask", "outside the scene's folder"),
-        (GOOD.replace("lo = [5.0, 5.0]", "lo = [15.0, 15.0]").replace("hi = [8.0, 8.0]", "hi = [25.0, 25.0]"),
-         "bodies[0]", "outside the domain"),
+        (
+            GOOD + '\n[materials.heavy]\nbased_on = "jelly"\nparticle_mass = -1.0\n',
+            "materials.heavy.particle_mass",
+            "expected a number > 0",
+        ),
+        (
+            GOOD + '\n[materials.soft]\nbased_on = "jelly"\nstiffness = -5.0\n',
+            "materials.soft.stiffness",
+            "expected a number > 0",
+        ),
+        (
+            GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "nope.png"'),
+            "bodies[0].mask",
+            "not found",
+        ),
+        (
+            GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "../../etc/passwd"'),
+            "bodies[0].mask",
+            "outside the scene's folder",
+        ),
+        (
+            GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "/etc/hostname"'),
+            "bodies[0].mask",
+            "outside the scene's folder",
+        ),
+        (
+            GOOD.replace("lo = [5.0, 5.0]", "lo = [15.0, 15.0]").replace("hi = [8.0, 8.0]", "hi = [25.0, 25.0]"),
+            "bodies[0]",
+            "outside the domain",
+        ),
         (GOOD + "\n[pair]\na = 4.0\nb = 2.0\n", "pair.b", "expected the repulsion exponent b above"),
         (GOOD.replace("dim = 2", 'dim = 2\nintegrator = "leapfrog"'), "world.integrator", "expected one of"),
     ],
@@ -100,8 +118,11 @@ def test_cli_bad_scene_prints_one_line_and_exits_nonzero(scene_file, capsys):
 
 def test_cli_subprocess_exit_code(scene_file):
     path = scene_file(GOOD.replace('material = "jelly"', 'material = "unobtainium"'))
-    proc = subprocess.run([sys.executable, "-m", "sandbox", "run", str(path), "--headless", "--frames", "1"],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sandbox", "run", str(path), "--headless", "--frames", "1"],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "unknown material 'unobtainium'" in lines[0]

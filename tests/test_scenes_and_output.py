@@ -40,8 +40,26 @@ def test_cli_writes_mp4_and_stats_csv(tmp_path):
     import imageio_ffmpeg
 
     out, stats = tmp_path / "clip.mp4", tmp_path / "stats.csv"
-    code = main(["run", "melting_block", "--headless", "--frames", "4", "--out", str(out), "--stats", str(stats),
-                 "--width", "320", "--height", "180", "--quiet", "--arch", "cpu"])
+    code = main(
+        [
+            "run",
+            "melting_block",
+            "--headless",
+            "--frames",
+            "4",
+            "--out",
+            str(out),
+            "--stats",
+            str(stats),
+            "--width",
+            "320",
+            "--height",
+            "180",
+            "--quiet",
+            "--arch",
+            "cpu",
+        ]
+    )
     assert code == 0
     frames, _ = imageio_ffmpeg.count_frames_and_secs(str(out))
     assert frames == 4
@@ -58,12 +76,50 @@ def test_gif_and_still_outputs(tmp_path):
     import imageio_ffmpeg
 
     gif, still = tmp_path / "clip.gif", tmp_path / "still.png"
-    assert main(["run", "spring_lattice", "--headless", "--frames", "3", "--out", str(gif), "--width", "96",
-                 "--height", "54", "--quiet", "--arch", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "spring_lattice",
+                "--headless",
+                "--frames",
+                "3",
+                "--out",
+                str(gif),
+                "--width",
+                "96",
+                "--height",
+                "54",
+                "--quiet",
+                "--arch",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     assert gif.read_bytes()[:6] == b"GIF89a"
     assert imageio_ffmpeg.count_frames_and_secs(str(gif))[0] == 3
-    assert main(["run", "spring_lattice", "--headless", "--frames", "3", "--out", str(still), "--width", "96",
-                 "--height", "54", "--quiet", "--arch", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "spring_lattice",
+                "--headless",
+                "--frames",
+                "3",
+                "--out",
+                str(still),
+                "--width",
+                "96",
+                "--height",
+                "54",
+                "--quiet",
+                "--arch",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     assert read_png(still).shape == (54, 96, 3)
 
 

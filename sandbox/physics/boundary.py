@@ -1,6 +1,5 @@
 """The domain box: minimum-image separations and walls (restitution and Coulomb friction) or periodic wrapping."""
 
-
 import taichi as ti
 
 

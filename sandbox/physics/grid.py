@@ -5,7 +5,6 @@ Build: count particles per cell with an integer atomic (the returned old count i
 a serial prefix sum over cells, then a scatter of particle ids into `sorted_ids` in cell order.
 """
 
-
 import math
 
 import numpy as np
@@ -135,4 +134,6 @@ class CellGrid:
         return 3**self.dim
 
     def describe(self) -> str:
-        return f"cell grid {'x'.join(map(str, self.counts))} ({math.prod(self.counts)} cells of {self.cell_size[0]:.3g})"
+        return (
+            f"cell grid {'x'.join(map(str, self.counts))} ({math.prod(self.counts)} cells of {self.cell_size[0]:.3g})"
+        )

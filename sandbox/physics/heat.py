@@ -18,7 +18,6 @@ G_amb (T_ambient - T_i) with the ambient. Time stepping is explicit Euler, stabl
 0.1 (rho c / k) h^2 for spacing h (see Simulation.heat_dt_limit).
 """
 
-
 import math
 
 import numpy as np

@@ -2,14 +2,18 @@
 
 Each particle lists every particle within reach + skin. The list stays valid until some particle has moved more
 than skin / 2 since the build (then no pair within `reach` can be missing), or the particle count changes; a
-cheap check kernel decides each step. Lists have a fixed width (sized from the initial packing with a margin);
-if a particle ever has more neighbours than fit (say, a thousand particles crushed into one cell) the step falls
-back to scanning the cell grid directly, so no interaction is ever dropped.
+cheap check kernel decides each step. Lists have a width sized from the initial packing with a margin; when a
+particle gets more neighbours than fit, the lists are reallocated wider (the kernels that read them take the list
+field as a template argument, so they recompile for the new field). Past MAX_BYTES of lists (say, a thousand
+particles crushed into one cell) the step falls back to scanning the cell grid directly: no interaction is ever
+dropped.
 """
 
 import math
 
 import taichi as ti
+
+MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
 
 
 @ti.data_oriented
@@ -30,8 +34,12 @@ class NeighbourList:
         self.grid.rebuild()
         self._count_only()
         widest = int(self.count.to_numpy()[: int(n[None])].max(initial=0))
-        self.width = max(16, int(math.ceil(1.5 * widest)) + 8)
-        self.ids = ti.field(ti.i32, shape=(capacity, self.width))  # neighbour ids, first count[i] valid
+        self._allocate(max(16, int(math.ceil(1.5 * widest)) + 8))
+        self.grown = 0
+
+    def _allocate(self, width: int) -> None:
+        self.width = width
+        self.ids = ti.field(ti.i32, shape=(self.capacity, width))  # neighbour ids, first count[i] valid
 
     def nbytes(self) -> int:
         return self.capacity * (4 * self.width + 4 + 4 * self.dim)
@@ -41,7 +49,14 @@ class NeighbourList:
         n = int(self.n[None])
         if n != self.n_built or self._moved_too_far():
             self.grid.rebuild()
-            self._fill()
+            self._fill(self.ids)
+            if self.overflow[None]:
+                widest = int(self.count.to_numpy()[:n].max())
+                wider = int(math.ceil(1.5 * widest)) + 8
+                if self.capacity * wider * 4 <= MAX_BYTES:
+                    self._allocate(wider)
+                    self.grown += 1
+                    self._fill(self.ids)
             self.n_built = n
             self.builds += 1
         return self.overflow[None] == 0
@@ -66,21 +81,23 @@ class NeighbourList:
     def _count_only(self):
         r2max = (self.reach + self.skin) ** 2
         for i in range(self.n[None]):
-            self.count[i] = self._visit(i, r2max, False)
+            self.count[i] = self._visit(i, r2max, False, self.count)
 
     @ti.kernel
-    def _fill(self):
+    def _fill(self, ids: ti.template()):
         self.overflow[None] = 0
         r2max = (self.reach + self.skin) ** 2
+        width = ids.shape[1]
         for i in range(self.n[None]):
-            c = self._visit(i, r2max, True)
+            c = self._visit(i, r2max, True, ids)
             self.count[i] = c
             self.x_ref[i] = self.x[i]
-            if c > self.width:
+            if c > width:
                 self.overflow[None] = 1
 
     @ti.func
-    def _visit(self, i, r2max, store: ti.template()):
+    def _visit(self, i, r2max, store: ti.template(), ids: ti.template()):
+        """Count (and with `store`, write into the 2D field `ids`) the neighbours of i within sqrt(r2max)."""
         xi = self.x[i]
         cell = self.grid.cell_of(xi)
         c = 0
@@ -95,7 +112,7 @@ class NeighbourList:
                         d = self.grid.x_sorted[k] - xs
                         if d.dot(d) < r2max:
                             if ti.static(store):
-                                if c < self.width:
-                                    self.ids[i, c] = j
+                                if c < ids.shape[1]:
+                                    ids[i, c] = j
                             c += 1
         return c

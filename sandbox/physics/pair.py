@@ -14,7 +14,6 @@ A viscous term -gamma ((v_i - v_j) . n) n w(r), w = 1 - r/cutoff, gives the melt
 so momentum is conserved. Materials mix by geometric means of alpha and beta, arithmetic means of eps and gamma.
 """
 
-
 import math
 
 import numpy as np
@@ -82,8 +81,15 @@ class PairForce:
         self.beta_np = np.sqrt(np.outer(beta, beta))
         self.eps_np = 0.5 * (eps[:, None] + eps[None, :])
         self.visc_np = 0.5 * (visc[:, None] + visc[None, :])
-        self.r_eq_np = np.array([[equilibrium_distance(self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q],
-                                                       self.a, self.b) for q in range(n)] for p in range(n)])
+        self.r_eq_np = np.array(
+            [
+                [
+                    equilibrium_distance(self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q], self.a, self.b)
+                    for q in range(n)
+                ]
+                for p in range(n)
+            ]
+        )
         finite_req = np.where(np.isfinite(self.r_eq_np), self.r_eq_np, 1.0)
         self.r_core_np = np.maximum(core * finite_req, 1e-6)
         # Energy shift so that U(cutoff) = 0, and U at the core for the linear continuation below it.
@@ -155,7 +161,8 @@ class PairForce:
             else:
                 r = ti.sqrt(r2)
                 g = self.alpha[p, q] * self._powneg(r + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(
-                    r, self.b)
+                    r, self.b
+                )
             f = g * d
         else:  # inside the core: the force keeps its magnitude at the core radius
             r = ti.sqrt(r2)
@@ -192,7 +199,8 @@ class PairForce:
         u = self._u_func(re, p, q) - self.shift[p, q]
         if r < rc:  # linear continuation: dU/dr stays equal to the (capped) force
             g = self.alpha[p, q] * self._powneg(rc + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(
-                rc, self.b)
+                rc, self.b
+            )
             u += g * rc * (r - rc)
         return self.mass[i] * self.mass[j] * u
 

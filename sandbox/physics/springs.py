@@ -13,7 +13,6 @@ T of the two ends: k = k_s * s(T), c = k_d * s(T), with s = 1 below Ts, falling 
 the spring breaks for good. A spring also breaks when stretched beyond `break_stretch` times its rest length.
 """
 
-
 import numpy as np
 import taichi as ti
 

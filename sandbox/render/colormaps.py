@@ -5,12 +5,19 @@ import taichi as ti
 
 # Glow: a blackbody-like ramp for hot material (dark red -> orange -> yellow -> white).
 GLOW_STOPS = np.array(
-    [[0.0, 0.3, 0.02, 0.01], [0.35, 0.62, 0.06, 0.02], [0.6, 1.0, 0.35, 0.04], [0.82, 1.0, 0.78, 0.25],
-     [1.0, 1.0, 1.0, 0.85]], dtype=np.float32)
+    [
+        [0.0, 0.3, 0.02, 0.01],
+        [0.35, 0.62, 0.06, 0.02],
+        [0.6, 1.0, 0.35, 0.04],
+        [0.82, 1.0, 0.78, 0.25],
+        [1.0, 1.0, 1.0, 0.85],
+    ],
+    dtype=np.float32,
+)
 # Speed: dark blue -> teal -> yellow (viridis-like).
 SPEED_STOPS = np.array(
-    [[0.0, 0.12, 0.1, 0.35], [0.35, 0.13, 0.45, 0.56], [0.7, 0.35, 0.78, 0.4], [1.0, 0.99, 0.9, 0.15]],
-    dtype=np.float32)
+    [[0.0, 0.12, 0.1, 0.35], [0.35, 0.13, 0.45, 0.56], [0.7, 0.35, 0.78, 0.4], [1.0, 0.99, 0.9, 0.15]], dtype=np.float32
+)
 
 
 def ramp_np(stops: np.ndarray, t: float) -> np.ndarray:
@@ -41,7 +48,7 @@ speed_map = _ramp_func(SPEED_STOPS)
 
 
 def glow_over_base_np(base: np.ndarray, t: float) -> np.ndarray:
-    """Cold material keeps its base colour; from t = 0.12 the glow takes over (fully at 0.37) (NumPy twin of glow_over_base)."""
+    """Cold material keeps its base colour; the glow takes over from t = 0.12 to 0.37 (twin of glow_over_base)."""
     w = float(np.clip((t - 0.12) / 0.25, 0.0, 1.0))
     return (1 - w) * np.asarray(base, dtype=np.float32) + w * ramp_np(GLOW_STOPS, t)
 

@@ -70,8 +70,11 @@ class Renderer:
             centre = (lo + hi) / 2
             size = float(np.linalg.norm(hi - lo))
             target = np.asarray(cfg.camera_target) if cfg.camera_target else centre
-            eye = np.asarray(cfg.camera_position) if cfg.camera_position else centre + np.array(
-                [0.35, 0.45, 1.0]) * size * 0.9
+            eye = (
+                np.asarray(cfg.camera_position)
+                if cfg.camera_position
+                else centre + np.array([0.35, 0.45, 1.0]) * size * 0.9
+            )
             self.set_camera(eye, target, cfg.fov)
             light = np.asarray(cfg.light_direction, dtype=float)
             self.light = ti.Vector(list(light / np.linalg.norm(light)))
@@ -133,13 +136,21 @@ class Renderer:
             self.weight[x, y] = 0.0
             pix = ti.Vector([x + 0.5, y + 0.5])
             c = self.background
-            inside = pix[0] >= self.px_lo[0] and pix[0] <= self.px_hi[0] and pix[1] >= self.px_lo[1] and \
-                pix[1] <= self.px_hi[1]
+            inside = (
+                pix[0] >= self.px_lo[0]
+                and pix[0] <= self.px_hi[0]
+                and pix[1] >= self.px_lo[1]
+                and pix[1] <= self.px_hi[1]
+            )
             if not inside:
                 c = self.background * 0.6
             for k in range(self.n_src):
-                if pix[0] >= self.src_lo[k][0] - 1 and pix[0] <= self.src_hi[k][0] + 1 and \
-                        pix[1] >= self.src_lo[k][1] - 2 and pix[1] <= self.src_hi[k][1] + 1:
+                if (
+                    pix[0] >= self.src_lo[k][0] - 1
+                    and pix[0] <= self.src_hi[k][0] + 1
+                    and pix[1] >= self.src_lo[k][1] - 2
+                    and pix[1] <= self.src_hi[k][1] + 1
+                ):
                     t = (self.src_t[k] - self.t_lo[None]) / (self.t_hi[None] - self.t_lo[None])
                     c = glow(ti.max(t, 0.35)) if t > 0.05 else ti.Vector([0.3, 0.55, 1.0])
             self.image[x, y] = c

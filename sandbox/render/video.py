@@ -92,12 +92,19 @@ class FfmpegWriter(FrameWriter):
         import imageio_ffmpeg
 
         if path.suffix.lower() == ".gif":
-            kwargs = dict(codec="gif", pix_fmt_out="rgb24", output_params=[
-                "-filter_complex", "split[a][b];[a]palettegen=stats_mode=diff[p];[b][p]paletteuse=dither=bayer"])
+            kwargs = dict(
+                codec="gif",
+                pix_fmt_out="rgb24",
+                output_params=[
+                    "-filter_complex",
+                    "split[a][b];[a]palettegen=stats_mode=diff[p];[b][p]paletteuse=dither=none:diff_mode=rectangle",
+                ],
+            )
         else:
             kwargs = dict(codec="libx264", pix_fmt_out="yuv420p", quality=7, output_params=["-movflags", "+faststart"])
-        self._gen = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, macro_block_size=2,
-                                                ffmpeg_log_level="error", **kwargs)
+        self._gen = imageio_ffmpeg.write_frames(
+            str(path), (width, height), fps=fps, macro_block_size=2, ffmpeg_log_level="error", **kwargs
+        )
         self._gen.send(None)
 
     def _write(self, frame):

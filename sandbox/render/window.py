@@ -31,7 +31,8 @@ def run_window(sim, frames: int | None = None, screenshot: str | None = None, su
     try:
         window = ti.ui.Window(f"sandbox: {sim.scene.name}", (cfg.width, cfg.height), vsync=True)
     except Exception as exc:  # GGUI raises RuntimeError without Vulkan; keep the message to one line
-        raise SandboxError(f"cannot open a window: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}")
+        first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise SandboxError(f"cannot open a window: {first_line}") from None
     canvas = window.get_canvas()
     substeps = substeps or sim.scene.world.substeps
     paused = False

