@@ -111,9 +111,18 @@ def cmd_check(args) -> int:
         f"materials {', '.join(sim.material_names)}"
     )
     print(f"  dt {w.dt:g} x {w.substeps} substeps per frame, integrator {w.integrator}")
-    print(f"  stable dt for the springs (2/omega_max): {sim.stable_dt():.4g}")
+    if sim.springs is not None:
+        print(f"  stable dt for the springs (2/omega_max): {sim.stable_dt():.4g}")
     if sim.heat is not None:
         print(f"  stable dt for explicit heat diffusion: {sim.heat_dt_limit():.4g}")
+    print(
+        f"  particle fields: {', '.join(sim.field_names())}"
+        + (
+            f"; spring fields: i, j, rest, ks, kd, factor, alive, bonds ({sim.springs.max_bonds} per particle)"
+            if sim.springs is not None
+            else ""
+        )
+    )
     print("pipeline per step:")
     for k, line in enumerate(sim.pipeline(), 1):
         print(f"  {k}. {line}")

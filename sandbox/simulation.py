@@ -469,12 +469,22 @@ class Simulation:
             forces.append(f"heat diffusion (kernel support {self.heat.support:g}, {self.heat.n_sources} sources)")
         if self.springs is not None:
             forces.append("spring-damper forces (gathered per particle)")
-        forces.append("gravity" + (" and drag" if self.scene.world.drag else ""))
+        if any(self.scene.world.gravity):
+            forces.append("gravity")
+        if self.scene.world.drag:
+            forces.append("drag")
         passes.append("fused rates kernel: " + ", ".join(forces))
         walls = "periodic wrap" if self.scene.world.periodic else "walls (restitution, friction)"
         heat = ", explicit heat update" if self.heat is not None else ""
         passes.append(f"integrator {self.integrator.name}, then {walls}{heat}")
         return passes
+
+    def field_names(self) -> list[str]:
+        """Names of the per-particle fields allocated for this scene."""
+        names = ["x", "v", "f", "mass", "radius", "material", "color"]
+        if self.heat is not None:
+            names += ["T", "dTdt"]
+        return names
 
     def memory_bytes(self) -> dict[str, int]:
         """Bytes of field memory by part."""

@@ -95,3 +95,20 @@ def test_random_velocity_has_zero_momentum_and_requested_spread():
     built = build_particles(scene)
     assert np.allclose(built.v.mean(axis=0), 0, atol=1e-12)
     assert built.v.std() == pytest.approx(2.0, rel=0.03)
+
+
+def test_png_mask_shapes_a_body_the_right_way_up():
+    scene = make_scene(
+        scene_dict(
+            world={"dim": 2, "lo": [0, 0], "hi": [50, 50]},
+            bodies=[
+                {"material": "jelly", "shape": "mask", "mask": "assets/masks/heart.png", "lo": [10, 10], "hi": [42, 42]}
+            ],
+        )
+    )
+    built = build_particles(scene)
+    area_fraction = 0.5449  # of the 64 x 64 mask's pixels that are opaque
+    assert abs(built.count - area_fraction * 32 * 32) < 0.04 * area_fraction * 32 * 32
+    y = built.x[:, 1]
+    assert (y > 26).sum() > (y < 26).sum()  # the heart's two lobes are at the top, its point at the bottom
+    assert built.x[:, 0].min() >= 10 and built.x[:, 0].max() <= 42
