@@ -1,4 +1,4 @@
-"""Command line: sandbox run | check | list | keys | bench."""
+"""Command line: sandbox run | check | list | keys | study | bench."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def cmd_run(args) -> int:
     from .render.video import check_output
 
     frames = args.frames or scene.render.frames
-    substeps = args.substeps or scene.world.substeps
+    substeps = args.substeps  # None: the scene's (an integer, or "auto")
     headless = args.headless
     if not headless:
         from .render.window import window_unavailable_reason
@@ -67,7 +67,7 @@ def cmd_run(args) -> int:
 
     print(
         f"{scene.name}: {sim.built.count} particles, {sim.built.spring_count} springs, {frames} frames x "
-        f"{substeps} steps on {sim.arch} -> {out}",
+        f"{substeps or scene.world.substeps} steps on {sim.arch} -> {out}",
         file=sys.stderr,
     )
     result = run_headless(
@@ -112,7 +112,8 @@ def cmd_check(args) -> int:
     )
     print(f"  dt {w.dt:g} x {w.substeps} substeps per frame, integrator {w.integrator}")
     if sim.springs is not None:
-        print(f"  stable dt for the springs (2/omega_max): {sim.stable_dt():.4g}")
+        print(f"  stable dt for the springs with {w.integrator} ((its stable h w) / omega_max): "
+              f"{sim.stable_dt():.4g}")
     if sim.heat is not None:
         print(f"  stable dt for explicit heat diffusion: {sim.heat_dt_limit():.4g}")
     print(
@@ -180,6 +181,16 @@ def cmd_keys(args) -> int:
     return 0
 
 
+def cmd_study(args) -> int:
+    from .study import run_study
+
+    out = Path(args.out)
+    run_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+    print(f"wrote {out}/report.md, runs.csv, stability.csv, stiff.csv" + ("" if not list(out.glob("*.png")) else
+                                                                        " and plots"))
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench import run_bench
 
@@ -227,6 +238,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("list", help="list shipped scenes and materials").set_defaults(func=cmd_list)
     sub.add_parser("keys", help="reference of every scene key").set_defaults(func=cmd_keys)
+
+    study = sub.add_parser("study", help="integrators: error against run time, convergence orders, stability")
+    study.add_argument("--out", required=True, help="folder for runs.csv, report.md and plots")
+    study.add_argument("--quick", action="store_true", help="reduced ladders (under a minute)")
+    study.set_defaults(func=cmd_study)
 
     bench = sub.add_parser("bench", help="throughput benchmarks (particle-steps per second)")
     bench.add_argument("--json", help="also write the results as JSON here")

@@ -3,10 +3,22 @@
 Each integrator is a few lines over the simulation's shared pieces:
   sim.eval_rates()        forces into p.f (and heat rates into p.dTdt) at the current positions and velocities
   sim.finish_particle()   (ti.func) walls / periodic wrap and the explicit heat update for one particle
-Heat always advances by explicit Euler on the rates of the step's first evaluation.
+Walls act once per step, at its end (multi-stage methods do not see them between stages). Heat is a first-order
+equation with its own stepping: explicit Euler on the rates of the step's last force evaluation.
+
+| name             | order | symplectic | force evaluations per step |
+| forward_euler    | 1     | no         | 1                          |
+| symplectic_euler | 1     | yes        | 1                          |
+| midpoint         | 2     | no         | 2                          |
+| verlet           | 2     | yes        | 1 (position Verlet: drift-kick-drift) |
+| velocity_verlet  | 2     | yes        | 2 (the first reuses nothing, so velocity-dependent forces stay exact) |
+| rk4              | 4     | no         | 4                          |
+| implicit_euler   | 1     | no         | 1 + conjugate-gradient iterations on the springs |
 """
 
 import taichi as ti
+
+from .solvers import pcg
 
 REGISTRY: dict[str, type] = {}
 
@@ -32,6 +44,14 @@ class Integrator:
     name = "base"
     order = 1
     symplectic = False
+    # Largest stable h*w on an undamped oscillator (theory); 0: unstable at any step; inf: unconditionally stable.
+    stable_h_omega = 0.0
+    # The h*w that substeps = "auto" aims for: half the limit, or for the methods that are never stable on an
+    # undamped spring a step where their amplitude grows by under 1% per period (forward Euler 0.01: 0.03%... see
+    # the study's growth table).
+    auto_h_omega = 0.01
+
+    evaluations = 1
 
     def __init__(self, sim):
         self.sim = sim
@@ -40,12 +60,19 @@ class Integrator:
     def step(self, dt: float) -> None:
         raise NotImplementedError
 
+    def _stage_fields(self, *names: str) -> None:
+        """Allocate per-particle vector buffers (x0, v0, ...) that only this integrator needs."""
+        for name in names:
+            setattr(self, name, ti.Vector.field(self.sim.dim, float, shape=self.sim.capacity))
+
 
 @register("symplectic_euler")
 class SymplecticEuler(Integrator):
     """v += dt f(x, v)/m; x += dt v (semi-implicit Euler: first order, symplectic, stable for dt w < 2)."""
 
     symplectic = True
+    stable_h_omega = 2.0
+    auto_h_omega = 1.0
 
     def step(self, dt: float) -> None:
         self.sim.eval_rates()
@@ -81,6 +108,9 @@ class VelocityVerlet(Integrator):
 
     order = 2
     symplectic = True
+    stable_h_omega = 2.0
+    auto_h_omega = 1.0
+    evaluations = 2
 
     def step(self, dt: float) -> None:
         self.sim.eval_rates()
@@ -99,3 +129,236 @@ class VelocityVerlet(Integrator):
     def _half_kick(self, dt: float):
         for i in range(self.p.n[None]):
             self.p.v[i] += 0.5 * dt * self.p.f[i] / self.p.mass[i]
+
+
+@register("midpoint")
+class Midpoint(Integrator):
+    """Explicit midpoint (RK2): evaluate at t + dt/2 from an Euler half step, then take the full step with those
+    rates. Second order; an undamped oscillator's amplitude grows slowly (by (dt w)^4 / 8 per step)."""
+
+    order = 2
+    evaluations = 2
+    auto_h_omega = 0.05
+
+    def __init__(self, sim):
+        super().__init__(sim)
+        self._stage_fields("x0", "v0")
+
+    def step(self, dt: float) -> None:
+        self.sim.eval_rates()
+        self._half(dt)
+        self.sim.eval_rates()
+        self._full(dt)
+
+    @ti.kernel
+    def _half(self, dt: float):
+        for i in range(self.p.n[None]):
+            self.x0[i], self.v0[i] = self.p.x[i], self.p.v[i]
+            self.p.x[i] += 0.5 * dt * self.p.v[i]
+            self.p.v[i] += 0.5 * dt * self.p.f[i] / self.p.mass[i]
+
+    @ti.kernel
+    def _full(self, dt: float):
+        for i in range(self.p.n[None]):
+            v_mid = self.p.v[i]
+            self.p.x[i] = self.x0[i] + dt * v_mid
+            self.p.v[i] = self.v0[i] + dt * self.p.f[i] / self.p.mass[i]
+            self.sim.finish_particle(i, dt)
+
+
+@register("verlet")
+class PositionVerlet(Integrator):
+    """Position Verlet (drift-kick-drift): x += dt/2 v; v += dt a(x); x += dt/2 v. Second order, symplectic,
+    one force evaluation per step; its positions obey Stormer's x_{n+1} = 2 x_n - x_{n-1} + dt^2 a(x_n)."""
+
+    order = 2
+    symplectic = True
+    stable_h_omega = 2.0
+    auto_h_omega = 1.0
+
+    def step(self, dt: float) -> None:
+        self._drift(dt)
+        self.sim.eval_rates()
+        self._kick_drift(dt)
+
+    @ti.kernel
+    def _drift(self, dt: float):
+        for i in range(self.p.n[None]):
+            self.p.x[i] += 0.5 * dt * self.p.v[i]
+
+    @ti.kernel
+    def _kick_drift(self, dt: float):
+        for i in range(self.p.n[None]):
+            self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
+            self.p.x[i] += 0.5 * dt * self.p.v[i]
+            self.sim.finish_particle(i, dt)
+
+
+@register("rk4")
+class RungeKutta4(Integrator):
+    """Classical fourth-order Runge-Kutta: the high-accuracy reference (4 evaluations per step, not symplectic)."""
+
+    order = 4
+    evaluations = 4
+    stable_h_omega = 2 * 2**0.5
+    auto_h_omega = 1.4
+
+    def __init__(self, sim):
+        super().__init__(sim)
+        self._stage_fields("x0", "v0", "dx", "dv")
+
+    def step(self, dt: float) -> None:
+        self._begin()
+        for weight, advance in ((1.0, 0.5), (2.0, 0.5), (2.0, 1.0)):
+            self.sim.eval_rates()
+            self._stage(dt, weight, advance)
+        self.sim.eval_rates()
+        self._end(dt)
+
+    @ti.kernel
+    def _begin(self):
+        for i in range(self.p.n[None]):
+            self.x0[i], self.v0[i] = self.p.x[i], self.p.v[i]
+            self.dx[i] = ti.Vector.zero(float, self.sim.dim)
+            self.dv[i] = ti.Vector.zero(float, self.sim.dim)
+
+    @ti.kernel
+    def _stage(self, dt: float, weight: float, advance: float):
+        """Accumulate stage k (rates at the current trial state) and set the next trial state x0 + advance dt k."""
+        for i in range(self.p.n[None]):
+            kx, kv = self.p.v[i], self.p.f[i] / self.p.mass[i]
+            self.dx[i] += weight * kx
+            self.dv[i] += weight * kv
+            self.p.x[i] = self.x0[i] + advance * dt * kx
+            self.p.v[i] = self.v0[i] + advance * dt * kv
+
+    @ti.kernel
+    def _end(self, dt: float):
+        for i in range(self.p.n[None]):
+            kx, kv = self.p.v[i], self.p.f[i] / self.p.mass[i]
+            self.p.x[i] = self.x0[i] + dt / 6.0 * (self.dx[i] + kx)
+            self.p.v[i] = self.v0[i] + dt / 6.0 * (self.dv[i] + kv)
+            self.sim.finish_particle(i, dt)
+
+
+@register("implicit_euler")
+class ImplicitEuler(Integrator):
+    """Backward Euler for the springs (Baraff & Witkin 1998), explicit for everything else (pair force, gravity).
+
+    Solves (M - h df/dv - h^2 df/dx) dv = h (f + h df/dx v) for dv with matrix-free preconditioned conjugate
+    gradients, then v += dv, x += h v. For a spring with n = d/|d|, L = |d|, per-spring blocks are
+    K = k (n n^T + max(0, 1 - l/L) (I - n n^T)) (the clamp keeps it positive semi-definite when compressed) and
+    D = c n n^T, so the system matrix is M plus a weighted graph Laplacian of PSD blocks: symmetric positive
+    definite. Unconditionally stable on springs, at the price of numerical damping that grows with h w.
+    """
+
+    stable_h_omega = float("inf")
+    auto_h_omega = float("inf")
+
+    def __init__(self, sim):
+        super().__init__(sim)
+        self.tolerance = sim.scene.world.implicit_tolerance
+        self.max_iterations = sim.scene.world.implicit_max_iterations
+        self.last_iterations = 0
+        self.total_iterations = 0
+        self.last_residual = 0.0
+        self._stage_fields("dv", "r", "z", "d", "Ap", "b")
+        self.diag = ti.field(float, shape=sim.capacity)  # Jacobi preconditioner: m_i + trace of its blocks / dim
+        self.springs = sim.springs
+        self.has_springs = sim.springs is not None
+        s = max(sim.springs.count, 1) if self.has_springs else 1
+        dim = sim.dim
+        self.block = ti.Matrix.field(dim, dim, float, shape=s)  # h D_s + h^2 K_s per spring
+        self.kmat = ti.Matrix.field(dim, dim, float, shape=s)  # K_s per spring
+        self.scalars = ti.field(ti.f64, shape=4)  # p.Ap, r.z, r.r, b.b
+
+    def step(self, dt: float) -> None:
+        self.sim.eval_rates()
+        self._assemble(dt)
+        result = pcg(self.scalars, self._matvec, self._update, self._direction, self.tolerance, self.max_iterations)
+        self.last_iterations = result.iterations
+        self.total_iterations += result.iterations
+        self.last_residual = result.relative_residual
+        self._finish(dt)
+
+    @ti.func
+    def _spring_blocks(self, s, h):
+        a, b = self.springs.i[s], self.springs.j[s]
+        d = self.sim.domain.separation(self.p.x[a], self.p.x[b])
+        length = ti.max(d.norm(), 1e-12)
+        n = d / length
+        nn = n.outer_product(n)
+        eye = ti.Matrix.identity(float, self.sim.dim)
+        k = self.springs.factor[s] * self.springs.ks[s]
+        c = self.springs.factor[s] * self.springs.kd[s]
+        kmat = k * (nn + ti.max(0.0, 1.0 - self.springs.rest[s] / length) * (eye - nn))
+        return kmat, h * c * nn + h * h * kmat
+
+    @ti.kernel
+    def _assemble(self, h: float):
+        for k in self.scalars:
+            self.scalars[k] = 0.0
+        if ti.static(self.has_springs):
+            for s in range(self.springs.count):
+                if self.springs.alive[s]:
+                    self.kmat[s], self.block[s] = self._spring_blocks(s, h)
+        for i in range(self.p.n[None]):
+            b = h * self.p.f[i]
+            diag = self.p.mass[i]
+            if ti.static(self.has_springs):
+                for k in range(self.springs.max_bonds):
+                    s = self.springs.bonds[i, k]
+                    if s < 0:
+                        break
+                    if self.springs.alive[s]:
+                        j = self.springs.other_end(i, s)
+                        b += h * h * (self.kmat[s] @ (self.p.v[j] - self.p.v[i]))
+                        diag += self.block[s].trace() / self.sim.dim
+            self.b[i] = b
+            self.diag[i] = diag
+            self.dv[i] = ti.Vector.zero(float, self.sim.dim)
+            self.r[i] = b
+            self.z[i] = b / diag
+            self.d[i] = self.z[i]
+            self.scalars[1] += b.dot(self.z[i])
+            self.scalars[2] += b.dot(b)
+            self.scalars[3] += b.dot(b)
+
+    @ti.kernel
+    def _matvec(self):
+        self.scalars[0] = 0.0
+        for i in range(self.p.n[None]):
+            ap = self.p.mass[i] * self.d[i]
+            if ti.static(self.has_springs):
+                for k in range(self.springs.max_bonds):
+                    s = self.springs.bonds[i, k]
+                    if s < 0:
+                        break
+                    if self.springs.alive[s]:
+                        j = self.springs.other_end(i, s)
+                        ap += self.block[s] @ (self.d[i] - self.d[j])
+            self.Ap[i] = ap
+            self.scalars[0] += self.d[i].dot(ap)
+
+    @ti.kernel
+    def _update(self, alpha: ti.f64):
+        self.scalars[1] = 0.0
+        self.scalars[2] = 0.0
+        for i in range(self.p.n[None]):
+            self.dv[i] += alpha * self.d[i]
+            self.r[i] -= alpha * self.Ap[i]
+            self.z[i] = self.r[i] / self.diag[i]
+            self.scalars[1] += self.r[i].dot(self.z[i])
+            self.scalars[2] += self.r[i].dot(self.r[i])
+
+    @ti.kernel
+    def _direction(self, beta: ti.f64):
+        for i in range(self.p.n[None]):
+            self.d[i] = self.z[i] + beta * self.d[i]
+
+    @ti.kernel
+    def _finish(self, h: float):
+        for i in range(self.p.n[None]):
+            self.p.v[i] += self.dv[i]
+            self.p.x[i] += h * self.p.v[i]
+            self.sim.finish_particle(i, h)

@@ -59,7 +59,7 @@ def _progress(total: int, enabled: bool, label: str):
 def run_headless(
     sim: Simulation,
     frames: int,
-    substeps: int,
+    substeps: int | None,
     out: str | Path | None,
     stats_path: str | Path | None = None,
     width: int | None = None,
@@ -69,7 +69,8 @@ def run_headless(
     progress: bool = True,
     on_frame: Callable[[int, Stats], None] | None = None,
 ) -> RunResult:
-    """Run `frames` frames of `substeps` steps each; write frames to `out` (by extension) and stats to a CSV.
+    """Run `frames` frames of `substeps` steps each (None: the scene's, possibly "auto"); write frames to `out` (by
+    extension) and stats to a CSV.
 
     Ctrl-C stops the run between steps; the video and CSV written so far are closed properly and the result says
     `interrupted`. A SimulationError (non-finite state) propagates after the files are closed.
@@ -93,9 +94,9 @@ def run_headless(
         for frame in range(frames):
             ti.sync()
             t0 = time.perf_counter()
-            sim.step(substeps)
+            taken = sim.advance_frame(substeps)
             ti.sync()
-            step_seconds = (time.perf_counter() - t0) / substeps
+            step_seconds = (time.perf_counter() - t0) / taken
             last = sim.stats()
             if csv_file is not None:
                 table.writerow(stats_row(frame, last, step_seconds))

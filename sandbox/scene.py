@@ -22,7 +22,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-INTEGRATORS = ("symplectic_euler", "forward_euler", "velocity_verlet")  # kept equal to integrators.REGISTRY
+# Kept equal to integrators.REGISTRY (a test checks), so validating a scene needs no Taichi import.
+INTEGRATORS = ("symplectic_euler", "forward_euler", "midpoint", "verlet", "velocity_verlet", "rk4", "implicit_euler")
 SHAPES = ("box", "disk", "sphere", "mask")
 LATTICES = ("square", "hex", "cubic", "fcc")
 COLOR_BY = ("temperature", "material", "speed", "phase")
@@ -41,7 +42,11 @@ class World:
     hi: tuple[float, ...] = spec(doc="upper corner of the domain box")
     gravity: tuple[float, ...] = spec((), doc="gravitational acceleration vector (default zero)")
     dt: float = spec(0.002, doc="time step (simulation seconds)", check=positive)
-    substeps: int = spec(10, doc="steps per rendered frame", check=at_least(1))
+    substeps: int | str = spec(10, doc="steps per rendered frame, or \"auto\": chosen each frame from the stability "
+                               "bound (stiffest live spring, fastest particle, heat), each at most dt",
+                               check=lambda s: None if s == "auto" or (isinstance(s, int) and s >= 1)
+                               else f"expected an integer >= 1 or \"auto\", got {s!r}")
+    frame_time: float = spec(0.02, doc="with substeps = \"auto\": simulated seconds per frame", check=positive)
     integrator: str = spec("symplectic_euler", doc="time integrator", check=one_of(*INTEGRATORS))
     periodic: bool = spec(False, doc="periodic boundaries on every axis instead of walls")
     restitution: float = spec(0.3, doc="normal velocity kept after hitting a wall", check=unit_interval)
@@ -49,6 +54,9 @@ class World:
     drag: float = spec(0.0, doc="linear drag rate on every particle (1/time)", check=non_negative)
     precision: str = spec("f32", doc="float precision of the fields", check=one_of("f32", "f64"))
     capacity: int = spec(0, doc="particle capacity (0: the initial count)", check=at_least(0))
+    implicit_tolerance: float = spec(1e-6, doc="implicit_euler: relative residual at which CG stops",
+                                     check=positive)
+    implicit_max_iterations: int = spec(200, doc="implicit_euler: CG iteration cap per step", check=at_least(1))
     neighbor_list: bool = spec(True, doc="Verlet neighbour lists (false: scan the cell grid every step)")
     skin: float = spec(
         0.3, doc="neighbour-list skin (length): lists are rebuilt after a particle moves skin/2", check=positive
@@ -88,6 +96,8 @@ class Heat:
         0.0, doc="heat flow per degree between each particle and the ambient", check=non_negative
     )
     radius: float = spec(2.5, doc="support radius of the heat-diffusion kernel (length)", check=positive)
+    stepper: str = spec("explicit", doc="explicit (Euler; limited step) or implicit (backward Euler by CG)",
+                        check=one_of("explicit", "implicit"))
     sources: list[HeatSource] = spec(doc="hot or cold regions", factory=list)
 
 

@@ -130,6 +130,13 @@ class Simulation:
         self._warned_overflow = False
         self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
         self.has_heat, self.has_springs = self.heat is not None, self.springs is not None
+        # With the implicit heat stepper the rates kernel skips heat; the solve runs after each step.
+        self.has_explicit_heat = self.has_heat and scene.heat.stepper == "explicit"
+        self.implicit_heat = None
+        if self.has_heat and not self.has_explicit_heat:
+            from .physics.heat_implicit import ImplicitHeat
+
+            self.implicit_heat = ImplicitHeat(self)
         self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
         self.gravity[None] = world.gravity
         self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
@@ -141,13 +148,26 @@ class Simulation:
         self.time = 0.0
         self.step_count = 0
         self._energy_scale: float | None = None
+        self._heat_limit = self.heat_dt_limit() if self.has_explicit_heat else math.inf
         self._initial = self.snapshot()
+        self._spring_omega0 = self.omega_max()
+
+    def set_integrator(self, name: str) -> None:
+        """Switch the time integrator by name, keeping the state (live, e.g. from the window)."""
+        if name != self.integrator.name:
+            self.integrator = make_integrator(name, self)
 
     # ------------------------------------------------------------------ stepping
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
         for _ in range(n):
             self.integrator.step(self.dt)
+            if self.implicit_heat is not None:
+                use_list = self.neighbours is not None and self.neighbours.ensure_fresh()
+                if not use_list and self.grid is not None:
+                    self.grid.rebuild()
+                self.implicit_heat.step(self.dt, use_list, self.neighbours.ids if use_list else None)
+                self.implicit_heat.apply()
             self.time += self.dt
             self.step_count += 1
 
@@ -178,7 +198,7 @@ class Simulation:
             if r2 < self.pair.cutoff**2:
                 f_scaled += self.pair.scaled_force(i, j, d, r2)
                 f_visc += self.pair.viscous_force(i, j, d, r2)
-        if ti.static(self.has_heat):
+        if ti.static(self.has_explicit_heat):
             if r2 < self.heat.support**2:
                 q += self.heat.flow(i, j, r2)
         return f_scaled, f_visc, q
@@ -228,7 +248,7 @@ class Simulation:
                             if r2 < self.pair.cutoff**2:  # bonded pairs feel the spring, not the pair force
                                 f -= self.pair.force(i, j, d, r2)
             p.f[i] = f
-            if ti.static(self.has_heat):
+            if ti.static(self.has_explicit_heat):
                 q += self.heat.source_flow(i)
                 p.dTdt[i] = q / (p.mass[i] * self.materials.specific_heat[p.material[i]])
 
@@ -237,7 +257,7 @@ class Simulation:
         """Walls (or periodic wrap) and the explicit heat update for particle i, at the end of a step."""
         p = self.particles
         p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i])
-        if ti.static(self.has_heat):
+        if ti.static(self.has_explicit_heat):
             p.T[i] += dt * p.dTdt[i]
 
     # ------------------------------------------------------------------ measurements
@@ -355,25 +375,78 @@ class Simulation:
             who = f"particle {int(bad[0])}"
         else:
             who = f"particle {int(np.argmax(np.linalg.norm(v, axis=1)))} (the fastest)"
-        limit = self.stable_dt()
-        cause = (
-            f"dt {self.dt:g} is above the stable limit {limit:.3g} for the stiffest spring with {self.integrator.name}"
-            if limit < self.dt
-            else "a force grew without bound (check stiffness, masses and the pair-force core)"
-        )
+        limit = self.stable_dt_initial
+        name = self.integrator.name
+        if limit == 0.0:
+            cause = f"{name} is unstable on undamped springs at any step; use symplectic_euler or implicit_euler"
+        elif limit < self.dt:
+            cause = f"dt {self.dt:g} is above the stable limit {limit:.3g} for the stiffest spring with {name}"
+        elif self.has_explicit_heat and self.dt > self._heat_limit:
+            cause = f"dt {self.dt:g} is above the explicit heat limit {self._heat_limit:.3g}"
+        else:
+            cause = "a force grew without bound (check stiffness, masses and the pair-force core)"
         raise SimulationError(f"{what} at step {self.step_count} (t = {self.time:.4g}) in {who}: {cause}")
 
-    def stable_dt(self) -> float:
-        """Largest stable step for the springs, 2 / omega_max, with omega_max^2 <= max_i 2 sum_s k_s / m_i
-        (Gershgorin bound on the stiffness matrix); inf without springs."""
-        b = self.built
-        if b.spring_count == 0:
+    @property
+    def stable_dt_initial(self) -> float:
+        """stable_dt() for the springs as built (before softening and breaking), for this integrator."""
+        if self._spring_omega0 == 0.0:
             return math.inf
-        ksum = np.zeros(b.count)
-        np.add.at(ksum, b.spring_i, b.stiffness)
-        np.add.at(ksum, b.spring_j, b.stiffness)
-        omega2 = np.max(2 * ksum / b.mass)
-        return 2.0 / math.sqrt(omega2) if omega2 > 0 else math.inf
+        return self.integrator.stable_h_omega / self._spring_omega0
+
+    def omega_max(self) -> float:
+        """Upper bound on the fastest spring frequency now: omega_max^2 <= max_i 2 sum_s k_s / m_i over live
+        springs at their current (softened) stiffness (Gershgorin bound on M^-1 K); 0 without springs."""
+        if self.springs is None:
+            return 0.0
+        s = self.springs
+        k = s.ks.to_numpy() * s.factor.to_numpy() * s.alive.to_numpy()
+        i, j = s.i.to_numpy(), s.j.to_numpy()
+        n = int(self.particles.n[None])
+        ksum = np.bincount(i, weights=k, minlength=n)[:n] + np.bincount(j, weights=k, minlength=n)[:n]
+        mass = self.particles.mass.to_numpy()[:n]
+        return float(math.sqrt(np.max(2 * ksum / mass))) if n else 0.0
+
+    def stable_dt(self) -> float:
+        """Largest stable step for the springs with this integrator: (its stable h w) / omega_max. 0 for methods
+        unstable on undamped springs at any step (forward Euler, midpoint); inf without springs."""
+        omega = self.omega_max()
+        if omega == 0.0:
+            return math.inf
+        return self.integrator.stable_h_omega / omega
+
+    def auto_step(self) -> float:
+        """The step substeps = "auto" uses now: the integrator's auto h w over omega_max, half the time for the
+        fastest particle to cross the smallest radius, half the explicit heat limit, and world.dt."""
+        limits = [self.scene.world.dt]
+        omega = self.omega_max()
+        if omega > 0 and math.isfinite(self.integrator.auto_h_omega):
+            limits.append(self.integrator.auto_h_omega / omega)
+        n = int(self.particles.n[None])
+        if n:
+            v = np.linalg.norm(self.velocities(), axis=1).max()
+            r = self.particles.radius.to_numpy()[:n].min()
+            if v > 0:
+                limits.append(0.5 * r / v)
+        if self.has_explicit_heat:
+            limits.append(0.5 * self._heat_limit)
+        return min(limits)
+
+    def frame_substeps(self) -> tuple[int, float]:
+        """(steps, step size) for the next frame: the scene's fixed substeps at world.dt, or under "auto" the
+        fewest equal steps of at most auto_step() that span world.frame_time."""
+        world = self.scene.world
+        if world.substeps != "auto":
+            return int(world.substeps), self.dt
+        n = max(1, math.ceil(world.frame_time / self.auto_step() - 1e-9))
+        return n, world.frame_time / n
+
+    def advance_frame(self, substeps: int | None = None) -> int:
+        """Advance one frame (the scene's substeps, or `substeps` steps of dt); returns the steps taken."""
+        if substeps is None:
+            substeps, self.dt = self.frame_substeps()
+        self.step(substeps)
+        return substeps
 
     def heat_dt_limit(self) -> float:
         """Largest stable explicit heat step on the initial particles (Gershgorin bound), inf without heat."""
@@ -428,6 +501,11 @@ class Simulation:
         self.step_count = snap["step"]
         if self.neighbours is not None:
             self.neighbours.invalidate()
+
+    def mark_initial(self) -> None:
+        """Make the current state the one reset() returns to."""
+        self._initial = self.snapshot()
+        self._spring_omega0 = self.omega_max()
 
     def reset(self) -> None:
         """Back to the scene's initial state."""

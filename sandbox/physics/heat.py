@@ -81,6 +81,11 @@ class Heat:
     @ti.func
     def flow(self, i, j, r2):
         """Heat flow rate into i from j at squared distance r2 (< support^2)."""
+        return self.conductance(i, j, r2) * (self.p.T[j] - self.p.T[i])
+
+    @ti.func
+    def conductance(self, i, j, r2):
+        """G_ij >= 0 with flow_ij = G_ij (T_j - T_i); symmetric in i and j."""
         r = ti.sqrt(r2)
         q = r / self.support
         grad = self.norm * 20.0 * (1.0 - q) ** 3 / (self.support * self.support)
@@ -89,19 +94,26 @@ class Heat:
         kij = 2.0 * ki * kj / ti.max(ki + kj, 1e-30)
         vi = self.p.mass[i] / self.mats.density[mi]
         vj = self.p.mass[j] / self.mats.density[mj]
-        return vi * vj * 2.0 * kij * (self.p.T[j] - self.p.T[i]) * grad
+        return vi * vj * 2.0 * kij * grad
 
     @ti.func
     def source_flow(self, i):
         """Heat flow rate into i from the sources it touches and from the ambient."""
+        g, gt = self.source_terms(i)
+        return gt - g * self.p.T[i]
+
+    @ti.func
+    def source_terms(self, i):
+        """(G, G T_s summed) over the ambient and the sources particle i touches: their flow is G T_s - G T_i."""
         xi = self.p.x[i]
-        ti_ = self.p.T[i]
-        q = self.ambient_exchange[None] * (self.ambient[None] - ti_)
+        g = self.ambient_exchange[None]
+        gt = g * self.ambient[None]
         for k in range(self.n_sources):
             inside = True
             for a in ti.static(range(self.dim)):
                 if xi[a] < self.src_lo[k][a] or xi[a] > self.src_hi[k][a]:
                     inside = False
             if inside:
-                q += self.src_conductance[k] * (self.src_temperature[k] - ti_)
-        return q
+                g += self.src_conductance[k]
+                gt += self.src_conductance[k] * self.src_temperature[k]
+        return g, gt

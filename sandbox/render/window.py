@@ -34,7 +34,6 @@ def run_window(sim, frames: int | None = None, screenshot: str | None = None, su
         first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SandboxError(f"cannot open a window: {first_line}") from None
     canvas = window.get_canvas()
-    substeps = substeps or sim.scene.world.substeps
     paused = False
     shown = 0
     while window.running:
@@ -51,7 +50,7 @@ def run_window(sim, frames: int | None = None, screenshot: str | None = None, su
         if not window.running:
             break
         if not paused:
-            sim.step(substeps)
+            sim.advance_frame(substeps)
         elif single:
             sim.step(1)
         sim.stats()  # the guard: a non-finite state stops with a named error instead of drawing garbage
