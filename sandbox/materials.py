@@ -50,7 +50,8 @@ class Material:
     color: tuple[float, ...] = spec((0.8, 0.8, 0.8), doc="base colour [r, g, b] in [0, 1]", check=_colour)
     particle_mass: float | None = spec(None, doc="mass of one particle; default density * spacing^dim", check=positive)
     note: str = spec("", doc="where the numbers come from")
-    based_on: str = spec("", doc="(scene tables only) start from this library material and override keys")
+    based_on: str = spec("", doc="(scene tables only) start from this material (library, or defined earlier in "
+                         "the scene) and override keys")
 
     def __post_init__(self):
         if self.soften_temperature > self.melt_temperature:
@@ -80,13 +81,14 @@ def resolve_materials(scene_tables: dict, file: str) -> dict[str, Material]:
             raise SceneError(file, key, "expected a table")
         base_name = table.get("based_on", "")
         if base_name:
-            if base_name not in library:
+            if base_name not in result:  # the library, or a material defined earlier in the scene
                 raise SceneError(
                     file,
                     f"{key}.based_on",
-                    f"unknown material {base_name!r}; expected one of: " + ", ".join(sorted(library)),
+                    f"unknown material {base_name!r}; expected one of: " + ", ".join(sorted(result)),
                 )
-            merged = {f.name: getattr(library[base_name], f.name) for f in dataclasses.fields(Material)}
+            merged = {f.name: getattr(result[base_name], f.name) for f in dataclasses.fields(Material)}
+            merged["based_on"] = ""
             merged.update(table)
             merged = {k: list(v) if isinstance(v, tuple) else v for k, v in merged.items() if v is not None}
             table = merged

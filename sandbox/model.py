@@ -23,6 +23,7 @@ class ParticleFields:
         self.radius = ti.field(float, shape=capacity)  # radius (length): walls and drawing, (C,)
         self.material = ti.field(ti.i32, shape=capacity)  # index into the scene's used materials, (C,)
         self.color = ti.Vector.field(3, ti.f32, shape=capacity)  # base colour, RGB in [0, 1], (C, 3)
+        self.group = ti.field(ti.i32, shape=capacity)  # the body a particle came from: its drawing style, (C,)
         if heat:
             self.T = ti.field(float, shape=capacity)  # temperature (degrees), (C,)
             self.dTdt = ti.field(float, shape=capacity)  # temperature rate of the last evaluation, (C,)
@@ -38,6 +39,7 @@ class ParticleFields:
         self._set(self.radius, built.radius)
         self._set(self.material, built.material)
         self._set(self.color, colors[built.material])
+        self._set(self.group, built.body)
         if self.heat:
             self._set(self.T, built.temperature)
             self._set(self.dTdt, np.zeros(n))
@@ -50,7 +52,7 @@ class ParticleFields:
     def nbytes(self) -> int:
         """Bytes held by these fields."""
         floats = 3 * self.dim + 2 + (2 if self.heat else 0)  # x, v, f, mass, radius, (T, dTdt)
-        return self.capacity * (floats * (8 if _is_f64() else 4) + 4 + 12)  # + material id + f32 colour
+        return self.capacity * (floats * (8 if _is_f64() else 4) + 8 + 12)  # + material, group ids + f32 colour
 
 
 @ti.data_oriented

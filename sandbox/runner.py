@@ -94,6 +94,8 @@ def run_headless(
         for frame in range(frames):
             ti.sync()
             t0 = time.perf_counter()
+            if renderer is not None:
+                renderer.begin_frame()
             taken = sim.advance_frame(substeps)
             ti.sync()
             step_seconds = (time.perf_counter() - t0) / taken

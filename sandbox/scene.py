@@ -122,6 +122,11 @@ class Body:
     random_velocity: float = spec(0.0, doc="std. dev. of random initial velocity per component", check=non_negative)
     jitter: float = spec(0.0, doc="random displacement of lattice sites, as a fraction of spacing", check=unit_interval)
     seed: int = spec(0, doc="random seed for velocity and jitter")
+    draw: str = spec("", doc="splat (a disc of the particle's radius), dot (one pixel) or sphere (3D shaded); "
+                     "default splat in 2D, sphere in 3D", check=one_of("", "splat", "dot", "sphere"))
+    blend: str = spec("opaque", doc="opaque, alpha (translucent; depth-sorted in 3D) or additive (emits light)",
+                      check=one_of("opaque", "alpha", "additive"))
+    opacity: float = spec(1.0, doc="alpha of a translucent body / brightness of an additive one", check=positive)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -139,6 +144,13 @@ class Render:
     camera_target: tuple[float, ...] = spec((), doc="3D: the point looked at (default: domain centre)")
     fov: float = spec(40.0, doc="3D: vertical field of view in degrees", check=positive)
     light_direction: tuple[float, ...] = spec((0.4, 0.8, 0.5), doc="3D: direction towards the light")
+    specular: float = spec(0.25, doc="3D: strength of the specular highlight on spheres", check=non_negative)
+    motion_blur: bool = spec(False, doc="draw each particle as a streak from its position a shutter ago")
+    shutter: float = spec(1.0, doc="motion blur: the fraction of a frame the shutter is open", check=unit_interval)
+    exposure: float = spec(1.0, doc="additive light: tone map 1 - exp(-exposure * light)", check=positive)
+    draw_springs: bool = spec(False, doc="2D: draw live springs as lines")
+    legend: bool = spec(False, doc="draw a colour bar for the colour map in a corner")
+    ground: bool = spec(True, doc="3D: a faint grid on the floor of the domain so depth reads")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -306,6 +318,13 @@ def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials
     if not body.name:
         changes["name"] = f"body{index}"
     lattice = body.lattice or ("square" if dim == 2 else "cubic")
+    if body.draw == "sphere" and dim == 2:
+        raise SceneError(file, f"{key}.draw", "'sphere' is a 3D drawing; expected splat or dot in 2D")
+    if not body.draw:
+        changes["draw"] = "splat" if dim == 2 else "sphere"
+    if body.blend != "opaque" and body.draw == "sphere":
+        raise SceneError(file, f"{key}.blend", "shaded spheres are opaque; use draw = \"splat\" for alpha or "
+                         "additive bodies")
     if (dim == 2) != (lattice in ("square", "hex")):
         raise SceneError(file, f"{key}.lattice", f"lattice {lattice!r} does not exist in {dim}D")
     changes["lattice"] = lattice

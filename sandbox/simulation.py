@@ -559,7 +559,7 @@ class Simulation:
 
     def field_names(self) -> list[str]:
         """Names of the per-particle fields allocated for this scene."""
-        names = ["x", "v", "f", "mass", "radius", "material", "color"]
+        names = ["x", "v", "f", "mass", "radius", "material", "color", "group"]
         if self.heat is not None:
             names += ["T", "dTdt"]
         return names

@@ -364,6 +364,8 @@ def stiff_sweep(integrators, stiffnesses, substeps_list, frame_time: float = 1 /
         sim.set_integrator(name)
         needed = {k: None for k in stiffnesses}
         for sub in substeps_list:
+            if all(v is not None for v in needed.values()):
+                break  # bounded at every stiffness; more substeps stay bounded
             sim.reset()
             sim.dt = frame_time / sub
             sim.step(frames * sub)
@@ -403,6 +405,7 @@ def run_study(out: Path, quick: bool = False, integrators=INTEGRATORS, log=print
         melt, notes = melting_runs(integrators, [0.0025, 0.00125])
         res.runs += melt
         res.notes.update(notes)
+        done("melting")
     from .heat_study import heat_runs
 
     heat, notes = heat_runs(quick)

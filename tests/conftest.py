@@ -35,3 +35,7 @@ def scene_file(tmp_path):
         return path
 
     return write
+
+
+def pytest_addoption(parser):
+    parser.addoption("--regen-golden", action="store_true", help="rewrite the stored golden images in tests/golden")

@@ -1,10 +1,21 @@
-"""The particle renderer: Taichi kernels splat particles into a float RGB image field, then pack it to 8-bit.
+"""The particle renderer: Taichi kernels draw particles into a float RGB image field, then pack it to 8-bit.
 
-2D: an orthographic view of the whole domain (fitted, centred), each particle an anti-aliased disc whose edge
-coverage is clamp(R + 0.5 - distance, 0, 1); overlapping discs blend by coverage-weighted averaging, which is
-order-independent. Heat sources are drawn as rectangles in their glow colour, the domain as a faint frame.
-3D: a perspective camera; each particle is a shaded sphere impostor (ambient + diffuse + specular), with a depth
-buffer (integer atomic min of the depth bits) so the nearest sphere wins each pixel.
+Every body (particle group) has a drawing style: `draw` (dot: one pixel; splat: a disc of the particle's radius;
+sphere: a shaded sphere in 3D) and `blend` (opaque; alpha: translucent; additive: emits light, absorbs none).
+
+Coverage. A particle is a segment from where it was a shutter ago to where it is (a point when still, or without
+motion blur); a pixel's coverage is clamp(R + 0.5 - d, 0, 1) for its distance d to the segment, R the radius in
+pixels. Particles smaller than R_MIN pixels are drawn at R_MIN with their opacity scaled by (R / R_MIN)^2 but never below MIN_FADE,
+so small or distant particles fade rather than flicker or vanish. Additive particles deposit an energy of opacity * pi R^2 (in pixel units),
+spread over their footprint by normalised weights: a sub-pixel spark deposits its full intensity wherever it
+falls, and a streak deposits the same energy as the still particle, brighter towards its head.
+
+Compositing. 2D: opaque particles blend by coverage-weighted averaging (order-independent); alpha particles by
+weighted averaging of colour with total alpha 1 - prod(1 - a_k) (exact product, accumulated as a sum of logs);
+additive light is tone mapped, 1 - exp(-exposure L) per channel, so dense regions saturate gracefully. 3D: opaque
+spheres with a depth buffer (integer atomic min of the depth bits) and ambient + diffuse + specular shading;
+translucent particles are sorted back to front on the host and composited "over" in that order by a serial
+kernel, with the depth test; additive light is depth-tested against the opaque spheres.
 The image field is W x H with y up (Taichi's and GGUI's convention); `frame()` returns H x W x 3 uint8, top row
 first, copied to the host once.
 """
@@ -14,9 +25,14 @@ import math
 import numpy as np
 import taichi as ti
 
-from .colormaps import glow, glow_over_base, speed_map
+from .colormaps import GLOW_STOPS, SPEED_STOPS, glow, glow_over_base, ramp_np, speed_map
 
 COLOR_MODES = {"temperature": 0, "material": 1, "speed": 2, "phase": 3}
+DRAW = {"dot": 0, "splat": 1, "sphere": 2}
+BLEND = {"opaque": 0, "alpha": 1, "additive": 2}
+R_MIN = 0.7  # pixels: the smallest drawn radius
+MIN_FADE = 0.25  # the least opacity factor of an opaque or translucent particle smaller than R_MIN
+MOLTEN = (1.0, 0.45, 0.1)
 
 
 @ti.data_oriented
@@ -28,25 +44,52 @@ class Renderer:
         self.cfg = render_cfg
         self.width, self.height = width, height
         self.dim = sim.dim
+        bodies = sim.scene.bodies
+        self.n_groups = len(bodies)
+        self.g_draw = ti.field(ti.i32, shape=self.n_groups)
+        self.g_blend = ti.field(ti.i32, shape=self.n_groups)
+        self.g_opacity = ti.field(ti.f32, shape=self.n_groups)
+        for k, body in enumerate(bodies):
+            self.g_draw[k] = DRAW[body.draw]
+            self.g_blend[k] = BLEND[body.blend]
+            self.g_opacity[k] = body.opacity
+        blends = {b.blend for b in bodies}
+        self.has_opaque, self.has_alpha, self.has_additive = ("opaque" in blends, "alpha" in blends,
+                                                              "additive" in blends)
         self.image = ti.Vector.field(3, ti.f32, shape=(width, height))  # linear RGB in [0, 1]
-        self.accum = ti.Vector.field(3, ti.f32, shape=(width, height))  # coverage-weighted colour sum (2D)
-        self.weight = ti.field(ti.f32, shape=(width, height))  # coverage sum (2D)
-        self.depth = ti.field(ti.i32, shape=(width, height))  # depth bits of the nearest surface (3D)
+        self.accum = ti.Vector.field(3, ti.f32, shape=(width, height))  # opaque: coverage-weighted colour sum
+        self.weight = ti.field(ti.f32, shape=(width, height))  # opaque: coverage sum
+        if self.has_alpha:
+            self.a_accum = ti.Vector.field(3, ti.f32, shape=(width, height))  # alpha-weighted colour sum (2D)
+            self.a_weight = ti.field(ti.f32, shape=(width, height))  # alpha sum (2D)
+            self.a_log = ti.field(ti.f32, shape=(width, height))  # sum of log(1 - alpha): transmittance (2D)
+            self.order = ti.field(ti.i32, shape=sim.capacity)  # 3D: translucent particles, back to front
+            self.n_order = ti.field(ti.i32, shape=())
+        if self.has_additive:
+            self.light = ti.Vector.field(3, ti.f32, shape=(width, height))  # additive light (unbounded)
+        self.depth = ti.field(ti.i32, shape=(width, height))  # depth bits of the nearest opaque surface (3D)
         self.packed = ti.field(ti.u8, shape=(height, width, 3))  # 8-bit output, top row first
+        self.motion_blur = bool(render_cfg.motion_blur)
+        if self.motion_blur:
+            self.x_prev = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions a frame ago
+            self.shutter = float(render_cfg.shutter)
         self.color_mode = COLOR_MODES[render_cfg.color_by]
         self.t_lo = ti.field(ti.f32, shape=())
         self.t_hi = ti.field(ti.f32, shape=())
         self.t_lo[None], self.t_hi[None] = render_cfg.temperature_range
         self.speed_hi = ti.field(ti.f32, shape=())
         self.speed_hi[None] = render_cfg.speed_range
+        self.exposure = float(render_cfg.exposure)
         self.background = ti.Vector(list(render_cfg.background))
         self.particle_scale = float(render_cfg.particle_scale)
         self.has_heat = sim.heat is not None
+        self.draw_springs = bool(render_cfg.draw_springs) and sim.springs is not None and self.dim == 2
         self._setup_view()
 
     # ------------------------------------------------------------------ view
     def _setup_view(self):
         lo, hi = np.asarray(self.sim.scene.world.lo), np.asarray(self.sim.scene.world.hi)
+        self.lo_np, self.hi_np = lo, hi
         if self.dim == 2:
             extent = hi - lo
             scale = min(self.width / extent[0], self.height / extent[1]) * 0.98
@@ -70,50 +113,87 @@ class Renderer:
             centre = (lo + hi) / 2
             size = float(np.linalg.norm(hi - lo))
             target = np.asarray(cfg.camera_target) if cfg.camera_target else centre
-            eye = (
-                np.asarray(cfg.camera_position)
-                if cfg.camera_position
-                else centre + np.array([0.35, 0.45, 1.0]) * size * 0.9
-            )
+            eye = (np.asarray(cfg.camera_position) if cfg.camera_position
+                   else centre + np.array([0.35, 0.45, 1.0]) * size * 0.9)
             self.set_camera(eye, target, cfg.fov)
             light = np.asarray(cfg.light_direction, dtype=float)
-            self.light = ti.Vector(list(light / np.linalg.norm(light)))
+            self.light_dir = ti.Vector(list(light / np.linalg.norm(light)))
+            self.specular = float(cfg.specular)
+            self.ground = bool(cfg.ground)
+            self.floor_y = float(lo[1])
+            self.floor_lo = ti.Vector([float(lo[0]), float(lo[2])])
+            self.floor_hi = ti.Vector([float(hi[0]), float(hi[2])])
+            self.grid_step = float(max(1.0, round(max(hi[0] - lo[0], hi[2] - lo[2]) / 12)))
+            # heat sources lying on the floor are drawn on it in their glow colour
+            src = [s for s in (self.sim.scene.heat.sources if self.sim.scene.heat else []) if s.lo[1] <= lo[1] + 1]
+            self.n_src = len(src)
+            ns = max(self.n_src, 1)
+            self.src_lo = ti.Vector.field(2, ti.f32, shape=ns)
+            self.src_hi = ti.Vector.field(2, ti.f32, shape=ns)
+            self.src_t = ti.field(ti.f32, shape=ns)
+            for k, s in enumerate(src):
+                self.src_lo[k] = [s.lo[0], s.lo[2]]
+                self.src_hi[k] = [s.hi[0], s.hi[2]]
+                self.src_t[k] = s.temperature
 
     def set_camera(self, eye, target, fov_degrees: float) -> None:
         """3D: place the camera (world units) looking at target with a vertical field of view in degrees."""
         eye, target = np.asarray(eye, dtype=float), np.asarray(target, dtype=float)
         fwd = target - eye
         fwd /= np.linalg.norm(fwd)
-        up = np.array([0.0, 1.0, 0.0])
-        right = np.cross(fwd, up)
+        right = np.cross(fwd, np.array([0.0, 1.0, 0.0]))
         if np.linalg.norm(right) < 1e-6:
             right = np.array([1.0, 0.0, 0.0])
         right /= np.linalg.norm(right)
         true_up = np.cross(right, fwd)
+        self.eye_np, self.fwd_np = eye, fwd
         self.cam_eye = ti.Vector(list(eye))
         self.cam_right = ti.Vector(list(right))
         self.cam_up = ti.Vector(list(true_up))
         self.cam_fwd = ti.Vector(list(fwd))
         self.focal = 0.5 * self.height / math.tan(math.radians(fov_degrees) / 2)
 
-    # ------------------------------------------------------------------ drawing
+    # ------------------------------------------------------------------ frames
+    def begin_frame(self) -> None:
+        """Remember positions before the simulation advances a frame (the tails of motion-blur streaks)."""
+        if self.motion_blur:
+            self._remember()
+
+    @ti.kernel
+    def _remember(self):
+        for i in range(self.sim.particles.n[None]):
+            self.x_prev[i] = ti.cast(self.sim.particles.x[i], ti.f32)
+
     def render(self) -> None:
         """Draw the current state into self.image."""
         if self.dim == 2:
             self._clear_2d()
+            if self.draw_springs:
+                self._springs_2d()
             self._splat_2d()
             self._resolve_2d()
         else:
             self._clear_3d()
-            self._depth_3d()
-            self._shade_3d()
+            if self.has_opaque:
+                self._depth_3d()
+                self._shade_3d()
+            if self.has_alpha:
+                self._sort_translucent()
+                self._composite_translucent()
+            if self.has_additive:
+                self._light_3d()
+                self._tone_map()
 
     def frame(self) -> np.ndarray:
-        """Render and return the picture as an (H, W, 3) uint8 array, top row first."""
+        """Render and return the picture as an (H, W, 3) uint8 array, top row first (legend drawn on the host)."""
         self.render()
         self._pack()
-        return self.packed.to_numpy()
+        img = self.packed.to_numpy()
+        if self.cfg.legend:
+            self.draw_legend(img)
+        return img
 
+    # ------------------------------------------------------------------ shared funcs
     @ti.func
     def particle_color(self, i):
         p = self.sim.particles
@@ -126,124 +206,305 @@ class Renderer:
             c = speed_map(p.v[i].norm() / self.speed_hi[None])
         elif ti.static(self.color_mode == 3 and self.has_heat):
             if p.T[i] >= self.sim.materials.melt[p.material[i]]:
-                c = ti.Vector([1.0, 0.45, 0.1])
+                c = ti.Vector(list(MOLTEN))
         return c
 
+    @ti.func
+    def _segment(self, pix, a, b):
+        """(distance from pixel centre pix to segment a-b, parameter t in [0, 1] of the nearest point; t = 1 at b)."""
+        ab = b - a
+        l2 = ab.dot(ab)
+        t = 1.0
+        if l2 > 1e-12:
+            t = ti.math.clamp((pix - a).dot(ab) / l2, 0.0, 1.0)
+        return (pix - (a + t * ab)).norm(), t
+
+    @ti.func
+    def _weight(self, pix, a, b, r, blurred):
+        """Coverage of pixel pix by the capsule a-b of radius r (pixels), times the fall-off along a streak."""
+        d, t = self._segment(pix, a, b)
+        w = ti.math.clamp(r + 0.5 - d, 0.0, 1.0)
+        if blurred:
+            w *= 0.25 + 0.75 * t
+        return w
+
+    @ti.func
+    def _box(self, a, b, r):
+        x0 = ti.max(ti.cast(ti.floor(ti.min(a[0], b[0]) - r - 1), ti.i32), 0)
+        x1 = ti.min(ti.cast(ti.ceil(ti.max(a[0], b[0]) + r + 1), ti.i32), self.width - 1)
+        y0 = ti.max(ti.cast(ti.floor(ti.min(a[1], b[1]) - r - 1), ti.i32), 0)
+        y1 = ti.min(ti.cast(ti.ceil(ti.max(a[1], b[1]) + r + 1), ti.i32), self.height - 1)
+        return x0, x1, y0, y1
+
+    @ti.func
+    def _deposit_light(self, a, b, r, energy, col, blurred, use_depth, z):
+        """Spread `energy` of colour col over the capsule's footprint with normalised weights (depth-tested in 3D)."""
+        x0, x1, y0, y1 = self._box(a, b, r)
+        total = 0.0
+        for px in range(x0, x1 + 1):
+            for py in range(y0, y1 + 1):
+                total += self._weight(ti.Vector([px + 0.5, py + 0.5]), a, b, r, blurred)
+        if total > 0.0:
+            zbits = ti.bit_cast(ti.cast(ti.max(z, 0.0), ti.f32), ti.i32)
+            for px in range(x0, x1 + 1):
+                for py in range(y0, y1 + 1):
+                    w = self._weight(ti.Vector([px + 0.5, py + 0.5]), a, b, r, blurred)
+                    visible = True
+                    if use_depth:
+                        visible = zbits <= self.depth[px, py]
+                    if w > 0.0 and visible:
+                        self.light[px, py] += energy * w / total * col
+
+    # ------------------------------------------------------------------ 2D
     @ti.kernel
     def _clear_2d(self):
         for x, y in self.image:
             self.accum[x, y] = ti.Vector([0.0, 0.0, 0.0])
             self.weight[x, y] = 0.0
+            if ti.static(self.has_alpha):
+                self.a_accum[x, y] = ti.Vector([0.0, 0.0, 0.0])
+                self.a_weight[x, y] = 0.0
+                self.a_log[x, y] = 0.0
+            if ti.static(self.has_additive):
+                self.light[x, y] = ti.Vector([0.0, 0.0, 0.0])
             pix = ti.Vector([x + 0.5, y + 0.5])
             c = self.background
-            inside = (
-                pix[0] >= self.px_lo[0]
-                and pix[0] <= self.px_hi[0]
-                and pix[1] >= self.px_lo[1]
-                and pix[1] <= self.px_hi[1]
-            )
+            inside = (pix[0] >= self.px_lo[0] and pix[0] <= self.px_hi[0] and pix[1] >= self.px_lo[1]
+                      and pix[1] <= self.px_hi[1])
             if not inside:
                 c = self.background * 0.6
+            elif ti.min(pix[0] - self.px_lo[0], self.px_hi[0] - pix[0], pix[1] - self.px_lo[1],
+                        self.px_hi[1] - pix[1]) < 1.5:
+                c = self.background * 2.2 + 0.04  # the walls: a faint frame
             for k in range(self.n_src):
-                if (
-                    pix[0] >= self.src_lo[k][0] - 1
-                    and pix[0] <= self.src_hi[k][0] + 1
-                    and pix[1] >= self.src_lo[k][1] - 2
-                    and pix[1] <= self.src_hi[k][1] + 1
-                ):
+                if (pix[0] >= self.src_lo[k][0] - 1 and pix[0] <= self.src_hi[k][0] + 1
+                        and pix[1] >= self.src_lo[k][1] - 2 and pix[1] <= self.src_hi[k][1] + 1):
                     t = (self.src_t[k] - self.t_lo[None]) / (self.t_hi[None] - self.t_lo[None])
                     c = glow(ti.max(t, 0.35)) if t > 0.05 else ti.Vector([0.3, 0.55, 1.0])
             self.image[x, y] = c
 
     @ti.kernel
+    def _springs_2d(self):
+        s = self.sim.springs
+        p = self.sim.particles
+        for k in range(s.count):
+            if s.alive[k]:
+                a = ti.cast(p.x[s.i[k]], ti.f32) * self.px_per_unit + self.offset
+                b = ti.cast(p.x[s.j[k]], ti.f32) * self.px_per_unit + self.offset
+                if (a - b).norm() < 0.25 * ti.max(self.width, self.height):  # skip periodic wrap-arounds
+                    x0, x1, y0, y1 = self._box(a, b, 0.5)
+                    for px in range(x0, x1 + 1):
+                        for py in range(y0, y1 + 1):
+                            d, _ = self._segment(ti.Vector([px + 0.5, py + 0.5]), a, b)
+                            cov = 0.6 * ti.math.clamp(1.0 - d, 0.0, 1.0)
+                            if cov > 0.0:
+                                self.image[px, py] = self.image[px, py] * (1.0 - cov) + ti.Vector([0.55, 0.6, 0.7]) * cov
+
+    @ti.kernel
     def _splat_2d(self):
         p = self.sim.particles
         for i in range(p.n[None]):
-            centre = p.x[i] * self.px_per_unit + self.offset
-            r = ti.max(p.radius[i] * self.px_per_unit * self.particle_scale, 0.5)
+            g = p.group[i]
+            head = ti.cast(p.x[i], ti.f32) * self.px_per_unit + self.offset
+            tail = head
+            blurred = False
+            if ti.static(self.motion_blur):
+                prev = self.x_prev[i] * self.px_per_unit + self.offset
+                tail = head + self.shutter * (prev - head)
+                blurred = (tail - head).norm() > 1e-3 and (tail - head).norm() < 0.5 * self.width  # not a periodic wrap
+                if not blurred:
+                    tail = head
+            r_true = p.radius[i] * self.px_per_unit * self.particle_scale
+            draw, blend, opacity = self.g_draw[g], self.g_blend[g], self.g_opacity[g]
+            if draw == 0:  # a dot: one pixel
+                r_true = 0.5
+            r = ti.max(r_true, R_MIN)
+            fade = ti.max((r_true / r) ** 2, MIN_FADE)
             col = self.particle_color(i)
-            x0 = ti.max(ti.cast(ti.floor(centre[0] - r - 1), ti.i32), 0)
-            x1 = ti.min(ti.cast(ti.ceil(centre[0] + r + 1), ti.i32), self.width - 1)
-            y0 = ti.max(ti.cast(ti.floor(centre[1] - r - 1), ti.i32), 0)
-            y1 = ti.min(ti.cast(ti.ceil(centre[1] + r + 1), ti.i32), self.height - 1)
-            for px in range(x0, x1 + 1):
-                for py in range(y0, y1 + 1):
-                    d = (ti.Vector([px + 0.5, py + 0.5]) - centre).norm()
-                    cov = ti.math.clamp(r + 0.5 - d, 0.0, 1.0)
-                    if cov > 0.0:
-                        self.accum[px, py] += cov * col
-                        self.weight[px, py] += cov
+            if blend == 2:
+                if ti.static(self.has_additive):
+                    self._deposit_light(tail, head, r, opacity * math.pi * r_true * r_true, col, blurred, False, 0.0)
+            else:
+                x0, x1, y0, y1 = self._box(tail, head, r)
+                for px in range(x0, x1 + 1):
+                    for py in range(y0, y1 + 1):
+                        w = fade * self._weight(ti.Vector([px + 0.5, py + 0.5]), tail, head, r, blurred)
+                        if w > 0.0:
+                            if blend == 0:
+                                self.accum[px, py] += w * col
+                                self.weight[px, py] += w
+                            else:
+                                if ti.static(self.has_alpha):
+                                    a = ti.min(w * opacity, 0.999)
+                                    self.a_accum[px, py] += a * col
+                                    self.a_weight[px, py] += a
+                                    self.a_log[px, py] += ti.log(1.0 - a)
 
     @ti.kernel
     def _resolve_2d(self):
         for x, y in self.image:
+            c = self.image[x, y]
             w = self.weight[x, y]
             if w > 0.0:
                 a = ti.min(w, 1.0)
-                self.image[x, y] = self.image[x, y] * (1.0 - a) + self.accum[x, y] / w * a
+                c = c * (1.0 - a) + self.accum[x, y] / w * a
+            if ti.static(self.has_alpha):
+                aw = self.a_weight[x, y]
+                if aw > 0.0:
+                    a = 1.0 - ti.exp(self.a_log[x, y])
+                    c = c * (1.0 - a) + self.a_accum[x, y] / aw * a
+            if ti.static(self.has_additive):
+                c += 1.0 - ti.exp(-self.exposure * self.light[x, y])
+            self.image[x, y] = ti.min(c, 1.0)
 
-    @ti.kernel
-    def _clear_3d(self):
-        for x, y in self.image:
-            shade = 0.75 + 0.25 * y / self.height
-            self.image[x, y] = self.background * shade
-            self.depth[x, y] = 2147483647
-
+    # ------------------------------------------------------------------ 3D
     @ti.func
     def _project(self, pos):
-        rel = pos - self.cam_eye
+        rel = ti.cast(pos, ti.f32) - self.cam_eye
         z = rel.dot(self.cam_fwd)
         sx = self.width * 0.5 + self.focal * rel.dot(self.cam_right) / ti.max(z, 1e-6)
         sy = self.height * 0.5 + self.focal * rel.dot(self.cam_up) / ti.max(z, 1e-6)
         return ti.Vector([sx, sy]), z
 
     @ti.kernel
+    def _clear_3d(self):
+        for x, y in self.image:
+            shade = 0.75 + 0.25 * y / self.height
+            c = self.background * shade
+            if ti.static(self.ground):
+                # the floor plane y = floor_y, with a faint grid so depth reads
+                ray = (self.cam_fwd * self.focal + self.cam_right * (x + 0.5 - 0.5 * self.width)
+                       + self.cam_up * (y + 0.5 - 0.5 * self.height)).normalized()
+                if ray[1] < -1e-6:
+                    s = (self.floor_y - self.cam_eye[1]) / ray[1]
+                    hit = self.cam_eye + s * ray
+                    u = ti.Vector([hit[0], hit[2]])
+                    if (u >= self.floor_lo).all() and (u <= self.floor_hi).all():
+                        c = c * 1.35 + 0.015
+                        f = ti.abs(u / self.grid_step - ti.round(u / self.grid_step)) * self.grid_step
+                        pixel_size = s / self.focal
+                        line = ti.max(1.0 - f[0] / (1.2 * pixel_size), 1.0 - f[1] / (1.2 * pixel_size), 0.0)
+                        c += 0.05 * ti.min(line, 1.0)
+                        for k in range(self.n_src):
+                            if (u >= self.src_lo[k]).all() and (u <= self.src_hi[k]).all():
+                                t = (self.src_t[k] - self.t_lo[None]) / (self.t_hi[None] - self.t_lo[None])
+                                c = c * 0.6 + 0.3 * (glow(ti.max(t, 0.35)) if t > 0.05 else ti.Vector([0.3, 0.55, 1.0]))
+            self.image[x, y] = c
+            self.depth[x, y] = 2147483647
+            if ti.static(self.has_additive):
+                self.light[x, y] = ti.Vector([0.0, 0.0, 0.0])
+
+    @ti.kernel
     def _depth_3d(self):
         p = self.sim.particles
         for i in range(p.n[None]):
-            centre, z = self._project(p.x[i])
-            if z > 1e-3:
-                rad = p.radius[i] * self.particle_scale
-                r = ti.max(rad * self.focal / z, 0.7)
-                x0 = ti.max(ti.cast(ti.floor(centre[0] - r), ti.i32), 0)
-                x1 = ti.min(ti.cast(ti.ceil(centre[0] + r), ti.i32), self.width - 1)
-                y0 = ti.max(ti.cast(ti.floor(centre[1] - r), ti.i32), 0)
-                y1 = ti.min(ti.cast(ti.ceil(centre[1] + r), ti.i32), self.height - 1)
-                for px in range(x0, x1 + 1):
-                    for py in range(y0, y1 + 1):
-                        u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
-                        q = u.dot(u)
-                        if q <= 1.0:
-                            zs = z - rad * ti.sqrt(1.0 - q)
-                            ti.atomic_min(self.depth[px, py], ti.bit_cast(ti.cast(ti.max(zs, 0.0), ti.f32), ti.i32))
+            if self.g_blend[p.group[i]] == 0:
+                centre, z = self._project(p.x[i])
+                if z > 1e-3:
+                    rad = p.radius[i] * self.particle_scale
+                    r = ti.max(rad * self.focal / z, R_MIN)
+                    x0, x1, y0, y1 = self._box(centre, centre, r)
+                    for px in range(x0, x1 + 1):
+                        for py in range(y0, y1 + 1):
+                            u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
+                            q = u.dot(u)
+                            if q <= 1.0:
+                                zs = z - rad * ti.sqrt(1.0 - q)
+                                ti.atomic_min(self.depth[px, py], ti.bit_cast(ti.cast(ti.max(zs, 0.0), ti.f32), ti.i32))
 
     @ti.kernel
     def _shade_3d(self):
         p = self.sim.particles
         for i in range(p.n[None]):
+            g = p.group[i]
+            if self.g_blend[g] == 0:
+                centre, z = self._project(p.x[i])
+                if z > 1e-3:
+                    rad = p.radius[i] * self.particle_scale
+                    r = ti.max(rad * self.focal / z, R_MIN)
+                    col = self.particle_color(i)
+                    shaded = self.g_draw[g] == 2
+                    x0, x1, y0, y1 = self._box(centre, centre, r)
+                    for px in range(x0, x1 + 1):
+                        for py in range(y0, y1 + 1):
+                            u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
+                            q = u.dot(u)
+                            if q <= 1.0:
+                                zs = z - rad * ti.sqrt(1.0 - q)
+                                bits = ti.bit_cast(ti.cast(ti.max(zs, 0.0), ti.f32), ti.i32)
+                                if bits == self.depth[px, py]:
+                                    c = col
+                                    if shaded:
+                                        nz = ti.sqrt(1.0 - q)
+                                        normal = u[0] * self.cam_right + u[1] * self.cam_up - nz * self.cam_fwd
+                                        diffuse = ti.max(normal.dot(self.light_dir), 0.0)
+                                        half = (self.light_dir - self.cam_fwd).normalized()
+                                        spec = ti.max(normal.dot(half), 0.0) ** 32
+                                        c = col * (0.3 + 0.7 * diffuse) + self.specular * spec
+                                    self.image[px, py] = c
+
+    def _sort_translucent(self) -> None:
+        """Order the translucent particles back to front (by distance along the view direction), on the host."""
+        n = int(self.sim.particles.n[None])
+        x = self.sim.particles.x.to_numpy()[:n]
+        group = self.sim.particles.group.to_numpy()[:n]
+        blend = self.g_blend.to_numpy()
+        ids = np.flatnonzero(blend[group] == BLEND["alpha"])
+        depth = (x[ids] - self.eye_np) @ self.fwd_np
+        order = ids[np.argsort(-depth, kind="stable")].astype(np.int32)
+        full = np.zeros(self.sim.capacity, dtype=np.int32)
+        full[: len(order)] = order
+        self.order.from_numpy(full)
+        self.n_order[None] = len(order)
+
+    @ti.kernel
+    def _composite_translucent(self):
+        p = self.sim.particles
+        ti.loop_config(serialize=True)  # "over" compositing must follow the back-to-front order
+        for k in range(self.n_order[None]):
+            i = self.order[k]
             centre, z = self._project(p.x[i])
             if z > 1e-3:
-                rad = p.radius[i] * self.particle_scale
-                r = ti.max(rad * self.focal / z, 0.7)
+                r = ti.max(p.radius[i] * self.particle_scale * self.focal / z, R_MIN)
                 col = self.particle_color(i)
-                x0 = ti.max(ti.cast(ti.floor(centre[0] - r), ti.i32), 0)
-                x1 = ti.min(ti.cast(ti.ceil(centre[0] + r), ti.i32), self.width - 1)
-                y0 = ti.max(ti.cast(ti.floor(centre[1] - r), ti.i32), 0)
-                y1 = ti.min(ti.cast(ti.ceil(centre[1] + r), ti.i32), self.height - 1)
+                opacity = self.g_opacity[p.group[i]]
+                zbits = ti.bit_cast(ti.cast(z, ti.f32), ti.i32)
+                x0, x1, y0, y1 = self._box(centre, centre, r)
                 for px in range(x0, x1 + 1):
                     for py in range(y0, y1 + 1):
-                        u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
-                        q = u.dot(u)
-                        if q <= 1.0:
-                            zs = z - rad * ti.sqrt(1.0 - q)
-                            bits = ti.bit_cast(ti.cast(ti.max(zs, 0.0), ti.f32), ti.i32)
-                            if bits == self.depth[px, py]:
-                                nz = ti.sqrt(1.0 - q)
-                                normal = u[0] * self.cam_right + u[1] * self.cam_up - nz * self.cam_fwd
-                                diffuse = ti.max(normal.dot(self.light), 0.0)
-                                half = (self.light - self.cam_fwd).normalized()
-                                spec = ti.max(normal.dot(half), 0.0) ** 32
-                                self.image[px, py] = col * (0.3 + 0.7 * diffuse) + 0.25 * spec
+                        w = self._weight(ti.Vector([px + 0.5, py + 0.5]), centre, centre, r, False)
+                        if w > 0.0 and zbits <= self.depth[px, py]:
+                            a = ti.min(w * opacity, 1.0)
+                            self.image[px, py] = self.image[px, py] * (1.0 - a) + col * a
+
+    @ti.kernel
+    def _light_3d(self):
+        p = self.sim.particles
+        for i in range(p.n[None]):
+            g = p.group[i]
+            if self.g_blend[g] == 2:
+                head, z = self._project(p.x[i])
+                if z > 1e-3:
+                    tail = head
+                    blurred = False
+                    if ti.static(self.motion_blur):
+                        prev, zp = self._project(self.x_prev[i])
+                        if zp > 1e-3:
+                            tail = head + self.shutter * (prev - head)
+                            blurred = (tail - head).norm() > 1e-3 and (tail - head).norm() < 0.5 * self.width  # not a periodic wrap
+                            if not blurred:
+                                tail = head
+                    r_true = p.radius[i] * self.particle_scale * self.focal / z
+                    if self.g_draw[g] == 0:
+                        r_true = 0.5
+                    r = ti.max(r_true, R_MIN)
+                    energy = self.g_opacity[g] * math.pi * r_true * r_true
+                    self._deposit_light(tail, head, r, energy, self.particle_color(i), blurred, True, z)
+
+    @ti.kernel
+    def _tone_map(self):
+        for x, y in self.image:
+            self.image[x, y] = ti.min(self.image[x, y] + 1.0 - ti.exp(-self.exposure * self.light[x, y]), 1.0)
 
     @ti.kernel
     def _pack(self):
@@ -251,3 +512,54 @@ class Renderer:
             c = self.image[x, y]
             for k in ti.static(range(3)):
                 self.packed[self.height - 1 - y, x, k] = ti.cast(ti.math.clamp(c[k], 0.0, 1.0) * 255.0 + 0.5, ti.u8)
+
+    # ------------------------------------------------------------------ legend (host side, on the 8-bit frame)
+    def legend_colors(self, n: int) -> np.ndarray:
+        """The active colour map sampled at n points, (n, 3) floats."""
+        ts = np.linspace(0, 1, n)
+        if self.cfg.color_by == "speed":
+            return np.array([ramp_np(SPEED_STOPS, t) for t in ts])
+        return np.array([ramp_np(GLOW_STOPS, t) for t in ts])
+
+    def draw_legend(self, img: np.ndarray) -> None:
+        """A colour bar with its range labelled, in the bottom-right corner of an (H, W, 3) uint8 frame."""
+        if self.cfg.color_by not in ("temperature", "speed"):
+            return
+        h, w = img.shape[:2]
+        bar_w, bar_h = max(60, w // 6), max(6, h // 60)
+        x0, y0 = w - bar_w - 12, h - bar_h - 16
+        colors = (self.legend_colors(bar_w) * 255).astype(np.uint8)
+        img[y0 : y0 + bar_h, x0 : x0 + bar_w] = colors[None, :, :]
+        img[y0 - 1, x0 - 1 : x0 + bar_w + 1] = 200
+        img[y0 + bar_h, x0 - 1 : x0 + bar_w + 1] = 200
+        if self.cfg.color_by == "speed":
+            lo, hi = 0.0, self.cfg.speed_range
+        else:
+            lo, hi = self.cfg.temperature_range
+        scale = max(1, h // 240)
+        draw_text(img, f"{lo:g}", x0, y0 + bar_h + 3, scale)
+        label = f"{hi:g}"
+        draw_text(img, label, x0 + bar_w - 4 * scale * len(label), y0 + bar_h + 3, scale)
+
+
+# A 3 x 5 pixel font for legend numbers.
+_GLYPHS = {
+    "0": "111101101101111", "1": "010110010010111", "2": "111001111100111", "3": "111001111001111",
+    "4": "101101111001001", "5": "111100111001111", "6": "111100111101111", "7": "111001001001001",
+    "8": "111101111101111", "9": "111101111001111", ".": "000000000000010", "-": "000000111000000",
+    "e": "000111101110111", "+": "000010111010000",
+}
+
+
+def draw_text(img: np.ndarray, text: str, x: int, y: int, scale: int = 1, color=(230, 230, 230)) -> None:
+    """Draw `text` (digits . - + e) into an (H, W, 3) uint8 image with its top-left corner at (x, y)."""
+    for k, ch in enumerate(text):
+        glyph = _GLYPHS.get(ch)
+        if glyph is None:
+            continue
+        for row in range(5):
+            for col in range(3):
+                if glyph[row * 3 + col] == "1":
+                    ys, xs = y + row * scale, x + (4 * k + col) * scale
+                    if 0 <= ys and ys + scale <= img.shape[0] and 0 <= xs and xs + scale <= img.shape[1]:
+                        img[ys : ys + scale, xs : xs + scale] = color

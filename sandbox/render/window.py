@@ -49,6 +49,7 @@ def run_window(sim, frames: int | None = None, screenshot: str | None = None, su
                 sim.reset()
         if not window.running:
             break
+        renderer.begin_frame()
         if not paused:
             sim.advance_frame(substeps)
         elif single:

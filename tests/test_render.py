@@ -1,0 +1,148 @@
+"""Rendering: each technique's defining property, computed on the image, and golden images with a tolerance.
+
+Regenerate the stored images after an intended change with `python3 -m pytest tests/test_render.py --regen-golden`.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from sandbox.render.raster import Renderer
+from sandbox.render.video import read_png, write_png
+from sandbox.scene import load_scene
+from sandbox.simulation import Simulation
+
+from .conftest import ROOT, SCENES, make_scene, scene_dict
+
+GOLDEN = ROOT / "tests" / "golden"
+
+
+def dot_scene(bodies, dim=2, render=None, hi=100.0):
+    data = scene_dict(dim=dim, world={"dim": dim, "lo": [0.0] * dim, "hi": [hi] * dim, "dt": 0.001},
+                      materials={"red": {"based_on": "jelly", "color": [1.0, 0.0, 0.0]},
+                                 "blue": {"based_on": "jelly", "color": [0.0, 0.0, 1.0]}},
+                      bodies=bodies, render={"color_by": "material", "background": [0.0, 0.0, 0.0], **(render or {})})
+    return Simulation(make_scene(data))
+
+
+def one(at, material="red", spacing=1.0, **style):
+    """A body of exactly one particle at `at` (any dimension)."""
+    lo = [c - 0.5 * spacing for c in at]
+    hi = [c + 0.5 * spacing for c in at]
+    return {"material": material, "shape": "box", "lo": lo, "hi": hi, "spacing": spacing, "springs": False, **style}
+
+
+def test_additive_light_adds_up():
+    single = dot_scene([one([50.0, 50.0], blend="additive")])
+    r1 = Renderer(single, 100, 100, single.scene.render)
+    r1.render()
+    double = dot_scene([one([50.0, 50.0], blend="additive"), one([50.0, 50.0], blend="additive")])
+    r2 = Renderer(double, 100, 100, double.scene.render)
+    r2.render()
+    assert np.allclose(r2.light.to_numpy(), 2 * r1.light.to_numpy(), rtol=1e-6)
+    assert r1.light.to_numpy().sum() > 0
+    # tone mapping saturates gracefully: brighter, never past white, never clipped flat at the centre
+    img1, img2 = r1.image.to_numpy(), r2.image.to_numpy()
+    assert img2.max() <= 1.0 and np.all(img2 >= img1 - 1e-7) and img2[..., 0].max() > img1[..., 0].max()
+
+
+@pytest.mark.parametrize("x", [50.0, 50.37, 50.81])
+def test_sub_pixel_additive_particle_deposits_its_full_intensity(x):
+    # radius 0.05 units = 0.049 px: far below a pixel; the energy opacity * pi r^2 lands whole wherever it falls
+    sim = dot_scene([one([x, 50.3], spacing=0.1, blend="additive", opacity=5.0)])
+    ren = Renderer(sim, 100, 100, sim.scene.render)
+    ren.render()
+    r_px = 0.05 * ren.px_per_unit
+    assert ren.light.to_numpy()[..., 0].sum() == pytest.approx(5.0 * math.pi * r_px**2, rel=1e-5)
+
+
+def test_small_opaque_particles_fade_rather_than_vanish():
+    sim = dot_scene([one([50.4, 50.6], spacing=0.2)])
+    ren = Renderer(sim, 100, 100, sim.scene.render)
+    ren.render()
+    red = ren.image.to_numpy()[5:-5, 5:-5, 0]  # away from the wall frame
+    assert red.max() > 0.2 and (red > 0).sum() >= 1  # a 0.1 px particle still shows at a quarter strength
+
+
+def blurred_pair(motion_blur, move_by):
+    sim = dot_scene([one([30.0, 50.0], spacing=2.0, blend="additive")], render={"motion_blur": motion_blur})
+    ren = Renderer(sim, 100, 100, sim.scene.render)
+    ren.begin_frame()
+    x = sim.particles.x.to_numpy()
+    x[0, 0] += move_by
+    sim.particles.x.from_numpy(x)
+    ren.render()
+    return ren
+
+
+def test_motion_blur_streak_has_the_length_of_the_displacement():
+    ren = blurred_pair(True, 30.0)
+    light = ren.light.to_numpy()[..., 0]
+    cols = np.flatnonzero(light.sum(axis=1) > 1e-6)
+    length_px = 30.0 * ren.px_per_unit
+    radius_px = 1.0 * ren.px_per_unit
+    assert cols.max() - cols.min() + 1 == pytest.approx(length_px + 2 * radius_px, abs=2.0)
+    # the same energy as the still particle, brightest at the head
+    still = blurred_pair(False, 30.0)
+    assert light.sum() == pytest.approx(still.light.to_numpy()[..., 0].sum(), rel=1e-5)
+    profile = light.sum(axis=1)
+    assert profile[cols.max() - 3] > profile[cols.min() + 3]
+
+
+def test_a_still_particle_is_identical_with_and_without_motion_blur():
+    a = blurred_pair(True, 0.0).image.to_numpy()
+    b = blurred_pair(False, 0.0).image.to_numpy()
+    assert np.array_equal(a, b)
+
+
+def alpha_pair_3d(red_in_front: bool):
+    z_red, z_blue = (30.0, 20.0) if red_in_front else (20.0, 30.0)
+    render = {"camera_position": [25.0, 25.0, 80.0], "camera_target": [25.0, 25.0, 0.0], "fov": 30.0,
+              "ground": False, "background": [0.0, 0.0, 0.0]}
+    sim = dot_scene([one([25.0, 25.0, z_red], "red", spacing=4.0, draw="splat", blend="alpha", opacity=0.5),
+                     one([25.0, 25.0, z_blue], "blue", spacing=4.0, draw="splat", blend="alpha", opacity=0.5)],
+                    dim=3, render=render, hi=50.0)
+    ren = Renderer(sim, 64, 64, sim.scene.render)
+    ren.render()
+    return ren.image.to_numpy()[32, 32]
+
+
+def test_alpha_compositing_blends_in_depth_order():
+    red_front = alpha_pair_3d(True)
+    blue_front = alpha_pair_3d(False)
+    # back to front "over": (0 * 0.5 + back * 0.5) * 0.5 + front * 0.5
+    assert np.allclose(red_front, [0.5, 0.0, 0.25], atol=1e-5)
+    assert np.allclose(blue_front, [0.25, 0.0, 0.5], atol=1e-5)
+
+
+def test_legend_draws_a_colour_bar_with_labels(tmp_path):
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true"]))
+    ren = Renderer(sim, 320, 180, sim.scene.render)
+    img = ren.frame()
+    plain = Renderer(sim, 320, 180, load_scene(SCENES / "melting_block.toml").render).frame()
+    changed = np.abs(img.astype(int) - plain.astype(int)).sum(axis=2) > 0
+    ys, xs = np.nonzero(changed)
+    assert xs.min() > 320 * 0.6 and ys.min() > 180 * 0.7  # only the bottom-right corner
+    assert changed.sum() > 300
+
+
+def golden(request, name, img):
+    path = GOLDEN / f"{name}.png"
+    if request.config.getoption("--regen-golden") or not path.exists():
+        write_png(path, img)
+        if not request.config.getoption("--regen-golden"):
+            pytest.fail(f"stored a new golden image {path}; rerun")
+    ref = read_png(path)
+    mse = float((((img.astype(float) - ref.astype(float)) / 255.0) ** 2).mean())
+    assert mse < 2e-4, f"{name}: mean squared error {mse:.2e} against {path}"
+
+
+@pytest.mark.parametrize("scene", ["melting_block", "melting_block_3d", "fireworks"])
+def test_golden_images(request, scene):
+    sim = Simulation(load_scene(SCENES / f"{scene}.toml"))
+    ren = Renderer(sim, 192, 108, sim.scene.render)
+    for _ in range(3):
+        ren.begin_frame()
+        sim.advance_frame()
+    golden(request, scene, ren.frame())
