@@ -141,7 +141,7 @@ def render_cost(arch: str, repeats: int) -> dict:
     from .render.raster import Renderer
 
     sim = _melting_block(arch)
-    renderer = Renderer(sim, 1280, 720, sim.scene.render)
+    renderer = Renderer(sim, 1280, 720, sim.scene.render, keep_image=False)
     renderer.frame()
     sim.step(sim.scene.world.substeps)
     draw, step = [], []

@@ -112,8 +112,7 @@ def cmd_check(args) -> int:
     )
     print(f"  dt {w.dt:g} x {w.substeps} substeps per frame, integrator {w.integrator}")
     if sim.springs is not None:
-        print(f"  stable dt for the springs with {w.integrator} ((its stable h w) / omega_max): "
-              f"{sim.stable_dt():.4g}")
+        print(f"  stable dt for the springs with {w.integrator} ((its stable h w) / omega_max): {sim.stable_dt():.4g}")
     if sim.heat is not None:
         print(f"  stable dt for explicit heat diffusion: {sim.heat_dt_limit():.4g}")
     print(
@@ -186,8 +185,10 @@ def cmd_study(args) -> int:
 
     out = Path(args.out)
     run_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
-    print(f"wrote {out}/report.md, runs.csv, stability.csv, stiff.csv" + ("" if not list(out.glob("*.png")) else
-                                                                        " and plots"))
+    print(
+        f"wrote {out}/report.md, runs.csv, stability.csv, stiff.csv"
+        + ("" if not list(out.glob("*.png")) else " and plots")
+    )
     return 0
 
 

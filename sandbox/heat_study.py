@@ -102,8 +102,20 @@ def heat_runs(quick: bool) -> tuple[list[Run], dict]:
             stable = bool(np.all(np.isfinite(temp)) and np.abs(temp).max() < 1e3)
             total = float(np.linalg.norm(temp - exact) / np.linalg.norm(exact)) if stable else math.inf
             time_err = float(np.linalg.norm(temp - reference) / np.linalg.norm(reference)) if stable else math.inf
-            runs.append(Run("heat_pulse_time", stepper, dt, steps, time_err, total, wall, n * steps / wall, stable,
-                            "error: against dt/64 (time error); energy_error column: against the analytic Gaussian"))
+            runs.append(
+                Run(
+                    "heat_pulse_time",
+                    stepper,
+                    dt,
+                    steps,
+                    time_err,
+                    total,
+                    wall,
+                    n * steps / wall,
+                    stable,
+                    "error: against dt/64 (time error); energy_error column: against the analytic Gaussian",
+                )
+            )
     sim = pulse_sim("explicit", 0.01)
     theory = theory_explicit_limit(sim)
     measured = measured_explicit_limit(sim)

@@ -50,8 +50,10 @@ class Material:
     color: tuple[float, ...] = spec((0.8, 0.8, 0.8), doc="base colour [r, g, b] in [0, 1]", check=_colour)
     particle_mass: float | None = spec(None, doc="mass of one particle; default density * spacing^dim", check=positive)
     note: str = spec("", doc="where the numbers come from")
-    based_on: str = spec("", doc="(scene tables only) start from this material (library, or defined earlier in "
-                         "the scene) and override keys")
+    based_on: str = spec(
+        "",
+        doc="(scene tables only) start from this material (library, or defined earlier in the scene) and override keys",
+    )
 
     def __post_init__(self):
         if self.soften_temperature > self.melt_temperature:

@@ -42,11 +42,15 @@ class World:
     hi: tuple[float, ...] = spec(doc="upper corner of the domain box")
     gravity: tuple[float, ...] = spec((), doc="gravitational acceleration vector (default zero)")
     dt: float = spec(0.002, doc="time step (simulation seconds)", check=positive)
-    substeps: int | str = spec(10, doc="steps per rendered frame, or \"auto\": chosen each frame from the stability "
-                               "bound (stiffest live spring, fastest particle, heat), each at most dt",
-                               check=lambda s: None if s == "auto" or (isinstance(s, int) and s >= 1)
-                               else f"expected an integer >= 1 or \"auto\", got {s!r}")
-    frame_time: float = spec(0.02, doc="with substeps = \"auto\": simulated seconds per frame", check=positive)
+    substeps: int | str = spec(
+        10,
+        doc='steps per rendered frame, or "auto": chosen each frame from the stability '
+        "bound (stiffest live spring, fastest particle, heat), each at most dt",
+        check=lambda s: (
+            None if s == "auto" or (isinstance(s, int) and s >= 1) else f'expected an integer >= 1 or "auto", got {s!r}'
+        ),
+    )
+    frame_time: float = spec(0.02, doc='with substeps = "auto": simulated seconds per frame', check=positive)
     integrator: str = spec("symplectic_euler", doc="time integrator", check=one_of(*INTEGRATORS))
     periodic: bool = spec(False, doc="periodic boundaries on every axis instead of walls")
     restitution: float = spec(0.3, doc="normal velocity kept after hitting a wall", check=unit_interval)
@@ -54,8 +58,7 @@ class World:
     drag: float = spec(0.0, doc="linear drag rate on every particle (1/time)", check=non_negative)
     precision: str = spec("f32", doc="float precision of the fields", check=one_of("f32", "f64"))
     capacity: int = spec(0, doc="particle capacity (0: the initial count)", check=at_least(0))
-    implicit_tolerance: float = spec(1e-6, doc="implicit_euler: relative residual at which CG stops",
-                                     check=positive)
+    implicit_tolerance: float = spec(1e-6, doc="implicit_euler: relative residual at which CG stops", check=positive)
     implicit_max_iterations: int = spec(200, doc="implicit_euler: CG iteration cap per step", check=at_least(1))
     neighbor_list: bool = spec(True, doc="Verlet neighbour lists (false: scan the cell grid every step)")
     skin: float = spec(
@@ -96,8 +99,11 @@ class Heat:
         0.0, doc="heat flow per degree between each particle and the ambient", check=non_negative
     )
     radius: float = spec(2.5, doc="support radius of the heat-diffusion kernel (length)", check=positive)
-    stepper: str = spec("explicit", doc="explicit (Euler; limited step) or implicit (backward Euler by CG)",
-                        check=one_of("explicit", "implicit"))
+    stepper: str = spec(
+        "explicit",
+        doc="explicit (Euler; limited step) or implicit (backward Euler by CG)",
+        check=one_of("explicit", "implicit"),
+    )
     sources: list[HeatSource] = spec(doc="hot or cold regions", factory=list)
 
 
@@ -122,10 +128,17 @@ class Body:
     random_velocity: float = spec(0.0, doc="std. dev. of random initial velocity per component", check=non_negative)
     jitter: float = spec(0.0, doc="random displacement of lattice sites, as a fraction of spacing", check=unit_interval)
     seed: int = spec(0, doc="random seed for velocity and jitter")
-    draw: str = spec("", doc="splat (a disc of the particle's radius), dot (one pixel) or sphere (3D shaded); "
-                     "default splat in 2D, sphere in 3D", check=one_of("", "splat", "dot", "sphere"))
-    blend: str = spec("opaque", doc="opaque, alpha (translucent; depth-sorted in 3D) or additive (emits light)",
-                      check=one_of("opaque", "alpha", "additive"))
+    draw: str = spec(
+        "",
+        doc="splat (a disc of the particle's radius), dot (one pixel) or sphere (3D shaded); "
+        "default splat in 2D, sphere in 3D",
+        check=one_of("", "splat", "dot", "sphere"),
+    )
+    blend: str = spec(
+        "opaque",
+        doc="opaque, alpha (translucent; depth-sorted in 3D) or additive (emits light)",
+        check=one_of("opaque", "alpha", "additive"),
+    )
     opacity: float = spec(1.0, doc="alpha of a translucent body / brightness of an additive one", check=positive)
 
 
@@ -323,8 +336,9 @@ def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials
     if not body.draw:
         changes["draw"] = "splat" if dim == 2 else "sphere"
     if body.blend != "opaque" and body.draw == "sphere":
-        raise SceneError(file, f"{key}.blend", "shaded spheres are opaque; use draw = \"splat\" for alpha or "
-                         "additive bodies")
+        raise SceneError(
+            file, f"{key}.blend", 'shaded spheres are opaque; use draw = "splat" for alpha or additive bodies'
+        )
     if (dim == 2) != (lattice in ("square", "hex")):
         raise SceneError(file, f"{key}.lattice", f"lattice {lattice!r} does not exist in {dim}D")
     changes["lattice"] = lattice

@@ -128,6 +128,7 @@ class Simulation:
             else None
         )
         self._warned_overflow = False
+        self.has_neighbours = self.neighbours is not None
         self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
         self.has_heat, self.has_springs = self.heat is not None, self.springs is not None
         # With the implicit heat stepper the rates kernel skips heat; the solve runs after each step.
@@ -174,8 +175,9 @@ class Simulation:
     def eval_rates(self) -> None:
         """Forces (p.f) and heat rates (p.dTdt) at the current state."""
         use_list = False
+        moved = bool(self._prestep()) if (self.neighbours is not None or self.springs is not None) else False
         if self.neighbours is not None:
-            use_list = self.neighbours.ensure_fresh()
+            use_list = self.neighbours.ensure_fresh(moved)
             if not use_list:
                 self.grid.rebuild()  # the fallback scans the grid, which must match the current positions
             if not use_list and not self._warned_overflow:
@@ -187,9 +189,23 @@ class Simulation:
                 )
         elif self.grid is not None:
             self.grid.rebuild()
-        if self.springs is not None:
-            self.springs.update()
         self._rates(use_list, self.neighbours.ids if use_list else None)
+
+    @ti.kernel
+    def _prestep(self) -> ti.i32:
+        """One launch for the two cheap per-step passes: has any particle moved half the neighbour skin (returned),
+        and the springs' thermoelastic update and breaking."""
+        moved = 0
+        if ti.static(self.has_neighbours):
+            self.neighbours.stale[None] = 0
+            for i in range(self.particles.n[None]):
+                self.neighbours.check_one(i)
+        if ti.static(self.has_springs):
+            for s in range(self.springs.count):
+                self.springs.update_one(s)
+        if ti.static(self.has_neighbours):
+            moved = self.neighbours.stale[None]
+        return moved
 
     @ti.func
     def _pair_terms(self, i, j, d, r2, f_scaled, f_visc, q):

@@ -15,8 +15,14 @@ class CGResult:
     relative_residual: float
 
 
-def pcg(scalars, matvec: Callable[[], None], update: Callable[[float], None], direction: Callable[[float], None],
-        tolerance: float, max_iterations: int) -> CGResult:
+def pcg(
+    scalars,
+    matvec: Callable[[], None],
+    update: Callable[[float], None],
+    direction: Callable[[float], None],
+    tolerance: float,
+    max_iterations: int,
+) -> CGResult:
     """Iterate after `assemble` has set r = b, z = M^-1 r, d = z and scalars[1..3]; stops when |r| <= tol |b|."""
     rz = float(scalars[1])
     rr = float(scalars[2])

@@ -37,8 +37,9 @@ def test_convergence_order_on_the_damped_lattice(quick, name):
     assert quick[1].notes["lattice_reference_error (Richardson)"] < 1e-3 * min(r.error for r in runs)
 
 
-@pytest.mark.parametrize("name, theory", [("symplectic_euler", 2.0), ("verlet", 2.0), ("velocity_verlet", 2.0),
-                                          ("rk4", 2 * math.sqrt(2))])
+@pytest.mark.parametrize(
+    "name, theory", [("symplectic_euler", 2.0), ("verlet", 2.0), ("velocity_verlet", 2.0), ("rk4", 2 * math.sqrt(2))]
+)
 def test_largest_stable_step_matches_theory(quick, name, theory):
     row = next(r for r in quick[1].stability if r["integrator"] == name)
     assert row["h_omega_limit"] == pytest.approx(theory, rel=0.01)
@@ -129,12 +130,23 @@ def test_integrators_switch_live_and_keep_the_state():
 
 # ------------------------------------------------------------------------------ stability guard and auto substeps
 def stiff_lattice(integrator="symplectic_euler", substeps=1, stiffness=1e6, **world):
-    w = {"dim": 2, "lo": [0, 0], "hi": [20, 20], "dt": 1 / 60, "substeps": substeps, "integrator": integrator,
-         "frame_time": 1 / 60}
+    w = {
+        "dim": 2,
+        "lo": [0, 0],
+        "hi": [20, 20],
+        "dt": 1 / 60,
+        "substeps": substeps,
+        "integrator": integrator,
+        "frame_time": 1 / 60,
+    }
     w.update(world)
-    data = scene_dict(world=w, materials={"stiff": {"based_on": "jelly", "stiffness": stiffness, "damping": 0.0}},
-                      bodies=[{"material": "stiff", "shape": "box", "lo": [5, 5], "hi": [9, 9], "jitter": 0.2,
-                               "random_velocity": 0.05}])
+    data = scene_dict(
+        world=w,
+        materials={"stiff": {"based_on": "jelly", "stiffness": stiffness, "damping": 0.0}},
+        bodies=[
+            {"material": "stiff", "shape": "box", "lo": [5, 5], "hi": [9, 9], "jitter": 0.2, "random_velocity": 0.05}
+        ],
+    )
     return Simulation(make_scene(data))
 
 
@@ -169,10 +181,12 @@ def test_auto_substeps_keep_a_stiff_lattice_stable():
 # ------------------------------------------------------------------------------ extreme cases
 def test_extreme_temperatures_stay_finite():
     for temperature in (0.0, 1e6):
-        data = scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.002, "gravity": [0, -9.8]},
-                          pair={"a": 8.0, "b": 14.0}, heat={"ambient": temperature},
-                          bodies=[{"material": "wax", "shape": "box", "lo": [10, 0], "hi": [18, 6],
-                                   "temperature": temperature}])
+        data = scene_dict(
+            world={"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.002, "gravity": [0, -9.8]},
+            pair={"a": 8.0, "b": 14.0},
+            heat={"ambient": temperature},
+            bodies=[{"material": "wax", "shape": "box", "lo": [10, 0], "hi": [18, 6], "temperature": temperature}],
+        )
         sim = Simulation(make_scene(data))
         sim.step(200)
         s = sim.stats()
@@ -181,9 +195,10 @@ def test_extreme_temperatures_stay_finite():
 
 
 def test_a_spring_stretched_a_thousandfold_breaks_instead_of_exploding():
-    data = scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [3000, 30], "dt": 0.001},
-                      bodies=[{"material": "jelly", "shape": "box", "lo": [10, 10], "hi": [12, 11],
-                               "spring_radius": 1.0}])
+    data = scene_dict(
+        world={"dim": 2, "lo": [0, 0], "hi": [3000, 30], "dt": 0.001},
+        bodies=[{"material": "jelly", "shape": "box", "lo": [10, 10], "hi": [12, 11], "spring_radius": 1.0}],
+    )
     sim = Simulation(make_scene(data))
     x = sim.particles.x.to_numpy()
     x[1, 0] = x[0, 0] + 1000.0
@@ -194,9 +209,10 @@ def test_a_spring_stretched_a_thousandfold_breaks_instead_of_exploding():
 
 
 def test_a_body_hitting_a_wall_at_high_speed_stays_inside_and_finite():
-    data = scene_dict(world={"dim": 2, "lo": [0, 0], "hi": [40, 20], "dt": 0.001, "restitution": 0.5},
-                      bodies=[{"material": "jelly", "shape": "box", "lo": [10, 5], "hi": [16, 11],
-                               "velocity": [-5000.0, 0.0]}])
+    data = scene_dict(
+        world={"dim": 2, "lo": [0, 0], "hi": [40, 20], "dt": 0.001, "restitution": 0.5},
+        bodies=[{"material": "jelly", "shape": "box", "lo": [10, 5], "hi": [16, 11], "velocity": [-5000.0, 0.0]}],
+    )
     sim = Simulation(make_scene(data))
     try:
         for _ in range(20):

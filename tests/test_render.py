@@ -19,11 +19,25 @@ GOLDEN = ROOT / "tests" / "golden"
 
 
 def dot_scene(bodies, dim=2, render=None, hi=100.0):
-    data = scene_dict(dim=dim, world={"dim": dim, "lo": [0.0] * dim, "hi": [hi] * dim, "dt": 0.001},
-                      materials={"red": {"based_on": "jelly", "color": [1.0, 0.0, 0.0]},
-                                 "blue": {"based_on": "jelly", "color": [0.0, 0.0, 1.0]}},
-                      bodies=bodies, render={"color_by": "material", "background": [0.0, 0.0, 0.0], **(render or {})})
+    data = scene_dict(
+        dim=dim,
+        world={"dim": dim, "lo": [0.0] * dim, "hi": [hi] * dim, "dt": 0.001},
+        materials={
+            "red": {"based_on": "jelly", "color": [1.0, 0.0, 0.0]},
+            "blue": {"based_on": "jelly", "color": [0.0, 0.0, 1.0]},
+        },
+        bodies=bodies,
+        render={"color_by": "material", "background": [0.0, 0.0, 0.0], **(render or {})},
+    )
     return Simulation(make_scene(data))
+
+
+def splat_light(ren):
+    """Splat a 2D frame and return (the additive light before tone mapping, the finished image)."""
+    ren._splat_2d()
+    light = ren.light.to_numpy().copy()
+    ren._resolve_2d(False)  # composites, packs and zeroes the accumulators
+    return light, ren.image.to_numpy()
 
 
 def one(at, material="red", spacing=1.0, **style):
@@ -35,15 +49,12 @@ def one(at, material="red", spacing=1.0, **style):
 
 def test_additive_light_adds_up():
     single = dot_scene([one([50.0, 50.0], blend="additive")])
-    r1 = Renderer(single, 100, 100, single.scene.render)
-    r1.render()
+    light1, img1 = splat_light(Renderer(single, 100, 100, single.scene.render))
     double = dot_scene([one([50.0, 50.0], blend="additive"), one([50.0, 50.0], blend="additive")])
-    r2 = Renderer(double, 100, 100, double.scene.render)
-    r2.render()
-    assert np.allclose(r2.light.to_numpy(), 2 * r1.light.to_numpy(), rtol=1e-6)
-    assert r1.light.to_numpy().sum() > 0
+    light2, img2 = splat_light(Renderer(double, 100, 100, double.scene.render))
+    assert np.allclose(light2, 2 * light1, rtol=1e-6)
+    assert light1.sum() > 0
     # tone mapping saturates gracefully: brighter, never past white, never clipped flat at the centre
-    img1, img2 = r1.image.to_numpy(), r2.image.to_numpy()
     assert img2.max() <= 1.0 and np.all(img2 >= img1 - 1e-7) and img2[..., 0].max() > img1[..., 0].max()
 
 
@@ -52,9 +63,9 @@ def test_sub_pixel_additive_particle_deposits_its_full_intensity(x):
     # radius 0.05 units = 0.049 px: far below a pixel; the energy opacity * pi r^2 lands whole wherever it falls
     sim = dot_scene([one([x, 50.3], spacing=0.1, blend="additive", opacity=5.0)])
     ren = Renderer(sim, 100, 100, sim.scene.render)
-    ren.render()
+    light, _ = splat_light(ren)
     r_px = 0.05 * ren.px_per_unit
-    assert ren.light.to_numpy()[..., 0].sum() == pytest.approx(5.0 * math.pi * r_px**2, rel=1e-5)
+    assert light[..., 0].sum() == pytest.approx(5.0 * math.pi * r_px**2, rel=1e-5)
 
 
 def test_small_opaque_particles_fade_rather_than_vanish():
@@ -72,37 +83,48 @@ def blurred_pair(motion_blur, move_by):
     x = sim.particles.x.to_numpy()
     x[0, 0] += move_by
     sim.particles.x.from_numpy(x)
-    ren.render()
+    ren.light_before_tone_map, ren.picture = splat_light(ren)
     return ren
 
 
 def test_motion_blur_streak_has_the_length_of_the_displacement():
     ren = blurred_pair(True, 30.0)
-    light = ren.light.to_numpy()[..., 0]
+    light = ren.light_before_tone_map[..., 0]
     cols = np.flatnonzero(light.sum(axis=1) > 1e-6)
     length_px = 30.0 * ren.px_per_unit
     radius_px = 1.0 * ren.px_per_unit
     assert cols.max() - cols.min() + 1 == pytest.approx(length_px + 2 * radius_px, abs=2.0)
     # the same energy as the still particle, brightest at the head
     still = blurred_pair(False, 30.0)
-    assert light.sum() == pytest.approx(still.light.to_numpy()[..., 0].sum(), rel=1e-5)
+    assert light.sum() == pytest.approx(still.light_before_tone_map[..., 0].sum(), rel=1e-5)
     profile = light.sum(axis=1)
     assert profile[cols.max() - 3] > profile[cols.min() + 3]
 
 
 def test_a_still_particle_is_identical_with_and_without_motion_blur():
-    a = blurred_pair(True, 0.0).image.to_numpy()
-    b = blurred_pair(False, 0.0).image.to_numpy()
+    a = blurred_pair(True, 0.0).picture
+    b = blurred_pair(False, 0.0).picture
     assert np.array_equal(a, b)
 
 
 def alpha_pair_3d(red_in_front: bool):
     z_red, z_blue = (30.0, 20.0) if red_in_front else (20.0, 30.0)
-    render = {"camera_position": [25.0, 25.0, 80.0], "camera_target": [25.0, 25.0, 0.0], "fov": 30.0,
-              "ground": False, "background": [0.0, 0.0, 0.0]}
-    sim = dot_scene([one([25.0, 25.0, z_red], "red", spacing=4.0, draw="splat", blend="alpha", opacity=0.5),
-                     one([25.0, 25.0, z_blue], "blue", spacing=4.0, draw="splat", blend="alpha", opacity=0.5)],
-                    dim=3, render=render, hi=50.0)
+    render = {
+        "camera_position": [25.0, 25.0, 80.0],
+        "camera_target": [25.0, 25.0, 0.0],
+        "fov": 30.0,
+        "ground": False,
+        "background": [0.0, 0.0, 0.0],
+    }
+    sim = dot_scene(
+        [
+            one([25.0, 25.0, z_red], "red", spacing=4.0, draw="splat", blend="alpha", opacity=0.5),
+            one([25.0, 25.0, z_blue], "blue", spacing=4.0, draw="splat", blend="alpha", opacity=0.5),
+        ],
+        dim=3,
+        render=render,
+        hi=50.0,
+    )
     ren = Renderer(sim, 64, 64, sim.scene.render)
     ren.render()
     return ren.image.to_numpy()[32, 32]

@@ -49,8 +49,11 @@ def test_good_scene_loads_with_defaults(scene_file):
             "expected a number > 0",
         ),
         (GOOD + '\n[materials.soft]\nbased_on = "jelly"\nstiffness = 0.0\n', "materials.soft.stiffness", "> 0"),
-        (GOOD + '\n[materials.light]\nbased_on = "jelly"\nparticle_mass = 0.0\n', "materials.light.particle_mass",
-         "> 0"),
+        (
+            GOOD + '\n[materials.light]\nbased_on = "jelly"\nparticle_mass = 0.0\n',
+            "materials.light.particle_mass",
+            "> 0",
+        ),
         (GOOD + '\n[materials.void]\nbased_on = "jelly"\ndensity = 0.0\n', "materials.void.density", "> 0"),
         (GOOD.replace("dim = 2", 'dim = 2\nsubsteps = "lots"'), "world.substeps", 'an integer >= 1 or "auto"'),
         (GOOD.replace("dim = 2", "dim = 2\nsubsteps = 0"), "world.substeps", 'an integer >= 1 or "auto"'),

@@ -34,8 +34,14 @@ class ImplicitHeat:
     def step(self, h: float, use_list: bool, ids) -> CGResult:
         """Advance every particle's temperature by h (positions as they are now)."""
         self._assemble(h, use_list, ids)
-        self.last = pcg(self.scalars, lambda: self._matvec(h, use_list, ids), self._update, self._direction,
-                        self.tolerance, self.max_iterations)
+        self.last = pcg(
+            self.scalars,
+            lambda: self._matvec(h, use_list, ids),
+            self._update,
+            self._direction,
+            self.tolerance,
+            self.max_iterations,
+        )
         return self.last
 
     @ti.func

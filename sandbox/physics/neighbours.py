@@ -44,10 +44,13 @@ class NeighbourList:
     def nbytes(self) -> int:
         return self.capacity * (4 * self.width + 4 + 4 * self.dim)
 
-    def ensure_fresh(self) -> bool:
-        """Rebuild the list if it may miss a pair; returns True when it is usable (no overflow)."""
+    def ensure_fresh(self, moved: bool | None = None) -> bool:
+        """Rebuild the list if it may miss a pair; returns True when it is usable (no overflow). `moved`: the result
+        of the displacement check when the caller ran it already (fused into its own kernel)."""
         n = int(self.n[None])
-        if n != self.n_built or self._moved_too_far():
+        if moved is None:
+            moved = self._moved_too_far()
+        if n != self.n_built or moved:
             self.grid.rebuild()
             self._fill(self.ids)
             if self.overflow[None]:
@@ -71,11 +74,15 @@ class NeighbourList:
 
     @ti.kernel
     def _check(self):
-        limit2 = (0.5 * self.skin) ** 2
         for i in range(self.n[None]):
-            d = self.domain.separation(self.x_ref[i], self.x[i])
-            if d.dot(d) > limit2:
-                self.stale[None] = 1
+            self.check_one(i)
+
+    @ti.func
+    def check_one(self, i):
+        """Flag the list stale if particle i has moved more than half the skin since the build."""
+        d = self.domain.separation(self.x_ref[i], self.x[i])
+        if d.dot(d) > (0.5 * self.skin) ** 2:
+            self.stale[None] = 1
 
     @ti.kernel
     def _count_only(self):

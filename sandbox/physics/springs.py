@@ -69,25 +69,30 @@ class Springs:
     def update(self):
         """Thermoelastic softening and breaking (by temperature and by overstretch), once per step before forces."""
         for s in range(self.count):
-            if self.alive[s]:
-                a, b = self.i[s], self.j[s]
-                factor = 1.0
-                if ti.static(self.heat_enabled):
-                    mat = self.p.material[a]
-                    t = 0.5 * (self.p.T[a] + self.p.T[b])
-                    t_soft, t_melt = self.mats.soften[mat], self.mats.melt[mat]
-                    if t >= t_melt:
-                        factor = -1.0
-                    elif t > t_soft:
-                        factor = (t_melt - t) / (t_melt - t_soft)
-                length = self.separation(self.p.x[a], self.p.x[b]).norm()
-                if length > self.BREAK_STRETCH * self.rest[s]:
+            self.update_one(s)
+
+    @ti.func
+    def update_one(self, s):
+        """update() for spring s (also fused into the simulation's pre-step kernel)."""
+        if self.alive[s]:
+            a, b = self.i[s], self.j[s]
+            factor = 1.0
+            if ti.static(self.heat_enabled):
+                mat = self.p.material[a]
+                t = 0.5 * (self.p.T[a] + self.p.T[b])
+                t_soft, t_melt = self.mats.soften[mat], self.mats.melt[mat]
+                if t >= t_melt:
                     factor = -1.0
-                if factor < 0.0:
-                    self.alive[s] = 0
-                    self.factor[s] = 0.0
-                else:
-                    self.factor[s] = factor
+                elif t > t_soft:
+                    factor = (t_melt - t) / (t_melt - t_soft)
+            length = self.separation(self.p.x[a], self.p.x[b]).norm()
+            if length > self.BREAK_STRETCH * self.rest[s]:
+                factor = -1.0
+            if factor < 0.0:
+                self.alive[s] = 0
+                self.factor[s] = 0.0
+            else:
+                self.factor[s] = factor
 
     @ti.func
     def other_end(self, i, s):
