@@ -25,6 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
 LAMMPS_INPUT = ROOT / "benchmarks" / "lammps" / "in.lj2d"
+LAMMPS_INPUT_3D = ROOT / "benchmarks" / "lammps" / "in.lj3d"
 
 
 def _lj_box(n_side: int, arch: str):
@@ -34,6 +35,33 @@ def _lj_box(n_side: int, arch: str):
     side = n_side / math.sqrt(0.8)
     scene = load_scene(SCENES / "lj_box.toml", [f"world.hi=[{side}, {side}]", f"bodies.0.hi=[{side}, {side}]"])
     return Simulation(scene, arch=arch)
+
+
+def _lj_box_3d(n_side: int, arch: str):
+    """W1-3D: n^3 particles on a simple cubic lattice at density 0.8442, kT 1.44 (LAMMPS's in.lj liquid)."""
+    from .scene import scene_from_dict
+    from .simulation import Simulation
+
+    spacing = 0.8442 ** (-1 / 3)
+    side = n_side * spacing
+    data = {
+        "world": {"dim": 3, "lo": [0, 0, 0], "hi": [side] * 3, "dt": 0.005, "periodic": True},
+        "pair": {"a": 8.0, "b": 14.0, "cutoff": 2.5},
+        "bodies": [
+            {
+                "material": "lj",
+                "shape": "box",
+                "lo": [0, 0, 0],
+                "hi": [side] * 3,
+                "lattice": "cubic",
+                "spacing": spacing,
+                "springs": False,
+                "random_velocity": 1.2,
+                "seed": 87287,
+            }
+        ],
+    }
+    return Simulation(scene_from_dict(data, SCENES / "bench_w1_3d.toml"), arch=arch)
 
 
 def _spring_heat_lattice(arch: str):
@@ -75,29 +103,19 @@ def measure(sim, repeats: int, target_seconds: float = 0.4) -> dict:
     }
 
 
-def lammps_w1(n_side: int, procs: int = 2, steps: int = 500) -> dict | None:
-    """LAMMPS on W1 (sq2 lattice: 2 atoms per cell, so n_cells = n_side / sqrt(2) per axis), or None."""
+def lammps_w1(n_side: int, procs: int = 2, steps: int = 500, dim: int = 2) -> dict | None:
+    """LAMMPS on W1 (2D: sq2 lattice, 2 atoms per cell, so n_side / sqrt(2) cells per axis; 3D: n_side^3 atoms on
+    a simple cubic lattice), or None when LAMMPS is not installed."""
     lmp = os.environ.get("LAMMPS_BIN") or shutil.which("lmp") or _beside_python("lmp")
     mpirun = shutil.which("mpirun") or _beside_python("mpirun")
     if not lmp:
         return None
-    cells = max(3, round(n_side / math.sqrt(2)))
-    cmd = [
-        lmp,
-        "-in",
-        str(LAMMPS_INPUT),
-        "-var",
-        "nx",
-        str(cells),
-        "-var",
-        "ny",
-        str(cells),
-        "-var",
-        "steps",
-        str(steps),
-        "-log",
-        "none",
-    ]
+    if dim == 2:
+        cells = max(3, round(n_side / math.sqrt(2)))
+        args = ["-in", str(LAMMPS_INPUT), "-var", "nx", str(cells), "-var", "ny", str(cells)]
+    else:
+        args = ["-in", str(LAMMPS_INPUT_3D), "-var", "n", str(n_side)]
+    cmd = [lmp, *args, "-var", "steps", str(steps), "-log", "none"]
     if procs > 1 and mpirun:
         cmd = [mpirun, "-np", str(procs)] + cmd
     elif procs > 1:
@@ -184,6 +202,17 @@ def run_bench(args) -> int:
                 res["ratio_to_lammps"] = res["particle_steps_per_second"] / lmp["particle_steps_per_second"]
             elif lmp is not None:
                 res["lammps"] = lmp
+        results["workloads"][name] = res
+        rows.append((name, res))
+    if not args.quick:
+        sim = _lj_box_3d(32, args.arch)
+        res = measure(sim, repeats)
+        if args.lammps:
+            lmp = lammps_w1(32, dim=3)
+            if lmp is not None and "error" not in lmp:
+                res["lammps"] = lmp
+                res["ratio_to_lammps"] = res["particle_steps_per_second"] / lmp["particle_steps_per_second"]
+        name = f"W1-3D LJ liquid N={res['particles']}"
         results["workloads"][name] = res
         rows.append((name, res))
     for name, factory in (("W2 spring lattice + heat", _spring_heat_lattice), ("W3 melting_block", _melting_block)):
