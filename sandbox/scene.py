@@ -57,7 +57,11 @@ class World:
     friction: float = spec(0.1, doc="fraction of tangential velocity lost at a wall contact", check=unit_interval)
     drag: float = spec(0.0, doc="linear drag rate on every particle (1/time)", check=non_negative)
     precision: str = spec("f32", doc="float precision of the fields", check=one_of("f32", "f64"))
-    capacity: int = spec(0, doc="particle capacity (0: the initial count)", check=at_least(0))
+    capacity: int = spec(
+        0,
+        doc="particle capacity (0: the initial count plus half again, at least 1,024, to spawn into)",
+        check=at_least(0),
+    )
     implicit_tolerance: float = spec(1e-6, doc="implicit_euler: relative residual at which CG stops", check=positive)
     implicit_max_iterations: int = spec(200, doc="implicit_euler: CG iteration cap per step", check=at_least(1))
     neighbor_list: bool = spec(True, doc="Verlet neighbour lists (false: scan the cell grid every step)")

@@ -84,7 +84,9 @@ class Simulation:
         world = scene.world
         self.dim = scene.dim
         self.dt = world.dt
-        self.capacity = max(world.capacity, built.count)
+        # room to spawn particles: half as many again (at least 1,024) unless the scene sets world.capacity
+        self.capacity = world.capacity if world.capacity else built.count + max(1024, built.count // 2)
+        self.capacity = max(self.capacity, built.count)
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
         self.materials = MaterialTable(materials)
@@ -490,29 +492,25 @@ class Simulation:
 
     # ------------------------------------------------------------------ state
     def snapshot(self) -> dict[str, np.ndarray]:
-        """Copies of the state fields (for reset and tests)."""
+        """Copies of every state field, particles and springs (for reset, and tests)."""
         p = self.particles
-        snap = {"n": int(p.n[None]), "x": p.x.to_numpy(), "v": p.v.to_numpy()}
-        if self.heat is not None:
-            snap["T"] = p.T.to_numpy()
+        snap = {"n": int(p.n[None]), "time": self.time, "step": self.step_count}
+        for name in self.field_names():
+            snap[name] = getattr(p, name).to_numpy()
         if self.springs is not None:
-            snap["alive"] = self.springs.alive.to_numpy()
-            snap["factor"] = self.springs.factor.to_numpy()
-        snap["time"] = self.time
-        snap["step"] = self.step_count
+            for name in ("i", "j", "alive", "factor", "bonds"):
+                snap[f"spring_{name}"] = getattr(self.springs, name).to_numpy()
         return snap
 
     def restore(self, snap: dict) -> None:
         """Put the state back exactly as `snapshot()` saw it."""
         p = self.particles
         p.n[None] = snap["n"]
-        p.x.from_numpy(snap["x"])
-        p.v.from_numpy(snap["v"])
-        if self.heat is not None:
-            p.T.from_numpy(snap["T"])
+        for name in self.field_names():
+            getattr(p, name).from_numpy(snap[name])
         if self.springs is not None:
-            self.springs.alive.from_numpy(snap["alive"])
-            self.springs.factor.from_numpy(snap["factor"])
+            for name in ("i", "j", "alive", "factor", "bonds"):
+                getattr(self.springs, name).from_numpy(snap[f"spring_{name}"])
         self.time = snap["time"]
         self.step_count = snap["step"]
         if self.neighbours is not None:

@@ -17,11 +17,14 @@ import numpy as np
 import taichi as ti
 
 
-def bond_table(spring_i: np.ndarray, spring_j: np.ndarray, n_particles: int, max_bonds: int) -> np.ndarray:
-    """(n_particles, max_bonds) int32 table of spring ids at each particle, padded with -1."""
+def bond_table(
+    spring_i: np.ndarray, spring_j: np.ndarray, n_particles: int, max_bonds: int, spring_ids: np.ndarray | None = None
+) -> np.ndarray:
+    """(n_particles, max_bonds) int32 table of spring ids at each particle, padded with -1. `spring_ids`: the ids of
+    the given springs (default 0..S-1)."""
     table = np.full((max(n_particles, 1), max(max_bonds, 1)), -1, dtype=np.int32)
     ends = np.concatenate([spring_i, spring_j])
-    ids = np.concatenate([np.arange(len(spring_i))] * 2)
+    ids = np.concatenate([np.arange(len(spring_i)) if spring_ids is None else spring_ids] * 2)
     order = np.argsort(ends, kind="stable")
     ends, ids = ends[order], ids[order]
     first = np.searchsorted(ends, ends, side="left")
@@ -64,6 +67,13 @@ class Springs:
         self.heat_enabled = heat_enabled
         self.separation = periodic_sep
         self.initial_alive = self.alive.to_numpy().copy()
+
+    def rebuild_bonds(self) -> None:
+        """Rebuild every particle's bond list from the live springs (after particles were removed or renumbered)."""
+        alive = np.flatnonzero(self.alive.to_numpy()[: self.count])
+        i, j = self.i.to_numpy()[alive], self.j.to_numpy()[alive]
+        n = self.bonds.shape[0]
+        self.bonds.from_numpy(bond_table(i, j, n, self.max_bonds, alive)[:n])
 
     @ti.kernel
     def update(self):

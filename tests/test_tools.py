@@ -1,0 +1,97 @@
+"""The sandbox tools act where the brush is and nowhere else; erase, spawn and reset keep the state consistent."""
+
+import numpy as np
+import pytest
+
+from sandbox.errors import SandboxError
+from sandbox.scene import load_scene
+from sandbox.simulation import Simulation
+from sandbox.tools import Tools
+
+from .conftest import SCENES
+
+SMALL = ["bodies.0.lo=[56.0, 0.0]", "bodies.0.hi=[72.0, 12.0]"]
+
+
+@pytest.fixture
+def melt():
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", SMALL))
+    return sim, Tools(sim)
+
+
+def test_heat_brush_warms_only_inside_the_brush(melt):
+    sim, tools = melt
+    x, t0 = sim.positions(), sim.temperatures().copy()
+    centre = np.array([64.5, 6.5])
+    tools.heat(centre, 3.0, rate=100.0, dt=0.1)
+    r = np.linalg.norm(x - centre, axis=1)
+    dt = sim.temperatures() - t0
+    assert dt[r < 0.5].min() > 8.0  # ~10 degrees at the centre
+    assert np.all(dt[r >= 3.0] == 0.0)  # nothing outside the brush
+    assert np.all(np.diff(dt[np.argsort(r)][r[np.argsort(r)] < 3.0]) <= 1e-4)  # falls off with distance
+    tools.heat(centre, 3.0, rate=-100.0, dt=0.1)
+    assert np.allclose(sim.temperatures(), t0, atol=1e-4)
+
+
+def test_erase_removes_exactly_the_particles_in_the_brush_and_their_springs(melt):
+    sim, tools = melt
+    x = sim.positions()
+    centre = np.array([60.0, 6.0])
+    inside = np.linalg.norm(x - centre, axis=1) <= 2.5
+    survivors = x[~inside]
+    removed = tools.erase(centre, 2.5)
+    assert removed == inside.sum() > 0
+    assert sim.particles.n[None] == len(x) - removed
+    assert np.allclose(np.sort(sim.positions(), axis=0), np.sort(survivors, axis=0))
+    # every live spring joins two surviving particles at about its rest length; the bond table matches
+    s = sim.springs
+    alive = s.alive.to_numpy().astype(bool)
+    i, j = s.i.to_numpy()[alive], s.j.to_numpy()[alive]
+    n = sim.particles.n[None]
+    assert i.max() < n and j.max() < n
+    length = np.linalg.norm(sim.positions()[j] - sim.positions()[i], axis=1)
+    assert np.allclose(length, s.rest.to_numpy()[alive], atol=1e-4)
+    assert (s.bonds.to_numpy()[:n] >= 0).sum() == 2 * alive.sum()
+    sim.step(20)  # and it keeps running
+    assert np.isfinite(sim.stats().total_energy)
+
+
+def test_spawn_adds_the_material_without_overlap(melt):
+    sim, tools = melt
+    n0 = sim.particles.n[None]
+    added = tools.spawn("wax", [64.0, 15.0], 3.0)  # overlapping the block's top (y up to 12)
+    assert added > 10
+    assert sim.particles.n[None] == n0 + added
+    x = sim.positions()
+    new, old = x[n0:], x[:n0]
+    d = np.linalg.norm(new[:, None, :] - old[None, :, :], axis=2).min()
+    assert d >= 0.9 - 1e-6
+    assert np.all(sim.particles.material.to_numpy()[n0 : n0 + added] == 0)
+    with pytest.raises(SandboxError, match="not in this scene"):
+        tools.spawn("unobtainium", [64.0, 30.0], 2.0)
+
+
+def test_impulse_pushes_outward(melt):
+    sim, tools = melt
+    centre = np.array([64.0, 12.0])
+    tools.impulse(centre, 4.0, speed=10.0)
+    x, v = sim.positions(), sim.velocities()
+    r = x - centre
+    inside = (np.linalg.norm(r, axis=1) < 4.0) & (np.linalg.norm(r, axis=1) > 0.1)
+    assert np.all((v[inside] * r[inside]).sum(axis=1) > 0)
+    assert np.all(v[~inside] == 0)
+
+
+def test_reset_restores_the_initial_state_exactly(melt):
+    sim, tools = melt
+    before = sim.snapshot()
+    tools.erase([60.0, 6.0], 2.5)
+    tools.spawn("wax", [64.0, 20.0], 2.0)
+    tools.heat([64.0, 6.0], 4.0, 500.0, 0.1)
+    sim.step(30)
+    sim.reset()
+    after = sim.snapshot()
+    for key, value in before.items():
+        assert np.array_equal(np.asarray(value), np.asarray(after[key])), key
+    sim.step(5)  # runs again after the reset
+    assert np.isfinite(sim.stats().total_energy)
