@@ -17,7 +17,7 @@ import taichi as ti
 
 from .errors import SandboxError
 
-TOOLS = ("heat", "cool", "attract", "repel", "drag", "impulse", "erase", "spawn")
+TOOLS = ("heat", "cool", "drag", "attract", "repel", "impulse", "erase", "spawn")  # keys 1-8 in the window
 
 
 @ti.data_oriented

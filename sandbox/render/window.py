@@ -1,17 +1,41 @@
 """The interactive window (Taichi GGUI), drawing through the same Renderer as headless video.
 
-Keys: space pause/resume, s single step while paused, r reset, Esc or q quit. The full sandbox (tools, panels,
-readouts) grows here; headless runs never import GGUI.
+Keys (also listed by the help overlay, h or F1): space pause/resume, s single step, r reset, 1-8 choose a tool
+(heat, cool, drag, attract, repel, impulse, erase, spawn), [ and ] brush radius, + and - substeps per frame,
+g gravity on/off, i next integrator, p screenshot, q or Esc quit. The left mouse button applies the tool at the
+cursor (2D scenes). The side panel shows only the controls the scene uses (no heat tools without heat).
+Everything the keys do goes through WindowState.handle_key, which needs no screen, so it is tested directly.
 """
 
 from __future__ import annotations
 
 import os
+import time
+from dataclasses import dataclass, field
 
+import numpy as np
 import taichi as ti
 
 from ..errors import SandboxError
+from ..integrators import REGISTRY
+from ..tools import TOOLS, Tools
 from .raster import Renderer
+
+TOOL_KEYS = {str(k + 1): name for k, name in enumerate(TOOLS)}
+HELP = [
+    "space  pause / resume",
+    "s      single step (paused)",
+    "r      reset to the start",
+    "1-8    tool: " + ", ".join(f"{k} {v}" for k, v in TOOL_KEYS.items()),
+    "[ ]    brush radius",
+    "+ -    substeps per frame",
+    "g      gravity on / off",
+    "i      next integrator",
+    "p      screenshot",
+    "h, F1  this help",
+    "q, Esc quit",
+    "left mouse: apply the tool at the cursor",
+]
 
 
 def window_unavailable_reason() -> str | None:
@@ -21,7 +45,79 @@ def window_unavailable_reason() -> str | None:
     return None
 
 
-def run_window(sim, frames: int | None = None, screenshot: str | None = None, substeps: int | None = None) -> int:
+@dataclass
+class WindowState:
+    """What the window's keys control; handle_key is the single place keys change it."""
+
+    tools_available: list[str]
+    integrators: list[str]
+    integrator: str
+    substeps: int
+    tool: str = ""
+    radius: float = 3.0
+    paused: bool = False
+    single_step: bool = False
+    reset: bool = False
+    quit: bool = False
+    show_help: bool = False
+    gravity_on: bool = True
+    screenshot: bool = False
+    log: list[str] = field(default_factory=list)
+
+    def __post_init__(self):
+        if not self.tool and self.tools_available:
+            self.tool = self.tools_available[0]
+
+    def handle_key(self, key: str) -> None:
+        """Apply one key press (GGUI key names: single characters, 'Escape', ' ', 'F1')."""
+        if key in ("q", "Escape"):
+            self.quit = True
+        elif key == " ":
+            self.paused = not self.paused
+        elif key == "s":
+            self.single_step = True
+        elif key == "r":
+            self.reset = True
+        elif key in TOOL_KEYS:
+            if TOOL_KEYS[key] in self.tools_available:
+                self.tool = TOOL_KEYS[key]
+            else:
+                self.log.append(f"{TOOL_KEYS[key]} is not available in this scene")
+        elif key == "[":
+            self.radius = max(0.5, self.radius / 1.25)
+        elif key == "]":
+            self.radius = min(100.0, self.radius * 1.25)
+        elif key in ("+", "="):
+            self.substeps = min(1000, self.substeps + 1)
+        elif key == "-":
+            self.substeps = max(1, self.substeps - 1)
+        elif key == "g":
+            self.gravity_on = not self.gravity_on
+        elif key == "i":
+            k = self.integrators.index(self.integrator)
+            self.integrator = self.integrators[(k + 1) % len(self.integrators)]
+        elif key in ("h", "F1"):
+            self.show_help = not self.show_help
+        elif key == "p":
+            self.screenshot = True
+
+
+def tools_for(sim) -> list[str]:
+    """The tools that make sense in this scene: no heat tools without heat, no brush at all in 3D."""
+    if sim.dim != 2:
+        return []
+    return [t for t in TOOLS if sim.heat is not None or t not in ("heat", "cool")]
+
+
+def make_state(sim, substeps: int | None) -> WindowState:
+    world = sim.scene.world
+    fixed = substeps or (world.substeps if world.substeps != "auto" else 8)
+    return WindowState(tools_for(sim), list(REGISTRY), sim.integrator.name, int(fixed))
+
+
+def run_window(
+    sim, frames: int | None = None, screenshot: str | None = None, substeps: int | None = None, show: bool = True
+) -> int:
     """Show the simulation in a GGUI window until closed (or for `frames` frames); returns frames shown.
 
     Raises SandboxError with one line when no window can be opened (e.g. no Vulkan driver).
@@ -29,40 +125,85 @@ def run_window(sim, frames: int | None = None, screenshot: str | None = None, su
     cfg = sim.scene.render
     renderer = Renderer(sim, cfg.width, cfg.height, cfg)
     try:
-        window = ti.ui.Window(f"sandbox: {sim.scene.name}", (cfg.width, cfg.height), vsync=True)
+        window = ti.ui.Window(f"sandbox: {sim.scene.name}", (cfg.width, cfg.height), vsync=True, show_window=show)
     except Exception as exc:  # GGUI raises RuntimeError without Vulkan; keep the message to one line
         first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SandboxError(f"cannot open a window: {first_line}") from None
     canvas = window.get_canvas()
-    paused = False
-    shown = 0
+    gui = window.get_gui()
+    tools = Tools(sim)
+    state = make_state(sim, substeps)
+    gravity = np.asarray(sim.scene.world.gravity, dtype=float)
+    cursor = ti.Vector.field(2, ti.f32, shape=1)
+    shown, fps, last = 0, 0.0, time.perf_counter()
     while window.running:
-        single = False
-        for event in window.get_events(ti.ui.PRESS):
-            if event.key in (ti.ui.ESCAPE, "q"):
-                window.running = False
-            elif event.key == ti.ui.SPACE:
-                paused = not paused
-            elif event.key == "s":
-                single = True
-            elif event.key == "r":
-                sim.reset()
-        if not window.running:
+        if show:  # a hidden window (show_window=False, for tests) has no events or cursor
+            for event in window.get_events(ti.ui.PRESS):
+                state.handle_key(event.key)
+        if state.quit:
             break
+        if state.reset:
+            sim.reset()
+            state.reset = False
+        if state.integrator != sim.integrator.name:
+            sim.set_integrator(state.integrator)
+        sim.gravity[None] = gravity if state.gravity_on else 0 * gravity
+        u, v = window.get_cursor_pos() if show else (0.5, 0.5)
+        if show and state.tool and window.is_pressed(ti.ui.LMB) and sim.dim == 2:
+            pos = (np.array([u * cfg.width, v * cfg.height]) - np.asarray(renderer.offset.to_list())) / (
+                renderer.px_per_unit
+            )
+            tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps)
         renderer.begin_frame()
-        if not paused:
-            sim.advance_frame(substeps)
-        elif single:
+        if not state.paused:
+            sim.advance_frame(state.substeps)
+        elif state.single_step:
             sim.step(1)
-        sim.stats()  # the guard: a non-finite state stops with a named error instead of drawing garbage
+        state.single_step = False
+        stats = sim.stats()  # the guard: a non-finite state stops with a named error instead of drawing garbage
         renderer.render()
         canvas.set_image(renderer.image)
+        if state.tool and sim.dim == 2:
+            cursor[0] = [u, v]
+            canvas.circles(cursor, radius=state.radius * renderer.px_per_unit / cfg.width, color=(0.9, 0.9, 0.9))
+        now = time.perf_counter()
+        fps = 0.9 * fps + 0.1 / max(now - last, 1e-6)
+        last = now
+        _panel(gui, sim, state, stats, fps)
         shown += 1
-        last = frames is not None and shown >= frames
-        if last and screenshot:
-            window.save_image(screenshot)
-        window.show()
-        if last:
+        done = frames is not None and shown >= frames
+        if state.screenshot or (done and screenshot):
+            window.save_image(screenshot if (done and screenshot) else f"screenshot_{shown:05d}.png")
+            state.screenshot = False
+        if show:  # a hidden window renders on save_image; show() is for real windows only
+            window.show()
+        if done:
             break
     window.destroy()
     return shown
+
+
+def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
+    with gui.sub_window("sandbox", 0.0, 0.0, 0.26, 0.42):
+        gui.text(f"t = {stats.time:.2f} s   {fps:.0f} fps   {'paused' if state.paused else ''}")
+        gui.text(
+            f"particles {stats.particles}"
+            + (f"   broken springs {stats.broken_springs}" if sim.springs is not None else "")
+        )
+        if sim.heat is not None:
+            gui.text(f"mean T {stats.mean_temperature:.1f} C   molten {100 * stats.molten_fraction:.0f}%")
+        gui.text(f"energy: kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
+        gui.text(f"integrator {state.integrator}   substeps {state.substeps}")
+        if state.tools_available:
+            gui.text(f"tool: {state.tool}   radius {state.radius:.1f}")
+            for name in state.tools_available:
+                if gui.button(name):
+                    state.tool = name
+            state.radius = gui.slider_float("radius", state.radius, 0.5, 30.0)
+        state.paused = gui.checkbox("paused", state.paused)
+        if state.log:
+            gui.text(state.log[-1])
+    if state.show_help:
+        with gui.sub_window("keys", 0.3, 0.05, 0.4, 0.5):
+            for line in HELP:
+                gui.text(line)
