@@ -191,6 +191,7 @@ def run_bench(args) -> int:
     sizes = [100] if args.quick else [100, 317]
     rows = []
     for n_side in sizes:
+        runtime.reset()  # independent workloads: a runtime holds at most ~512 field trees
         sim = _lj_box(n_side, args.arch)
         res = measure(sim, repeats)
         res["arch"] = runtime.running_arch()
@@ -216,6 +217,7 @@ def run_bench(args) -> int:
         results["workloads"][name] = res
         rows.append((name, res))
     for name, factory in (("W2 spring lattice + heat", _spring_heat_lattice), ("W3 melting_block", _melting_block)):
+        runtime.reset()
         res = measure(factory(args.arch), repeats)
         results["workloads"][name] = res
         rows.append((name, res))

@@ -48,6 +48,19 @@ def init(arch: str = "cpu", precision: str = "f32") -> str:
     return running_arch()
 
 
+def reset() -> None:
+    """Drop the Taichi runtime and every field in it; the next init() starts afresh.
+
+    Taichi allows about 512 SNode trees per runtime and every field made after the first kernel launch is a tree of
+    its own, so a process that builds many simulations (the test session, `sandbox study`, `sandbox bench`) resets
+    between independent parts. Objects built before a reset must not be used after it.
+    """
+    global _current
+    if _current is not None:
+        ti.reset()
+        _current = None
+
+
 def running_arch() -> str:
     """Name of the backend Taichi is running on now ('x64' and 'arm64' are reported as 'cpu')."""
     name = ti.lang.impl.current_cfg().arch.name

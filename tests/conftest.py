@@ -5,6 +5,7 @@ from pathlib import Path
 
 import pytest
 
+from sandbox import runtime
 from sandbox.scene import Scene, scene_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -19,6 +20,13 @@ def scene_dict(dim: int = 2, **sections) -> dict:
     }
     base.update(copy.deepcopy(sections))
     return base
+
+
+@pytest.fixture(autouse=True, scope="module")
+def fresh_taichi():
+    """A fresh Taichi runtime per test module: a runtime holds at most ~512 field trees (runtime.reset)."""
+    runtime.reset()
+    yield
 
 
 def make_scene(data: dict, name: str = "test.toml") -> Scene:
