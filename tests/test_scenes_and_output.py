@@ -147,3 +147,14 @@ def test_check_prints_the_pipeline(capsys):
     out = capsys.readouterr().out
     for part in ("neighbour lists", "thermoelastic", "pair force (a=8, b=14", "heat diffusion", "particles 1200"):
         assert part in out
+
+
+def test_list_and_keys_describe_everything(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for name in SHIPPED + ["wax", "jelly", "lj", "steel"]:
+        assert f"  {name} " in out
+    assert main(["keys"]) == 0
+    out = capsys.readouterr().out
+    for key in ("dt", "substeps", "integrator", "cutoff", "stepper", "material", "blend", "motion_blur", "stiffness"):
+        assert f"  {key} " in out
