@@ -8,13 +8,12 @@ with linear stability theory, dt_max = 2 / lambda_max of C^-1 L (the heat operat
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
 from .physics.heat import lattice_correction, wendland_grad_factor
 from .scene import scene_from_dict
-from .simulation import Simulation
+from .simulation import Simulation, timed_steps
 from .study import STUDY_PATH, Run
 
 SIDE = 25
@@ -95,9 +94,7 @@ def heat_runs(quick: bool) -> tuple[list[Run], dict]:
             sim.reset()
             sim.dt = dt
             steps = round(end / dt)
-            t0 = time.perf_counter()
-            sim.step(steps)
-            wall = time.perf_counter() - t0
+            wall = timed_steps(sim, steps)
             temp = sim.temperatures()
             stable = bool(np.all(np.isfinite(temp)) and np.abs(temp).max() < 1e3)
             total = float(np.linalg.norm(temp - exact) / np.linalg.norm(exact)) if stable else math.inf

@@ -66,7 +66,6 @@ class Springs:
         self.mats = materials
         self.heat_enabled = heat_enabled
         self.separation = periodic_sep
-        self.initial_alive = self.alive.to_numpy().copy()
 
     def rebuild_bonds(self) -> None:
         """Rebuild every particle's bond list from the live springs (after particles were removed or renumbered)."""
@@ -75,15 +74,10 @@ class Springs:
         n = self.bonds.shape[0]
         self.bonds.from_numpy(bond_table(i, j, n, self.max_bonds, alive)[:n])
 
-    @ti.kernel
-    def update(self):
-        """Thermoelastic softening and breaking (by temperature and by overstretch), once per step before forces."""
-        for s in range(self.count):
-            self.update_one(s)
-
     @ti.func
     def update_one(self, s):
-        """update() for spring s (also fused into the simulation's pre-step kernel)."""
+        """Thermoelastic softening and breaking (by temperature and by overstretch) of spring s, once per step
+        before forces; the simulation runs it for every spring in its fused pre-step kernel."""
         if self.alive[s]:
             a, b = self.i[s], self.j[s]
             factor = 1.0
