@@ -34,6 +34,7 @@ class Particles:
     temperature: np.ndarray  # (N,) degrees
     material: np.ndarray  # (N,) int32 index into Scene.used_materials()
     body: np.ndarray  # (N,) int32 index into Scene.bodies
+    solid: np.ndarray  # (N,) bool: built as a solid (the body has springs); the rest start liquid
     spring_i: np.ndarray  # (S,) int32
     spring_j: np.ndarray  # (S,) int32
     rest_length: np.ndarray  # (S,)
@@ -144,7 +145,9 @@ def build_particles(scene: Scene) -> Particles:
     dim = scene.dim
     mat_index = {name: k for k, name in enumerate(scene.used_materials())}
     ambient = scene.heat.ambient if scene.heat else 20.0
-    parts: dict[str, list] = {k: [] for k in ("x", "v", "m", "r", "T", "mat", "body", "si", "sj", "l0", "ks", "kd")}
+    parts: dict[str, list] = {
+        k: [] for k in ("x", "v", "m", "r", "T", "mat", "body", "solid", "si", "sj", "l0", "ks", "kd")
+    }
     offset = 0
     for b_index, body in enumerate(scene.bodies):
         key = f"bodies[{b_index}]"
@@ -180,6 +183,7 @@ def build_particles(scene: Scene) -> Particles:
         parts["T"].append(np.full(n, ambient if body.temperature is None else body.temperature))
         parts["mat"].append(np.full(n, mat_index[body.material], dtype=np.int32))
         parts["body"].append(np.full(n, b_index, dtype=np.int32))
+        parts["solid"].append(np.full(n, body.springs))
         if body.springs:
             i, j = _lattice_springs(idx, basis, body.spring_radius * body.spacing + 1e-9)
             parts["si"].append(i + offset)
@@ -202,6 +206,7 @@ def build_particles(scene: Scene) -> Particles:
         temperature=cat("T"),
         material=cat("mat", np.int32),
         body=cat("body", np.int32),
+        solid=cat("solid", bool),
         spring_i=cat("si", np.int32),
         spring_j=cat("sj", np.int32),
         rest_length=cat("l0"),

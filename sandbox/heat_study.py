@@ -30,7 +30,7 @@ def pulse_sim(stepper: str, dt: float) -> Simulation:
         "bodies": [{"material": "cond", "shape": "box", "lo": [0, 0], "hi": [SIDE, SIDE], "springs": False}],
     }
     sim = Simulation(scene_from_dict(data, STUDY_PATH))
-    set_temperature(sim, gaussian(sim.positions(), T0))
+    sim.set_temperatures(gaussian(sim.positions(), T0))
     sim.mark_initial()
     return sim
 
@@ -38,12 +38,6 @@ def pulse_sim(stepper: str, dt: float) -> Simulation:
 def gaussian(x: np.ndarray, t: float, amount: float = 100.0) -> np.ndarray:
     r2 = ((x - CENTRE) ** 2).sum(axis=1)
     return amount * np.exp(-r2 / (4 * KAPPA * t)) / (4 * math.pi * KAPPA * t)
-
-
-def set_temperature(sim: Simulation, values: np.ndarray) -> None:
-    full = sim.particles.T.to_numpy()
-    full[: len(values)] = values
-    sim.particles.T.from_numpy(full)
 
 
 def theory_explicit_limit(sim: Simulation) -> float:
@@ -70,7 +64,7 @@ def measured_explicit_limit(sim: Simulation, steps: int = 200) -> float:
     for _ in range(16):
         mid = 0.5 * (lo + hi)
         sim.reset()
-        set_temperature(sim, noise)
+        sim.set_temperatures(noise)
         sim.dt = mid
         sim.step(steps)
         grew = not np.all(np.isfinite(sim.temperatures())) or np.abs(sim.temperatures()).max() > 1.0

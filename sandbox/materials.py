@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SceneError
-from .schema import non_negative, parse_table, positive, spec
+from .schema import non_negative, parse_table, positive, spec, unit_interval
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -42,7 +42,31 @@ class Material:
     )
     damping: float = spec(5.0, doc="spring damping k_d (force per speed)", check=non_negative)
     soften_temperature: float = spec(math.inf, doc="bonds start to lose stiffness above this temperature")
-    melt_temperature: float = spec(math.inf, doc="bonds break at this mean temperature (inf: never melts)")
+    melt_temperature: float = spec(math.inf, doc="solidus: melting starts at this temperature (inf: never melts)")
+    liquidus_temperature: float | None = spec(
+        None,
+        doc="fully liquid at this temperature (default: melt_temperature, a pure substance); the melt fraction "
+        "rises linearly from the solidus to here",
+    )
+    latent_heat: float = spec(
+        0.0, doc="heat per unit mass that melting absorbs and freezing releases (specific enthalpy)", check=non_negative
+    )
+    stiffness_at_melt: float = spec(
+        0.2,
+        doc="fraction of the bond stiffness left when the solid reaches melt_temperature (softening is linear from "
+        "soften_temperature); the melt fraction then takes it to zero",
+        check=unit_interval,
+    )
+    break_melt_fraction: float = spec(
+        0.5,
+        doc="a bond breaks when both its ends are at least this molten",
+        check=lambda f: None if 0 < f <= 1 else f"expected a number in (0, 1], got {f}",
+    )
+    refreeze_undercooling: float = spec(
+        1.0,
+        doc="a molten particle refreezes (forms new bonds) once this many degrees below melt_temperature",
+        check=non_negative,
+    )
     pair_alpha: float = spec(0.0, doc="attraction coefficient alpha of the pair force", check=non_negative)
     pair_beta: float = spec(0.0, doc="repulsion coefficient beta of the pair force", check=non_negative)
     pair_soft: float = spec(0.0, doc="softening epsilon of the attraction term (length)", check=non_negative)
@@ -58,6 +82,26 @@ class Material:
     def __post_init__(self):
         if self.soften_temperature > self.melt_temperature:
             object.__setattr__(self, "soften_temperature", self.melt_temperature)
+        if self.liquidus_temperature is None:
+            object.__setattr__(self, "liquidus_temperature", self.melt_temperature)
+
+    @property
+    def melts(self) -> bool:
+        return math.isfinite(self.melt_temperature)
+
+
+def check_material(material: Material, file: str, key: str) -> Material:
+    """Cross-key checks of one material table; raises SceneError naming the key."""
+    if material.liquidus_temperature < material.melt_temperature:
+        raise SceneError(
+            file,
+            f"{key}.liquidus_temperature",
+            f"expected a temperature >= melt_temperature ({material.melt_temperature:g}), "
+            f"got {material.liquidus_temperature:g}",
+        )
+    if not material.melts and (material.latent_heat > 0 or math.isfinite(material.liquidus_temperature)):
+        raise SceneError(file, f"{key}.melt_temperature", "expected a finite melting temperature with latent heat")
+    return material
 
 
 def load_library(path: Path = MATERIALS_FILE) -> dict[str, Material]:
@@ -68,7 +112,10 @@ def load_library(path: Path = MATERIALS_FILE) -> dict[str, Material]:
         raise SceneError(str(path), "", "materials library not found") from exc
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(str(path), "", f"not valid TOML: {exc}") from exc
-    return {name: parse_table(Material, table, str(path), name) for name, table in data.items()}
+    return {
+        name: check_material(parse_table(Material, table, str(path), name), str(path), name)
+        for name, table in data.items()
+    }
 
 
 def resolve_materials(scene_tables: dict, file: str) -> dict[str, Material]:
@@ -91,8 +138,11 @@ def resolve_materials(scene_tables: dict, file: str) -> dict[str, Material]:
                 )
             merged = {f.name: getattr(result[base_name], f.name) for f in dataclasses.fields(Material)}
             merged["based_on"] = ""
+            base = result[base_name]
+            if "melt_temperature" in table and base.liquidus_temperature == base.melt_temperature:
+                merged.pop("liquidus_temperature")  # a pure substance stays pure at its new melting point
             merged.update(table)
             merged = {k: list(v) if isinstance(v, tuple) else v for k, v in merged.items() if v is not None}
             table = merged
-        result[name] = parse_table(Material, table, file, key)
+        result[name] = check_material(parse_table(Material, table, file, key), file, key)
     return result

@@ -11,10 +11,11 @@ from .materials import Material
 class ParticleFields:
     """Struct-of-arrays particle state. Capacity C, the first n[None] entries active; D = dim."""
 
-    def __init__(self, dim: int, capacity: int, heat: bool):
+    def __init__(self, dim: int, capacity: int, heat: bool, refreeze: bool = False):
         self.dim = dim
         self.capacity = capacity
         self.heat = heat
+        self.refreeze = refreeze
         self.n = ti.field(ti.i32, shape=())  # active particle count
         self.x = ti.Vector.field(dim, float, shape=capacity)  # position (length), (C, D)
         self.v = ti.Vector.field(dim, float, shape=capacity)  # velocity (length / time), (C, D)
@@ -25,11 +26,24 @@ class ParticleFields:
         self.color = ti.Vector.field(3, ti.f32, shape=capacity)  # base colour, RGB in [0, 1], (C, 3)
         self.group = ti.field(ti.i32, shape=capacity)  # the body a particle came from: its drawing style, (C,)
         if heat:
-            self.T = ti.field(float, shape=capacity)  # temperature (degrees), (C,)
-            self.dTdt = ti.field(float, shape=capacity)  # temperature rate of the last evaluation, (C,)
+            self.h = ti.field(float, shape=capacity)  # specific enthalpy (heat / mass): the heat state, (C,)
+            self.T = ti.field(float, shape=capacity)  # temperature (degrees), derived from h (physics/phase.py), (C,)
+            self.dhdt = ti.field(float, shape=capacity)  # enthalpy rate of the last evaluation (heat/mass/time), (C,)
+        if refreeze:
+            self.liquid = ti.field(ti.i32, shape=capacity)  # 1 once molten, until it refreezes (physics/phase.py)
 
-    def load(self, built: Particles, colors: np.ndarray) -> None:
-        """Copy the initial particles in (entries past the count are left as they are)."""
+    def names(self) -> list[str]:
+        """Names of the per-particle fields allocated (the state a snapshot copies)."""
+        names = ["x", "v", "f", "mass", "radius", "material", "color", "group"]
+        if self.heat:
+            names += ["h", "T", "dhdt"]
+        if self.refreeze:
+            names.append("liquid")
+        return names
+
+    def load(self, built: Particles, colors: np.ndarray, materials: list[Material] | None = None) -> None:
+        """Copy the initial particles in (entries past the count are left as they are); `materials` (by material id)
+        turn the initial temperatures into enthalpies and liquid flags."""
         n = built.count
         self.n[None] = n
         self._set(self.x, built.x)
@@ -41,8 +55,13 @@ class ParticleFields:
         self._set(self.color, colors[built.material])
         self._set(self.group, built.body)
         if self.heat:
+            h, phi = initial_enthalpy(built.temperature, built.material, materials)
+            self._set(self.h, h)
             self._set(self.T, built.temperature)
-            self._set(self.dTdt, np.zeros(n))
+            self._set(self.dhdt, np.zeros(n))
+            if self.refreeze:
+                breaks = np.array([m.break_melt_fraction for m in materials])[built.material]
+                self._set(self.liquid, ((phi >= breaks) | ~built.solid).astype(np.int32))
 
     def _set(self, field, values: np.ndarray) -> None:
         full = field.to_numpy()
@@ -51,8 +70,23 @@ class ParticleFields:
 
     def nbytes(self) -> int:
         """Bytes held by these fields."""
-        floats = 3 * self.dim + 2 + (2 if self.heat else 0)  # x, v, f, mass, radius, (T, dTdt)
-        return self.capacity * (floats * (8 if _is_f64() else 4) + 8 + 12)  # + material, group ids + f32 colour
+        floats = 3 * self.dim + 2 + (3 if self.heat else 0)  # x, v, f, mass, radius, (h, T, dhdt)
+        ints = 2 + (1 if self.refreeze else 0)  # material, group, (liquid)
+        return self.capacity * (floats * (8 if _is_f64() else 4) + 4 * ints + 12)  # + f32 colour
+
+
+def initial_enthalpy(
+    temperature: np.ndarray, material: np.ndarray, materials: list[Material]
+) -> tuple[np.ndarray, np.ndarray]:
+    """(specific enthalpy, melt fraction) of particles at `temperature` (degrees) of `material` ids."""
+    from .physics.phase import enthalpy_np, melt_fraction_np
+
+    def prop(name):
+        return np.array([min(getattr(m, name), 1e30) for m in materials])[material]
+
+    ts, tl = prop("melt_temperature"), prop("liquidus_temperature")
+    h = enthalpy_np(temperature, prop("specific_heat"), ts, tl, prop("latent_heat"))
+    return h, melt_fraction_np(temperature, ts, tl)
 
 
 @ti.data_oriented
@@ -71,7 +105,14 @@ class MaterialTable:
         self.specific_heat = table([m.specific_heat for m in materials])  # heat / (mass degree)
         self.conductivity = table([m.conductivity for m in materials])  # heat / (time length degree)
         self.soften = table([min(m.soften_temperature, 1e30) for m in materials])  # degrees
-        self.melt = table([min(m.melt_temperature, 1e30) for m in materials])  # degrees
+        self.melt = table([min(m.melt_temperature, 1e30) for m in materials])  # solidus (degrees)
+        self.liquidus = table([min(m.liquidus_temperature, 1e30) for m in materials])  # degrees
+        self.latent = table([m.latent_heat for m in materials])  # heat / mass
+        self.stiff_at_melt = table([m.stiffness_at_melt for m in materials])  # fraction of k_s left at the solidus
+        self.break_fraction = table([m.break_melt_fraction for m in materials])  # both ends this molten: bond breaks
+        self.undercool = table([m.refreeze_undercooling for m in materials])  # degrees below the solidus to refreeze
+        self.stiffness = table([m.stiffness for m in materials])  # k_s of bonds made by refreezing
+        self.damping = table([m.damping for m in materials])  # k_d of bonds made by refreezing
         self.colors = np.array([m.color for m in materials], dtype=np.float32)  # (n_mat, 3)
 
 

@@ -27,6 +27,7 @@ INTEGRATORS = ("symplectic_euler", "forward_euler", "midpoint", "verlet", "veloc
 SHAPES = ("box", "disk", "sphere", "mask")
 LATTICES = ("square", "hex", "cubic", "fcc")
 COLOR_BY = ("temperature", "material", "speed", "phase")
+SOURCE_MODES = ("exchange", "fixed", "power")  # heat source modes (physics/heat.py)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -87,12 +88,26 @@ class HeatSource:
     name: str = spec("plate", doc="label shown in the picture")
     lo: tuple[float, ...] = spec(doc="lower corner of the source region")
     hi: tuple[float, ...] = spec(doc="upper corner of the source region")
-    temperature: float = spec(doc="the source's temperature (degrees)")
+    mode: str = spec(
+        "exchange",
+        doc="exchange (each particle inside receives conductance x (temperature - T)), fixed (particles inside are "
+        "held at the temperature: a Dirichlet boundary) or power (a total heat rate shared by mass among them)",
+        check=one_of(*SOURCE_MODES),
+    )
+    temperature: float | None = spec(None, doc="the source's temperature (degrees); required unless mode = power")
+    power: float = spec(0.0, doc="mode = power: total heat per unit time into the region (negative: cooling)")
     conductance: float = spec(
         20.0, doc="heat flow per degree of difference into each particle in the region", check=non_negative
     )
     reach: float = spec(
         1.0, doc="particles within this distance of the region exchange heat with it", check=non_negative
+    )
+    schedule_times: tuple[float, ...] = spec(
+        (), doc="times (increasing, from 0) at which the temperature (or power) changes to schedule_values"
+    )
+    schedule_values: tuple[float, ...] = spec((), doc="the temperature (or power) from each of schedule_times on")
+    schedule_period: float = spec(
+        0.0, doc="repeat the schedule with this period (0: hold the last value)", check=non_negative
     )
 
 
@@ -109,6 +124,14 @@ class Heat:
         check=one_of("explicit", "implicit"),
     )
     sources: list[HeatSource] = spec(doc="hot or cold regions", factory=list)
+    refreeze: bool = spec(True, doc="molten particles that cool below their solidus bond again into a solid")
+    refreeze_radius: float = spec(
+        1.5, doc="refreezing bonds particles closer than this (length; at most the heat radius)", check=positive
+    )
+    refreeze_max_bonds: int = spec(
+        0, doc="bonds per particle that refreezing fills up to (0: 8 in 2D, 12 in 3D)", check=at_least(0)
+    )
+    refreeze_interval: int = spec(10, doc="steps between refreezing passes", check=at_least(1))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -274,8 +297,14 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     heat = raw.heat
     if heat is not None:
         for i, src in enumerate(heat.sources):
-            _check_vec(file, f"heat.sources[{i}].lo", src.lo, dim)
-            _check_vec(file, f"heat.sources[{i}].hi", src.hi, dim)
+            _check_source(file, f"heat.sources[{i}]", src, dim)
+        reach = max(heat.radius, raw.pair.cutoff if raw.pair else 0.0)
+        if heat.refreeze and heat.refreeze_radius > reach:
+            raise SceneError(
+                file,
+                "heat.refreeze_radius",
+                f"expected at most the neighbour reach {reach:g} (heat.radius, pair.cutoff)",
+            )
     if not raw.bodies:
         raise SceneError(file, "bodies", "expected at least one [[bodies]] table")
     bodies = [_check_body(file, f"bodies[{i}]", b, i, dim, materials, path) for i, b in enumerate(raw.bodies)]
@@ -322,6 +351,26 @@ def _body_bounds(body: Body) -> tuple[tuple[float, ...], tuple[float, ...]]:
 def _check_vec(file: str, key: str, vec: tuple, dim: int) -> None:
     if len(vec) != dim:
         raise SceneError(file, key, f"expected {dim} numbers (world.dim = {dim}), got {len(vec)}")
+
+
+def _check_source(file: str, key: str, src: HeatSource, dim: int) -> None:
+    _check_vec(file, f"{key}.lo", src.lo, dim)
+    _check_vec(file, f"{key}.hi", src.hi, dim)
+    if src.mode != "power" and src.temperature is None:
+        raise SceneError(file, f"{key}.temperature", f"missing; expected a number (degrees) for a {src.mode} source")
+    times, values = src.schedule_times, src.schedule_values
+    if len(times) != len(values):
+        raise SceneError(
+            file,
+            f"{key}.schedule_values",
+            f"expected as many values as schedule_times ({len(times)}), got {len(values)}",
+        )
+    if times and (times[0] != 0 or any(b <= a for a, b in zip(times, times[1:]))):
+        raise SceneError(file, f"{key}.schedule_times", f"expected increasing times starting at 0, got {list(times)}")
+    if src.schedule_period and times and src.schedule_period <= times[-1]:
+        raise SceneError(
+            file, f"{key}.schedule_period", f"expected a period longer than the last schedule time {times[-1]:g}"
+        )
 
 
 def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials: dict, scene_path: Path) -> Body:

@@ -23,6 +23,7 @@ from .physics.grid import CellGrid
 from .physics.heat import Heat, lattice_correction
 from .physics.neighbours import NeighbourList
 from .physics.pair import PairForce
+from .physics.phase import LIQUID, Phase, Refreezer
 from .physics.springs import Springs
 from .scene import Scene
 
@@ -37,15 +38,17 @@ STAT_COLUMNS = (
     "gravity_energy",
     "mean_temperature",
     "molten_fraction",
+    "heat_content",
     "broken_springs",
     "max_speed",
     "particles",
     "step_seconds",
 )
 
+SPRING_STATE = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds", "created")  # what refreezing changes
 RUNAWAY_FACTOR = 1e4  # kinetic energy above this many natural energy scales stops the run (see stats())
-_ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5}
-_COUNT = {"molten": 0, "broken": 1, "meltable": 2, "bad": 3}
+_ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7}
+_COUNT = {"alive": 0, "meltable": 1, "bad": 2}
 
 
 @dataclass
@@ -58,7 +61,8 @@ class Stats:
     pair_energy: float
     gravity_energy: float
     mean_temperature: float
-    molten_fraction: float
+    molten_fraction: float  # mean melt fraction of the particles of meltable materials
+    heat_content: float  # sum of m h: the heat (enthalpy) in the particles, conserved without sources
     broken_springs: int
     max_speed: float
     particles: int
@@ -90,8 +94,11 @@ class Simulation:
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
         self.materials = MaterialTable(materials)
-        self.particles = ParticleFields(self.dim, self.capacity, heat=scene.heat is not None)
-        self.particles.load(built, self.materials.colors)
+        self.phase = Phase(self.materials) if scene.heat else None
+        heat = scene.heat
+        self.can_refreeze = bool(heat and heat.refreeze and any(m.melts for m in materials))
+        self.particles = ParticleFields(self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze)
+        self.particles.load(built, self.materials.colors, materials)
         self.domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
         p = self.particles
         self.pair = (
@@ -113,12 +120,14 @@ class Simulation:
         if scene.heat:
             density = np.array([m.density for m in materials])[built.material]
             correction = lattice_correction(built.x, built.mass / density, scene.heat.radius)
-            self.heat = Heat(self.dim, scene.heat, p, self.materials, correction)
-        self.springs = (
-            Springs(built, self.capacity, p, self.materials, scene.heat is not None, self.domain.separation)
-            if built.spring_count
-            else None
-        )
+            self.heat = Heat(self.dim, scene.heat, p, self.materials, self.phase, correction)
+        self.springs = None
+        if built.spring_count or self.can_refreeze:
+            bonds = (heat.refreeze_max_bonds or (8 if self.dim == 2 else 12)) if self.can_refreeze else 0
+            spare = self.capacity * bonds // 2  # room for every particle to refreeze with its full bond count
+            self.springs = Springs(
+                built, self.capacity, p, self.materials, self.phase, self.domain.separation, spare, bonds
+            )
         reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat.radius if scene.heat else 0.0)
         skin = world.skin if world.neighbor_list else 0.0
         self.grid = (
@@ -129,10 +138,13 @@ class Simulation:
             if self.grid is not None and world.neighbor_list
             else None
         )
+        self.refreezer = Refreezer(self, heat.refreeze_radius) if self.can_refreeze else None
         self._warned_overflow = False
         self.has_neighbours = self.neighbours is not None
         self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
         self.has_heat, self.has_springs = self.heat is not None, self.springs is not None
+        self.has_power = self.has_heat and self.heat.has_power
+        self.has_fixed = self.has_heat and self.heat.has_fixed
         # With the implicit heat stepper the rates kernel skips heat; the solve runs after each step.
         self.has_explicit_heat = self.has_heat and scene.heat.stepper == "explicit"
         self.implicit_heat = None
@@ -164,6 +176,8 @@ class Simulation:
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
         for _ in range(n):
+            if self.heat is not None and self.heat.scheduled:
+                self.heat.set_time(self.time)
             self.integrator.step(self.dt)
             if self.implicit_heat is not None:
                 use_list = self.neighbours is not None and self.neighbours.ensure_fresh()
@@ -173,11 +187,13 @@ class Simulation:
                 self.implicit_heat.apply()
             self.time += self.dt
             self.step_count += 1
+            if self.refreezer is not None and self.step_count % self.scene.heat.refreeze_interval == 0:
+                self.refreezer.run()
 
     def eval_rates(self) -> None:
         """Forces (p.f) and heat rates (p.dTdt) at the current state."""
         use_list = False
-        moved = bool(self._prestep()) if (self.neighbours is not None or self.springs is not None) else False
+        moved = bool(self._prestep()) if (self.has_neighbours or self.has_springs or self.has_power) else False
         if self.neighbours is not None:
             use_list = self.neighbours.ensure_fresh(moved)
             if not use_list:
@@ -195,9 +211,14 @@ class Simulation:
 
     @ti.kernel
     def _prestep(self) -> ti.i32:
-        """One launch for the two cheap per-step passes: has any particle moved half the neighbour skin (returned),
-        and the springs' thermoelastic update and breaking."""
+        """One launch for the cheap per-step passes: has any particle moved half the neighbour skin (returned), the
+        springs' thermoelastic update and breaking, and the mass inside each power source."""
         moved = 0
+        if ti.static(self.has_power):
+            for k in range(self.heat.n_sources):
+                self.heat.src_mass[k] = 0.0
+            for i in range(self.particles.n[None]):
+                self.heat.add_source_mass(i)
         if ti.static(self.has_neighbours):
             self.neighbours.stale[None] = 0
             for i in range(self.particles.n[None]):
@@ -268,7 +289,7 @@ class Simulation:
             p.f[i] = f
             if ti.static(self.has_explicit_heat):
                 q += self.heat.source_flow(i)
-                p.dTdt[i] = q / (p.mass[i] * self.materials.specific_heat[p.material[i]])
+                p.dhdt[i] = q / p.mass[i]
 
     @ti.func
     def finish_particle(self, i, dt):
@@ -276,7 +297,27 @@ class Simulation:
         p = self.particles
         p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i])
         if ti.static(self.has_explicit_heat):
-            p.T[i] += dt * p.dTdt[i]
+            self.set_enthalpy(i, p.h[i] + dt * p.dhdt[i])
+
+    @ti.func
+    def set_enthalpy(self, i, h):
+        """Give particle i specific enthalpy h (held by fixed sources), and its temperature and liquid flag."""
+        p = self.particles
+        if ti.static(self.has_fixed):
+            h = self.heat.held(i, h)
+        p.h[i] = h
+        t, phi = self.phase.state(h, p.material[i])
+        p.T[i] = t
+        if ti.static(self.can_refreeze):
+            if phi >= self.materials.break_fraction[p.material[i]]:
+                p.liquid[i] = LIQUID
+
+    @ti.kernel
+    def sync_temperatures(self):
+        """Recompute every particle's enthalpy from its temperature (after the temperature was set directly)."""
+        for i in range(self.particles.n[None]):
+            self.particles.h[i] = self.phase.enthalpy(self.particles.T[i], self.particles.material[i])
+            self.set_enthalpy(i, self.particles.h[i])
 
     # ------------------------------------------------------------------ measurements
     @ti.kernel
@@ -299,16 +340,15 @@ class Simulation:
                 self._count[_COUNT["bad"]] += 1
             if ti.static(self.has_heat):
                 self._acc[_ACC["tsum"]] += p.T[i]
-                melt = self.materials.melt[p.material[i]]
-                if melt < 1e29:
+                self._acc[_ACC["heat"]] += p.mass[i] * p.h[i]
+                if self.materials.melt[p.material[i]] < 1e29:
                     self._count[_COUNT["meltable"]] += 1
-                    if p.T[i] >= melt:
-                        self._count[_COUNT["molten"]] += 1
+                    self._acc[_ACC["phi"]] += self.phase.fraction(p.h[i], p.material[i])
         if ti.static(self.has_springs):
             for s in range(self.springs.count):
                 self._acc[_ACC["spring"]] += self.springs.energy(s)
-                if self.springs.alive[s] == 0:
-                    self._count[_COUNT["broken"]] += 1
+                if self.springs.alive[s]:
+                    self._count[_COUNT["alive"]] += 1
         if ti.static(self.has_pair):
             for i in range(p.n[None]):
                 e = 0.0
@@ -362,8 +402,9 @@ class Simulation:
             pair_energy=acc["pair"],
             gravity_energy=acc["grav"],
             mean_temperature=acc["tsum"] / n if (self.heat is not None and n) else float("nan"),
-            molten_fraction=cnt["molten"] / cnt["meltable"] if cnt["meltable"] else 0.0,
-            broken_springs=cnt["broken"],
+            molten_fraction=acc["phi"] / cnt["meltable"] if cnt["meltable"] else 0.0,
+            heat_content=acc["heat"] if self.heat is not None else float("nan"),
+            broken_springs=int(self.springs.created[None]) - cnt["alive"] if self.springs is not None else 0,
             max_speed=acc["vmax"],
             particles=n,
         )
@@ -498,7 +539,7 @@ class Simulation:
         for name in self.field_names():
             snap[name] = getattr(p, name).to_numpy()
         if self.springs is not None:
-            for name in ("i", "j", "alive", "factor", "bonds"):
+            for name in SPRING_STATE:
                 snap[f"spring_{name}"] = getattr(self.springs, name).to_numpy()
         return snap
 
@@ -509,10 +550,12 @@ class Simulation:
         for name in self.field_names():
             getattr(p, name).from_numpy(snap[name])
         if self.springs is not None:
-            for name in ("i", "j", "alive", "factor", "bonds"):
+            for name in SPRING_STATE:
                 getattr(self.springs, name).from_numpy(snap[f"spring_{name}"])
         self.time = snap["time"]
         self.step_count = snap["step"]
+        if self.heat is not None:
+            self.heat.set_time(self.time)
         if self.neighbours is not None:
             self.neighbours.invalidate()
 
@@ -534,6 +577,30 @@ class Simulation:
 
     def temperatures(self) -> np.ndarray:
         return self.particles.T.to_numpy()[: int(self.particles.n[None])]
+
+    def set_temperatures(self, temperatures: np.ndarray) -> None:
+        """Set the active particles' temperatures (degrees, (N,)); enthalpies and liquid flags follow."""
+        n = int(self.particles.n[None])
+        full = self.particles.T.to_numpy()
+        full[:n] = temperatures
+        self.particles.T.from_numpy(full)
+        self.sync_temperatures()
+
+    def melt_fractions(self) -> np.ndarray:
+        """Melt fraction phi in [0, 1] of the active particles, (N,) (0 without heat)."""
+        n = int(self.particles.n[None])
+        if self.heat is None:
+            return np.zeros(n)
+        from .physics.phase import temperature_np
+
+        m = self.particles.material.to_numpy()[:n]
+        mats = [self.scene.materials[name] for name in self.material_names]
+
+        def prop(name):
+            return np.array([min(getattr(mt, name), 1e30) for mt in mats])[m]
+
+        args = [prop(k) for k in ("specific_heat", "melt_temperature", "liquidus_temperature", "latent_heat")]
+        return temperature_np(self.particles.h.to_numpy()[:n], *args)[1]
 
     def forces(self) -> np.ndarray:
         """Forces of the last evaluation, (N, D)."""
@@ -573,10 +640,7 @@ class Simulation:
 
     def field_names(self) -> list[str]:
         """Names of the per-particle fields allocated for this scene."""
-        names = ["x", "v", "f", "mass", "radius", "material", "color", "group"]
-        if self.heat is not None:
-            names += ["T", "dTdt"]
-        return names
+        return self.particles.names()
 
     def memory_bytes(self) -> dict[str, int]:
         """Bytes of field memory by part."""

@@ -16,6 +16,8 @@ import numpy as np
 import taichi as ti
 
 from .errors import SandboxError
+from .model import initial_enthalpy
+from .physics.phase import LIQUID
 
 TOOLS = ("heat", "cool", "drag", "attract", "repel", "impulse", "erase", "spawn")  # keys 1-8 in the window
 
@@ -46,8 +48,9 @@ class Tools:
         c = self.centre[None]
         for i in range(self.p.n[None]):
             w = 1.0 - (self.p.x[i] - c).norm() / radius
-            if w > 0.0:
-                self.p.T[i] += amount * w
+            if w > 0.0:  # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
+                cap = self.sim.materials.specific_heat[self.p.material[i]]
+                self.sim.set_enthalpy(i, self.p.h[i] + cap * amount * w)
 
     def push(self, centre, radius: float, strength: float, dt: float) -> None:
         """Change velocities by strength * dt (towards the centre when positive) within the brush."""
@@ -95,8 +98,7 @@ class Tools:
             return 0
         new_index = np.full(n, -1, dtype=np.int64)
         new_index[keep] = np.arange(int(keep.sum()))
-        names = ["x", "v", "f", "mass", "radius", "material", "color", "group"] + (["T", "dTdt"] if p.heat else [])
-        for name in names:
+        for name in p.names():
             field = getattr(p, name)
             data = field.to_numpy()
             kept = data[:n][keep]
@@ -160,8 +162,12 @@ class Tools:
             "group": np.full(m, 0),
         }
         if self.p.heat:
-            values["T"] = np.full(m, ambient if temperature is None else temperature)
-            values["dTdt"] = np.zeros(m)
+            t = np.full(m, ambient if temperature is None else temperature)
+            values["h"], _ = initial_enthalpy(t, np.full(m, 0), [mat])
+            values["T"] = t
+            values["dhdt"] = np.zeros(m)
+        if self.p.refreeze:
+            values["liquid"] = np.full(m, LIQUID)  # spawned as a melt: it freezes into a solid where it is cold
         for name, vals in values.items():
             field = getattr(self.p, name)
             data = field.to_numpy()

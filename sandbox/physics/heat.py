@@ -13,15 +13,22 @@ H = 2.5 spacings), which would show as a diffusivity 3.4% too low. `lattice_corr
 S_i = (1/D) sum_j V_j r_ij^2 (-W'(r_ij)/r_ij) on the initial particles (1 for a perfect continuum) and the flow is
 divided by its 90th percentile (the interior value); the factor is the same for every pair, so conservation holds.
 
-Sources: particles within `reach` of a source region receive G (T_source - T_i); every particle exchanges
-G_amb (T_ambient - T_i) with the ambient. Time stepping is explicit Euler, stable for dt below about
-0.1 (rho c / k) h^2 for spacing h (see Simulation.heat_dt_limit).
+Sources act on the particles within `reach` of their region, in one of three modes: "exchange" (each receives
+G (T_source - T_i)), "fixed" (held at T_source after every step: a Dirichlet boundary) or "power" (a total heat
+rate P shared in proportion to mass among the particles inside). A source's temperature or power may follow a
+schedule (piecewise constant in time, optionally repeating). Every particle also exchanges G_amb (T_ambient - T_i)
+with the ambient. The flows change the specific enthalpy h (physics/phase.py); time stepping is explicit Euler,
+stable for dt below about 0.1 (rho c / k) h^2 for spacing h (see Simulation.heat_dt_limit).
 """
 
 import math
 
 import numpy as np
 import taichi as ti
+
+from ..scene import SOURCE_MODES
+
+EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
 
 
 def wendland_grad_factor(r: float, h: float, dim: int) -> float:
@@ -55,28 +62,73 @@ def lattice_correction(x: np.ndarray, volume: np.ndarray, h: float, samples: int
 class Heat:
     """Heat-diffusion parameters and sources, with the per-pair flow and per-particle source funcs."""
 
-    def __init__(self, dim: int, heat_scene, particles, materials, correction: float = 1.0):
+    def __init__(self, dim: int, heat_scene, particles, materials, phase, correction: float = 1.0):
         self.dim = dim
+        self.phase = phase
         self.support = float(heat_scene.radius)
         self.correction = correction
         self.norm = (7 / (math.pi * self.support**2) if dim == 2 else 21 / (2 * math.pi * self.support**3)) / correction
         self.p = particles
         self.mats = materials
-        self.n_sources = len(heat_scene.sources)
+        self.sources = list(heat_scene.sources)
+        self.n_sources = len(self.sources)
         ns = max(self.n_sources, 1)
+        modes = [SOURCE_MODES.index(src.mode) for src in self.sources]
+        self.has_fixed = FIXED in modes  # static flags: scenes without such sources compile none of their code
+        self.has_power = POWER in modes
         self.src_lo = ti.Vector.field(dim, float, shape=ns)  # source region lower corner, widened by its reach
         self.src_hi = ti.Vector.field(dim, float, shape=ns)  # source region upper corner, widened by its reach
-        self.src_temperature = ti.field(float, shape=ns)  # degrees
+        self.src_mode = ti.field(ti.i32, shape=ns)  # index into SOURCE_MODES
+        self.src_value = ti.field(float, shape=ns)  # temperature (degrees) or, for power sources, heat / time
         self.src_conductance = ti.field(float, shape=ns)  # heat per time per degree, per particle
+        self.src_mass = ti.field(float, shape=ns)  # power sources: mass inside the region (summed each step)
         self.ambient = ti.field(float, shape=())  # degrees
         self.ambient_exchange = ti.field(float, shape=())  # heat per time per degree, per particle
         self.ambient[None] = heat_scene.ambient
         self.ambient_exchange[None] = heat_scene.ambient_exchange
-        for k, src in enumerate(heat_scene.sources):
+        for k, src in enumerate(self.sources):
             self.src_lo[k] = np.asarray(src.lo) - src.reach
             self.src_hi[k] = np.asarray(src.hi) + src.reach
-            self.src_temperature[k] = src.temperature
+            self.src_mode[k] = modes[k]
             self.src_conductance[k] = src.conductance
+        self._values: list[float | None] = [None] * self.n_sources  # the values last written to src_value
+        self.set_time(0.0)
+
+    def set_time(self, t: float) -> None:
+        """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""
+        for k, src in enumerate(self.sources):
+            value = source_value(src, t)
+            if value != self._values[k]:
+                self.src_value[k] = value
+                self._values[k] = value
+
+    @property
+    def scheduled(self) -> bool:
+        return any(src.schedule_times for src in self.sources)
+
+    @ti.func
+    def inside(self, k, xi):
+        """Is position xi within the (reach-widened) region of source k?"""
+        result = True
+        for a in ti.static(range(self.dim)):
+            if xi[a] < self.src_lo[k][a] or xi[a] > self.src_hi[k][a]:
+                result = False
+        return result
+
+    @ti.func
+    def add_source_mass(self, i):
+        """Power sources: add particle i's mass to the sources it is inside (src_mass must be zeroed first)."""
+        for k in range(self.n_sources):
+            if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
+                self.src_mass[k] += self.p.mass[i]
+
+    @ti.func
+    def held(self, i, h):
+        """Specific enthalpy of particle i after fixed sources: their temperature's enthalpy inside them, else h."""
+        for k in range(self.n_sources):
+            if self.src_mode[k] == FIXED and self.inside(k, self.p.x[i]):
+                h = self.phase.enthalpy(self.src_value[k], self.p.material[i])
+        return h
 
     @ti.func
     def flow(self, i, j, r2):
@@ -104,16 +156,28 @@ class Heat:
 
     @ti.func
     def source_terms(self, i):
-        """(G, G T_s summed) over the ambient and the sources particle i touches: their flow is G T_s - G T_i."""
+        """(G, G T_s summed) over the ambient and the sources particle i touches: their flow is G T_s - G T_i
+        (a power source adds its share of power to the second term)."""
         xi = self.p.x[i]
         g = self.ambient_exchange[None]
         gt = g * self.ambient[None]
         for k in range(self.n_sources):
-            inside = True
-            for a in ti.static(range(self.dim)):
-                if xi[a] < self.src_lo[k][a] or xi[a] > self.src_hi[k][a]:
-                    inside = False
-            if inside:
-                g += self.src_conductance[k]
-                gt += self.src_conductance[k] * self.src_temperature[k]
+            if self.inside(k, xi):
+                if self.src_mode[k] == EXCHANGE:
+                    g += self.src_conductance[k]
+                    gt += self.src_conductance[k] * self.src_value[k]
+                elif self.src_mode[k] == POWER:
+                    gt += self.src_value[k] * self.p.mass[i] / ti.max(self.src_mass[k], 1e-30)
         return g, gt
+
+
+def source_value(src, t: float) -> float:
+    """A source's temperature (or power) at time t: its schedule's value in force at t, else its fixed value."""
+    base = src.power if src.mode == "power" else src.temperature
+    if not src.schedule_times:
+        return float(base)
+    times = src.schedule_times
+    if src.schedule_period > 0:
+        t = t % src.schedule_period
+    k = int(np.searchsorted(times, t, side="right")) - 1
+    return float(src.schedule_values[k]) if k >= 0 else float(base)

@@ -6,6 +6,11 @@ With C_i = m_i c_i, conductances G_ij (heat.py) and source terms (G_i, G_i T_s),
 
 a symmetric positive definite system (a weighted graph Laplacian plus a positive diagonal). Without sources the
 row sums give sum_i C_i T_i' = sum_i C_i T_i: heat is conserved to the solver tolerance.
+
+With latent heat the solve is linearised: its heat gain C_i dT_i goes into the specific enthalpy (h += c dT), and the
+temperature follows from h (physics/phase.py). That keeps the total heat exact and the step stable (a melting
+particle's temperature changes less than the linear solve assumed); near a melting front it lags the exact
+nonlinear backward Euler step by up to a step.
 """
 
 import taichi as ti
@@ -91,7 +96,7 @@ class ImplicitHeat:
             self.r[i] = b
             self.z[i] = b / self.diag[i]
             self.d[i] = self.z[i]
-            self.p.dTdt[i] = 0.0  # holds the accumulating dT during the solve
+            self.p.dhdt[i] = 0.0  # holds the accumulating dT during the solve
             self.scalars[1] += b * self.z[i]
             self.scalars[2] += b * b
             self.scalars[3] += b * b
@@ -111,7 +116,7 @@ class ImplicitHeat:
         self.scalars[1] = 0.0
         self.scalars[2] = 0.0
         for i in range(self.p.n[None]):
-            self.p.dTdt[i] += alpha * self.d[i]
+            self.p.dhdt[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.ad[i]
             self.z[i] = self.r[i] / self.diag[i]
             self.scalars[1] += self.r[i] * self.z[i]
@@ -124,6 +129,7 @@ class ImplicitHeat:
 
     @ti.kernel
     def apply(self):
-        """T += dT (dT was accumulated in p.dTdt by the solve)."""
+        """h += c dT (dT was accumulated in p.dhdt by the solve); T follows from h."""
         for i in range(self.p.n[None]):
-            self.p.T[i] += self.p.dTdt[i]
+            c = self.sim.materials.specific_heat[self.p.material[i]]
+            self.sim.set_enthalpy(i, self.p.h[i] + c * self.p.dhdt[i])

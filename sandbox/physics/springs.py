@@ -8,9 +8,14 @@ For a spring between i and j, with d = x_j - x_i, n = d / |d|, the force on i is
 force from their own side with mirrored arithmetic, so f_j is exactly -f_i; forces are gathered per particle
 through its bond list, with no float atomics.
 
-Thermoelastic law, per material with softening temperature Ts and melting temperature Tm, for the mean temperature
-T of the two ends: k = k_s * s(T), c = k_d * s(T), with s = 1 below Ts, falling linearly to 0 at Tm; at T >= Tm
-the spring breaks for good. A spring also breaks when stretched beyond `break_stretch` times its rest length.
+Thermoelastic law, per material with softening temperature Ts and solidus Tm, from the mean temperature T and mean
+melt fraction phi of the two ends (physics/phase.py): k = k_s * f, c = k_d * f with
+
+    f = s(T) (1 - phi),     s = 1 below Ts, falling linearly to the material's stiffness_at_melt at Tm (and held there)
+
+A spring breaks for good when both ends are at least break_melt_fraction molten, or when stretched beyond
+`BREAK_STRETCH` times its rest length. Refreezing (physics/phase.py) makes new springs in free slots: a scene that
+can refreeze has spare spring slots beyond the built ones.
 """
 
 import numpy as np
@@ -39,9 +44,22 @@ class Springs:
 
     BREAK_STRETCH = 100.0  # a spring stretched beyond 100x its rest length breaks (documented clamp)
 
-    def __init__(self, built, capacity: int, particles, materials, heat_enabled: bool, periodic_sep):
-        self.count = built.spring_count
-        self.max_bonds = max(built.max_bonds(), 1)
+    def __init__(
+        self,
+        built,
+        capacity: int,
+        particles,
+        materials,
+        phase,
+        periodic_sep,
+        spare: int = 0,
+        max_bonds: int = 0,
+    ):
+        """`capacity`: particle slots; `phase`: the Phase law (None without heat); `spare`: extra spring slots for
+        refreezing; `max_bonds`: bond-list width (at least the built one)."""
+        self.built_count = built.spring_count
+        self.count = built.spring_count + spare  # spring slots; the kernels loop over all of them
+        self.max_bonds = max(built.max_bonds(), max_bonds, 1)
         s = max(self.count, 1)
         self.i = ti.field(ti.i32, shape=s)  # first end
         self.j = ti.field(ti.i32, shape=s)  # second end
@@ -51,20 +69,26 @@ class Springs:
         self.factor = ti.field(float, shape=s)  # thermoelastic factor s(T) in [0, 1]
         self.alive = ti.field(ti.i32, shape=s)  # 1 while the spring holds, 0 once broken (for good)
         self.bonds = ti.field(ti.i32, shape=(capacity, self.max_bonds))  # spring ids at each particle, -1 padded
-        if self.count:
-            self.i.from_numpy(built.spring_i)
-            self.j.from_numpy(built.spring_j)
-            self.rest.from_numpy(built.rest_length)
-            self.ks.from_numpy(built.stiffness)
-            self.kd.from_numpy(built.damping)
+        self.created = ti.field(ti.i32, shape=())  # springs ever made (built + refrozen): broken = created - alive
+        if self.built_count:
+            pad = np.zeros(spare)
+            self.i.from_numpy(np.concatenate([built.spring_i, pad]).astype(np.int32))
+            self.j.from_numpy(np.concatenate([built.spring_j, pad]).astype(np.int32))
+            self.rest.from_numpy(np.concatenate([built.rest_length, pad]))
+            self.ks.from_numpy(np.concatenate([built.stiffness, pad]))
+            self.kd.from_numpy(np.concatenate([built.damping, pad]))
         self.factor.fill(1.0)
-        self.alive.fill(1 if self.count else 0)
+        alive = np.zeros(s, dtype=np.int32)
+        alive[: self.built_count] = 1
+        self.alive.from_numpy(alive)
+        self.created[None] = self.built_count
         table = np.full((capacity, self.max_bonds), -1, dtype=np.int32)
         table[: built.count] = bond_table(built.spring_i, built.spring_j, built.count, self.max_bonds)[: built.count]
         self.bonds.from_numpy(table)
         self.p = particles
         self.mats = materials
-        self.heat_enabled = heat_enabled
+        self.phase = phase
+        self.heat_enabled = phase is not None
         self.separation = periodic_sep
 
     def rebuild_bonds(self) -> None:
@@ -82,13 +106,7 @@ class Springs:
             a, b = self.i[s], self.j[s]
             factor = 1.0
             if ti.static(self.heat_enabled):
-                mat = self.p.material[a]
-                t = 0.5 * (self.p.T[a] + self.p.T[b])
-                t_soft, t_melt = self.mats.soften[mat], self.mats.melt[mat]
-                if t >= t_melt:
-                    factor = -1.0
-                elif t > t_soft:
-                    factor = (t_melt - t) / (t_melt - t_soft)
+                factor = self.thermal_factor(a, b)
             length = self.separation(self.p.x[a], self.p.x[b]).norm()
             if length > self.BREAK_STRETCH * self.rest[s]:
                 factor = -1.0
@@ -97,6 +115,25 @@ class Springs:
                 self.factor[s] = 0.0
             else:
                 self.factor[s] = factor
+
+    @ti.func
+    def thermal_factor(self, a, b):
+        """s(T) (1 - phi) for a spring joining a and b, or -1 when both ends are molten enough to break it."""
+        mat = self.p.material[a]
+        ta, pa = self.phase.state(self.p.h[a], mat)
+        tb, pb = self.phase.state(self.p.h[b], self.p.material[b])
+        t = 0.5 * (ta + tb)
+        t_soft, t_melt = self.mats.soften[mat], self.mats.melt[mat]
+        soft = 1.0
+        if t > t_soft:
+            ramp = 1.0
+            if t_melt > t_soft:
+                ramp = ti.min((t - t_soft) / (t_melt - t_soft), 1.0)
+            soft = 1.0 - (1.0 - self.mats.stiff_at_melt[mat]) * ramp
+        factor = soft * (1.0 - 0.5 * (pa + pb))
+        if ti.min(pa, pb) >= self.mats.break_fraction[mat]:
+            factor = -1.0
+        return factor
 
     @ti.func
     def other_end(self, i, s):

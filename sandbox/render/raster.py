@@ -239,8 +239,8 @@ class Renderer:
         elif ti.static(self.color_mode == 2):
             c = speed_map(p.v[i].norm() / self.speed_hi[None])
         elif ti.static(self.color_mode == 3 and self.has_heat):
-            if p.T[i] >= self.sim.materials.melt[p.material[i]]:
-                c = ti.Vector(list(MOLTEN))
+            phi = self.sim.phase.fraction(p.h[i], p.material[i])
+            c = (1.0 - phi) * base + phi * ti.Vector(list(MOLTEN))
         return c
 
     @ti.func

@@ -1,0 +1,192 @@
+"""Validation of phase change: the one-phase Stefan problem and the heating curve.
+
+Stefan: a periodic 2D slab of a pure material at its melting point Tm, with a band of particles in the middle held at
+Tm + dT (a "fixed" heat source). Melt fronts run out both ways; by symmetry each is the one-phase Stefan problem
+with the Dirichlet boundary at the outermost held particles, whose exact (Neumann) solution is
+
+    s(t) = 2 lambda sqrt(alpha t),     lambda exp(lambda^2) erf(lambda) = St / sqrt(pi),    St = c dT / L
+
+The numerical front is the melted volume (sum of melt fraction x particle volume, over the free particles) per unit
+cross-section per side, plus the half spacing between the held particle and its own slab's edge.
+
+Heating curve: a body heated at constant power P, insulated. Its mean temperature rises at P / (M c), holds at Tm
+for L M / P while it melts, and rises again at P / (M c).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import scene_from_dict
+from .simulation import Simulation
+from .study import STUDY_PATH
+
+STEFAN_LENGTH = 60.0  # slab length (periodic), in units where the coarsest spacing is 1
+STEFAN_HEIGHT = 8.0  # slab height (periodic)
+STEFAN_HELD = 4.0  # width of the held band in the middle
+
+
+def stefan_lambda(stefan_number: float) -> float:
+    """lambda solving lambda exp(lambda^2) erf(lambda) = St / sqrt(pi) (bisection; the left side increases)."""
+    target = stefan_number / math.sqrt(math.pi)
+    lo, hi = 0.0, 3.0
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if mid * math.exp(mid * mid) * math.erf(mid) < target:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@dataclass
+class StefanResult:
+    spacing: float
+    particles: int
+    times: np.ndarray  # (K,)
+    front: np.ndarray  # (K,) numerical front position s(t)
+    exact: np.ndarray  # (K,) Neumann solution
+    lam: float
+
+    @property
+    def error(self) -> float:
+        """Largest relative front error over the second half of the run (the front is a few spacings deep there)."""
+        half = len(self.times) // 2
+        return float(np.max(np.abs(self.front[half:] - self.exact[half:]) / self.exact[half:]))
+
+
+def stefan_scene(spacing: float, superheat: float = 10.0, latent: float = 10.0) -> dict:
+    """Scene table of the Stefan slab at particle spacing `spacing` (conductivity, density, c = 1; Tm = 0)."""
+    dt = 0.05 * spacing**2  # explicit heat limit is about 0.11 h^2 for alpha = 1 and H = 2.5 h
+    mid = STEFAN_LENGTH / 2
+    return {
+        "world": {
+            "dim": 2,
+            "lo": [0.0, 0.0],
+            "hi": [STEFAN_LENGTH, STEFAN_HEIGHT],
+            "dt": dt,
+            "periodic": True,
+            "precision": "f64",
+        },
+        "heat": {
+            "ambient": 0.0,
+            "radius": 2.5 * spacing,
+            "refreeze": False,
+            "sources": [
+                {
+                    "name": "held band",
+                    "mode": "fixed",
+                    "lo": [mid - STEFAN_HELD / 2, 0.0],
+                    "hi": [mid + STEFAN_HELD / 2, STEFAN_HEIGHT],
+                    "temperature": superheat,
+                    "reach": 0.0,
+                }
+            ],
+        },
+        "materials": {
+            "pcm": {
+                "based_on": "jelly",
+                "density": 1.0,
+                "specific_heat": 1.0,
+                "conductivity": 1.0,
+                "melt_temperature": 0.0,
+                "latent_heat": latent,
+            }
+        },
+        "bodies": [
+            {
+                "material": "pcm",
+                "shape": "box",
+                "lo": [0.0, 0.0],
+                "hi": [STEFAN_LENGTH, STEFAN_HEIGHT],
+                "spacing": spacing,
+                "springs": False,
+                "temperature": 0.0,
+            }
+        ],
+    }
+
+
+def stefan_run(spacing: float, t_end: float = 60.0, samples: int = 12, superheat: float = 10.0) -> StefanResult:
+    """Run the Stefan slab to t_end, sampling the front `samples` times; St = superheat / 10 (c = 1, L = 10)."""
+    latent = 10.0
+    sim = Simulation(scene_from_dict(stefan_scene(spacing, superheat, latent), STUDY_PATH))
+    x = sim.positions()[:, 0]
+    mid = STEFAN_LENGTH / 2
+    held = np.abs(x - mid) <= STEFAN_HELD / 2
+    volume = spacing**2
+    lam = stefan_lambda(superheat / latent)
+    steps_per_sample = max(1, round(t_end / samples / sim.dt))
+    times, melted = [], []
+    for _ in range(samples):
+        sim.step(steps_per_sample)
+        times.append(sim.time)
+        melted.append(float(sim.melt_fractions()[~held].sum()) * volume / (2 * STEFAN_HEIGHT))  # per side, height
+    times_a = np.array(times)
+    # measured from the outermost held particle: the first free particle's slab starts half a spacing out
+    front_a = np.array(melted) + 0.5 * spacing
+    exact = 2 * lam * np.sqrt(times_a)
+    return StefanResult(spacing, sim.built.count, times_a, front_a, exact, lam)
+
+
+@dataclass
+class HeatingCurve:
+    times: np.ndarray  # (K,)
+    mean_temperature: np.ndarray  # (K,)
+    molten_fraction: np.ndarray  # (K,)
+    power: float
+    mass: float
+    specific_heat: float
+    latent_heat: float
+    melt_temperature: float
+
+    @property
+    def plateau(self) -> tuple[float, float]:
+        """(start, end) times of the plateau: first sample with melt, first fully molten sample."""
+        melting = np.flatnonzero(self.molten_fraction > 0)
+        molten = np.flatnonzero(self.molten_fraction >= 1.0)
+        if not len(melting) or not len(molten):
+            raise ValueError("the run ended before the body melted through; run longer or heat harder")
+        return float(self.times[melting[0]]), float(self.times[molten[0]])
+
+    @property
+    def expected_plateau(self) -> float:
+        return self.latent_heat * self.mass / self.power
+
+
+def heating_curve_run(
+    power: float = 10000.0, t_end: float = 3.0, samples: int = 300, material: str = "ice", start: float = -20.0
+) -> HeatingCurve:
+    """Heat a small insulated block of `material` at constant total power; sample mean temperature and melt."""
+    data = {
+        "world": {"dim": 2, "lo": [0.0, 0.0], "hi": [16.0, 16.0], "dt": 0.0004, "precision": "f64"},
+        "heat": {
+            "ambient": start,
+            "refreeze": False,
+            "sources": [{"name": "heater", "mode": "power", "power": power, "lo": [0, 0], "hi": [16, 16]}],
+        },
+        "bodies": [{"material": material, "shape": "box", "lo": [4, 4], "hi": [12, 12], "temperature": start}],
+    }
+    sim = Simulation(scene_from_dict(data, STUDY_PATH))
+    mat = sim.scene.materials[material]
+    steps = max(1, round(t_end / samples / sim.dt))
+    times, temps, melt = [], [], []
+    for _ in range(samples):
+        sim.step(steps)
+        s = sim.stats()
+        times.append(sim.time)
+        temps.append(s.mean_temperature)
+        melt.append(s.molten_fraction)
+    return HeatingCurve(
+        np.array(times),
+        np.array(temps),
+        np.array(melt),
+        power,
+        float(sim.built.mass.sum()),
+        mat.specific_heat,
+        mat.latent_heat,
+        mat.melt_temperature,
+    )

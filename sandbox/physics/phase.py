@@ -1,0 +1,217 @@
+"""Phase change by enthalpy: latent heat, the melt fraction, and refreezing.
+
+Each particle carries its specific enthalpy h (heat per unit mass); heat diffusion changes h, and the temperature T
+and melt fraction phi follow from h through the material's specific heat c, solidus Ts (melt_temperature), liquidus
+Tl and latent heat L:
+
+    h(T) = c T + L phi(T),    phi(T) = clamp((T - Ts) / (Tl - Ts), 0, 1)    (a step at Ts when Tl = Ts)
+
+so between h_s = c Ts and h_l = c Tl + L, added heat goes into phi rather than T (for a pure substance T holds at Ts
+while the solid melts). Heat flows between particles are antisymmetric, so the total sum m h is conserved to
+round-off without sources, through melting and freezing alike.
+
+Refreezing: a particle whose melt fraction reached its material's break_melt_fraction is flagged liquid. Every few
+steps (heat.refreeze_interval) a pass bonds pairs of the same material that are both cold (phi = 0 and
+T <= Ts - refreeze_undercooling), not yet bonded, closer than heat.refreeze_radius, with a free bond slot each, where at
+least one of the two is a liquid particle; the new spring's rest length is their current distance. A liquid particle
+that formed a bond is solid again. Breaking needs the melt fraction back at break_melt_fraction, so a particle at the
+boundary cannot flicker between phases (hysteresis of the whole mushy band plus the undercooling).
+"""
+
+import numpy as np
+import taichi as ti
+
+LIQUID = 1  # flag values of ParticleFields.liquid
+FREEZING = 2  # (during a refreeze pass: liquid and cold enough to bond)
+
+
+def melt_fraction_np(T: np.ndarray, solidus: np.ndarray, liquidus: np.ndarray) -> np.ndarray:
+    """phi(T) in [0, 1] (NumPy): linear across [solidus, liquidus], a step above the solidus when they are equal."""
+    T = np.asarray(T, dtype=np.float64)
+    band = np.asarray(liquidus, dtype=np.float64) - solidus
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ramp = np.where(band > 0, (T - solidus) / np.where(band > 0, band, 1.0), np.where(T > solidus, 1.0, 0.0))
+    return np.clip(ramp, 0.0, 1.0)
+
+
+def enthalpy_np(T, c, solidus, liquidus, latent) -> np.ndarray:
+    """Specific enthalpy h = c T + L phi(T) (heat per unit mass) of particles at temperature T (degrees)."""
+    return np.asarray(c) * T + np.asarray(latent) * melt_fraction_np(T, solidus, liquidus)
+
+
+def temperature_np(h, c, solidus, liquidus, latent) -> tuple[np.ndarray, np.ndarray]:
+    """(T, phi) from specific enthalpy h (NumPy twin of Phase.state, for tests and initial states)."""
+    h = np.asarray(h, dtype=np.float64)
+    c, ts, tl, lat = (np.broadcast_to(np.asarray(a, dtype=np.float64), h.shape) for a in (c, solidus, liquidus, latent))
+    hs, hl = c * ts, c * tl + lat
+    T = h / c
+    phi = np.zeros_like(h)
+    above = h >= hl
+    T = np.where(above, (h - lat) / c, T)
+    phi = np.where(above, 1.0, phi)
+    mushy = (h > hs) & ~above
+    wide = mushy & (tl > ts)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_wide = ts + (h - hs) / (c + lat / np.where(tl > ts, tl - ts, 1.0))
+        T = np.where(wide, t_wide, T)
+        phi = np.where(wide, (t_wide - ts) / np.where(tl > ts, tl - ts, 1.0), phi)
+        narrow = mushy & ~(tl > ts)
+        T = np.where(narrow, ts, T)
+        phi = np.where(narrow, (h - hs) / np.where(lat > 0, lat, 1.0), phi)
+    return T, phi
+
+
+@ti.data_oriented
+class Phase:
+    """The enthalpy -> (temperature, melt fraction) law per material, as Taichi funcs."""
+
+    def __init__(self, materials):
+        self.mats = materials
+
+    @ti.func
+    def state(self, h, mat):
+        """(T, phi) of specific enthalpy h in material mat."""
+        c = self.mats.specific_heat[mat]
+        ts, tl, lat = self.mats.melt[mat], self.mats.liquidus[mat], self.mats.latent[mat]
+        hs = c * ts
+        hl = c * tl + lat
+        t = 0.0
+        phi = 0.0
+        if h <= hs:
+            t = h / c
+        elif h >= hl:
+            t = (h - lat) / c
+            phi = 1.0
+        elif tl > ts:
+            t = ts + (h - hs) / (c + lat / (tl - ts))
+            phi = (t - ts) / (tl - ts)
+        else:
+            t = ts
+            phi = (h - hs) / lat
+        return t, phi
+
+    @ti.func
+    def enthalpy(self, t, mat):
+        """Specific enthalpy of material mat at temperature t."""
+        ts, tl = self.mats.melt[mat], self.mats.liquidus[mat]
+        phi = 0.0
+        if tl > ts:
+            phi = ti.min(ti.max((t - ts) / (tl - ts), 0.0), 1.0)
+        elif t > ts:
+            phi = 1.0
+        return self.mats.specific_heat[mat] * t + self.mats.latent[mat] * phi
+
+    @ti.func
+    def fraction(self, h, mat):
+        """Melt fraction phi in [0, 1] of specific enthalpy h in material mat."""
+        _, phi = self.state(h, mat)
+        return phi
+
+
+@ti.data_oriented
+class Refreezer:
+    """The refreezing pass: new springs between cold particles where at least one end was liquid."""
+
+    def __init__(self, sim, radius: float):
+        self.sim = sim
+        self.p = sim.particles
+        self.springs = sim.springs
+        self.grid = sim.grid
+        self.mats = sim.materials
+        self.phase = sim.phase
+        self.radius = radius
+        self.made = ti.field(ti.i32, shape=())  # springs made by the last pass
+        self.full = ti.field(ti.i32, shape=())  # 1 when the last pass found no free spring slot
+
+    def run(self) -> int:
+        """One refreezing pass at the current positions (rebuilds the cell grid); returns the springs made."""
+        self.grid.rebuild()
+        self._prepare()
+        self._bond()
+        return int(self.made[None])
+
+    @ti.func
+    def cold(self, i):
+        """Frozen through: no melt left and at least the undercooling below the solidus."""
+        mat = self.p.material[i]
+        t, phi = self.phase.state(self.p.h[i], mat)
+        return phi <= 0.0 and t <= self.mats.melt[mat] - self.mats.undercool[mat]
+
+    @ti.kernel
+    def _prepare(self):
+        """Drop broken springs from every bond list (keeping each list packed) and mark cold liquid particles."""
+        s = self.springs
+        for i in range(self.p.n[None]):
+            kept = 0
+            for k in range(s.max_bonds):
+                b = s.bonds[i, k]
+                if b >= 0 and s.alive[b]:
+                    s.bonds[i, kept] = b
+                    kept += 1
+            for k in range(kept, s.max_bonds):
+                s.bonds[i, k] = -1
+            if self.p.liquid[i] == LIQUID and self.cold(i):
+                self.p.liquid[i] = FREEZING
+
+    @ti.func
+    def bond_count(self, i):
+        n = 0
+        for k in range(self.springs.max_bonds):
+            if self.springs.bonds[i, k] >= 0:
+                n += 1
+        return n
+
+    @ti.func
+    def bonded(self, i, j):
+        found = False
+        for k in range(self.springs.max_bonds):
+            s = self.springs.bonds[i, k]
+            if s >= 0 and self.springs.other_end(i, s) == j:
+                found = True
+        return found
+
+    @ti.kernel
+    def _bond(self):
+        """Serial: bond each freezing particle to its cold same-material neighbours in reach, reusing dead slots."""
+        s, g, p = self.springs, self.grid, self.p
+        self.made[None] = 0
+        self.full[None] = 0
+        cursor = 0
+        r2max = self.radius**2
+        ti.loop_config(serialize=True)
+        for i in range(p.n[None]):
+            if p.liquid[i] == FREEZING:
+                xi = p.x[i]
+                mat = p.material[i]
+                c = g.cell_of(xi)
+                for o in range(g.n_offsets):
+                    nc, shift = g.neighbour_cell(c, g.offset(o))
+                    if nc >= 0:
+                        for k in range(g.cell_start[nc], g.cell_start[nc] + g.cell_count[nc]):
+                            j = g.sorted_ids[k]
+                            d = g.x_sorted[k] - (xi - shift)
+                            r2 = d.dot(d)
+                            if j != i and r2 <= r2max and p.material[j] == mat and p.liquid[j] != LIQUID:
+                                ni, nj = self.bond_count(i), self.bond_count(j)
+                                if ni < s.max_bonds and nj < s.max_bonds and self.cold(j) and not self.bonded(i, j):
+                                    while cursor < s.count and s.alive[cursor]:
+                                        cursor += 1
+                                    if cursor < s.count:
+                                        s.i[cursor] = i
+                                        s.j[cursor] = j
+                                        s.rest[cursor] = ti.sqrt(r2)
+                                        s.ks[cursor] = self.mats.stiffness[mat]
+                                        s.kd[cursor] = self.mats.damping[mat]
+                                        s.factor[cursor] = 1.0
+                                        s.alive[cursor] = 1
+                                        s.bonds[i, ni] = cursor
+                                        s.bonds[j, nj] = cursor
+                                        s.created[None] += 1
+                                        self.made[None] += 1
+                                    else:
+                                        self.full[None] = 1
+        for i in range(p.n[None]):
+            if p.liquid[i] == FREEZING:
+                p.liquid[i] = LIQUID
+                if self.bond_count(i) > 0:
+                    p.liquid[i] = 0

@@ -1,0 +1,175 @@
+"""Phase change: the enthalpy law, the heating curve, the Stefan problem, conservation and the freeze-thaw cycle."""
+
+import numpy as np
+
+from sandbox import runtime
+from sandbox.materials import load_library
+from sandbox.phase_study import heating_curve_run, stefan_lambda, stefan_run
+from sandbox.physics.phase import enthalpy_np, melt_fraction_np, temperature_np
+from sandbox.simulation import Simulation
+from sandbox.tools import Tools
+
+from .conftest import make_scene
+
+
+def test_enthalpy_law_inverts_and_holds_the_temperature_while_melting():
+    lib = load_library()
+    for name in ("ice", "wax", "glass", "lava", "solder", "chocolate", "butter"):
+        m = lib[name]
+        args = (m.specific_heat, m.melt_temperature, m.liquidus_temperature, m.latent_heat)
+        T = np.linspace(m.melt_temperature - 50, m.liquidus_temperature + 50, 401)
+        h = enthalpy_np(T, *args)
+        assert np.all(np.diff(h) > 0)  # enthalpy rises with temperature
+        back, phi = temperature_np(h, *args)
+        assert np.allclose(back, T, atol=1e-9)
+        assert np.allclose(phi, melt_fraction_np(T, m.melt_temperature, m.liquidus_temperature))
+        # across the band (just below the solidus to just above the liquidus) h gains the latent heat beyond c dT
+        lo, hi = m.melt_temperature - 1e-6, m.liquidus_temperature + 1e-6
+        band = enthalpy_np(hi, *args) - enthalpy_np(lo, *args)
+        assert np.isclose(band, m.specific_heat * (hi - lo) + m.latent_heat, rtol=1e-12, atol=1e-9)
+    ice = lib["ice"]
+    plateau = np.linspace(0.0, ice.latent_heat, 11)  # every enthalpy across the latent heat is at 0 C
+    T, phi = temperature_np(plateau, ice.specific_heat, 0.0, 0.0, ice.latent_heat)
+    assert np.all(T == 0.0) and np.allclose(phi, np.linspace(0, 1, 11))
+
+
+def test_every_library_material_has_a_source_note_and_melts_sensibly():
+    lib = load_library()
+    for name in ("wax", "ice", "chocolate", "butter", "solder", "glass", "lava"):
+        m = lib[name]
+        assert m.note and m.melts and m.liquidus_temperature >= m.melt_temperature
+        assert m.soften_temperature <= m.melt_temperature
+    assert lib["glass"].latent_heat == 0 and lib["glass"].liquidus_temperature - lib["glass"].melt_temperature > 200
+    assert lib["ice"].latent_heat / lib["ice"].specific_heat > lib["wax"].latent_heat / lib["wax"].specific_heat
+
+
+def test_heating_curve_plateau_lasts_latent_heat_times_mass_over_power():
+    runtime.reset()
+    curve = heating_curve_run()
+    start, end = curve.plateau
+    assert abs((end - start) - curve.expected_plateau) < 0.015 * curve.expected_plateau
+    rate = curve.power / (curve.mass * curve.specific_heat)  # degrees per second when not melting
+    t, T = curve.times, curve.mean_temperature
+    before = t < start - 0.02
+    after = t > end + 0.02
+    assert np.allclose(np.diff(T[before]) / np.diff(t[before]), rate, rtol=1e-3)
+    assert np.allclose(np.diff(T[after]) / np.diff(t[after]), rate, rtol=1e-3)
+    melting = (t > start + 0.02) & (t < end - 0.02)
+    assert melting.sum() > 100 and np.all(np.abs(T[melting] - curve.melt_temperature) < 1e-9)
+
+
+def test_stefan_front_follows_the_neumann_solution_and_converges():
+    assert abs(stefan_lambda(1.0) - 0.6201) < 1e-4  # tabulated: St = 1 gives lambda = 0.620
+    runtime.reset()
+    coarse = stefan_run(1.0, t_end=60.0)
+    runtime.reset()
+    fine = stefan_run(0.5, t_end=60.0)
+    assert coarse.front[-1] > 9.0  # the front ran nine coarse spacings
+    assert coarse.error < 0.015, coarse.error
+    assert fine.error < 0.6 * coarse.error, (fine.error, coarse.error)
+
+
+def _wax_scene(**heat):
+    return {
+        "world": {
+            "dim": 2,
+            "lo": [0, 0],
+            "hi": [30, 16],
+            "dt": 0.002,
+            "gravity": [0, -9.8],
+            "restitution": 0.1,
+            "friction": 0.5,
+        },
+        "pair": {"a": 8.0, "b": 14.0, "cutoff": 2.5},
+        "heat": {"ambient": 20.0, **heat},
+    }
+
+
+def test_enthalpy_is_conserved_through_melting_and_refreezing():
+    runtime.reset()
+    data = _wax_scene()
+    data["world"]["precision"] = "f64"
+    data["bodies"] = [
+        {"material": "wax", "shape": "box", "lo": [8, 0], "hi": [22, 4], "temperature": -20.0},
+        {"material": "wax", "shape": "box", "lo": [10, 4.2], "hi": [20, 7.2], "springs": False, "temperature": 90.0},
+    ]
+    sim = Simulation(make_scene(data))
+    before = sim.stats()
+    assert 0.2 < before.molten_fraction < 0.5
+    for _ in range(15):
+        sim.step(50)
+        now = sim.stats()
+        assert abs(now.heat_content - before.heat_content) < 1e-10 * abs(before.heat_content)
+    assert now.molten_fraction < 0.5 * before.molten_fraction  # the melt froze onto the cold block ...
+    assert int(sim.springs.created[None]) > sim.springs.built_count + 30  # ... by making new bonds
+
+
+def _components(n, i, j):
+    parent = list(range(n))
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for a, b in zip(i, j):
+        parent[find(a)] = find(b)
+    return len({find(a) for a in range(n)})
+
+
+def _spring_graph(sim):
+    alive = sim.springs.alive.to_numpy().astype(bool)
+    return sim.springs.i.to_numpy()[alive], sim.springs.j.to_numpy()[alive]
+
+
+def test_freeze_thaw_cycles_make_one_solid_each_time_and_lose_nothing():
+    runtime.reset()
+    data = _wax_scene(
+        sources=[
+            {
+                "name": "plate",
+                "lo": [0, 0],
+                "hi": [30, 0.5],
+                "reach": 0.6,
+                "temperature": 20.0,
+                "conductance": 150.0,
+                "schedule_times": [0.0, 2.0],
+                "schedule_values": [0.0, 120.0],  # cold for 2 s, hot for 2 s, repeating
+                "schedule_period": 4.0,
+            }
+        ]
+    )
+    data["bodies"] = [
+        {"material": "wax", "shape": "box", "lo": [9, 0], "hi": [21, 4], "springs": False, "temperature": 90}
+    ]
+    sim = Simulation(make_scene(data))
+    n = sim.built.count
+    liquid_before = sim.particles.liquid.to_numpy()[:n].copy()
+    assert liquid_before.all()  # a puddle at 90 C
+    toggles = np.zeros(n, dtype=int)
+    checks = {}
+    for frame in range(300):  # 6 s: cold, hot, cold
+        sim.step(10)
+        liquid = sim.particles.liquid.to_numpy()[:n]
+        toggles += liquid != liquid_before
+        liquid_before = liquid.copy()
+        t = round(sim.time, 6)
+        if t in (2.0, 4.0, 6.0):
+            checks[t] = (sim.stats(), _components(n, *_spring_graph(sim)), liquid.sum())
+    for t in (2.0, 6.0):  # cooled: one connected solid, nothing liquid
+        stats, components, liquid_count = checks[t]
+        assert stats.molten_fraction == 0.0 and liquid_count == 0 and components == 1, (t, checks[t])
+        assert stats.particles == n and np.isfinite(stats.total_energy)
+    stats, components, liquid_count = checks[4.0]  # heated: all molten, every bond broken
+    assert stats.molten_fraction == 1.0 and liquid_count == n and components == n
+    assert toggles.max() <= 3  # froze, melted, froze: no particle flickered between phases
+    # the refrozen puddle is one piece: a hand grabbing its middle and rising lifts all of it off the plate
+    tools = Tools(sim)
+    x = sim.positions()
+    grab = np.array([x[:, 0].mean(), x[:, 1].max()])
+    for frame in range(120):
+        tools.drag(grab + [0.0, 0.06 * frame], 3.0, 400.0, 0.02)
+        sim.step(10)
+    lifted = sim.positions()[:, 1]
+    assert lifted.min() > 1.0 and lifted.mean() > x[:, 1].mean() + 4.0, (lifted.min(), lifted.mean())
