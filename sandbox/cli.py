@@ -181,9 +181,18 @@ def cmd_keys(args) -> int:
 
 
 def cmd_study(args) -> int:
+    out = Path(args.out)
+    if args.phase:
+        from .phase_study import run_phase_study
+
+        run_phase_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+        print(
+            f"wrote {out}/phase.md, stefan.csv, heating_curve.csv"
+            + (" and plots" if (out / "stefan.png").exists() else "")
+        )
+        return 0
     from .study import run_study
 
-    out = Path(args.out)
     run_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
     print(
         f"wrote {out}/report.md, runs.csv, stability.csv, stiff.csv"
@@ -243,6 +252,9 @@ def build_parser() -> argparse.ArgumentParser:
     study = sub.add_parser("study", help="integrators: error against run time, convergence orders, stability")
     study.add_argument("--out", required=True, help="folder for runs.csv, report.md and plots")
     study.add_argument("--quick", action="store_true", help="reduced ladders (under a minute)")
+    study.add_argument(
+        "--phase", action="store_true", help="instead: phase change (Stefan problem, heating curve) validation"
+    )
     study.set_defaults(func=cmd_study)
 
     bench = sub.add_parser("bench", help="throughput benchmarks (particle-steps per second)")

@@ -72,6 +72,9 @@ class Material:
     pair_soft: float = spec(0.0, doc="softening epsilon of the attraction term (length)", check=non_negative)
     viscosity: float = spec(0.0, doc="pair damping along the line of centres (liquid viscosity)", check=non_negative)
     color: tuple[float, ...] = spec((0.8, 0.8, 0.8), doc="base colour [r, g, b] in [0, 1]", check=_colour)
+    liquid_color: tuple[float, ...] = spec(
+        (1.0, 0.45, 0.1), doc="colour of the melt when drawing by phase (render.color_by = 'phase')", check=_colour
+    )
     particle_mass: float | None = spec(None, doc="mass of one particle; default density * spacing^dim", check=positive)
     note: str = spec("", doc="where the numbers come from")
     based_on: str = spec(

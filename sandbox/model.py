@@ -114,6 +114,8 @@ class MaterialTable:
         self.stiffness = table([m.stiffness for m in materials])  # k_s of bonds made by refreezing
         self.damping = table([m.damping for m in materials])  # k_d of bonds made by refreezing
         self.colors = np.array([m.color for m in materials], dtype=np.float32)  # (n_mat, 3)
+        self.liquid_color = ti.Vector.field(3, ti.f32, shape=n)  # melt colour when drawing by phase, (n_mat, 3)
+        self.liquid_color.from_numpy(np.array([m.liquid_color for m in materials], dtype=np.float32))
 
 
 def _is_f64() -> bool:

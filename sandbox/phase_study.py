@@ -15,8 +15,11 @@ for L M / P while it melts, and rises again at P / (M c).
 
 from __future__ import annotations
 
+import csv
 import math
+import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -190,3 +193,100 @@ def heating_curve_run(
         mat.latent_heat,
         mat.melt_temperature,
     )
+
+
+def run_phase_study(out: Path, quick: bool = False, log=print) -> list[StefanResult]:
+    """Write the phase-change validation to `out`: phase.md, stefan.csv, heating_curve.csv and (with matplotlib)
+    stefan.png and heating_curve.png."""
+    from . import runtime
+
+    out.mkdir(parents=True, exist_ok=True)
+    spacings = (1.0, 0.5) if quick else (1.0, 0.5, 0.25)
+    results = []
+    for spacing in spacings:
+        runtime.reset()
+        t0 = time.perf_counter()
+        result = stefan_run(spacing)
+        results.append(result)
+        log(
+            f"stefan h = {spacing:g}: {result.particles} particles, max relative front error {result.error:.4f} "
+            f"({time.perf_counter() - t0:.1f} s)"
+        )
+    with open(out / "stefan.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["spacing", "time", "front", "exact"])
+        for r in results:
+            for t, s, e in zip(r.times, r.front, r.exact):
+                w.writerow([r.spacing, f"{t:.6g}", f"{s:.6g}", f"{e:.6g}"])
+    runtime.reset()
+    curve = heating_curve_run()
+    start, end = curve.plateau
+    log(f"heating curve: plateau {end - start:.3f} s, expected L M / P = {curve.expected_plateau:.3f} s")
+    with open(out / "heating_curve.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["time", "mean_temperature", "molten_fraction"])
+        for row in zip(curve.times, curve.mean_temperature, curve.molten_fraction):
+            w.writerow([f"{v:.6g}" for v in row])
+    _write_report(out, results, curve)
+    _plot(out, results, curve)
+    return results
+
+
+def _write_report(out: Path, results: list[StefanResult], curve: HeatingCurve) -> None:
+    start, end = curve.plateau
+    lines = [
+        "# Phase change validation",
+        "",
+        "Made by `sandbox study --phase`. Explicit heat, f64.",
+        "",
+        f"## One-phase Stefan problem (St = 1, lambda = {results[0].lam:.4f})",
+        "",
+        "| spacing | particles | max relative front error, second half of t in [0, 60] |",
+        "|---|---|---|",
+    ]
+    lines += [f"| {r.spacing:g} | {r.particles} | {r.error:.4f} |" for r in results]
+    lines += [
+        "",
+        "## Heating curve (ice, -20 C, constant power, insulated)",
+        "",
+        f"Plateau at {curve.melt_temperature:g} C from t = {start:.3f} to {end:.3f} s: {end - start:.3f} s; "
+        f"L M / P = {curve.expected_plateau:.3f} s (sampled every {curve.times[1] - curve.times[0]:.3f} s).",
+        "",
+    ]
+    (out / "phase.md").write_text("\n".join(lines))
+
+
+def _plot(out: Path, results: list[StefanResult], curve: HeatingCurve) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    fig, ax = plt.subplots(figsize=(6, 4))
+    t = np.linspace(0, results[0].times[-1], 200)
+    ax.plot(t, 2 * results[0].lam * np.sqrt(t), "k-", label="Neumann solution")
+    for r, marker in zip(results, "os^"):
+        ax.plot(r.times, r.front, marker, fillstyle="none", label=f"particles, spacing {r.spacing:g} ({r.error:.2%})")
+    ax.set_xlabel("time")
+    ax.set_ylabel("melt front position s(t)")
+    ax.set_title("One-phase Stefan problem, St = 1")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / "stefan.png", dpi=110)
+    plt.close(fig)
+    fig, ax1 = plt.subplots(figsize=(6, 4))
+    ax1.plot(curve.times, curve.mean_temperature, "C3-", label="mean temperature")
+    ax1.set_xlabel("time (s)")
+    ax1.set_ylabel("mean temperature (C)")
+    ax2 = ax1.twinx()
+    ax2.plot(curve.times, curve.molten_fraction, "C0--", label="melt fraction")
+    ax2.set_ylabel("melt fraction")
+    start, end = curve.plateau
+    ax1.axvspan(start, start + curve.expected_plateau, color="0.9", label="L M / P")
+    ax1.set_title("Heating curve of ice at constant power")
+    fig.legend(loc="upper left", bbox_to_anchor=(0.12, 0.88))
+    fig.tight_layout()
+    fig.savefig(out / "heating_curve.png", dpi=110)
+    plt.close(fig)

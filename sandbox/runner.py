@@ -27,22 +27,8 @@ class RunResult:
 
 def stats_row(frame: int, s: Stats, step_seconds: float) -> dict:
     """One CSV row (the STAT_COLUMNS) for frame `frame`."""
-    row = {
-        "frame": frame,
-        "time": s.time,
-        "kinetic_energy": s.kinetic_energy,
-        "potential_energy": s.potential_energy,
-        "total_energy": s.total_energy,
-        "spring_energy": s.spring_energy,
-        "pair_energy": s.pair_energy,
-        "gravity_energy": s.gravity_energy,
-        "mean_temperature": s.mean_temperature,
-        "molten_fraction": s.molten_fraction,
-        "broken_springs": s.broken_springs,
-        "max_speed": s.max_speed,
-        "particles": s.particles,
-        "step_seconds": step_seconds,
-    }
+    row = {"frame": frame, "step_seconds": step_seconds}
+    row.update({k: getattr(s, k) for k in STAT_COLUMNS if k not in row})
     return {k: (f"{v:.9g}" if isinstance(v, float) else v) for k, v in row.items()}
 
 

@@ -619,8 +619,9 @@ class Simulation:
         elif self.grid is not None:
             passes.append(f"neighbour grid: counting sort into a {self.grid.describe()}, every step")
         if self.springs is not None:
-            what = "thermoelastic softening, breaking" if self.heat is not None else "overstretch breaking"
-            passes.append(f"spring update ({what}) over {self.springs.count} springs")
+            what = "softening and breaking by temperature and melt fraction" if self.heat else "overstretch breaking"
+            slots = f" ({self.springs.count} slots, room to refreeze)" if self.refreezer is not None else ""
+            passes.append(f"spring update ({what}) over {self.springs.built_count} springs{slots}")
         forces = []
         if self.pair is not None:
             forces.append(f"pair force (a={self.pair.a:g}, b={self.pair.b:g}, cutoff {self.pair.cutoff:g})")
@@ -634,8 +635,17 @@ class Simulation:
             forces.append("drag")
         passes.append("fused rates kernel: " + ", ".join(forces))
         walls = "periodic wrap" if self.scene.world.periodic else "walls (restitution, friction)"
-        heat = ", explicit heat update" if self.heat is not None else ""
+        heat = ""
+        if self.heat is not None:
+            heat = ", enthalpy update (temperature and melt fraction from it)" if self.has_explicit_heat else ""
         passes.append(f"integrator {self.integrator.name}, then {walls}{heat}")
+        if self.implicit_heat is not None:
+            passes.append("implicit heat: backward Euler by preconditioned CG, then the enthalpy update")
+        if self.refreezer is not None:
+            passes.append(
+                f"every {self.scene.heat.refreeze_interval} steps: refreezing (new bonds within "
+                f"{self.refreezer.radius:g} between frozen particles where one was molten)"
+            )
         return passes
 
     def field_names(self) -> list[str]:

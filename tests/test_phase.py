@@ -6,10 +6,11 @@ from sandbox import runtime
 from sandbox.materials import load_library
 from sandbox.phase_study import heating_curve_run, stefan_lambda, stefan_run
 from sandbox.physics.phase import enthalpy_np, melt_fraction_np, temperature_np
+from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
 from sandbox.tools import Tools
 
-from .conftest import make_scene
+from .conftest import SCENES, make_scene
 
 
 def test_enthalpy_law_inverts_and_holds_the_temperature_while_melting():
@@ -149,7 +150,7 @@ def test_freeze_thaw_cycles_make_one_solid_each_time_and_lose_nothing():
     assert liquid_before.all()  # a puddle at 90 C
     toggles = np.zeros(n, dtype=int)
     checks = {}
-    for frame in range(300):  # 6 s: cold, hot, cold
+    for _frame in range(300):  # 6 s: cold, hot, cold
         sim.step(10)
         liquid = sim.particles.liquid.to_numpy()[:n]
         toggles += liquid != liquid_before
@@ -173,3 +174,16 @@ def test_freeze_thaw_cycles_make_one_solid_each_time_and_lose_nothing():
         sim.step(10)
     lifted = sim.positions()[:, 1]
     assert lifted.min() > 1.0 and lifted.mean() > x[:, 1].mean() + 4.0, (lifted.min(), lifted.mean())
+
+
+def test_ice_cube_scene_holds_at_zero_while_it_melts():
+    runtime.reset()
+    sim = Simulation(load_scene(SCENES / "ice_cube.toml"))
+    history = []
+    for _ in range(120):  # 2.4 s: warming, then melting
+        sim.advance_frame()
+        history.append(sim.stats())
+    melting = [s for s in history if 0.05 < s.molten_fraction < 0.95]
+    assert len(melting) > 60 and history[-1].molten_fraction > history[0].molten_fraction
+    assert history[0].mean_temperature < -10  # it starts frozen well below 0 ...
+    assert all(-0.5 < s.mean_temperature < 1.0 for s in melting)  # ... and holds near 0 C while ice remains

@@ -34,7 +34,6 @@ BLEND = {"opaque": 0, "alpha": 1, "additive": 2}
 R_MIN = 0.7  # pixels: the smallest drawn radius
 ROW_MAJOR = "ji"  # image fields are indexed [x, y] (GGUI's convention) but stored row by row, as the output is
 MIN_FADE = 0.25  # the least opacity factor of an opaque or translucent particle smaller than R_MIN
-MOLTEN = (1.0, 0.45, 0.1)
 
 
 @ti.data_oriented
@@ -240,7 +239,7 @@ class Renderer:
             c = speed_map(p.v[i].norm() / self.speed_hi[None])
         elif ti.static(self.color_mode == 3 and self.has_heat):
             phi = self.sim.phase.fraction(p.h[i], p.material[i])
-            c = (1.0 - phi) * base + phi * ti.Vector(list(MOLTEN))
+            c = (1.0 - phi) * base + phi * self.sim.materials.liquid_color[p.material[i]]
         return c
 
     @ti.func
