@@ -89,6 +89,7 @@ def run_headless(
             if csv_file is not None:
                 table.writerow(stats_row(frame, last, step_seconds))
             if writer is not None:
+                renderer.record(last)
                 writer.write(renderer.frame())
             if on_frame is not None:
                 on_frame(frame, last)

@@ -28,6 +28,15 @@ SHAPES = ("box", "disk", "sphere", "mask")
 LATTICES = ("square", "hex", "cubic", "fcc")
 COLOR_BY = ("temperature", "material", "speed", "phase")
 SOURCE_MODES = ("exchange", "fixed", "power")  # heat source modes (physics/heat.py)
+CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
+    "mean_temperature",
+    "molten_fraction",
+    "heat_content",
+    "kinetic_energy",
+    "potential_energy",
+    "total_energy",
+    "max_speed",
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -191,6 +200,19 @@ class Render:
     draw_springs: bool = spec(False, doc="2D: draw live springs as lines")
     legend: bool = spec(False, doc="draw a colour bar for the colour map in a corner")
     ground: bool = spec(True, doc="3D: a faint grid on the floor of the domain so depth reads")
+    chart: list[str] = spec(
+        doc="measurements to plot against time in a corner (window and video), e.g. "
+        '["mean_temperature", "molten_fraction"]; one of: ' + ", ".join(CHART_SERIES),
+        factory=list,
+        check=lambda names: next(
+            (
+                f"unknown series {n!r}; expected one of: {', '.join(CHART_SERIES)}"
+                for n in names
+                if n not in CHART_SERIES
+            ),
+            None,
+        ),
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -65,7 +65,7 @@ def _type_name(hint: Any) -> str:
     if origin is tuple:
         return "an array of numbers"
     if origin is list:
-        return "an array of tables"
+        return "an array of strings" if typing.get_args(hint) == (str,) else "an array of tables"
     return "a table"
 
 
@@ -103,6 +103,10 @@ def _convert(hint: Any, raw: Any, file: str, key: str) -> Any:
         if any(math.isnan(v) or math.isinf(v) for v in raw):
             raise SceneError(file, key, f"expected finite numbers, got {raw!r}")
         return tuple(float(v) for v in raw)
+    if origin is list and typing.get_args(hint) == (str,):
+        if not isinstance(raw, list) or not all(isinstance(v, str) for v in raw):
+            raise SceneError(file, key, f"expected an array of strings, got {raw!r}")
+        return list(raw)
     if origin is list:
         (item,) = typing.get_args(hint)
         if not isinstance(raw, list):

@@ -168,3 +168,33 @@ def test_golden_images(request, scene):
         ren.begin_frame()
         sim.advance_frame()
     golden(request, scene, ren.frame())
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_chart_plots_each_series_across_its_box(dim):
+    from types import SimpleNamespace
+
+    from sandbox.render.chart import COLORS
+
+    data = scene_dict(dim=dim, render={"chart": ["mean_temperature", "molten_fraction"], "background": [0.5] * 3})
+    sim = Simulation(make_scene(data))
+    ren = Renderer(sim, 320, 180, sim.scene.render)
+    for k in range(11):  # temperature rises 0 -> 100 (auto range); melt fraction 0 -> 0.5 (fixed [0, 1] scale)
+        ren.record(SimpleNamespace(mean_temperature=10.0 * k, molten_fraction=0.05 * k))
+    img = ren.frame().astype(int)
+    chart = ren.chart
+    x0, y0, w, h = chart.x0, chart.y_top, chart.box_w, chart.box_h  # y0: top of the box, from the top of the image
+    red = np.array(COLORS[0]) * 255
+    blue = np.array(COLORS[1]) * 255
+
+    def drawn(colour, x, height):
+        """Is `colour` at column x within a pixel of `height` above the box's bottom line?"""
+        row = y0 + h - 2 - round(height)
+        return any(np.abs(img[r, x] - colour).max() <= 1 for r in (row - 1, row, row + 1))
+
+    assert drawn(red, x0 + 1, 0) or drawn(blue, x0 + 1, 0)  # both start bottom left
+    assert drawn(red, x0 + w - 2, h - 3)  # the temperature line ends top right
+    assert drawn(blue, x0 + w - 2, (h - 3) / 2)  # the melt fraction ends half way up
+    assert drawn(red, x0 + 1 + (w - 3) // 2, (h - 3) / 2)  # and the temperature is half way at half time
+    assert img[y0 + 5, x0 + 5].max() < 0.35 * 255  # behind the lines the picture is dimmed
+    assert img[y0 + h + 20, x0 + w + 20].min() > 100  # outside the box it is not

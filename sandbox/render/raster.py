@@ -91,6 +91,11 @@ class Renderer:
         self.particle_scale = float(render_cfg.particle_scale)
         self.has_heat = sim.heat is not None
         self.draw_springs = bool(render_cfg.draw_springs) and sim.springs is not None and self.dim == 2
+        self.chart = None
+        if render_cfg.chart:
+            from .chart import Chart
+
+            self.chart = Chart(self.image, self.packed, width, height, tuple(render_cfg.chart))
         self._setup_view()
         if self.dim == 2:
             # the walls and heat sources do not move: paint them once (refresh_backdrop() after changing a source)
@@ -215,6 +220,13 @@ class Renderer:
             if self.has_additive:
                 self._light_3d()
                 self._tone_map()
+        if self.chart is not None:
+            self.chart.draw()
+
+    def record(self, stats) -> None:
+        """Give the chart (if the scene has one) this frame's measurements."""
+        if self.chart is not None:
+            self.chart.record(stats)
 
     def frame(self) -> np.ndarray:
         """Render and return the picture as an (H, W, 3) uint8 array, top row first (legend drawn on the host)."""
@@ -224,6 +236,8 @@ class Renderer:
         img = self.packed.to_numpy().view(np.uint8).reshape(self.height, self.width, 4)[:, :, :3]
         if self.cfg.legend:
             self.draw_legend(img)
+        if self.chart is not None:
+            self.chart.label(img)
         return img
 
     # ------------------------------------------------------------------ shared funcs

@@ -161,6 +161,7 @@ def run_window(
             sim.step(1)
         state.single_step = False
         stats = sim.stats()  # the guard: a non-finite state stops with a named error instead of drawing garbage
+        renderer.record(stats)
         renderer.render()
         canvas.set_image(renderer.image)
         if state.tool and sim.dim == 2:

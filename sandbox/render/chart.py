@@ -1,0 +1,96 @@
+"""A strip chart of measurements over time, drawn into the renderer's image, so the window and videos both show it.
+
+`render.chart = ["mean_temperature", "molten_fraction"]` plots those Stats fields against simulated time in a box in
+the top-left corner: each series scaled to its own range so far (fractions to [0, 1]), the whole run squeezed into
+the box's width. Videos also print each series' latest value under the box, in the series' colour.
+"""
+
+import numpy as np
+import taichi as ti
+
+from .raster import draw_text
+
+FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
+COLORS = ((1.0, 0.4, 0.25), (0.35, 0.65, 1.0), (0.5, 0.9, 0.4), (0.95, 0.85, 0.3))
+SAMPLES = 256  # points per series drawn (the history is resampled to this many)
+
+
+@ti.data_oriented
+class Chart:
+    """Strip chart of some Stats fields; record() each frame, the renderer calls draw()."""
+
+    def __init__(self, image, packed, width: int, height: int, series: tuple[str, ...]):
+        self.series = tuple(series)
+        self.n_series = len(self.series)
+        self.image, self.packed = image, packed
+        self.width, self.height = width, height
+        self.box_w, self.box_h = max(64, width // 4), max(40, height // 5)
+        self.x0, self.y_top = 10, 10  # top-left corner of the box, pixels from the top-left of the picture
+        self.values = ti.field(ti.f32, shape=(len(self.series), SAMPLES))  # normalised to [0, 1]
+        self.colors = ti.Vector.field(3, ti.f32, shape=len(self.series))
+        for k in range(len(self.series)):
+            self.colors[k] = COLORS[k % len(COLORS)]
+        self.history: list[list[float]] = [[] for _ in self.series]
+        self.n = 0
+
+    def record(self, stats) -> None:
+        """Append this frame's values and upload the resampled, normalised series."""
+        for k, name in enumerate(self.series):
+            value = float(getattr(stats, name))
+            self.history[k].append(value if np.isfinite(value) else 0.0)
+        length = len(self.history[0])
+        self.n = min(length, SAMPLES)
+        pick = np.linspace(0, length - 1, self.n).round().astype(int)
+        table = np.zeros((len(self.series), SAMPLES), dtype=np.float32)
+        for k, name in enumerate(self.series):
+            values = np.asarray(self.history[k])
+            lo, hi = (0.0, 1.0) if name in FRACTIONS else (values.min(), values.max())
+            span = hi - lo if hi > lo else 1.0
+            table[k, : self.n] = np.clip((values[pick] - lo) / span, 0.0, 1.0)
+        self.values.from_numpy(table)
+
+    def draw(self) -> None:
+        """Draw the box and the series into the renderer's image and its packed 8-bit copy."""
+        self._draw(self.n)
+
+    @ti.func
+    def _put(self, x, y, c):
+        """Set pixel (x, y) of the picture, y counted up from the bottom, in the float image and the packed one."""
+        self.image[x, y] = c
+        v = ti.cast(ti.math.clamp(c, 0.0, 1.0) * 255.0 + 0.5, ti.u32)
+        self.packed[self.height - 1 - y, x] = v[0] | (v[1] << 8) | (v[2] << 16) | (ti.u32(255) << 24)
+
+    @ti.kernel
+    def _draw(self, n: ti.i32):
+        x0, w, h = self.x0, self.box_w, self.box_h
+        y0 = self.height - self.y_top - h  # bottom row of the box
+        for i, j in ti.ndrange(w, h):
+            c = self.image[x0 + i, y0 + j] * 0.3  # dim what is behind, so the lines read
+            if i == 0 or j == 0 or i == w - 1 or j == h - 1:
+                c = ti.Vector([0.6, 0.6, 0.6])
+            self._put(x0 + i, y0 + j, c)
+        for s, k in ti.ndrange(self.n_series, SAMPLES - 1):
+            if k < n - 1:
+                ax = x0 + 1 + (w - 3) * k / ti.max(n - 1, 1)
+                bx = x0 + 1 + (w - 3) * (k + 1) / ti.max(n - 1, 1)
+                ay = y0 + 1 + (h - 3) * self.values[s, k]
+                by = y0 + 1 + (h - 3) * self.values[s, k + 1]
+                steps = ti.cast(ti.max(ti.abs(bx - ax), ti.abs(by - ay)), ti.i32) + 1
+                for t in range(steps + 1):
+                    f = t / steps
+                    px = ti.cast(ax + f * (bx - ax) + 0.5, ti.i32)
+                    py = ti.cast(ay + f * (by - ay) + 0.5, ti.i32)
+                    self._put(px, py, self.colors[s])
+
+    def label(self, img: np.ndarray) -> None:
+        """Print each series' latest value under the box, in its colour, on an (H, W, 3) uint8 frame."""
+        if not self.history[0]:
+            return
+        scale = max(1, self.height // 240)
+        y = self.y_top + self.box_h + 3
+        x = self.x0
+        for k in range(len(self.series)):
+            text = f"{self.history[k][-1]:.3g}"
+            color = tuple(int(255 * c) for c in COLORS[k % len(COLORS)])
+            draw_text(img, text, x, y, scale, color)
+            x += 4 * scale * (len(text) + 2)
