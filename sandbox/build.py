@@ -199,8 +199,8 @@ def build_particles(scene: Scene) -> Particles:
         return np.zeros((0,) if width is None else (0, width), dtype=dtype)
 
     return Particles(
-        x=cat("x"),
-        v=cat("v"),
+        x=cat("x", width=dim),
+        v=cat("v", width=dim),
         mass=cat("m"),
         radius=cat("r"),
         temperature=cat("T"),

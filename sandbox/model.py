@@ -11,11 +11,12 @@ from .materials import Material
 class ParticleFields:
     """Struct-of-arrays particle state. Capacity C, the first n[None] entries active; D = dim."""
 
-    def __init__(self, dim: int, capacity: int, heat: bool, refreeze: bool = False):
+    def __init__(self, dim: int, capacity: int, heat: bool, refreeze: bool = False, lifetimes: bool = False):
         self.dim = dim
         self.capacity = capacity
         self.heat = heat
         self.refreeze = refreeze
+        self.lifetimes = lifetimes
         self.n = ti.field(ti.i32, shape=())  # active particle count
         self.x = ti.Vector.field(dim, float, shape=capacity)  # position (length), (C, D)
         self.v = ti.Vector.field(dim, float, shape=capacity)  # velocity (length / time), (C, D)
@@ -31,6 +32,9 @@ class ParticleFields:
             self.dhdt = ti.field(float, shape=capacity)  # enthalpy rate of the last evaluation (heat/mass/time), (C,)
         if refreeze:
             self.liquid = ti.field(ti.i32, shape=capacity)  # 1 once molten, until it refreezes (physics/phase.py)
+        if lifetimes:
+            self.age = ti.field(float, shape=capacity)  # time since birth, (C,)
+            self.lifetime = ti.field(float, shape=capacity)  # retired when age reaches it; 0: for ever, (C,)
 
     def names(self) -> list[str]:
         """Names of the per-particle fields allocated (the state a snapshot copies)."""
@@ -39,6 +43,8 @@ class ParticleFields:
             names += ["h", "T", "dhdt"]
         if self.refreeze:
             names.append("liquid")
+        if self.lifetimes:
+            names += ["age", "lifetime"]
         return names
 
     def load(self, built: Particles, colors: np.ndarray, materials: list[Material] | None = None) -> None:
@@ -71,6 +77,7 @@ class ParticleFields:
     def nbytes(self) -> int:
         """Bytes held by these fields."""
         floats = 3 * self.dim + 2 + (3 if self.heat else 0)  # x, v, f, mass, radius, (h, T, dhdt)
+        floats += 2 if self.lifetimes else 0  # (age, lifetime)
         ints = 2 + (1 if self.refreeze else 0)  # material, group, (liquid)
         return self.capacity * (floats * (8 if _is_f64() else 4) + 4 * ints + 12)  # + f32 colour
 
@@ -114,6 +121,8 @@ class MaterialTable:
         self.stiffness = table([m.stiffness for m in materials])  # k_s of bonds made by refreezing
         self.damping = table([m.damping for m in materials])  # k_d of bonds made by refreezing
         self.colors = np.array([m.color for m in materials], dtype=np.float32)  # (n_mat, 3)
+        self.color_field = ti.Vector.field(3, ti.f32, shape=n)  # the same, for kernels (emitters)
+        self.color_field.from_numpy(self.colors)
         self.liquid_color = ti.Vector.field(3, ti.f32, shape=n)  # melt colour when drawing by phase, (n_mat, 3)
         self.liquid_color.from_numpy(np.array([m.liquid_color for m in materials], dtype=np.float32))
 

@@ -28,6 +28,8 @@ SHAPES = ("box", "disk", "sphere", "mask")
 LATTICES = ("square", "hex", "cubic", "fcc")
 COLOR_BY = ("temperature", "material", "speed", "phase")
 SOURCE_MODES = ("exchange", "fixed", "power")  # heat source modes (physics/heat.py)
+FIELD_KINDS = ("wind", "vortex", "source", "explosion", "noise")  # velocity field elements (physics/fields.py)
+COUPLINGS = ("none", "kinematic", "drag")  # how a body or emitter's particles follow the velocity field
 CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
     "mean_temperature",
     "molten_fraction",
@@ -77,6 +79,11 @@ class World:
     neighbor_list: bool = spec(True, doc="Verlet neighbour lists (false: scan the cell grid every step)")
     skin: float = spec(
         0.3, doc="neighbour-list skin (length): lists are rebuilt after a particle moves skin/2", check=positive
+    )
+    advection: str = spec(
+        "euler",
+        doc="kinematic particles: x += dt v(x, t) by forward Euler, or by the midpoint rule",
+        check=one_of("euler", "midpoint"),
     )
 
 
@@ -144,6 +151,77 @@ class Heat:
 
 
 @dataclass(frozen=True, kw_only=True)
+class FieldElement:
+    kind: str = spec(
+        doc="wind, vortex, source (negative strength: a sink), explosion or noise", check=one_of(*FIELD_KINDS)
+    )
+    center: tuple[float, ...] = spec((), doc="vortex/source/explosion: centre (a point on the axis for a 3D vortex)")
+    axis: tuple[float, ...] = spec((), doc="3D vortex: axis direction (default +z)")
+    velocity: tuple[float, ...] = spec((), doc="wind: the uniform velocity")
+    strength: float = spec(
+        0.0,
+        doc="vortex: circulation (length^2/time); source: volume rate; explosion: peak speed; noise: typical speed",
+    )
+    radius: float = spec(1.0, doc="core radius: inside it the 1/r profile is smoothed away (length)", check=positive)
+    falloff: float = spec(0.0, doc="vortex: Gaussian falloff radius (0: none)", check=non_negative)
+    time: float = spec(0.0, doc="explosion: when it goes off (time)")
+    decay: float = spec(0.5, doc="explosion: e-folding time of its speed", check=positive)
+    scale: float = spec(8.0, doc="noise: length scale of the swirls", check=positive)
+    speed: float = spec(0.2, doc="noise: how fast the pattern changes (noise cells per time)", check=non_negative)
+    seed: int = spec(0, doc="noise: random seed", check=at_least(0))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Emitter:
+    name: str = spec("", doc="label (default emitter<N>)")
+    material: str = spec(doc="material of the emitted particles")
+    shape: str = spec(
+        "point",
+        doc="point, box, disk (2D) or sphere (3D): where particles appear",
+        check=one_of("point", "box", "disk", "sphere"),
+    )
+    surface: bool = spec(False, doc="box/disk/sphere: seed on the boundary (uniform by length/area), not inside")
+    center: tuple[float, ...] = spec((), doc="point/disk/sphere: centre")
+    lo: tuple[float, ...] = spec((), doc="box: lower corner")
+    hi: tuple[float, ...] = spec((), doc="box: upper corner")
+    size: float = spec(0.0, doc="disk/sphere: radius of the region (length)", check=non_negative)
+    count: int = spec(0, doc="particles emitted at the start", check=at_least(0))
+    rate: float = spec(0.0, doc="particles per second (fractions carry over between steps)", check=non_negative)
+    start: float = spec(0.0, doc="emit at the rate from this time on", check=non_negative)
+    stop: float = spec(math.inf, doc="... until this time")
+    bursts: tuple[float, ...] = spec((), doc="times of bursts of burst_count particles each")
+    burst_count: int = spec(0, doc="particles per burst", check=at_least(0))
+    velocity: tuple[float, ...] = spec((), doc="base velocity (default zero)")
+    cone: float = spec(
+        0.0, doc="random direction within this full cone angle (degrees) around velocity", check=non_negative
+    )
+    speed_spread: float = spec(0.0, doc="speed varies uniformly by this fraction", check=unit_interval)
+    radial_speed: float = spec(0.0, doc="added speed outward from the centre (explosions)")
+    inherit_field: bool = spec(False, doc="add the velocity field's value at the birth position")
+    jitter: float = spec(
+        0.0, doc="random offset of each birth position (length), so particles do not stack", check=non_negative
+    )
+    temperature: float | None = spec(None, doc="temperature (default: the ambient)")
+    particle_radius: float = spec(0.5, doc="radius of each particle (length); mass = density (2 r)^dim", check=positive)
+    lifetime: float = spec(0.0, doc="seconds each particle lives (0: for ever)", check=non_negative)
+    lifetime_spread: float = spec(0.0, doc="lifetime varies uniformly by this fraction", check=unit_interval)
+    fade: bool = spec(True, doc="colour fades to black over the lifetime (additive: to nothing)")
+    shrink: bool = spec(False, doc="drawn radius shrinks to zero over the lifetime")
+    seed: int = spec(0, doc="random seed", check=at_least(0))
+    draw: str = spec("splat", doc="splat, dot or sphere (3D)", check=one_of("splat", "dot", "sphere"))
+    blend: str = spec("opaque", doc="opaque, alpha or additive", check=one_of("opaque", "alpha", "additive"))
+    opacity: float = spec(1.0, doc="alpha of a translucent particle / brightness of an additive one", check=positive)
+    field: str = spec(
+        "none",
+        doc="none, kinematic (carried by the velocity field) or drag (pulled towards it)",
+        check=one_of(*COUPLINGS),
+    )
+    field_drag: float = spec(
+        5.0, doc="field = drag: rate of relaxing towards the field velocity (1/time)", check=non_negative
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class Body:
     name: str = spec("", doc="label (default body<N>)")
     material: str = spec(doc="material name from the library or [materials]")
@@ -176,6 +254,14 @@ class Body:
         check=one_of("opaque", "alpha", "additive"),
     )
     opacity: float = spec(1.0, doc="alpha of a translucent body / brightness of an additive one", check=positive)
+    field: str = spec(
+        "none",
+        doc="none, kinematic (carried by the velocity field) or drag (pulled towards it)",
+        check=one_of(*COUPLINGS),
+    )
+    field_drag: float = spec(
+        5.0, doc="field = drag: rate of relaxing towards the field velocity (1/time)", check=non_negative
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -222,6 +308,8 @@ class _SceneFile:
     pair: PairForce | None = spec(None, doc="[pair]")
     heat: Heat | None = spec(None, doc="[heat]")
     bodies: list[Body] = spec(doc="[[bodies]]", factory=list)
+    emitters: list[Emitter] = spec(doc="[[emitters]]", factory=list)
+    fields: list[FieldElement] = spec(doc="[[fields]]", factory=list)
     render: Render = spec(doc="[render]", factory=Render)
     materials: dict | None = spec(None, doc="[materials.NAME]")
 
@@ -239,14 +327,21 @@ class Scene:
     bodies: list[Body]
     render: Render
     materials: dict[str, Material] = field(repr=False)
+    emitters: list[Emitter] = field(default_factory=list)
+    fields: list[FieldElement] = field(default_factory=list)
 
     @property
     def dim(self) -> int:
         return self.world.dim
 
     def used_materials(self) -> list[str]:
-        """Names of the materials the bodies use, in first-use order (material ids follow this order)."""
-        return list(dict.fromkeys(b.material for b in self.bodies))
+        """Names of the materials the bodies and emitters use, in first-use order (material ids follow it)."""
+        return list(dict.fromkeys([b.material for b in self.bodies] + [e.material for e in self.emitters]))
+
+    @property
+    def groups(self) -> list:
+        """The drawing/coupling groups: every body, then every emitter (a particle's `group` indexes this)."""
+        return [*self.bodies, *self.emitters]
 
 
 def parse_override(text: str) -> tuple[str, Any]:
@@ -327,8 +422,11 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
                 "heat.refreeze_radius",
                 f"expected at most the neighbour reach {reach:g} (heat.radius, pair.cutoff)",
             )
-    if not raw.bodies:
-        raise SceneError(file, "bodies", "expected at least one [[bodies]] table")
+    if not raw.bodies and not raw.emitters:
+        raise SceneError(file, "bodies", "expected at least one [[bodies]] or [[emitters]] table")
+    emitters = [_check_emitter(file, f"emitters[{i}]", e, i, dim, materials) for i, e in enumerate(raw.emitters)]
+    for i, element in enumerate(raw.fields):
+        _check_field(file, f"fields[{i}]", element, dim)
     bodies = [_check_body(file, f"bodies[{i}]", b, i, dim, materials, path) for i, b in enumerate(raw.bodies)]
     for i, body in enumerate(bodies):
         lo, hi = _body_bounds(body)
@@ -354,7 +452,12 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         heat=heat,
         bodies=bodies,
         render=render,
-        materials={name: materials[name] for name in dict.fromkeys(b.material for b in bodies)},
+        materials={
+            name: materials[name]
+            for name in dict.fromkeys([b.material for b in bodies] + [e.material for e in emitters])
+        },
+        emitters=emitters,
+        fields=list(raw.fields),
     )
 
 
@@ -393,6 +496,55 @@ def _check_source(file: str, key: str, src: HeatSource, dim: int) -> None:
         raise SceneError(
             file, f"{key}.schedule_period", f"expected a period longer than the last schedule time {times[-1]:g}"
         )
+
+
+def _check_field(file: str, key: str, element: FieldElement, dim: int) -> None:
+    if element.kind in ("vortex", "source", "explosion"):
+        if not element.center:
+            raise SceneError(file, f"{key}.center", f"missing; expected {dim} numbers for a {element.kind}")
+        _check_vec(file, f"{key}.center", element.center, dim)
+    if element.kind == "wind":
+        _check_vec(file, f"{key}.velocity", element.velocity, dim)
+    if element.axis:
+        _check_vec(file, f"{key}.axis", element.axis, 3)
+        if not any(element.axis):
+            raise SceneError(file, f"{key}.axis", "expected a non-zero direction")
+
+
+def _check_emitter(file: str, key: str, e: Emitter, index: int, dim: int, materials: dict) -> Emitter:
+    if e.material not in materials:
+        raise SceneError(
+            file, f"{key}.material", f"unknown material {e.material!r}; expected one of: {', '.join(sorted(materials))}"
+        )
+    changes: dict[str, Any] = {"name": e.name or f"emitter{index}"}
+    if e.shape == "box":
+        _check_vec(file, f"{key}.lo", e.lo, dim)
+        _check_vec(file, f"{key}.hi", e.hi, dim)
+        if any(h <= l for l, h in zip(e.lo, e.hi)):
+            raise SceneError(file, f"{key}.hi", f"expected every component above {key}.lo {list(e.lo)}")
+    else:
+        _check_vec(file, f"{key}.center", e.center, dim)
+    if e.shape in ("disk", "sphere"):
+        want = 2 if e.shape == "disk" else 3
+        if dim != want:
+            raise SceneError(file, f"{key}.shape", f"{e.shape!r} needs world.dim = {want}")
+        if e.size <= 0:
+            raise SceneError(file, f"{key}.size", f"expected the {e.shape}'s radius > 0")
+    if e.surface and e.shape == "point":
+        raise SceneError(file, f"{key}.surface", "a point has no surface; expected a box, disk or sphere")
+    if e.velocity:
+        _check_vec(file, f"{key}.velocity", e.velocity, dim)
+    else:
+        changes["velocity"] = (0.0,) * dim
+    if e.draw == "sphere" and dim == 2:
+        raise SceneError(file, f"{key}.draw", "'sphere' is a 3D drawing; expected splat or dot in 2D")
+    if e.blend != "opaque" and e.draw == "sphere":
+        raise SceneError(file, f"{key}.blend", 'shaded spheres are opaque; use draw = "splat" for alpha or additive')
+    if e.bursts and e.burst_count == 0:
+        raise SceneError(file, f"{key}.burst_count", "expected a count > 0 with bursts")
+    if e.stop <= e.start:
+        raise SceneError(file, f"{key}.stop", f"expected a time after start ({e.start:g})")
+    return _replace(e, **changes)
 
 
 def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials: dict, scene_path: Path) -> Body:

@@ -19,13 +19,15 @@ from .errors import SimulationError
 from .integrators import make_integrator
 from .model import MaterialTable, ParticleFields
 from .physics.boundary import Domain
+from .physics.emitters import NEVER_BONDS, Emitters
+from .physics.fields import VelocityField
 from .physics.grid import CellGrid
 from .physics.heat import Heat, lattice_correction
 from .physics.neighbours import NeighbourList
 from .physics.pair import PairForce
 from .physics.phase import LIQUID, Phase, Refreezer
 from .physics.springs import Springs
-from .scene import Scene
+from .scene import COUPLINGS, Scene
 
 STAT_COLUMNS = (
     "frame",
@@ -46,6 +48,7 @@ STAT_COLUMNS = (
 )
 
 SPRING_STATE = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds", "created")  # what refreezing changes
+KINEMATIC, DRAG = COUPLINGS.index("kinematic"), COUPLINGS.index("drag")
 RUNAWAY_FACTOR = 1e4  # kinetic energy above this many natural energy scales stops the run (see stats())
 _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7}
 _COUNT = {"alive": 0, "meltable": 1, "bad": 2}
@@ -88,8 +91,11 @@ class Simulation:
         world = scene.world
         self.dim = scene.dim
         self.dt = world.dt
-        # room to spawn particles: half as many again (at least 1,024) unless the scene sets world.capacity
+        # room to spawn particles: half as many again (at least 1,024), plus what the emitters keep alive at once,
+        # unless the scene sets world.capacity
         self.capacity = world.capacity if world.capacity else built.count + max(1024, built.count // 2)
+        if not world.capacity:
+            self.capacity += sum(emitter_population(e) for e in scene.emitters)
         self.capacity = max(self.capacity, built.count)
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
@@ -97,8 +103,25 @@ class Simulation:
         self.phase = Phase(self.materials) if scene.heat else None
         heat = scene.heat
         self.can_refreeze = bool(heat and heat.refreeze and any(m.melts for m in materials))
-        self.particles = ParticleFields(self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze)
+        self.has_lifetimes = any(e.lifetime > 0 for e in scene.emitters)
+        self.particles = ParticleFields(
+            self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze, lifetimes=self.has_lifetimes
+        )
         self.particles.load(built, self.materials.colors, materials)
+        self.fields = VelocityField(self.dim, scene.fields) if scene.fields else None
+        groups = scene.groups
+        couplings = [g.field if self.fields is not None else "none" for g in groups]
+        self.has_kinematic = "kinematic" in couplings
+        self.has_field_drag = "drag" in couplings
+        self.g_coupling = ti.field(ti.i32, shape=max(len(groups), 1))  # index into COUPLINGS, per group
+        self.g_drag = ti.field(float, shape=max(len(groups), 1))  # field = drag: relaxation rate (1/time)
+        for k, g in enumerate(groups):
+            self.g_coupling[k] = COUPLINGS.index(couplings[k])
+            self.g_drag[k] = g.field_drag
+        self.clock = ti.field(float, shape=())  # simulated time at the start of the step (for v(x, t))
+        if self.has_kinematic:
+            self.x_start = ti.Vector.field(self.dim, float, shape=self.capacity)  # kinematic: x at the step start
+            self.v_start = ti.Vector.field(self.dim, float, shape=self.capacity)
         self.domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
         p = self.particles
         self.pair = (
@@ -139,6 +162,7 @@ class Simulation:
             else None
         )
         self.refreezer = Refreezer(self, heat.refreeze_radius) if self.can_refreeze else None
+        self.emitters = Emitters(self, scene.emitters, len(scene.bodies)) if scene.emitters else None
         self._warned_overflow = False
         self.has_neighbours = self.neighbours is not None
         self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
@@ -160,6 +184,8 @@ class Simulation:
         self._acc = ti.field(acc, shape=len(_ACC))  # sums for stats(), indexed by _ACC
         self._count = ti.field(ti.i32, shape=len(_COUNT))  # counts for stats(), indexed by _COUNT
         self.integrator = make_integrator(world.integrator, self)
+        if self.emitters is not None:
+            self.emitters.emit_initial()
         self.time = 0.0
         self.step_count = 0
         self._energy_scale: float | None = None
@@ -178,6 +204,12 @@ class Simulation:
         for _ in range(n):
             if self.heat is not None and self.heat.scheduled:
                 self.heat.set_time(self.time)
+            if self.emitters is not None:
+                self.emitters.emit_due(self.time, self.dt)
+            if self.fields is not None:
+                self.clock[None] = self.time
+            if self.has_kinematic:
+                self._kinematic_begin()
             self.integrator.step(self.dt)
             if self.implicit_heat is not None:
                 use_list = self.neighbours is not None and self.neighbours.ensure_fresh()
@@ -185,10 +217,39 @@ class Simulation:
                     self.grid.rebuild()
                 self.implicit_heat.step(self.dt, use_list, self.neighbours.ids if use_list else None)
                 self.implicit_heat.apply()
+            if self.has_kinematic or self.has_lifetimes:
+                self._post_step(self.dt, self.time)
             self.time += self.dt
             self.step_count += 1
             if self.refreezer is not None and self.step_count % self.scene.heat.refreeze_interval == 0:
                 self.refreezer.run()
+        if self.has_lifetimes:
+            self.emitters.retire()
+
+    @ti.kernel
+    def _kinematic_begin(self):
+        """Kinematic particles: remember x and v at the step start (the integrator's updates are undone)."""
+        p = self.particles
+        for i in range(p.n[None]):
+            if self.g_coupling[p.group[i]] == KINEMATIC:
+                self.x_start[i] = p.x[i]
+                self.v_start[i] = p.v[i]
+
+    @ti.kernel
+    def _post_step(self, dt: float, t: float):
+        """Ageing, and the kinematic particles' advection x += dt v(x, t) (forward Euler or midpoint)."""
+        p = self.particles
+        for i in range(p.n[None]):
+            if ti.static(self.has_lifetimes):
+                p.age[i] += dt
+            if ti.static(self.has_kinematic):
+                if self.g_coupling[p.group[i]] == KINEMATIC:
+                    x0 = self.x_start[i]
+                    v = self.fields.velocity(x0, t)
+                    if ti.static(self.scene.world.advection == "midpoint"):
+                        v = self.fields.velocity(x0 + 0.5 * dt * v, t + 0.5 * dt)
+                    p.v[i] = v
+                    p.x[i], p.v[i] = self.domain.enforce(x0 + dt * v, v, p.radius[i])
 
     def eval_rates(self) -> None:
         """Forces (p.f) and heat rates (p.dTdt) at the current state."""
@@ -251,6 +312,9 @@ class Simulation:
                 i = self.grid.sorted_ids[ks]  # visit particles cell by cell: neighbours stay in cache
             xi = p.x[i]
             f = p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
+            if ti.static(self.has_field_drag):
+                if self.g_coupling[p.group[i]] == DRAG:
+                    f += p.mass[i] * self.g_drag[p.group[i]] * (self.fields.velocity(xi, self.clock[None]) - p.v[i])
             q = 0.0
             if ti.static(self.has_grid):
                 f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
@@ -286,6 +350,9 @@ class Simulation:
                             r2 = d.dot(d)
                             if r2 < self.pair.cutoff**2:  # bonded pairs feel the spring, not the pair force
                                 f -= self.pair.force(i, j, d, r2)
+            if ti.static(self.has_kinematic):
+                if self.g_coupling[p.group[i]] == KINEMATIC:
+                    f = ti.Vector.zero(float, self.dim)  # moved by the field alone (_post_step)
             p.f[i] = f
             if ti.static(self.has_explicit_heat):
                 q += self.heat.source_flow(i)
@@ -296,6 +363,9 @@ class Simulation:
         """Walls (or periodic wrap) and the explicit heat update for particle i, at the end of a step."""
         p = self.particles
         p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i])
+        if ti.static(self.has_kinematic):
+            if self.g_coupling[p.group[i]] == KINEMATIC:  # the integrator does not move them: _post_step does
+                p.x[i], p.v[i] = self.x_start[i], self.v_start[i]
         if ti.static(self.has_explicit_heat):
             self.set_enthalpy(i, p.h[i] + dt * p.dhdt[i])
 
@@ -309,7 +379,7 @@ class Simulation:
         t, phi = self.phase.state(h, p.material[i])
         p.T[i] = t
         if ti.static(self.can_refreeze):
-            if phi >= self.materials.break_fraction[p.material[i]]:
+            if phi >= self.materials.break_fraction[p.material[i]] and p.liquid[i] != NEVER_BONDS:
                 p.liquid[i] = LIQUID
 
     @ti.kernel
@@ -536,6 +606,8 @@ class Simulation:
         """Copies of every state field, particles and springs (for reset, and tests)."""
         p = self.particles
         snap = {"n": int(p.n[None]), "time": self.time, "step": self.step_count}
+        if self.emitters is not None:
+            snap["emitters"] = (list(self.emitters.serial), list(self.emitters.carry), list(self.emitters.emitted))
         for name in self.field_names():
             snap[name] = getattr(p, name).to_numpy()
         if self.springs is not None:
@@ -554,6 +626,9 @@ class Simulation:
                 getattr(self.springs, name).from_numpy(snap[f"spring_{name}"])
         self.time = snap["time"]
         self.step_count = snap["step"]
+        if self.emitters is not None:
+            serial, carry, emitted = snap["emitters"]
+            self.emitters.serial, self.emitters.carry, self.emitters.emitted = list(serial), list(carry), list(emitted)
         if self.heat is not None:
             self.heat.set_time(self.time)
         if self.neighbours is not None:
@@ -672,3 +747,13 @@ def timed_steps(sim: Simulation, n: int) -> float:
     sim.step(n)
     ti.sync()
     return time.perf_counter() - t0
+
+
+def emitter_population(e) -> int:
+    """Most particles an emitter keeps alive at once (capacity planning): all it ever emits if they never die."""
+    bursts = len(e.bursts) * e.burst_count
+    if e.lifetime <= 0:
+        horizon = 0.0 if e.rate == 0 else (e.stop - e.start if math.isfinite(e.stop) else 600.0)
+        return int(e.count + bursts + e.rate * horizon) + 16
+    longest = e.lifetime * (1 + e.lifetime_spread)
+    return int(e.count + min(bursts, e.burst_count * (1 + longest)) + e.rate * longest * 1.1) + 16

@@ -191,7 +191,8 @@ class Refreezer:
                             j = g.sorted_ids[k]
                             d = g.x_sorted[k] - (xi - shift)
                             r2 = d.dot(d)
-                            if j != i and r2 <= r2max and p.material[j] == mat and p.liquid[j] != LIQUID:
+                            candidate = p.liquid[j] == 0 or p.liquid[j] == FREEZING  # not molten, not mortal
+                            if j != i and r2 <= r2max and p.material[j] == mat and candidate:
                                 ni, nj = self.bond_count(i), self.bond_count(j)
                                 if ni < s.max_bonds and nj < s.max_bonds and self.cold(j) and not self.bonded(i, j):
                                     while cursor < s.count and s.alive[cursor]:

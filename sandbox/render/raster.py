@@ -47,12 +47,17 @@ class Renderer:
         self.cfg = render_cfg
         self.width, self.height = width, height
         self.dim = sim.dim
-        bodies = sim.scene.bodies
+        bodies = sim.scene.groups  # every body, then every emitter
         self.n_groups = len(bodies)
         self.g_draw = ti.field(ti.i32, shape=self.n_groups)
         self.g_blend = ti.field(ti.i32, shape=self.n_groups)
         self.g_opacity = ti.field(ti.f32, shape=self.n_groups)
+        self.g_fade = ti.field(ti.i32, shape=self.n_groups)  # colour fades over the lifetime
+        self.g_shrink = ti.field(ti.i32, shape=self.n_groups)  # drawn radius shrinks over the lifetime
+        self.has_lifetimes = sim.has_lifetimes
         for k, body in enumerate(bodies):
+            self.g_fade[k] = int(getattr(body, "fade", False))
+            self.g_shrink[k] = int(getattr(body, "shrink", False))
             self.g_draw[k] = DRAW[body.draw]
             self.g_blend[k] = BLEND[body.blend]
             self.g_opacity[k] = body.opacity
@@ -96,6 +101,8 @@ class Renderer:
             from .chart import Chart
 
             self.chart = Chart(self.image, self.packed, width, height, tuple(render_cfg.chart))
+        if self.motion_blur and sim.emitters is not None:
+            sim.emitters.listeners.append(self._follow_moves)
         self._setup_view()
         if self.dim == 2:
             # the walls and heat sources do not move: paint them once (refresh_backdrop() after changing a source)
@@ -194,6 +201,16 @@ class Renderer:
         if self.motion_blur:
             self._remember()
 
+    def _follow_moves(self, hole, filler, count: int) -> None:
+        """Particles moved slots (retirement): move their motion-blur tails with them."""
+        if count:
+            self._move_tails(hole, filler, count)
+
+    @ti.kernel
+    def _move_tails(self, hole: ti.template(), filler: ti.template(), count: ti.i32):
+        for m in range(count):
+            self.x_prev[hole[m]] = self.x_prev[filler[m]]
+
     @ti.kernel
     def _remember(self):
         for i in range(self.sim.particles.n[None]):
@@ -242,7 +259,34 @@ class Renderer:
 
     # ------------------------------------------------------------------ shared funcs
     @ti.func
+    def life_left(self, i):
+        """1 at birth falling to 0 at death for particles with a lifetime, else 1."""
+        left = 1.0
+        if ti.static(self.has_lifetimes):
+            life = self.sim.particles.lifetime[i]
+            if life > 0.0:
+                left = ti.max(1.0 - self.sim.particles.age[i] / life, 0.0)
+        return left
+
+    @ti.func
+    def drawn_radius(self, i):
+        """Drawn radius (length): the particle's radius times render.particle_scale, shrinking with age if asked."""
+        r = self.sim.particles.radius[i] * self.particle_scale
+        if ti.static(self.has_lifetimes):
+            if self.g_shrink[self.sim.particles.group[i]]:
+                r *= self.life_left(i)
+        return r
+
+    @ti.func
     def particle_color(self, i):
+        c = self._base_color(i)
+        if ti.static(self.has_lifetimes):
+            if self.g_fade[self.sim.particles.group[i]]:
+                c *= self.life_left(i)
+        return c
+
+    @ti.func
+    def _base_color(self, i):
         p = self.sim.particles
         base = p.color[i]
         c = base
@@ -366,7 +410,7 @@ class Renderer:
                 blurred = (tail - head).norm() > 1e-3 and (tail - head).norm() < 0.5 * self.width  # not a periodic wrap
                 if not blurred:
                     tail = head
-            r_true = p.radius[i] * self.px_per_unit * self.particle_scale
+            r_true = self.drawn_radius(i) * self.px_per_unit
             draw, blend, opacity = self.g_draw[g], self.g_blend[g], self.g_opacity[g]
             if draw == 0:  # a dot: one pixel
                 r_true = 0.5
@@ -465,7 +509,7 @@ class Renderer:
             if self.g_blend[p.group[i]] == 0:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
-                    rad = p.radius[i] * self.particle_scale
+                    rad = self.drawn_radius(i)
                     r = ti.max(rad * self.focal / z, R_MIN)
                     x0, x1, y0, y1 = self._box(centre, centre, r)
                     for px in range(x0, x1 + 1):
@@ -484,7 +528,7 @@ class Renderer:
             if self.g_blend[g] == 0:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
-                    rad = p.radius[i] * self.particle_scale
+                    rad = self.drawn_radius(i)
                     r = ti.max(rad * self.focal / z, R_MIN)
                     col = self.particle_color(i)
                     shaded = self.g_draw[g] == 2
@@ -529,7 +573,7 @@ class Renderer:
             i = self.order[k]
             centre, z = self._project(p.x[i])
             if z > 1e-3:
-                r = ti.max(p.radius[i] * self.particle_scale * self.focal / z, R_MIN)
+                r = ti.max(self.drawn_radius(i) * self.focal / z, R_MIN)
                 col = self.particle_color(i)
                 opacity = self.g_opacity[p.group[i]]
                 zbits = ti.bit_cast(ti.cast(z, ti.f32), ti.i32)
@@ -560,7 +604,7 @@ class Renderer:
                             ).norm() < 0.5 * self.width  # not a periodic wrap
                             if not blurred:
                                 tail = head
-                    r_true = p.radius[i] * self.particle_scale * self.focal / z
+                    r_true = self.drawn_radius(i) * self.focal / z
                     if self.g_draw[g] == 0:
                         r_true = 0.5
                     r = ti.max(r_true, R_MIN)

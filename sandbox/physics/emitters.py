@@ -1,0 +1,315 @@
+"""Emitters (particles seeded where and when a scene says) and lifetimes (particles retired when they age).
+
+Seeding: at a point, uniformly by area/volume inside a box, disk or sphere, or uniformly by length/area on its
+boundary (`surface = true`). Timing: `count` at the start, `rate` per second from `start` to `stop` (the fraction
+left over each step carries to the next, so 2.5 per step gives 5 every 2 steps), and `burst_count` at each of
+`bursts`. Every attribute is set at birth: velocity (base, random within a cone, speed spread, outward from the
+centre, plus the velocity field), temperature, mass and radius, material and colour, lifetime with a spread.
+Random numbers are hashes of (emitter seed, particle serial number, attribute): the same whatever the thread order.
+
+Lifetimes: a particle with lifetime L > 0 is dead once its age reaches L. After each call of Simulation.step the dead
+are retired by compaction: live particles from the tail of the array fill the holes (their spring ends and bond
+lists, if they have any, are renumbered), so the active count stays the number alive and memory stays bounded however
+many particles were ever emitted. Listeners (the renderer's motion-blur tails) are told which slots moved.
+"""
+
+import math
+import warnings
+
+import numpy as np
+import taichi as ti
+
+from .fields import random_uniform
+
+NEVER_BONDS = 3  # liquid-flag value of mortal emitted particles: refreezing never bonds them (physics/phase.py)
+SHAPES = ("point", "box", "disk", "sphere")
+
+
+@ti.data_oriented
+class Emitters:
+    """The scene's emitters: parameter fields, the emit kernel, and retirement of the dead by compaction."""
+
+    def __init__(self, sim, emitters: list, first_group: int):
+        self.sim = sim
+        self.p = sim.particles
+        self.dim = sim.dim
+        self.specs = list(emitters)
+        self.count = len(self.specs)
+        self.first_group = first_group
+        self.has_fields = sim.fields is not None
+        n = max(self.count, 1)
+        dim = self.dim
+        self.shape = ti.field(ti.i32, shape=n)
+        self.surface = ti.field(ti.i32, shape=n)
+        self.center = ti.Vector.field(dim, float, shape=n)
+        self.lo = ti.Vector.field(dim, float, shape=n)
+        self.hi = ti.Vector.field(dim, float, shape=n)
+        self.size = ti.field(float, shape=n)
+        self.velocity = ti.Vector.field(dim, float, shape=n)
+        self.cone = ti.field(float, shape=n)  # half angle, radians
+        self.speed_spread = ti.field(float, shape=n)
+        self.radial_speed = ti.field(float, shape=n)
+        self.inherit = ti.field(ti.i32, shape=n)
+        self.jitter = ti.field(float, shape=n)
+        self.temperature = ti.field(float, shape=n)
+        self.radius = ti.field(float, shape=n)
+        self.mass = ti.field(float, shape=n)
+        self.material = ti.field(ti.i32, shape=n)
+        self.lifetime = ti.field(float, shape=n)
+        self.lifetime_spread = ti.field(float, shape=n)
+        self.seed = ti.field(ti.u32, shape=n)
+        ambient = sim.scene.heat.ambient if sim.scene.heat else 20.0
+        for k, e in enumerate(self.specs):
+            mat = sim.scene.materials[e.material]
+            self.shape[k] = SHAPES.index(e.shape)
+            self.surface[k] = int(e.surface)
+            if e.shape == "box":
+                self.lo[k], self.hi[k] = list(e.lo), list(e.hi)
+                self.center[k] = list(0.5 * (np.asarray(e.lo) + np.asarray(e.hi)))
+            else:
+                self.center[k] = list(e.center)
+            self.size[k] = e.size
+            self.velocity[k] = list(e.velocity)
+            self.cone[k] = math.radians(e.cone) / 2
+            self.speed_spread[k] = e.speed_spread
+            self.radial_speed[k] = e.radial_speed
+            self.inherit[k] = int(e.inherit_field)
+            self.jitter[k] = e.jitter
+            self.temperature[k] = ambient if e.temperature is None else e.temperature
+            self.radius[k] = e.particle_radius
+            spacing = 2 * e.particle_radius
+            self.mass[k] = mat.particle_mass if mat.particle_mass is not None else mat.density * spacing**dim
+            self.material[k] = sim.material_names.index(e.material)
+            self.lifetime[k] = e.lifetime
+            self.lifetime_spread[k] = e.lifetime_spread
+            self.seed[k] = e.seed * 7919 + k
+        self.serial = [0] * self.count  # particles emitted so far, per emitter (the random-number index)
+        self.carry = [0.0] * self.count  # fractional particles owed by the rate
+        self.emitted = [0] * self.count
+        self._warned_full = False
+        cap = sim.capacity
+        self.hole = ti.field(ti.i32, shape=cap)  # compaction: slots of the dead below the new count
+        self.filler = ti.field(ti.i32, shape=cap)  # ... and the live particles above it that move into them
+        self.moves = ti.field(ti.i32, shape=2)  # [holes found, fillers found]
+        self.listeners = []  # callables(hole, filler, count): told after particles moved
+        self.state_fields = [getattr(self.p, name) for name in self.p.names()]  # what moves with a particle
+
+    # ------------------------------------------------------------------ emission (host decides counts)
+    def emit_initial(self) -> None:
+        for k, e in enumerate(self.specs):
+            if e.count:
+                self._emit(k, e.count, 0.0)
+
+    def emit_due(self, t: float, dt: float) -> None:
+        """Emit what is due in the step [t, t + dt): the rate's share (with carry) and bursts falling in it."""
+        for k, e in enumerate(self.specs):
+            due = 0
+            if e.rate > 0:
+                overlap = max(0.0, min(t + dt, e.stop) - max(t, e.start))
+                self.carry[k] += e.rate * overlap
+                due = int(math.floor(self.carry[k] + 1e-9))
+                self.carry[k] -= due
+            due += e.burst_count * sum(1 for b in e.bursts if t <= b < t + dt)
+            if due:
+                self._emit(k, due, t)
+
+    def _emit(self, k: int, count: int, t: float) -> None:
+        n = int(self.p.n[None])
+        room = self.sim.capacity - n
+        if count > room:
+            if not self._warned_full:
+                self._warned_full = True
+                warnings.warn(
+                    f"emitter {self.specs[k].name!r}: particle capacity {self.sim.capacity} reached; "
+                    "set world.capacity higher (or shorten lifetimes)",
+                    stacklevel=3,
+                )
+            count = room
+        if count <= 0:
+            return
+        self._spawn(k, count, n, self.serial[k], t)
+        self.serial[k] += count
+        self.emitted[k] += count
+        self.p.n[None] = n + count
+        if self.sim.neighbours is not None:
+            self.sim.neighbours.invalidate()
+
+    @ti.func
+    def _u(self, k, serial, j):
+        return random_uniform(self.seed[k], ti.cast(serial, ti.u32), ti.cast(j, ti.u32))
+
+    @ti.func
+    def _unit_vector(self, k, serial, j):
+        """Uniform direction (unit circle in 2D, unit sphere in 3D) from random numbers j, j+1."""
+        v = ti.Vector.zero(float, self.dim)
+        phi = 2.0 * math.pi * self._u(k, serial, j)
+        if ti.static(self.dim == 2):
+            v = ti.Vector([ti.cos(phi), ti.sin(phi)])
+        else:
+            z = 2.0 * self._u(k, serial, j + 1) - 1.0
+            s = ti.sqrt(ti.max(1.0 - z * z, 0.0))
+            v = ti.Vector([s * ti.cos(phi), s * ti.sin(phi), z])
+        return v
+
+    @ti.func
+    def sample_position(self, k, serial):
+        """A birth position: inside the shape uniformly by area/volume, or on its boundary uniformly by length/area."""
+        c = self.center[k]
+        pos = c
+        shape = self.shape[k]
+        if shape == 1:  # box
+            lo, hi = self.lo[k], self.hi[k]
+            ext = hi - lo
+            u = ti.Vector([self._u(k, serial, 10 + a) for a in ti.static(range(self.dim))])
+            pos = lo + u * ext
+            if self.surface[k]:
+                pos = self._box_surface(k, serial, lo, ext, u)
+        elif shape == 2 or shape == 3:  # disk, sphere
+            direction = self._unit_vector(k, serial, 10)
+            r = self.size[k]
+            if not self.surface[k]:
+                r *= self._u(k, serial, 13) ** (1.0 / self.dim)  # radius with density ~ r^(dim-1)
+            pos = c + r * direction
+        jitter = ti.Vector([self._u(k, serial, 20 + a) - 0.5 for a in ti.static(range(self.dim))])
+        return pos + 2.0 * self.jitter[k] * jitter
+
+    @ti.func
+    def _box_surface(self, k, serial, lo, ext, u):
+        """A point uniform by length (2D) or area (3D) on the boundary of the box lo + ext."""
+        pos = lo + u * ext
+        # choose the pair of faces normal to axis a with probability proportional to their measure
+        measures = ti.Vector.zero(float, self.dim)
+        for a in ti.static(range(self.dim)):
+            m = 1.0
+            for b in ti.static(range(self.dim)):
+                if b != a:
+                    m *= ext[b]
+            measures[a] = m
+        pick = self._u(k, serial, 14) * measures.sum()
+        axis = self.dim - 1
+        acc = 0.0
+        for a in ti.static(range(self.dim)):
+            if pick >= acc and pick < acc + measures[a]:
+                axis = a
+            acc += measures[a]
+        side = 1.0 if self._u(k, serial, 15) < 0.5 else 0.0
+        for a in ti.static(range(self.dim)):
+            if a == axis:
+                pos[a] = lo[a] + side * ext[a]
+        return pos
+
+    @ti.func
+    def sample_velocity(self, k, serial, pos, t):
+        base = self.velocity[k]
+        speed = base.norm() * (1.0 + self.speed_spread[k] * (2.0 * self._u(k, serial, 30) - 1.0))
+        v = ti.Vector.zero(float, self.dim)
+        if base.norm() > 0:
+            d = base / base.norm()
+            if self.cone[k] > 0:
+                if ti.static(self.dim == 2):
+                    angle = ti.atan2(d[1], d[0]) + self.cone[k] * (2.0 * self._u(k, serial, 31) - 1.0)
+                    d = ti.Vector([ti.cos(angle), ti.sin(angle)])
+                else:
+                    # uniform on the spherical cap of half angle cone around d
+                    cos_t = 1.0 - self._u(k, serial, 31) * (1.0 - ti.cos(self.cone[k]))
+                    sin_t = ti.sqrt(ti.max(1.0 - cos_t * cos_t, 0.0))
+                    phi = 2.0 * math.pi * self._u(k, serial, 32)
+                    helper = ti.Vector([1.0, 0.0, 0.0]) if ti.abs(d[0]) < 0.9 else ti.Vector([0.0, 1.0, 0.0])
+                    e1 = d.cross(helper).normalized()
+                    e2 = d.cross(e1)
+                    d = cos_t * d + sin_t * (ti.cos(phi) * e1 + ti.sin(phi) * e2)
+            v = speed * d
+        out = pos - self.center[k]
+        if out.norm() > 1e-9:
+            v += self.radial_speed[k] * out / out.norm()
+        else:
+            v += self.radial_speed[k] * self._unit_vector(k, serial, 33)
+        if ti.static(self.has_fields):
+            if self.inherit[k]:
+                v += self.sim.fields.velocity(pos, t)
+        return v
+
+    @ti.kernel
+    def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float):
+        p = self.p
+        for e in range(count):
+            i = first + e
+            serial = serial0 + e
+            pos = self.sample_position(k, serial)
+            p.x[i] = pos
+            p.v[i] = self.sample_velocity(k, serial, pos, t)
+            p.f[i] = ti.Vector.zero(float, self.dim)
+            p.mass[i] = self.mass[k]
+            p.radius[i] = self.radius[k]
+            mat = self.material[k]
+            p.material[i] = mat
+            p.color[i] = self.sim.materials.color_field[mat]
+            p.group[i] = self.first_group + k
+            mortal = 0
+            if ti.static(self.sim.has_lifetimes):
+                p.age[i] = 0.0
+                spread = 1.0 + self.lifetime_spread[k] * (2.0 * self._u(k, serial, 40) - 1.0)
+                p.lifetime[i] = self.lifetime[k] * spread
+                mortal = 1 if p.lifetime[i] > 0 else 0
+            if ti.static(self.sim.has_heat):
+                h = self.sim.phase.enthalpy(self.temperature[k], mat)
+                p.h[i] = h
+                p.T[i] = self.temperature[k]
+                p.dhdt[i] = 0.0
+                if ti.static(self.sim.can_refreeze):
+                    p.liquid[i] = NEVER_BONDS if mortal else 1
+
+    # ------------------------------------------------------------------ retirement
+    def retire(self) -> int:
+        """Remove the dead (age >= lifetime > 0) by compaction; returns how many were removed."""
+        dead = int(self._count_dead())
+        if dead == 0:
+            return 0
+        n_new = int(self.p.n[None]) - dead
+        self._compact(n_new)
+        moved = int(self.moves[0])
+        for listener in self.listeners:
+            listener(self.hole, self.filler, moved)
+        if self.sim.neighbours is not None:
+            self.sim.neighbours.invalidate()
+        return dead
+
+    @ti.func
+    def dead(self, i):
+        return self.p.lifetime[i] > 0.0 and self.p.age[i] >= self.p.lifetime[i]
+
+    @ti.kernel
+    def _count_dead(self) -> ti.i32:
+        total = 0
+        for i in range(self.p.n[None]):
+            if self.dead(i):
+                total += 1
+        return total
+
+    @ti.kernel
+    def _compact(self, n_new: ti.i32):
+        p = self.p
+        self.moves[0] = 0
+        self.moves[1] = 0
+        for i in range(n_new):
+            if self.dead(i):
+                self.hole[ti.atomic_add(self.moves[0], 1)] = i
+        for i in range(n_new, p.n[None]):
+            if not self.dead(i):
+                self.filler[ti.atomic_add(self.moves[1], 1)] = i
+        for m in range(self.moves[0]):
+            dst, src = self.hole[m], self.filler[m]
+            for field in ti.static(self.state_fields):
+                field[dst] = field[src]
+            if ti.static(self.sim.has_springs):
+                s = self.sim.springs
+                for b in range(s.max_bonds):
+                    spring = s.bonds[src, b]
+                    s.bonds[dst, b] = spring
+                    s.bonds[src, b] = -1
+                    if spring >= 0:
+                        if s.i[spring] == src:
+                            s.i[spring] = dst
+                        if s.j[spring] == src:
+                            s.j[spring] = dst
+        p.n[None] = n_new

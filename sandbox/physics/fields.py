@@ -1,0 +1,219 @@
+"""Velocity fields v(x, t): a sum of designed elements and curl noise, for particles carried by (or dragged towards)
+the flow rather than pushed by forces.
+
+Elements (scene [[fields]], each `kind` with its keys; r is the distance from `center`, from the `axis` line in 3D):
+
+    wind       v = velocity
+    vortex     v = strength / (2 pi r) (1 - exp(-r^2 / radius^2)) exp(-r^2 / falloff^2) around the axis (Lamb-Oseen
+               core of `radius`; `falloff` 0 = none); strength is the circulation, counter-clockwise seen from +axis
+    source     v = strength / (2 pi r) (1 - exp(-r^2 / radius^2)) outward in 2D, strength / (4 pi r^2) (...) in 3D:
+               strength is the volume rate (negative: a sink)
+    explosion  v = strength exp(-(t - time) / decay) (1 - exp(-r^2 / radius^2)) outward, for t >= time
+    noise      v = curl of a gradient-noise potential of length `scale` and speed `strength`, drifting in noise
+               space at `speed` per second: divergence-free, so it swirls without clumping or thinning
+
+Curl noise: in 2D v = (d psi/dy, -d psi/dx) for a scalar potential psi; in 3D v = curl of a vector potential of three
+independent noise channels. The derivatives are central differences of step scale/100, whose discrete divergence
+vanishes exactly; measured with other steps it is small (tested).
+"""
+
+import math
+
+import numpy as np
+import taichi as ti
+
+FIELD_KINDS = ("wind", "vortex", "source", "explosion", "noise")
+WIND, VORTEX, SOURCE, EXPLOSION, NOISE = range(5)
+
+
+@ti.func
+def hash_u32(a: ti.u32) -> ti.u32:
+    """A 32-bit integer hash (Wellons' lowbias32): well-mixed bits for lattice gradients and random numbers."""
+    a ^= a >> 16
+    a *= ti.u32(0x7FEB352D)
+    a ^= a >> 15
+    a *= ti.u32(0x846CA68B)
+    a ^= a >> 16
+    return a
+
+
+@ti.func
+def random_uniform(seed: ti.u32, index: ti.u32, k: ti.u32) -> ti.f32:
+    """Deterministic uniform number in [0, 1) from (seed, index, k): the same whatever the thread schedule."""
+    h = hash_u32(seed ^ hash_u32(index * ti.u32(0x9E3779B9) ^ hash_u32(k + ti.u32(0x632BE5AB))))
+    return ti.cast(h >> 8, ti.f32) / 16777216.0
+
+
+@ti.func
+def _fade(t):
+    return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+
+
+@ti.func
+def _gradient(ix, iy, iz, seed: ti.u32):
+    h = hash_u32(
+        ti.cast(ix, ti.u32) * ti.u32(73856093)
+        ^ hash_u32(ti.cast(iy, ti.u32) * ti.u32(19349663) ^ hash_u32(ti.cast(iz, ti.u32) * ti.u32(83492791) ^ seed))
+    )
+    # a direction on the unit sphere from two hashed numbers
+    u = ti.cast(h & ti.u32(0xFFFF), ti.f32) / 65535.0 * 2.0 - 1.0
+    phi = ti.cast(h >> 16, ti.f32) / 65535.0 * 2.0 * math.pi
+    s = ti.sqrt(ti.max(1.0 - u * u, 0.0))
+    return ti.Vector([s * ti.cos(phi), s * ti.sin(phi), u])
+
+
+@ti.func
+def gradient_noise(p, seed: ti.u32):
+    """3D gradient (Perlin-style) noise of the point p (a 3-vector), about in [-1, 1], smooth (C2 fade)."""
+    cell = ti.floor(p)
+    f = p - cell
+    ix, iy, iz = ti.cast(cell[0], ti.i32), ti.cast(cell[1], ti.i32), ti.cast(cell[2], ti.i32)
+    total = 0.0
+    for c in ti.static(range(8)):
+        dx, dy, dz = c & 1, (c >> 1) & 1, (c >> 2) & 1
+        g = _gradient(ix + dx, iy + dy, iz + dz, seed)
+        d = f - ti.Vector([dx, dy, dz])
+        w = (_fade(f[0]) if dx else 1.0 - _fade(f[0])) * (_fade(f[1]) if dy else 1.0 - _fade(f[1]))
+        w *= _fade(f[2]) if dz else 1.0 - _fade(f[2])
+        total += w * g.dot(d)
+    return total
+
+
+@ti.data_oriented
+class VelocityField:
+    """The scene's field elements as small parameter fields, and velocity(x, t) as a Taichi func."""
+
+    def __init__(self, dim: int, elements: list):
+        self.dim = dim
+        self.count = len(elements)
+        n = max(self.count, 1)
+        self.kind = ti.field(ti.i32, shape=n)
+        self.center = ti.Vector.field(dim, float, shape=n)
+        self.axis = ti.Vector.field(3, float, shape=n)  # 3D vortex axis (unit)
+        self.vector = ti.Vector.field(dim, float, shape=n)  # wind velocity
+        self.strength = ti.field(float, shape=n)
+        self.radius = ti.field(float, shape=n)
+        self.falloff = ti.field(float, shape=n)
+        self.time = ti.field(float, shape=n)
+        self.decay = ti.field(float, shape=n)
+        self.scale = ti.field(float, shape=n)
+        self.speed = ti.field(float, shape=n)
+        self.seed = ti.field(ti.u32, shape=n)
+        for k, e in enumerate(elements):
+            self.kind[k] = FIELD_KINDS.index(e.kind)
+            self.center[k] = list(e.center) if e.center else [0.0] * dim
+            axis = np.asarray(e.axis if e.axis else (0.0, 0.0, 1.0), dtype=float)
+            self.axis[k] = list(axis / np.linalg.norm(axis))
+            self.vector[k] = list(e.velocity) if e.velocity else [0.0] * dim
+            self.strength[k] = e.strength
+            self.radius[k] = e.radius
+            self.falloff[k] = e.falloff
+            self.time[k] = e.time
+            self.decay[k] = e.decay
+            self.scale[k] = e.scale
+            self.speed[k] = e.speed
+            self.seed[k] = e.seed
+        self.query_x = None
+
+    @ti.func
+    def velocity(self, x, t):
+        """v(x, t): the sum of every element at position x (a dim-vector) and time t."""
+        v = ti.Vector.zero(float, self.dim)
+        for k in range(self.count):
+            kind = self.kind[k]
+            if kind == WIND:
+                v += self.vector[k]
+            elif kind == NOISE:
+                v += self._curl_noise(k, x, t)
+            else:
+                v += self._radial_element(k, kind, x, t)
+        return v
+
+    @ti.func
+    def _core(self, k, r2):
+        """1 - exp(-r^2 / radius^2): removes the 1/r singularity inside the core radius."""
+        rc = ti.max(self.radius[k], 1e-6)
+        return 1.0 - ti.exp(-r2 / (rc * rc))
+
+    @ti.func
+    def _radial_element(self, k, kind, x, t):
+        v = ti.Vector.zero(float, self.dim)
+        d = x - self.center[k]
+        if ti.static(self.dim == 3):
+            if kind == VORTEX:  # distance from the axis line
+                a = self.axis[k]
+                d = d - d.dot(a) * a
+        r2 = ti.max(d.dot(d), 1e-12)
+        r = ti.sqrt(r2)
+        core = self._core(k, r2)
+        if kind == VORTEX:
+            speed = self.strength[k] / (2.0 * math.pi * r) * core
+            if self.falloff[k] > 0.0:
+                speed *= ti.exp(-r2 / (self.falloff[k] * self.falloff[k]))
+            if ti.static(self.dim == 2):
+                v = speed * ti.Vector([-d[1], d[0]]) / r
+            else:
+                v = speed * self.axis[k].cross(d) / r
+        elif kind == SOURCE:
+            speed = 0.0
+            if ti.static(self.dim == 2):
+                speed = self.strength[k] / (2.0 * math.pi * r) * core
+            else:
+                speed = self.strength[k] / (4.0 * math.pi * r2) * core
+            v = speed * d / r
+        elif kind == EXPLOSION:
+            if t >= self.time[k]:
+                decay = ti.max(self.decay[k], 1e-6)
+                v = self.strength[k] * ti.exp(-(t - self.time[k]) / decay) * core * d / r
+        return v
+
+    @ti.func
+    def _potential(self, k, p, channel):
+        return gradient_noise(p + ti.Vector([0.0, 0.0, 0.0]) + channel * ti.Vector([31.4, 17.3, 11.9]), self.seed[k])
+
+    @ti.func
+    def _curl_noise(self, k, x, t):
+        s = ti.max(self.scale[k], 1e-6)
+        h = 0.01  # difference step, in noise units (scale / 100 in length)
+        drift = t * self.speed[k]
+        v = ti.Vector.zero(float, self.dim)
+        if ti.static(self.dim == 2):
+            p = ti.Vector([x[0] / s, x[1] / s, drift])
+            dpdy = (
+                self._potential(k, p + ti.Vector([0.0, h, 0.0]), 0)
+                - self._potential(k, p - ti.Vector([0.0, h, 0.0]), 0)
+            ) / (2 * h)
+            dpdx = (
+                self._potential(k, p + ti.Vector([h, 0.0, 0.0]), 0)
+                - self._potential(k, p - ti.Vector([h, 0.0, 0.0]), 0)
+            ) / (2 * h)
+            v = ti.Vector([dpdy, -dpdx])
+        else:
+            p = ti.Vector([x[0] / s, x[1] / s, x[2] / s]) + drift * ti.Vector([0.37, 0.21, 0.11])
+            e = ti.Matrix.identity(float, 3) * h
+            grad = ti.Matrix.zero(float, 3, 3)  # grad[c, a] = d psi_c / d p_a
+            for c in ti.static(range(3)):
+                for a in ti.static(range(3)):
+                    ea = ti.Vector([e[a, 0], e[a, 1], e[a, 2]])
+                    grad[c, a] = (self._potential(k, p + ea, c) - self._potential(k, p - ea, c)) / (2 * h)
+            v = ti.Vector([grad[2, 1] - grad[1, 2], grad[0, 2] - grad[2, 0], grad[1, 0] - grad[0, 1]])
+        # the potential has unit amplitude per noise cell: dividing the derivatives by scale would make speed
+        # depend on scale; `strength` is the typical speed instead
+        return self.strength[k] * v
+
+    def sample(self, points: np.ndarray, t: float) -> np.ndarray:
+        """v(x, t) at points (K, dim) as a (K, dim) NumPy array (for tests, plots and emitters' inspection)."""
+        k = len(points)
+        if self.query_x is None or self.query_x.shape[0] < k:
+            self.query_x = ti.Vector.field(self.dim, float, shape=max(k, 1))
+            self.query_v = ti.Vector.field(self.dim, float, shape=max(k, 1))
+        full = np.zeros((self.query_x.shape[0], self.dim))
+        full[:k] = points
+        self.query_x.from_numpy(full)
+        self._sample(k, t)
+        return self.query_v.to_numpy()[:k].astype(np.float64)
+
+    @ti.kernel
+    def _sample(self, k: ti.i32, t: float):
+        for i in range(k):
+            self.query_v[i] = self.velocity(self.query_x[i], t)
