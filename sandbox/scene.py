@@ -195,7 +195,9 @@ class Emitter:
     cone: float = spec(
         0.0, doc="random direction within this full cone angle (degrees) around velocity", check=non_negative
     )
-    speed_spread: float = spec(0.0, doc="speed varies uniformly by this fraction", check=unit_interval)
+    speed_spread: float = spec(
+        0.0, doc="speed (base and radial) varies uniformly by this fraction", check=unit_interval
+    )
     radial_speed: float = spec(0.0, doc="added speed outward from the centre (explosions)")
     inherit_field: bool = spec(False, doc="add the velocity field's value at the birth position")
     jitter: float = spec(

@@ -458,8 +458,8 @@ class Simulation:
         n = int(self.particles.n[None])
         if cnt["bad"] or not all(math.isfinite(v) for v in acc.values()):
             self._raise_blowup("non-finite state")
-        if self._energy_scale is None:
-            self._energy_scale = self._natural_energy(acc)
+        if self._energy_scale is None or self.emitters is not None:  # emitters bring new mass: grow the scale
+            self._energy_scale = max(self._energy_scale or 0.0, self._natural_energy(acc, n))
         if acc["ke"] > RUNAWAY_FACTOR * self._energy_scale:
             self._raise_blowup(
                 f"runaway kinetic energy {acc['ke']:.3g} (over {RUNAWAY_FACTOR:g} x the scene's "
@@ -479,13 +479,16 @@ class Simulation:
             particles=n,
         )
 
-    def _natural_energy(self, acc: dict) -> float:
-        """Energy scale of the initial state: its kinetic and bound energies, the work gravity can do across the
+    def _natural_energy(self, acc: dict, n: int) -> float:
+        """Energy scale of the state: its kinetic and bound energies, the work gravity can do across the
         domain, and every particle moving at one domain length per unit time."""
-        b = self.built
         size = float(np.max(np.asarray(self.scene.world.hi) - np.asarray(self.scene.world.lo)))
         g = float(np.linalg.norm(self.scene.world.gravity))
-        mass = float(b.mass.sum())
+        mass = (
+            float(self.particles.mass.to_numpy()[:n].sum())
+            if self.emitters is not None
+            else float(self.built.mass.sum())
+        )
         return acc["ke"] + abs(acc["spring"]) + abs(acc["pair"]) + mass * g * size + 0.5 * mass * size**2
 
     def _raise_blowup(self, what: str) -> None:

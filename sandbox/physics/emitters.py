@@ -201,7 +201,8 @@ class Emitters:
     @ti.func
     def sample_velocity(self, k, serial, pos, t):
         base = self.velocity[k]
-        speed = base.norm() * (1.0 + self.speed_spread[k] * (2.0 * self._u(k, serial, 30) - 1.0))
+        factor = 1.0 + self.speed_spread[k] * (2.0 * self._u(k, serial, 30) - 1.0)  # spreads both speeds
+        speed = base.norm() * factor
         v = ti.Vector.zero(float, self.dim)
         if base.norm() > 0:
             d = base / base.norm()
@@ -221,9 +222,9 @@ class Emitters:
             v = speed * d
         out = pos - self.center[k]
         if out.norm() > 1e-9:
-            v += self.radial_speed[k] * out / out.norm()
+            v += factor * self.radial_speed[k] * out / out.norm()
         else:
-            v += self.radial_speed[k] * self._unit_vector(k, serial, 33)
+            v += factor * self.radial_speed[k] * self._unit_vector(k, serial, 33)
         if ti.static(self.has_fields):
             if self.inherit[k]:
                 v += self.sim.fields.velocity(pos, t)

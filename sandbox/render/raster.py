@@ -279,11 +279,23 @@ class Renderer:
 
     @ti.func
     def particle_color(self, i):
+        """Drawing colour: the colour map's, darkened over the lifetime when fading (not for alpha: see below)."""
         c = self._base_color(i)
         if ti.static(self.has_lifetimes):
-            if self.g_fade[self.sim.particles.group[i]]:
+            g = self.sim.particles.group[i]
+            if self.g_fade[g] and self.g_blend[g] != BLEND["alpha"]:
                 c *= self.life_left(i)
         return c
+
+    @ti.func
+    def group_opacity(self, i):
+        """Opacity of particle i's group; a fading translucent particle grows fainter rather than darker."""
+        g = self.sim.particles.group[i]
+        a = self.g_opacity[g]
+        if ti.static(self.has_lifetimes):
+            if self.g_fade[g] and self.g_blend[g] == BLEND["alpha"]:
+                a *= self.life_left(i)
+        return a
 
     @ti.func
     def _base_color(self, i):
@@ -411,7 +423,7 @@ class Renderer:
                 if not blurred:
                     tail = head
             r_true = self.drawn_radius(i) * self.px_per_unit
-            draw, blend, opacity = self.g_draw[g], self.g_blend[g], self.g_opacity[g]
+            draw, blend, opacity = self.g_draw[g], self.g_blend[g], self.group_opacity(i)
             if draw == 0:  # a dot: one pixel
                 r_true = 0.5
             r = ti.max(r_true, R_MIN)
@@ -575,7 +587,7 @@ class Renderer:
             if z > 1e-3:
                 r = ti.max(self.drawn_radius(i) * self.focal / z, R_MIN)
                 col = self.particle_color(i)
-                opacity = self.g_opacity[p.group[i]]
+                opacity = self.group_opacity(i)
                 zbits = ti.bit_cast(ti.cast(z, ti.f32), ti.i32)
                 x0, x1, y0, y1 = self._box(centre, centre, r)
                 for px in range(x0, x1 + 1):
