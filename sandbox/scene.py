@@ -172,6 +172,25 @@ class FieldElement:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SmokeSource:
+    lo: tuple[float, ...] = spec(doc="lower corner of the region")
+    hi: tuple[float, ...] = spec(doc="upper corner of the region")
+    temperature: float = spec(doc="cells inside are held at this temperature (degrees)")
+    velocity: tuple[float, ...] = spec((), doc="inflow velocity imposed on the region's faces (default none)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Smoke:
+    resolution: int = spec(64, doc="grid cells along the longest side of the domain", check=at_least(4))
+    buoyancy: float = spec(0.5, doc="upward acceleration per degree above the ambient (against gravity)")
+    ambient: float = spec(20.0, doc="ambient temperature of the air (degrees)")
+    cooling: float = spec(0.3, doc="rate at which hot air relaxes to the ambient (1/time)", check=non_negative)
+    tolerance: float = spec(1e-5, doc="pressure solve: relative residual at which CG stops", check=positive)
+    max_iterations: int = spec(400, doc="pressure solve: CG iteration cap per step", check=at_least(1))
+    sources: list[SmokeSource] = spec(doc="hot regions that drive the flow", factory=list)
+
+
+@dataclass(frozen=True, kw_only=True)
 class Emitter:
     name: str = spec("", doc="label (default emitter<N>)")
     material: str = spec(doc="material of the emitted particles")
@@ -312,6 +331,7 @@ class _SceneFile:
     bodies: list[Body] = spec(doc="[[bodies]]", factory=list)
     emitters: list[Emitter] = spec(doc="[[emitters]]", factory=list)
     fields: list[FieldElement] = spec(doc="[[fields]]", factory=list)
+    smoke: Smoke | None = spec(None, doc="[smoke]")
     render: Render = spec(doc="[render]", factory=Render)
     materials: dict | None = spec(None, doc="[materials.NAME]")
 
@@ -331,6 +351,7 @@ class Scene:
     materials: dict[str, Material] = field(repr=False)
     emitters: list[Emitter] = field(default_factory=list)
     fields: list[FieldElement] = field(default_factory=list)
+    smoke: Smoke | None = None
 
     @property
     def dim(self) -> int:
@@ -429,6 +450,12 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     emitters = [_check_emitter(file, f"emitters[{i}]", e, i, dim, materials) for i, e in enumerate(raw.emitters)]
     for i, element in enumerate(raw.fields):
         _check_field(file, f"fields[{i}]", element, dim)
+    if raw.smoke is not None:
+        for i, src in enumerate(raw.smoke.sources):
+            _check_vec(file, f"smoke.sources[{i}].lo", src.lo, dim)
+            _check_vec(file, f"smoke.sources[{i}].hi", src.hi, dim)
+            if src.velocity:
+                _check_vec(file, f"smoke.sources[{i}].velocity", src.velocity, dim)
     bodies = [_check_body(file, f"bodies[{i}]", b, i, dim, materials, path) for i, b in enumerate(raw.bodies)]
     for i, body in enumerate(bodies):
         lo, hi = _body_bounds(body)
@@ -460,6 +487,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         },
         emitters=emitters,
         fields=list(raw.fields),
+        smoke=raw.smoke,
     )
 
 

@@ -26,6 +26,7 @@ from .physics.heat import Heat, lattice_correction
 from .physics.neighbours import NeighbourList
 from .physics.pair import PairForce
 from .physics.phase import LIQUID, Phase, Refreezer
+from .physics.smoke import SmokeGrid
 from .physics.springs import Springs
 from .scene import COUPLINGS, Scene
 
@@ -48,7 +49,7 @@ STAT_COLUMNS = (
 )
 
 SPRING_STATE = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds", "created")  # what refreezing changes
-KINEMATIC, DRAG = COUPLINGS.index("kinematic"), COUPLINGS.index("drag")
+NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
 RUNAWAY_FACTOR = 1e4  # kinetic energy above this many natural energy scales stops the run (see stats())
 _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7}
 _COUNT = {"alive": 0, "meltable": 1, "bad": 2}
@@ -108,7 +109,8 @@ class Simulation:
             self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze, lifetimes=self.has_lifetimes
         )
         self.particles.load(built, self.materials.colors, materials)
-        self.fields = VelocityField(self.dim, scene.fields) if scene.fields else None
+        self.smoke = SmokeGrid(self.dim, world.lo, world.hi, scene.smoke, world.gravity) if scene.smoke else None
+        self.fields = VelocityField(self.dim, scene.fields, self.smoke) if (scene.fields or scene.smoke) else None
         groups = scene.groups
         couplings = [g.field if self.fields is not None else "none" for g in groups]
         self.has_kinematic = "kinematic" in couplings
@@ -118,7 +120,8 @@ class Simulation:
         for k, g in enumerate(groups):
             self.g_coupling[k] = COUPLINGS.index(couplings[k])
             self.g_drag[k] = g.field_drag
-        self.clock = ti.field(float, shape=())  # simulated time at the start of the step (for v(x, t))
+        if self.has_kinematic or self.has_field_drag:
+            self.v_field = ti.Vector.field(self.dim, float, shape=self.capacity)  # v(x, t) at coupled particles
         if self.has_kinematic:
             self.x_start = ti.Vector.field(self.dim, float, shape=self.capacity)  # kinematic: x at the step start
             self.v_start = ti.Vector.field(self.dim, float, shape=self.capacity)
@@ -206,10 +209,12 @@ class Simulation:
                 self.heat.set_time(self.time)
             if self.emitters is not None:
                 self.emitters.emit_due(self.time, self.dt)
-            if self.fields is not None:
-                self.clock[None] = self.time
+            if self.smoke is not None:
+                self.smoke.step(self.dt)
             if self.has_kinematic:
                 self._kinematic_begin()
+            if self.has_field_drag:
+                self._sample_field(self.time)  # the drag force's target, held through the step
             self.integrator.step(self.dt)
             if self.implicit_heat is not None:
                 use_list = self.neighbours is not None and self.neighbours.ensure_fresh()
@@ -217,8 +222,10 @@ class Simulation:
                     self.grid.rebuild()
                 self.implicit_heat.step(self.dt, use_list, self.neighbours.ids if use_list else None)
                 self.implicit_heat.apply()
-            if self.has_kinematic or self.has_lifetimes:
-                self._post_step(self.dt, self.time)
+            if self.has_kinematic:
+                self._advect_kinematic(self.dt, self.time)
+            if self.has_lifetimes:
+                self._age(self.dt)
             self.time += self.dt
             self.step_count += 1
             if self.refreezer is not None and self.step_count % self.scene.heat.refreeze_interval == 0:
@@ -235,21 +242,37 @@ class Simulation:
                 self.x_start[i] = p.x[i]
                 self.v_start[i] = p.v[i]
 
+    def _advect_kinematic(self, dt: float, t: float) -> None:
+        """x += dt v(x, t) from the step's start (forward Euler), or dt v(x + dt/2 v, t + dt/2) (midpoint). The field
+        is sampled by one kernel at the current positions, so its code (curl noise is long) compiles once."""
+        self._sample_field(t)
+        if self.scene.world.advection == "midpoint":
+            self._kinematic_move(0.5 * dt, False)
+            self._sample_field(t + 0.5 * dt)
+        self._kinematic_move(dt, True)
+
     @ti.kernel
-    def _post_step(self, dt: float, t: float):
-        """Ageing, and the kinematic particles' advection x += dt v(x, t) (forward Euler or midpoint)."""
+    def _sample_field(self, t: float):
         p = self.particles
         for i in range(p.n[None]):
-            if ti.static(self.has_lifetimes):
-                p.age[i] += dt
-            if ti.static(self.has_kinematic):
-                if self.g_coupling[p.group[i]] == KINEMATIC:
-                    x0 = self.x_start[i]
-                    v = self.fields.velocity(x0, t)
-                    if ti.static(self.scene.world.advection == "midpoint"):
-                        v = self.fields.velocity(x0 + 0.5 * dt * v, t + 0.5 * dt)
-                    p.v[i] = v
-                    p.x[i], p.v[i] = self.domain.enforce(x0 + dt * v, v, p.radius[i])
+            if self.g_coupling[p.group[i]] != NO_COUPLING:
+                self.v_field[i] = self.fields.velocity(p.x[i], t)
+
+    @ti.kernel
+    def _kinematic_move(self, dt: float, final: ti.template()):
+        p = self.particles
+        for i in range(p.n[None]):
+            if self.g_coupling[p.group[i]] == KINEMATIC:
+                x = self.x_start[i] + dt * self.v_field[i]
+                if ti.static(final):
+                    p.x[i], p.v[i] = self.domain.enforce(x, self.v_field[i], p.radius[i])
+                else:
+                    p.x[i] = x
+
+    @ti.kernel
+    def _age(self, dt: float):
+        for i in range(self.particles.n[None]):
+            self.particles.age[i] += dt
 
     def eval_rates(self) -> None:
         """Forces (p.f) and heat rates (p.dTdt) at the current state."""
@@ -314,7 +337,7 @@ class Simulation:
             f = p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
             if ti.static(self.has_field_drag):
                 if self.g_coupling[p.group[i]] == DRAG:
-                    f += p.mass[i] * self.g_drag[p.group[i]] * (self.fields.velocity(xi, self.clock[None]) - p.v[i])
+                    f += p.mass[i] * self.g_drag[p.group[i]] * (self.v_field[i] - p.v[i])
             q = 0.0
             if ti.static(self.has_grid):
                 f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
@@ -352,7 +375,7 @@ class Simulation:
                                 f -= self.pair.force(i, j, d, r2)
             if ti.static(self.has_kinematic):
                 if self.g_coupling[p.group[i]] == KINEMATIC:
-                    f = ti.Vector.zero(float, self.dim)  # moved by the field alone (_post_step)
+                    f = ti.Vector.zero(float, self.dim)  # moved by the field alone (_advect_kinematic)
             p.f[i] = f
             if ti.static(self.has_explicit_heat):
                 q += self.heat.source_flow(i)
@@ -364,7 +387,7 @@ class Simulation:
         p = self.particles
         p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i])
         if ti.static(self.has_kinematic):
-            if self.g_coupling[p.group[i]] == KINEMATIC:  # the integrator does not move them: _post_step does
+            if self.g_coupling[p.group[i]] == KINEMATIC:  # the integrator does not move them: _advect_kinematic does
                 p.x[i], p.v[i] = self.x_start[i], self.v_start[i]
         if ti.static(self.has_explicit_heat):
             self.set_enthalpy(i, p.h[i] + dt * p.dhdt[i])
@@ -688,6 +711,12 @@ class Simulation:
     def pipeline(self) -> list[str]:
         """The passes a step runs, in order."""
         passes = []
+        if self.emitters is not None:
+            passes.append(f"emitters: {', '.join(e.name for e in self.scene.emitters)} (rate, bursts)")
+        if self.smoke is not None:
+            passes.append(f"smoke: stable fluids on a {self.smoke.describe()} (buoyancy, advection, CG projection)")
+        if self.has_field_drag:
+            passes.append("velocity field sampled at field-coupled particles (their drag target)")
         if self.neighbours is not None:
             passes.append(
                 f"neighbour lists (reach {self.neighbours.reach:g} + skin {self.neighbours.skin:g}, width "
@@ -697,7 +726,7 @@ class Simulation:
         elif self.grid is not None:
             passes.append(f"neighbour grid: counting sort into a {self.grid.describe()}, every step")
         if self.springs is not None:
-            what = "softening and breaking by temperature and melt fraction" if self.heat else "overstretch breaking"
+            what = "thermoelastic softening and breaking by melt fraction" if self.heat else "overstretch breaking"
             slots = f" ({self.springs.count} slots, room to refreeze)" if self.refreezer is not None else ""
             passes.append(f"spring update ({what}) over {self.springs.built_count} springs{slots}")
         forces = []
@@ -719,6 +748,10 @@ class Simulation:
         passes.append(f"integrator {self.integrator.name}, then {walls}{heat}")
         if self.implicit_heat is not None:
             passes.append("implicit heat: backward Euler by preconditioned CG, then the enthalpy update")
+        if self.has_kinematic:
+            passes.append(f"kinematic advection through the velocity field ({self.scene.world.advection})")
+        if self.has_lifetimes:
+            passes.append("ageing; the dead retired by compaction after each step() call")
         if self.refreezer is not None:
             passes.append(
                 f"every {self.scene.heat.refreeze_interval} steps: refreezing (new bonds within "

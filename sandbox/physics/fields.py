@@ -12,6 +12,8 @@ Elements (scene [[fields]], each `kind` with its keys; r is the distance from `c
     noise      v = curl of a gradient-noise potential of length `scale` and speed `strength`, drifting in noise
                space at `speed` per second: divergence-free, so it swirls without clumping or thinning
 
+With a [smoke] table the smoke grid's velocity (physics/smoke.py) is added to the sum.
+
 Curl noise: in 2D v = (d psi/dy, -d psi/dx) for a scalar potential psi; in 3D v = curl of a vector potential of three
 independent noise channels. The derivatives are central differences of step scale/100, whose discrete divergence
 vanishes exactly; measured with other steps it is small (tested).
@@ -68,13 +70,13 @@ def gradient_noise(p, seed: ti.u32):
     cell = ti.floor(p)
     f = p - cell
     ix, iy, iz = ti.cast(cell[0], ti.i32), ti.cast(cell[1], ti.i32), ti.cast(cell[2], ti.i32)
+    s = ti.Vector([_fade(f[0]), _fade(f[1]), _fade(f[2])])
     total = 0.0
-    for c in ti.static(range(8)):
+    for c in range(8):  # a run-time loop, not unrolled: the curl inlines this many times, and compile time adds up
         dx, dy, dz = c & 1, (c >> 1) & 1, (c >> 2) & 1
         g = _gradient(ix + dx, iy + dy, iz + dz, seed)
-        d = f - ti.Vector([dx, dy, dz])
-        w = (_fade(f[0]) if dx else 1.0 - _fade(f[0])) * (_fade(f[1]) if dy else 1.0 - _fade(f[1]))
-        w *= _fade(f[2]) if dz else 1.0 - _fade(f[2])
+        d = f - ti.Vector([dx, dy, dz], dt=float)
+        w = (s[0] if dx else 1.0 - s[0]) * (s[1] if dy else 1.0 - s[1]) * (s[2] if dz else 1.0 - s[2])
         total += w * g.dot(d)
     return total
 
@@ -83,8 +85,11 @@ def gradient_noise(p, seed: ti.u32):
 class VelocityField:
     """The scene's field elements as small parameter fields, and velocity(x, t) as a Taichi func."""
 
-    def __init__(self, dim: int, elements: list):
+    def __init__(self, dim: int, elements: list, grid=None):
+        """`grid`: a SmokeGrid whose velocity is added to the elements' (None: elements only)."""
         self.dim = dim
+        self.grid = grid
+        self.has_grid = grid is not None
         self.count = len(elements)
         n = max(self.count, 1)
         self.kind = ti.field(ti.i32, shape=n)
@@ -127,6 +132,8 @@ class VelocityField:
                 v += self._curl_noise(k, x, t)
             else:
                 v += self._radial_element(k, kind, x, t)
+        if ti.static(self.has_grid):
+            v += self.grid.sample(x)
         return v
 
     @ti.func
