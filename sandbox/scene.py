@@ -187,6 +187,11 @@ class Smoke:
     cooling: float = spec(0.3, doc="rate at which hot air relaxes to the ambient (1/time)", check=non_negative)
     tolerance: float = spec(1e-5, doc="pressure solve: relative residual at which CG stops", check=positive)
     max_iterations: int = spec(400, doc="pressure solve: CG iteration cap per step", check=at_least(1))
+    interval: int = spec(
+        1,
+        doc="simulation steps per smoke step (stable fluids is stable at any step; the smoke steps interval x dt)",
+        check=at_least(1),
+    )
     sources: list[SmokeSource] = spec(doc="hot regions that drive the flow", factory=list)
 
 

@@ -209,8 +209,8 @@ class Simulation:
                 self.heat.set_time(self.time)
             if self.emitters is not None:
                 self.emitters.emit_due(self.time, self.dt)
-            if self.smoke is not None:
-                self.smoke.step(self.dt)
+            if self.smoke is not None and self.step_count % self.scene.smoke.interval == 0:
+                self.smoke.step(self.dt * self.scene.smoke.interval)
             if self.has_kinematic:
                 self._kinematic_begin()
             if self.has_field_drag:

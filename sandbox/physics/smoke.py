@@ -7,7 +7,7 @@ Each step:
      T relaxes to the ambient at `cooling` per unit time;
   3. advection: velocity and temperature semi-Lagrangian, back-traced with the midpoint rule, multilinear lookups;
   4. projection: solve sum over neighbours (p_c - p_n) = -h^2 div_c (Neumann at the walls) by Jacobi-
-     preconditioned CG to `tolerance`, then subtract the pressure gradient from interior faces. The discrete
+     preconditioned CG to `tolerance`, warm-started from the last step's pressure, then subtract the pressure gradient from interior faces. The discrete
      divergence that is left is the solver's residual over h^2: divergence-free to the tolerance (tested).
 The walls of the domain are solid (normal velocity 0). Particles read the velocity by multilinear interpolation
 of each face component (sample()); VelocityField adds it to the designed elements.
@@ -228,13 +228,14 @@ class SmokeGrid:
         for k in self.scalars:
             self.scalars[k] = 0.0
         for I in ti.grouped(self.p):
+            # warm start from the last step's pressure: r = b - A p (the flow changes little between steps)
             b = -self.h * self.h * self.divergence(I)
-            self.p[I] = 0.0
-            self.r[I] = b
-            self.z[I] = b / self._neighbours(I)
+            r = b - self._laplace(self.p, I)
+            self.r[I] = r
+            self.z[I] = r / self._neighbours(I)
             self.d[I] = self.z[I]
-            self.scalars[1] += b * self.z[I]
-            self.scalars[2] += b * b
+            self.scalars[1] += r * self.z[I]
+            self.scalars[2] += r * r
             self.scalars[3] += b * b
 
     @ti.kernel
