@@ -125,6 +125,7 @@ class HeatSource:
     schedule_period: float = spec(
         0.0, doc="repeat the schedule with this period (0: hold the last value)", check=non_negative
     )
+    visible: bool = spec(True, doc="2D: draw the region (in its glow colour)")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -254,3 +254,25 @@ def test_smoke_grid_projects_to_divergence_free_and_hot_air_rises(dim):
     above[0, 1] = 8.0
     assert sim.fields.sample(above, sim.time)[0, 1] > 0.5  # the plume rises ...
     assert sim.positions()[0, 1] > y0 + 1.0  # ... and carries the particle up with it
+
+
+def test_candle_melts_at_the_top_drips_and_refreezes_under_a_bounded_flame():
+    from sandbox.scene import load_scene
+
+    from .conftest import SCENES
+
+    sim = Simulation(load_scene(SCENES / "candle.toml"))
+    wax = sim.built.count
+    top0 = sim.positions()[:, 1].max()
+    most_flame = 0
+    for _ in range(200):  # 4 s
+        sim.advance_frame()
+        most_flame = max(most_flame, int(sim.particles.n[None]) - wax)
+    stats = sim.stats()
+    x = sim.positions()[:wax]
+    assert sim.particles.n[None] - wax > 100 and most_flame < 300  # the flame: 300/s living 0.7 s (+-50%)
+    assert stats.molten_fraction > 0.1 and stats.broken_springs > 100  # the top melted ...
+    assert x[:, 1].max() < top0 - 2  # ... and sank
+    outside = (x[:, 0] < 58) | (x[:, 0] > 70)
+    assert np.sum(outside & (x[:, 1] < top0 - 6)) > 5  # the melt ran over the sides and drips down them
+    assert np.all(np.isfinite(sim.temperatures()))

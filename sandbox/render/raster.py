@@ -137,7 +137,8 @@ class Renderer:
             self.offset = ti.Vector(list(centre_px - scale * (lo + hi) / 2))
             self.px_lo = ti.Vector(list(centre_px - scale * extent / 2))
             self.px_hi = ti.Vector(list(centre_px + scale * extent / 2))
-            src = self.sim.scene.heat.sources if self.sim.scene.heat else []
+            heat = self.sim.scene.heat
+            src = [s for s in heat.sources if s.visible] if heat else []
             self.n_src = len(src)
             ns = max(self.n_src, 1)
             self.src_lo = ti.Vector.field(2, ti.f32, shape=ns)
@@ -146,7 +147,9 @@ class Renderer:
             for k, s in enumerate(src):
                 self.src_lo[k] = centre_px + scale * (np.asarray(s.lo) - (lo + hi) / 2)
                 self.src_hi[k] = centre_px + scale * (np.asarray(s.hi) - (lo + hi) / 2)
-                self.src_t[k] = s.temperature
+                # a power source has no temperature of its own: drawn hot if it heats, cold if it cools
+                hot, cold = self.cfg.temperature_range[1], self.cfg.temperature_range[0]
+                self.src_t[k] = s.temperature if s.temperature is not None else (hot if s.power >= 0 else cold)
         else:
             cfg = self.cfg
             centre = (lo + hi) / 2
@@ -167,7 +170,8 @@ class Renderer:
             self.floor_hi = ti.Vector([float(hi[0]), float(hi[2])])
             self.grid_step = float(max(1.0, round(max(hi[0] - lo[0], hi[2] - lo[2]) / 12)))
             # heat sources lying on the floor are drawn on it in their glow colour
-            src = [s for s in (self.sim.scene.heat.sources if self.sim.scene.heat else []) if s.lo[1] <= lo[1] + 1]
+            heat = self.sim.scene.heat
+            src = [s for s in (heat.sources if heat else []) if s.lo[1] <= lo[1] + 1 and s.visible]
             self.n_src = len(src)
             ns = max(self.n_src, 1)
             self.src_lo = ti.Vector.field(2, ti.f32, shape=ns)
@@ -176,7 +180,8 @@ class Renderer:
             for k, s in enumerate(src):
                 self.src_lo[k] = [s.lo[0], s.lo[2]]
                 self.src_hi[k] = [s.hi[0], s.hi[2]]
-                self.src_t[k] = s.temperature
+                hot, cold = self.cfg.temperature_range[1], self.cfg.temperature_range[0]
+                self.src_t[k] = s.temperature if s.temperature is not None else (hot if s.power >= 0 else cold)
 
     def set_camera(self, eye, target, fov_degrees: float) -> None:
         """3D: place the camera (world units) looking at target with a vertical field of view in degrees."""
