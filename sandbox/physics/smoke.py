@@ -7,8 +7,9 @@ Each step:
      T relaxes to the ambient at `cooling` per unit time;
   3. advection: velocity and temperature semi-Lagrangian, back-traced with the midpoint rule, multilinear lookups;
   4. projection: solve sum over neighbours (p_c - p_n) = -h^2 div_c (Neumann at the walls) by Jacobi-
-     preconditioned CG to `tolerance`, warm-started from the last step's pressure, then subtract the pressure gradient from interior faces. The discrete
-     divergence that is left is the solver's residual over h^2: divergence-free to the tolerance (tested).
+     preconditioned CG to `tolerance`, warm-started from the last step's pressure, then subtract the pressure
+     gradient from interior faces. The discrete divergence left is the solver's residual over h^2: divergence-free
+     to the tolerance (tested).
 The walls of the domain are solid (normal velocity 0). Particles read the velocity by multilinear interpolation
 of each face component (sample()); VelocityField adds it to the designed elements.
 """
