@@ -216,6 +216,12 @@ class Emitter:
     stop: float = spec(math.inf, doc="... until this time")
     bursts: tuple[float, ...] = spec((), doc="times of bursts of burst_count particles each")
     burst_count: int = spec(0, doc="particles per burst", check=at_least(0))
+    refill_density: float = spec(
+        0.0,
+        doc="box/disk/sphere: every step, top up each cell of the region to this many particles per unit area "
+        "(volume) where it has fewer (counted on a grid of cells holding 4 each); 0: off",
+        check=non_negative,
+    )
     velocity: tuple[float, ...] = spec((), doc="base velocity (default zero)")
     cone: float = spec(
         0.0, doc="random direction within this full cone angle (degrees) around velocity", check=non_negative
@@ -576,6 +582,8 @@ def _check_emitter(file: str, key: str, e: Emitter, index: int, dim: int, materi
         raise SceneError(file, f"{key}.draw", "'sphere' is a 3D drawing; expected splat or dot in 2D")
     if e.blend != "opaque" and e.draw == "sphere":
         raise SceneError(file, f"{key}.blend", 'shaded spheres are opaque; use draw = "splat" for alpha or additive')
+    if e.refill_density and (e.shape == "point" or e.surface):
+        raise SceneError(file, f"{key}.refill_density", "refilling needs a region: a box, disk or sphere, not surface")
     if e.bursts and e.burst_count == 0:
         raise SceneError(file, f"{key}.burst_count", "expected a count > 0 with bursts")
     if e.stop <= e.start:

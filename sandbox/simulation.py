@@ -209,6 +209,8 @@ class Simulation:
                 self.heat.set_time(self.time)
             if self.emitters is not None:
                 self.emitters.emit_due(self.time, self.dt)
+                if self.emitters.refills:
+                    self.emitters.refill(self.time)
             if self.smoke is not None and self.step_count % self.scene.smoke.interval == 0:
                 self.smoke.step(self.dt * self.scene.smoke.interval)
             if self.has_kinematic:
@@ -788,6 +790,12 @@ def timed_steps(sim: Simulation, n: int) -> float:
 def emitter_population(e) -> int:
     """Most particles an emitter keeps alive at once (capacity planning): all it ever emits if they never die."""
     bursts = len(e.bursts) * e.burst_count
+    if e.refill_density:
+        if e.shape == "box":
+            measure = float(np.prod(np.asarray(e.hi) - np.asarray(e.lo)))
+        else:
+            measure = math.pi * e.size**2 if e.shape == "disk" else 4 / 3 * math.pi * e.size**3
+        bursts += int(2 * e.refill_density * measure)  # the region full, and room for what flows out
     if e.lifetime <= 0:
         horizon = 0.0 if e.rate == 0 else (e.stop - e.start if math.isfinite(e.stop) else 600.0)
         return int(e.count + bursts + e.rate * horizon) + 16

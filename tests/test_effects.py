@@ -276,3 +276,37 @@ def test_candle_melts_at_the_top_drips_and_refreezes_under_a_bounded_flame():
     outside = (x[:, 0] < 58) | (x[:, 0] > 70)
     assert np.sum(outside & (x[:, 1] < top0 - 6)) > 5  # the melt ran over the sides and drips down them
     assert np.all(np.isfinite(sim.temperatures()))
+
+
+def test_refill_tops_up_each_cell_to_the_target_density_and_no_more():
+    from sandbox.tools import Tools
+
+    data = emitter_scene(
+        emitters=[
+            {
+                "material": "jelly",
+                "shape": "box",
+                "lo": [10, 10],
+                "hi": [30, 20],
+                "refill_density": 1.0,
+                "particle_radius": 0.2,
+            }
+        ]
+    )
+    sim = Simulation(make_scene(data))
+    sim.step(1)
+    n = int(sim.particles.n[None])
+    assert n == 200  # 50 cells of 2 x 2, four each: 1 per unit area
+    x = sim.positions()
+    cells = ((x[:, 0] - 10) // 2).astype(int) * 5 + ((x[:, 1] - 10) // 2).astype(int)
+    assert np.all(np.bincount(cells, minlength=50) == 4)
+    sim.step(5)
+    assert sim.particles.n[None] == 200  # full: nothing more
+    removed = Tools(sim).erase([15.0, 15.0], 4.0)
+    assert removed > 20
+    sim.step(1)
+    assert sim.particles.n[None] >= 200  # topped up again where the hole was
+    x = sim.positions()
+    inside = (x[:, 0] >= 10) & (x[:, 0] < 30) & (x[:, 1] >= 10) & (x[:, 1] < 20)
+    cells = ((x[inside, 0] - 10) // 2).astype(int) * 5 + ((x[inside, 1] - 10) // 2).astype(int)
+    assert np.all(np.bincount(cells, minlength=50) >= 4)

@@ -91,6 +91,11 @@ class Emitters:
         self.hole = ti.field(ti.i32, shape=cap)  # compaction: slots of the dead below the new count
         self.filler = ti.field(ti.i32, shape=cap)  # ... and the live particles above it that move into them
         self.moves = ti.field(ti.i32, shape=2)  # [holes found, fillers found]
+        self.refills = [k for k, e in enumerate(self.specs) if e.refill_density > 0]
+        self.refill_grids = {}
+        for k in self.refills:
+            self.refill_grids[k] = self._refill_grid(self.specs[k])
+        self.reserved = ti.field(ti.i32, shape=())  # refill: slots taken by the last pass
         self.listeners = []  # callables(hole, filler, count): told after particles moved
         self.state_fields = [getattr(self.p, name) for name in self.p.names()]  # what moves with a particle
 
@@ -112,6 +117,92 @@ class Emitters:
             due += e.burst_count * sum(1 for b in e.bursts if t <= b < t + dt)
             if due:
                 self._emit(k, due, t)
+
+    # ------------------------------------------------------------------ refilling to a target density
+    PER_CELL = 4  # refill cells are sized to hold this many particles at the target density
+
+    def _refill_grid(self, e) -> dict:
+        """A lattice of cells over the emitter's region, each holding PER_CELL particles at the target density."""
+        if e.shape == "box":
+            lo, hi = np.asarray(e.lo, dtype=float), np.asarray(e.hi, dtype=float)
+        else:
+            lo, hi = np.asarray(e.center) - e.size, np.asarray(e.center) + e.size
+        side = (self.PER_CELL / e.refill_density) ** (1.0 / self.dim)
+        counts = np.maximum(1, np.round((hi - lo) / side)).astype(int)
+        cell = (hi - lo) / counts
+        return {
+            "lo": ti.Vector(list(lo)),
+            "cell": ti.Vector(list(cell)),
+            "counts": ti.Vector(list(counts)),
+            "count": ti.field(ti.i32, shape=tuple(int(c) for c in counts)),
+            "target": int(round(e.refill_density * float(np.prod(cell)))),
+        }
+
+    def refill(self, t: float) -> int:
+        """Top up every refill emitter's region cell by cell to its target count; returns particles added."""
+        added = 0
+        for k in self.refills:
+            g = self.refill_grids[k]
+            n = int(self.p.n[None])
+            self._count_cells(g["count"], g["lo"], g["cell"])
+            self.reserved[None] = 0
+            self._top_up(k, g["count"], g["lo"], g["cell"], g["target"], n, self.serial[k], t)
+            made = min(int(self.reserved[None]), self.sim.capacity - n)
+            self.p.n[None] = n + made
+            self.serial[k] += int(self.reserved[None])
+            self.emitted[k] += made
+            added += made
+        if added and self.sim.neighbours is not None:
+            self.sim.neighbours.invalidate()
+        return added
+
+    @ti.func
+    def _cell_of(self, x, lo, cell, shape):
+        c = ti.Vector.zero(ti.i32, self.dim)
+        inside = True
+        for a in ti.static(range(self.dim)):
+            f = (x[a] - lo[a]) / cell[a]
+            if f < 0 or f >= shape[a]:
+                inside = False
+            c[a] = ti.cast(ti.floor(f), ti.i32)
+        return c, inside
+
+    @ti.kernel
+    def _count_cells(self, count: ti.template(), lo: ti.template(), cell: ti.template()):
+        for I in ti.grouped(count):
+            count[I] = 0
+        for i in range(self.p.n[None]):
+            c, inside = self._cell_of(self.p.x[i], lo, cell, count.shape)
+            if inside:
+                count[c] += 1
+
+    @ti.kernel
+    def _top_up(
+        self,
+        k: ti.i32,
+        count: ti.template(),
+        lo: ti.template(),
+        cell: ti.template(),
+        target: ti.i32,
+        first: ti.i32,
+        serial0: ti.i32,
+        t: float,
+    ):
+        for I in ti.grouped(count):
+            centre = lo + (ti.cast(I, float) + 0.5) * cell
+            within = True
+            if self.shape[k] == 2 or self.shape[k] == 3:  # disk, sphere: cells whose centre is inside
+                within = (centre - self.center[k]).norm() <= self.size[k]
+            deficit = target - count[I]
+            if within and deficit > 0:
+                start = ti.atomic_add(self.reserved[None], deficit)
+                for m in range(deficit):
+                    slot = start + m
+                    i = first + slot
+                    if i < self.sim.capacity:
+                        serial = serial0 + slot
+                        u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
+                        self._init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t)
 
     def _emit(self, k: int, count: int, t: float) -> None:
         n = int(self.p.n[None])
@@ -232,33 +323,35 @@ class Emitters:
 
     @ti.kernel
     def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float):
-        p = self.p
         for e in range(count):
-            i = first + e
             serial = serial0 + e
-            pos = self.sample_position(k, serial)
-            p.x[i] = pos
-            p.v[i] = self.sample_velocity(k, serial, pos, t)
-            p.f[i] = ti.Vector.zero(float, self.dim)
-            p.mass[i] = self.mass[k]
-            p.radius[i] = self.radius[k]
-            mat = self.material[k]
-            p.material[i] = mat
-            p.color[i] = self.sim.materials.color_field[mat]
-            p.group[i] = self.first_group + k
-            mortal = 0
-            if ti.static(self.sim.has_lifetimes):
-                p.age[i] = 0.0
-                spread = 1.0 + self.lifetime_spread[k] * (2.0 * self._u(k, serial, 40) - 1.0)
-                p.lifetime[i] = self.lifetime[k] * spread
-                mortal = 1 if p.lifetime[i] > 0 else 0
-            if ti.static(self.sim.has_heat):
-                h = self.sim.phase.enthalpy(self.temperature[k], mat)
-                p.h[i] = h
-                p.T[i] = self.temperature[k]
-                p.dhdt[i] = 0.0
-                if ti.static(self.sim.can_refreeze):
-                    p.liquid[i] = NEVER_BONDS if mortal else 1
+            self._init_particle(k, first + e, serial, self.sample_position(k, serial), t)
+
+    @ti.func
+    def _init_particle(self, k, i, serial, pos, t):
+        """Every attribute of new particle i from emitter k, born at pos."""
+        p = self.p
+        p.x[i] = pos
+        p.v[i] = self.sample_velocity(k, serial, pos, t)
+        p.f[i] = ti.Vector.zero(float, self.dim)
+        p.mass[i] = self.mass[k]
+        p.radius[i] = self.radius[k]
+        mat = self.material[k]
+        p.material[i] = mat
+        p.color[i] = self.sim.materials.color_field[mat]
+        p.group[i] = self.first_group + k
+        mortal = 0
+        if ti.static(self.sim.has_lifetimes):
+            p.age[i] = 0.0
+            spread = 1.0 + self.lifetime_spread[k] * (2.0 * self._u(k, serial, 40) - 1.0)
+            p.lifetime[i] = self.lifetime[k] * spread
+            mortal = 1 if p.lifetime[i] > 0 else 0
+        if ti.static(self.sim.has_heat):
+            p.h[i] = self.sim.phase.enthalpy(self.temperature[k], mat)
+            p.T[i] = self.temperature[k]
+            p.dhdt[i] = 0.0
+            if ti.static(self.sim.can_refreeze):
+                p.liquid[i] = NEVER_BONDS if mortal else 1
 
     # ------------------------------------------------------------------ retirement
     def retire(self) -> int:
