@@ -202,9 +202,10 @@ class Emitter:
     material: str = spec(doc="material of the emitted particles")
     shape: str = spec(
         "point",
-        doc="point, box, disk (2D) or sphere (3D): where particles appear",
-        check=one_of("point", "box", "disk", "sphere"),
+        doc="point, box, disk (2D), sphere (3D) or mask (2D, a PNG over lo..hi): where particles appear",
+        check=one_of("point", "box", "disk", "sphere", "mask"),
     )
+    mask: str = spec("", doc="mask: PNG file (inside the scene's folder or assets/); opaque/bright pixels are inside")
     surface: bool = spec(False, doc="box/disk/sphere: seed on the boundary (uniform by length/area), not inside")
     center: tuple[float, ...] = spec((), doc="point/disk/sphere: centre")
     lo: tuple[float, ...] = spec((), doc="box: lower corner")
@@ -236,6 +237,7 @@ class Emitter:
     )
     temperature: float | None = spec(None, doc="temperature (default: the ambient)")
     particle_radius: float = spec(0.5, doc="radius of each particle (length); mass = density (2 r)^dim", check=positive)
+    color: tuple[float, ...] = spec((), doc="colour [r, g, b] of the particles (default: the material's)")
     lifetime: float = spec(0.0, doc="seconds each particle lives (0: for ever)", check=non_negative)
     lifetime_spread: float = spec(0.0, doc="lifetime varies uniformly by this fraction", check=unit_interval)
     fade: bool = spec(True, doc="colour fades to black over the lifetime (additive: to nothing)")
@@ -459,7 +461,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
             )
     if not raw.bodies and not raw.emitters:
         raise SceneError(file, "bodies", "expected at least one [[bodies]] or [[emitters]] table")
-    emitters = [_check_emitter(file, f"emitters[{i}]", e, i, dim, materials) for i, e in enumerate(raw.emitters)]
+    emitters = [_check_emitter(file, f"emitters[{i}]", e, i, dim, materials, path) for i, e in enumerate(raw.emitters)]
     for i, element in enumerate(raw.fields):
         _check_field(file, f"fields[{i}]", element, dim)
     if raw.smoke is not None:
@@ -553,13 +555,19 @@ def _check_field(file: str, key: str, element: FieldElement, dim: int) -> None:
             raise SceneError(file, f"{key}.axis", "expected a non-zero direction")
 
 
-def _check_emitter(file: str, key: str, e: Emitter, index: int, dim: int, materials: dict) -> Emitter:
+def _check_emitter(file: str, key: str, e: Emitter, index: int, dim: int, materials: dict, path: Path) -> Emitter:
     if e.material not in materials:
         raise SceneError(
             file, f"{key}.material", f"unknown material {e.material!r}; expected one of: {', '.join(sorted(materials))}"
         )
     changes: dict[str, Any] = {"name": e.name or f"emitter{index}"}
-    if e.shape == "box":
+    if e.color and (len(e.color) != 3 or not all(0 <= c <= 1 for c in e.color)):
+        raise SceneError(file, f"{key}.color", f"expected [r, g, b] with each in [0, 1], got {list(e.color)}")
+    if e.shape == "mask":
+        if dim != 2:
+            raise SceneError(file, f"{key}.shape", "a PNG mask shapes 2D emitters only")
+        changes["mask"] = str(resolve_data_file(file, f"{key}.mask", e.mask, path))
+    if e.shape in ("box", "mask"):
         _check_vec(file, f"{key}.lo", e.lo, dim)
         _check_vec(file, f"{key}.hi", e.hi, dim)
         if any(h <= l for l, h in zip(e.lo, e.hi)):
@@ -582,7 +590,7 @@ def _check_emitter(file: str, key: str, e: Emitter, index: int, dim: int, materi
         raise SceneError(file, f"{key}.draw", "'sphere' is a 3D drawing; expected splat or dot in 2D")
     if e.blend != "opaque" and e.draw == "sphere":
         raise SceneError(file, f"{key}.blend", 'shaded spheres are opaque; use draw = "splat" for alpha or additive')
-    if e.refill_density and (e.shape == "point" or e.surface):
+    if e.refill_density and (e.shape in ("point", "mask") or e.surface):
         raise SceneError(file, f"{key}.refill_density", "refilling needs a region: a box, disk or sphere, not surface")
     if e.bursts and e.burst_count == 0:
         raise SceneError(file, f"{key}.burst_count", "expected a count > 0 with bursts")

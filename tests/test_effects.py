@@ -310,3 +310,37 @@ def test_refill_tops_up_each_cell_to_the_target_density_and_no_more():
     inside = (x[:, 0] >= 10) & (x[:, 0] < 30) & (x[:, 1] >= 10) & (x[:, 1] < 20)
     cells = ((x[inside, 0] - 10) // 2).astype(int) * 5 + ((x[inside, 1] - 10) // 2).astype(int)
     assert np.all(np.bincount(cells, minlength=50) >= 4)
+
+
+def test_mask_seeding_is_uniform_over_the_masked_area_and_colour_is_the_emitters():
+    from sandbox.build import load_mask
+
+    from .conftest import ROOT
+
+    image = load_mask(str(ROOT / "assets" / "masks" / "heart.png"))  # (W, H) bool
+    emitter = {
+        "shape": "mask",
+        "mask": "masks/heart.png",
+        "lo": [4, 4],
+        "hi": [36, 36],
+        "count": 4000,
+        "color": [0.2, 0.9, 0.4],
+        "particle_radius": 0.05,
+    }
+    sim = Simulation(make_scene(emitter_scene(2, [{"material": "jelly", **emitter}])))
+    x = sim.positions()
+    w, h = image.shape
+    px = ((x[:, 0] - 4) / 32 * w).astype(int)
+    py = ((x[:, 1] - 4) / 32 * h).astype(int)
+    assert np.all(image[px, py])  # every particle on an inside pixel
+    # counts in a 4 x 4 grid of blocks against each block's share of the inside pixels
+    block = (px * 4 // w) * 4 + (py * 4 // h)
+    share = np.array(
+        [image[i * w // 4 : (i + 1) * w // 4, j * h // 4 : (j + 1) * h // 4].sum() for i in range(4) for j in range(4)],
+        dtype=float,
+    )
+    used = share > 0
+    expected = share[used] / share.sum() * len(x)
+    counts = np.bincount(block, minlength=16)[used]
+    assert ((counts - expected) ** 2 / expected).sum() < 40  # p = 0.001 for up to 15 degrees of freedom: 37.7
+    assert np.allclose(sim.particles.color.to_numpy()[0], [0.2, 0.9, 0.4])

@@ -19,10 +19,12 @@ import warnings
 import numpy as np
 import taichi as ti
 
+from ..errors import SceneError
 from .fields import random_uniform
 
 NEVER_BONDS = 3  # liquid-flag value of mortal emitted particles: refreezing never bonds them (physics/phase.py)
-SHAPES = ("point", "box", "disk", "sphere")
+SHAPES = ("point", "box", "disk", "sphere", "mask")
+MASK = SHAPES.index("mask")
 
 
 @ti.data_oriented
@@ -58,12 +60,17 @@ class Emitters:
         self.lifetime = ti.field(float, shape=n)
         self.lifetime_spread = ti.field(float, shape=n)
         self.seed = ti.field(ti.u32, shape=n)
+        self.color = ti.Vector.field(3, ti.f32, shape=n)
+        self.mask_start = ti.field(ti.i32, shape=n)  # mask emitters: their pixels' range in mask_pixels
+        self.mask_count = ti.field(ti.i32, shape=n)
+        self.pixel_size = ti.Vector.field(dim, float, shape=n)
+        self.mask_pixels = self._mask_pixels(emitters)  # (x, y) of inside (or boundary) pixels, all mask emitters
         ambient = sim.scene.heat.ambient if sim.scene.heat else 20.0
         for k, e in enumerate(self.specs):
             mat = sim.scene.materials[e.material]
             self.shape[k] = SHAPES.index(e.shape)
             self.surface[k] = int(e.surface)
-            if e.shape == "box":
+            if e.shape in ("box", "mask"):
                 self.lo[k], self.hi[k] = list(e.lo), list(e.hi)
                 self.center[k] = list(0.5 * (np.asarray(e.lo) + np.asarray(e.hi)))
             else:
@@ -83,6 +90,7 @@ class Emitters:
             self.lifetime[k] = e.lifetime
             self.lifetime_spread[k] = e.lifetime_spread
             self.seed[k] = e.seed * 7919 + k
+            self.color[k] = list(e.color) if e.color else list(mat.color)
         self.serial = [0] * self.count  # particles emitted so far, per emitter (the random-number index)
         self.carry = [0.0] * self.count  # fractional particles owed by the rate
         self.emitted = [0] * self.count
@@ -98,6 +106,34 @@ class Emitters:
         self.reserved = ti.field(ti.i32, shape=())  # refill: slots taken by the last pass
         self.listeners = []  # callables(hole, filler, count): told after particles moved
         self.state_fields = [getattr(self.p, name) for name in self.p.names()]  # what moves with a particle
+
+    def _mask_pixels(self, emitters: list):
+        """Upload every mask emitter's pixels (inside ones, or for `surface` the inside ones with an outside
+        4-neighbour) into one (P, 2) int field; each pixel is equally likely, so seeding is uniform by area (by length
+        along the boundary, to within a pixel)."""
+        from ..build import load_mask
+
+        chunks = []
+        start = 0
+        for k, e in enumerate(emitters):
+            if e.shape != "mask":
+                continue
+            image = load_mask(e.mask)
+            if e.surface:
+                padded = np.pad(image, 1)
+                outside_near = ~padded[:-2, 1:-1] | ~padded[2:, 1:-1] | ~padded[1:-1, :-2] | ~padded[1:-1, 2:]
+                image = image & outside_near
+            pixels = np.argwhere(image).astype(np.int32)
+            if len(pixels) == 0:
+                raise SceneError(str(e.mask), "", f"emitter {e.name!r}: the mask has no inside pixels")
+            chunks.append(pixels)
+            self.mask_start[k], self.mask_count[k] = start, len(pixels)
+            self.pixel_size[k] = list((np.asarray(e.hi) - np.asarray(e.lo)) / np.asarray(image.shape))
+            start += len(pixels)
+        table = np.concatenate(chunks) if chunks else np.zeros((1, 2), dtype=np.int32)
+        field = ti.Vector.field(2, ti.i32, shape=len(table))
+        field.from_numpy(table)
+        return field
 
     # ------------------------------------------------------------------ emission (host decides counts)
     def emit_initial(self) -> None:
@@ -255,6 +291,12 @@ class Emitters:
             pos = lo + u * ext
             if self.surface[k]:
                 pos = self._box_surface(k, serial, lo, ext, u)
+        elif shape == MASK:  # a random inside (or boundary) pixel, then a random point in it (masks are 2D)
+            if ti.static(self.dim == 2):
+                pick = ti.min(ti.cast(self._u(k, serial, 10) * self.mask_count[k], ti.i32), self.mask_count[k] - 1)
+                pixel = self.mask_pixels[self.mask_start[k] + pick]
+                for a in ti.static(range(2)):
+                    pos[a] = self.lo[k][a] + (pixel[a] + self._u(k, serial, 11 + a)) * self.pixel_size[k][a]
         elif shape == 2 or shape == 3:  # disk, sphere
             direction = self._unit_vector(k, serial, 10)
             r = self.size[k]
@@ -338,7 +380,7 @@ class Emitters:
         p.radius[i] = self.radius[k]
         mat = self.material[k]
         p.material[i] = mat
-        p.color[i] = self.sim.materials.color_field[mat]
+        p.color[i] = self.color[k]
         p.group[i] = self.first_group + k
         mortal = 0
         if ti.static(self.sim.has_lifetimes):
