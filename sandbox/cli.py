@@ -158,7 +158,19 @@ def cmd_list(args) -> int:
 
 def cmd_keys(args) -> int:
     from .materials import Material
-    from .scene import Body, Heat, HeatSource, PairForce, Render, SceneInfo, World
+    from .scene import (
+        Body,
+        Emitter,
+        FieldElement,
+        Heat,
+        HeatSource,
+        PairForce,
+        Render,
+        SceneInfo,
+        Smoke,
+        SmokeSource,
+        World,
+    )
     from .schema import describe
 
     sections = [
@@ -168,13 +180,17 @@ def cmd_keys(args) -> int:
         ("heat", Heat),
         ("heat.sources[]", HeatSource),
         ("bodies[]", Body),
+        ("emitters[]", Emitter),
+        ("fields[]", FieldElement),
+        ("smoke", Smoke),
+        ("smoke.sources[]", SmokeSource),
         ("render", Render),
         ("materials.NAME", Material),
     ]
     for prefix, cls in sections:
         print(f"[{prefix}]")
         for key, default, doc in describe(cls):
-            if prefix == "heat" and key == "sources":
+            if prefix in ("heat", "smoke") and key.startswith("sources"):  # listed in their own section
                 continue
             print(f"  {key:22s} {default:24s} {doc}")
     return 0

@@ -173,6 +173,20 @@ class FieldElement:
 
 
 @dataclass(frozen=True, kw_only=True)
+class FieldCoupling:
+    """How a body's or an emitter's particles follow the velocity field ([[fields]] and [smoke])."""
+
+    field: str = spec(
+        "none",
+        doc="none, kinematic (carried by the velocity field) or drag (pulled towards it)",
+        check=one_of(*COUPLINGS),
+    )
+    field_drag: float = spec(
+        5.0, doc="field = drag: rate of relaxing towards the field velocity (1/time)", check=non_negative
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class SmokeSource:
     lo: tuple[float, ...] = spec(doc="lower corner of the region")
     hi: tuple[float, ...] = spec(doc="upper corner of the region")
@@ -197,7 +211,7 @@ class Smoke:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Emitter:
+class Emitter(FieldCoupling):
     name: str = spec("", doc="label (default emitter<N>)")
     material: str = spec(doc="material of the emitted particles")
     shape: str = spec(
@@ -246,18 +260,10 @@ class Emitter:
     draw: str = spec("splat", doc="splat, dot or sphere (3D)", check=one_of("splat", "dot", "sphere"))
     blend: str = spec("opaque", doc="opaque, alpha or additive", check=one_of("opaque", "alpha", "additive"))
     opacity: float = spec(1.0, doc="alpha of a translucent particle / brightness of an additive one", check=positive)
-    field: str = spec(
-        "none",
-        doc="none, kinematic (carried by the velocity field) or drag (pulled towards it)",
-        check=one_of(*COUPLINGS),
-    )
-    field_drag: float = spec(
-        5.0, doc="field = drag: rate of relaxing towards the field velocity (1/time)", check=non_negative
-    )
 
 
 @dataclass(frozen=True, kw_only=True)
-class Body:
+class Body(FieldCoupling):
     name: str = spec("", doc="label (default body<N>)")
     material: str = spec(doc="material name from the library or [materials]")
     shape: str = spec("box", doc="box, disk (2D), sphere (3D) or mask (2D, a PNG)", check=one_of(*SHAPES))
@@ -289,14 +295,6 @@ class Body:
         check=one_of("opaque", "alpha", "additive"),
     )
     opacity: float = spec(1.0, doc="alpha of a translucent body / brightness of an additive one", check=positive)
-    field: str = spec(
-        "none",
-        doc="none, kinematic (carried by the velocity field) or drag (pulled towards it)",
-        check=one_of(*COUPLINGS),
-    )
-    field_drag: float = spec(
-        5.0, doc="field = drag: rate of relaxing towards the field velocity (1/time)", check=non_negative
-    )
 
 
 @dataclass(frozen=True, kw_only=True)
