@@ -79,6 +79,40 @@ def test_good_scene_loads_with_defaults(scene_file):
         ),
         (GOOD + "\n[pair]\na = 4.0\nb = 2.0\n", "pair.b", "expected the repulsion exponent b above"),
         (GOOD.replace("dim = 2", 'dim = 2\nintegrator = "leapfrog"'), "world.integrator", "expected one of"),
+        # phase change
+        (
+            GOOD + '\n[materials.odd]\nbased_on = "wax"\nliquidus_temperature = 10.0\n',
+            "materials.odd.liquidus_temperature",
+            "expected a temperature >= melt_temperature",
+        ),
+        (
+            GOOD + "\n[heat]\n[[heat.sources]]\nlo = [0.0, 0.0]\nhi = [1.0, 1.0]\n",
+            "heat.sources[0].temperature",
+            "missing",
+        ),
+        (
+            GOOD + "\n[heat]\n[[heat.sources]]\nlo = [0.0, 0.0]\nhi = [1.0, 1.0]\ntemperature = 9.0\n"
+            "schedule_times = [0.0, 1.0]\nschedule_values = [1.0]\n",
+            "heat.sources[0].schedule_values",
+            "expected as many values as schedule_times",
+        ),
+        (GOOD + "\n[heat]\nrefreeze_radius = 4.0\n", "heat.refreeze_radius", "at most the neighbour reach"),
+        # effects
+        (GOOD + '\n[[emitters]]\nmaterial = "jelly"\nshape = "disk"\ncenter = [1.0, 1.0]\n', "emitters[0].size", "> 0"),
+        (
+            GOOD + '\n[[emitters]]\nmaterial = "jelly"\ncenter = [1.0, 1.0]\nbursts = [1.0]\n',
+            "emitters[0].burst_count",
+            "expected a count > 0",
+        ),
+        (
+            GOOD + '\n[[emitters]]\nmaterial = "jelly"\nshape = "mask"\nmask = "../x.png"\nlo = [0.0, 0.0]\n'
+            "hi = [1.0, 1.0]\n",
+            "emitters[0].mask",
+            "outside the scene's folder",
+        ),
+        (GOOD + '\n[[fields]]\nkind = "vortex"\n', "fields[0].center", "missing"),
+        (GOOD + '\n[[fields]]\nkind = "tornado"\n', "fields[0].kind", "expected one of"),
+        (GOOD + '\n[render]\nchart = ["temprature"]\n', "render.chart", "unknown series"),
     ],
 )
 def test_bad_scene_names_file_key_and_expectation(scene_file, text, key, expectation):
