@@ -15,7 +15,7 @@ SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 def _scene_path(name: str) -> Path:
     """A scene by path, or by name from the shipped scenes/ folder."""
     path = Path(name)
-    if path.exists() or path.suffix == ".toml":
+    if path.is_file() or path.suffix == ".toml":
         return path
     shipped = SCENES_DIR / f"{name}.toml"
     return shipped if shipped.exists() else path

@@ -45,6 +45,10 @@ CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
 class SceneInfo:
     name: str = spec("", doc="scene name (default: the file name)")
     description: str = spec("", doc="one paragraph shown by `sandbox list` and `sandbox check`")
+    palette: list[str] = spec(
+        doc="materials the window's spawn tool offers (m cycles them), besides those of the bodies and emitters",
+        factory=list,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -369,9 +373,13 @@ class Scene:
     def dim(self) -> int:
         return self.world.dim
 
+    palette: list[str] = field(default_factory=list)
+
     def used_materials(self) -> list[str]:
-        """Names of the materials the bodies and emitters use, in first-use order (material ids follow it)."""
-        return list(dict.fromkeys([b.material for b in self.bodies] + [e.material for e in self.emitters]))
+        """Names of the materials the bodies, emitters and palette use, in first-use order (material ids follow)."""
+        return list(
+            dict.fromkeys([b.material for b in self.bodies] + [e.material for e in self.emitters] + self.palette)
+        )
 
     @property
     def groups(self) -> list:
@@ -421,6 +429,8 @@ def load_scene(path: str | Path, overrides: list[str] | None = None) -> Scene:
         data = tomllib.loads(path.read_text())
     except FileNotFoundError as exc:
         raise SceneError(file, "", "no such scene file") from exc
+    except IsADirectoryError as exc:
+        raise SceneError(file, "", "is a folder; expected a scene file (.toml)") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SceneError(file, "", f"not valid TOML: {exc}") from exc
     for text in overrides or []:
@@ -457,8 +467,17 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
                 "heat.refreeze_radius",
                 f"expected at most the neighbour reach {reach:g} (heat.radius, pair.cutoff)",
             )
-    if not raw.bodies and not raw.emitters:
-        raise SceneError(file, "bodies", "expected at least one [[bodies]] or [[emitters]] table")
+    for i, name in enumerate(raw.scene.palette):
+        if name not in materials:
+            raise SceneError(
+                file,
+                f"scene.palette[{i}]",
+                f"unknown material {name!r}; expected one of: {', '.join(sorted(materials))}",
+            )
+    if not raw.bodies and not raw.emitters and not raw.scene.palette:
+        raise SceneError(
+            file, "bodies", "expected at least one [[bodies]] or [[emitters]] table, or a scene.palette to spawn from"
+        )
     emitters = [_check_emitter(file, f"emitters[{i}]", e, i, dim, materials, path) for i, e in enumerate(raw.emitters)]
     for i, element in enumerate(raw.fields):
         _check_field(file, f"fields[{i}]", element, dim)
@@ -495,8 +514,9 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         render=render,
         materials={
             name: materials[name]
-            for name in dict.fromkeys([b.material for b in bodies] + [e.material for e in emitters])
+            for name in dict.fromkeys([b.material for b in bodies] + [e.material for e in emitters] + raw.scene.palette)
         },
+        palette=list(raw.scene.palette),
         emitters=emitters,
         fields=list(raw.fields),
         smoke=raw.smoke,

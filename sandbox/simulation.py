@@ -115,8 +115,9 @@ class Simulation:
         couplings = [g.field if self.fields is not None else "none" for g in groups]
         self.has_kinematic = "kinematic" in couplings
         self.has_field_drag = "drag" in couplings
-        self.g_coupling = ti.field(ti.i32, shape=max(len(groups), 1))  # index into COUPLINGS, per group
-        self.g_drag = ti.field(float, shape=max(len(groups), 1))  # field = drag: relaxation rate (1/time)
+        # per group (every body, every emitter, then the spawn tool's particles):
+        self.g_coupling = ti.field(ti.i32, shape=len(groups) + 1)  # index into COUPLINGS
+        self.g_drag = ti.field(float, shape=len(groups) + 1)  # field = drag: relaxation rate (1/time)
         for k, g in enumerate(groups):
             self.g_coupling[k] = COUPLINGS.index(couplings[k])
             self.g_drag[k] = g.field_drag

@@ -159,7 +159,7 @@ class Tools:
             "radius": np.full(m, 0.5 * spacing),
             "material": np.full(m, mat_id),
             "color": np.tile(sim.materials.colors[mat_id], (m, 1)),
-            "group": np.full(m, 0),
+            "group": np.full(m, len(sim.scene.groups)),  # the spawn tool's own group, after bodies and emitters
         }
         if self.p.heat:
             t = np.full(m, ambient if temperature is None else temperature)

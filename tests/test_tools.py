@@ -95,3 +95,28 @@ def test_reset_restores_the_initial_state_exactly(melt):
         assert np.array_equal(np.asarray(value), np.asarray(after[key])), key
     sim.step(5)  # runs again after the reset
     assert np.isfinite(sim.stats().total_energy)
+
+
+def test_empty_sandbox_spawns_palette_materials_and_cold_wax_freezes_into_one_solid():
+    from sandbox.cli import _scene_path
+    from sandbox.render.window import make_state
+
+    path = _scene_path("sandbox")  # a shipped scene, not the package folder of the same name
+    assert path == SCENES / "sandbox.toml"
+    sim = Simulation(load_scene(path))
+    assert sim.particles.n[None] == 0 and sim.material_names == ["wax", "ice", "jelly"]
+    state = make_state(sim, None)
+    assert state.material == "wax"
+    state.handle_key("m")
+    assert state.material == "ice"
+    tools = Tools(sim)
+    made = tools.spawn("wax", [64.0, 20.0], 4.0)
+    assert made > 40 and sim.particles.n[None] == made
+    assert set(sim.particles.group.to_numpy()[:made]) == {len(sim.scene.groups)}  # the spawn tool's own group
+    sim.step(20)  # two refreezing passes: cold (20 C) wax bonds into a solid
+    alive = sim.springs.alive.to_numpy().astype(bool)
+    i, j = sim.springs.i.to_numpy()[alive], sim.springs.j.to_numpy()[alive]
+    assert len(i) > 2 * made  # about four bonds per particle
+    assert np.all(np.bincount(np.concatenate([i, j]), minlength=made)[:made] > 0)
+    with pytest.raises(SandboxError, match="not in this scene"):
+        tools.spawn("lava", [64.0, 40.0], 2.0)

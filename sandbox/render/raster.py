@@ -47,8 +47,8 @@ class Renderer:
         self.cfg = render_cfg
         self.width, self.height = width, height
         self.dim = sim.dim
-        bodies = sim.scene.groups  # every body, then every emitter
-        self.n_groups = len(bodies)
+        bodies = sim.scene.groups  # every body, then every emitter, then (last) the spawn tool's particles
+        self.n_groups = len(bodies) + 1
         self.g_draw = ti.field(ti.i32, shape=self.n_groups)
         self.g_blend = ti.field(ti.i32, shape=self.n_groups)
         self.g_opacity = ti.field(ti.f32, shape=self.n_groups)
@@ -61,7 +61,10 @@ class Renderer:
             self.g_draw[k] = DRAW[body.draw]
             self.g_blend[k] = BLEND[body.blend]
             self.g_opacity[k] = body.opacity
-        blends = {b.blend for b in bodies}
+        self.g_draw[len(bodies)] = DRAW["splat" if self.dim == 2 else "sphere"]
+        self.g_blend[len(bodies)] = BLEND["opaque"]
+        self.g_opacity[len(bodies)] = 1.0
+        blends = {b.blend for b in bodies} | ({"opaque"} if sim.scene.palette else set())
         self.has_opaque, self.has_alpha, self.has_additive = (
             "opaque" in blends,
             "alpha" in blends,

@@ -2,8 +2,9 @@
 
 Keys (also listed by the help overlay, h or F1): space pause/resume, s single step, r reset, 1-8 choose a tool
 (heat, cool, drag, attract, repel, impulse, erase, spawn), [ and ] brush radius, + and - substeps per frame,
-g gravity on/off, i next integrator, p screenshot, q or Esc quit. The left mouse button applies the tool at the
-cursor (2D scenes). The side panel shows only the controls the scene uses (no heat tools without heat).
+g gravity on/off, i next integrator, m next spawn material, p screenshot, q or Esc quit. The left mouse button
+applies the tool at the cursor (2D scenes). The side panel shows only the controls the scene uses (no heat tools
+without heat).
 Everything the keys do goes through WindowState.handle_key, which needs no screen, so it is tested directly.
 """
 
@@ -32,6 +33,7 @@ HELP = [
     "g      gravity on / off",
     "i      next integrator",
     "p      screenshot",
+    "m      next material for the spawn tool",
     "h, F1  this help",
     "q, Esc quit",
     "left mouse: apply the tool at the cursor",
@@ -62,11 +64,15 @@ class WindowState:
     show_help: bool = False
     gravity_on: bool = True
     screenshot: bool = False
+    materials: list[str] = field(default_factory=list)  # what the spawn tool can make
+    material: str = ""
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
         if not self.tool and self.tools_available:
             self.tool = self.tools_available[0]
+        if not self.material and self.materials:
+            self.material = self.materials[0]
 
     def handle_key(self, key: str) -> None:
         """Apply one key press (GGUI key names: single characters, 'Escape', ' ', 'F1')."""
@@ -100,6 +106,8 @@ class WindowState:
             self.show_help = not self.show_help
         elif key == "p":
             self.screenshot = True
+        elif key == "m" and self.materials:
+            self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
 
 
 def tools_for(sim) -> list[str]:
@@ -112,7 +120,7 @@ def tools_for(sim) -> list[str]:
 def make_state(sim, substeps: int | None) -> WindowState:
     world = sim.scene.world
     fixed = substeps or (world.substeps if world.substeps != "auto" else 8)
-    return WindowState(tools_for(sim), list(REGISTRY), sim.integrator.name, int(fixed))
+    return WindowState(tools_for(sim), list(REGISTRY), sim.integrator.name, int(fixed), materials=sim.material_names)
 
 
 def run_window(
@@ -153,7 +161,7 @@ def run_window(
             pos = (np.array([u * cfg.width, v * cfg.height]) - np.asarray(renderer.offset.to_list())) / (
                 renderer.px_per_unit
             )
-            tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps)
+            tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps, material=state.material or None)
         renderer.begin_frame()
         if not state.paused:
             sim.advance_frame(state.substeps)
@@ -196,7 +204,7 @@ def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
         gui.text(f"energy: kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
         gui.text(f"integrator {state.integrator}   substeps {state.substeps}")
         if state.tools_available:
-            gui.text(f"tool: {state.tool}   radius {state.radius:.1f}")
+            gui.text(f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")
             for name in state.tools_available:
                 if gui.button(name):
                     state.tool = name
