@@ -58,7 +58,7 @@ def cmd_run(args) -> int:
         from .render.window import run_window
 
         try:
-            run_window(sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps)
+            run_window(sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record)
             return 0
         except SandboxError as exc:
             print(f"{exc}: running headless", file=sys.stderr)
@@ -255,6 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--fps", type=float)
     run.add_argument("--still-frame", type=int, help="with a .png output: which frame to keep (default: last)")
     run.add_argument("--screenshot", help="window: save the last frame here (with --frames)")
+    run.add_argument("--record", help="window: record what it shows to this MP4 from the start (v toggles too)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=cmd_run)
 

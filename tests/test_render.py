@@ -198,3 +198,20 @@ def test_chart_plots_each_series_across_its_box(dim):
     assert drawn(red, x0 + 1 + (w - 3) // 2, (h - 3) / 2)  # and the temperature is half way at half time
     assert img[y0 + 5, x0 + 5].max() < 0.35 * 255  # behind the lines the picture is dimmed
     assert img[y0 + h + 20, x0 + w + 20].min() > 100  # outside the box it is not
+
+
+def test_the_chart_can_be_switched_and_removed_live():
+    from types import SimpleNamespace
+
+    sim = Simulation(make_scene(scene_dict()))
+    ren = Renderer(sim, 320, 180, sim.scene.render)
+    plain = ren.frame().copy()
+    ren.set_chart(("kinetic_energy", "total_energy"))  # the window's energy plot (key e)
+    for k in range(5):
+        ren.record(SimpleNamespace(kinetic_energy=float(k), total_energy=10.0 - k))
+    with_chart = ren.frame()
+    changed = np.abs(with_chart.astype(int) - plain.astype(int)).sum(axis=2) > 0
+    ys, xs = np.nonzero(changed)
+    assert changed.sum() > 100 and xs.max() < 320 // 4 + 40 and ys.max() < 180 // 5 + 40  # top-left corner only
+    ren.set_chart(())
+    assert np.array_equal(ren.frame(), plain)

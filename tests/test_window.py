@@ -45,6 +45,11 @@ def test_keys_drive_the_state():
         assert getattr(s, attr)
     s.handle_key("g")
     assert not s.gravity_on
+    for key, attr in (("v", "recording"), ("e", "energy_plot")):
+        s.handle_key(key)
+        assert getattr(s, attr)
+        s.handle_key(key)
+        assert not getattr(s, attr)
 
 
 def test_panel_offers_only_what_the_scene_uses():
@@ -60,7 +65,8 @@ from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
 from sandbox.render.window import run_window
 sim = Simulation(load_scene(sys.argv[1]))
-print("frames", run_window(sim, frames=3, screenshot=sys.argv[2], show=False))
+record = sys.argv[3] if len(sys.argv) > 3 else None
+print("frames", run_window(sim, frames=3, screenshot=sys.argv[2], show=False, record=record))
 """
 
 
@@ -90,3 +96,35 @@ def test_window_frame_matches_the_headless_renderer(tmp_path):
     ref = ren.frame()
     diff = np.abs(img[..., :3].astype(int) - ref.astype(int)).sum(axis=2)
     assert (diff > 40).mean() < 0.02  # all but the cursor disc and rounding agree
+
+
+def test_window_records_what_it_shows_to_mp4(tmp_path):
+    pytest.importorskip("imageio_ffmpeg")
+    import imageio_ffmpeg
+
+    video = tmp_path / "rec.mp4"
+    proc = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(SCENES / "spring_lattice.toml"), str(tmp_path / "w.png"), str(video)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=600,
+    )
+    if "Vulkan must be available" in proc.stdout + proc.stderr:
+        pytest.skip("no Vulkan driver: apt-get install mesa-vulkan-drivers libvulkan1 (.ci/run does)")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert f"saved {video} (3 frames)" in proc.stdout
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(video))
+    assert frames == 3
+
+
+def test_thermometers_read_each_body():
+    from sandbox.render.window import thermometers
+
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"]))
+    assert thermometers(sim) == [("block", pytest.approx(20.0))]
+    t = sim.temperatures()
+    t[: len(t) // 2] = 60.0
+    sim.set_temperatures(t)
+    ((name, mean),) = thermometers(sim)
+    assert name == "block" and mean == pytest.approx(float(t.mean()), rel=1e-6)

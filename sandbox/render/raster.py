@@ -256,6 +256,16 @@ class Renderer:
     def frame(self) -> np.ndarray:
         """Render and return the picture as an (H, W, 3) uint8 array, top row first (legend drawn on the host)."""
         self.render()
+        return self.picture()
+
+    def set_chart(self, series: tuple[str, ...]) -> None:
+        """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh."""
+        from .chart import Chart
+
+        self.chart = Chart(self.image, self.packed, self.width, self.height, tuple(series)) if series else None
+
+    def picture(self) -> np.ndarray:
+        """The last rendered picture as an (H, W, 3) uint8 array (what frame() returns, without drawing again)."""
         if self.dim == 3:
             self._pack()
         img = self.packed.to_numpy().view(np.uint8).reshape(self.height, self.width, 4)[:, :, :3]

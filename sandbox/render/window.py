@@ -34,6 +34,8 @@ HELP = [
     "i      next integrator",
     "p      screenshot",
     "m      next material for the spawn tool",
+    "v      start / stop recording an MP4 (out/SCENE_N.mp4)",
+    "e      live energy plot on / off",
     "h, F1  this help",
     "q, Esc quit",
     "left mouse: apply the tool at the cursor",
@@ -66,6 +68,9 @@ class WindowState:
     screenshot: bool = False
     materials: list[str] = field(default_factory=list)  # what the spawn tool can make
     material: str = ""
+    recording: bool = False  # v: writing the window's frames to an MP4
+    energy_plot: bool = False  # e: a live plot of kinetic, potential and total energy
+    gravity_angle: float = 0.0  # degrees from straight down (2D), set by the panel's slider
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
@@ -106,6 +111,10 @@ class WindowState:
             self.show_help = not self.show_help
         elif key == "p":
             self.screenshot = True
+        elif key == "v":
+            self.recording = not self.recording
+        elif key == "e":
+            self.energy_plot = not self.energy_plot
         elif key == "m" and self.materials:
             self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
 
@@ -124,9 +133,15 @@ def make_state(sim, substeps: int | None) -> WindowState:
 
 
 def run_window(
-    sim, frames: int | None = None, screenshot: str | None = None, substeps: int | None = None, show: bool = True
+    sim,
+    frames: int | None = None,
+    screenshot: str | None = None,
+    substeps: int | None = None,
+    show: bool = True,
+    record: str | None = None,
 ) -> int:
-    """Show the simulation in a GGUI window until closed (or for `frames` frames); returns frames shown.
+    """Show the simulation in a GGUI window until closed (or for `frames` frames); returns frames shown. `record`:
+    write the frames to this video from the start (the v key starts and stops recordings to out/SCENE_N.mp4).
 
     Raises SandboxError with one line when no window can be opened (e.g. no Vulkan driver).
     """
@@ -141,7 +156,11 @@ def run_window(
     gui = window.get_gui()
     tools = Tools(sim)
     state = make_state(sim, substeps)
+    state.recording = record is not None
+    recorder = Recorder(sim.scene.name, cfg.width, cfg.height, cfg.fps, record)
+    chart_series = tuple(cfg.chart)
     gravity = np.asarray(sim.scene.world.gravity, dtype=float)
+    g_norm = float(np.linalg.norm(gravity))
     cursor = ti.Vector.field(2, ti.f32, shape=1)
     shown, fps, last = 0, 0.0, time.perf_counter()
     while window.running:
@@ -155,7 +174,15 @@ def run_window(
             state.reset = False
         if state.integrator != sim.integrator.name:
             sim.set_integrator(state.integrator)
-        sim.gravity[None] = gravity if state.gravity_on else 0 * gravity
+        if sim.dim == 2 and g_norm > 0 and state.gravity_angle:  # the panel's slider turns gravity
+            a = np.radians(state.gravity_angle)
+            sim.gravity[None] = g_norm * np.array([np.sin(a), -np.cos(a)]) * state.gravity_on
+        else:
+            sim.gravity[None] = gravity if state.gravity_on else 0 * gravity
+        wanted = ENERGY_SERIES if state.energy_plot else tuple(cfg.chart)
+        if wanted != chart_series:
+            renderer.set_chart(wanted)
+            chart_series = wanted
         u, v = window.get_cursor_pos() if show else (0.5, 0.5)
         if show and state.tool and window.is_pressed(ti.ui.LMB) and sim.dim == 2:
             pos = (np.array([u * cfg.width, v * cfg.height]) - np.asarray(renderer.offset.to_list())) / (
@@ -172,6 +199,9 @@ def run_window(
         renderer.record(stats)
         renderer.render()
         canvas.set_image(renderer.image)
+        message = recorder.update(state.recording, renderer)
+        if message:
+            state.log.append(message)
         if state.tool and sim.dim == 2:
             cursor[0] = [u, v]
             canvas.circles(cursor, radius=state.radius * renderer.px_per_unit / cfg.width, color=(0.9, 0.9, 0.9))
@@ -188,12 +218,61 @@ def run_window(
             window.show()
         if done:
             break
+    message = recorder.update(False, renderer)
+    if message:
+        print(message)
     window.destroy()
     return shown
 
 
+ENERGY_SERIES = ("kinetic_energy", "potential_energy", "total_energy")
+
+
+class Recorder:
+    """Starts, feeds and stops MP4 recordings of the window's pictures through the headless video writer."""
+
+    def __init__(self, scene_name: str, width: int, height: int, fps: float, first_path: str | None = None):
+        self.scene_name, self.size, self.fps = scene_name, (width, height), fps
+        self.next_path = first_path
+        self.writer = None
+        self.count = 0
+
+    def update(self, recording: bool, renderer) -> str:
+        """Called once per frame after rendering; returns a message when a recording starts or stops."""
+        from .video import open_writer
+
+        message = ""
+        if recording and self.writer is None:
+            self.count += 1
+            path = self.next_path or f"out/{self.scene_name}_{self.count}.mp4"
+            self.next_path = None
+            self.writer = open_writer(path, *self.size, self.fps)
+            self.path = path
+            message = f"recording {path}"
+        if self.writer is not None and recording:
+            self.writer.write(renderer.picture())
+        if self.writer is not None and not recording:
+            self.writer.close()
+            message = f"saved {self.path} ({self.writer.frames_written} frames)"
+            self.writer = None
+        return message
+
+
+def thermometers(sim) -> list[tuple[str, float]]:
+    """(name, mean temperature) of each body and emitter that has particles now, for the panel's readout."""
+    if sim.heat is None:
+        return []
+    n = int(sim.particles.n[None])
+    groups = sim.particles.group.to_numpy()[:n]
+    temps = sim.particles.T.to_numpy()[:n]
+    names = [g.name for g in sim.scene.groups] + ["spawned"]
+    sums = np.bincount(groups, weights=temps, minlength=len(names))
+    counts = np.bincount(groups, minlength=len(names))
+    return [(names[k], float(sums[k] / counts[k])) for k in range(len(names)) if counts[k]]
+
+
 def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
-    with gui.sub_window("sandbox", 0.0, 0.0, 0.26, 0.42):
+    with gui.sub_window("sandbox", 0.0, 0.0, 0.28, 0.6):
         gui.text(f"t = {stats.time:.2f} s   {fps:.0f} fps   {'paused' if state.paused else ''}")
         gui.text(
             f"particles {stats.particles}"
@@ -201,6 +280,9 @@ def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
         )
         if sim.heat is not None:
             gui.text(f"mean T {stats.mean_temperature:.1f} C   molten {100 * stats.molten_fraction:.0f}%")
+            for name, temperature in thermometers(sim)[:6]:
+                gui.text(f"  {name}: {temperature:.1f} C")
+            sim.heat.ambient[None] = gui.slider_float("ambient C", float(sim.heat.ambient[None]), -50.0, 300.0)
         gui.text(f"energy: kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
         gui.text(f"integrator {state.integrator}   substeps {state.substeps}")
         if state.tools_available:
@@ -210,6 +292,10 @@ def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
                     state.tool = name
             state.radius = gui.slider_float("radius", state.radius, 0.5, 30.0)
         state.paused = gui.checkbox("paused", state.paused)
+        state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
+        state.recording = gui.checkbox("record MP4 (v)", state.recording)
+        if sim.dim == 2 and any(sim.scene.world.gravity):
+            state.gravity_angle = gui.slider_float("gravity angle", state.gravity_angle, -180.0, 180.0)
         if state.log:
             gui.text(state.log[-1])
     if state.show_help:
