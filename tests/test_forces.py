@@ -212,3 +212,19 @@ def test_a_crowd_past_the_list_memory_cap_falls_back_to_the_grid_and_stays_finit
     sim.step(20)
     s = sim.stats()
     assert np.isfinite(s.total_energy) and np.all(np.isfinite(sim.positions()))
+
+
+def test_live_pair_scaling_moves_the_equilibrium_and_the_curve_shows_it():
+    sim = two_particles(pair={"a": 8.0, "b": 14.0, "cutoff": 2.5}, springs=False, material="lj", precision="f64")
+    sim.pair.set_scale(2.0, 2.0)  # both doubled: the same law, twice as strong
+    r = 1.3
+    f = place(sim, [[10.0, 10.0], [10.0 + r, 10.0]])
+    assert f[0][0] == pytest.approx(-2 * 24 * (2 * r**-13 - r**-7), rel=1e-5)  # (place() rounds to f32)
+    sim.pair.set_scale(2.0, 1.0)  # attraction doubled: r_eq = (beta / alpha)^(1/6) shrinks by 2^(-1/6)
+    r_eq = 2 ** (1 / 6) * 2 ** (-1 / 6)
+    assert sim.pair.r_eq_np[0, 0] == pytest.approx(r_eq, rel=1e-9)
+    assert abs(place(sim, [[10.0, 10.0], [10.0 + r_eq, 10.0]])[0][0]) < 1e-4
+    r_curve, force = sim.pair.curve()
+    crossing = r_curve[np.argmax(force > 0)]  # repulsive (negative) inside, attractive outside
+    assert abs(crossing - r_eq) < (r_curve[1] - r_curve[0]) * 1.01
+    assert np.all(np.diff(force[r_curve < sim.pair.r_core_np[0, 0]]) == 0)  # held below the core

@@ -215,3 +215,23 @@ def test_the_chart_can_be_switched_and_removed_live():
     assert changed.sum() > 100 and xs.max() < 320 // 4 + 40 and ys.max() < 180 // 5 + 40  # top-left corner only
     ren.set_chart(())
     assert np.array_equal(ren.frame(), plain)
+
+
+def test_potential_panel_draws_the_force_curve_top_right():
+    sim = Simulation(
+        make_scene(
+            scene_dict(
+                pair={"a": 8.0, "b": 14.0},
+                bodies=[{"material": "lj", "shape": "box", "lo": [5.0, 5.0], "hi": [8.0, 8.0], "springs": False}],
+            )
+        )
+    )
+    ren = Renderer(sim, 320, 180, sim.scene.render)
+    plain = ren.frame().copy()
+    ren.set_potential(sim.pair.curve()[1])
+    shown = ren.frame()
+    changed = np.abs(shown.astype(int) - plain.astype(int)).sum(axis=2) > 0
+    ys, xs = np.nonzero(changed)
+    assert changed.sum() > 100 and xs.min() > 320 - 320 // 4 - 20 and ys.max() < 180 // 5 + 20
+    ren.set_potential(None)
+    assert np.array_equal(ren.frame(), plain)

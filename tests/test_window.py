@@ -45,7 +45,7 @@ def test_keys_drive_the_state():
         assert getattr(s, attr)
     s.handle_key("g")
     assert not s.gravity_on
-    for key, attr in (("v", "recording"), ("e", "energy_plot")):
+    for key, attr in (("v", "recording"), ("e", "energy_plot"), ("f", "potential")):
         s.handle_key(key)
         assert getattr(s, attr)
         s.handle_key(key)

@@ -77,10 +77,32 @@ class PairForce:
         beta = np.array([m.pair_beta for m in materials])
         eps = np.array([m.pair_soft for m in materials])
         visc = np.array([m.viscosity for m in materials])
-        self.alpha_np = np.sqrt(np.outer(alpha, alpha))
-        self.beta_np = np.sqrt(np.outer(beta, beta))
+        self.n_materials = n
+        self.core = float(core)
+        self.base_alpha_np = np.sqrt(np.outer(alpha, alpha))
+        self.base_beta_np = np.sqrt(np.outer(beta, beta))
         self.eps_np = 0.5 * (eps[:, None] + eps[None, :])
         self.visc_np = 0.5 * (visc[:, None] + visc[None, :])
+        self.alpha = _table(self.base_alpha_np)
+        self.beta = _table(self.base_beta_np)
+        self.eps = _table(self.eps_np)
+        self.visc = _table(self.visc_np)
+        self.r_core = _table(np.zeros((n, n)))
+        self.shift = _table(np.zeros((n, n)))
+        self.f_core = _table(np.zeros((n, n)))
+        self.set_scale(1.0, 1.0)
+        self.single_material = n == 1
+        self.has_viscosity = bool(np.any(self.visc_np > 0))
+        self.even_fast_path = bool(np.all(self.eps_np == 0)) and self.a % 2 == 0 and self.b % 2 == 0
+        self.mass, self.material, self.v = mass, material, v
+
+    def set_scale(self, attraction: float, repulsion: float) -> None:
+        """Scale every pair's alpha (attraction) and beta (repulsion) from the materials' values, live (the window's
+        potential sliders): the equilibrium distance, core cap and energy shift follow; no kernel recompiles."""
+        self.scale = (float(attraction), float(repulsion))
+        n = self.n_materials
+        self.alpha_np = self.base_alpha_np * attraction
+        self.beta_np = self.base_beta_np * repulsion
         self.r_eq_np = np.array(
             [
                 [
@@ -91,23 +113,29 @@ class PairForce:
             ]
         )
         finite_req = np.where(np.isfinite(self.r_eq_np), self.r_eq_np, 1.0)
-        self.r_core_np = np.maximum(core * finite_req, 1e-6)
+        self.r_core_np = np.maximum(self.core * finite_req, 1e-6)
         # Energy shift so that U(cutoff) = 0, and U at the core for the linear continuation below it.
         self.shift_np = np.array([[self._u(self.cutoff, p, q) for q in range(n)] for p in range(n)])
-        self.alpha = _table(self.alpha_np)
-        self.beta = _table(self.beta_np)
-        self.eps = _table(self.eps_np)
-        self.visc = _table(self.visc_np)
-        self.r_core = _table(self.r_core_np)
-        self.shift = _table(self.shift_np)
         # Force magnitude at the core radius, g(r_core) r_core per unit mass product (held below the core).
         rc = self.r_core_np
         g_core = self.alpha_np / (rc + self.eps_np) ** self.a - self.beta_np / rc**self.b
-        self.f_core = _table(g_core * rc)
-        self.single_material = n == 1
-        self.has_viscosity = bool(np.any(self.visc_np > 0))
-        self.even_fast_path = bool(np.all(self.eps_np == 0)) and self.a % 2 == 0 and self.b % 2 == 0
-        self.mass, self.material, self.v = mass, material, v
+        dtype = self.alpha.to_numpy().dtype
+        for field, values in (
+            (self.alpha, self.alpha_np),
+            (self.beta, self.beta_np),
+            (self.r_core, self.r_core_np),
+            (self.shift, self.shift_np),
+            (self.f_core, g_core * rc),
+        ):
+            field.from_numpy(values.astype(dtype))
+
+    def curve(self, samples: int = 128, p: int = 0, q: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(r, radial force per unit mass product, positive attracting) for materials p, q from half the core radius to
+        the cutoff, with the core cap: what the window's potential panel draws."""
+        r = np.linspace(0.5 * self.r_core_np[p, q], self.cutoff, samples)
+        held = np.maximum(r, self.r_core_np[p, q])
+        g = radial_force(held, self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q], self.a, self.b)
+        return r, g * held
 
     def _u(self, r, p, q):
         """Unshifted potential per unit mass product at r (NumPy side; used for the cutoff shift)."""

@@ -94,3 +94,30 @@ class Chart:
             color = tuple(int(255 * c) for c in COLORS[k % len(COLORS)])
             draw_text(img, text, x, y, scale, color)
             x += 4 * scale * (len(text) + 2)
+
+
+class CurvePlot(Chart):
+    """A fixed curve (the window's potential panel: the pair force against distance) in the top-right corner, with
+    its zero line; set_curve() replaces it."""
+
+    def __init__(self, image, packed, width: int, height: int):
+        super().__init__(image, packed, width, height, ("curve", "zero"))
+        self.x0 = width - self.box_w - 10
+
+    def set_curve(self, values: np.ndarray) -> None:
+        """Plot `values` (any length up to SAMPLES) scaled so that zero is mid-height and the largest attraction
+        reaches a third of the way up; repulsion beyond the box is clipped."""
+        values = np.asarray(values, dtype=float)
+        scale = max(float(np.max(values)), 1e-12) * 3.0
+        self.n = min(len(values), SAMPLES)
+        pick = np.linspace(0, len(values) - 1, self.n).round().astype(int)
+        table = np.zeros((2, SAMPLES), dtype=np.float32)
+        table[0, : self.n] = np.clip(0.5 + 0.5 * values[pick] / scale, 0.0, 1.0)
+        table[1, : self.n] = 0.5
+        self.values.from_numpy(table)
+
+    def record(self, stats) -> None:  # a fixed curve: nothing to record
+        pass
+
+    def label(self, img: np.ndarray) -> None:
+        pass

@@ -100,6 +100,7 @@ class Renderer:
         self.has_heat = sim.heat is not None
         self.draw_springs = bool(render_cfg.draw_springs) and sim.springs is not None and self.dim == 2
         self.chart = None
+        self.potential = None  # the window's potential panel (a CurvePlot), when shown
         if render_cfg.chart:
             from .chart import Chart
 
@@ -247,6 +248,19 @@ class Renderer:
                 self._tone_map()
         if self.chart is not None:
             self.chart.draw()
+        if self.potential is not None:
+            self.potential.draw()
+
+    def set_potential(self, values: np.ndarray | None) -> None:
+        """Show a curve (the pair force against distance) in the top-right corner; None hides it."""
+        if values is None:
+            self.potential = None
+            return
+        if self.potential is None:
+            from .chart import CurvePlot
+
+            self.potential = CurvePlot(self.image, self.packed, self.width, self.height)
+        self.potential.set_curve(values)
 
     def record(self, stats) -> None:
         """Give the chart (if the scene has one) this frame's measurements."""

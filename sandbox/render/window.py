@@ -36,6 +36,7 @@ HELP = [
     "m      next material for the spawn tool",
     "v      start / stop recording an MP4 (out/SCENE_N.mp4)",
     "e      live energy plot on / off",
+    "f      pair-force panel on / off (with attraction and repulsion sliders)",
     "h, F1  this help",
     "q, Esc quit",
     "left mouse: apply the tool at the cursor",
@@ -71,6 +72,9 @@ class WindowState:
     recording: bool = False  # v: writing the window's frames to an MP4
     energy_plot: bool = False  # e: a live plot of kinetic, potential and total energy
     gravity_angle: float = 0.0  # degrees from straight down (2D), set by the panel's slider
+    potential: bool = False  # f: show the pair-force law against distance, with attraction/repulsion sliders
+    attraction: float = 1.0  # scale of every pair's alpha (the panel's slider)
+    repulsion: float = 1.0  # scale of every pair's beta
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
@@ -115,6 +119,8 @@ class WindowState:
             self.recording = not self.recording
         elif key == "e":
             self.energy_plot = not self.energy_plot
+        elif key == "f":
+            self.potential = not self.potential
         elif key == "m" and self.materials:
             self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
 
@@ -159,6 +165,7 @@ def run_window(
     state.recording = record is not None
     recorder = Recorder(sim.scene.name, cfg.width, cfg.height, cfg.fps, record)
     chart_series = tuple(cfg.chart)
+    potential_shown = (False, 1.0, 1.0)
     gravity = np.asarray(sim.scene.world.gravity, dtype=float)
     g_norm = float(np.linalg.norm(gravity))
     cursor = ti.Vector.field(2, ti.f32, shape=1)
@@ -179,6 +186,12 @@ def run_window(
             sim.gravity[None] = g_norm * np.array([np.sin(a), -np.cos(a)]) * state.gravity_on
         else:
             sim.gravity[None] = gravity if state.gravity_on else 0 * gravity
+        if sim.pair is not None:
+            shown_law = (state.potential, state.attraction, state.repulsion)
+            if shown_law != potential_shown:
+                sim.pair.set_scale(state.attraction, state.repulsion)
+                renderer.set_potential(sim.pair.curve()[1] if state.potential else None)
+                potential_shown = shown_law
         wanted = ENERGY_SERIES if state.energy_plot else tuple(cfg.chart)
         if wanted != chart_series:
             renderer.set_chart(wanted)
@@ -294,6 +307,13 @@ def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
         state.paused = gui.checkbox("paused", state.paused)
         state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
         state.recording = gui.checkbox("record MP4 (v)", state.recording)
+        if sim.pair is not None:
+            state.potential = gui.checkbox("pair force (f)", state.potential)
+            if state.potential:
+                state.attraction = gui.slider_float("attraction x", state.attraction, 0.0, 4.0)
+                state.repulsion = gui.slider_float("repulsion x", state.repulsion, 0.25, 4.0)
+                r_eq = sim.pair.r_eq_np[0, 0]
+                gui.text(f"equilibrium distance {r_eq:.3f} (curve crosses zero)")
         if sim.dim == 2 and any(sim.scene.world.gravity):
             state.gravity_angle = gui.slider_float("gravity angle", state.gravity_angle, -180.0, 180.0)
         if state.log:
