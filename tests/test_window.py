@@ -45,7 +45,7 @@ def test_keys_drive_the_state():
         assert getattr(s, attr)
     s.handle_key("g")
     assert not s.gravity_on
-    for key, attr in (("v", "recording"), ("e", "energy_plot"), ("f", "potential")):
+    for key, attr in (("v", "recording"), ("e", "energy_plot"), ("f", "potential"), ("b", "motion_blur")):
         s.handle_key(key)
         assert getattr(s, attr)
         s.handle_key(key)
@@ -128,3 +128,17 @@ def test_thermometers_read_each_body():
     sim.set_temperatures(t)
     ((name, mean),) = thermometers(sim)
     assert name == "block" and mean == pytest.approx(float(t.mean()), rel=1e-6)
+
+
+def test_view_toggles_cycle_the_colour_maps_the_scene_can_use():
+    from sandbox.render.window import make_state, view_config
+
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"]))
+    s = make_state(sim, None)
+    assert s.color_by == "temperature" and s.color_modes == ["temperature", "phase", "speed", "material"]
+    s.handle_key("c")
+    s.handle_key("k")
+    view = view_config(sim.scene.render, s)
+    assert view.color_by == "phase" and view.draw_springs and view.width == sim.scene.render.width
+    no_heat = make_state(Simulation(load_scene(SCENES / "spring_lattice.toml")), None)
+    assert "temperature" not in no_heat.color_modes and "phase" not in no_heat.color_modes

@@ -210,6 +210,11 @@ class Renderer:
         if self.motion_blur:
             self._remember()
 
+    def detach(self) -> None:
+        """Stop following the simulation's particle moves (before this renderer is replaced)."""
+        if self.sim.emitters is not None and self._follow_moves in self.sim.emitters.listeners:
+            self.sim.emitters.listeners.remove(self._follow_moves)
+
     def _follow_moves(self, hole, filler, count: int) -> None:
         """Particles moved slots (retirement): move their motion-blur tails with them."""
         if count:

@@ -37,6 +37,9 @@ HELP = [
     "v      start / stop recording an MP4 (out/SCENE_N.mp4)",
     "e      live energy plot on / off",
     "f      pair-force panel on / off (with attraction and repulsion sliders)",
+    "c      next colour map (temperature, phase, speed, material)",
+    "b      motion blur on / off",
+    "k      springs drawn on / off (2D)",
     "h, F1  this help",
     "q, Esc quit",
     "left mouse: apply the tool at the cursor",
@@ -75,6 +78,11 @@ class WindowState:
     potential: bool = False  # f: show the pair-force law against distance, with attraction/repulsion sliders
     attraction: float = 1.0  # scale of every pair's alpha (the panel's slider)
     repulsion: float = 1.0  # scale of every pair's beta
+    dt_scale: float = 1.0  # the time step as a multiple of the scene's (the panel's slider)
+    color_modes: list[str] = field(default_factory=list)  # c cycles the colour map through these
+    color_by: str = ""
+    motion_blur: bool = False  # b
+    draw_springs: bool = False  # k
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
@@ -121,6 +129,12 @@ class WindowState:
             self.energy_plot = not self.energy_plot
         elif key == "f":
             self.potential = not self.potential
+        elif key == "c" and self.color_modes:
+            self.color_by = self.color_modes[(self.color_modes.index(self.color_by) + 1) % len(self.color_modes)]
+        elif key == "b":
+            self.motion_blur = not self.motion_blur
+        elif key == "k":
+            self.draw_springs = not self.draw_springs
         elif key == "m" and self.materials:
             self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
 
@@ -135,7 +149,29 @@ def tools_for(sim) -> list[str]:
 def make_state(sim, substeps: int | None) -> WindowState:
     world = sim.scene.world
     fixed = substeps or (world.substeps if world.substeps != "auto" else 8)
-    return WindowState(tools_for(sim), list(REGISTRY), sim.integrator.name, int(fixed), materials=sim.material_names)
+    cfg = sim.scene.render
+    modes = ["temperature", "phase"] if sim.heat is not None else []
+    modes += ["speed", "material"]
+    return WindowState(
+        tools_for(sim),
+        list(REGISTRY),
+        sim.integrator.name,
+        int(fixed),
+        materials=sim.material_names,
+        color_modes=modes,
+        color_by=cfg.color_by if cfg.color_by in modes else modes[0],
+        motion_blur=cfg.motion_blur,
+        draw_springs=cfg.draw_springs,
+    )
+
+
+def view_config(cfg, state: WindowState):
+    """The scene's [render] table with the window's view toggles applied (colour map, motion blur, springs)."""
+    import dataclasses
+
+    return dataclasses.replace(
+        cfg, color_by=state.color_by, motion_blur=state.motion_blur, draw_springs=state.draw_springs
+    )
 
 
 def run_window(
@@ -166,6 +202,8 @@ def run_window(
     recorder = Recorder(sim.scene.name, cfg.width, cfg.height, cfg.fps, record)
     chart_series = tuple(cfg.chart)
     potential_shown = (False, 1.0, 1.0)
+    view = cfg  # the renderer's configuration; the window's toggles rebuild it when they differ
+    base_dt = sim.dt
     gravity = np.asarray(sim.scene.world.gravity, dtype=float)
     g_norm = float(np.linalg.norm(gravity))
     cursor = ti.Vector.field(2, ti.f32, shape=1)
@@ -186,6 +224,15 @@ def run_window(
             sim.gravity[None] = g_norm * np.array([np.sin(a), -np.cos(a)]) * state.gravity_on
         else:
             sim.gravity[None] = gravity if state.gravity_on else 0 * gravity
+        if view_config(cfg, state) != view:  # a view toggle: a renderer built for it (its kernels are specialised)
+            view = view_config(cfg, state)
+            renderer.detach()
+            renderer = Renderer(sim, cfg.width, cfg.height, view)
+            chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below
+            potential_shown = (False, 1.0, 1.0)  # ... and the pair-force panel
+            state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
+        if sim.scene.world.substeps != "auto":
+            sim.dt = base_dt * state.dt_scale
         if sim.pair is not None:
             shown_law = (state.potential, state.attraction, state.repulsion)
             if shown_law != potential_shown:
@@ -306,6 +353,9 @@ def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
             state.radius = gui.slider_float("radius", state.radius, 0.5, 30.0)
         state.paused = gui.checkbox("paused", state.paused)
         state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
+        if sim.scene.world.substeps != "auto":
+            state.dt_scale = gui.slider_float("dt x", state.dt_scale, 0.1, 2.0)
+            gui.text(f"dt {sim.dt:.4g}  (stable for springs below {sim.stable_dt():.3g})" if sim.springs else "")
         state.recording = gui.checkbox("record MP4 (v)", state.recording)
         if sim.pair is not None:
             state.potential = gui.checkbox("pair force (f)", state.potential)
