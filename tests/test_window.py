@@ -70,18 +70,19 @@ print("frames", run_window(sim, frames=3, screenshot=sys.argv[2], show=False, re
 """
 
 
-def test_window_frame_matches_the_headless_renderer(tmp_path):
-    shot = tmp_path / "window.png"
-    proc = subprocess.run(
-        [sys.executable, "-c", SCRIPT, str(SCENES / "spring_lattice.toml"), str(shot)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=600,
-    )
+def run_hidden_window(shot, video=None):
+    """Three frames of spring_lattice in a hidden GGUI window, in a fresh process; skips without Vulkan."""
+    args = [sys.executable, "-c", SCRIPT, str(SCENES / "spring_lattice.toml"), str(shot)]
+    proc = subprocess.run(args + ([str(video)] if video else []), capture_output=True, text=True, cwd=ROOT, timeout=600)
     if "Vulkan must be available" in proc.stdout + proc.stderr:
         pytest.skip("no Vulkan driver: apt-get install mesa-vulkan-drivers libvulkan1 (.ci/run does)")
     assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc
+
+
+def test_window_frame_matches_the_headless_renderer(tmp_path):
+    shot = tmp_path / "window.png"
+    proc = run_hidden_window(shot)
     assert "frames 3" in proc.stdout
     img = read_png(shot)
     assert img.shape[:2] == (720, 1280)
@@ -103,16 +104,7 @@ def test_window_records_what_it_shows_to_mp4(tmp_path):
     import imageio_ffmpeg
 
     video = tmp_path / "rec.mp4"
-    proc = subprocess.run(
-        [sys.executable, "-c", SCRIPT, str(SCENES / "spring_lattice.toml"), str(tmp_path / "w.png"), str(video)],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=600,
-    )
-    if "Vulkan must be available" in proc.stdout + proc.stderr:
-        pytest.skip("no Vulkan driver: apt-get install mesa-vulkan-drivers libvulkan1 (.ci/run does)")
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    proc = run_hidden_window(tmp_path / "w.png", video)
     assert f"saved {video} (3 frames)" in proc.stdout
     frames, _ = imageio_ffmpeg.count_frames_and_secs(str(video))
     assert frames == 3
