@@ -134,3 +134,23 @@ def test_view_toggles_cycle_the_colour_maps_the_scene_can_use():
     assert view.color_by == "phase" and view.draw_springs and view.width == sim.scene.render.width
     no_heat = make_state(Simulation(load_scene(SCENES / "spring_lattice.toml")), None)
     assert "temperature" not in no_heat.color_modes and "phase" not in no_heat.color_modes
+
+
+def test_orbit_camera_round_trips_and_keeps_its_target():
+    from sandbox.render.window import OrbitCamera
+
+    eye, target = np.array([24.0, 22.0, 56.0]), np.array([24.0, 4.0, 24.0])
+    cam = OrbitCamera(eye, target)
+    assert np.allclose(cam.eye(), eye)
+    cam.orbit(2.0, 0.0)  # a drag across the window twice: a full turn
+    assert np.allclose(cam.eye(), eye)
+    cam.orbit(0.3, 0.1)
+    assert np.isclose(np.linalg.norm(cam.eye() - target), np.linalg.norm(eye - target))  # orbiting keeps distance
+    cam.orbit(0.0, -10.0)
+    assert cam.pitch == pytest.approx(1.45)  # held short of the pole
+    d0 = cam.distance
+    cam.zoom(0.5)
+    assert cam.distance == pytest.approx(d0 * np.exp(-1.0))
+    before = cam.eye() - cam.target
+    cam.pan(0.1, 0.05)
+    assert not np.allclose(cam.target, target) and np.allclose(cam.eye() - cam.target, before)  # pan moves both

@@ -197,12 +197,15 @@ class Renderer:
             right = np.array([1.0, 0.0, 0.0])
         right /= np.linalg.norm(right)
         true_up = np.cross(right, fwd)
-        self.eye_np, self.fwd_np = eye, fwd
-        self.cam_eye = ti.Vector(list(eye))
-        self.cam_right = ti.Vector(list(right))
-        self.cam_up = ti.Vector(list(true_up))
-        self.cam_fwd = ti.Vector(list(fwd))
-        self.focal = 0.5 * self.height / math.tan(math.radians(fov_degrees) / 2)
+        self.eye_np, self.fwd_np, self.target_np = eye, fwd, target
+        if not hasattr(self, "camera"):
+            # fields, not compile-time constants, so the window can orbit without recompiling
+            self.camera = ti.Vector.field(3, ti.f32, shape=4)  # eye, right, up, forward
+            self.focal_field = ti.field(ti.f32, shape=())  # pixels: focal length of the pinhole
+        for k, v in enumerate((eye, right, true_up, fwd)):
+            self.camera[k] = [float(c) for c in v]
+        self.focal_field[None] = 0.5 * self.height / math.tan(math.radians(fov_degrees) / 2)
+        self.fov = float(fov_degrees)
 
     # ------------------------------------------------------------------ frames
     def begin_frame(self) -> None:
@@ -514,10 +517,10 @@ class Renderer:
     # ------------------------------------------------------------------ 3D
     @ti.func
     def _project(self, pos):
-        rel = ti.cast(pos, ti.f32) - self.cam_eye
-        z = rel.dot(self.cam_fwd)
-        sx = self.width * 0.5 + self.focal * rel.dot(self.cam_right) / ti.max(z, 1e-6)
-        sy = self.height * 0.5 + self.focal * rel.dot(self.cam_up) / ti.max(z, 1e-6)
+        rel = ti.cast(pos, ti.f32) - self.camera[0]
+        z = rel.dot(self.camera[3])
+        sx = self.width * 0.5 + self.focal_field[None] * rel.dot(self.camera[1]) / ti.max(z, 1e-6)
+        sy = self.height * 0.5 + self.focal_field[None] * rel.dot(self.camera[2]) / ti.max(z, 1e-6)
         return ti.Vector([sx, sy]), z
 
     @ti.kernel
@@ -528,18 +531,18 @@ class Renderer:
             if ti.static(self.ground):
                 # the floor plane y = floor_y, with a faint grid so depth reads
                 ray = (
-                    self.cam_fwd * self.focal
-                    + self.cam_right * (x + 0.5 - 0.5 * self.width)
-                    + self.cam_up * (y + 0.5 - 0.5 * self.height)
+                    self.camera[3] * self.focal_field[None]
+                    + self.camera[1] * (x + 0.5 - 0.5 * self.width)
+                    + self.camera[2] * (y + 0.5 - 0.5 * self.height)
                 ).normalized()
                 if ray[1] < -1e-6:
-                    s = (self.floor_y - self.cam_eye[1]) / ray[1]
-                    hit = self.cam_eye + s * ray
+                    s = (self.floor_y - self.camera[0][1]) / ray[1]
+                    hit = self.camera[0] + s * ray
                     u = ti.Vector([hit[0], hit[2]])
                     if (u >= self.floor_lo).all() and (u <= self.floor_hi).all():
                         c = c * 1.35 + 0.015
                         f = ti.abs(u / self.grid_step - ti.round(u / self.grid_step)) * self.grid_step
-                        pixel_size = s / self.focal
+                        pixel_size = s / self.focal_field[None]
                         line = ti.max(1.0 - f[0] / (1.2 * pixel_size), 1.0 - f[1] / (1.2 * pixel_size), 0.0)
                         c += 0.05 * ti.min(line, 1.0)
                         for k in range(self.n_src):
@@ -559,7 +562,7 @@ class Renderer:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
                     rad = self.drawn_radius(i)
-                    r = ti.max(rad * self.focal / z, R_MIN)
+                    r = ti.max(rad * self.focal_field[None] / z, R_MIN)
                     x0, x1, y0, y1 = self._box(centre, centre, r)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
@@ -578,7 +581,7 @@ class Renderer:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
                     rad = self.drawn_radius(i)
-                    r = ti.max(rad * self.focal / z, R_MIN)
+                    r = ti.max(rad * self.focal_field[None] / z, R_MIN)
                     col = self.particle_color(i)
                     shaded = self.g_draw[g] == 2
                     x0, x1, y0, y1 = self._box(centre, centre, r)
@@ -593,9 +596,9 @@ class Renderer:
                                     c = col
                                     if shaded:
                                         nz = ti.sqrt(1.0 - q)
-                                        normal = u[0] * self.cam_right + u[1] * self.cam_up - nz * self.cam_fwd
+                                        normal = u[0] * self.camera[1] + u[1] * self.camera[2] - nz * self.camera[3]
                                         diffuse = ti.max(normal.dot(self.light_dir), 0.0)
-                                        half = (self.light_dir - self.cam_fwd).normalized()
+                                        half = (self.light_dir - self.camera[3]).normalized()
                                         spec = ti.max(normal.dot(half), 0.0) ** 32
                                         c = col * (0.3 + 0.7 * diffuse) + self.specular * spec
                                     self.image[px, py] = c
@@ -622,7 +625,7 @@ class Renderer:
             i = self.order[k]
             centre, z = self._project(p.x[i])
             if z > 1e-3:
-                r = ti.max(self.drawn_radius(i) * self.focal / z, R_MIN)
+                r = ti.max(self.drawn_radius(i) * self.focal_field[None] / z, R_MIN)
                 col = self.particle_color(i)
                 opacity = self.group_opacity(i)
                 zbits = ti.bit_cast(ti.cast(z, ti.f32), ti.i32)
@@ -653,7 +656,7 @@ class Renderer:
                             ).norm() < 0.5 * self.width  # not a periodic wrap
                             if not blurred:
                                 tail = head
-                    r_true = self.drawn_radius(i) * self.focal / z
+                    r_true = self.drawn_radius(i) * self.focal_field[None] / z
                     if self.g_draw[g] == 0:
                         r_true = 0.5
                     r = ti.max(r_true, R_MIN)

@@ -1,10 +1,10 @@
 """The interactive window (Taichi GGUI), drawing through the same Renderer as headless video.
 
 Keys (also listed by the help overlay, h or F1): space pause/resume, s single step, r reset, 1-8 choose a tool
-(heat, cool, drag, attract, repel, impulse, erase, spawn), [ and ] brush radius, + and - substeps per frame,
-g gravity on/off, i next integrator, m next spawn material, p screenshot, q or Esc quit. The left mouse button
-applies the tool at the cursor (2D scenes). The side panel shows only the controls the scene uses (no heat tools
-without heat).
+(heat, cool, drag, attract, repel, impulse, erase, spawn), [ and ] brush radius, + and - substeps per frame, g
+gravity on/off, i next integrator, m next spawn material, p screenshot, q or Esc quit. The left mouse button applies
+the tool at the cursor (2D scenes); in 3D the mouse orbits (left), zooms (right) and pans (middle). The side panel
+shows only the controls the scene uses (no heat tools without heat).
 Everything the keys do goes through WindowState.handle_key, which needs no screen, so it is tested directly.
 """
 
@@ -42,7 +42,8 @@ HELP = [
     "k      springs drawn on / off (2D)",
     "h, F1  this help",
     "q, Esc quit",
-    "left mouse: apply the tool at the cursor",
+    "left mouse: apply the tool at the cursor (2D)",
+    "3D: left drag orbit, right drag zoom, middle drag pan",
 ]
 
 
@@ -203,6 +204,8 @@ def run_window(
     chart_series = tuple(cfg.chart)
     potential_shown = (False, 1.0, 1.0)
     view = cfg  # the renderer's configuration; the window's toggles rebuild it when they differ
+    orbit = OrbitCamera(renderer.eye_np, renderer.target_np) if sim.dim == 3 else None
+    last_cursor = None
     base_dt = sim.dt
     gravity = np.asarray(sim.scene.world.gravity, dtype=float)
     g_norm = float(np.linalg.norm(gravity))
@@ -228,6 +231,8 @@ def run_window(
             view = view_config(cfg, state)
             renderer.detach()
             renderer = Renderer(sim, cfg.width, cfg.height, view)
+            if orbit is not None:
+                renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
             chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below
             potential_shown = (False, 1.0, 1.0)  # ... and the pair-force panel
             state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
@@ -244,6 +249,18 @@ def run_window(
             renderer.set_chart(wanted)
             chart_series = wanted
         u, v = window.get_cursor_pos() if show else (0.5, 0.5)
+        if orbit is not None and show:  # left drag orbits, right drag zooms, middle drag pans
+            buttons = [window.is_pressed(b) for b in (ti.ui.LMB, ti.ui.RMB, ti.ui.MMB)]
+            if last_cursor is not None and any(buttons):
+                du, dv = u - last_cursor[0], v - last_cursor[1]
+                if buttons[0]:
+                    orbit.orbit(du, dv)
+                elif buttons[1]:
+                    orbit.zoom(dv)
+                else:
+                    orbit.pan(du, dv)
+                renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
+            last_cursor = (u, v)
         if show and state.tool and window.is_pressed(ti.ui.LMB) and sim.dim == 2:
             pos = (np.array([u * cfg.width, v * cfg.height]) - np.asarray(renderer.offset.to_list())) / (
                 renderer.px_per_unit
@@ -286,6 +303,40 @@ def run_window(
 
 
 ENERGY_SERIES = ("kinetic_energy", "potential_energy", "total_energy")
+
+
+class OrbitCamera:
+    """3D camera for the mouse: orbit about a target (yaw, pitch), zoom (distance) and pan (moves the target).
+    Cursor movements are fractions of the window (GGUI's cursor coordinates)."""
+
+    def __init__(self, eye, target):
+        self.target = np.asarray(target, dtype=float)
+        d = np.asarray(eye, dtype=float) - self.target
+        self.distance = float(np.linalg.norm(d))
+        self.yaw = float(np.arctan2(d[0], d[2]))
+        self.pitch = float(np.arcsin(np.clip(d[1] / self.distance, -1.0, 1.0)))
+
+    def eye(self) -> np.ndarray:
+        c = np.cos(self.pitch)
+        return self.target + self.distance * np.array([c * np.sin(self.yaw), np.sin(self.pitch), c * np.cos(self.yaw)])
+
+    def orbit(self, du: float, dv: float) -> None:
+        """A drag across the whole window turns the view half a turn (and tilts it a quarter, within the poles)."""
+        self.yaw -= np.pi * du
+        self.pitch = float(np.clip(self.pitch - 0.5 * np.pi * dv, -1.45, 1.45))
+
+    def zoom(self, dv: float) -> None:
+        """Dragging up by the window's height moves 7.4x closer (exponential, so it never reaches the target)."""
+        self.distance *= float(np.exp(-2.0 * dv))
+
+    def pan(self, du: float, dv: float) -> None:
+        """Move the target across the view, by the distance per window width."""
+        fwd = self.target - self.eye()
+        fwd /= np.linalg.norm(fwd)
+        right = np.cross(fwd, [0.0, 1.0, 0.0])
+        right /= max(np.linalg.norm(right), 1e-9)
+        up = np.cross(right, fwd)
+        self.target = self.target - self.distance * (du * right + dv * up)
 
 
 class Recorder:
