@@ -154,3 +154,19 @@ def test_orbit_camera_round_trips_and_keeps_its_target():
     before = cam.eye() - cam.target
     cam.pan(0.1, 0.05)
     assert not np.allclose(cam.target, target) and np.allclose(cam.eye() - cam.target, before)  # pan moves both
+
+
+def test_3d_brush_acts_at_the_particle_under_the_cursor():
+    from sandbox.render.raster import Renderer
+
+    sim = Simulation(
+        load_scene(SCENES / "melting_block_3d.toml", ["bodies.0.lo=[20.0, 0.0, 20.0]", "bodies.0.hi=[28.0, 6.0, 28.0]"])
+    )
+    assert "heat" in tools_for(sim)  # tools work in 3D too (shift + left mouse)
+    ren = Renderer(sim, 320, 180, sim.scene.render)
+    x = sim.positions()
+    top_centre = x[np.argmax(x[:, 1] - 0.01 * np.abs(x[:, 0] - 24.5) - 0.01 * np.abs(x[:, 2] - 27.5))]
+    ren.set_camera(top_centre + [0.0, 10.0, 10.0], top_centre, 40.0)  # looking at that particle
+    picked = ren.pick(0.5, 0.5)
+    assert np.allclose(picked, top_centre)  # the nearest under the cursor: the one looked at, not one behind
+    assert ren.pick(0.02, 0.98) is None  # empty sky

@@ -198,6 +198,7 @@ class Renderer:
         right /= np.linalg.norm(right)
         true_up = np.cross(right, fwd)
         self.eye_np, self.fwd_np, self.target_np = eye, fwd, target
+        self.right_np, self.up_np = right, true_up
         if not hasattr(self, "camera"):
             # fields, not compile-time constants, so the window can orbit without recompiling
             self.camera = ti.Vector.field(3, ti.f32, shape=4)  # eye, right, up, forward
@@ -212,6 +213,24 @@ class Renderer:
         """Remember positions before the simulation advances a frame (the tails of motion-blur streaks)."""
         if self.motion_blur:
             self._remember()
+
+    def pick(self, u: float, v: float, reach_px: float = 12.0) -> np.ndarray | None:
+        """3D: the position of the nearest particle drawn within reach_px pixels of the window point (u, v) (fractions
+        of width and height, from the bottom left, as GGUI's cursor), or None: where a 3D brush acts."""
+        x = self.sim.positions().astype(float)
+        if self.dim != 3 or len(x) == 0:
+            return None
+        rel = x - self.eye_np
+        z = rel @ self.fwd_np
+        focal = 0.5 * self.height / math.tan(math.radians(self.fov) / 2)
+        front = z > 1e-6
+        sx = self.width * 0.5 + focal * (rel @ self.right_np) / np.where(front, z, 1.0)
+        sy = self.height * 0.5 + focal * (rel @ self.up_np) / np.where(front, z, 1.0)
+        near = front & ((sx - u * self.width) ** 2 + (sy - v * self.height) ** 2 <= reach_px**2)
+        if not near.any():
+            return None
+        candidates = np.flatnonzero(near)
+        return x[candidates[np.argmin(z[candidates])]]
 
     def detach(self) -> None:
         """Stop following the simulation's particle moves (before this renderer is replaced)."""

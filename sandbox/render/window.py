@@ -141,9 +141,8 @@ class WindowState:
 
 
 def tools_for(sim) -> list[str]:
-    """The tools that make sense in this scene: no heat tools without heat, no brush at all in 3D."""
-    if sim.dim != 2:
-        return []
+    """The tools that make sense in this scene: no heat tools without heat (in 3D they act with shift held, at the
+    depth of the particle under the cursor)."""
     return [t for t in TOOLS if sim.heat is not None or t not in ("heat", "cool")]
 
 
@@ -251,6 +250,13 @@ def run_window(
         u, v = window.get_cursor_pos() if show else (0.5, 0.5)
         if orbit is not None and show:  # left drag orbits, right drag zooms, middle drag pans
             buttons = [window.is_pressed(b) for b in (ti.ui.LMB, ti.ui.RMB, ti.ui.MMB)]
+            if buttons[0] and window.is_pressed(ti.ui.SHIFT):  # shift: the tool, not the camera
+                buttons[0] = False
+                centre = renderer.pick(u, v)
+                if state.tool and centre is not None:
+                    tools.apply(
+                        state.tool, centre, state.radius, sim.dt * state.substeps, material=state.material or None
+                    )
             if last_cursor is not None and any(buttons):
                 du, dv = u - last_cursor[0], v - last_cursor[1]
                 if buttons[0]:
