@@ -193,6 +193,7 @@ class Simulation:
         self.time = 0.0
         self.step_count = 0
         self._energy_scale: float | None = None
+        self._last_pair_energy: float | None = None  # for stats(pair_energy=False)
         self._heat_limit = self.heat_dt_limit() if self.has_explicit_heat else math.inf
         self._initial = self.snapshot()
         self._spring_omega0 = self.omega_max()
@@ -417,7 +418,7 @@ class Simulation:
 
     # ------------------------------------------------------------------ measurements
     @ti.kernel
-    def _measure(self):
+    def _measure(self, pair_energy: ti.template()):
         p = self.particles
         for k in self._acc:
             self._acc[k] = 0
@@ -445,7 +446,7 @@ class Simulation:
                 self._acc[_ACC["spring"]] += self.springs.energy(s)
                 if self.springs.alive[s]:
                     self._count[_COUNT["alive"]] += 1
-        if ti.static(self.has_pair):
+        if ti.static(self.has_pair and pair_energy):
             for i in range(p.n[None]):
                 e = 0.0
                 c = self.grid.cell_of(p.x[i])
@@ -473,13 +474,20 @@ class Simulation:
                                 e -= self.pair.energy(i, j, r2)
                 self._acc[_ACC["pair"]] += e
 
-    def stats(self) -> Stats:
-        """Energies, temperatures and counts now. Raises SimulationError if any particle is not finite."""
-        if self.grid is not None:
+    def stats(self, pair_energy: bool = True) -> Stats:
+        """Energies, temperatures and counts now. Raises SimulationError if any particle is not finite.
+        pair_energy=False skips the pair energy's neighbour scan (the costliest part) and reports the last one
+        measured: the window does so on most frames."""
+        pair_energy = pair_energy or self._last_pair_energy is None or not self.has_pair
+        if pair_energy and self.grid is not None:
             self.grid.rebuild()
-        self._measure()
+        self._measure(pair_energy)
         acc_values, cnt_values = self._acc.to_numpy(), self._count.to_numpy()
         acc = {k: float(acc_values[i]) for k, i in _ACC.items()}
+        if pair_energy:
+            self._last_pair_energy = acc["pair"]
+        else:
+            acc["pair"] = self._last_pair_energy
         cnt = {k: int(cnt_values[i]) for k, i in _COUNT.items()}
         n = int(self.particles.n[None])
         if cnt["bad"] or not all(math.isfinite(v) for v in acc.values()):

@@ -228,3 +228,14 @@ def test_live_pair_scaling_moves_the_equilibrium_and_the_curve_shows_it():
     crossing = r_curve[np.argmax(force > 0)]  # repulsive (negative) inside, attractive outside
     assert abs(crossing - r_eq) < (r_curve[1] - r_curve[0]) * 1.01
     assert np.all(np.diff(force[r_curve < sim.pair.r_core_np[0, 0]]) == 0)  # held below the core
+
+
+def test_light_stats_reuse_the_last_pair_energy_and_measure_the_rest():
+    sim = two_particles(pair={"a": 8.0, "b": 14.0, "cutoff": 2.5}, springs=False, material="lj", gravity=[0, -1])
+    place(sim, [[10.0, 10.0], [11.2, 10.0]], v=[[0.5, 0.0], [0.0, 0.0]])
+    full = sim.stats()
+    place(sim, [[10.0, 10.5], [11.6, 10.5]], v=[[1.0, 0.0], [0.0, 0.0]])
+    light = sim.stats(pair_energy=False)
+    assert light.pair_energy == full.pair_energy  # not rescanned ...
+    assert light.kinetic_energy == pytest.approx(0.5) and light.gravity_energy != full.gravity_energy  # ... the rest is
+    assert sim.stats().pair_energy != full.pair_energy  # a full call measures it again
