@@ -66,7 +66,7 @@ class ParticleFields:
             self._set(self.T, built.temperature)
             self._set(self.dhdt, np.zeros(n))
             if self.refreeze:
-                breaks = np.array([m.break_melt_fraction for m in materials])[built.material]
+                breaks = material_column(materials, built.material, "break_melt_fraction")
                 self._set(self.liquid, ((phi >= breaks) | ~built.solid).astype(np.int32))
 
     def _set(self, field, values: np.ndarray) -> None:
@@ -82,18 +82,23 @@ class ParticleFields:
         return self.capacity * (floats * (8 if _is_f64() else 4) + 4 * ints + 12)  # + f32 colour
 
 
+def material_column(materials: list[Material], material: np.ndarray, name: str) -> np.ndarray:
+    """Property `name` of each particle's material, (N,), from material ids (N,); infinities held at 1e30 as in
+    the MaterialTable fields, so NumPy and the kernels see the same numbers."""
+    return np.array([min(getattr(m, name), 1e30) for m in materials])[material]
+
+
+ENTHALPY_LAW = ("specific_heat", "melt_temperature", "liquidus_temperature", "latent_heat")  # phase.py's arguments
+
+
 def initial_enthalpy(
     temperature: np.ndarray, material: np.ndarray, materials: list[Material]
 ) -> tuple[np.ndarray, np.ndarray]:
     """(specific enthalpy, melt fraction) of particles at `temperature` (degrees) of `material` ids."""
     from .physics.phase import enthalpy_np, melt_fraction_np
 
-    def prop(name):
-        return np.array([min(getattr(m, name), 1e30) for m in materials])[material]
-
-    ts, tl = prop("melt_temperature"), prop("liquidus_temperature")
-    h = enthalpy_np(temperature, prop("specific_heat"), ts, tl, prop("latent_heat"))
-    return h, melt_fraction_np(temperature, ts, tl)
+    c, ts, tl, latent = (material_column(materials, material, name) for name in ENTHALPY_LAW)
+    return enthalpy_np(temperature, c, ts, tl, latent), melt_fraction_np(temperature, ts, tl)
 
 
 @ti.data_oriented
@@ -121,8 +126,6 @@ class MaterialTable:
         self.stiffness = table([m.stiffness for m in materials])  # k_s of bonds made by refreezing
         self.damping = table([m.damping for m in materials])  # k_d of bonds made by refreezing
         self.colors = np.array([m.color for m in materials], dtype=np.float32)  # (n_mat, 3)
-        self.color_field = ti.Vector.field(3, ti.f32, shape=n)  # the same, for kernels (emitters)
-        self.color_field.from_numpy(self.colors)
         self.liquid_color = ti.Vector.field(3, ti.f32, shape=n)  # melt colour when drawing by phase, (n_mat, 3)
         self.liquid_color.from_numpy(np.array([m.liquid_color for m in materials], dtype=np.float32))
 

@@ -17,7 +17,7 @@ from . import runtime
 from .build import build_particles
 from .errors import SimulationError
 from .integrators import make_integrator
-from .model import MaterialTable, ParticleFields
+from .model import ENTHALPY_LAW, MaterialTable, ParticleFields, material_column
 from .physics.boundary import Domain
 from .physics.emitters import NEVER_BONDS, Emitters
 from .physics.fields import VelocityField
@@ -51,7 +51,7 @@ STAT_COLUMNS = (
 SPRING_STATE = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds", "created")  # what refreezing changes
 NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
 RUNAWAY_FACTOR = 1e4  # kinetic energy above this many natural energy scales stops the run (see stats())
-_ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7}
+_ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
 _COUNT = {"alive": 0, "meltable": 1, "bad": 2}
 
 
@@ -145,7 +145,7 @@ class Simulation:
         )
         self.heat = None
         if scene.heat:
-            density = np.array([m.density for m in materials])[built.material]
+            density = material_column(materials, built.material, "density")
             correction = lattice_correction(built.x, built.mass / density, scene.heat.radius)
             self.heat = Heat(self.dim, scene.heat, p, self.materials, self.phase, correction)
         self.springs = None
@@ -427,6 +427,7 @@ class Simulation:
         for i in range(p.n[None]):
             v2 = p.v[i].dot(p.v[i])
             self._acc[_ACC["ke"]] += 0.5 * p.mass[i] * v2
+            self._acc[_ACC["mass"]] += p.mass[i]
             self._acc[_ACC["grav"]] += -p.mass[i] * self.gravity[None].dot(p.x[i])
             ti.atomic_max(self._acc[_ACC["vmax"]], ti.sqrt(v2))
             finite = 1
@@ -493,7 +494,7 @@ class Simulation:
         if cnt["bad"] or not all(math.isfinite(v) for v in acc.values()):
             self._raise_blowup("non-finite state")
         if self._energy_scale is None or self.emitters is not None:  # emitters bring new mass: grow the scale
-            self._energy_scale = max(self._energy_scale or 0.0, self._natural_energy(acc, n))
+            self._energy_scale = max(self._energy_scale or 0.0, self._natural_energy(acc))
         if acc["ke"] > RUNAWAY_FACTOR * self._energy_scale:
             self._raise_blowup(
                 f"runaway kinetic energy {acc['ke']:.3g} (over {RUNAWAY_FACTOR:g} x the scene's "
@@ -513,16 +514,12 @@ class Simulation:
             particles=n,
         )
 
-    def _natural_energy(self, acc: dict, n: int) -> float:
+    def _natural_energy(self, acc: dict) -> float:
         """Energy scale of the state: its kinetic and bound energies, the work gravity can do across the
         domain, and every particle moving at one domain length per unit time."""
         size = float(np.max(np.asarray(self.scene.world.hi) - np.asarray(self.scene.world.lo)))
         g = float(np.linalg.norm(self.scene.world.gravity))
-        mass = (
-            float(self.particles.mass.to_numpy()[:n].sum())
-            if self.emitters is not None
-            else float(self.built.mass.sum())
-        )
+        mass = acc["mass"]
         return acc["ke"] + abs(acc["spring"]) + abs(acc["pair"]) + mass * g * size + 0.5 * mass * size**2
 
     def _raise_blowup(self, what: str) -> None:
@@ -621,9 +618,10 @@ class Simulation:
         from .physics.heat import wendland_grad_factor
 
         b = self.built
-        rho = np.array([self.scene.materials[m].density for m in self.material_names])[b.material]
-        cap = np.array([self.scene.materials[m].specific_heat for m in self.material_names])[b.material] * b.mass
-        k = np.array([self.scene.materials[m].conductivity for m in self.material_names])[b.material]
+        mats = [self.scene.materials[m] for m in self.material_names]
+        rho = material_column(mats, b.material, "density")
+        cap = material_column(mats, b.material, "specific_heat") * b.mass
+        k = material_column(mats, b.material, "conductivity")
         # Probe a few particles: the diagonal coefficient sum of the heat matrix row.
         probe = np.linspace(0, b.count - 1, num=min(b.count, 64)).astype(int)
         worst = 0.0
@@ -705,14 +703,10 @@ class Simulation:
             return np.zeros(n)
         from .physics.phase import temperature_np
 
-        m = self.particles.material.to_numpy()[:n]
+        ids = self.particles.material.to_numpy()[:n]
         mats = [self.scene.materials[name] for name in self.material_names]
-
-        def prop(name):
-            return np.array([min(getattr(mt, name), 1e30) for mt in mats])[m]
-
-        args = [prop(k) for k in ("specific_heat", "melt_temperature", "liquidus_temperature", "latent_heat")]
-        return temperature_np(self.particles.h.to_numpy()[:n], *args)[1]
+        law = [material_column(mats, ids, name) for name in ENTHALPY_LAW]
+        return temperature_np(self.particles.h.to_numpy()[:n], *law)[1]
 
     def forces(self) -> np.ndarray:
         """Forces of the last evaluation, (N, D)."""

@@ -75,51 +75,15 @@ def test_cli_writes_mp4_and_stats_csv(tmp_path):
 def test_gif_and_still_outputs(tmp_path):
     import imageio_ffmpeg
 
+    def three_small_frames(out):
+        args = ["run", "spring_lattice", "--headless", "--frames", "3", "--out", str(out), "--width", "96"]
+        return main(args + ["--height", "54", "--quiet", "--arch", "cpu"])
+
     gif, still = tmp_path / "clip.gif", tmp_path / "still.png"
-    assert (
-        main(
-            [
-                "run",
-                "spring_lattice",
-                "--headless",
-                "--frames",
-                "3",
-                "--out",
-                str(gif),
-                "--width",
-                "96",
-                "--height",
-                "54",
-                "--quiet",
-                "--arch",
-                "cpu",
-            ]
-        )
-        == 0
-    )
+    assert three_small_frames(gif) == 0
     assert gif.read_bytes()[:6] == b"GIF89a"
     assert imageio_ffmpeg.count_frames_and_secs(str(gif))[0] == 3
-    assert (
-        main(
-            [
-                "run",
-                "spring_lattice",
-                "--headless",
-                "--frames",
-                "3",
-                "--out",
-                str(still),
-                "--width",
-                "96",
-                "--height",
-                "54",
-                "--quiet",
-                "--arch",
-                "cpu",
-            ]
-        )
-        == 0
-    )
+    assert three_small_frames(still) == 0
     assert read_png(still).shape == (54, 96, 3)
 
 

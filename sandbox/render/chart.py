@@ -13,6 +13,7 @@ from .raster import draw_text
 FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
 COLORS = ((1.0, 0.4, 0.25), (0.35, 0.65, 1.0), (0.5, 0.9, 0.4), (0.95, 0.85, 0.3))
 SAMPLES = 256  # points per series drawn (the history is resampled to this many)
+HISTORY = 16 * SAMPLES  # samples kept; past it every other one is dropped and the sampling stride doubles
 
 
 @ti.data_oriented
@@ -32,12 +33,20 @@ class Chart:
             self.colors[k] = COLORS[k % len(COLORS)]
         self.history: list[list[float]] = [[] for _ in self.series]
         self.n = 0
+        self.frames = 0  # frames offered to record()
+        self.stride = 1  # one sample kept per this many frames
 
     def record(self, stats) -> None:
         """Append this frame's values and upload the resampled, normalised series."""
+        self.frames += 1
+        if (self.frames - 1) % self.stride:
+            return  # between kept samples
         for k, name in enumerate(self.series):
             value = float(getattr(stats, name))
             self.history[k].append(value if np.isfinite(value) else 0.0)
+        if len(self.history[0]) > HISTORY:  # bounded work per frame on a long run: keep every other sample, and
+            self.history = [h[::2] for h in self.history]  # from now on record every other frame, so the samples
+            self.stride *= 2  # stay evenly spread in time
         length = len(self.history[0])
         self.n = min(length, SAMPLES)
         pick = np.linspace(0, length - 1, self.n).round().astype(int)
