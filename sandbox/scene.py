@@ -84,6 +84,14 @@ class World:
     skin: float = spec(
         0.3, doc="neighbour-list skin (length): lists are rebuilt after a particle moves skin/2", check=positive
     )
+    reorder: int | str = spec(
+        "auto",
+        doc="sort the particles' storage into cell order every this many neighbour-list rebuilds, so neighbours sit "
+        'near in memory (0: never; "auto": every 20 when the scene starts with at least 5,000 particles)',
+        check=lambda s: (
+            None if s == "auto" or (isinstance(s, int) and s >= 0) else f'expected an integer >= 0 or "auto", got {s!r}'
+        ),
+    )
     advection: str = spec(
         "euler",
         doc="kinematic particles: x += dt v(x, t) by forward Euler, or by the midpoint rule",

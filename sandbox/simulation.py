@@ -26,6 +26,7 @@ from .physics.heat import Heat, lattice_correction
 from .physics.neighbours import NeighbourList
 from .physics.pair import PairForce
 from .physics.phase import LIQUID, Phase, Refreezer
+from .physics.reorder import CellOrder
 from .physics.smoke import SmokeGrid
 from .physics.springs import Springs
 from .scene import COUPLINGS, Scene
@@ -53,6 +54,10 @@ NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic"
 RUNAWAY_FACTOR = 1e4  # kinetic energy above this many natural energy scales stops the run (see stats())
 _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
 _COUNT = {"alive": 0, "meltable": 1, "bad": 2}
+
+
+CHUNK_STRIDE = 4096  # loop iterations between the half-list pass's chunks (see _rates)
+CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
 
 
 @dataclass
@@ -84,7 +89,10 @@ class Stats:
 class Simulation:
     """A running scene: fields, passes, integrator, clock."""
 
-    def __init__(self, scene: Scene, arch: str = "cpu"):
+    def __init__(self, scene: Scene, arch: str = "cpu", half_lists: bool | None = None):
+        """Build what `scene` names on Taichi backend `arch`. `half_lists`: apply each neighbour pair once to both
+        particles from a half list (None: on the CPU backend, where it halves the pair work; a GPU gathers from
+        full lists instead, which needs no write conflicts)."""
         self.scene = scene
         self.arch = runtime.init(arch, scene.world.precision)
         built = build_particles(scene)
@@ -160,11 +168,24 @@ class Simulation:
         self.grid = (
             CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, self.capacity) if reach > 0 else None
         )
+        implicit_heat = bool(scene.heat) and scene.heat.stepper != "explicit"  # its solve reads full lists
+        if half_lists is None:
+            half_lists = self.arch == "cpu"
+        self.half_pairs = bool(half_lists) and world.neighbor_list and reach > 0 and not implicit_heat
         self.neighbours = (
-            NeighbourList(self.grid, self.domain, p.x, p.n, reach, skin, self.capacity)
+            NeighbourList(self.grid, self.domain, p.x, p.n, reach, skin, self.capacity, half=self.half_pairs)
             if self.grid is not None and world.neighbor_list
             else None
         )
+        if self.half_pairs:
+            # Each worker thread takes a contiguous block of particles and writes what its pairs give to the other
+            # particle into its own buffer row (no atomics, no write conflicts); the per-particle pass sums the rows.
+            self.n_chunks = CHUNKS_PER_THREAD * max(1, int(ti.lang.impl.current_cfg().cpu_max_num_threads))
+            self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_chunks, self.capacity))
+            if scene.heat:
+                self.pair_q = ti.field(float, shape=(self.n_chunks, self.capacity))
+        every = world.reorder if world.reorder != "auto" else (20 if built.count >= 5000 else 0)
+        self.reorder = CellOrder(self, every) if every and self.neighbours is not None else None
         self.refreezer = Refreezer(self, heat.refreeze_radius) if self.can_refreeze else None
         self.emitters = Emitters(self, scene.emitters, len(scene.bodies)) if scene.emitters else None
         self._warned_overflow = False
@@ -207,6 +228,8 @@ class Simulation:
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
         for _ in range(n):
+            if self.reorder is not None and self.reorder.due():
+                self.reorder.apply()
             if self.heat is not None and self.heat.scheduled:
                 self.heat.set_time(self.time)
             if self.emitters is not None:
@@ -330,9 +353,44 @@ class Simulation:
                 q += self.heat.flow(i, j, r2)
         return f_scaled, f_visc, q
 
+    @ti.func
+    def _half_row(self, t, i, ids):
+        """Pairs (i, j > i) of i's half list: i's share kept, j's share (equal and opposite) written to chunk t's
+        buffer row."""
+        p = self.particles
+        xi = p.x[i]
+        fi = ti.Vector.zero(float, self.dim)
+        qi = 0.0
+        for k in range(self.neighbours.count[i]):
+            j = ids[i, k]
+            d = self.domain.separation(xi, p.x[j])
+            r2 = d.dot(d)
+            if ti.static(self.has_pair):
+                if r2 < self.pair.cutoff**2:
+                    fij = self.pair.force(i, j, d, r2)
+                    fi += fij
+                    self.pair_f[t, j] -= fij
+            if ti.static(self.has_explicit_heat):
+                if r2 < self.heat.support**2:
+                    qij = self.heat.flow(i, j, r2)
+                    qi += qij
+                    self.pair_q[t, j] -= qij
+        self.pair_f[t, i] += fi
+        if ti.static(self.has_explicit_heat):
+            self.pair_q[t, i] += qi
+
     @ti.kernel
     def _rates(self, use_list: ti.template(), ids: ti.template()):
         p = self.particles
+        if ti.static(use_list and self.half_pairs):
+            n = p.n[None]
+            # Taichi's CPU backend runs a range-for in blocks of at least 512 iterations, so a loop over just the
+            # chunks would run on one thread: stride the chunks CHUNK_STRIDE iterations apart instead.
+            for u in range(self.n_chunks * CHUNK_STRIDE):
+                if u % CHUNK_STRIDE == 0:
+                    t = u // CHUNK_STRIDE
+                    for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
+                        self._half_row(t, i, ids)
         for ks in range(p.n[None]):
             i = ks
             if ti.static(self.has_grid):
@@ -346,7 +404,14 @@ class Simulation:
             if ti.static(self.has_grid):
                 f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
                 f_visc = ti.Vector.zero(float, self.dim)
-                if ti.static(use_list):
+                if ti.static(use_list and self.half_pairs):
+                    for t in range(self.n_chunks):  # what the pair pass left for i, read and cleared
+                        f_visc += self.pair_f[t, i]
+                        self.pair_f[t, i] = ti.Vector.zero(float, self.dim)
+                        if ti.static(self.has_explicit_heat):
+                            q += self.pair_q[t, i]
+                            self.pair_q[t, i] = 0.0
+                elif ti.static(use_list):
                     for k in range(self.neighbours.count[i]):
                         j = ids[i, k]
                         d = self.domain.separation(xi, p.x[j])
@@ -778,6 +843,10 @@ class Simulation:
             out["grid"] = CellGrid.footprint_bytes(self.capacity, self.grid.n_cells, self.dim)
         if self.neighbours is not None:
             out["neighbour lists"] = self.neighbours.nbytes()
+        if self.half_pairs:
+            out["half-list buffers"] = self.n_chunks * self.capacity * (self.dim + (1 if self.heat else 0)) * fbytes
+        if self.reorder is not None:
+            out["reorder scratch"] = self.reorder.nbytes()
         return out
 
 

@@ -160,6 +160,7 @@ class Tools:
             "material": np.full(m, mat_id),
             "color": np.tile(sim.materials.colors[mat_id], (m, 1)),
             "group": np.full(m, len(sim.scene.groups)),  # the spawn tool's own group, after bodies and emitters
+            "ident": np.full(m, -1),
         }
         if self.p.heat:
             t = np.full(m, ambient if temperature is None else temperature)

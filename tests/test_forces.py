@@ -198,7 +198,8 @@ def test_crowding_widens_the_neighbour_lists():
     reference = sim.forces().copy()
     sim.grid.rebuild()
     sim._rates(False, None)
-    assert np.allclose(reference, sim.forces(), rtol=1e-4, atol=1e-3)
+    # the crowd's forces nearly cancel on some particles: compare against the largest (f32, other summation order)
+    assert np.allclose(reference, sim.forces(), rtol=0, atol=1e-5 * np.abs(reference).max())
 
 
 def test_a_crowd_past_the_list_memory_cap_falls_back_to_the_grid_and_stays_finite(monkeypatch):

@@ -382,6 +382,7 @@ class Emitters:
         p.material[i] = mat
         p.color[i] = self.color[k]
         p.group[i] = self.first_group + k
+        p.ident[i] = -1
         mortal = 0
         if ti.static(self.sim.has_lifetimes):
             p.age[i] = 0.0

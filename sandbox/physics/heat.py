@@ -70,6 +70,13 @@ class Heat:
         self.norm = (7 / (math.pi * self.support**2) if dim == 2 else 21 / (2 * math.pi * self.support**3)) / correction
         self.p = particles
         self.mats = materials
+        # per material pair: 2 k_ij (harmonic mean of the conductivities) times the kernel's constant factor, and
+        # per material 1 / density, so the per-pair conductance needs no division
+        k = materials.conductivity.to_numpy().astype(np.float64)
+        k_pair = 2.0 * np.outer(k, k) / np.maximum(k[:, None] + k[None, :], 1e-30)
+        self.g_pair = _real_field(2.0 * k_pair * self.norm * 20.0 / self.support**2)
+        self.inv_density = _real_field(1.0 / materials.density.to_numpy().astype(np.float64))
+        self.inv_support = 1.0 / self.support
         self.sources = list(heat_scene.sources)
         self.n_sources = len(self.sources)
         ns = max(self.n_sources, 1)
@@ -138,15 +145,11 @@ class Heat:
     @ti.func
     def conductance(self, i, j, r2):
         """G_ij >= 0 with flow_ij = G_ij (T_j - T_i); symmetric in i and j."""
-        r = ti.sqrt(r2)
-        q = r / self.support
-        grad = self.norm * 20.0 * (1.0 - q) ** 3 / (self.support * self.support)
+        w = 1.0 - ti.sqrt(r2) * self.inv_support
         mi, mj = self.p.material[i], self.p.material[j]
-        ki, kj = self.mats.conductivity[mi], self.mats.conductivity[mj]
-        kij = 2.0 * ki * kj / ti.max(ki + kj, 1e-30)
-        vi = self.p.mass[i] / self.mats.density[mi]
-        vj = self.p.mass[j] / self.mats.density[mj]
-        return vi * vj * 2.0 * kij * grad
+        vi = self.p.mass[i] * self.inv_density[mi]
+        vj = self.p.mass[j] * self.inv_density[mj]
+        return self.g_pair[mi, mj] * vi * vj * w * w * w
 
     @ti.func
     def source_flow(self, i):
@@ -181,3 +184,10 @@ def source_value(src, t: float) -> float:
         t = t % src.schedule_period
     k = int(np.searchsorted(times, t, side="right")) - 1
     return float(src.schedule_values[k]) if k >= 0 else float(base)
+
+
+def _real_field(values: np.ndarray):
+    """A field of the running float precision holding `values`."""
+    field = ti.field(float, shape=values.shape)
+    field.from_numpy(values.astype(np.float64 if field.dtype == ti.f64 else np.float32))
+    return field

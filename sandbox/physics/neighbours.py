@@ -1,6 +1,7 @@
 """Verlet neighbour lists with a skin, built from the cell grid and rebuilt only when needed.
 
-Each particle lists every particle within reach + skin. The list stays valid until some particle has moved more
+Each particle lists every particle within reach + skin (a full list), or only those with a higher index (a half
+list: each pair once, under one of its two particles). The list stays valid until some particle has moved more
 than skin / 2 since the build (then no pair within `reach` can be missing), or the particle count changes; a
 cheap check kernel decides each step. Lists have a width sized from the initial packing with a margin; when a
 particle gets more neighbours than fit, the lists are reallocated wider (the kernels that read them take the list
@@ -20,8 +21,11 @@ MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cel
 class NeighbourList:
     """Per-particle lists of neighbour ids within reach + skin, over the cell grid `grid`."""
 
-    def __init__(self, grid, domain, x, n, reach: float, skin: float, capacity: int):
+    def __init__(self, grid, domain, x, n, reach: float, skin: float, capacity: int, half: bool = False):
+        """Lists for the first n[None] particles of x; `half`: each pair listed once, under one of the two (the
+        caller applies the pair to both particles)."""
         self.grid, self.domain, self.x, self.n = grid, domain, x, n
+        self.half = half
         self.dim = grid.dim
         self.reach, self.skin = reach, skin
         self.capacity = capacity
@@ -107,13 +111,20 @@ class NeighbourList:
         """Count (and with `store`, write into the 2D field `ids`) the neighbours of i within sqrt(r2max)."""
         xi = self.x[i]
         cell = self.grid.cell_of(xi)
+        centre = self.grid.n_offsets // 2  # the offset (0, .., 0)
+        first_offset = centre if ti.static(self.half) else 0
         c = 0
-        for o in range(self.grid.n_offsets):
+        # A half list scans the own cell after i's place in it and the forward half of the stencil (offset index
+        # above the centre's): each pair of cells is visited from one side only, so each pair is listed once.
+        for o in range(first_offset, self.grid.n_offsets):
             nc, shift = self.grid.neighbour_cell(cell, self.grid.offset(o))
             if nc >= 0:
                 start = self.grid.cell_start[nc]
+                if ti.static(self.half):
+                    if o == centre:
+                        start += self.grid.slot[i] + 1
                 xs = xi - shift
-                for k in range(start, start + self.grid.cell_count[nc]):
+                for k in range(start, self.grid.cell_start[nc] + self.grid.cell_count[nc]):
                     j = self.grid.sorted_ids[k]
                     if j != i:
                         d = self.grid.x_sorted[k] - xs

@@ -208,8 +208,8 @@ class PairForce:
         if ti.static(self.has_viscosity):
             p, q = self._pair_ids(i, j)
             r = ti.sqrt(r2)
-            n = d / ti.max(r, 1e-12)
-            f = self.visc[p, q] * (1.0 - r / self.cutoff) * (self.v[j] - self.v[i]).dot(n) * n
+            inv_r = 1.0 / ti.max(r, 1e-12)  # one division, not one per component
+            f = (self.visc[p, q] * (1.0 - r * (1.0 / self.cutoff)) * (self.v[j] - self.v[i]).dot(d) * inv_r * inv_r) * d
         return f
 
     @ti.func

@@ -143,7 +143,7 @@ class Springs:
     def force(self, i, j, s, d):
         """Force on particle i from live spring s joining it to j, with d = x_j - x_i."""
         r = d.norm()
-        n = d / ti.max(r, 1e-12)
+        n = d * (1.0 / ti.max(r, 1e-12))
         vrel = (self.p.v[j] - self.p.v[i]).dot(n)
         return self.factor[s] * (self.ks[s] * (r - self.rest[s]) + self.kd[s] * vrel) * n
 

@@ -107,6 +107,9 @@ class Renderer:
             self.chart = Chart(self.image, self.packed, width, height, tuple(render_cfg.chart))
         if self.motion_blur and sim.emitters is not None:
             sim.emitters.listeners.append(self._follow_moves)
+        if self.motion_blur and sim.reorder is not None:
+            self.tail_scratch = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)
+            sim.reorder.listeners.append(self._follow_order)
         self._setup_view()
         if self.dim == 2:
             # the walls and heat sources do not move: paint them once (refresh_backdrop() after changing a source)
@@ -236,11 +239,21 @@ class Renderer:
         """Stop following the simulation's particle moves (before this renderer is replaced)."""
         if self.sim.emitters is not None and self._follow_moves in self.sim.emitters.listeners:
             self.sim.emitters.listeners.remove(self._follow_moves)
+        if self.sim.reorder is not None and self._follow_order in self.sim.reorder.listeners:
+            self.sim.reorder.listeners.remove(self._follow_order)
 
     def _follow_moves(self, hole, filler, count: int) -> None:
         """Particles moved slots (retirement): move their motion-blur tails with them."""
         if count:
             self._move_tails(hole, filler, count)
+
+    @ti.kernel
+    def _follow_order(self, order: ti.template(), inverse: ti.template(), n: ti.i32):
+        """The particle storage was sorted (sim.reorder): sort the motion-blur tails the same way."""
+        for k in range(n):
+            self.tail_scratch[k] = self.x_prev[order[k]]
+        for k in range(n):
+            self.x_prev[k] = self.tail_scratch[k]
 
     @ti.kernel
     def _move_tails(self, hole: ti.template(), filler: ti.template(), count: ti.i32):

@@ -1,0 +1,132 @@
+"""The performance paths change no physics: half neighbour lists, storage sorted into cell order."""
+
+import numpy as np
+import pytest
+
+from sandbox.scene import load_scene
+from sandbox.simulation import Simulation
+
+from .conftest import SCENES, make_scene, scene_dict
+
+
+def lj_box(side: float = 20.0, reorder: int = 0, half: bool = True, neighbor_list: bool = True, seed: int = 5):
+    """A periodic 2D LJ liquid (W1 in miniature), f64, ~320 particles."""
+    data = scene_dict(
+        world={
+            "dim": 2,
+            "lo": [0, 0],
+            "hi": [side, side],
+            "dt": 0.005,
+            "periodic": True,
+            "precision": "f64",
+            "reorder": reorder,
+            "neighbor_list": neighbor_list,
+        },
+        pair={"a": 8.0, "b": 14.0, "cutoff": 2.5},
+        bodies=[
+            {
+                "material": "lj",
+                "shape": "box",
+                "lo": [0, 0],
+                "hi": [side, side],
+                "spacing": 1.118,
+                "springs": False,
+                "random_velocity": 1.0,
+                "seed": seed,
+            }
+        ],
+    )
+    return Simulation(make_scene(data), half_lists=half)
+
+
+def listed_pairs(sim) -> set:
+    n = int(sim.particles.n[None])
+    count, ids = sim.neighbours.count.to_numpy()[:n], sim.neighbours.ids.to_numpy()
+    return {(min(i, int(j)), max(i, int(j))) for i in range(n) for j in ids[i, : count[i]]}
+
+
+@pytest.mark.parametrize("side", [20.0, 8.5])  # 8.5: three cells per axis, every neighbour cell a periodic image
+def test_a_half_list_holds_each_pair_of_the_full_list_once(side):
+    full, half = lj_box(side, half=False), lj_box(side, half=True)
+    for sim in (full, half):
+        sim.eval_rates()
+    n = full.built.count
+    full_pairs = listed_pairs(full)
+    assert len(full_pairs) * 2 == int(full.neighbours.count.to_numpy()[:n].sum())  # listed from both ends
+    assert int(half.neighbours.count.to_numpy()[:n].sum()) == len(full_pairs)  # once
+    assert listed_pairs(half) == full_pairs
+
+
+def test_half_lists_give_the_forces_and_heat_rates_of_full_lists():
+    """The melting block (springs, viscosity, heat, a hot plate) part-way through melting: every particle's force and
+    enthalpy rate agree to round-off whichever way the pairs are visited."""
+    over = ["world.precision=f64", "heat.sources.0.temperature=400.0"]
+    sims = [Simulation(load_scene(SCENES / "melting_block.toml", over), half_lists=h) for h in (False, True)]
+    for sim in sims:
+        sim.step(400)
+        sim.eval_rates()
+    assert 0 < sims[0].springs.alive.to_numpy().sum() < sims[0].built.spring_count  # some bonds broke
+    f0, f1 = (s.forces() for s in sims)
+    h0, h1 = (s.particles.dhdt.to_numpy()[: s.built.count] for s in sims)
+    assert np.abs(f0 - f1).max() <= 1e-9 * np.abs(f0).max()
+    assert np.abs(h0 - h1).max() <= 1e-9 * np.abs(h0).max()
+    assert sims[1].half_pairs and not sims[0].half_pairs
+
+
+def test_sorting_the_storage_keeps_every_trajectory_and_orders_particles_by_cell():
+    plain, sorted_ = lj_box(reorder=0), lj_box(reorder=1)
+    for sim in (plain, sorted_):
+        sim.step(300)
+    assert sorted_.reorder.applied >= 3
+    ident = sorted_.particles.ident.to_numpy()[: sorted_.built.count]
+    assert sorted(ident) == list(range(sorted_.built.count))  # a permutation: no particle lost or doubled
+    assert not np.array_equal(ident, np.arange(len(ident)))  # the storage did move
+    x_plain, x_sorted = plain.positions(), sorted_.positions()
+    assert np.abs(x_sorted - x_plain[ident]).max() < 1e-9
+    assert np.abs(sorted_.velocities() - plain.velocities()[ident]).max() < 1e-9
+    sorted_.reorder.apply()  # right after a sort the storage runs cell by cell
+    cells = sorted_.grid.particle_cell.to_numpy()[: sorted_.built.count]
+    sorted_.grid.rebuild()
+    cells = sorted_.grid.particle_cell.to_numpy()[: sorted_.built.count]
+    assert np.all(np.diff(cells) >= 0)
+
+
+def test_sorting_keeps_springs_between_the_same_particles():
+    over = ["world.reorder=1", "world.precision=f64"]
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", over))
+    ident0 = sim.particles.ident.to_numpy()
+    i0, j0 = sim.springs.i.to_numpy(), sim.springs.j.to_numpy()
+    before = {frozenset((ident0[a], ident0[b])) for a, b in zip(i0, j0)}
+    sim.reorder.apply()
+    ident = sim.particles.ident.to_numpy()
+    i, j = sim.springs.i.to_numpy(), sim.springs.j.to_numpy()
+    assert {frozenset((ident[a], ident[b])) for a, b in zip(i, j)} == before
+    bonds = sim.springs.bonds.to_numpy()
+    for p in (0, 17, sim.built.count - 1):  # each particle's bond list names springs that touch it
+        for s in bonds[p][bonds[p] >= 0]:
+            assert p in (i[s], j[s])
+
+
+def rdf(x: np.ndarray, side: float, bins: np.ndarray) -> np.ndarray:
+    d = x[:, None, :] - x[None, :, :]
+    d -= side * np.round(d / side)
+    r = np.sqrt((d**2).sum(-1))[np.triu_indices(len(x), 1)]
+    hist, _ = np.histogram(r, bins)
+    shell = np.pi * (bins[1:] ** 2 - bins[:-1] ** 2)
+    return hist / shell / (len(x) * (len(x) - 1) / 2 / side**2)
+
+
+def test_the_optimised_step_keeps_the_energy_drift_and_the_radial_distribution():
+    """W1 in miniature, 1,000 steps: half lists + sorting against a plain cell-grid scan (no lists, no sorting)."""
+    fast, plain = lj_box(reorder=1, half=True), lj_box(reorder=0, half=False, neighbor_list=False)
+    energies = {}
+    for name, sim in (("fast", fast), ("plain", plain)):
+        e0 = sim.stats().total_energy
+        sim.step(1000)
+        energies[name] = (sim.stats().total_energy - e0) / abs(e0)
+    assert abs(energies["fast"]) < 2e-3 and abs(energies["plain"]) < 2e-3
+    assert abs(energies["fast"] - energies["plain"]) < 1e-3
+    bins = np.linspace(0.8, 3.0, 23)
+    g_fast, g_plain = rdf(fast.positions(), 20.0, bins), rdf(plain.positions(), 20.0, bins)
+    assert g_fast.max() > 1.5  # a liquid's first shell
+    assert np.abs(g_fast - g_plain).max() < 0.35
