@@ -235,6 +235,7 @@ def launches_per_step(factory, arch: str, steps: int = 200) -> dict:
     """Kernel launches per step (host reads of fields included) of the simulation `factory(arch)` builds, counted
     by Taichi's kernel profiler over `steps` steps after a warm-up, and how many steps rebuilt the neighbour list."""
     import taichi as ti
+    from taichi.profiler.kernel_profiler import get_default_kernel_profiler
 
     from . import runtime
 
@@ -247,8 +248,9 @@ def launches_per_step(factory, arch: str, steps: int = 200) -> dict:
     builds = sim.neighbours.builds if sim.neighbours is not None else 0
     sim.step(steps)
     ti.sync()
-    profiler = ti.profiler.get_default_kernel_profiler()
+    profiler = get_default_kernel_profiler()
     profiler._update_records()
+    profiler._count_statistics()
     per_kernel: dict[str, int] = {}
     for name, result in profiler._statistical_results.items():  # one entry per offloaded task of a kernel
         kernel = name.split("_kernel_")[0]

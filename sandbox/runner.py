@@ -82,7 +82,7 @@ def run_headless(
             t0 = time.perf_counter()
             if renderer is not None:
                 renderer.begin_frame()
-            taken = sim.advance_frame(substeps)
+            taken = sim.advance_frame(substeps, renderer.mid_frame if renderer is not None else None)
             ti.sync()
             step_seconds = (time.perf_counter() - t0) / taken
             last = sim.stats()

@@ -327,6 +327,12 @@ class Render:
     specular: float = spec(0.25, doc="3D: strength of the specular highlight on spheres", check=non_negative)
     motion_blur: bool = spec(False, doc="draw each particle as a streak from its position a shutter ago")
     shutter: float = spec(1.0, doc="motion blur: the fraction of a frame the shutter is open", check=unit_interval)
+    motion_path: str = spec(
+        "line",
+        doc="motion blur: a straight streak (line) or a curve through the position at the frame's middle substep "
+        "(spline: a quadratic, so orbits and bounces bend)",
+        check=one_of("line", "spline"),
+    )
     exposure: float = spec(1.0, doc="additive light: tone map 1 - exp(-exposure * light)", check=positive)
     draw_springs: bool = spec(False, doc="2D: draw live springs as lines")
     legend: bool = spec(False, doc="draw a colour bar for the colour map in a corner")

@@ -8,6 +8,7 @@ force, heat flow, springs, gravity and drag) and then its own update kernel, whi
 import math
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -332,6 +333,7 @@ class Simulation:
                 self.heat.add_source_mass(i)
         if ti.static(self.has_neighbours):
             self.neighbours.stale[None] = 0
+            self.neighbours.check_count()
             for i in range(self.particles.n[None]):
                 self.neighbours.check_one(i)
         if ti.static(self.has_springs):
@@ -669,11 +671,17 @@ class Simulation:
         n = max(1, math.ceil(world.frame_time / self.auto_step() - 1e-9))
         return n, world.frame_time / n
 
-    def advance_frame(self, substeps: int | None = None) -> int:
-        """Advance one frame (the scene's substeps, or `substeps` steps of dt); returns the steps taken."""
+    def advance_frame(self, substeps: int | None = None, midway: Callable[[], None] | None = None) -> int:
+        """Advance one frame (the scene's substeps, or `substeps` steps of dt); returns the steps taken. `midway` is
+        called after half of them (the renderer's mid_frame: the bend of curved motion-blur streaks)."""
         if substeps is None:
             substeps, self.dt = self.frame_substeps()
-        self.step(substeps)
+        if midway is None:
+            self.step(substeps)
+        else:
+            self.step(substeps // 2)
+            midway()
+            self.step(substeps - substeps // 2)
         return substeps
 
     def heat_dt_limit(self) -> float:

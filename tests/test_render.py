@@ -116,6 +116,44 @@ def test_a_still_particle_is_identical_with_and_without_motion_blur():
     assert np.array_equal(a, b)
 
 
+def arc_streak(motion_path):
+    """A particle that went (30, 50) -> (50, 70) -> (70, 50) over the frame (a bounce), drawn additive."""
+    sim = dot_scene(
+        [one([30.0, 50.0], spacing=2.0, blend="additive")], render={"motion_blur": True, "motion_path": motion_path}
+    )
+    ren = Renderer(sim, 100, 100, sim.scene.render)
+
+    def move_to(p):
+        x = sim.particles.x.to_numpy()
+        x[0] = p
+        sim.particles.x.from_numpy(x)
+
+    ren.begin_frame()
+    move_to([50.0, 70.0])
+    ren.mid_frame()
+    move_to([70.0, 50.0])
+    light, _ = splat_light(ren)
+    return ren, light[..., 0]
+
+
+def test_a_spline_streak_bends_through_the_middle_position_with_the_energy_of_a_still_particle():
+    spline, curve = arc_streak("spline")
+    line, straight = arc_streak("line")
+
+    def pixel(p):  # (column, row) of a domain point in the [x, y] image
+        q = np.asarray(p) * spline.px_per_unit + spline.offset.to_numpy()
+        return int(q[0]), int(q[1])
+
+    top = pixel([50.0, 70.0])
+    assert curve[top] > 0 and straight[top] == 0  # the curve passes where the particle was half-way through
+    assert straight[pixel([50.0, 50.0])] > 0 and curve[pixel([50.0, 50.0])] == 0  # the chord is not drawn
+    assert curve.sum() == pytest.approx(straight.sum(), rel=1e-5)  # the same light, spread along a longer path
+    # a symmetric bounce: the middle position is the curve's apex, so nothing is drawn above it (plus the radius)
+    rows = np.flatnonzero(curve.sum(axis=0) > 1e-6)
+    apex = 70.0 * spline.px_per_unit + spline.offset.to_numpy()[1]
+    assert rows.max() == pytest.approx(apex + 1.0 * spline.px_per_unit, abs=2.0)
+
+
 def alpha_pair_3d(red_in_front: bool):
     z_red, z_blue = (30.0, 20.0) if red_in_front else (20.0, 30.0)
     render = {
@@ -175,7 +213,7 @@ def test_golden_images(request, scene):
     ren = Renderer(sim, 192, 108, sim.scene.render)
     for _ in range(30 if scene == "fireworks" else 3):  # the first shells go off at 0.1 and 0.6 s
         ren.begin_frame()
-        sim.advance_frame()
+        sim.advance_frame(midway=ren.mid_frame)
     golden(request, scene, ren.frame())
 
 

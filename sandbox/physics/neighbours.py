@@ -33,7 +33,9 @@ class NeighbourList:
         self.x_ref = ti.Vector.field(self.dim, x.dtype, shape=capacity)  # positions at the last build
         self.stale = ti.field(ti.i32, shape=())  # 1 when the list must be rebuilt
         self.overflow = ti.field(ti.i32, shape=())  # 1 when some particle has more neighbours than fit
-        self.n_built = -1
+        self.n_listed = ti.field(ti.i32, shape=())  # the particle count at the last build
+        self.forced = True  # rebuild at the next check (invalidate())
+        self.usable = False  # the last build fitted every list (no overflow)
         self.builds = 0
         self.grid.rebuild()
         self._count_only()
@@ -51,25 +53,27 @@ class NeighbourList:
     def ensure_fresh(self, moved: bool | None = None) -> bool:
         """Rebuild the list if it may miss a pair; returns True when it is usable (no overflow). `moved`: the result
         of the displacement check when the caller ran it already (fused into its own kernel)."""
-        n = int(self.n[None])
         if moved is None:
             moved = self._moved_too_far()
-        if n != self.n_built or moved:
+        if self.forced or moved:  # no host read of the count or the overflow flag on steps without a rebuild
             self.grid.rebuild()
             self._fill(self.ids)
             if self.overflow[None]:
+                n = int(self.n[None])
                 widest = int(self.count.to_numpy()[:n].max())
                 wider = int(math.ceil(1.5 * widest)) + 8
                 if self.capacity * wider * 4 <= MAX_BYTES:
                     self._allocate(wider)
                     self.grown += 1
                     self._fill(self.ids)
-            self.n_built = n
+            self.usable = self.overflow[None] == 0
+            self.forced = False
             self.builds += 1
-        return self.overflow[None] == 0
+        return self.usable
 
     def invalidate(self) -> None:
-        self.n_built = -1
+        """Rebuild at the next check (the particles changed: added, removed, moved by hand or reordered)."""
+        self.forced = True
 
     def _moved_too_far(self) -> bool:
         self.stale[None] = 0
@@ -78,8 +82,15 @@ class NeighbourList:
 
     @ti.kernel
     def _check(self):
+        self.check_count()
         for i in range(self.n[None]):
             self.check_one(i)
+
+    @ti.func
+    def check_count(self):
+        """Flag the list stale if the particle count changed since the build (count changes also invalidate())."""
+        if self.n[None] != self.n_listed[None]:
+            self.stale[None] = 1
 
     @ti.func
     def check_one(self, i):
@@ -97,6 +108,7 @@ class NeighbourList:
     @ti.kernel
     def _fill(self, ids: ti.template()):
         self.overflow[None] = 0
+        self.n_listed[None] = self.n[None]
         r2max = (self.reach + self.skin) ** 2
         width = ids.shape[1]
         for i in range(self.n[None]):

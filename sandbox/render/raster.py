@@ -34,6 +34,7 @@ BLEND = {"opaque": 0, "alpha": 1, "additive": 2}
 R_MIN = 0.7  # pixels: the smallest drawn radius
 ROW_MAJOR = "ji"  # image fields are indexed [x, y] (GGUI's convention) but stored row by row, as the output is
 MIN_FADE = 0.25  # the least opacity factor of an opaque or translucent particle smaller than R_MIN
+SPLINE_SEGMENTS = 4  # chords per curved (spline) motion-blur streak
 
 
 @ti.data_oriented
@@ -88,6 +89,12 @@ class Renderer:
         if self.motion_blur:
             self.x_prev = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions a frame ago
             self.shutter = float(render_cfg.shutter)
+        self.spline = self.motion_blur and render_cfg.motion_path == "spline"
+        self.tails = [self.x_prev] if self.motion_blur else []  # per-particle drawing state that moves with particles
+        if self.spline:
+            self.x_mid = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions at the frame's middle
+            self.tails.append(self.x_mid)
+            self.mid_captured = False
         self.color_mode = COLOR_MODES[render_cfg.color_by]
         self.t_lo = ti.field(ti.f32, shape=())
         self.t_hi = ti.field(ti.f32, shape=())
@@ -215,7 +222,15 @@ class Renderer:
     def begin_frame(self) -> None:
         """Remember positions before the simulation advances a frame (the tails of motion-blur streaks)."""
         if self.motion_blur:
-            self._remember()
+            self._remember(self.x_prev)
+            self.mid_captured = False
+
+    def mid_frame(self) -> None:
+        """Remember positions half-way through the frame's substeps (the bend of spline streaks); pass this as
+        `midway` to Simulation.advance_frame. Without it a spline streak is drawn straight."""
+        if self.spline:
+            self._remember(self.x_mid)
+            self.mid_captured = True
 
     def pick(self, u: float, v: float, reach_px: float = 12.0) -> np.ndarray | None:
         """3D: the position of the nearest particle drawn within reach_px pixels of the window point (u, v) (fractions
@@ -250,23 +265,33 @@ class Renderer:
     @ti.kernel
     def _follow_order(self, order: ti.template(), inverse: ti.template(), n: ti.i32):
         """The particle storage was sorted (sim.reorder): sort the motion-blur tails the same way."""
-        for k in range(n):
-            self.tail_scratch[k] = self.x_prev[order[k]]
-        for k in range(n):
-            self.x_prev[k] = self.tail_scratch[k]
+        for tail in ti.static(self.tails):
+            for k in range(n):
+                self.tail_scratch[k] = tail[order[k]]
+            for k in range(n):
+                tail[k] = self.tail_scratch[k]
 
     @ti.kernel
     def _move_tails(self, hole: ti.template(), filler: ti.template(), count: ti.i32):
         for m in range(count):
-            self.x_prev[hole[m]] = self.x_prev[filler[m]]
+            for tail in ti.static(self.tails):
+                tail[hole[m]] = tail[filler[m]]
 
     @ti.kernel
-    def _remember(self):
+    def _remember(self, into: ti.template()):
         for i in range(self.sim.particles.n[None]):
-            self.x_prev[i] = ti.cast(self.sim.particles.x[i], ti.f32)
+            into[i] = ti.cast(self.sim.particles.x[i], ti.f32)
+
+    @ti.kernel
+    def _straight_mids(self):
+        for i in range(self.sim.particles.n[None]):
+            self.x_mid[i] = 0.5 * (self.x_prev[i] + ti.cast(self.sim.particles.x[i], ti.f32))
 
     def render(self) -> None:
         """Draw the current state into self.image."""
+        if self.spline and not self.mid_captured:
+            self._straight_mids()  # no middle position this frame (a single step, a paused window): draw straight
+            self.mid_captured = True
         if self.dim == 2:
             # Two full-image passes per frame: the splats, then one pass that paints the background, composites
             # the layers, zeroes the accumulators for the next frame and packs the 8-bit output.
@@ -395,35 +420,71 @@ class Renderer:
         return (pix - (a + t * ab)).norm(), t
 
     @ti.func
-    def _weight(self, pix, a, b, r, blurred):
-        """Coverage of pixel pix by the capsule a-b of radius r (pixels), times the fall-off along a streak."""
+    def _curve(self, pix, a, c, b):
+        """(distance from pix to the quadratic Bezier a-c-b, its parameter there), on SPLINE_SEGMENTS chords."""
+        best = 1e30
+        t_best = 1.0
+        start = a
+        for k in ti.static(range(1, SPLINE_SEGMENTS + 1)):
+            t = k / SPLINE_SEGMENTS
+            end = (1.0 - t) ** 2 * a + 2.0 * (1.0 - t) * t * c + t * t * b
+            d, s = self._segment(pix, start, end)
+            if d < best:
+                best = d
+                t_best = (k - 1 + s) / SPLINE_SEGMENTS
+            start = end
+        return best, t_best
+
+    @ti.func
+    def _streak(self, prev, mid, head):
+        """(tail, control point, head) in pixels of the streak of a particle that went prev -> mid -> head over the
+        frame: the last `shutter` of the straight segment, or of the quadratic through the three (spline)."""
+        tail = head + self.shutter * (prev - head)
+        ctrl = 0.5 * (tail + head)
+        if ti.static(self.spline):
+            t0 = 1.0 - self.shutter
+            c = 2.0 * mid - 0.5 * (prev + head)  # the quadratic's control point: it passes through mid at t = 1/2
+            tail = (1.0 - t0) ** 2 * prev + 2.0 * (1.0 - t0) * t0 * c + t0 * t0 * head
+            ctrl = (1.0 - t0) * c + t0 * head  # de Casteljau: the control point of the piece from t0 to 1
+        return tail, ctrl, head
+
+    @ti.func
+    def _weight(self, pix, a, c, b, r, blurred):
+        """Coverage of pixel pix by the capsule of radius r (pixels) around the streak a-b (curved through control
+        point c with spline motion blur), times the fall-off along a streak."""
         d, t = self._segment(pix, a, b)
+        if ti.static(self.spline):
+            if blurred:
+                d, t = self._curve(pix, a, c, b)
         w = ti.math.clamp(r + 0.5 - d, 0.0, 1.0)
         if blurred:
             w *= 0.25 + 0.75 * t
         return w
 
     @ti.func
-    def _box(self, a, b, r):
-        x0 = ti.max(ti.cast(ti.floor(ti.min(a[0], b[0]) - r - 1), ti.i32), 0)
-        x1 = ti.min(ti.cast(ti.ceil(ti.max(a[0], b[0]) + r + 1), ti.i32), self.width - 1)
-        y0 = ti.max(ti.cast(ti.floor(ti.min(a[1], b[1]) - r - 1), ti.i32), 0)
-        y1 = ti.min(ti.cast(ti.ceil(ti.max(a[1], b[1]) + r + 1), ti.i32), self.height - 1)
+    def _box(self, a, b, r, c):
+        """Pixel bounds of the capsule around a-b (and control point c, which bounds a curve with the ends)."""
+        lo = ti.min(ti.min(a, b), c)
+        hi = ti.max(ti.max(a, b), c)
+        x0 = ti.max(ti.cast(ti.floor(lo[0] - r - 1), ti.i32), 0)
+        x1 = ti.min(ti.cast(ti.ceil(hi[0] + r + 1), ti.i32), self.width - 1)
+        y0 = ti.max(ti.cast(ti.floor(lo[1] - r - 1), ti.i32), 0)
+        y1 = ti.min(ti.cast(ti.ceil(hi[1] + r + 1), ti.i32), self.height - 1)
         return x0, x1, y0, y1
 
     @ti.func
-    def _deposit_light(self, a, b, r, energy, col, blurred, use_depth, z):
+    def _deposit_light(self, a, c, b, r, energy, col, blurred, use_depth, z):
         """Spread `energy` of colour col over the capsule's footprint with normalised weights (depth-tested in 3D)."""
-        x0, x1, y0, y1 = self._box(a, b, r)
+        x0, x1, y0, y1 = self._box(a, b, r, c)
         total = 0.0
         for px in range(x0, x1 + 1):
             for py in range(y0, y1 + 1):
-                total += self._weight(ti.Vector([px + 0.5, py + 0.5]), a, b, r, blurred)
+                total += self._weight(ti.Vector([px + 0.5, py + 0.5]), a, c, b, r, blurred)
         if total > 0.0:
             zbits = ti.bit_cast(ti.cast(ti.max(z, 0.0), ti.f32), ti.i32)
             for px in range(x0, x1 + 1):
                 for py in range(y0, y1 + 1):
-                    w = self._weight(ti.Vector([px + 0.5, py + 0.5]), a, b, r, blurred)
+                    w = self._weight(ti.Vector([px + 0.5, py + 0.5]), a, c, b, r, blurred)
                     visible = True
                     if use_depth:
                         visible = zbits <= self.depth[px, py]
@@ -470,7 +531,7 @@ class Renderer:
                 a = ti.cast(p.x[s.i[k]], ti.f32) * self.px_per_unit + self.offset
                 b = ti.cast(p.x[s.j[k]], ti.f32) * self.px_per_unit + self.offset
                 if (a - b).norm() < 0.25 * ti.max(self.width, self.height):  # skip periodic wrap-arounds
-                    x0, x1, y0, y1 = self._box(a, b, 0.5)
+                    x0, x1, y0, y1 = self._box(a, b, 0.5, a)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
                             d, _ = self._segment(ti.Vector([px + 0.5, py + 0.5]), a, b)
@@ -486,14 +547,18 @@ class Renderer:
         for i in range(p.n[None]):
             g = p.group[i]
             head = ti.cast(p.x[i], ti.f32) * self.px_per_unit + self.offset
-            tail = head
+            tail, ctrl = head, head
             blurred = False
             if ti.static(self.motion_blur):
                 prev = self.x_prev[i] * self.px_per_unit + self.offset
-                tail = head + self.shutter * (prev - head)
-                blurred = (tail - head).norm() > 1e-3 and (tail - head).norm() < 0.5 * self.width  # not a periodic wrap
+                mid = 0.5 * (prev + head)
+                if ti.static(self.spline):
+                    mid = self.x_mid[i] * self.px_per_unit + self.offset
+                tail, ctrl, head = self._streak(prev, mid, head)
+                span = ti.max((tail - head).norm(), (mid - head).norm())
+                blurred = (tail - head).norm() > 1e-3 and span < 0.5 * self.width  # not a periodic wrap
                 if not blurred:
-                    tail = head
+                    tail, ctrl = head, head
             r_true = self.drawn_radius(i) * self.px_per_unit
             draw, blend, opacity = self.g_draw[g], self.g_blend[g], self.group_opacity(i)
             if draw == 0:  # a dot: one pixel
@@ -503,12 +568,13 @@ class Renderer:
             col = self.particle_color(i)
             if blend == 2:
                 if ti.static(self.has_additive):
-                    self._deposit_light(tail, head, r, opacity * math.pi * r_true * r_true, col, blurred, False, 0.0)
+                    energy = opacity * math.pi * r_true * r_true
+                    self._deposit_light(tail, ctrl, head, r, energy, col, blurred, False, 0.0)
             else:
-                x0, x1, y0, y1 = self._box(tail, head, r)
+                x0, x1, y0, y1 = self._box(tail, head, r, ctrl)
                 for px in range(x0, x1 + 1):
                     for py in range(y0, y1 + 1):
-                        w = fade * self._weight(ti.Vector([px + 0.5, py + 0.5]), tail, head, r, blurred)
+                        w = fade * self._weight(ti.Vector([px + 0.5, py + 0.5]), tail, ctrl, head, r, blurred)
                         if w > 0.0:
                             if blend == 0:
                                 self.accum[px, py] += w * col
@@ -595,7 +661,7 @@ class Renderer:
                 if z > 1e-3:
                     rad = self.drawn_radius(i)
                     r = ti.max(rad * self.focal_field[None] / z, R_MIN)
-                    x0, x1, y0, y1 = self._box(centre, centre, r)
+                    x0, x1, y0, y1 = self._box(centre, centre, r, centre)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
                             u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
@@ -616,7 +682,7 @@ class Renderer:
                     r = ti.max(rad * self.focal_field[None] / z, R_MIN)
                     col = self.particle_color(i)
                     shaded = self.g_draw[g] == 2
-                    x0, x1, y0, y1 = self._box(centre, centre, r)
+                    x0, x1, y0, y1 = self._box(centre, centre, r, centre)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
                             u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
@@ -661,10 +727,10 @@ class Renderer:
                 col = self.particle_color(i)
                 opacity = self.group_opacity(i)
                 zbits = ti.bit_cast(ti.cast(z, ti.f32), ti.i32)
-                x0, x1, y0, y1 = self._box(centre, centre, r)
+                x0, x1, y0, y1 = self._box(centre, centre, r, centre)
                 for px in range(x0, x1 + 1):
                     for py in range(y0, y1 + 1):
-                        w = self._weight(ti.Vector([px + 0.5, py + 0.5]), centre, centre, r, False)
+                        w = self._weight(ti.Vector([px + 0.5, py + 0.5]), centre, centre, centre, r, False)
                         if w > 0.0 and zbits <= self.depth[px, py]:
                             a = ti.min(w * opacity, 1.0)
                             self.image[px, py] = self.image[px, py] * (1.0 - a) + col * a
@@ -677,23 +743,25 @@ class Renderer:
             if self.g_blend[g] == 2:
                 head, z = self._project(p.x[i])
                 if z > 1e-3:
-                    tail = head
+                    tail, ctrl = head, head
                     blurred = False
                     if ti.static(self.motion_blur):
                         prev, zp = self._project(self.x_prev[i])
-                        if zp > 1e-3:
-                            tail = head + self.shutter * (prev - head)
-                            blurred = (tail - head).norm() > 1e-3 and (
-                                tail - head
-                            ).norm() < 0.5 * self.width  # not a periodic wrap
+                        mid, zm = 0.5 * (prev + head), zp
+                        if ti.static(self.spline):
+                            mid, zm = self._project(self.x_mid[i])
+                        if zp > 1e-3 and zm > 1e-3:
+                            tail, ctrl, head = self._streak(prev, mid, head)
+                            span = ti.max((tail - head).norm(), (mid - head).norm())
+                            blurred = (tail - head).norm() > 1e-3 and span < 0.5 * self.width  # not a periodic wrap
                             if not blurred:
-                                tail = head
+                                tail, ctrl = head, head
                     r_true = self.drawn_radius(i) * self.focal_field[None] / z
                     if self.g_draw[g] == 0:
                         r_true = 0.5
                     r = ti.max(r_true, R_MIN)
                     energy = self.g_opacity[g] * math.pi * r_true * r_true
-                    self._deposit_light(tail, head, r, energy, self.particle_color(i), blurred, True, z)
+                    self._deposit_light(tail, ctrl, head, r, energy, self.particle_color(i), blurred, True, z)
 
     @ti.kernel
     def _tone_map(self):

@@ -275,7 +275,7 @@ def run_window(
             tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps, material=state.material or None)
         renderer.begin_frame()
         if not state.paused:
-            sim.advance_frame(state.substeps)
+            sim.advance_frame(state.substeps, renderer.mid_frame)
         elif state.single_step:
             sim.step(1)
         state.single_step = False
