@@ -5,6 +5,7 @@ import taichi as ti
 
 from .build import Particles
 from .materials import Material
+from .runtime import real_field
 
 
 @ti.data_oriented
@@ -110,12 +111,7 @@ class MaterialTable:
 
     def __init__(self, materials: list[Material]):
         n = len(materials)
-
-        def table(values, dtype=float):
-            field = ti.field(dtype, shape=n)
-            field.from_numpy(np.asarray(values, dtype=np.float64 if _is_f64() else np.float32))
-            return field
-
+        table = real_field  # a float field of the running precision, one entry per material
         self.density = table([m.density for m in materials])  # mass / volume
         self.specific_heat = table([m.specific_heat for m in materials])  # heat / (mass degree)
         self.conductivity = table([m.conductivity for m in materials])  # heat / (time length degree)

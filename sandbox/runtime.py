@@ -70,6 +70,16 @@ def running_arch() -> str:
     return "cpu" if name in ("x64", "arm64") else name
 
 
+def real_field(values):
+    """A Taichi field of the running float precision, shaped and filled like `values` (an array or a list)."""
+    import numpy as np
+
+    values = np.asarray(values, dtype=np.float64)
+    field = ti.field(float, shape=values.shape)
+    field.from_numpy(values.astype(np.float64 if field.dtype == ti.f64 else np.float32))
+    return field
+
+
 def real_dtype():
     """The Taichi float type of the running precision (ti.f32 or ti.f64)."""
     assert _current is not None, "runtime.init() must be called first"

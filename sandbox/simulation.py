@@ -357,8 +357,8 @@ class Simulation:
 
     @ti.func
     def _half_row(self, t, i, ids):
-        """Pairs (i, j > i) of i's half list: i's share kept, j's share (equal and opposite) written to chunk t's
-        buffer row."""
+        """The pairs (i, j) of i's half list: i's share kept, j's (equal and opposite) written to chunk t's buffer
+        row."""
         p = self.particles
         xi = p.x[i]
         fi = ti.Vector.zero(float, self.dim)
@@ -673,10 +673,11 @@ class Simulation:
 
     def advance_frame(self, substeps: int | None = None, midway: Callable[[], None] | None = None) -> int:
         """Advance one frame (the scene's substeps, or `substeps` steps of dt); returns the steps taken. `midway` is
-        called after half of them (the renderer's mid_frame: the bend of curved motion-blur streaks)."""
+        called after half of them, rounded down (the renderer's mid_frame: the bend of curved motion-blur streaks);
+        not for a single step, which has no middle."""
         if substeps is None:
             substeps, self.dt = self.frame_substeps()
-        if midway is None:
+        if midway is None or substeps < 2:
             self.step(substeps)
         else:
             self.step(substeps // 2)
@@ -797,10 +798,12 @@ class Simulation:
             passes.append("velocity field sampled at field-coupled particles (their drag target)")
         if self.neighbours is not None:
             passes.append(
-                f"neighbour lists (reach {self.neighbours.reach:g} + skin {self.neighbours.skin:g}, width "
-                f"{self.neighbours.width}), rebuilt from a counting-sort {self.grid.describe()} when a "
-                "particle has moved half the skin"
+                f"{'half' if self.half_pairs else 'full'} neighbour lists (reach {self.neighbours.reach:g} + skin "
+                f"{self.neighbours.skin:g}, width {self.neighbours.width}), rebuilt from a counting-sort "
+                f"{self.grid.describe()} when a particle has moved half the skin"
             )
+            if self.reorder is not None:
+                passes.append(f"particle storage sorted into cell order every {self.reorder.every} list rebuilds")
         elif self.grid is not None:
             passes.append(f"neighbour grid: counting sort into a {self.grid.describe()}, every step")
         if self.springs is not None:
@@ -818,7 +821,8 @@ class Simulation:
             forces.append("gravity")
         if self.scene.world.drag:
             forces.append("drag")
-        passes.append("fused rates kernel: " + ", ".join(forces))
+        pairs = " (each neighbour pair once, applied to both)" if self.half_pairs else ""
+        passes.append(f"fused rates kernel{pairs}: " + ", ".join(forces))
         walls = "periodic wrap" if self.scene.world.periodic else "walls (restitution, friction)"
         heat = ""
         if self.heat is not None:

@@ -282,3 +282,12 @@ def test_potential_panel_draws_the_force_curve_top_right():
     assert changed.sum() > 100 and xs.min() > 320 - 320 // 4 - 20 and ys.max() < 180 // 5 + 20
     ren.set_potential(None)
     assert np.array_equal(ren.frame(), plain)
+
+
+def test_a_frame_calls_its_midway_hook_once_half_way_and_a_single_step_has_none():
+    sim = dot_scene([one([50.0, 50.0])])
+    seen = []
+    sim.advance_frame(5, midway=lambda: seen.append(sim.step_count))
+    assert seen == [2] and sim.step_count == 5
+    sim.advance_frame(1, midway=lambda: seen.append(sim.step_count))  # no middle: a spline streak is drawn straight
+    assert seen == [2] and sim.step_count == 6

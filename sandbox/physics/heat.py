@@ -26,6 +26,7 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..runtime import real_field
 from ..scene import SOURCE_MODES
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
@@ -74,8 +75,8 @@ class Heat:
         # per material 1 / density, so the per-pair conductance needs no division
         k = materials.conductivity.to_numpy().astype(np.float64)
         k_pair = 2.0 * np.outer(k, k) / np.maximum(k[:, None] + k[None, :], 1e-30)
-        self.g_pair = _real_field(2.0 * k_pair * self.norm * 20.0 / self.support**2)
-        self.inv_density = _real_field(1.0 / materials.density.to_numpy().astype(np.float64))
+        self.g_pair = real_field(2.0 * k_pair * self.norm * 20.0 / self.support**2)
+        self.inv_density = real_field(1.0 / materials.density.to_numpy().astype(np.float64))
         self.inv_support = 1.0 / self.support
         self.sources = list(heat_scene.sources)
         self.n_sources = len(self.sources)
@@ -184,10 +185,3 @@ def source_value(src, t: float) -> float:
         t = t % src.schedule_period
     k = int(np.searchsorted(times, t, side="right")) - 1
     return float(src.schedule_values[k]) if k >= 0 else float(base)
-
-
-def _real_field(values: np.ndarray):
-    """A field of the running float precision holding `values`."""
-    field = ti.field(float, shape=values.shape)
-    field.from_numpy(values.astype(np.float64 if field.dtype == ti.f64 else np.float32))
-    return field

@@ -1,13 +1,12 @@
 """Verlet neighbour lists with a skin, built from the cell grid and rebuilt only when needed.
 
-Each particle lists every particle within reach + skin (a full list), or only those with a higher index (a half
-list: each pair once, under one of its two particles). The list stays valid until some particle has moved more
-than skin / 2 since the build (then no pair within `reach` can be missing), or the particle count changes; a
-cheap check kernel decides each step. Lists have a width sized from the initial packing with a margin; when a
-particle gets more neighbours than fit, the lists are reallocated wider (the kernels that read them take the list
-field as a template argument, so they recompile for the new field). Past MAX_BYTES of lists (say, a thousand
-particles crushed into one cell) the step falls back to scanning the cell grid directly: no interaction is ever
-dropped.
+Each particle lists every particle within reach + skin (a full list), or only those in its own cell after it and in the
+forward half of the cell stencil (a half list: each pair once, under one of its two particles). The list stays valid
+until some particle has moved more than skin / 2 since the build (then no pair within `reach` can be missing), or the
+particle count changes; a cheap check kernel decides each step. Lists have a width sized from the initial packing with a
+margin; when a particle gets more neighbours than fit, the lists are reallocated wider (the kernels that read them take
+the list field as a template argument, so they recompile for the new field). Past MAX_BYTES of lists (say, a thousand
+particles crushed into one cell) the step falls back to scanning the cell grid directly: no interaction is ever dropped.
 """
 
 import math

@@ -19,6 +19,8 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..runtime import real_field
+
 
 def radial_force(r, alpha, beta, eps, a, b):
     """Radial force factor g(r) such that F_i = g(r) d (NumPy/float; unit masses)."""
@@ -83,13 +85,13 @@ class PairForce:
         self.base_beta_np = np.sqrt(np.outer(beta, beta))
         self.eps_np = 0.5 * (eps[:, None] + eps[None, :])
         self.visc_np = 0.5 * (visc[:, None] + visc[None, :])
-        self.alpha = _table(self.base_alpha_np)
-        self.beta = _table(self.base_beta_np)
-        self.eps = _table(self.eps_np)
-        self.visc = _table(self.visc_np)
-        self.r_core = _table(np.zeros((n, n)))
-        self.shift = _table(np.zeros((n, n)))
-        self.f_core = _table(np.zeros((n, n)))
+        self.alpha = real_field(self.base_alpha_np)
+        self.beta = real_field(self.base_beta_np)
+        self.eps = real_field(self.eps_np)
+        self.visc = real_field(self.visc_np)
+        self.r_core = real_field(np.zeros((n, n)))
+        self.shift = real_field(np.zeros((n, n)))
+        self.f_core = real_field(np.zeros((n, n)))
         self.set_scale(1.0, 1.0)
         self.single_material = n == 1
         self.has_viscosity = bool(np.any(self.visc_np > 0))
@@ -249,9 +251,3 @@ class PairForce:
         else:
             rep = beta * self._powneg(r, self.b - 2.0) / (self.b - 2.0)
         return alpha * att + rep
-
-
-def _table(values: np.ndarray):
-    field = ti.field(float, shape=values.shape)
-    field.from_numpy(values.astype(np.float64 if field.dtype == ti.f64 else np.float32))
-    return field

@@ -452,10 +452,14 @@ class Renderer:
     def _weight(self, pix, a, c, b, r, blurred):
         """Coverage of pixel pix by the capsule of radius r (pixels) around the streak a-b (curved through control
         point c with spline motion blur), times the fall-off along a streak."""
-        d, t = self._segment(pix, a, b)
+        d, t = 0.0, 0.0
         if ti.static(self.spline):
             if blurred:
                 d, t = self._curve(pix, a, c, b)
+            else:
+                d, t = self._segment(pix, a, b)
+        else:
+            d, t = self._segment(pix, a, b)
         w = ti.math.clamp(r + 0.5 - d, 0.0, 1.0)
         if blurred:
             w *= 0.25 + 0.75 * t
