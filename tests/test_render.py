@@ -45,7 +45,7 @@ def splat_light(ren):
     """Splat a 2D frame and return (the additive light before tone mapping, the finished image)."""
     ren._splat_2d()
     light = ren.light.to_numpy().copy()
-    ren._resolve_2d(False)  # composites, packs and zeroes the accumulators
+    ren._composite()  # composites, writes the 8-bit picture and zeroes the accumulators
     return light, ren.image.to_numpy()
 
 
@@ -291,3 +291,62 @@ def test_a_frame_calls_its_midway_hook_once_half_way_and_a_single_step_has_none(
     assert seen == [2] and sim.step_count == 5
     sim.advance_frame(1, midway=lambda: seen.append(sim.step_count))  # no middle: a spline streak is drawn straight
     assert seen == [2] and sim.step_count == 6
+
+
+def test_compositing_only_the_dirty_tiles_gives_the_full_picture():
+    """A particle that moves leaves no trace, and overlays whose content changes (chart values, legend) are
+    redrawn: every frame equals the picture of a renderer that composites every pixel every frame."""
+    from types import SimpleNamespace
+
+    sim = dot_scene(
+        [one([20.0, 50.0], spacing=4.0), one([80.0, 20.0], spacing=4.0, blend="additive")],
+        render={"legend": True, "color_by": "speed", "chart": ["kinetic_energy"]},
+    )
+    cfg = sim.scene.render
+    tiled, full = Renderer(sim, 160, 120, cfg), Renderer(sim, 160, 120, cfg)
+    for k in range(6):
+        x = sim.particles.x.to_numpy()
+        x[0] += (9.0, 4.0 * (-1) ** k)  # crosses tiles, back and forth
+        sim.particles.x.from_numpy(x)
+        for ren in (tiled, full):
+            ren.record(SimpleNamespace(kinetic_energy=float(k * k)))
+        full.full_refresh = True
+        a, b = tiled.frame().copy(), full.frame()
+        assert np.array_equal(a, b), f"frame {k}"
+        assert np.array_equal(tiled.image.to_numpy(), full.image.to_numpy())
+    assert tiled.stamp[None] == 6 and np.count_nonzero(tiled.tile_stamp.to_numpy() >= 4) < 20  # few tiles drawn
+
+
+def moved_sphere_3d(motion_blur, move_by):
+    """A shaded opaque sphere of radius 3 seen head-on from z = 200 that moved `move_by` along x over the frame."""
+    camera = {"camera_position": [50.0, 50.0, 200.0], "camera_target": [50.0, 50.0, 50.0], "ground": False}
+    sim = dot_scene([one([48.0, 48.0, 48.0], spacing=6.0)], dim=3, render={"motion_blur": motion_blur, **camera})
+    ren = Renderer(sim, 200, 150, sim.scene.render)
+    ren.begin_frame()
+    x = sim.particles.x.to_numpy()
+    x[0, 0] += move_by
+    sim.particles.x.from_numpy(x)
+    return ren, ren.frame().astype(int)
+
+
+def test_a_blurred_opaque_sphere_stays_solid_and_leaves_a_fading_streak_of_its_displacement():
+    ren, blurred = moved_sphere_3d(True, 20.0)
+    _, sharp = moved_sphere_3d(False, 20.0)
+    _, background = moved_sphere_3d(False, 500.0)  # out of the picture
+    sphere = np.abs(sharp - background).sum(axis=2) > 0
+    streak = (np.abs(blurred - background).sum(axis=2) > 0) & ~sphere
+    assert np.array_equal(blurred[sphere], sharp[sphere])  # the sphere itself is drawn as without motion blur
+    rows, cols = np.nonzero(sphere | streak)
+    ppu = ren.focal_field[None] / (200.0 - 48.0)  # pixels per unit of length at the sphere's depth
+    assert cols.max() - cols.min() + 1 == pytest.approx((20.0 + 2 * 3.0) * ppu, abs=2.5)  # displacement + diameter
+    row = int(np.median(rows))
+    red = (blurred - background)[row, :, 0]
+    streak_cols = np.flatnonzero(streak[row])
+    ahead = streak_cols > np.flatnonzero(sphere[row]).max()
+    assert ahead.sum() <= 1  # behind the sphere (it moved to +x), but for the anti-aliased rim
+    streak_cols = streak_cols[~ahead]
+    assert red[streak_cols[-1]] > 2 * red[streak_cols[0] + 2] > 0  # fading towards where it was
+
+
+def test_a_still_opaque_sphere_is_identical_with_and_without_motion_blur_3d():
+    assert np.array_equal(moved_sphere_3d(True, 0.0)[1], moved_sphere_3d(False, 0.0)[1])

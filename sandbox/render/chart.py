@@ -8,7 +8,7 @@ the box's width. Videos also print each series' latest value under the box, in t
 import numpy as np
 import taichi as ti
 
-from .raster import draw_text
+from .raster import draw_text, put_pixel
 
 FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
 COLORS = ((1.0, 0.4, 0.25), (0.35, 0.65, 1.0), (0.5, 0.9, 0.4), (0.95, 0.85, 0.3))
@@ -20,12 +20,13 @@ HISTORY = 16 * SAMPLES  # samples kept; past it every other one is dropped and t
 class Chart:
     """Strip chart of some Stats fields; record() each frame, the renderer calls draw()."""
 
-    def __init__(self, image, packed, width: int, height: int, series: tuple[str, ...]):
+    def __init__(self, image, width: int, height: int, series: tuple[str, ...]):
         self.series = tuple(series)
         self.n_series = len(self.series)
-        self.image, self.packed = image, packed
+        self.image = image
         self.width, self.height = width, height
         self.box_w, self.box_h = max(64, width // 4), max(40, height // 5)
+        self.label_height = 4 + 5 * max(1, height // 240)  # the values printed under the box
         self.x0, self.y_top = 10, 10  # top-left corner of the box, pixels from the top-left of the picture
         self.values = ti.field(ti.f32, shape=(len(self.series), SAMPLES))  # normalised to [0, 1]
         self.colors = ti.Vector.field(3, ti.f32, shape=len(self.series))
@@ -58,26 +59,25 @@ class Chart:
             table[k, : self.n] = np.clip((values[pick] - lo) / span, 0.0, 1.0)
         self.values.from_numpy(table)
 
-    def draw(self) -> None:
-        """Draw the box and the series into the renderer's image and its packed 8-bit copy."""
-        self._draw(self.n)
+    def draw(self, out) -> None:
+        """Draw the box and the series into the renderer's float image and its 8-bit picture `out` (H, W, 3)."""
+        self._draw(self.n, out)
 
     @ti.func
-    def _put(self, x, y, c):
-        """Set pixel (x, y) of the picture, y counted up from the bottom, in the float image and the packed one."""
+    def _put(self, out: ti.template(), x, y, c):
+        """Set pixel (x, y) of the picture, y counted up from the bottom, in the float image and the 8-bit one."""
         self.image[x, y] = c
-        v = ti.cast(ti.math.clamp(c, 0.0, 1.0) * 255.0 + 0.5, ti.u32)
-        self.packed[self.height - 1 - y, x] = v[0] | (v[1] << 8) | (v[2] << 16) | (ti.u32(255) << 24)
+        put_pixel(out, self.height, x, y, c)
 
     @ti.kernel
-    def _draw(self, n: ti.i32):
+    def _draw(self, n: ti.i32, out: ti.types.ndarray(dtype=ti.u8, ndim=3)):
         x0, w, h = self.x0, self.box_w, self.box_h
         y0 = self.height - self.y_top - h  # bottom row of the box
         for i, j in ti.ndrange(w, h):
             c = self.image[x0 + i, y0 + j] * 0.3  # dim what is behind, so the lines read
             if i == 0 or j == 0 or i == w - 1 or j == h - 1:
                 c = ti.Vector([0.6, 0.6, 0.6])
-            self._put(x0 + i, y0 + j, c)
+            self._put(out, x0 + i, y0 + j, c)
         for s, k in ti.ndrange(self.n_series, SAMPLES - 1):
             if k < n - 1:
                 ax = x0 + 1 + (w - 3) * k / ti.max(n - 1, 1)
@@ -89,7 +89,7 @@ class Chart:
                     f = t / steps
                     px = ti.cast(ax + f * (bx - ax) + 0.5, ti.i32)
                     py = ti.cast(ay + f * (by - ay) + 0.5, ti.i32)
-                    self._put(px, py, self.colors[s])
+                    self._put(out, px, py, self.colors[s])
 
     def label(self, img: np.ndarray) -> None:
         """Print each series' latest value under the box, in its colour, on an (H, W, 3) uint8 frame."""
@@ -109,9 +109,10 @@ class CurvePlot(Chart):
     """A fixed curve (the window's potential panel: the pair force against distance) in the top-right corner, with
     its zero line; set_curve() replaces it."""
 
-    def __init__(self, image, packed, width: int, height: int):
-        super().__init__(image, packed, width, height, ("curve", "zero"))
+    def __init__(self, image, width: int, height: int):
+        super().__init__(image, width, height, ("curve", "zero"))
         self.x0 = width - self.box_w - 10
+        self.label_height = 0
 
     def set_curve(self, values: np.ndarray) -> None:
         """Plot `values` (any length up to SAMPLES) scaled so that zero is mid-height and the largest attraction
