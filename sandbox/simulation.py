@@ -174,7 +174,17 @@ class Simulation:
             half_lists = self.arch == "cpu"
         self.half_pairs = bool(half_lists) and world.neighbor_list and reach > 0 and not implicit_heat
         self.neighbours = (
-            NeighbourList(self.grid, self.domain, p.x, p.n, reach, skin, self.capacity, half=self.half_pairs)
+            NeighbourList(
+                self.grid,
+                self.domain,
+                p.x,
+                p.n,
+                reach,
+                skin,
+                self.capacity,
+                half=self.half_pairs,
+                springs=self.springs if self.pair is not None else None,
+            )
             if self.grid is not None and world.neighbor_list
             else None
         )
@@ -191,6 +201,7 @@ class Simulation:
         self.emitters = Emitters(self, scene.emitters, len(scene.bodies)) if scene.emitters else None
         self._warned_overflow = False
         self.has_neighbours = self.neighbours is not None
+        self.marks_bonds = self.has_neighbours and self.neighbours.marks_bonds  # the half pass skips bonded pairs
         self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
         self.has_heat, self.has_springs = self.heat is not None, self.springs is not None
         self.has_power = self.has_heat and self.heat.has_power
@@ -207,7 +218,12 @@ class Simulation:
         self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
         self.drag[None] = world.drag
         acc = ti.f64 if self.arch in ("cpu", "cuda") else ti.f32
-        self._acc = ti.field(acc, shape=len(_ACC))  # sums for stats(), indexed by _ACC
+        # Sums (and the largest speed) for stats(), one 0-d field each: Taichi accumulates a 0-d field per thread
+        # and adds once per thread at the end of a loop, but turns `field[k] += ...` into one contended atomic per
+        # iteration. _measure copies them into _acc and _count, which the host reads.
+        self._sums = [ti.field(acc, shape=()) for _ in _ACC]
+        self._counts = [ti.field(ti.i32, shape=()) for _ in _COUNT]
+        self._acc = ti.field(acc, shape=len(_ACC))  # indexed by _ACC
         self._count = ti.field(ti.i32, shape=len(_COUNT))  # counts for stats(), indexed by _COUNT
         self.integrator = make_integrator(world.integrator, self)
         if self.emitters is not None:
@@ -257,7 +273,8 @@ class Simulation:
             self.time += self.dt
             self.step_count += 1
             if self.refreezer is not None and self.step_count % self.scene.heat.refreeze_interval == 0:
-                self.refreezer.run()
+                if self.refreezer.run() and self.marks_bonds:
+                    self.neighbours.invalidate()  # the list marks bonded pairs: new springs must be marked
         if self.has_lifetimes:
             self.emitters.retire()
 
@@ -365,10 +382,16 @@ class Simulation:
         qi = 0.0
         for k in range(self.neighbours.count[i]):
             j = ids[i, k]
+            bonded = False  # joined by a live spring: no pair force (heat still flows)
+            if ti.static(self.neighbours.marks_bonds):
+                if j < 0:
+                    s = -j - 1
+                    j = self.springs.other_end(i, s)
+                    bonded = self.springs.alive[s] != 0
             d = self.domain.separation(xi, p.x[j])
             r2 = d.dot(d)
             if ti.static(self.has_pair):
-                if r2 < self.pair.cutoff**2:
+                if r2 < self.pair.cutoff**2 and not bonded:
                     fij = self.pair.force(i, j, d, r2)
                     fi += fij
                     self.pair_f[t, j] -= fij
@@ -440,7 +463,7 @@ class Simulation:
                         j = self.springs.other_end(i, s)
                         d = self.domain.separation(xi, p.x[j])
                         f += self.springs.force(i, j, s, d)
-                        if ti.static(self.has_pair):
+                        if ti.static(self.has_pair and not (use_list and self.half_pairs and self.marks_bonds)):
                             r2 = d.dot(d)
                             if r2 < self.pair.cutoff**2:  # bonded pairs feel the spring, not the pair force
                                 f -= self.pair.force(i, j, d, r2)
@@ -487,33 +510,34 @@ class Simulation:
     @ti.kernel
     def _measure(self, pair_energy: ti.template()):
         p = self.particles
-        for k in self._acc:
-            self._acc[k] = 0
-        for k in self._count:
-            self._count[k] = 0
+        acc, count = ti.static(self._sums, self._counts)
+        for k in ti.static(range(len(_ACC))):
+            acc[k][None] = 0
+        for k in ti.static(range(len(_COUNT))):
+            count[k][None] = 0
         for i in range(p.n[None]):
             v2 = p.v[i].dot(p.v[i])
-            self._acc[_ACC["ke"]] += 0.5 * p.mass[i] * v2
-            self._acc[_ACC["mass"]] += p.mass[i]
-            self._acc[_ACC["grav"]] += -p.mass[i] * self.gravity[None].dot(p.x[i])
-            ti.atomic_max(self._acc[_ACC["vmax"]], ti.sqrt(v2))
+            acc[_ACC["ke"]][None] += 0.5 * p.mass[i] * v2
+            acc[_ACC["mass"]][None] += p.mass[i]
+            acc[_ACC["grav"]][None] += -p.mass[i] * self.gravity[None].dot(p.x[i])
+            ti.atomic_max(acc[_ACC["vmax"]][None], ti.sqrt(v2))
             finite = 1
             for a in ti.static(range(self.dim)):
                 if not (ti.abs(p.x[i][a]) < 1e30 and ti.abs(p.v[i][a]) < 1e30):
                     finite = 0
             if finite == 0:
-                self._count[_COUNT["bad"]] += 1
+                count[_COUNT["bad"]][None] += 1
             if ti.static(self.has_heat):
-                self._acc[_ACC["tsum"]] += p.T[i]
-                self._acc[_ACC["heat"]] += p.mass[i] * p.h[i]
+                acc[_ACC["tsum"]][None] += p.T[i]
+                acc[_ACC["heat"]][None] += p.mass[i] * p.h[i]
                 if self.materials.melt[p.material[i]] < 1e29:
-                    self._count[_COUNT["meltable"]] += 1
-                    self._acc[_ACC["phi"]] += self.phase.fraction(p.h[i], p.material[i])
+                    count[_COUNT["meltable"]][None] += 1
+                    acc[_ACC["phi"]][None] += self.phase.fraction(p.h[i], p.material[i])
         if ti.static(self.has_springs):
             for s in range(self.springs.count):
-                self._acc[_ACC["spring"]] += self.springs.energy(s)
+                acc[_ACC["spring"]][None] += self.springs.energy(s)
                 if self.springs.alive[s]:
-                    self._count[_COUNT["alive"]] += 1
+                    count[_COUNT["alive"]][None] += 1
         if ti.static(self.has_pair and pair_energy):
             for i in range(p.n[None]):
                 e = 0.0
@@ -540,7 +564,11 @@ class Simulation:
                             r2 = d.dot(d)
                             if r2 < self.pair.cutoff**2:
                                 e -= self.pair.energy(i, j, r2)
-                self._acc[_ACC["pair"]] += e
+                acc[_ACC["pair"]][None] += e
+        for k in ti.static(range(len(_ACC))):
+            self._acc[k] = acc[k][None]
+        for k in ti.static(range(len(_COUNT))):
+            self._count[k] = count[k][None]
 
     def stats(self, pair_energy: bool = True) -> Stats:
         """Energies, temperatures and counts now. Raises SimulationError if any particle is not finite.

@@ -73,6 +73,52 @@ def test_half_lists_give_the_forces_and_heat_rates_of_full_lists():
     assert sims[1].half_pairs and not sims[0].half_pairs
 
 
+def test_a_bond_that_breaks_between_list_builds_brings_back_its_pair_force():
+    """Half lists mark bonded pairs so the pair pass skips their pair force; a spring that breaks while the list is
+    still in use must give its pair the pair force at once, as the full lists (which subtract it per bond) do."""
+    over = ["world.precision=f64", "heat.sources.0.temperature=400.0"]
+    sims = [Simulation(load_scene(SCENES / "melting_block.toml", over), half_lists=h) for h in (False, True)]
+    for sim in sims:
+        sim.step(150)
+        sim.eval_rates()
+    half = sims[1]
+    n = half.built.count
+    ids, count = half.neighbours.ids.to_numpy(), half.neighbours.count.to_numpy()
+    marked = [int(-e - 1) for i in range(n) for e in ids[i, : count[i]] if e < 0]
+    assert len(marked) > 1000 and half.marks_bonds  # bonded pairs are marked in the list
+    alive = sims[0].springs.alive.to_numpy()
+    doomed = [s for s in marked[::3] if alive[s]]
+    assert len(doomed) > 300
+    builds = half.neighbours.builds
+    for sim in sims:  # break every third marked spring by hand, without moving anything
+        a = sim.springs.alive.to_numpy()
+        a[doomed] = 0
+        sim.springs.alive.from_numpy(a)
+        sim.eval_rates()
+    assert half.neighbours.builds == builds  # the list was not rebuilt: the marks are stale
+    f0, f1 = (s.forces() for s in sims)
+    assert np.abs(f0 - f1).max() <= 1e-9 * np.abs(f0).max()
+
+
+def test_springs_made_by_refreezing_are_marked_before_the_next_step():
+    """Refreezing makes new springs (possibly in reused slots): the half list is rebuilt, and forces stay equal."""
+    from .test_phase import _wax_scene
+
+    data = _wax_scene()
+    data["world"]["precision"] = "f64"
+    data["bodies"] = [
+        {"material": "wax", "shape": "box", "lo": [8, 0], "hi": [22, 4], "temperature": -20.0},
+        {"material": "wax", "shape": "box", "lo": [10, 4.2], "hi": [20, 7.2], "springs": False, "temperature": 90.0},
+    ]
+    sims = [Simulation(make_scene(data), half_lists=h) for h in (False, True)]
+    for sim in sims:
+        sim.step(400)
+        sim.eval_rates()
+    assert int(sims[1].springs.created[None]) > sims[1].springs.built_count + 10  # springs made by refreezing
+    f0, f1 = (s.forces() for s in sims)
+    assert np.abs(f0 - f1).max() <= 1e-9 * np.abs(f0).max()
+
+
 def test_sorting_the_storage_keeps_every_trajectory_and_orders_particles_by_cell():
     plain, sorted_ = lj_box(reorder=0), lj_box(reorder=1)
     for sim in (plain, sorted_):

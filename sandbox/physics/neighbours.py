@@ -7,6 +7,11 @@ particle count changes; a cheap check kernel decides each step. Lists have a wid
 margin; when a particle gets more neighbours than fit, the lists are reallocated wider (the kernels that read them take
 the list field as a template argument, so they recompile for the new field). Past MAX_BYTES of lists (say, a thousand
 particles crushed into one cell) the step falls back to scanning the cell grid directly: no interaction is ever dropped.
+
+Bonded pairs (half lists given `springs`): a pair joined by a live spring at the build is stored as -(s + 1), s the
+spring, so the pair pass can skip its pair force (a bonded pair feels its spring instead) without searching the bond
+table, and apply the pair force again once the spring breaks. Spring slots are only reused by new springs, and the
+code that makes springs invalidates the list, so an entry never names a slot that now joins other particles.
 """
 
 import math
@@ -20,11 +25,13 @@ MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cel
 class NeighbourList:
     """Per-particle lists of neighbour ids within reach + skin, over the cell grid `grid`."""
 
-    def __init__(self, grid, domain, x, n, reach: float, skin: float, capacity: int, half: bool = False):
+    def __init__(self, grid, domain, x, n, reach: float, skin: float, capacity: int, half: bool = False, springs=None):
         """Lists for the first n[None] particles of x; `half`: each pair listed once, under one of the two (the
-        caller applies the pair to both particles)."""
+        caller applies the pair to both particles); `springs` (with `half`): mark bonded pairs (see above)."""
         self.grid, self.domain, self.x, self.n = grid, domain, x, n
         self.half = half
+        self.springs = springs
+        self.marks_bonds = half and springs is not None
         self.dim = grid.dim
         self.reach, self.skin = reach, skin
         self.capacity = capacity
@@ -116,6 +123,19 @@ class NeighbourList:
             self.x_ref[i] = self.x[i]
             if c > width:
                 self.overflow[None] = 1
+        if ti.static(self.marks_bonds):
+            s = self.springs
+            for i in range(self.n[None]):  # each live bond of i: if the pair is in i's list (not j's), mark it
+                listed = ti.min(self.count[i], width)
+                for b in range(s.max_bonds):
+                    spring = s.bonds[i, b]
+                    if spring < 0:
+                        break
+                    if s.alive[spring]:
+                        j = s.other_end(i, spring)
+                        for k in range(listed):
+                            if ids[i, k] == j:
+                                ids[i, k] = -(spring + 1)
 
     @ti.func
     def _visit(self, i, r2max, store: ti.template(), ids: ti.template()):
