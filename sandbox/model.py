@@ -3,9 +3,10 @@
 import numpy as np
 import taichi as ti
 
+from . import transfer
 from .build import Particles
 from .materials import Material
-from .runtime import real_field
+from .runtime import real_fields
 
 
 @ti.data_oriented
@@ -55,28 +56,24 @@ class ParticleFields:
         turn the initial temperatures into enthalpies and liquid flags."""
         n = built.count
         self.n[None] = n
-        self._set(self.x, built.x)
-        self._set(self.v, built.v)
-        self._set(self.f, np.zeros_like(built.x))
-        self._set(self.mass, built.mass)
-        self._set(self.radius, built.radius)
-        self._set(self.material, built.material)
-        self._set(self.color, colors[built.material])
-        self._set(self.group, built.body)
-        self._set(self.ident, np.arange(n, dtype=np.int32))
+        pairs = [
+            (self.x, built.x),
+            (self.v, built.v),
+            (self.f, np.zeros_like(built.x)),
+            (self.mass, built.mass),
+            (self.radius, built.radius),
+            (self.material, built.material),
+            (self.color, colors[built.material]),
+            (self.group, built.body),
+            (self.ident, np.arange(n, dtype=np.int32)),
+        ]
         if self.heat:
             h, phi = initial_enthalpy(built.temperature, built.material, materials)
-            self._set(self.h, h)
-            self._set(self.T, built.temperature)
-            self._set(self.dhdt, np.zeros(n))
+            pairs += [(self.h, h), (self.T, built.temperature), (self.dhdt, np.zeros(n))]
             if self.refreeze:
                 breaks = material_column(materials, built.material, "break_melt_fraction")
-                self._set(self.liquid, ((phi >= breaks) | ~built.solid).astype(np.int32))
-
-    def _set(self, field, values: np.ndarray) -> None:
-        full = field.to_numpy()
-        full[: len(values)] = values
-        field.from_numpy(full)
+                pairs.append((self.liquid, ((phi >= breaks) | ~built.solid).astype(np.int32)))
+        transfer.upload(pairs)
 
     def nbytes(self) -> int:
         """Bytes held by these fields."""
@@ -111,22 +108,29 @@ class MaterialTable:
 
     def __init__(self, materials: list[Material]):
         n = len(materials)
-        table = real_field  # a float field of the running precision, one entry per material
-        self.density = table([m.density for m in materials])  # mass / volume
-        self.specific_heat = table([m.specific_heat for m in materials])  # heat / (mass degree)
-        self.conductivity = table([m.conductivity for m in materials])  # heat / (time length degree)
-        self.soften = table([min(m.soften_temperature, 1e30) for m in materials])  # degrees
-        self.melt = table([min(m.melt_temperature, 1e30) for m in materials])  # solidus (degrees)
-        self.liquidus = table([min(m.liquidus_temperature, 1e30) for m in materials])  # degrees
-        self.latent = table([m.latent_heat for m in materials])  # heat / mass
-        self.stiff_at_melt = table([m.stiffness_at_melt for m in materials])  # fraction of k_s left at the solidus
-        self.break_fraction = table([m.break_melt_fraction for m in materials])  # both ends this molten: bond breaks
-        self.undercool = table([m.refreeze_undercooling for m in materials])  # degrees below the solidus to refreeze
-        self.stiffness = table([m.stiffness for m in materials])  # k_s of bonds made by refreezing
-        self.damping = table([m.damping for m in materials])  # k_d of bonds made by refreezing
-        self.colors = np.array([m.color for m in materials], dtype=np.float32)  # (n_mat, 3)
         self.liquid_color = ti.Vector.field(3, ti.f32, shape=n)  # melt colour when drawing by phase, (n_mat, 3)
-        self.liquid_color.from_numpy(np.array([m.liquid_color for m in materials], dtype=np.float32))
+        liquid = np.array([m.liquid_color for m in materials], dtype=np.float32)
+        # Float fields of the running precision, one entry per material, all filled by one copy kernel; NumPy copies
+        # of the same numbers are kept for host-side set-up (heat conductance tables).
+        self.host = {
+            "density": [m.density for m in materials],  # mass / volume
+            "specific_heat": [m.specific_heat for m in materials],  # heat / (mass degree)
+            "conductivity": [m.conductivity for m in materials],  # heat / (time length degree)
+            "soften": [min(m.soften_temperature, 1e30) for m in materials],  # degrees
+            "melt": [min(m.melt_temperature, 1e30) for m in materials],  # solidus (degrees)
+            "liquidus": [min(m.liquidus_temperature, 1e30) for m in materials],  # degrees
+            "latent": [m.latent_heat for m in materials],  # heat / mass
+            "stiff_at_melt": [m.stiffness_at_melt for m in materials],  # fraction of k_s left at the solidus
+            "break_fraction": [m.break_melt_fraction for m in materials],  # both ends this molten: bond breaks
+            "undercool": [m.refreeze_undercooling for m in materials],  # degrees below the solidus to refreeze
+            "stiffness": [m.stiffness for m in materials],  # k_s of bonds made by refreezing
+            "damping": [m.damping for m in materials],  # k_d of bonds made by refreezing
+        }
+        self.host = {k: np.asarray(v, dtype=np.float64) for k, v in self.host.items()}
+        fields = real_fields(*self.host.values(), also=((self.liquid_color, liquid),))
+        for name, field in zip(self.host, fields):
+            setattr(self, name, field)
+        self.colors = np.array([m.color for m in materials], dtype=np.float32)  # (n_mat, 3)
 
 
 def _is_f64() -> bool:

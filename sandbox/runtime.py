@@ -42,6 +42,7 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
     if threads:
         kwargs["cpu_max_num_threads"] = int(threads)
     if _current is not None:
+        _forget_copiers()
         ti.reset()
     if arch == "auto":
         ti.init(arch=ti.cuda, **kwargs)
@@ -60,8 +61,15 @@ def reset() -> None:
     """
     global _current
     if _current is not None:
+        _forget_copiers()
         ti.reset()
         _current = None
+
+
+def _forget_copiers() -> None:
+    from . import transfer
+
+    transfer.forget()
 
 
 def running_arch() -> str:
@@ -72,12 +80,21 @@ def running_arch() -> str:
 
 def real_field(values):
     """A Taichi field of the running float precision, shaped and filled like `values` (an array or a list)."""
+    return real_fields(values)[0]
+
+
+def real_fields(*tables, also: tuple = ()) -> list:
+    """Taichi fields of the running float precision, shaped and filled like each of `tables` (arrays or lists),
+    filled by one copy kernel together with the (field, values) pairs in `also` (see transfer.py: a from_numpy per
+    field costs a compiled kernel each)."""
     import numpy as np
 
-    values = np.asarray(values, dtype=np.float64)
-    field = ti.field(float, shape=values.shape)
-    field.from_numpy(values.astype(np.float64 if field.dtype == ti.f64 else np.float32))
-    return field
+    from . import transfer
+
+    arrays = [np.asarray(t, dtype=np.float64) for t in tables]
+    fields = [ti.field(float, shape=a.shape) for a in arrays]
+    transfer.upload(list(zip(fields, arrays)) + list(also))
+    return fields
 
 
 def real_dtype():

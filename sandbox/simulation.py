@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from . import runtime
+from . import runtime, transfer
 from .build import build_particles
 from .errors import SimulationError
 from .integrators import make_integrator
@@ -50,7 +50,7 @@ STAT_COLUMNS = (
     "step_seconds",
 )
 
-SPRING_STATE = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds", "created")  # what refreezing changes
+SPRING_ARRAYS = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds")  # what refreezing changes (and `created`)
 NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
 RUNAWAY_FACTOR = 1e4  # kinetic energy above this many natural energy scales stops the run (see stats())
 _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
@@ -658,11 +658,11 @@ class Simulation:
         if self.springs is None:
             return 0.0
         s = self.springs
-        k = s.ks.to_numpy() * s.factor.to_numpy() * s.alive.to_numpy()
-        i, j = s.i.to_numpy(), s.j.to_numpy()
+        ks, factor, alive, i, j, mass = transfer.download([s.ks, s.factor, s.alive, s.i, s.j, self.particles.mass])
+        k = ks * factor * alive
         n = int(self.particles.n[None])
         ksum = np.bincount(i, weights=k, minlength=n)[:n] + np.bincount(j, weights=k, minlength=n)[:n]
-        mass = self.particles.mass.to_numpy()[:n]
+        mass = mass[:n]
         return float(math.sqrt(np.max(2 * ksum / mass))) if n else 0.0
 
     def stable_dt(self) -> float:
@@ -745,22 +745,25 @@ class Simulation:
         snap = {"n": int(p.n[None]), "time": self.time, "step": self.step_count}
         if self.emitters is not None:
             snap["emitters"] = (list(self.emitters.serial), list(self.emitters.carry), list(self.emitters.emitted))
-        for name in self.field_names():
-            snap[name] = getattr(p, name).to_numpy()
+        names = self.field_names()
+        fields = [getattr(p, name) for name in names]
         if self.springs is not None:
-            for name in SPRING_STATE:
-                snap[f"spring_{name}"] = getattr(self.springs, name).to_numpy()
+            fields += [getattr(self.springs, name) for name in SPRING_ARRAYS]
+            snap["spring_created"] = int(self.springs.created[None])
+        arrays = transfer.download(fields)  # one copy kernel for all of them
+        snap.update(zip(names, arrays))
+        snap.update((f"spring_{name}", a) for name, a in zip(SPRING_ARRAYS, arrays[len(names) :]))
         return snap
 
     def restore(self, snap: dict) -> None:
         """Put the state back exactly as `snapshot()` saw it."""
         p = self.particles
         p.n[None] = snap["n"]
-        for name in self.field_names():
-            getattr(p, name).from_numpy(snap[name])
+        pairs = [(getattr(p, name), snap[name]) for name in self.field_names()]
         if self.springs is not None:
-            for name in SPRING_STATE:
-                getattr(self.springs, name).from_numpy(snap[f"spring_{name}"])
+            pairs += [(getattr(self.springs, name), snap[f"spring_{name}"]) for name in SPRING_ARRAYS]
+            self.springs.created[None] = snap["spring_created"]
+        transfer.upload(pairs)
         self.time = snap["time"]
         self.step_count = snap["step"]
         if self.emitters is not None:

@@ -26,7 +26,7 @@ import math
 import numpy as np
 import taichi as ti
 
-from ..runtime import real_field
+from ..runtime import real_fields
 from ..scene import SOURCE_MODES
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
@@ -73,10 +73,11 @@ class Heat:
         self.mats = materials
         # per material pair: 2 k_ij (harmonic mean of the conductivities) times the kernel's constant factor, and
         # per material 1 / density, so the per-pair conductance needs no division
-        k = materials.conductivity.to_numpy().astype(np.float64)
+        k = materials.host["conductivity"]
         k_pair = 2.0 * np.outer(k, k) / np.maximum(k[:, None] + k[None, :], 1e-30)
-        self.g_pair = real_field(2.0 * k_pair * self.norm * 20.0 / self.support**2)
-        self.inv_density = real_field(1.0 / materials.density.to_numpy().astype(np.float64))
+        self.g_pair, self.inv_density = real_fields(
+            2.0 * k_pair * self.norm * 20.0 / self.support**2, 1.0 / materials.host["density"]
+        )
         self.inv_support = 1.0 / self.support
         self.sources = list(heat_scene.sources)
         self.n_sources = len(self.sources)

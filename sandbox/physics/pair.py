@@ -19,7 +19,8 @@ import math
 import numpy as np
 import taichi as ti
 
-from ..runtime import real_field
+from .. import transfer
+from ..runtime import real_fields
 
 
 def radial_force(r, alpha, beta, eps, a, b):
@@ -85,13 +86,9 @@ class PairForce:
         self.base_beta_np = np.sqrt(np.outer(beta, beta))
         self.eps_np = 0.5 * (eps[:, None] + eps[None, :])
         self.visc_np = 0.5 * (visc[:, None] + visc[None, :])
-        self.alpha = real_field(self.base_alpha_np)
-        self.beta = real_field(self.base_beta_np)
-        self.eps = real_field(self.eps_np)
-        self.visc = real_field(self.visc_np)
-        self.r_core = real_field(np.zeros((n, n)))
-        self.shift = real_field(np.zeros((n, n)))
-        self.f_core = real_field(np.zeros((n, n)))
+        # eps and visc are filled here; the other tables by set_scale (one copy kernel each time)
+        self.eps, self.visc = real_fields(self.eps_np, self.visc_np)
+        self.alpha, self.beta, self.r_core, self.shift, self.f_core = (ti.field(float, shape=(n, n)) for _ in range(5))
         self.set_scale(1.0, 1.0)
         self.single_material = n == 1
         self.has_viscosity = bool(np.any(self.visc_np > 0))
@@ -121,15 +118,15 @@ class PairForce:
         # Force magnitude at the core radius, g(r_core) r_core per unit mass product (held below the core).
         rc = self.r_core_np
         g_core = self.alpha_np / (rc + self.eps_np) ** self.a - self.beta_np / rc**self.b
-        dtype = self.alpha.to_numpy().dtype
-        for field, values in (
-            (self.alpha, self.alpha_np),
-            (self.beta, self.beta_np),
-            (self.r_core, self.r_core_np),
-            (self.shift, self.shift_np),
-            (self.f_core, g_core * rc),
-        ):
-            field.from_numpy(values.astype(dtype))
+        transfer.upload(
+            [
+                (self.alpha, self.alpha_np),
+                (self.beta, self.beta_np),
+                (self.r_core, self.r_core_np),
+                (self.shift, self.shift_np),
+                (self.f_core, g_core * rc),
+            ]
+        )
 
     def curve(self, samples: int = 128, p: int = 0, q: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """(r, radial force per unit mass product, positive attracting) for materials p, q from half the core radius to

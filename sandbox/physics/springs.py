@@ -21,6 +21,8 @@ can refreeze has spare spring slots beyond the built ones.
 import numpy as np
 import taichi as ti
 
+from .. import transfer
+
 
 def bond_table(
     spring_i: np.ndarray, spring_j: np.ndarray, n_particles: int, max_bonds: int, spring_ids: np.ndarray | None = None
@@ -70,21 +72,24 @@ class Springs:
         self.alive = ti.field(ti.i32, shape=s)  # 1 while the spring holds, 0 once broken (for good)
         self.bonds = ti.field(ti.i32, shape=(capacity, self.max_bonds))  # spring ids at each particle, -1 padded
         self.created = ti.field(ti.i32, shape=())  # springs ever made (built + refrozen): broken = created - alive
-        if self.built_count:
-            pad = np.zeros(spare)
-            self.i.from_numpy(np.concatenate([built.spring_i, pad]).astype(np.int32))
-            self.j.from_numpy(np.concatenate([built.spring_j, pad]).astype(np.int32))
-            self.rest.from_numpy(np.concatenate([built.rest_length, pad]))
-            self.ks.from_numpy(np.concatenate([built.stiffness, pad]))
-            self.kd.from_numpy(np.concatenate([built.damping, pad]))
-        self.factor.fill(1.0)
-        alive = np.zeros(s, dtype=np.int32)
-        alive[: self.built_count] = 1
-        self.alive.from_numpy(alive)
-        self.created[None] = self.built_count
+        pad = np.zeros(s - self.built_count)
         table = np.full((capacity, self.max_bonds), -1, dtype=np.int32)
         table[: built.count] = bond_table(built.spring_i, built.spring_j, built.count, self.max_bonds)[: built.count]
-        self.bonds.from_numpy(table)
+        alive = np.zeros(s, dtype=np.int32)
+        alive[: self.built_count] = 1
+        transfer.upload(  # one copy kernel for all of them
+            [
+                (self.i, np.concatenate([built.spring_i, pad]).astype(np.int32)),
+                (self.j, np.concatenate([built.spring_j, pad]).astype(np.int32)),
+                (self.rest, np.concatenate([built.rest_length, pad])),
+                (self.ks, np.concatenate([built.stiffness, pad])),
+                (self.kd, np.concatenate([built.damping, pad])),
+                (self.factor, np.ones(s)),
+                (self.alive, alive),
+                (self.bonds, table),
+            ]
+        )
+        self.created[None] = self.built_count
         self.p = particles
         self.mats = materials
         self.phase = phase
@@ -93,10 +98,10 @@ class Springs:
 
     def rebuild_bonds(self) -> None:
         """Rebuild every particle's bond list from the live springs (after particles were removed or renumbered)."""
-        alive = np.flatnonzero(self.alive.to_numpy()[: self.count])
-        i, j = self.i.to_numpy()[alive], self.j.to_numpy()[alive]
+        alive, i, j = transfer.download([self.alive, self.i, self.j], [self.count] * 3)
+        alive = np.flatnonzero(alive)
         n = self.bonds.shape[0]
-        self.bonds.from_numpy(bond_table(i, j, n, self.max_bonds, alive)[:n])
+        transfer.upload([(self.bonds, bond_table(i[alive], j[alive], n, self.max_bonds, alive)[:n])])
 
     @ti.func
     def update_one(self, s):

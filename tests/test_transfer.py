@@ -1,0 +1,34 @@
+"""Batched host <-> field copies (sandbox/transfer.py): exact round trips, leading rows only, clear shape errors."""
+
+import numpy as np
+import pytest
+import taichi as ti
+
+from sandbox import runtime, transfer
+
+
+def test_one_batch_copies_mixed_fields_exactly_and_leaves_the_rows_past_the_values():
+    runtime.reset()
+    runtime.init("cpu", "f32")
+    scalar = ti.field(ti.f32, shape=10)
+    wide = ti.field(ti.f64, shape=6)
+    ints = ti.field(ti.i32, shape=(5, 3))
+    vec = ti.Vector.field(3, ti.f32, shape=8)
+    scalar.fill(-1.0)
+    vec.fill(-2.0)
+    rng = np.random.default_rng(1)
+    values = {
+        "scalar": rng.normal(size=4).astype(np.float32),  # the first 4 of 10 rows
+        "wide": np.array([1 / 3, 1e300, -0.0, 2**-60, 7.0, np.pi]),
+        "ints": rng.integers(-(2**31), 2**31 - 1, size=(5, 3)).astype(np.int32),
+        "vec": rng.normal(size=(8, 3)).astype(np.float32),
+    }
+    transfer.upload([(scalar, values["scalar"]), (wide, values["wide"]), (ints, values["ints"]), (vec, values["vec"])])
+    got = transfer.download([scalar, wide, ints, vec])
+    assert np.array_equal(got[0][:4], values["scalar"]) and np.all(got[0][4:] == -1.0)  # the rest kept
+    assert np.array_equal(got[1], values["wide"]) and got[1].dtype == np.float64  # f64 exact
+    assert np.array_equal(got[2], values["ints"]) and got[2].dtype == np.int32
+    assert np.array_equal(got[3], values["vec"]) and got[3].shape == (8, 3)
+    assert np.array_equal(got[3], vec.to_numpy())  # what Taichi's own copy sees
+    with pytest.raises(ValueError, match="expecting"):
+        transfer.upload([(vec, np.zeros((8, 2)))])
