@@ -78,11 +78,6 @@ def running_arch() -> str:
     return "cpu" if name in ("x64", "arm64") else name
 
 
-def real_field(values):
-    """A Taichi field of the running float precision, shaped and filled like `values` (an array or a list)."""
-    return real_fields(values)[0]
-
-
 def real_fields(*tables, also: tuple = ()) -> list:
     """Taichi fields of the running float precision, shaped and filled like each of `tables` (arrays or lists),
     filled by one copy kernel together with the (field, values) pairs in `also` (see transfer.py: a from_numpy per

@@ -383,7 +383,7 @@ class Simulation:
         for k in range(self.neighbours.count[i]):
             j = ids[i, k]
             bonded = False  # joined by a live spring: no pair force (heat still flows)
-            if ti.static(self.neighbours.marks_bonds):
+            if ti.static(self.marks_bonds):
                 if j < 0:
                     s = -j - 1
                     j = self.springs.other_end(i, s)

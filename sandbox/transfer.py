@@ -47,47 +47,38 @@ class _Copier:
             self.items.append((field, is_int, offsets[is_int], n, cols, comps))
             offsets[is_int] += n * max(cols, 1) * max(comps, 1)
         self.n_float, self.n_int = offsets[False], offsets[True]
-        self.fields = fields
+
+    @ti.func
+    def _index(self, k, cols: ti.template()):
+        """Field index of flat row k: [k] for a 1D field, [k // cols, k % cols] for a 2D one."""
+        if ti.static(cols):
+            return ti.Vector([k // cols, k % cols])
+        else:
+            return ti.Vector([k])
 
     @ti.kernel
     def _up(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
         for field, is_int, off, n, cols, comps in ti.static(self.items):
             src = ti.static(ints if is_int else floats)
             for k in range(n * max(cols, 1)):
-                base = off + k * max(comps, 1)
-                if ti.static(cols == 0):
-                    if ti.static(comps == 0):
-                        field[k] = ti.cast(src[base], field.dtype)
-                    else:
-                        for c in ti.static(range(comps)):
-                            field[k][c] = ti.cast(src[base + c], field.dtype)
+                idx, base = self._index(k, cols), off + k * max(comps, 1)
+                if ti.static(comps == 0):
+                    field[idx] = ti.cast(src[base], field.dtype)
                 else:
-                    i, j = k // cols, k % cols
-                    if ti.static(comps == 0):
-                        field[i, j] = ti.cast(src[base], field.dtype)
-                    else:
-                        for c in ti.static(range(comps)):
-                            field[i, j][c] = ti.cast(src[base + c], field.dtype)
+                    for c in ti.static(range(comps)):
+                        field[idx][c] = ti.cast(src[base + c], field.dtype)
 
     @ti.kernel
     def _down(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
         for field, is_int, off, n, cols, comps in ti.static(self.items):
             dst = ti.static(ints if is_int else floats)
             for k in range(n * max(cols, 1)):
-                base = off + k * max(comps, 1)
-                if ti.static(cols == 0):
-                    if ti.static(comps == 0):
-                        dst[base] = field[k]
-                    else:
-                        for c in ti.static(range(comps)):
-                            dst[base + c] = field[k][c]
+                idx, base = self._index(k, cols), off + k * max(comps, 1)
+                if ti.static(comps == 0):
+                    dst[base] = field[idx]
                 else:
-                    i, j = k // cols, k % cols
-                    if ti.static(comps == 0):
-                        dst[base] = field[i, j]
-                    else:
-                        for c in ti.static(range(comps)):
-                            dst[base + c] = field[i, j][c]
+                    for c in ti.static(range(comps)):
+                        dst[base + c] = field[idx][c]
 
     def shapes(self) -> list[tuple[int, ...]]:
         """The host shape of each item: (rows[, columns][, components])."""

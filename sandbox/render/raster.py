@@ -707,13 +707,7 @@ class Renderer:
             self.accum[x, y] = ti.Vector([0.0, 0.0, 0.0])
             self.weight[x, y] = 0.0
         if ti.static(self.has_alpha):
-            aw = self.a_weight[x, y]
-            if aw > 0.0:
-                a = 1.0 - ti.exp(self.a_log[x, y])
-                c = c * (1.0 - a) + self.a_accum[x, y] / aw * a
-                self.a_accum[x, y] = ti.Vector([0.0, 0.0, 0.0])
-                self.a_weight[x, y] = 0.0
-                self.a_log[x, y] = 0.0
+            c = self._over_translucent(x, y, c)
         if ti.static(self.has_additive):
             c += 1.0 - ti.exp(-self.exposure * self.light[x, y])
             self.light[x, y] = ti.Vector([0.0, 0.0, 0.0])
@@ -811,6 +805,27 @@ class Renderer:
                                         c = col * (0.3 + 0.7 * diffuse) + self.specular * spec
                                     self.image[px, py] = c
 
+    @ti.func
+    def _streak_3d(self, i):
+        """(tail, control point, head) in pixels of particle i's motion-blur streak, the depths of its tail and
+        head, and whether it is drawn as a streak: motion blur on, all three points in front of the camera, moved
+        over 1e-3 px and not across a periodic wrap. Otherwise tail and control point are the head."""
+        head, z = self._project(self.sim.particles.x[i])
+        tail, ctrl, z_tail = head, head, z
+        blurred = False
+        if ti.static(self.motion_blur):
+            prev, zp = self._project(self.x_prev[i])
+            mid, zm = 0.5 * (prev + head), zp
+            if ti.static(self.spline):
+                mid, zm = self._project(self.x_mid[i])
+            if z > 1e-3 and zp > 1e-3 and zm > 1e-3:
+                t, c, _ = self._streak(prev, mid, head)
+                span = ti.max((t - head).norm(), (mid - head).norm())
+                if (t - head).norm() > 1e-3 and span < 0.5 * self.width:
+                    tail, ctrl, z_tail = t, c, z + self.shutter * (zp - z)
+                    blurred = True
+        return tail, ctrl, head, z_tail, z, blurred
+
     @ti.kernel
     def _ghosts_3d(self):
         """Motion blur of opaque spheres: a streak from where each was a shutter ago to where it is, its opacity
@@ -820,42 +835,41 @@ class Renderer:
         for i in range(p.n[None]):
             g = p.group[i]
             if self.g_blend[g] == 0:
-                head, z = self._project(p.x[i])
-                prev, zp = self._project(self.x_prev[i])
-                mid, zm = 0.5 * (prev + head), 0.5 * (zp + z)
-                if ti.static(self.spline):
-                    mid, zm = self._project(self.x_mid[i])
-                if z > 1e-3 and zp > 1e-3 and zm > 1e-3:
-                    tail, ctrl, head = self._streak(prev, mid, head)
-                    span = ti.max((tail - head).norm(), (mid - head).norm())
-                    if (tail - head).norm() > 0.5 and span < 0.5 * self.width:  # moved; not a periodic wrap
-                        z_tail = z + self.shutter * (zp - z)
-                        r = ti.max(self.drawn_radius(i) * self.focal_field[None] / z, R_MIN)
-                        col = self.particle_color(i)
-                        if self.g_draw[g] == 2:  # the shade of the sphere's centre, facing the camera
-                            col = col * (0.3 + 0.7 * ti.max(-self.camera[3].dot(self.light_dir), 0.0))
-                        opacity = self.g_opacity[g]
-                        x0, x1, y0, y1 = self._box(tail, head, r, ctrl)
-                        for px in range(x0, x1 + 1):
-                            for py in range(y0, y1 + 1):
-                                w, t = self._coverage(ti.Vector([px + 0.5, py + 0.5]), tail, ctrl, head, r, True)
-                                zbits = ti.bit_cast(ti.cast(z_tail + t * (z - z_tail), ti.f32), ti.i32)
-                                if w > 0.0 and zbits <= self.depth[px, py]:
-                                    a = ti.min(w * opacity, 0.999)
-                                    self.a_accum[px, py] += a * col
-                                    self.a_weight[px, py] += a
-                                    self.a_log[px, py] += ti.log(1.0 - a)
+                tail, ctrl, head, z_tail, z, blurred = self._streak_3d(i)
+                if blurred and (tail - head).norm() > 0.5:  # moved half a pixel or more
+                    r = ti.max(self.drawn_radius(i) * self.focal_field[None] / z, R_MIN)
+                    col = self.particle_color(i)
+                    if self.g_draw[g] == 2:  # the shade of the sphere's centre, facing the camera
+                        col = col * (0.3 + 0.7 * ti.max(-self.camera[3].dot(self.light_dir), 0.0))
+                    opacity = self.g_opacity[g]
+                    x0, x1, y0, y1 = self._box(tail, head, r, ctrl)
+                    for px in range(x0, x1 + 1):
+                        for py in range(y0, y1 + 1):
+                            w, t = self._coverage(ti.Vector([px + 0.5, py + 0.5]), tail, ctrl, head, r, True)
+                            zbits = ti.bit_cast(ti.cast(z_tail + t * (z - z_tail), ti.f32), ti.i32)
+                            if w > 0.0 and zbits <= self.depth[px, py]:
+                                a = ti.min(w * opacity, 0.999)
+                                self.a_accum[px, py] += a * col
+                                self.a_weight[px, py] += a
+                                self.a_log[px, py] += ti.log(1.0 - a)
 
     @ti.kernel
     def _resolve_ghosts_3d(self):
         for x, y in self.image:
-            aw = self.a_weight[x, y]
-            if aw > 0.0:
-                a = 1.0 - ti.exp(self.a_log[x, y])
-                self.image[x, y] = self.image[x, y] * (1.0 - a) + self.a_accum[x, y] / aw * a
-                self.a_accum[x, y] = ti.Vector([0.0, 0.0, 0.0])
-                self.a_weight[x, y] = 0.0
-                self.a_log[x, y] = 0.0
+            self.image[x, y] = self._over_translucent(x, y, self.image[x, y])
+
+    @ti.func
+    def _over_translucent(self, x, y, c):
+        """Colour c with pixel (x, y)'s translucent layer composited over it (weighted-average colour, total alpha
+        1 - prod(1 - a)); the layer is zeroed for the next frame."""
+        aw = self.a_weight[x, y]
+        if aw > 0.0:
+            a = 1.0 - ti.exp(self.a_log[x, y])
+            c = c * (1.0 - a) + self.a_accum[x, y] / aw * a
+            self.a_accum[x, y] = ti.Vector([0.0, 0.0, 0.0])
+            self.a_weight[x, y] = 0.0
+            self.a_log[x, y] = 0.0
+        return c
 
     def _sort_translucent(self) -> None:
         """Order the translucent particles back to front (by distance along the view direction), on the host."""
@@ -897,21 +911,8 @@ class Renderer:
         for i in range(p.n[None]):
             g = p.group[i]
             if self.g_blend[g] == 2:
-                head, z = self._project(p.x[i])
+                tail, ctrl, head, _, z, blurred = self._streak_3d(i)
                 if z > 1e-3:
-                    tail, ctrl = head, head
-                    blurred = False
-                    if ti.static(self.motion_blur):
-                        prev, zp = self._project(self.x_prev[i])
-                        mid, zm = 0.5 * (prev + head), zp
-                        if ti.static(self.spline):
-                            mid, zm = self._project(self.x_mid[i])
-                        if zp > 1e-3 and zm > 1e-3:
-                            tail, ctrl, head = self._streak(prev, mid, head)
-                            span = ti.max((tail - head).norm(), (mid - head).norm())
-                            blurred = (tail - head).norm() > 1e-3 and span < 0.5 * self.width  # not a periodic wrap
-                            if not blurred:
-                                tail, ctrl = head, head
                     r_true = self.drawn_radius(i) * self.focal_field[None] / z
                     if self.g_draw[g] == 0:
                         r_true = 0.5
