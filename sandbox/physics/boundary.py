@@ -21,10 +21,16 @@ class Domain:
 
     @ti.func
     def separation(self, xi, xj):
-        """xj - xi, by the minimum-image convention in a periodic box."""
+        """xj - xi, by the minimum-image convention in a periodic box, for positions at most half a box outside it
+        (they are wrapped at every step's end; an integrator's stage moves them by far less)."""
         d = xj - xi
         if ti.static(self.periodic):
-            d -= self.box * ti.round(d * self.inv_box)
+            # Compare and shift rather than round(d / box): a rounding per pair cost 10% of the pair pass.
+            for a in ti.static(range(self.dim)):
+                if d[a] > 0.5 * self.box[a]:
+                    d[a] -= self.box[a]
+                elif d[a] < -0.5 * self.box[a]:
+                    d[a] += self.box[a]
         return d
 
     @ti.func

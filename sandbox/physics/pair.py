@@ -175,21 +175,43 @@ class PairForce:
         return p, q
 
     @ti.func
+    def coefficients(self, p, q):
+        """The pair law of materials p and q as one vector: (alpha, beta, eps, r_core, f_core)."""
+        return ti.Vector([self.alpha[p, q], self.beta[p, q], self.eps[p, q], self.r_core[p, q], self.f_core[p, q]])
+
+    @ti.func
+    def shared_coefficients(self):
+        """The coefficients when every pair has the same law (one material), else unused: a loop over many pairs
+        loads them once instead of once per pair (the compiler cannot keep them in registers across field stores)."""
+        return self.coefficients(0, 0)
+
+    @ti.func
+    def pair_coefficients(self, shared, i, j):
+        """Coefficients of the pair (i, j): `shared` (from shared_coefficients) with one material."""
+        c = shared
+        if ti.static(not self.single_material):
+            c = self.coefficients(self.material[i], self.material[j])
+        return c
+
+    @ti.func
     def scaled_force(self, i, j, d, r2):
         """Pair-law force on i from j divided by m_i (i.e. m_j g(r) d), with the core cap; r2 < cutoff^2."""
         p, q = self._pair_ids(i, j)
-        rc = self.r_core[p, q]
+        return self.mass[j] * self.law(self.coefficients(p, q), i, j, d, r2)
+
+    @ti.func
+    def law(self, c, i, j, d, r2):
+        """g(r) d per unit mass product for coefficients c (see coefficients), with the core cap: finite at any r."""
+        alpha, beta, eps, rc, f_core = c[0], c[1], c[2], c[3], c[4]
         f = ti.Vector.zero(float, self.dim)
         if r2 >= rc * rc:
             g = 0.0
             if ti.static(self.even_fast_path):  # eps = 0 and even exponents: powers of 1/r^2, no sqrt
                 inv2 = 1.0 / r2
-                g = self.alpha[p, q] * self._ipow(inv2, self.a // 2) - self.beta[p, q] * self._ipow(inv2, self.b // 2)
+                g = alpha * self._ipow(inv2, self.a // 2) - beta * self._ipow(inv2, self.b // 2)
             else:
                 r = ti.sqrt(r2)
-                g = self.alpha[p, q] * self._powneg(r + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(
-                    r, self.b
-                )
+                g = alpha * self._powneg(r + eps, self.a) - beta * self._powneg(r, self.b)
             f = g * d
         else:  # inside the core: the force keeps its magnitude at the core radius
             r = ti.sqrt(r2)
@@ -197,8 +219,8 @@ class PairForce:
             if r < 1e-12:  # coincident: a deterministic, antisymmetric direction
                 n = ti.Vector.zero(float, self.dim)
                 n[0] = 1.0 if j > i else -1.0
-            f = self.f_core[p, q] * n
-        return self.mass[j] * f
+            f = f_core * n
+        return f
 
     @ti.func
     def viscous_force(self, i, j, d, r2):
@@ -215,6 +237,12 @@ class PairForce:
     def force(self, i, j, d, r2):
         """Total pair force on particle i from particle j, d = x_j - x_i, r2 = |d|^2 < cutoff^2."""
         return self.mass[i] * self.scaled_force(i, j, d, r2) + self.viscous_force(i, j, d, r2)
+
+    @ti.func
+    def force_with(self, c, m_i, i, j, d, r2):
+        """force(i, j, d, r2) given the pair's coefficients c and m_i (both loaded by the caller); finite at any r,
+        so a caller may evaluate it beyond the cutoff and discard the result (no branch)."""
+        return (m_i * self.mass[j]) * self.law(c, i, j, d, r2) + self.viscous_force(i, j, d, r2)
 
     @ti.func
     def energy(self, i, j, r2):
