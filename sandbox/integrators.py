@@ -1,7 +1,9 @@
 """Time integrators: a registry of name -> class, one signature for all: `step(dt)` advances the simulation by dt.
 
 Each integrator is a few lines over the simulation's shared pieces:
-  sim.eval_rates()        forces into p.f (and heat rates into p.dTdt) at the current positions and velocities
+  sim.eval_rates()        forces into p.f (and heat rates into p.dTdt) at the current positions and velocities;
+                          eval_rates(then_update=dt) also runs the integrator's ti.func update_particle(i, dt) on
+                          every particle in the same launch (the one-evaluation methods step this way)
   sim.finish_particle()   (ti.func) walls / periodic wrap and the explicit heat update for one particle
 Walls act once per step, at its end (multi-stage methods do not see them between stages). Heat is a first-order
 equation with its own stepping: explicit Euler on the rates of the step's last force evaluation.
@@ -75,15 +77,13 @@ class SymplecticEuler(Integrator):
     auto_h_omega = 1.0
 
     def step(self, dt: float) -> None:
-        self.sim.eval_rates()
-        self._update(dt)
+        self.sim.eval_rates(then_update=dt)
 
-    @ti.kernel
-    def _update(self, dt: float):
-        for i in range(self.p.n[None]):
-            self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
-            self.p.x[i] += dt * self.p.v[i]
-            self.sim.finish_particle(i, dt)
+    @ti.func
+    def update_particle(self, i, dt):
+        self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
+        self.p.x[i] += dt * self.p.v[i]
+        self.sim.finish_particle(i, dt)
 
 
 @register("forward_euler")
@@ -91,15 +91,13 @@ class ForwardEuler(Integrator):
     """x += dt v; v += dt f(x, v)/m (explicit Euler: first order; an undamped oscillator's amplitude grows)."""
 
     def step(self, dt: float) -> None:
-        self.sim.eval_rates()
-        self._update(dt)
+        self.sim.eval_rates(then_update=dt)
 
-    @ti.kernel
-    def _update(self, dt: float):
-        for i in range(self.p.n[None]):
-            self.p.x[i] += dt * self.p.v[i]
-            self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
-            self.sim.finish_particle(i, dt)
+    @ti.func
+    def update_particle(self, i, dt):
+        self.p.x[i] += dt * self.p.v[i]
+        self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
+        self.sim.finish_particle(i, dt)
 
 
 @register("velocity_verlet")
@@ -120,6 +118,7 @@ class VelocityVerlet(Integrator):
 
     @ti.kernel
     def _half_kick_drift(self, dt: float):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.p.v[i] += 0.5 * dt * self.p.f[i] / self.p.mass[i]
             self.p.x[i] += dt * self.p.v[i]
@@ -127,6 +126,7 @@ class VelocityVerlet(Integrator):
 
     @ti.kernel
     def _half_kick(self, dt: float):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.p.v[i] += 0.5 * dt * self.p.f[i] / self.p.mass[i]
 
@@ -152,6 +152,7 @@ class Midpoint(Integrator):
 
     @ti.kernel
     def _half(self, dt: float):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.x0[i], self.v0[i] = self.p.x[i], self.p.v[i]
             self.p.x[i] += 0.5 * dt * self.p.v[i]
@@ -159,6 +160,7 @@ class Midpoint(Integrator):
 
     @ti.kernel
     def _full(self, dt: float):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             v_mid = self.p.v[i]
             self.p.x[i] = self.x0[i] + dt * v_mid
@@ -183,11 +185,13 @@ class PositionVerlet(Integrator):
 
     @ti.kernel
     def _drift(self, dt: float):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.p.x[i] += 0.5 * dt * self.p.v[i]
 
     @ti.kernel
     def _kick_drift(self, dt: float):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
             self.p.x[i] += 0.5 * dt * self.p.v[i]
@@ -217,6 +221,7 @@ class RungeKutta4(Integrator):
 
     @ti.kernel
     def _begin(self):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.x0[i], self.v0[i] = self.p.x[i], self.p.v[i]
             self.dx[i] = ti.Vector.zero(float, self.sim.dim)
@@ -225,6 +230,7 @@ class RungeKutta4(Integrator):
     @ti.kernel
     def _stage(self, dt: float, weight: float, advance: float):
         """Accumulate stage k (rates at the current trial state) and set the next trial state x0 + advance dt k."""
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             kx, kv = self.p.v[i], self.p.f[i] / self.p.mass[i]
             self.dx[i] += weight * kx
@@ -234,6 +240,7 @@ class RungeKutta4(Integrator):
 
     @ti.kernel
     def _end(self, dt: float):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             kx, kv = self.p.v[i], self.p.f[i] / self.p.mass[i]
             self.p.x[i] = self.x0[i] + dt / 6.0 * (self.dx[i] + kx)
@@ -299,9 +306,11 @@ class ImplicitEuler(Integrator):
         for k in self.scalars:
             self.scalars[k] = 0.0
         if ti.static(self.has_springs):
+            self.sim.loops.light()
             for s in range(self.springs.count):
                 if self.springs.alive[s]:
                     self.kmat[s], self.block[s] = self._spring_blocks(s, h)
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             b = h * self.p.f[i]
             diag = self.p.mass[i]
@@ -327,6 +336,7 @@ class ImplicitEuler(Integrator):
     @ti.kernel
     def _matvec(self):
         self.scalars[0] = 0.0
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             ap = self.p.mass[i] * self.d[i]
             if ti.static(self.has_springs):
@@ -344,6 +354,7 @@ class ImplicitEuler(Integrator):
     def _update(self, alpha: ti.f64):
         self.scalars[1] = 0.0
         self.scalars[2] = 0.0
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.dv[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.Ap[i]
@@ -353,11 +364,13 @@ class ImplicitEuler(Integrator):
 
     @ti.kernel
     def _direction(self, beta: ti.f64):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.d[i] = self.z[i] + beta * self.d[i]
 
     @ti.kernel
     def _finish(self, h: float):
+        self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.p.v[i] += self.dv[i]
             self.p.x[i] += h * self.p.v[i]

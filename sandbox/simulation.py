@@ -18,6 +18,7 @@ from . import runtime, transfer
 from .build import build_particles
 from .errors import SimulationError
 from .integrators import make_integrator
+from .loops import LoopPolicy
 from .model import ENTHALPY_LAW, MaterialTable, ParticleFields, material_column
 from .physics.boundary import Domain
 from .physics.emitters import NEVER_BONDS, Emitters
@@ -107,6 +108,7 @@ class Simulation:
         if not world.capacity:
             self.capacity += sum(emitter_population(e) for e in scene.emitters)
         self.capacity = max(self.capacity, built.count)
+        self.loops = LoopPolicy(self.arch, self.capacity)
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
         self.materials = MaterialTable(materials)
@@ -167,7 +169,9 @@ class Simulation:
         reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat.radius if scene.heat else 0.0)
         skin = world.skin if world.neighbor_list else 0.0
         self.grid = (
-            CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, self.capacity) if reach > 0 else None
+            CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, self.capacity, self.loops)
+            if reach > 0
+            else None
         )
         implicit_heat = bool(scene.heat) and scene.heat.stepper != "explicit"  # its solve reads full lists
         if half_lists is None:
@@ -184,6 +188,7 @@ class Simulation:
                 self.capacity,
                 half=self.half_pairs,
                 springs=self.springs if self.pair is not None else None,
+                loops=self.loops,
             )
             if self.grid is not None and world.neighbor_list
             else None
@@ -192,9 +197,10 @@ class Simulation:
             # Each worker thread takes a contiguous block of particles and writes what its pairs give to the other
             # particle into its own buffer row (no atomics, no write conflicts); the per-particle pass sums the rows.
             self.n_chunks = CHUNKS_PER_THREAD * max(1, int(ti.lang.impl.current_cfg().cpu_max_num_threads))
-            self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_chunks, self.capacity))
+            self.n_pair_rows = 1 if self.loops.serial_pairs else self.n_chunks  # rows the pair pass writes
+            self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_pair_rows, self.capacity))
             if scene.heat:
-                self.pair_q = ti.field(float, shape=(self.n_chunks, self.capacity))
+                self.pair_q = ti.field(float, shape=(self.n_pair_rows, self.capacity))
         every = world.reorder if world.reorder != "auto" else (20 if built.count >= 5000 else 0)
         self.reorder = CellOrder(self, every) if every and self.neighbours is not None else None
         self.refreezer = Refreezer(self, heat.refreeze_radius) if self.can_refreeze else None
@@ -282,6 +288,7 @@ class Simulation:
     def _kinematic_begin(self):
         """Kinematic particles: remember x and v at the step start (the integrator's updates are undone)."""
         p = self.particles
+        self.loops.light()
         for i in range(p.n[None]):
             if self.g_coupling[p.group[i]] == KINEMATIC:
                 self.x_start[i] = p.x[i]
@@ -306,6 +313,7 @@ class Simulation:
     @ti.kernel
     def _kinematic_move(self, dt: float, final: ti.template()):
         p = self.particles
+        self.loops.light()
         for i in range(p.n[None]):
             if self.g_coupling[p.group[i]] == KINEMATIC:
                 x = self.x_start[i] + dt * self.v_field[i]
@@ -316,11 +324,14 @@ class Simulation:
 
     @ti.kernel
     def _age(self, dt: float):
+        self.loops.light()
         for i in range(self.particles.n[None]):
             self.particles.age[i] += dt
 
-    def eval_rates(self) -> None:
-        """Forces (p.f) and heat rates (p.dTdt) at the current state."""
+    def eval_rates(self, then_update: float | None = None) -> None:
+        """Forces (p.f) and heat rates (p.dTdt) at the current state. `then_update`: a step dt for the integrator's
+        per-particle update (`update_particle`), run in the same kernel launch as the forces (one launch less per
+        step: a launch costs about 30 us on the CPU backend)."""
         use_list = False
         moved = bool(self._prestep()) if (self.has_neighbours or self.has_springs or self.has_power) else False
         if self.neighbours is not None:
@@ -336,7 +347,11 @@ class Simulation:
                 )
         elif self.grid is not None:
             self.grid.rebuild()
-        self._rates(use_list, self.neighbours.ids if use_list else None)
+        ids = self.neighbours.ids if use_list else None
+        if then_update is None:
+            self._rates(use_list, ids)
+        else:
+            self._rates_update(use_list, ids, self.integrator, then_update)
 
     @ti.kernel
     def _prestep(self) -> ti.i32:
@@ -346,14 +361,17 @@ class Simulation:
         if ti.static(self.has_power):
             for k in range(self.heat.n_sources):
                 self.heat.src_mass[k] = 0.0
+            self.loops.light()
             for i in range(self.particles.n[None]):
                 self.heat.add_source_mass(i)
         if ti.static(self.has_neighbours):
             self.neighbours.stale[None] = 0
             self.neighbours.check_count()
+            self.loops.light()
             for i in range(self.particles.n[None]):
                 self.neighbours.check_one(i)
         if ti.static(self.has_springs):
+            self.loops.light()
             for s in range(self.springs.count):
                 self.springs.update_one(s)
         if ti.static(self.has_neighbours):
@@ -412,16 +430,35 @@ class Simulation:
 
     @ti.kernel
     def _rates(self, use_list: ti.template(), ids: ti.template()):
+        self._rate_loops(use_list, ids)
+
+    @ti.kernel
+    def _rates_update(self, use_list: ti.template(), ids: ti.template(), integrator: ti.template(), dt: float):
+        self._rate_loops(use_list, ids)
+        self.loops.light()
+        for i in range(self.particles.n[None]):
+            integrator.update_particle(i, dt)
+
+    @ti.func
+    def _rate_loops(self, use_list: ti.template(), ids: ti.template()):
+        """The loops of a force and heat-rate evaluation (see eval_rates); each runs in parallel unless self.loops
+        serializes it."""
         p = self.particles
         if ti.static(use_list and self.half_pairs):
             n = p.n[None]
-            # Taichi's CPU backend runs a range-for in blocks of at least 512 iterations, so a loop over just the
-            # chunks would run on one thread: stride the chunks CHUNK_STRIDE iterations apart instead.
-            for u in range(self.n_chunks * CHUNK_STRIDE):
-                if u % CHUNK_STRIDE == 0:
-                    t = u // CHUNK_STRIDE
-                    for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
-                        self._half_row(t, i, ids)
+            if ti.static(self.loops.serial_pairs):
+                ti.loop_config(serialize=True)
+                for i in range(n):
+                    self._half_row(0, i, ids)
+            else:
+                # Taichi's CPU backend runs a range-for in blocks of at least 512 iterations, so a loop over just
+                # the chunks would run on one thread: stride the chunks CHUNK_STRIDE iterations apart instead.
+                for u in range(self.n_chunks * CHUNK_STRIDE):
+                    if u % CHUNK_STRIDE == 0:
+                        t = u // CHUNK_STRIDE
+                        for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
+                            self._half_row(t, i, ids)
+        self.loops.light()
         for ks in range(p.n[None]):
             i = ks
             if ti.static(self.has_grid):
@@ -436,7 +473,7 @@ class Simulation:
                 f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
                 f_visc = ti.Vector.zero(float, self.dim)
                 if ti.static(use_list and self.half_pairs):
-                    for t in range(self.n_chunks):  # what the pair pass left for i, read and cleared
+                    for t in range(self.n_pair_rows):  # what the pair pass left for i, read and cleared
                         f_visc += self.pair_f[t, i]
                         self.pair_f[t, i] = ti.Vector.zero(float, self.dim)
                         if ti.static(self.has_explicit_heat):
@@ -521,6 +558,7 @@ class Simulation:
             acc[k][None] = 0
         for k in ti.static(range(len(_COUNT))):
             count[k][None] = 0
+        self.loops.light()
         for i in range(p.n[None]):
             v2 = p.v[i].dot(p.v[i])
             acc[_ACC["ke"]][None] += 0.5 * p.mass[i] * v2
@@ -540,11 +578,13 @@ class Simulation:
                     count[_COUNT["meltable"]][None] += 1
                     acc[_ACC["phi"]][None] += self.phase.fraction(p.h[i], p.material[i])
         if ti.static(self.has_springs):
+            self.loops.light()
             for s in range(self.springs.count):
                 acc[_ACC["spring"]][None] += self.springs.energy(s)
                 if self.springs.alive[s]:
                     count[_COUNT["alive"]][None] += 1
         if ti.static(self.has_pair and pair_energy):
+            self.loops.pairs()
             for i in range(p.n[None]):
                 e = 0.0
                 c = self.grid.cell_of(p.x[i])
@@ -893,7 +933,7 @@ class Simulation:
         if self.neighbours is not None:
             out["neighbour lists"] = self.neighbours.nbytes()
         if self.half_pairs:
-            out["half-list buffers"] = self.n_chunks * self.capacity * (self.dim + (1 if self.heat else 0)) * fbytes
+            out["half-list buffers"] = self.n_pair_rows * self.capacity * (self.dim + (1 if self.heat else 0)) * fbytes
         if self.reorder is not None:
             out["reorder scratch"] = self.reorder.nbytes()
         return out

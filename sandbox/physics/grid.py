@@ -15,8 +15,10 @@ import taichi as ti
 class CellGrid:
     """Neighbour grid over the box lo..hi for particles x (a Vector field), interaction radius `reach`."""
 
-    def __init__(self, x, n_active, lo, hi, reach: float, periodic: bool, capacity: int):
-        """Grid for positions `x` (first n_active[None] entries) in the box lo..hi; cells at least `reach` wide."""
+    def __init__(self, x, n_active, lo, hi, reach: float, periodic: bool, capacity: int, loops):
+        """Grid for positions `x` (first n_active[None] entries) in the box lo..hi; cells at least `reach` wide.
+        `loops`: the LoopPolicy that decides which loops run in parallel."""
+        self.loops = loops
         self.dim = len(lo)
         self.periodic = periodic
         self.lo = np.asarray(lo, dtype=np.float64)
@@ -57,8 +59,10 @@ class CellGrid:
 
     @ti.kernel
     def _count(self):
-        for c in self.cell_count:
+        self.loops.light()
+        for c in range(self.n_cells):
             self.cell_count[c] = 0
+        self.loops.light()
         for i in range(self.n[None]):
             c = self.flat(self.cell_of(self.x[i]))
             self.particle_cell[i] = c
@@ -74,6 +78,7 @@ class CellGrid:
 
     @ti.kernel
     def _scatter(self):
+        self.loops.light()
         for i in range(self.n[None]):
             k = self.cell_start[self.particle_cell[i]] + self.slot[i]
             self.sorted_ids[k] = i

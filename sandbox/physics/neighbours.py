@@ -25,9 +25,13 @@ MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cel
 class NeighbourList:
     """Per-particle lists of neighbour ids within reach + skin, over the cell grid `grid`."""
 
-    def __init__(self, grid, domain, x, n, reach: float, skin: float, capacity: int, half: bool = False, springs=None):
+    def __init__(
+        self, grid, domain, x, n, reach: float, skin: float, capacity: int, half: bool = False, springs=None, loops=None
+    ):
         """Lists for the first n[None] particles of x; `half`: each pair listed once, under one of the two (the
-        caller applies the pair to both particles); `springs` (with `half`): mark bonded pairs (see above)."""
+        caller applies the pair to both particles); `springs` (with `half`): mark bonded pairs (see above); `loops`:
+        the LoopPolicy (default: the grid's)."""
+        self.loops = loops if loops is not None else grid.loops
         self.grid, self.domain, self.x, self.n = grid, domain, x, n
         self.half = half
         self.springs = springs
@@ -89,6 +93,7 @@ class NeighbourList:
     @ti.kernel
     def _check(self):
         self.check_count()
+        self.loops.light()
         for i in range(self.n[None]):
             self.check_one(i)
 
@@ -108,6 +113,7 @@ class NeighbourList:
     @ti.kernel
     def _count_only(self):
         r2max = (self.reach + self.skin) ** 2
+        self.loops.pairs()
         for i in range(self.n[None]):
             self.count[i] = self._visit(i, r2max, False, self.count)
 
@@ -117,6 +123,7 @@ class NeighbourList:
         self.n_listed[None] = self.n[None]
         r2max = (self.reach + self.skin) ** 2
         width = ids.shape[1]
+        self.loops.pairs()
         for i in range(self.n[None]):
             c = self._visit(i, r2max, True, ids)
             self.count[i] = c
@@ -125,6 +132,7 @@ class NeighbourList:
                 self.overflow[None] = 1
         if ti.static(self.marks_bonds):
             s = self.springs
+            self.loops.pairs()
             for i in range(self.n[None]):  # each live bond of i: if the pair is in i's list (not j's), mark it
                 listed = ti.min(self.count[i], width)
                 for b in range(s.max_bonds):

@@ -1,0 +1,43 @@
+"""Which of a step's loops run in parallel on the CPU backend, chosen by the scene's size.
+
+Taichi's CPU backend hands every top-level loop of a kernel to its thread pool, and on the 2-core machines that
+round trip costs 20-40 us per loop (`python benchmarks/loop_overhead.py`: three loops of `x[i] += 1` over 1,000
+items take 79 us in parallel and 25 us serialized; over 100,000 items 240 vs 237 us; an empty kernel 17 us).
+A step has several loops that do a few loads and stores per particle (the integrator's update, the neighbour-list
+check, the per-particle gather of the pair pass) and one or two that do real work per particle (the pair pass, the
+list build). The first kind runs on the calling thread below LIGHT_PARALLEL_FROM particle slots, the second below
+PAIR_PARALLEL_FROM. On a GPU everything stays parallel. The choice is fixed when a Simulation is built (by its
+capacity), so kernels compile once.
+"""
+
+import taichi as ti
+
+LIGHT_PARALLEL_FROM = 400_000  # particle slots from which per-particle loops with little work run in parallel
+PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the neighbour-list build run in parallel
+
+
+@ti.data_oriented
+class LoopPolicy:
+    """Put `self.loops.light()` before a per-particle loop with little work per item and `self.loops.pairs()`
+    before a loop over neighbour pairs: each serializes the loop that follows it when the scene is small."""
+
+    def __init__(self, arch: str, capacity: int):
+        cpu = arch == "cpu"
+        self.serial_light = cpu and capacity < LIGHT_PARALLEL_FROM
+        self.serial_pairs = cpu and capacity < PAIR_PARALLEL_FROM
+
+    @ti.func
+    def light(self):
+        """Serialize the next loop when per-particle loops with little work are not worth the thread pool."""
+        if ti.static(self.serial_light):
+            ti.loop_config(serialize=True)
+
+    @ti.func
+    def pairs(self):
+        """Serialize the next loop when pair loops are not worth the thread pool."""
+        if ti.static(self.serial_pairs):
+            ti.loop_config(serialize=True)
+
+    def describe(self) -> str:
+        kinds = [name for name, serial in (("light", self.serial_light), ("pair", self.serial_pairs)) if serial]
+        return f"serial loops: {', '.join(kinds)}" if kinds else "all loops parallel"
