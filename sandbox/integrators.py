@@ -307,7 +307,7 @@ class ImplicitEuler(Integrator):
             self.scalars[k] = 0.0
         if ti.static(self.has_springs):
             self.sim.loops.light()
-            for s in range(self.springs.count):
+            for s in range(self.springs.span[None]):
                 if self.springs.alive[s]:
                     self.kmat[s], self.block[s] = self._spring_blocks(s, h)
         self.sim.loops.light()

@@ -372,7 +372,7 @@ class Simulation:
                 self.neighbours.check_one(i)
         if ti.static(self.has_springs):
             self.loops.light()
-            for s in range(self.springs.count):
+            for s in range(self.springs.span[None]):
                 self.springs.update_one(s)
         if ti.static(self.has_neighbours):
             moved = self.neighbours.stale[None]
@@ -458,7 +458,10 @@ class Simulation:
                         t = u // CHUNK_STRIDE
                         for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
                             self._half_row(t, i, ids)
-        self.loops.light()
+        if ti.static(self.has_springs):
+            self.loops.pairs()  # each particle visits its bonds too: as much work per item as a pair loop
+        else:
+            self.loops.light()
         for ks in range(p.n[None]):
             i = ks
             if ti.static(self.has_grid):
@@ -579,7 +582,7 @@ class Simulation:
                     acc[_ACC["phi"]][None] += self.phase.fraction(p.h[i], p.material[i])
         if ti.static(self.has_springs):
             self.loops.light()
-            for s in range(self.springs.count):
+            for s in range(self.springs.span[None]):
                 acc[_ACC["spring"]][None] += self.springs.energy(s)
                 if self.springs.alive[s]:
                     count[_COUNT["alive"]][None] += 1
@@ -796,6 +799,7 @@ class Simulation:
         if self.springs is not None:
             fields += [getattr(self.springs, name) for name in SPRING_ARRAYS]
             snap["spring_created"] = int(self.springs.created[None])
+            snap["spring_span"] = int(self.springs.span[None])
         arrays = transfer.download(fields)  # one copy kernel for all of them
         snap.update(zip(names, arrays))
         snap.update((f"spring_{name}", a) for name, a in zip(SPRING_ARRAYS, arrays[len(names) :]))
@@ -809,6 +813,7 @@ class Simulation:
         if self.springs is not None:
             pairs += [(getattr(self.springs, name), snap[f"spring_{name}"]) for name in SPRING_ARRAYS]
             self.springs.created[None] = snap["spring_created"]
+            self.springs.span[None] = snap["spring_span"]
         transfer.upload(pairs)
         self.time = snap["time"]
         self.step_count = snap["step"]

@@ -208,6 +208,7 @@ class Refreezer:
                                         s.bonds[i, ni] = cursor
                                         s.bonds[j, nj] = cursor
                                         s.created[None] += 1
+                                        s.span[None] = ti.max(s.span[None], cursor + 1)
                                         self.made[None] += 1
                                     else:
                                         self.full[None] = 1

@@ -64,7 +64,7 @@ class CellOrder:
                 pair[0][k] = pair[1][k]
         if ti.static(self.has_springs):
             s = self.sim.springs
-            for q in range(s.count):
+            for q in range(s.span[None]):
                 s.i[q] = self.inverse[s.i[q]]
                 s.j[q] = self.inverse[s.j[q]]
             for k, b in ti.ndrange(n, s.max_bonds):

@@ -72,6 +72,9 @@ class Springs:
         self.alive = ti.field(ti.i32, shape=s)  # 1 while the spring holds, 0 once broken (for good)
         self.bonds = ti.field(ti.i32, shape=(capacity, self.max_bonds))  # spring ids at each particle, -1 padded
         self.created = ti.field(ti.i32, shape=())  # springs ever made (built + refrozen): broken = created - alive
+        # Slots [0, span) hold every spring that was ever alive: per-spring loops stop there, not at `count` (a scene
+        # that can refreeze has 1.5x its built springs again as spare slots, mostly never used)
+        self.span = ti.field(ti.i32, shape=())
         pad = np.zeros(s - self.built_count)
         table = np.full((capacity, self.max_bonds), -1, dtype=np.int32)
         table[: built.count] = bond_table(built.spring_i, built.spring_j, built.count, self.max_bonds)[: built.count]
@@ -90,6 +93,7 @@ class Springs:
             ]
         )
         self.created[None] = self.built_count
+        self.span[None] = self.built_count
         self.p = particles
         self.mats = materials
         self.phase = phase

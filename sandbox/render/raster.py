@@ -36,6 +36,7 @@ import taichi as ti
 
 from .. import runtime
 from .colormaps import GLOW_STOPS, SPEED_STOPS, glow, glow_over_base, ramp_np, speed_map
+from .strips import StripBins
 
 COLOR_MODES = {"temperature": 0, "material": 1, "speed": 2, "phase": 3}
 DRAW = {"dot": 0, "splat": 1, "sphere": 2}
@@ -54,9 +55,12 @@ SPRING_OPACITY = 0.6
 class Renderer:
     """Draws a Simulation's particles into `self.image` (W x H RGB floats)."""
 
-    def __init__(self, sim, width: int, height: int, render_cfg, keep_image: bool = True):
-        """keep_image: also keep the float image (the window shows it); headless video needs only the 8-bit one."""
+    def __init__(self, sim, width: int, height: int, render_cfg, keep_image: bool = True, strip_splat: bool = True):
+        """keep_image: also keep the float image (the window shows it); headless video needs only the 8-bit one.
+        strip_splat=False draws every 2D particle with atomic adds (the reference the strip binning is tested
+        against)."""
         self.sim = sim
+        self.strip_splat = strip_splat
         self.keep_image = keep_image
         self.cfg = render_cfg
         self.width, self.height = width, height
@@ -148,6 +152,7 @@ class Renderer:
             self.tiles_x, self.tiles_y = -(-width // TILE), -(-height // TILE)
             self.tile_stamp = ti.field(ti.i32, shape=(self.tiles_x, self.tiles_y))
             self.tile_stamp.fill(-2)
+            self.strips = StripBins(width, sim.capacity)
             self.stamp = ti.field(ti.i32, shape=())
             self.dirty = ti.field(ti.i32, shape=self.tiles_x * self.tiles_y)
             self.n_dirty = ti.field(ti.i32, shape=())
@@ -539,13 +544,15 @@ class Renderer:
 
     @ti.func
     def _box(self, a, b, r, c):
-        """Pixel bounds of the capsule around a-b (and control point c, which bounds a curve with the ends)."""
+        """Pixel bounds of the capsule around a-b (and control point c, which bounds a curve with the ends): every
+        pixel whose centre lies within r + 0.5 of it (where the coverage clamp(r + 0.5 - d, 0, 1) is not zero), as
+        pixel px's centre is px + 0.5."""
         lo = ti.min(ti.min(a, b), c)
         hi = ti.max(ti.max(a, b), c)
-        x0 = ti.max(ti.cast(ti.floor(lo[0] - r - 1), ti.i32), 0)
-        x1 = ti.min(ti.cast(ti.ceil(hi[0] + r + 1), ti.i32), self.width - 1)
-        y0 = ti.max(ti.cast(ti.floor(lo[1] - r - 1), ti.i32), 0)
-        y1 = ti.min(ti.cast(ti.ceil(hi[1] + r + 1), ti.i32), self.height - 1)
+        x0 = ti.max(ti.cast(ti.ceil(lo[0] - r - 1), ti.i32), 0)
+        x1 = ti.min(ti.cast(ti.floor(hi[0] + r), ti.i32), self.width - 1)
+        y0 = ti.max(ti.cast(ti.ceil(lo[1] - r - 1), ti.i32), 0)
+        y1 = ti.min(ti.cast(ti.floor(hi[1] + r), ti.i32), self.height - 1)
         return x0, x1, y0, y1
 
     @ti.func
@@ -607,7 +614,7 @@ class Renderer:
     def _springs_2d(self):
         s = self.sim.springs
         p = self.sim.particles
-        for k in range(s.count):
+        for k in range(s.span[None]):
             if s.alive[k]:
                 a = ti.cast(p.x[s.i[k]], ti.f32) * self.px_per_unit + self.offset
                 b = ti.cast(p.x[s.j[k]], ti.f32) * self.px_per_unit + self.offset
@@ -623,49 +630,81 @@ class Renderer:
 
     @ti.kernel
     def _splat_2d(self):
+        """Bin the particles by screen strip, draw the even strips, then the odd ones, with plain adds (see
+        strips.py), then the particles that reach beyond their strip, with atomic adds."""
         p = self.sim.particles
-        for i in range(p.n[None]):
-            g = p.group[i]
-            head = ti.cast(p.x[i], ti.f32) * self.px_per_unit + self.offset
-            tail, ctrl = head, head
-            blurred = False
-            if ti.static(self.motion_blur):
-                prev = self.x_prev[i] * self.px_per_unit + self.offset
-                mid = 0.5 * (prev + head)
-                if ti.static(self.spline):
-                    mid = self.x_mid[i] * self.px_per_unit + self.offset
-                tail, ctrl, head = self._streak(prev, mid, head)
-                span = ti.max((tail - head).norm(), (mid - head).norm())
-                blurred = (tail - head).norm() > 1e-3 and span < 0.5 * self.width  # not a periodic wrap
-                if not blurred:
-                    tail, ctrl = head, head
-            r_true = self.drawn_radius(i) * self.px_per_unit
-            draw, blend, opacity = self.g_draw[g], self.g_blend[g], self.group_opacity(i)
-            if draw == 0:  # a dot: one pixel
-                r_true = 0.5
-            r = ti.max(r_true, R_MIN)
-            fade = ti.max((r_true / r) ** 2, MIN_FADE)
-            col = self.particle_color(i)
-            if blend == 2:
-                if ti.static(self.has_additive):
-                    energy = opacity * math.pi * r_true * r_true
-                    self._deposit_light(tail, ctrl, head, r, energy, col, blurred, False, 0.0)
-            else:
-                x0, x1, y0, y1 = self._box(tail, head, r, ctrl)
-                self._stamp_tiles(x0, x1, y0, y1)
-                for px in range(x0, x1 + 1):
-                    for py in range(y0, y1 + 1):
-                        w = fade * self._weight(ti.Vector([px + 0.5, py + 0.5]), tail, ctrl, head, r, blurred)
-                        if w > 0.0:
-                            if blend == 0:
-                                self.accum[px, py] += w * col
-                                self.weight[px, py] += w
-                            else:
-                                if ti.static(self.has_alpha):
-                                    a = ti.min(w * opacity, 0.999)
-                                    self.a_accum[px, py] += a * col
-                                    self.a_weight[px, py] += a
-                                    self.a_log[px, py] += ti.log(1.0 - a)
+        n = p.n[None]
+        bins = self.strips
+        bins.clear()
+        self.sim.loops.light()
+        for i in range(n):
+            tail, ctrl, head, r, _, _ = self._splat_shape(i)
+            x0, x1, _, _ = self._box(tail, head, r, ctrl)
+            s = bins.strip_for(x0, x1, head[0])
+            if self.g_blend[p.group[i]] == BLEND["additive"] or not ti.static(self.strip_splat):
+                s = bins.wide
+            bins.put(i, s)
+        bins.finish(n)
+        for parity in ti.static(range(2)):
+            for u in range(bins.pass_iterations):
+                s = bins.strip_at(u, parity)
+                if s >= 0:
+                    for k in range(bins.start[s], bins.start[s] + bins.count[s]):
+                        self._splat_one(bins.ids[k], True)
+        for k in range(bins.start[bins.wide], bins.start[bins.wide] + bins.count[bins.wide]):
+            self._splat_one(bins.ids[k], False)
+
+    @ti.func
+    def _splat_shape(self, i):
+        """(tail, control point, head) of particle i's streak in pixels (all at the head when it is not blurred),
+        its drawn radius r >= R_MIN and true radius in pixels, and whether it is blurred."""
+        head = ti.cast(self.sim.particles.x[i], ti.f32) * self.px_per_unit + self.offset
+        tail, ctrl = head, head
+        blurred = False
+        if ti.static(self.motion_blur):
+            prev = self.x_prev[i] * self.px_per_unit + self.offset
+            mid = 0.5 * (prev + head)
+            if ti.static(self.spline):
+                mid = self.x_mid[i] * self.px_per_unit + self.offset
+            tail, ctrl, head = self._streak(prev, mid, head)
+            span = ti.max((tail - head).norm(), (mid - head).norm())
+            blurred = (tail - head).norm() > 1e-3 and span < 0.5 * self.width  # not a periodic wrap
+            if not blurred:
+                tail, ctrl = head, head
+        r_true = self.drawn_radius(i) * self.px_per_unit
+        if self.g_draw[self.sim.particles.group[i]] == 0:  # a dot: one pixel
+            r_true = 0.5
+        return tail, ctrl, head, ti.max(r_true, R_MIN), r_true, blurred
+
+    @ti.func
+    def _splat_one(self, i, plain: ti.template()):
+        """Add particle i's coverage to the layers: by plain load and store when `plain` (no other thread draws
+        near it), else by atomic adds."""
+        tail, ctrl, head, r, r_true, blurred = self._splat_shape(i)
+        g = self.sim.particles.group[i]
+        blend, opacity = self.g_blend[g], self.group_opacity(i)
+        fade = ti.max((r_true / r) ** 2, MIN_FADE)
+        col = self.particle_color(i)
+        if blend == 2:
+            if ti.static(self.has_additive):
+                energy = opacity * math.pi * r_true * r_true
+                self._deposit_light(tail, ctrl, head, r, energy, col, blurred, False, 0.0)
+        else:
+            x0, x1, y0, y1 = self._box(tail, head, r, ctrl)
+            self._stamp_tiles(x0, x1, y0, y1)
+            for px in range(x0, x1 + 1):
+                for py in range(y0, y1 + 1):
+                    w = fade * self._weight(ti.Vector([px + 0.5, py + 0.5]), tail, ctrl, head, r, blurred)
+                    if w > 0.0:
+                        if blend == 0:
+                            _add(self.accum, px, py, w * col, plain)
+                            _add(self.weight, px, py, w, plain)
+                        else:
+                            if ti.static(self.has_alpha):
+                                a = ti.min(w * opacity, 0.999)
+                                _add(self.a_accum, px, py, a * col, plain)
+                                _add(self.a_weight, px, py, a, plain)
+                                _add(self.a_log, px, py, ti.log(1.0 - a), plain)
 
     @ti.kernel
     def _resolve_2d(self, full: ti.i32, out: ti.types.ndarray(dtype=ti.u8, ndim=3)):
@@ -970,6 +1009,16 @@ class Renderer:
         draw_text(img, f"{lo:g}", x0, y0 + bar_h + 3, scale)
         label = f"{hi:g}"
         draw_text(img, label, x0 + bar_w - 4 * scale * len(label), y0 + bar_h + 3, scale)
+
+
+@ti.func
+def _add(layer: ti.template(), x, y, value, plain: ti.template()):
+    """layer[x, y] += value: by a plain load and store when `plain` (no other thread writes that pixel meanwhile),
+    else atomically (on the CPU a float atomic add is a compare-and-swap loop)."""
+    if ti.static(plain):
+        layer[x, y] = layer[x, y] + value
+    else:
+        layer[x, y] += value
 
 
 @ti.func
