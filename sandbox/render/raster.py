@@ -56,7 +56,8 @@ class Renderer:
     """Draws a Simulation's particles into `self.image` (W x H RGB floats)."""
 
     def __init__(self, sim, width: int, height: int, render_cfg, keep_image: bool = True, strip_splat: bool = True):
-        """keep_image: also keep the float image (the window shows it); headless video needs only the 8-bit one.
+        """keep_image: keep the float image (the window shows it; the 8-bit picture is then packed from it only when
+        picture() asks); headless video needs only the 8-bit one, which 2D compositing then writes directly.
         strip_splat=False draws every 2D particle with atomic adds (the reference the strip binning is tested
         against)."""
         self.sim = sim
@@ -416,7 +417,7 @@ class Renderer:
 
     def picture(self) -> np.ndarray:
         """The last rendered picture as an (H, W, 3) uint8 array (what frame() returns, without drawing again)."""
-        if self.dim == 3:
+        if self.dim == 3 or self.keep_image:
             self._pack(self.out)
         img = self.out if self.on_cpu else self.out.to_numpy()
         if self.cfg.legend:
@@ -752,8 +753,9 @@ class Renderer:
             self.light[x, y] = ti.Vector([0.0, 0.0, 0.0])
         c = ti.min(c, 1.0)
         if ti.static(self.keep_image):
-            self.image[x, y] = c
-        self._put_out(out, x, y, c)
+            self.image[x, y] = c  # the window shows it; picture() packs it to 8 bits only when asked
+        else:
+            self._put_out(out, x, y, c)
 
     # ------------------------------------------------------------------ 3D
     @ti.func
