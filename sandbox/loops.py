@@ -14,6 +14,20 @@ import taichi as ti
 
 LIGHT_PARALLEL_FROM = 400_000  # particle slots from which per-particle loops with little work run in parallel
 PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the neighbour-list build run in parallel
+# Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64
+# iterations apart ran on one thread, 256 or more apart on both), so a loop over a few heavy items (the half-list
+# pass's chunks, the renderer's screen strips) runs over items * SPREAD_STRIDE iterations instead: see spread_item.
+SPREAD_STRIDE = 512
+
+
+@ti.func
+def spread_item(u):
+    """The item that iteration u of `for u in range(items * SPREAD_STRIDE)` starts (u // SPREAD_STRIDE), or -1 for
+    the empty iterations between items, which only spread the items over the threads."""
+    item = -1
+    if u % SPREAD_STRIDE == 0:
+        item = u // SPREAD_STRIDE
+    return item
 
 
 @ti.data_oriented

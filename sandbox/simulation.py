@@ -18,7 +18,7 @@ from . import runtime, transfer
 from .build import build_particles
 from .errors import SimulationError
 from .integrators import make_integrator
-from .loops import LoopPolicy
+from .loops import SPREAD_STRIDE, LoopPolicy, spread_item
 from .model import ENTHALPY_LAW, MaterialTable, ParticleFields, material_column
 from .physics.boundary import Domain
 from .physics.emitters import NEVER_BONDS, Emitters
@@ -58,7 +58,6 @@ _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi":
 _COUNT = {"alive": 0, "meltable": 1, "bad": 2}
 
 
-CHUNK_STRIDE = 4096  # loop iterations between the half-list pass's chunks (see _rates)
 CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
 
 
@@ -451,11 +450,9 @@ class Simulation:
                 for i in range(n):
                     self._half_row(0, i, ids)
             else:
-                # Taichi's CPU backend runs a range-for in blocks of at least 512 iterations, so a loop over just
-                # the chunks would run on one thread: stride the chunks CHUNK_STRIDE iterations apart instead.
-                for u in range(self.n_chunks * CHUNK_STRIDE):
-                    if u % CHUNK_STRIDE == 0:
-                        t = u // CHUNK_STRIDE
+                for u in range(self.n_chunks * SPREAD_STRIDE):  # a loop over the chunks alone runs on one thread
+                    t = spread_item(u)
+                    if t >= 0:
                         for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
                             self._half_row(t, i, ids)
         if ti.static(self.has_springs):

@@ -11,8 +11,9 @@ streaks, huge discs, additive light) are drawn afterwards by a parallel loop wit
 
 import taichi as ti
 
+from ..loops import SPREAD_STRIDE, spread_item
+
 STRIP = 64  # pixels per strip; a particle within STRIP / 2 of its strip is drawn without atomics
-STRIDE = 512  # loop iterations between strips: Taichi's CPU range-for hands threads blocks of fewer iterations
 
 
 @ti.data_oriented
@@ -28,7 +29,7 @@ class StripBins:
         self.bin_of = ti.field(ti.i32, shape=capacity)
         self.slot = ti.field(ti.i32, shape=capacity)  # place within its bin
         self.ids = ti.field(ti.i32, shape=capacity)  # particle ids, bin by bin
-        self.pass_iterations = (self.n_strips + 1) // 2 * STRIDE  # of one parity pass's loop (see strip_at)
+        self.pass_iterations = (self.n_strips + 1) // 2 * SPREAD_STRIDE  # of one parity pass's loop (see strip_at)
 
     @ti.func
     def strip_for(self, x0, x1, centre_x):
@@ -66,8 +67,7 @@ class StripBins:
         """The strip iteration u of a parity pass starts (-1 for the iterations in between): loop u over
         range(pass_iterations)."""
         s = -1
-        if u % STRIDE == 0:
-            s = 2 * (u // STRIDE) + parity
-            if s >= self.n_strips:
-                s = -1
+        m = spread_item(u)
+        if m >= 0 and 2 * m + parity < self.n_strips:
+            s = 2 * m + parity
         return s
