@@ -12,6 +12,8 @@ capacity), so kernels compile once.
 
 import taichi as ti
 
+from .oriented import data_oriented
+
 LIGHT_PARALLEL_FROM = 400_000  # particle slots from which per-particle loops with little work run in parallel
 PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the neighbour-list build run in parallel
 # Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64
@@ -30,7 +32,7 @@ def spread_item(u):
     return item
 
 
-@ti.data_oriented
+@data_oriented
 class LoopPolicy:
     """Put `self.loops.light()` before a per-particle loop with little work per item and `self.loops.pairs()`
     before a loop over neighbour pairs: each serializes the loop that follows it when the scene is small."""

@@ -6,10 +6,11 @@ import taichi as ti
 from . import transfer
 from .build import Particles
 from .materials import Material
+from .oriented import data_oriented
 from .runtime import real_fields
 
 
-@ti.data_oriented
+@data_oriented
 class ParticleFields:
     """Struct-of-arrays particle state. Capacity C, the first n[None] entries active; D = dim."""
 
@@ -102,7 +103,7 @@ def initial_enthalpy(
     return enthalpy_np(temperature, c, ts, tl, latent), melt_fraction_np(temperature, ts, tl)
 
 
-@ti.data_oriented
+@data_oriented
 class MaterialTable:
     """Per-material properties as small fields, indexed by a particle's material id."""
 

@@ -17,12 +17,13 @@ import taichi as ti
 
 from .errors import SandboxError
 from .model import initial_enthalpy
+from .oriented import data_oriented
 from .physics.phase import LIQUID
 
 TOOLS = ("heat", "cool", "drag", "attract", "repel", "impulse", "erase", "spawn")  # keys 1-8 in the window
 
 
-@ti.data_oriented
+@data_oriented
 class Tools:
     """The brush tools bound to a simulation."""
 

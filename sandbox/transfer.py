@@ -12,6 +12,7 @@ import numpy as np
 import taichi as ti
 
 from . import runtime
+from .oriented import data_oriented
 
 _INTS = (ti.i32, ti.i8, ti.i16, ti.u8, ti.u16)
 _cache: dict = {}  # key -> _Copier; the copier holds its fields, so their ids stay unique while it is cached
@@ -30,7 +31,7 @@ def _float_staging():
     return np.float64 if runtime.running_arch() in ("cpu", "cuda") else np.float32
 
 
-@ti.data_oriented
+@data_oriented
 class _Copier:
     """Copies the leading `rows` of each field (all of its other axes) to or from flat staging arrays."""
 

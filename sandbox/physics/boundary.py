@@ -2,8 +2,10 @@
 
 import taichi as ti
 
+from ..oriented import data_oriented
 
-@ti.data_oriented
+
+@data_oriented
 class Domain:
     """Box lo..hi. Walls push a particle back to one radius from the wall; periodic boxes wrap positions."""
 

@@ -20,6 +20,7 @@ import numpy as np
 import taichi as ti
 
 from ..errors import SceneError
+from ..oriented import data_oriented
 from .fields import random_uniform
 
 NEVER_BONDS = 3  # liquid-flag value of mortal emitted particles: refreezing never bonds them (physics/phase.py)
@@ -27,7 +28,7 @@ SHAPES = ("point", "box", "disk", "sphere", "mask")
 MASK = SHAPES.index("mask")
 
 
-@ti.data_oriented
+@data_oriented
 class Emitters:
     """The scene's emitters: parameter fields, the emit kernel, and retirement of the dead by compaction."""
 

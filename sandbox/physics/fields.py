@@ -24,6 +24,8 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..oriented import data_oriented
+
 FIELD_KINDS = ("wind", "vortex", "source", "explosion", "noise")
 WIND, VORTEX, SOURCE, EXPLOSION, NOISE = range(5)
 
@@ -81,7 +83,7 @@ def gradient_noise(p, seed: ti.u32):
     return total
 
 
-@ti.data_oriented
+@data_oriented
 class VelocityField:
     """The scene's field elements as small parameter fields, and velocity(x, t) as a Taichi func."""
 

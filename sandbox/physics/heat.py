@@ -26,6 +26,7 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..oriented import data_oriented
 from ..runtime import real_fields
 from ..scene import SOURCE_MODES
 
@@ -59,7 +60,7 @@ def lattice_correction(x: np.ndarray, volume: np.ndarray, h: float, samples: int
     return s if 0.8 <= s <= 1.2 else 1.0
 
 
-@ti.data_oriented
+@data_oriented
 class Heat:
     """Heat-diffusion parameters and sources, with the per-pair flow and per-particle source funcs."""
 

@@ -15,10 +15,11 @@ nonlinear backward Euler step by up to a step.
 
 import taichi as ti
 
+from ..oriented import data_oriented
 from ..solvers import CGResult, pcg
 
 
-@ti.data_oriented
+@data_oriented
 class ImplicitHeat:
     """Backward-Euler heat stepper over the simulation's neighbours (lists or grid)."""
 

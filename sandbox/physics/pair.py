@@ -20,6 +20,7 @@ import numpy as np
 import taichi as ti
 
 from .. import transfer
+from ..oriented import data_oriented
 from ..runtime import real_fields
 
 
@@ -66,7 +67,7 @@ def pair_energy(r: float, alpha: float, beta: float, eps: float, a: float, b: fl
     return raw(r) - raw(cutoff)
 
 
-@ti.data_oriented
+@data_oriented
 class PairForce:
     """Pair-force parameters per material pair (n_mat x n_mat tables) and the per-pair force and energy funcs."""
 

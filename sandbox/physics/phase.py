@@ -21,6 +21,8 @@ boundary cannot flicker between phases (hysteresis of the whole mushy band plus 
 import numpy as np
 import taichi as ti
 
+from ..oriented import data_oriented
+
 LIQUID = 1  # flag values of ParticleFields.liquid
 FREEZING = 2  # (during a refreeze pass: liquid and cold enough to bond)
 
@@ -61,7 +63,7 @@ def temperature_np(h, c, solidus, liquidus, latent) -> tuple[np.ndarray, np.ndar
     return T, phi
 
 
-@ti.data_oriented
+@data_oriented
 class Phase:
     """The enthalpy -> (temperature, melt fraction) law per material, as Taichi funcs."""
 
@@ -108,7 +110,7 @@ class Phase:
         return phi
 
 
-@ti.data_oriented
+@data_oriented
 class Refreezer:
     """The refreezing pass: new springs between cold particles where at least one end was liquid."""
 

@@ -10,8 +10,10 @@ their identity in `ident` (the index in the built scene).
 
 import taichi as ti
 
+from ..oriented import data_oriented
 
-@ti.data_oriented
+
+@data_oriented
 class CellOrder:
     """Sorts the particle storage of `sim` (a Simulation with a cell grid) into the grid's cell order."""
 

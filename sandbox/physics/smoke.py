@@ -19,10 +19,11 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..oriented import data_oriented
 from ..solvers import CGResult, pcg
 
 
-@ti.data_oriented
+@data_oriented
 class SmokeGrid:
     """MAC-grid smoke: face velocities, cell temperature, and a CG pressure projection."""
 

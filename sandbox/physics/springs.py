@@ -22,6 +22,7 @@ import numpy as np
 import taichi as ti
 
 from .. import transfer
+from ..oriented import data_oriented
 
 
 def bond_table(
@@ -40,7 +41,7 @@ def bond_table(
     return table
 
 
-@ti.data_oriented
+@data_oriented
 class Springs:
     """Spring fields (S springs; bond table per particle) and their force, energy and update funcs."""
 

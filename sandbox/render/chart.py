@@ -8,6 +8,7 @@ the box's width. Videos also print each series' latest value under the box, in t
 import numpy as np
 import taichi as ti
 
+from ..oriented import data_oriented
 from .raster import draw_text, put_pixel
 
 FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
@@ -16,7 +17,7 @@ SAMPLES = 256  # points per series drawn (the history is resampled to this many)
 HISTORY = 16 * SAMPLES  # samples kept; past it every other one is dropped and the sampling stride doubles
 
 
-@ti.data_oriented
+@data_oriented
 class Chart:
     """Strip chart of some Stats fields; record() each frame, the renderer calls draw()."""
 

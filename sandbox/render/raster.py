@@ -35,6 +35,7 @@ import numpy as np
 import taichi as ti
 
 from .. import runtime
+from ..oriented import data_oriented
 from .colormaps import GLOW_STOPS, SPEED_STOPS, glow, glow_over_base, ramp_np, speed_map
 from .strips import StripBins
 
@@ -51,7 +52,7 @@ SPRING_COLOR = (0.55, 0.6, 0.7)
 SPRING_OPACITY = 0.6
 
 
-@ti.data_oriented
+@data_oriented
 class Renderer:
     """Draws a Simulation's particles into `self.image` (W x H RGB floats)."""
 

@@ -12,11 +12,12 @@ streaks, huge discs, additive light) are drawn afterwards by a parallel loop wit
 import taichi as ti
 
 from ..loops import SPREAD_STRIDE, spread_item
+from ..oriented import data_oriented
 
 STRIP = 64  # pixels per strip; a particle within STRIP / 2 of its strip is drawn without atomics
 
 
-@ti.data_oriented
+@data_oriented
 class StripBins:
     """Particle ids binned by screen strip (a counting sort), with a last bin for the particles drawn with
     atomics. Fill with clear(), put(i, strip) for every particle, then finish()."""
