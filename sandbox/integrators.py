@@ -20,6 +20,7 @@ equation with its own stepping: explicit Euler on the rates of the step's last f
 
 import taichi as ti
 
+from .oriented import data_oriented
 from .solvers import pcg
 
 REGISTRY: dict[str, type] = {}
@@ -41,7 +42,7 @@ def make_integrator(name: str, sim) -> "Integrator":
     return REGISTRY[name](sim)
 
 
-@ti.data_oriented
+@data_oriented
 class Integrator:
     name = "base"
     order = 1
@@ -54,6 +55,9 @@ class Integrator:
     auto_h_omega = 0.01
 
     evaluations = 1
+    # One force evaluation and a per-particle update_particle(i, dt) make the step: small scenes run many such
+    # steps to a kernel launch (Simulation._fused_steps).
+    single_update = False
 
     def __init__(self, sim):
         self.sim = sim
@@ -75,6 +79,7 @@ class SymplecticEuler(Integrator):
     symplectic = True
     stable_h_omega = 2.0
     auto_h_omega = 1.0
+    single_update = True
 
     def step(self, dt: float) -> None:
         self.sim.eval_rates(then_update=dt)
@@ -89,6 +94,8 @@ class SymplecticEuler(Integrator):
 @register("forward_euler")
 class ForwardEuler(Integrator):
     """x += dt v; v += dt f(x, v)/m (explicit Euler: first order; an undamped oscillator's amplitude grows)."""
+
+    single_update = True
 
     def step(self, dt: float) -> None:
         self.sim.eval_rates(then_update=dt)

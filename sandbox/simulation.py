@@ -17,9 +17,10 @@ import taichi as ti
 from . import runtime, transfer
 from .build import build_particles
 from .errors import SimulationError
-from .integrators import make_integrator
+from .integrators import REGISTRY, make_integrator
 from .loops import SPREAD_STRIDE, LoopPolicy, spread_item
 from .model import ENTHALPY_LAW, MaterialTable, ParticleFields, material_column
+from .oriented import data_oriented
 from .physics.boundary import Domain
 from .physics.emitters import NEVER_BONDS, Emitters
 from .physics.fields import VelocityField
@@ -86,7 +87,7 @@ class Stats:
         return self.kinetic_energy + self.potential_energy
 
 
-@ti.data_oriented
+@data_oriented
 class Simulation:
     """A running scene: fields, passes, integrator, clock."""
 
@@ -231,6 +232,8 @@ class Simulation:
         self._acc = ti.field(acc, shape=len(_ACC))  # indexed by _ACC
         self._count = ti.field(ti.i32, shape=len(_COUNT))  # counts for stats(), indexed by _COUNT
         self.integrator = make_integrator(world.integrator, self)
+        self.fuses_steps = self._fusable_scene()
+        self.fused_batches = 0  # launches of _fused_steps so far
         if self.emitters is not None:
             self.emitters.emit_initial()
         self.time = 0.0
@@ -249,39 +252,130 @@ class Simulation:
     # ------------------------------------------------------------------ stepping
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
-        for _ in range(n):
-            if self.reorder is not None and self.reorder.due():
-                self.reorder.apply()
-            if self.heat is not None and self.heat.scheduled:
-                self.heat.set_time(self.time)
-            if self.emitters is not None:
-                self.emitters.emit_due(self.time, self.dt)
-                if self.emitters.refills:
-                    self.emitters.refill(self.time)
-            if self.smoke is not None and self.step_count % self.scene.smoke.interval == 0:
-                self.smoke.step(self.dt * self.scene.smoke.interval)
-            if self.has_kinematic:
-                self._kinematic_begin()
-            if self.has_field_drag:
-                self._sample_field(self.time)  # the drag force's target, held through the step
-            self.integrator.step(self.dt)
-            if self.implicit_heat is not None:
-                use_list = self.neighbours is not None and self.neighbours.ensure_fresh()
-                if not use_list and self.grid is not None:
-                    self.grid.rebuild()
-                self.implicit_heat.step(self.dt, use_list, self.neighbours.ids if use_list else None)
-                self.implicit_heat.apply()
-            if self.has_kinematic:
-                self._advect_kinematic(self.dt, self.time)
-            if self.has_lifetimes:
-                self._age(self.dt)
-            self.time += self.dt
-            self.step_count += 1
-            if self.refreezer is not None and self.step_count % self.scene.heat.refreeze_interval == 0:
-                if self.refreezer.run() and self.marks_bonds:
-                    self.neighbours.invalidate()  # the list marks bonded pairs: new springs must be marked
+        while n > 0:
+            batch = self._fused_batch(n)
+            done = self._run_fused(batch) if batch else 0
+            if done < max(batch, 1):  # not fusable now, or a fused list build overflowed: one step the long way
+                self._step_once()
+                done += 1
+            n -= done
         if self.has_lifetimes:
             self.emitters.retire()
+
+    def _step_once(self) -> None:
+        """One step of dt, each pass launched from here (any scene, any integrator)."""
+        if self.reorder is not None and self.reorder.due():
+            self.reorder.apply()
+        if self.heat is not None and self.heat.scheduled:
+            self.heat.set_time(self.time)
+        if self.emitters is not None:
+            self.emitters.emit_due(self.time, self.dt)
+            if self.emitters.refills:
+                self.emitters.refill(self.time)
+        if self.smoke is not None and self.step_count % self.scene.smoke.interval == 0:
+            self.smoke.step(self.dt * self.scene.smoke.interval)
+        if self.has_kinematic:
+            self._kinematic_begin()
+        if self.has_field_drag:
+            self._sample_field(self.time)  # the drag force's target, held through the step
+        self.integrator.step(self.dt)
+        if self.implicit_heat is not None:
+            use_list = self.neighbours is not None and self.neighbours.ensure_fresh()
+            if not use_list and self.grid is not None:
+                self.grid.rebuild()
+            self.implicit_heat.step(self.dt, use_list, self.neighbours.ids if use_list else None)
+            self.implicit_heat.apply()
+        if self.has_kinematic:
+            self._advect_kinematic(self.dt, self.time)
+        if self.has_lifetimes:
+            self._age(self.dt)
+        self._count_steps(1)
+
+    def _count_steps(self, done: int) -> None:
+        """Advance the clock by `done` steps and run what is due at a step boundary (refreezing)."""
+        for _ in range(done):
+            self.time += self.dt  # added one step at a time: the same clock as stepping one by one
+        before = self.step_count
+        self.step_count += done
+        if self.refreezer is not None:
+            interval = self.scene.heat.refreeze_interval
+            if self.step_count // interval > before // interval:  # a fused batch ends at the refreeze step
+                if self.refreezer.run() and self.marks_bonds:
+                    self.neighbours.invalidate()  # the list marks bonded pairs: new springs must be marked
+
+    # ------------------------------------------------------------------ the fused step
+    def _fusable_scene(self) -> bool:
+        """Whether this scene's steps can run many to a launch (_fused_steps): every loop of a step runs on one
+        thread (a small scene on the CPU: a parallel loop inside a kernel's step loop would not be parallel), and
+        the step has no work that the host does between steps (emitters, scheduled sources, smoke, velocity
+        fields, lifetimes, the implicit heat solve, sorting the storage)."""
+        return (
+            self.loops.serial_pairs
+            and self.loops.serial_light
+            and self.reorder is None
+            and not (self.heat is not None and self.heat.scheduled)
+            and self.emitters is None
+            and self.smoke is None
+            and not (self.has_kinematic or self.has_field_drag or self.has_lifetimes)
+            and self.implicit_heat is None
+        )
+
+    def _fused_batch(self, n: int) -> int:
+        """How many of the next n steps to run in one _fused_steps launch (0: step the long way)."""
+        if not (self.fuses_steps and self.integrator.single_update):
+            return 0
+        if self.neighbours is not None and not (self.neighbours.usable or self.neighbours.forced):
+            return 0  # lists too wide to allocate: the long way scans the grid
+        if self.refreezer is not None:  # end the batch at the next refreeze step
+            interval = self.scene.heat.refreeze_interval
+            n = min(n, interval - self.step_count % interval)
+        return n
+
+    def _run_fused(self, batch: int) -> int:
+        """Run up to `batch` steps in one launch; returns the steps done (fewer when a list build overflowed)."""
+        nb = self.neighbours
+        forced = 0
+        if nb is not None:
+            forced = int(nb.forced)
+            nb.forced, nb.fused = False, True
+        ids = nb.ids if nb is not None else None
+        done = int(self._fused_steps(batch, forced, self.integrator, ids, self.dt))
+        self.fused_batches += 1
+        if nb is not None:
+            if done < batch:
+                nb.invalidate()  # the long way rebuilds it and grows the lists
+            else:
+                nb.usable = True  # every build in the batch fitted (an overflow stops the batch)
+        self._count_steps(done)
+        return done
+
+    @ti.kernel
+    def _fused_steps(
+        self, steps: ti.i32, forced: ti.i32, integrator: ti.template(), ids: ti.template(), dt: float
+    ) -> ti.i32:
+        """Up to `steps` whole steps of a one-evaluation integrator in a single launch: the per-step passes, the
+        neighbour-list check and rebuild decided here on the device, forces and heat rates, and the update. A
+        launch costs 30-50 us of host time, as much as a whole step of a 1,000-particle scene. Stops before the
+        forces of a step whose list build overflowed (returns the steps done; the host grows the list)."""
+        done = 0
+        rebuild = forced
+        while done < steps:
+            self._prestep_loops()
+            if ti.static(self.has_neighbours):
+                if rebuild or self.neighbours.stale[None]:
+                    self.grid.rebuild_loops()
+                    self.neighbours.fill_loops(ids)
+                    self.neighbours.fused_builds[None] += 1
+                    if self.neighbours.overflow[None]:
+                        break
+            elif ti.static(self.has_grid):
+                self.grid.rebuild_loops()
+            rebuild = 0
+            self._rate_loops(self.has_neighbours, ids)
+            for i in range(self.particles.n[None]):
+                integrator.update_particle(i, dt)
+            done += 1
+        return done
 
     @ti.kernel
     def _kinematic_begin(self):
@@ -354,9 +448,18 @@ class Simulation:
 
     @ti.kernel
     def _prestep(self) -> ti.i32:
-        """One launch for the cheap per-step passes: has any particle moved half the neighbour skin (returned), the
-        springs' thermoelastic update and breaking, and the mass inside each power source."""
+        """One launch for the cheap per-step passes (see _prestep_loops); returns 1 when some particle has moved half
+        the neighbour skin."""
+        self._prestep_loops()
         moved = 0
+        if ti.static(self.has_neighbours):
+            moved = self.neighbours.stale[None]
+        return moved
+
+    @ti.func
+    def _prestep_loops(self):
+        """Has any particle moved half the neighbour skin (sets neighbours.stale), the springs' thermoelastic update
+        and breaking, and the mass inside each power source."""
         if ti.static(self.has_power):
             for k in range(self.heat.n_sources):
                 self.heat.src_mass[k] = 0.0
@@ -373,9 +476,6 @@ class Simulation:
             self.loops.light()
             for s in range(self.springs.span[None]):
                 self.springs.update_one(s)
-        if ti.static(self.has_neighbours):
-            moved = self.neighbours.stale[None]
-        return moved
 
     @ti.func
     def _pair_terms(self, i, j, d, r2, f_scaled, f_visc, q):
@@ -913,6 +1013,12 @@ class Simulation:
             passes.append(f"kinematic advection through the velocity field ({self.scene.world.advection})")
         if self.has_lifetimes:
             passes.append("ageing; the dead retired by compaction after each step() call")
+        if self.fuses_steps:
+            fused = "/".join(name for name, cls in REGISTRY.items() if cls.single_update)
+            passes.append(
+                "launch: every pass of a step, and many steps, in one kernel launch (the list rebuild decided on the "
+                f"device) with {fused}; other integrators one launch per pass"
+            )
         if self.refreezer is not None:
             passes.append(
                 f"every {self.scene.heat.refreeze_interval} steps: refreezing (new bonds within "

@@ -176,3 +176,76 @@ def test_the_optimised_step_keeps_the_energy_drift_and_the_radial_distribution()
     g_fast, g_plain = rdf(fast.positions(), 20.0, bins), rdf(plain.positions(), 20.0, bins)
     assert g_fast.max() > 1.5  # a liquid's first shell
     assert np.abs(g_fast - g_plain).max() < 0.35
+
+
+def _wax_refreezing_scene():
+    from .test_phase import _wax_scene
+
+    data = _wax_scene()
+    data["world"]["precision"] = "f64"
+    data["bodies"] = [
+        {"material": "wax", "shape": "box", "lo": [8, 0], "hi": [22, 4], "temperature": -20.0},
+        {"material": "wax", "shape": "box", "lo": [10, 4.2], "hi": [20, 7.2], "springs": False, "temperature": 90.0},
+    ]
+    return Simulation(make_scene(data))
+
+
+def _state(sim) -> list[np.ndarray]:
+    out = [sim.positions(), sim.velocities()]
+    if sim.heat is not None:
+        out.append(sim.temperatures())
+    if sim.springs is not None:
+        out.append(sim.springs.alive.to_numpy())
+    return out
+
+
+@pytest.mark.parametrize(
+    "make, refreezes",
+    [
+        (lambda: lj_box(), False),
+        (lambda: Simulation(load_scene(SCENES / "melting_block.toml", ["world.precision=f64"])), False),
+        (_wax_refreezing_scene, True),
+    ],
+    ids=["lj_box", "melting_block", "refreezing_wax"],
+)
+def test_many_steps_to_a_launch_give_the_trajectory_of_one_step_at_a_time(make, refreezes):
+    """A small scene runs a whole batch of steps in one kernel launch (the list rebuild decided on the device):
+    bit for bit the states, clock, list builds and refreezing of launching each pass of each step from the host."""
+    one_by_one, fused = make(), make()
+    one_by_one.fuses_steps = False
+    assert fused.fuses_steps
+    for n in (1, 7, 64, 228):
+        one_by_one.step(n)
+        fused.step(n)
+    assert fused.fused_batches >= 4 and one_by_one.fused_batches == 0
+    for a, b in zip(_state(one_by_one), _state(fused)):
+        assert np.array_equal(a, b)
+    assert (fused.time, fused.step_count) == (one_by_one.time, one_by_one.step_count)
+    assert fused.neighbours.builds == one_by_one.neighbours.builds > 2
+    if refreezes:
+        assert int(fused.springs.created[None]) == int(one_by_one.springs.created[None]) > fused.springs.built_count
+
+
+def test_a_list_build_that_overflows_inside_a_fused_batch_grows_the_list_and_goes_on():
+    """Lists made too narrow: the fused batch stops before the forces of the step whose build overflowed, one step
+    runs the long way (which widens the lists) and batching resumes; the trajectory is that of the long way."""
+    one_by_one, fused = lj_box(), lj_box()
+    one_by_one.fuses_steps = False
+    for sim in (one_by_one, fused):
+        sim.neighbours._allocate(4)
+        sim.neighbours.invalidate()
+        sim.step(50)
+    assert fused.neighbours.grown == one_by_one.neighbours.grown == 1
+    assert fused.fused_batches == 2  # the batch that stopped at its first build, then the rest
+    for a, b in zip(_state(one_by_one), _state(fused)):
+        assert np.array_equal(a, b)
+
+
+def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
+    assert not Simulation(load_scene(SCENES / "fireworks.toml")).fuses_steps  # emitters act between steps
+    big = Simulation(load_scene(SCENES / "lj_box.toml"))  # 10,000 particles: the pair pass runs on both threads
+    assert not big.loops.serial_pairs and not big.fuses_steps
+    rk4 = lj_box()
+    rk4.set_integrator("rk4")  # four force evaluations a step: not one update
+    rk4.step(3)
+    assert rk4.fused_batches == 0 and rk4.step_count == 3

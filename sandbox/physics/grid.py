@@ -10,8 +10,10 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..oriented import data_oriented
 
-@ti.data_oriented
+
+@data_oriented
 class CellGrid:
     """Neighbour grid over the box lo..hi for particles x (a Vector field), interaction radius `reach`."""
 
@@ -53,12 +55,17 @@ class CellGrid:
         return 4 * (2 * n_cells + 3 * capacity) + 4 * dim * capacity
 
     def rebuild(self):
-        self._count()
-        self._prefix_sum()
-        self._scatter()
+        """Sort the particles into cells (one launch)."""
+        self._rebuild()
 
     @ti.kernel
-    def _count(self):
+    def _rebuild(self):
+        self.rebuild_loops()
+
+    @ti.func
+    def rebuild_loops(self):
+        """The counting sort: count per cell (the returned old count is the particle's slot), prefix sum, scatter.
+        A ti.func, so the fused step (Simulation) can run it inside its own kernel."""
         self.loops.light()
         for c in range(self.n_cells):
             self.cell_count[c] = 0
@@ -67,17 +74,11 @@ class CellGrid:
             c = self.flat(self.cell_of(self.x[i]))
             self.particle_cell[i] = c
             self.slot[i] = ti.atomic_add(self.cell_count[c], 1)
-
-    @ti.kernel
-    def _prefix_sum(self):
         total = 0
         ti.loop_config(serialize=True)
         for c in range(self.n_cells):
             self.cell_start[c] = total
             total += self.cell_count[c]
-
-    @ti.kernel
-    def _scatter(self):
         self.loops.light()
         for i in range(self.n[None]):
             k = self.cell_start[self.particle_cell[i]] + self.slot[i]

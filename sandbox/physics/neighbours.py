@@ -18,10 +18,12 @@ import math
 
 import taichi as ti
 
+from ..oriented import data_oriented
+
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
 
 
-@ti.data_oriented
+@data_oriented
 class NeighbourList:
     """Per-particle lists of neighbour ids within reach + skin, over the cell grid `grid`."""
 
@@ -46,7 +48,9 @@ class NeighbourList:
         self.n_listed = ti.field(ti.i32, shape=())  # the particle count at the last build
         self.forced = True  # rebuild at the next check (invalidate())
         self.usable = False  # the last build fitted every list (no overflow)
-        self.builds = 0
+        self.host_builds = 0  # builds run by ensure_fresh
+        self.fused_builds = ti.field(ti.i32, shape=())  # builds run inside the fused step (Simulation._fused_steps)
+        self.fused = False  # the fused step has run: `builds` must read fused_builds
         self.grid.rebuild()
         self._count_only()
         widest = int(self.count.to_numpy()[: int(n[None])].max(initial=0))
@@ -66,8 +70,7 @@ class NeighbourList:
         if moved is None:
             moved = self._moved_too_far()
         if self.forced or moved:  # no host read of the count or the overflow flag on steps without a rebuild
-            self.grid.rebuild()
-            self._fill(self.ids)
+            self._sort_and_fill(self.ids)
             if self.overflow[None]:
                 n = int(self.n[None])
                 widest = int(self.count.to_numpy()[:n].max())
@@ -78,8 +81,13 @@ class NeighbourList:
                     self._fill(self.ids)
             self.usable = self.overflow[None] == 0
             self.forced = False
-            self.builds += 1
+            self.host_builds += 1
         return self.usable
+
+    @property
+    def builds(self) -> int:
+        """How many times the list has been built (a host read of a field once the fused step has run)."""
+        return self.host_builds + (int(self.fused_builds[None]) if self.fused else 0)
 
     def invalidate(self) -> None:
         """Rebuild at the next check (the particles changed: added, removed, moved by hand or reordered)."""
@@ -119,6 +127,18 @@ class NeighbourList:
 
     @ti.kernel
     def _fill(self, ids: ti.template()):
+        self.fill_loops(ids)
+
+    @ti.kernel
+    def _sort_and_fill(self, ids: ti.template()):
+        """The grid's counting sort and the list build in one launch."""
+        self.grid.rebuild_loops()
+        self.fill_loops(ids)
+
+    @ti.func
+    def fill_loops(self, ids: ti.template()):
+        """Build the lists into `ids` from the grid as last sorted; sets `overflow` when some list did not fit. A
+        ti.func, so the fused step (Simulation) can run it inside its own kernel."""
         self.overflow[None] = 0
         self.n_listed[None] = self.n[None]
         r2max = (self.reach + self.skin) ** 2
