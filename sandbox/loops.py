@@ -16,6 +16,12 @@ from .oriented import data_oriented
 
 LIGHT_PARALLEL_FROM = 400_000  # particle slots from which per-particle loops with little work run in parallel
 PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the neighbour-list build run in parallel
+# ... and when the pair force is the whole step (no springs, no heat): such a step is cheap enough that running it
+# serially, many steps to a launch (Simulation._fused_steps), beats two threads woken every step up to here. W1 at
+# 10,000 particles (15,000 slots), three alternating runs of `sandbox.bench.measure`: 10.2, 11.9, 8.3 M particle-steps/s
+# serial and fused, 8.0, 9.2, 8.3 parallel; the 10,000-particle melting block's frame (springs and heat, three times
+# the work per particle) 29.6-30.7 ms serial against 21.4-25.2 ms parallel.
+PAIR_ONLY_PARALLEL_FROM = 20_000
 # Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64
 # iterations apart ran on one thread, 256 or more apart on both), so a loop over a few heavy items (the half-list
 # pass's chunks, the renderer's screen strips) runs over items * SPREAD_STRIDE iterations instead: see spread_item.
@@ -37,10 +43,11 @@ class LoopPolicy:
     """Put `self.loops.light()` before a per-particle loop with little work per item and `self.loops.pairs()`
     before a loop over neighbour pairs: each serializes the loop that follows it when the scene is small."""
 
-    def __init__(self, arch: str, capacity: int):
+    def __init__(self, arch: str, capacity: int, pair_only: bool = False):
+        """`capacity`: particle slots; `pair_only`: no springs, no heat in the step (see PAIR_ONLY_PARALLEL_FROM)."""
         cpu = arch == "cpu"
         self.serial_light = cpu and capacity < LIGHT_PARALLEL_FROM
-        self.serial_pairs = cpu and capacity < PAIR_PARALLEL_FROM
+        self.serial_pairs = cpu and capacity < (PAIR_ONLY_PARALLEL_FROM if pair_only else PAIR_PARALLEL_FROM)
 
     @ti.func
     def light(self):

@@ -49,6 +49,10 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
     else:
         ti.init(arch=_arch_value(arch), **kwargs)
     _current = (arch, precision, profile)
+    if running_arch() == "cpu":
+        from .threads import pin_workers
+
+        pin_workers(int(ti.lang.impl.current_cfg().cpu_max_num_threads))
     return running_arch()
 
 

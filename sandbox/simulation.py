@@ -59,6 +59,7 @@ _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi":
 _COUNT = {"alive": 0, "meltable": 1, "bad": 2}
 
 
+REORDER_BATCH = 20  # most steps per fused launch when the storage is sorted into cell order between launches
 CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
 
 
@@ -108,7 +109,8 @@ class Simulation:
         if not world.capacity:
             self.capacity += sum(emitter_population(e) for e in scene.emitters)
         self.capacity = max(self.capacity, built.count)
-        self.loops = LoopPolicy(self.arch, self.capacity)
+        pair_only = not (scene.heat or built.spring_count)
+        self.loops = LoopPolicy(self.arch, self.capacity, pair_only)
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
         self.materials = MaterialTable(materials)
@@ -253,6 +255,8 @@ class Simulation:
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
         while n > 0:
+            if self.reorder is not None and self.fuses_steps and self.reorder.due():
+                self.reorder.apply()  # between fused batches (the long way sorts at the start of its step)
             batch = self._fused_batch(n)
             done = self._run_fused(batch) if batch else 0
             if done < max(batch, 1):  # not fusable now, or a fused list build overflowed: one step the long way
@@ -308,11 +312,11 @@ class Simulation:
         """Whether this scene's steps can run many to a launch (_fused_steps): every loop of a step runs on one
         thread (a small scene on the CPU: a parallel loop inside a kernel's step loop would not be parallel), and
         the step has no work that the host does between steps (emitters, scheduled sources, smoke, velocity
-        fields, lifetimes, the implicit heat solve, sorting the storage)."""
+        fields, lifetimes, the implicit heat solve). Sorting the storage into cell order runs between batches, which
+        are at most REORDER_BATCH steps long when the scene sorts."""
         return (
             self.loops.serial_pairs
             and self.loops.serial_light
-            and self.reorder is None
             and not (self.heat is not None and self.heat.scheduled)
             and self.emitters is None
             and self.smoke is None
@@ -329,6 +333,8 @@ class Simulation:
         if self.refreezer is not None:  # end the batch at the next refreeze step
             interval = self.scene.heat.refreeze_interval
             n = min(n, interval - self.step_count % interval)
+        if self.reorder is not None:
+            n = min(n, REORDER_BATCH)
         return n
 
     def _run_fused(self, batch: int) -> int:

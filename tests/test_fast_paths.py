@@ -1,5 +1,7 @@
 """The performance paths change no physics: half neighbour lists, storage sorted into cell order."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -119,11 +121,14 @@ def test_springs_made_by_refreezing_are_marked_before_the_next_step():
     assert np.abs(f0 - f1).max() <= 1e-9 * np.abs(f0).max()
 
 
-def test_sorting_the_storage_keeps_every_trajectory_and_orders_particles_by_cell():
+@pytest.mark.parametrize("fused", [False, True], ids=["one_step_a_launch", "fused_batches"])
+def test_sorting_the_storage_keeps_every_trajectory_and_orders_particles_by_cell(fused):
     plain, sorted_ = lj_box(reorder=0), lj_box(reorder=1)
     for sim in (plain, sorted_):
+        sim.fuses_steps = fused
         sim.step(300)
     assert sorted_.reorder.applied >= 3
+    assert (sorted_.fused_batches > 0) == fused  # fused: sorted between batches
     ident = sorted_.particles.ident.to_numpy()[: sorted_.built.count]
     assert sorted(ident) == list(range(sorted_.built.count))  # a permutation: no particle lost or doubled
     assert not np.array_equal(ident, np.arange(len(ident)))  # the storage did move
@@ -243,9 +248,34 @@ def test_a_list_build_that_overflows_inside_a_fused_batch_grows_the_list_and_goe
 
 def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
     assert not Simulation(load_scene(SCENES / "fireworks.toml")).fuses_steps  # emitters act between steps
-    big = Simulation(load_scene(SCENES / "lj_box.toml"))  # 10,000 particles: the pair pass runs on both threads
-    assert not big.loops.serial_pairs and not big.fuses_steps
+    from sandbox.bench import INTERACTIVE_BLOCK
+
+    big = Simulation(load_scene(SCENES / "melting_block.toml", INTERACTIVE_BLOCK))  # 10,000 particles, springs, heat
+    assert not big.loops.serial_pairs and not big.fuses_steps  # the pair pass runs on both threads
     rk4 = lj_box()
     rk4.set_integrator("rk4")  # four force evaluations a step: not one update
     rk4.step(3)
     assert rk4.fused_batches == 0 and rk4.step_count == 3
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "sched_getaffinity")
+    or len(os.sched_getaffinity(0)) < 2
+    or os.environ.get("SANDBOX_PIN_THREADS") == "0",
+    reason="pinning needs Linux and two cores",
+)
+def test_taichi_worker_threads_are_pinned_one_per_core():
+    """Linux often woke both CPU workers on one core (a parallel loop then ran at serial speed): each is pinned."""
+    import taichi as ti
+
+    from sandbox import threads
+
+    sim = lj_box()
+    workers = int(ti.lang.impl.current_cfg().cpu_max_num_threads)
+    assert sim.arch == "cpu" and workers >= 2
+    assert len(threads.pinned) == workers
+    cores = [core for _tid, core in threads.pinned]
+    assert len(set(cores)) == min(workers, len(os.sched_getaffinity(0)))
+    for tid, core in threads.pinned:
+        assert tid != os.getpid() and os.path.isdir(f"/proc/self/task/{tid}")
+        assert os.sched_getaffinity(tid) == {core}

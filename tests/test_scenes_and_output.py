@@ -112,8 +112,8 @@ def test_check_prints_the_pipeline(capsys):
     for part in ("neighbour lists", "thermoelastic", "pair force (a=8, b=14", "heat diffusion", "particles 1200"):
         assert part in out
     assert "many steps, in one kernel launch" in out  # 1,200 particles: every loop on one thread
-    assert main(["check", "lj_box", "--arch", "cpu"]) == 0
-    assert "in one kernel launch" not in capsys.readouterr().out  # 10,000: the pair pass runs on both threads
+    assert main(["check", "fireworks", "--arch", "cpu"]) == 0
+    assert "in one kernel launch" not in capsys.readouterr().out  # emitters act between steps
 
 
 def test_list_and_keys_describe_everything(capsys):
