@@ -350,6 +350,7 @@ def run_bench(args) -> int:
             if lmp is not None and "error" not in lmp:
                 res["lammps"] = lmp
                 res["ratio_to_lammps"] = res["particle_steps_per_second"] / lmp["particle_steps_per_second"]
+                res["lammps_one_process"] = lammps_w1(n_side, procs=1)  # how much its second process adds
             elif lmp is not None:
                 res["lammps"] = lmp
         results["workloads"][name] = res
@@ -393,6 +394,10 @@ def run_bench(args) -> int:
             f"{name:32s} {res['particles']:8d} {res['particle_steps_per_second'] / 1e6:19.2f} "
             f"{res['seconds_per_step'] * 1e3:8.3f} {lrate} {ratio}"
         )
+    for name, res in rows:
+        one = res.get("lammps_one_process") or {}
+        if "particle_steps_per_second" in one:
+            print(f"LAMMPS on one process, {name}: {one['particle_steps_per_second'] / 1e6:.2f} M particle-steps/s")
     for name, launch in results["launches"].items():
         print(
             f"kernel launches per step, {name}: {launch['launches_per_step']:.2f} "
