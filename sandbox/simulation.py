@@ -377,9 +377,11 @@ class Simulation:
             elif ti.static(self.has_grid):
                 self.grid.rebuild_loops()
             rebuild = 0
-            self._rate_loops(self.has_neighbours, ids)
-            for i in range(self.particles.n[None]):
-                integrator.update_particle(i, dt)
+            merged = ti.static(self._updates_in_gather(self.has_neighbours))
+            self._rate_loops(self.has_neighbours, ids, integrator, dt, merged)
+            if ti.static(not merged):
+                for i in range(self.particles.n[None]):
+                    integrator.update_particle(i, dt)
             done += 1
         return done
 
@@ -535,19 +537,32 @@ class Simulation:
 
     @ti.kernel
     def _rates(self, use_list: ti.template(), ids: ti.template()):
-        self._rate_loops(use_list, ids)
+        self._rate_loops(use_list, ids, None, 0.0, False)
 
     @ti.kernel
     def _rates_update(self, use_list: ti.template(), ids: ti.template(), integrator: ti.template(), dt: float):
-        self._rate_loops(use_list, ids)
-        self.loops.light()
-        for i in range(self.particles.n[None]):
-            integrator.update_particle(i, dt)
+        merged = ti.static(self._updates_in_gather(use_list))
+        self._rate_loops(use_list, ids, integrator, dt, merged)
+        if ti.static(not merged):
+            self.loops.light()
+            for i in range(self.particles.n[None]):
+                integrator.update_particle(i, dt)
+
+    def _updates_in_gather(self, use_list: bool) -> bool:
+        """Whether the per-particle pass of _rate_loops may update each particle as soon as its force is summed (one
+        pass over the particles less): when that pass reads nothing of other particles, i.e. the pair terms come
+        from the half-list rows or there are none, and there are no springs (their force reads the other end) and
+        no kinematic particles."""
+        pairs_precomputed = not self.has_grid or (use_list and self.half_pairs)
+        return pairs_precomputed and not self.has_springs and not self.has_kinematic
 
     @ti.func
-    def _rate_loops(self, use_list: ti.template(), ids: ti.template()):
+    def _rate_loops(
+        self, use_list: ti.template(), ids: ti.template(), integrator: ti.template(), dt, update_here: ti.template()
+    ):
         """The loops of a force and heat-rate evaluation (see eval_rates); each runs in parallel unless self.loops
-        serializes it."""
+        serializes it. `update_here` (allowed when _updates_in_gather): the per-particle pass also updates each
+        particle by `dt` with `integrator` once its rates are in."""
         p = self.particles
         if ti.static(use_list and self.half_pairs):
             n = p.n[None]
@@ -623,6 +638,8 @@ class Simulation:
             if ti.static(self.has_explicit_heat):
                 q += self.heat.source_flow(i)
                 p.dhdt[i] = q / p.mass[i]
+            if ti.static(update_here):
+                integrator.update_particle(i, dt)
 
     @ti.func
     def finish_particle(self, i, dt):
