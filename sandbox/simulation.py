@@ -259,7 +259,9 @@ class Simulation:
                 self.reorder.apply()  # between fused batches (the long way sorts at the start of its step)
             batch = self._fused_batch(n)
             done = self._run_fused(batch) if batch else 0
-            if done < max(batch, 1):  # not fusable now, or a fused list build overflowed: one step the long way
+            if done < batch and self.neighbours is not None and self.neighbours.forced:
+                pass  # a list build overflowed and the lists were widened: the next batch builds them again
+            elif done < max(batch, 1):  # not fusable now, or the lists cannot be widened: one step the long way
                 self._step_once()
                 done += 1
             n -= done
@@ -348,8 +350,11 @@ class Simulation:
         done = int(self._fused_steps(batch, forced, self.integrator, ids, self.dt))
         self.fused_batches += 1
         if nb is not None:
-            if done < batch:
-                nb.invalidate()  # the long way rebuilds it and grows the lists
+            if done < batch:  # the build of step `done` overflowed: widen the lists (the next batch rebuilds them)
+                if nb.grow():
+                    nb.invalidate()
+                else:
+                    nb.usable = False  # too wide to allocate: the long way scans the grid
             else:
                 nb.usable = True  # every build in the batch fitted (an overflow stops the batch)
         self._count_steps(done)

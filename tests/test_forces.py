@@ -184,6 +184,26 @@ def test_neighbour_lists_give_the_same_forces_as_a_cell_scan():
     assert plain.stats().total_energy == pytest.approx(sim.stats().total_energy, rel=1e-3)
 
 
+def test_half_lists_have_room_for_every_neighbour_of_the_starting_packing():
+    """A half row can hold nearly all of a particle's neighbours (one at the back corner of its cell lists every
+    neighbour ahead of it), so half lists are sized from the full rows: shifting the packing across the cells never
+    makes them grow (growing recompiles every kernel that reads them: a stall in a running demo)."""
+    sim = small_lj_box()
+    nb = sim.neighbours
+    assert nb.half
+    x = sim.positions()
+    box = 22.36
+    d = x[:, None, :] - x[None, :, :]
+    d -= box * np.round(d / box)
+    r2 = (d**2).sum(-1)
+    full = ((r2 < (nb.reach + nb.skin) ** 2).sum(1) - 1).max()
+    assert nb.width >= 1.5 * full
+    for shift in np.linspace(0.0, 3.0, 7):  # the lattice slid by fractions of a cell: every half row fits
+        place(sim, (x + shift) % box)
+        sim.step(1)
+    assert nb.grown == 0 and nb.usable
+
+
 def crowd(sim):
     n = sim.built.count
     rng = np.random.default_rng(0)

@@ -52,6 +52,10 @@ class NeighbourList:
         self.fused_builds = ti.field(ti.i32, shape=())  # builds run inside the fused step (Simulation._fused_steps)
         self.fused = False  # the fused step has run: `builds` must read fused_builds
         self.grid.rebuild()
+        # Sized from the widest full row even for half lists: a half row holds every neighbour ahead of i in cell
+        # order, which for a particle at its cell's back corner is nearly all of them. The 1.5x margin covers a
+        # lattice melting into a denser liquid (the melting block's half rows reach 1.6x their lattice widest);
+        # growing the lists later recompiles every kernel that reads them, a stall of a second or more.
         self._count_only()
         widest = int(self.count.to_numpy()[: int(n[None])].max(initial=0))
         self._allocate(max(16, int(math.ceil(1.5 * widest)) + 8))
@@ -71,14 +75,8 @@ class NeighbourList:
             moved = self._moved_too_far()
         if self.forced or moved:  # no host read of the count or the overflow flag on steps without a rebuild
             self._sort_and_fill(self.ids)
-            if self.overflow[None]:
-                n = int(self.n[None])
-                widest = int(self.count.to_numpy()[:n].max())
-                wider = int(math.ceil(1.5 * widest)) + 8
-                if self.capacity * wider * 4 <= MAX_BYTES:
-                    self._allocate(wider)
-                    self.grown += 1
-                    self._fill(self.ids)
+            if self.overflow[None] and self.grow():
+                self._fill(self.ids)
             self.usable = self.overflow[None] == 0
             self.forced = False
             self.host_builds += 1
@@ -88,6 +86,18 @@ class NeighbourList:
     def builds(self) -> int:
         """How many times the list has been built (a host read of a field once the fused step has run)."""
         return self.host_builds + (int(self.fused_builds[None]) if self.fused else 0)
+
+    def grow(self) -> bool:
+        """After a build that overflowed: reallocate the lists 1.5x as wide as the widest count of that build (plus
+        8); False when that would pass MAX_BYTES (the lists stay as they are). The caller builds them again."""
+        n = int(self.n[None])
+        widest = int(self.count.to_numpy()[:n].max())
+        wider = int(math.ceil(1.5 * widest)) + 8
+        if self.capacity * wider * 4 > MAX_BYTES:
+            return False
+        self._allocate(wider)
+        self.grown += 1
+        return True
 
     def invalidate(self) -> None:
         """Rebuild at the next check (the particles changed: added, removed, moved by hand or reordered)."""
@@ -120,10 +130,11 @@ class NeighbourList:
 
     @ti.kernel
     def _count_only(self):
+        """count[i] = the neighbours of i within reach + skin, all of them (a full row) even for half lists."""
         r2max = (self.reach + self.skin) ** 2
         self.loops.pairs()
         for i in range(self.n[None]):
-            self.count[i] = self._visit(i, r2max, False, self.count)
+            self.count[i] = self._visit(i, r2max, False, self.count, False)
 
     @ti.kernel
     def _fill(self, ids: ti.template()):
@@ -145,7 +156,7 @@ class NeighbourList:
         width = ids.shape[1]
         self.loops.pairs()
         for i in range(self.n[None]):
-            c = self._visit(i, r2max, True, ids)
+            c = self._visit(i, r2max, True, ids, self.half)
             self.count[i] = c
             self.x_ref[i] = self.x[i]
             if c > width:
@@ -166,12 +177,13 @@ class NeighbourList:
                                 ids[i, k] = -(spring + 1)
 
     @ti.func
-    def _visit(self, i, r2max, store: ti.template(), ids: ti.template()):
-        """Count (and with `store`, write into the 2D field `ids`) the neighbours of i within sqrt(r2max)."""
+    def _visit(self, i, r2max, store: ti.template(), ids: ti.template(), half: ti.template()):
+        """Count (and with `store`, write into the 2D field `ids`) the neighbours of i within sqrt(r2max); `half`:
+        only those of a half row."""
         xi = self.x[i]
         cell = self.grid.cell_of(xi)
         centre = self.grid.n_offsets // 2  # the offset (0, .., 0)
-        first_offset = centre if ti.static(self.half) else 0
+        first_offset = centre if ti.static(half) else 0
         c = 0
         # A half list scans the own cell after i's place in it and the forward half of the stencil (offset index
         # above the centre's): each pair of cells is visited from one side only, so each pair is listed once.
@@ -179,7 +191,7 @@ class NeighbourList:
             nc, shift = self.grid.neighbour_cell(cell, self.grid.offset(o))
             if nc >= 0:
                 start = self.grid.cell_start[nc]
-                if ti.static(self.half):
+                if ti.static(half):
                     if o == centre:
                         start += self.grid.slot[i] + 1
                 xs = xi - shift
