@@ -5,6 +5,9 @@ Each integrator is a few lines over the simulation's shared pieces:
                           eval_rates(then_update=dt) also runs the integrator's ti.func update_particle(i, dt) on
                           every particle in the same launch (the one-evaluation methods step this way)
   sim.finish_particle()   (ti.func) walls / periodic wrap and the explicit heat update for one particle
+Particle updates write `x[i] = x[i] + ...`, never `x[i] += ...`: Taichi turns `+=` on a field into an atomic
+(a compare-and-swap loop for floats) unless the index is the loop's own, and update_particle runs where i is read
+from the cell order (the per-particle pass, the team's workers).
 Walls act once per step, at its end (multi-stage methods do not see them between stages). Heat is a first-order
 equation with its own stepping: explicit Euler on the rates of the step's last force evaluation.
 
@@ -86,8 +89,8 @@ class SymplecticEuler(Integrator):
 
     @ti.func
     def update_particle(self, i, dt):
-        self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
-        self.p.x[i] += dt * self.p.v[i]
+        self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
+        self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
         self.sim.finish_particle(i, dt)
 
 
@@ -102,8 +105,8 @@ class ForwardEuler(Integrator):
 
     @ti.func
     def update_particle(self, i, dt):
-        self.p.x[i] += dt * self.p.v[i]
-        self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
+        self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
+        self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
         self.sim.finish_particle(i, dt)
 
 
@@ -127,15 +130,15 @@ class VelocityVerlet(Integrator):
     def _half_kick_drift(self, dt: float):
         self.sim.loops.light()
         for i in range(self.p.n[None]):
-            self.p.v[i] += 0.5 * dt * self.p.f[i] / self.p.mass[i]
-            self.p.x[i] += dt * self.p.v[i]
+            self.p.v[i] = self.p.v[i] + 0.5 * dt * self.p.f[i] / self.p.mass[i]
+            self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
             self.sim.finish_particle(i, dt)
 
     @ti.kernel
     def _half_kick(self, dt: float):
         self.sim.loops.light()
         for i in range(self.p.n[None]):
-            self.p.v[i] += 0.5 * dt * self.p.f[i] / self.p.mass[i]
+            self.p.v[i] = self.p.v[i] + 0.5 * dt * self.p.f[i] / self.p.mass[i]
 
 
 @register("midpoint")
@@ -162,8 +165,8 @@ class Midpoint(Integrator):
         self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.x0[i], self.v0[i] = self.p.x[i], self.p.v[i]
-            self.p.x[i] += 0.5 * dt * self.p.v[i]
-            self.p.v[i] += 0.5 * dt * self.p.f[i] / self.p.mass[i]
+            self.p.x[i] = self.p.x[i] + 0.5 * dt * self.p.v[i]
+            self.p.v[i] = self.p.v[i] + 0.5 * dt * self.p.f[i] / self.p.mass[i]
 
     @ti.kernel
     def _full(self, dt: float):
@@ -194,14 +197,14 @@ class PositionVerlet(Integrator):
     def _drift(self, dt: float):
         self.sim.loops.light()
         for i in range(self.p.n[None]):
-            self.p.x[i] += 0.5 * dt * self.p.v[i]
+            self.p.x[i] = self.p.x[i] + 0.5 * dt * self.p.v[i]
 
     @ti.kernel
     def _kick_drift(self, dt: float):
         self.sim.loops.light()
         for i in range(self.p.n[None]):
-            self.p.v[i] += dt * self.p.f[i] / self.p.mass[i]
-            self.p.x[i] += 0.5 * dt * self.p.v[i]
+            self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
+            self.p.x[i] = self.p.x[i] + 0.5 * dt * self.p.v[i]
             self.sim.finish_particle(i, dt)
 
 
@@ -379,6 +382,6 @@ class ImplicitEuler(Integrator):
     def _finish(self, h: float):
         self.sim.loops.light()
         for i in range(self.p.n[None]):
-            self.p.v[i] += self.dv[i]
-            self.p.x[i] += h * self.p.v[i]
+            self.p.v[i] = self.p.v[i] + self.dv[i]
+            self.p.x[i] = self.p.x[i] + h * self.p.v[i]
             self.sim.finish_particle(i, h)

@@ -22,6 +22,10 @@ PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the ne
 # serial and fused, 8.0, 9.2, 8.3 parallel; the 10,000-particle melting block's frame (springs and heat, three times
 # the work per particle) 29.6-30.7 ms serial against 21.4-25.2 ms parallel.
 PAIR_ONLY_PARALLEL_FROM = 20_000
+# ... but from TEAM_FROM slots up to there, a pair-only scene runs many steps to a launch on every thread at once
+# (sandbox/team.py): W1 at 10,000 particles, medians of 10 alternating batches of 100 steps in one process
+# (benchmarks/team_steps.py): 524 us a step as a team of two, 746 serial and fused, 668 parallel.
+TEAM_FROM = 5_000
 # Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64
 # iterations apart ran on one thread, 256 or more apart on both), so a loop over a few heavy items (the half-list
 # pass's chunks, the renderer's screen strips) runs over items * SPREAD_STRIDE iterations instead: see spread_item.
@@ -43,11 +47,16 @@ class LoopPolicy:
     """Put `self.loops.light()` before a per-particle loop with little work per item and `self.loops.pairs()`
     before a loop over neighbour pairs: each serializes the loop that follows it when the scene is small."""
 
-    def __init__(self, arch: str, capacity: int, pair_only: bool = False):
-        """`capacity`: particle slots; `pair_only`: no springs, no heat in the step (see PAIR_ONLY_PARALLEL_FROM)."""
+    def __init__(self, arch: str, capacity: int, pair_only: bool = False, threads: int = 1):
+        """`capacity`: particle slots; `pair_only`: no springs, no heat in the step (see PAIR_ONLY_PARALLEL_FROM);
+        `threads`: the CPU backend's worker threads. `team`: the scene's size suits team stepping (the pair loops
+        then keep their parallel layout, which the team shares, for the steps that do not run as a team)."""
         cpu = arch == "cpu"
         self.serial_light = cpu and capacity < LIGHT_PARALLEL_FROM
         self.serial_pairs = cpu and capacity < (PAIR_ONLY_PARALLEL_FROM if pair_only else PAIR_PARALLEL_FROM)
+        self.team = cpu and pair_only and threads >= 2 and TEAM_FROM <= capacity < PAIR_ONLY_PARALLEL_FROM
+        if self.team:
+            self.serial_pairs = False
 
     @ti.func
     def light(self):
@@ -63,4 +72,5 @@ class LoopPolicy:
 
     def describe(self) -> str:
         kinds = [name for name, serial in (("light", self.serial_light), ("pair", self.serial_pairs)) if serial]
-        return f"serial loops: {', '.join(kinds)}" if kinds else "all loops parallel"
+        text = f"serial loops: {', '.join(kinds)}" if kinds else "all loops parallel"
+        return text + (" (steps as a team of threads where the scene allows)" if self.team else "")

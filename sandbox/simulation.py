@@ -33,6 +33,7 @@ from .physics.reorder import CellOrder
 from .physics.smoke import SmokeGrid
 from .physics.springs import Springs
 from .scene import COUPLINGS, Scene
+from .team import Team
 
 STAT_COLUMNS = (
     "frame",
@@ -110,7 +111,8 @@ class Simulation:
             self.capacity += sum(emitter_population(e) for e in scene.emitters)
         self.capacity = max(self.capacity, built.count)
         pair_only = not (scene.heat or built.spring_count)
-        self.loops = LoopPolicy(self.arch, self.capacity, pair_only)
+        threads = int(ti.lang.impl.current_cfg().cpu_max_num_threads) if self.arch == "cpu" else 1
+        self.loops = LoopPolicy(self.arch, self.capacity, pair_only, threads)
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
         self.materials = MaterialTable(materials)
@@ -234,8 +236,9 @@ class Simulation:
         self._acc = ti.field(acc, shape=len(_ACC))  # indexed by _ACC
         self._count = ti.field(ti.i32, shape=len(_COUNT))  # counts for stats(), indexed by _COUNT
         self.integrator = make_integrator(world.integrator, self)
+        self.team = Team(self, threads) if self.loops.team and self._team_scene() else None
         self.fuses_steps = self._fusable_scene()
-        self.fused_batches = 0  # launches of _fused_steps so far
+        self.fused_batches = 0  # launches of _fused_steps (or of the team) so far
         if self.emitters is not None:
             self.emitters.emit_initial()
         self.time = 0.0
@@ -311,19 +314,32 @@ class Simulation:
 
     # ------------------------------------------------------------------ the fused step
     def _fusable_scene(self) -> bool:
-        """Whether this scene's steps can run many to a launch (_fused_steps): every loop of a step runs on one
-        thread (a small scene on the CPU: a parallel loop inside a kernel's step loop would not be parallel), and
-        the step has no work that the host does between steps (emitters, scheduled sources, smoke, velocity
-        fields, lifetimes, the implicit heat solve). Sorting the storage into cell order runs between batches, which
-        are at most REORDER_BATCH steps long when the scene sorts."""
+        """Whether this scene's steps can run many to a launch: in _fused_steps when every loop of a step runs on
+        one thread (a small scene on the CPU: a parallel loop inside a kernel's step loop would not be parallel), or
+        as a team of threads (self.team); and the step has no work that the host does between steps (emitters,
+        scheduled sources, smoke, velocity fields, lifetimes, the implicit heat solve). Sorting the storage into
+        cell order runs between batches, which are at most REORDER_BATCH steps long when the scene sorts."""
+        return (self.loops.serial_pairs and self.loops.serial_light or self.team is not None) and self._no_host_work()
+
+    def _no_host_work(self) -> bool:
+        """No work that the host does between steps (see _fusable_scene)."""
         return (
-            self.loops.serial_pairs
-            and self.loops.serial_light
-            and not (self.heat is not None and self.heat.scheduled)
+            not (self.heat is not None and self.heat.scheduled)
             and self.emitters is None
             and self.smoke is None
             and not (self.has_kinematic or self.has_field_drag or self.has_lifetimes)
             and self.implicit_heat is None
+        )
+
+    def _team_scene(self) -> bool:
+        """Whether team stepping (sandbox/team.py) can run this scene's steps: pair forces alone, from half lists,
+        and no host work between steps."""
+        return (
+            self.half_pairs
+            and self.neighbours is not None
+            and self.springs is None
+            and self.heat is None
+            and self._no_host_work()
         )
 
     def _fused_batch(self, n: int) -> int:
@@ -347,7 +363,14 @@ class Simulation:
             forced = int(nb.forced)
             nb.forced, nb.fused = False, True
         ids = nb.ids if nb is not None else None
-        done = int(self._fused_steps(batch, forced, self.integrator, ids, self.dt))
+        if self.team is not None:
+            done = self.team.run(batch, forced, self.integrator, ids, self.dt)
+            if done < 0:  # the thread pool did not start every worker: nothing ran; step the long way from now on
+                nb.forced = bool(forced)
+                self.team, self.fuses_steps = None, False
+                return 0
+        else:
+            done = int(self._fused_steps(batch, forced, self.integrator, ids, self.dt))
         self.fused_batches += 1
         if nb is not None:
             if done < batch:  # the build of step `done` overflowed: widen the lists (the next batch rebuilds them)
@@ -589,62 +612,71 @@ class Simulation:
             i = ks
             if ti.static(self.has_grid):
                 i = self.grid.sorted_ids[ks]  # visit particles cell by cell: neighbours stay in cache
-            xi = p.x[i]
-            f = p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
-            if ti.static(self.has_field_drag):
-                if self.g_coupling[p.group[i]] == DRAG:
-                    f += p.mass[i] * self.g_drag[p.group[i]] * (self.v_field[i] - p.v[i])
-            q = 0.0
-            if ti.static(self.has_grid):
-                f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
-                f_visc = ti.Vector.zero(float, self.dim)
-                if ti.static(use_list and self.half_pairs):
-                    for t in range(self.n_pair_rows):  # what the pair pass left for i, read and cleared
-                        f_visc += self.pair_f[t, i]
-                        self.pair_f[t, i] = ti.Vector.zero(float, self.dim)
-                        if ti.static(self.has_explicit_heat):
-                            q += self.pair_q[t, i]
-                            self.pair_q[t, i] = 0.0
-                elif ti.static(use_list):
-                    for k in range(self.neighbours.count[i]):
-                        j = ids[i, k]
-                        d = self.domain.separation(xi, p.x[j])
-                        f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
-                else:
-                    c = self.grid.cell_of(xi)
-                    for o in range(self.grid.n_offsets):
-                        nc, shift = self.grid.neighbour_cell(c, self.grid.offset(o))
-                        if nc >= 0:
-                            start = self.grid.cell_start[nc]
-                            xs = xi - shift
-                            for k in range(start, start + self.grid.cell_count[nc]):
-                                j = self.grid.sorted_ids[k]
-                                if j != i:
-                                    d = self.grid.x_sorted[k] - xs
-                                    f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
-                f += p.mass[i] * f_scaled + f_visc
-            if ti.static(self.has_springs):
-                for k in range(self.springs.max_bonds):
-                    s = self.springs.bonds[i, k]
-                    if s < 0:
-                        break
-                    if self.springs.alive[s]:
-                        j = self.springs.other_end(i, s)
-                        d = self.domain.separation(xi, p.x[j])
-                        f += self.springs.force(i, j, s, d)
-                        if ti.static(self.has_pair and not (use_list and self.half_pairs and self.marks_bonds)):
-                            r2 = d.dot(d)
-                            if r2 < self.pair.cutoff**2:  # bonded pairs feel the spring, not the pair force
-                                f -= self.pair.force(i, j, d, r2)
-            if ti.static(self.has_kinematic):
-                if self.g_coupling[p.group[i]] == KINEMATIC:
-                    f = ti.Vector.zero(float, self.dim)  # moved by the field alone (_advect_kinematic)
-            p.f[i] = f
-            if ti.static(self.has_explicit_heat):
-                q += self.heat.source_flow(i)
-                p.dhdt[i] = q / p.mass[i]
-            if ti.static(update_here):
-                integrator.update_particle(i, dt)
+            self._gather_particle(i, use_list, ids, integrator, dt, update_here)
+
+    @ti.func
+    def _gather_particle(
+        self, i, use_list: ti.template(), ids: ti.template(), integrator: ti.template(), dt, update_here: ti.template()
+    ):
+        """Particle i's force (p.f) and heat rate (p.dhdt): gravity, drag, its pair terms (summed from the half-list
+        rows, or gathered from its list or the grid), its springs; then, with `update_here`, its update by `dt`."""
+        p = self.particles
+        xi = p.x[i]
+        f = p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
+        if ti.static(self.has_field_drag):
+            if self.g_coupling[p.group[i]] == DRAG:
+                f += p.mass[i] * self.g_drag[p.group[i]] * (self.v_field[i] - p.v[i])
+        q = 0.0
+        if ti.static(self.has_grid):
+            f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
+            f_visc = ti.Vector.zero(float, self.dim)
+            if ti.static(use_list and self.half_pairs):
+                for t in range(self.n_pair_rows):  # what the pair pass left for i, read and cleared
+                    f_visc += self.pair_f[t, i]
+                    self.pair_f[t, i] = ti.Vector.zero(float, self.dim)
+                    if ti.static(self.has_explicit_heat):
+                        q += self.pair_q[t, i]
+                        self.pair_q[t, i] = 0.0
+            elif ti.static(use_list):
+                for k in range(self.neighbours.count[i]):
+                    j = ids[i, k]
+                    d = self.domain.separation(xi, p.x[j])
+                    f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
+            else:
+                c = self.grid.cell_of(xi)
+                for o in range(self.grid.n_offsets):
+                    nc, shift = self.grid.neighbour_cell(c, self.grid.offset(o))
+                    if nc >= 0:
+                        start = self.grid.cell_start[nc]
+                        xs = xi - shift
+                        for k in range(start, start + self.grid.cell_count[nc]):
+                            j = self.grid.sorted_ids[k]
+                            if j != i:
+                                d = self.grid.x_sorted[k] - xs
+                                f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
+            f += p.mass[i] * f_scaled + f_visc
+        if ti.static(self.has_springs):
+            for k in range(self.springs.max_bonds):
+                s = self.springs.bonds[i, k]
+                if s < 0:
+                    break
+                if self.springs.alive[s]:
+                    j = self.springs.other_end(i, s)
+                    d = self.domain.separation(xi, p.x[j])
+                    f += self.springs.force(i, j, s, d)
+                    if ti.static(self.has_pair and not (use_list and self.half_pairs and self.marks_bonds)):
+                        r2 = d.dot(d)
+                        if r2 < self.pair.cutoff**2:  # bonded pairs feel the spring, not the pair force
+                            f -= self.pair.force(i, j, d, r2)
+        if ti.static(self.has_kinematic):
+            if self.g_coupling[p.group[i]] == KINEMATIC:
+                f = ti.Vector.zero(float, self.dim)  # moved by the field alone (_advect_kinematic)
+        p.f[i] = f
+        if ti.static(self.has_explicit_heat):
+            q += self.heat.source_flow(i)
+            p.dhdt[i] = q / p.mass[i]
+        if ti.static(update_here):
+            integrator.update_particle(i, dt)
 
     @ti.func
     def finish_particle(self, i, dt):

@@ -281,3 +281,62 @@ def test_taichi_worker_threads_are_pinned_one_per_core():
     for tid, core in threads.pinned:
         assert tid != os.getpid() and os.path.isdir(f"/proc/self/task/{tid}")
         assert os.sched_getaffinity(tid) == {core}
+
+
+TEAM_SIDE = 65.0  # about 3,400 particles in 5,046 slots: a size that steps as a team of threads (loops.TEAM_FROM)
+
+
+def team_box(**kwargs) -> Simulation:
+    sim = lj_box(TEAM_SIDE, **kwargs)
+    if sim.team is None:
+        pytest.skip("team stepping needs two or more CPU threads")
+    return sim
+
+
+@pytest.mark.parametrize("reorder", [0, 20], ids=["unsorted", "sorted_every_20"])
+def test_a_team_of_threads_gives_the_trajectory_of_the_parallel_long_way(reorder):
+    """Every thread runs every step of a batch over its share of the particles, meeting the others at barriers:
+    bit for bit the states, clock and list builds of launching each pass of each step in parallel from the host."""
+    team, long_way = team_box(reorder=reorder), team_box(reorder=reorder)
+    long_way.fuses_steps = False
+    for n in (1, 30, 100):
+        team.step(n)
+        long_way.step(n)
+    assert team.team is not None and team.fused_batches >= 3 and long_way.fused_batches == 0
+    for a, b in zip(_state(long_way), _state(team)):
+        assert np.array_equal(a, b)
+    assert (team.time, team.step_count) == (long_way.time, long_way.step_count)
+    assert team.neighbours.builds == long_way.neighbours.builds > 2
+    assert team.neighbours.host_builds == 0  # every build ran inside the team's launches
+
+
+def test_a_list_build_that_overflows_inside_a_team_batch_grows_the_list_and_goes_on():
+    team, long_way = team_box(), team_box()
+    long_way.fuses_steps = False
+    for sim in (team, long_way):
+        sim.neighbours._allocate(4)
+        sim.neighbours.invalidate()
+        sim.step(40)
+    assert team.neighbours.grown == long_way.neighbours.grown == 1
+    assert team.fused_batches == 2  # stopped at its first build, then the rest
+    for a, b in zip(_state(long_way), _state(team)):
+        assert np.array_equal(a, b)
+
+
+def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_way():
+    """More workers than the thread pool has threads: the started ones give up at the first barrier, before any
+    work; the launch reports it (-1), nothing has moved, and the simulation steps the long way from then on."""
+    from sandbox.team import Team
+
+    sim, long_way = team_box(), team_box()
+    long_way.fuses_steps = False
+    sim.team = Team(sim, 2 * sim.team.workers)
+    before = _state(sim)
+    assert sim.team.run(5, 1, sim.integrator, sim.neighbours.ids, sim.dt) == -1
+    for a, b in zip(before, _state(sim)):
+        assert np.array_equal(a, b)
+    sim.step(30)
+    long_way.step(30)
+    assert sim.team is None and not sim.fuses_steps and sim.step_count == 30
+    for a, b in zip(_state(long_way), _state(sim)):
+        assert np.array_equal(a, b)

@@ -1,0 +1,49 @@
+"""W1 (the periodic 2D LJ box) stepped three ways in one process, batches alternating: as a team of threads
+(sandbox/team.py), many steps to a launch on one thread (Simulation._fused_steps), and one launch per pass with
+parallel loops (the long way).
+
+    python benchmarks/team_steps.py [--side 100] [--rounds 10] [--steps 100]
+
+`--side`: particles per row (100: 10,000 particles). Prints the median and minimum microseconds per step of each
+way. All three share the parallel storage layout (a buffer row per chunk of particles), so their trajectories are
+the same bit for bit; the shipped single-thread path for small scenes keeps one buffer row and is a little faster
+than the "one thread" figure here.
+"""
+
+import argparse
+import statistics
+import time
+
+import taichi as ti
+
+from sandbox.bench import _lj_box
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--side", type=int, default=100)
+    parser.add_argument("--rounds", type=int, default=10)
+    parser.add_argument("--steps", type=int, default=100)
+    args = parser.parse_args()
+    ways = {name: _lj_box(args.side, "cpu") for name in ("team", "one thread", "long way")}
+    if ways["team"].team is None:
+        raise SystemExit("this size does not step as a team here (see sandbox/loops.py TEAM_FROM, and threads >= 2)")
+    ways["one thread"].team = None  # _run_fused falls back to _fused_steps: the same batches on the calling thread
+    ways["long way"].fuses_steps = False
+    times: dict[str, list[float]] = {name: [] for name in ways}
+    for sim in ways.values():
+        sim.step(args.steps)  # compile, and the first list builds
+    for _ in range(args.rounds):
+        for name, sim in ways.items():
+            ti.sync()
+            t0 = time.perf_counter()
+            sim.step(args.steps)
+            ti.sync()
+            times[name].append((time.perf_counter() - t0) / args.steps * 1e6)
+    n = ways["team"].built.count
+    for name, ts in times.items():
+        print(f"{name:>10}: median {statistics.median(ts):7.0f} us/step, min {min(ts):7.0f} ({n} particles)")
+
+
+if __name__ == "__main__":
+    main()

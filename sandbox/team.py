@@ -1,0 +1,151 @@
+"""Many steps of a pair-only scene in one launch on every CPU thread at once (a "team" of workers with barriers).
+
+Taichi runs only a kernel's top-level loops in parallel, so a step in parallel costs a launch of each pass and a
+wake-up of the thread pool per pass: at 10,000 particles (about 0.7 ms a step on one thread) that round trip eats
+most of what the second thread brings, and the step runs many to a launch on one thread instead
+(Simulation._fused_steps). A team does both: one launch whose single top-level loop starts one worker per thread;
+each worker runs every step over its share of the particles and waits for the others at a spin barrier between the
+passes that read what another worker wrote.
+
+A step of a pair-only scene with half neighbour lists, per worker w of W:
+  (rebuild step only) worker 0 sorts the particles into cells; barrier; each builds the lists of its particles;
+  barrier (all stop if some list overflowed);
+  the half-list pairs of its chunks of particles, into its chunks' buffer rows; barrier;
+  for its share of the particles in cell order: sum the rows, update the particle, and flag the next step's rebuild
+  if it has moved half the skin since the build; barrier.
+The trajectory is that of the parallel long way (same chunks, same rows, same sums in the same order).
+
+A worker that waits at the first barrier for longer than START_SPINS reads of the barrier gives up: the thread pool
+did not start every worker (a worker can only be absent at the start; once every worker has passed the first
+barrier, each keeps running until the launch ends). Then no worker has changed anything, the launch returns 0 steps
+done and the caller steps the long way from then on.
+"""
+
+import taichi as ti
+
+from .loops import SPREAD_STRIDE, spread_item
+from .oriented import data_oriented
+
+START_SPINS = 20_000_000  # reads of the barrier at the launch's first wait before a worker gives up (~0.2-1 s)
+
+
+@data_oriented
+class Team:
+    """Team stepping for `sim` (a Simulation whose steps qualify: see Simulation._team_scene) on `workers` threads."""
+
+    def __init__(self, sim, workers: int):
+        self.sim = sim
+        self.workers = workers
+        self.chunks_per_worker = sim.n_chunks // workers
+        self.arrived = ti.field(ti.i32, shape=())  # workers at the current barrier
+        self.generation = ti.field(ti.i32, shape=())  # barriers passed (workers spin until it moves on)
+        self.gave_up = ti.field(ti.i32, shape=())  # 1: a worker did not start (see the module docstring)
+        self.moved = ti.field(ti.i32, shape=2)  # rebuild flags, by step parity (set by one step, read by the next)
+        self.done = ti.field(ti.i32, shape=())  # steps completed in the last launch
+
+    def run(self, steps: int, forced: int, integrator, ids, dt: float) -> int:
+        """Up to `steps` steps of `integrator` (a one-update one: see Integrator.single_update) in one launch over
+        the neighbour lists `ids`, built first if `forced`; returns the steps done: fewer when a list build
+        overflowed (the caller widens the lists), -1 when the team could not start (nothing changed)."""
+        return int(self._steps(steps, forced, integrator, ids, dt))
+
+    @ti.func
+    def barrier(self, gen, patient: ti.template()):
+        """Wait until every worker has arrived at barrier number `gen` (counted from 0 in the launch); returns
+        the next barrier's number. `patient` False: give up after START_SPINS reads (sets gave_up). A worker that
+        finds gave_up set leaves at once too. The atomics are sequentially consistent: a worker's stores before
+        the barrier are seen by every worker after it."""
+        if ti.atomic_add(self.arrived[None], 1) == self.workers - 1:
+            ti.atomic_sub(self.arrived[None], self.workers)  # an atomic too: ordered before the release below
+            ti.atomic_add(self.generation[None], 1)
+        else:
+            spins = 0
+            while ti.atomic_add(self.generation[None], 0) == gen:
+                spins += 1
+                if ti.atomic_add(self.gave_up[None], 0) != 0:
+                    break
+                if ti.static(not patient):
+                    if spins > START_SPINS:
+                        ti.atomic_max(self.gave_up[None], 1)
+                        break
+        return gen + 1
+
+    @ti.kernel
+    def _steps(self, steps: ti.i32, forced: ti.i32, integrator: ti.template(), ids: ti.template(), dt: float) -> ti.i32:
+        for u in range(self.workers * SPREAD_STRIDE):  # one item per thread (see spread_item)
+            w = spread_item(u)
+            if w >= 0:
+                self._work(w, steps, forced, integrator, ids, dt)
+        done = self.done[None]
+        if self.gave_up[None]:  # set the barrier up for a later launch (after all workers have left it)
+            done = -1
+            self.gave_up[None] = 0
+            self.arrived[None] = 0
+            self.generation[None] = 0
+        return done
+
+    @ti.func
+    def _work(self, w, steps, forced, integrator: ti.template(), ids: ti.template(), dt):
+        sim = self.sim
+        p, nb, grid = sim.particles, sim.neighbours, sim.grid
+        n = p.n[None]
+        lo, hi = w * n // self.workers, (w + 1) * n // self.workers  # this worker's particle ids / cell-order slots
+        gen = 0
+        # Whether to build before the first step: the caller's flag, or some particle has moved half the skin.
+        if w == 0:
+            self.moved[0] = forced
+            self.moved[1] = 0
+            nb.stale[None] = 0
+            nb.check_count()
+            if nb.stale[None]:
+                self.moved[0] = 1
+        gen = self.barrier(gen, False)  # every worker has started (or all leave)
+        if self.gave_up[None] == 0:
+            for i in range(lo, hi):
+                nb.check_one(i)  # sets nb.stale (a plain store of 1 from any worker)
+            gen = self.barrier(gen, True)
+            if nb.stale[None]:
+                self.moved[0] = 1
+            gen = self.barrier(gen, True)
+            done = 0
+            while done < steps and self.gave_up[None] == 0:
+                parity = done % 2
+                if self.moved[parity]:
+                    if w == 0:
+                        grid.rebuild_loops()  # serial here: nested in the workers' loop
+                        nb.overflow[None] = 0
+                        nb.n_listed[None] = n
+                        nb.fused_builds[None] += 1
+                    gen = self.barrier(gen, True)
+                    r2max = (nb.reach + nb.skin) ** 2
+                    width = ids.shape[1]
+                    for i in range(lo, hi):
+                        c = nb._visit(i, r2max, True, ids, True)
+                        nb.count[i] = c
+                        nb.x_ref[i] = p.x[i]
+                        if c > width:
+                            nb.overflow[None] = 1
+                    gen = self.barrier(gen, True)
+                    if nb.overflow[None]:
+                        break
+                for t in range(w * self.chunks_per_worker, (w + 1) * self.chunks_per_worker):
+                    for i in range(t * n // sim.n_chunks, (t + 1) * n // sim.n_chunks):
+                        sim._half_row(t, i, ids)
+                if w == 0:
+                    self.moved[1 - parity] = 0  # every worker has read moved[parity]; next step's flag
+                gen = self.barrier(gen, True)
+                r2half = (0.5 * nb.skin) ** 2
+                moved = 0
+                for ks in range(lo, hi):
+                    i = grid.sorted_ids[ks]
+                    sim._gather_particle(i, True, ids, integrator, dt, True)
+                    d = sim.domain.separation(nb.x_ref[i], p.x[i])
+                    if d.dot(d) > r2half:
+                        moved = 1
+                if moved:
+                    self.moved[1 - parity] = 1
+                gen = self.barrier(gen, True)
+                done += 1
+            if w == 0:
+                self.done[None] = done
+                self.generation[None] = 0  # all have passed the last barrier: a waiter reads 0 != its number
