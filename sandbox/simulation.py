@@ -1075,9 +1075,10 @@ class Simulation:
             passes.append("ageing; the dead retired by compaction after each step() call")
         if self.fuses_steps:
             fused = "/".join(name for name, cls in REGISTRY.items() if cls.single_update)
+            team = f", run by a team of {self.team.workers} threads meeting at barriers" if self.team else ""
             passes.append(
                 "launch: every pass of a step, and many steps, in one kernel launch (the list rebuild decided on the "
-                f"device) with {fused}; other integrators one launch per pass"
+                f"device{team}) with {fused}; other integrators one launch per pass"
             )
         if self.refreezer is not None:
             passes.append(
