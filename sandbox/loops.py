@@ -23,8 +23,9 @@ PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the ne
 # the work per particle) 29.6-30.7 ms serial against 21.4-25.2 ms parallel.
 PAIR_ONLY_PARALLEL_FROM = 20_000
 # ... but from TEAM_FROM slots up to there, a pair-only scene runs many steps to a launch on every thread at once
-# (sandbox/team.py): W1 at 10,000 particles, medians of 10 alternating batches of 100 steps in one process
-# (benchmarks/team_steps.py): 524 us a step as a team of two, 746 serial and fused, 668 parallel.
+# (sandbox/team.py): W1 at 10,000 particles, `python benchmarks/team_steps.py` (medians of alternating batches of
+# 100 steps in one process): 437-691 us a step as a team of two, 745-1102 serial and fused, 619-938 parallel. At
+# 100k the team did not beat the parallel loops (8.3 against 7.7 ms, thresholds overridden in a scratch script).
 TEAM_FROM = 5_000
 # Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64
 # iterations apart ran on one thread, 256 or more apart on both), so a loop over a few heavy items (the half-list

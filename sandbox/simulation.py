@@ -526,6 +526,12 @@ class Simulation:
         return f_scaled, f_visc, q
 
     @ti.func
+    def half_rows_of_chunk(self, t, n, ids: ti.template()):
+        """The half-list rows of chunk t of the n particles (a contiguous block of ids), into buffer row t."""
+        for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
+            self._half_row(t, i, ids)
+
+    @ti.func
     def _half_row(self, t, i, ids):
         """The pairs (i, j) of i's half list: i's share kept, j's (equal and opposite) written to chunk t's buffer
         row. Row t belongs to this chunk alone, so it is updated by a plain load and store: `+=` on a field would be
@@ -602,8 +608,7 @@ class Simulation:
                 for u in range(self.n_chunks * SPREAD_STRIDE):  # a loop over the chunks alone runs on one thread
                     t = spread_item(u)
                     if t >= 0:
-                        for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
-                            self._half_row(t, i, ids)
+                        self.half_rows_of_chunk(t, n, ids)
         if ti.static(self.has_springs):
             self.loops.pairs()  # each particle visits its bonds too: as much work per item as a pair loop
         else:

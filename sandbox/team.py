@@ -113,34 +113,24 @@ class Team:
                 if self.moved[parity]:
                     if w == 0:
                         grid.rebuild_loops()  # serial here: nested in the workers' loop
-                        nb.overflow[None] = 0
-                        nb.n_listed[None] = n
+                        nb.begin_fill()
                         nb.fused_builds[None] += 1
                     gen = self.barrier(gen, True)
-                    r2max = (nb.reach + nb.skin) ** 2
-                    width = ids.shape[1]
                     for i in range(lo, hi):
-                        c = nb._visit(i, r2max, True, ids, True)
-                        nb.count[i] = c
-                        nb.x_ref[i] = p.x[i]
-                        if c > width:
-                            nb.overflow[None] = 1
+                        nb.fill_one(i, ids)
                     gen = self.barrier(gen, True)
                     if nb.overflow[None]:
                         break
                 for t in range(w * self.chunks_per_worker, (w + 1) * self.chunks_per_worker):
-                    for i in range(t * n // sim.n_chunks, (t + 1) * n // sim.n_chunks):
-                        sim._half_row(t, i, ids)
+                    sim.half_rows_of_chunk(t, n, ids)
                 if w == 0:
                     self.moved[1 - parity] = 0  # every worker has read moved[parity]; next step's flag
                 gen = self.barrier(gen, True)
-                r2half = (0.5 * nb.skin) ** 2
                 moved = 0
                 for ks in range(lo, hi):
                     i = grid.sorted_ids[ks]
                     sim._gather_particle(i, True, ids, integrator, dt, True)
-                    d = sim.domain.separation(nb.x_ref[i], p.x[i])
-                    if d.dot(d) > r2half:
+                    if nb.moved_far(i):
                         moved = 1
                 if moved:
                     self.moved[1 - parity] = 1

@@ -41,6 +41,19 @@ def lj_box(side: float = 20.0, reorder: int = 0, half: bool = True, neighbor_lis
     return Simulation(make_scene(data), half_lists=half)
 
 
+def _wax_refreezing_data() -> dict:
+    """Cold wax (-20 C) under a hot molten slab (90 C, no springs): the melt freezes onto it and makes new springs."""
+    from .test_phase import _wax_scene
+
+    data = _wax_scene()
+    data["world"]["precision"] = "f64"
+    data["bodies"] = [
+        {"material": "wax", "shape": "box", "lo": [8, 0], "hi": [22, 4], "temperature": -20.0},
+        {"material": "wax", "shape": "box", "lo": [10, 4.2], "hi": [20, 7.2], "springs": False, "temperature": 90.0},
+    ]
+    return data
+
+
 def listed_pairs(sim) -> set:
     n = int(sim.particles.n[None])
     count, ids = sim.neighbours.count.to_numpy()[:n], sim.neighbours.ids.to_numpy()
@@ -104,14 +117,7 @@ def test_a_bond_that_breaks_between_list_builds_brings_back_its_pair_force():
 
 def test_springs_made_by_refreezing_are_marked_before_the_next_step():
     """Refreezing makes new springs (possibly in reused slots): the half list is rebuilt, and forces stay equal."""
-    from .test_phase import _wax_scene
-
-    data = _wax_scene()
-    data["world"]["precision"] = "f64"
-    data["bodies"] = [
-        {"material": "wax", "shape": "box", "lo": [8, 0], "hi": [22, 4], "temperature": -20.0},
-        {"material": "wax", "shape": "box", "lo": [10, 4.2], "hi": [20, 7.2], "springs": False, "temperature": 90.0},
-    ]
+    data = _wax_refreezing_data()
     sims = [Simulation(make_scene(data), half_lists=h) for h in (False, True)]
     for sim in sims:
         sim.step(400)
@@ -184,15 +190,7 @@ def test_the_optimised_step_keeps_the_energy_drift_and_the_radial_distribution()
 
 
 def _wax_refreezing_scene():
-    from .test_phase import _wax_scene
-
-    data = _wax_scene()
-    data["world"]["precision"] = "f64"
-    data["bodies"] = [
-        {"material": "wax", "shape": "box", "lo": [8, 0], "hi": [22, 4], "temperature": -20.0},
-        {"material": "wax", "shape": "box", "lo": [10, 4.2], "hi": [20, 7.2], "springs": False, "temperature": 90.0},
-    ]
-    return Simulation(make_scene(data))
+    return Simulation(make_scene(_wax_refreezing_data()))
 
 
 def _state(sim) -> list[np.ndarray]:
@@ -202,6 +200,13 @@ def _state(sim) -> list[np.ndarray]:
     if sim.springs is not None:
         out.append(sim.springs.alive.to_numpy())
     return out
+
+
+def assert_same_states(a: list[np.ndarray], b: list[np.ndarray]) -> None:
+    """Bit for bit: every array of one _state() equal to the other's."""
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
 
 
 @pytest.mark.parametrize(
@@ -223,19 +228,20 @@ def test_many_steps_to_a_launch_give_the_trajectory_of_one_step_at_a_time(make, 
         one_by_one.step(n)
         fused.step(n)
     assert fused.fused_batches >= 4 and one_by_one.fused_batches == 0
-    for a, b in zip(_state(one_by_one), _state(fused)):
-        assert np.array_equal(a, b)
+    assert_same_states(_state(one_by_one), _state(fused))
     assert (fused.time, fused.step_count) == (one_by_one.time, one_by_one.step_count)
     assert fused.neighbours.builds == one_by_one.neighbours.builds > 2
     if refreezes:
         assert int(fused.springs.created[None]) == int(one_by_one.springs.created[None]) > fused.springs.built_count
 
 
-def test_a_list_build_that_overflows_inside_a_fused_batch_grows_the_list_and_goes_on():
-    """Lists made too narrow: the fused batch stops before the forces of the step whose build overflowed, the host
-    widens the lists and the next batch builds them again (no step the long way, whose kernels would have to be
-    compiled: a stall of seconds with a cold cache); the trajectory is that of the long way."""
-    one_by_one, fused = lj_box(), lj_box()
+@pytest.mark.parametrize("make", [lambda: lj_box(), lambda: team_box()], ids=["one_thread", "team"])
+def test_a_list_build_that_overflows_inside_a_batch_grows_the_list_and_goes_on(make):
+    """Lists made too narrow: the batch (fused on one thread, or a team's) stops before the forces of the step whose
+    build overflowed, the host widens the lists and the next batch builds them again (no step the long way, whose
+    kernels would have to be compiled: a stall of seconds with a cold cache); the trajectory is that of the long
+    way."""
+    one_by_one, fused = make(), make()
     one_by_one.fuses_steps = False
     for sim in (one_by_one, fused):
         sim.neighbours._allocate(4)
@@ -244,8 +250,7 @@ def test_a_list_build_that_overflows_inside_a_fused_batch_grows_the_list_and_goe
     assert fused.neighbours.grown == one_by_one.neighbours.grown == 1
     assert fused.fused_batches == 2  # the batch that stopped at its first build, then the rest
     assert fused.neighbours.host_builds == 0 and one_by_one.neighbours.host_builds > 0
-    for a, b in zip(_state(one_by_one), _state(fused)):
-        assert np.array_equal(a, b)
+    assert_same_states(_state(one_by_one), _state(fused))
 
 
 def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
@@ -303,24 +308,10 @@ def test_a_team_of_threads_gives_the_trajectory_of_the_parallel_long_way(reorder
         team.step(n)
         long_way.step(n)
     assert team.team is not None and team.fused_batches >= 3 and long_way.fused_batches == 0
-    for a, b in zip(_state(long_way), _state(team)):
-        assert np.array_equal(a, b)
+    assert_same_states(_state(long_way), _state(team))
     assert (team.time, team.step_count) == (long_way.time, long_way.step_count)
     assert team.neighbours.builds == long_way.neighbours.builds > 2
     assert team.neighbours.host_builds == 0  # every build ran inside the team's launches
-
-
-def test_a_list_build_that_overflows_inside_a_team_batch_grows_the_list_and_goes_on():
-    team, long_way = team_box(), team_box()
-    long_way.fuses_steps = False
-    for sim in (team, long_way):
-        sim.neighbours._allocate(4)
-        sim.neighbours.invalidate()
-        sim.step(40)
-    assert team.neighbours.grown == long_way.neighbours.grown == 1
-    assert team.fused_batches == 2  # stopped at its first build, then the rest
-    for a, b in zip(_state(long_way), _state(team)):
-        assert np.array_equal(a, b)
 
 
 def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_way():
@@ -333,10 +324,8 @@ def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_w
     sim.team = Team(sim, 2 * sim.team.workers)
     before = _state(sim)
     assert sim.team.run(5, 1, sim.integrator, sim.neighbours.ids, sim.dt) == -1
-    for a, b in zip(before, _state(sim)):
-        assert np.array_equal(a, b)
+    assert_same_states(before, _state(sim))
     sim.step(30)
     long_way.step(30)
     assert sim.team is None and not sim.fuses_steps and sim.step_count == 30
-    for a, b in zip(_state(long_way), _state(sim)):
-        assert np.array_equal(a, b)
+    assert_same_states(_state(long_way), _state(sim))

@@ -124,9 +124,14 @@ class NeighbourList:
     @ti.func
     def check_one(self, i):
         """Flag the list stale if particle i has moved more than half the skin since the build."""
-        d = self.domain.separation(self.x_ref[i], self.x[i])
-        if d.dot(d) > (0.5 * self.skin) ** 2:
+        if self.moved_far(i):
             self.stale[None] = 1
+
+    @ti.func
+    def moved_far(self, i) -> bool:
+        """Whether particle i has moved more than half the skin since the build."""
+        d = self.domain.separation(self.x_ref[i], self.x[i])
+        return d.dot(d) > (0.5 * self.skin) ** 2
 
     @ti.kernel
     def _count_only(self):
@@ -150,17 +155,11 @@ class NeighbourList:
     def fill_loops(self, ids: ti.template()):
         """Build the lists into `ids` from the grid as last sorted; sets `overflow` when some list did not fit. A
         ti.func, so the fused step (Simulation) can run it inside its own kernel."""
-        self.overflow[None] = 0
-        self.n_listed[None] = self.n[None]
-        r2max = (self.reach + self.skin) ** 2
+        self.begin_fill()
         width = ids.shape[1]
         self.loops.pairs()
         for i in range(self.n[None]):
-            c = self._visit(i, r2max, True, ids, self.half)
-            self.count[i] = c
-            self.x_ref[i] = self.x[i]
-            if c > width:
-                self.overflow[None] = 1
+            self.fill_one(i, ids)
         if ti.static(self.marks_bonds):
             s = self.springs
             self.loops.pairs()
@@ -175,6 +174,22 @@ class NeighbourList:
                         for k in range(listed):
                             if ids[i, k] == j:
                                 ids[i, k] = -(spring + 1)
+
+    @ti.func
+    def begin_fill(self):
+        """Before a build: clear the overflow flag and record the particle count listed."""
+        self.overflow[None] = 0
+        self.n_listed[None] = self.n[None]
+
+    @ti.func
+    def fill_one(self, i, ids: ti.template()):
+        """Build particle i's list into row i of `ids` (its count, its position at the build); set `overflow` when
+        it does not fit."""
+        c = self._visit(i, (self.reach + self.skin) ** 2, True, ids, self.half)
+        self.count[i] = c
+        self.x_ref[i] = self.x[i]
+        if c > ids.shape[1]:
+            self.overflow[None] = 1
 
     @ti.func
     def _visit(self, i, r2max, store: ti.template(), ids: ti.template(), half: ti.template()):
