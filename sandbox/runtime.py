@@ -20,6 +20,32 @@ def _arch_value(name: str):
     return {"cpu": ti.cpu, "cuda": ti.cuda, "vulkan": ti.vulkan, "metal": ti.metal}[name]
 
 
+def _lighten_kernel_debug_info() -> None:
+    """Taichi formats, for every statement of every kernel it parses (at each process start, warm offline cache or
+    not), the source excerpt a compile error would quote, wrapped by textwrap: a quarter of a second of a 10k box's
+    warm start-up on the 2-core machine. This quotes the line and marks the node as Taichi does, without the
+    wrapping. SANDBOX_TAICHI_DEBUG_INFO=full keeps Taichi's own."""
+    try:
+        from taichi.lang.ast.ast_transformer_utils import ASTTransformerContext
+    except ImportError:  # another Taichi layout: leave it alone
+        return
+    if os.environ.get("SANDBOX_TAICHI_DEBUG_INFO") == "full" or not hasattr(ASTTransformerContext, "get_pos_info"):
+        return
+
+    def pos_info(self, node) -> str:
+        where = f'File "{self.file}", line {node.lineno + self.lineno_offset}, in {self.func.func.__name__}:\n'
+        if not 0 < node.lineno <= len(self.src):
+            return where
+        line = self.src[node.lineno - 1].rstrip()
+        mark = ""
+        if node.lineno == getattr(node, "end_lineno", None):
+            start = self.indent + node.col_offset
+            mark = " " * start + "^" * max(1, self.indent + node.end_col_offset - start)
+        return f"{where}{line}\n{mark}\n"
+
+    ASTTransformerContext.get_pos_info = pos_info
+
+
 def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None) -> str:
     """Start (or restart) Taichi on `arch` with default float `precision`; returns the backend actually running.
 
@@ -36,6 +62,7 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
         profile = _current is not None and _current[2]
     if _current == (arch, precision, profile):
         return running_arch()
+    _lighten_kernel_debug_info()
     fp = ti.f32 if precision == "f32" else ti.f64
     kwargs = dict(default_fp=fp, log_level=ti.ERROR, offline_cache=True, kernel_profiler=profile)
     threads = os.environ.get("SANDBOX_CPU_THREADS")

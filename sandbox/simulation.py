@@ -89,6 +89,14 @@ class Stats:
         return self.kinetic_energy + self.potential_energy
 
 
+def _omega_bound(ks, factor, alive, i, j, mass, n: int) -> float:
+    """Gershgorin bound on the fastest spring frequency (1/time): sqrt(max_p 2 sum_s k_s / m_p) over live springs
+    s at stiffness ks * factor, for the first n particles (host arrays, one entry per spring or particle)."""
+    k = ks * factor * alive
+    ksum = np.bincount(i, weights=k, minlength=n)[:n] + np.bincount(j, weights=k, minlength=n)[:n]
+    return float(math.sqrt(np.max(2 * ksum / mass[:n]))) if n else 0.0
+
+
 @data_oriented
 class Simulation:
     """A running scene: fields, passes, integrator, clock."""
@@ -115,61 +123,64 @@ class Simulation:
         self.loops = LoopPolicy(self.arch, self.capacity, pair_only, threads)
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
-        self.materials = MaterialTable(materials)
-        self.phase = Phase(self.materials) if scene.heat else None
-        heat = scene.heat
-        self.can_refreeze = bool(heat and heat.refreeze and any(m.melts for m in materials))
-        self.has_lifetimes = any(e.lifetime > 0 for e in scene.emitters)
-        self.particles = ParticleFields(
-            self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze, lifetimes=self.has_lifetimes
-        )
-        self.particles.load(built, self.materials.colors, materials)
-        self.smoke = SmokeGrid(self.dim, world.lo, world.hi, scene.smoke, world.gravity) if scene.smoke else None
-        self.fields = VelocityField(self.dim, scene.fields, self.smoke) if (scene.fields or scene.smoke) else None
-        groups = scene.groups
-        couplings = [g.field if self.fields is not None else "none" for g in groups]
-        self.has_kinematic = "kinematic" in couplings
-        self.has_field_drag = "drag" in couplings
-        # per group (every body, every emitter, then the spawn tool's particles):
-        self.g_coupling = ti.field(ti.i32, shape=len(groups) + 1)  # index into COUPLINGS
-        self.g_drag = ti.field(float, shape=len(groups) + 1)  # field = drag: relaxation rate (1/time)
-        for k, g in enumerate(groups):
-            self.g_coupling[k] = COUPLINGS.index(couplings[k])
-            self.g_drag[k] = g.field_drag
-        if self.has_kinematic or self.has_field_drag:
-            self.v_field = ti.Vector.field(self.dim, float, shape=self.capacity)  # v(x, t) at coupled particles
-        if self.has_kinematic:
-            self.x_start = ti.Vector.field(self.dim, float, shape=self.capacity)  # kinematic: x at the step start
-            self.v_start = ti.Vector.field(self.dim, float, shape=self.capacity)
-        self.domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
-        p = self.particles
-        self.pair = (
-            PairForce(
-                self.dim,
-                materials,
-                scene.pair.a,
-                scene.pair.b,
-                scene.pair.cutoff,
-                scene.pair.core,
-                p.mass,
-                p.material,
-                p.v,
+        # The tables and particles built here are copied to their fields in one kernel at the block's end (a copy
+        # kernel each was a tenth of a second of compiling at start-up); nothing here reads them back.
+        with transfer.batched():
+            self.materials = MaterialTable(materials)
+            self.phase = Phase(self.materials) if scene.heat else None
+            heat = scene.heat
+            self.can_refreeze = bool(heat and heat.refreeze and any(m.melts for m in materials))
+            self.has_lifetimes = any(e.lifetime > 0 for e in scene.emitters)
+            self.particles = ParticleFields(
+                self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze, lifetimes=self.has_lifetimes
             )
-            if scene.pair
-            else None
-        )
-        self.heat = None
-        if scene.heat:
-            density = material_column(materials, built.material, "density")
-            correction = lattice_correction(built.x, built.mass / density, scene.heat.radius)
-            self.heat = Heat(self.dim, scene.heat, p, self.materials, self.phase, correction)
-        self.springs = None
-        if built.spring_count or self.can_refreeze:
-            bonds = (heat.refreeze_max_bonds or (8 if self.dim == 2 else 12)) if self.can_refreeze else 0
-            spare = self.capacity * bonds // 2  # room for every particle to refreeze with its full bond count
-            self.springs = Springs(
-                built, self.capacity, p, self.materials, self.phase, self.domain.separation, spare, bonds
+            self.particles.load(built, self.materials.colors, materials)
+            self.smoke = SmokeGrid(self.dim, world.lo, world.hi, scene.smoke, world.gravity) if scene.smoke else None
+            self.fields = VelocityField(self.dim, scene.fields, self.smoke) if (scene.fields or scene.smoke) else None
+            groups = scene.groups
+            couplings = [g.field if self.fields is not None else "none" for g in groups]
+            self.has_kinematic = "kinematic" in couplings
+            self.has_field_drag = "drag" in couplings
+            # per group (every body, every emitter, then the spawn tool's particles):
+            self.g_coupling = ti.field(ti.i32, shape=len(groups) + 1)  # index into COUPLINGS
+            self.g_drag = ti.field(float, shape=len(groups) + 1)  # field = drag: relaxation rate (1/time)
+            for k, g in enumerate(groups):
+                self.g_coupling[k] = COUPLINGS.index(couplings[k])
+                self.g_drag[k] = g.field_drag
+            if self.has_kinematic or self.has_field_drag:
+                self.v_field = ti.Vector.field(self.dim, float, shape=self.capacity)  # v(x, t) at coupled particles
+            if self.has_kinematic:
+                self.x_start = ti.Vector.field(self.dim, float, shape=self.capacity)  # kinematic: x at the step start
+                self.v_start = ti.Vector.field(self.dim, float, shape=self.capacity)
+            self.domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
+            p = self.particles
+            self.pair = (
+                PairForce(
+                    self.dim,
+                    materials,
+                    scene.pair.a,
+                    scene.pair.b,
+                    scene.pair.cutoff,
+                    scene.pair.core,
+                    p.mass,
+                    p.material,
+                    p.v,
+                )
+                if scene.pair
+                else None
             )
+            self.heat = None
+            if scene.heat:
+                density = material_column(materials, built.material, "density")
+                correction = lattice_correction(built.x, built.mass / density, scene.heat.radius)
+                self.heat = Heat(self.dim, scene.heat, p, self.materials, self.phase, correction)
+            self.springs = None
+            if built.spring_count or self.can_refreeze:
+                bonds = (heat.refreeze_max_bonds or (8 if self.dim == 2 else 12)) if self.can_refreeze else 0
+                spare = self.capacity * bonds // 2  # room for every particle to refreeze with its full bond count
+                self.springs = Springs(
+                    built, self.capacity, p, self.materials, self.phase, self.domain.separation, spare, bonds
+                )
         reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat.radius if scene.heat else 0.0)
         skin = world.skin if world.neighbor_list else 0.0
         self.grid = (
@@ -247,7 +258,7 @@ class Simulation:
         self._last_pair_energy: float | None = None  # for stats(pair_energy=False)
         self._heat_limit = self.heat_dt_limit() if self.has_explicit_heat else math.inf
         self._initial = self.snapshot()
-        self._spring_omega0 = self.omega_max()
+        self._spring_omega0 = self._snapshot_omega_max(self._initial)
 
     def set_integrator(self, name: str) -> None:
         """Switch the time integrator by name, keeping the state (live, e.g. from the window)."""
@@ -870,11 +881,14 @@ class Simulation:
             return 0.0
         s = self.springs
         ks, factor, alive, i, j, mass = transfer.download([s.ks, s.factor, s.alive, s.i, s.j, self.particles.mass])
-        k = ks * factor * alive
-        n = int(self.particles.n[None])
-        ksum = np.bincount(i, weights=k, minlength=n)[:n] + np.bincount(j, weights=k, minlength=n)[:n]
-        mass = mass[:n]
-        return float(math.sqrt(np.max(2 * ksum / mass))) if n else 0.0
+        return _omega_bound(ks, factor, alive, i, j, mass, int(self.particles.n[None]))
+
+    def _snapshot_omega_max(self, snap: dict) -> float:
+        """omega_max() of the state in `snap` (from the host copies: no copy kernel to compile at start-up)."""
+        if self.springs is None:
+            return 0.0
+        springs = (snap[f"spring_{name}"] for name in ("ks", "factor", "alive", "i", "j"))
+        return _omega_bound(*springs, snap["mass"], snap["n"])
 
     def stable_dt(self) -> float:
         """Largest stable step for the springs with this integrator: (its stable h w) / omega_max. 0 for methods
@@ -990,7 +1004,7 @@ class Simulation:
     def mark_initial(self) -> None:
         """Make the current state the one reset() returns to."""
         self._initial = self.snapshot()
-        self._spring_omega0 = self.omega_max()
+        self._spring_omega0 = self._snapshot_omega_max(self._initial)
 
     def reset(self) -> None:
         """Back to the scene's initial state."""

@@ -8,6 +8,9 @@ float array and one flat int array. Kernels are cached per list of fields (and s
 snapshot, every reset) compiles once.
 """
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import numpy as np
 import taichi as ti
 
@@ -16,6 +19,7 @@ from .oriented import data_oriented
 
 _INTS = (ti.i32, ti.i8, ti.i16, ti.u8, ti.u16)
 _cache: dict = {}  # key -> _Copier; the copier holds its fields, so their ids stay unique while it is cached
+_staged: list | None = None  # inside batched(): the (field, values) pairs waiting for the block's end
 
 
 def _is_int(field) -> bool:
@@ -48,6 +52,12 @@ class _Copier:
             self.items.append((field, is_int, offsets[is_int], n, cols, comps))
             offsets[is_int] += n * max(cols, 1) * max(comps, 1)
         self.n_float, self.n_int = offsets[False], offsets[True]
+        # Items with the same rows and columns share one loop: each loop is a task that LLVM compiles on its own, and
+        # a build's particle fields (all N rows) or table fields (all 1 row) would otherwise compile one task each.
+        by_shape: dict[tuple[int, int], list] = {}
+        for item in self.items:
+            by_shape.setdefault((item[3], item[4]), []).append(item)
+        self.groups = [(n, cols, tuple(items)) for (n, cols), items in by_shape.items()]
 
     @ti.func
     def _index(self, k, cols: ti.template()):
@@ -59,27 +69,31 @@ class _Copier:
 
     @ti.kernel
     def _up(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
-        for field, is_int, off, n, cols, comps in ti.static(self.items):
-            src = ti.static(ints if is_int else floats)
+        for n, cols, items in ti.static(self.groups):
             for k in range(n * max(cols, 1)):
-                idx, base = self._index(k, cols), off + k * max(comps, 1)
-                if ti.static(comps == 0):
-                    field[idx] = ti.cast(src[base], field.dtype)
-                else:
-                    for c in ti.static(range(comps)):
-                        field[idx][c] = ti.cast(src[base + c], field.dtype)
+                idx = self._index(k, cols)
+                for field, is_int, off, _rows, _cols, comps in ti.static(items):
+                    src = ti.static(ints if is_int else floats)
+                    base = off + k * max(comps, 1)
+                    if ti.static(comps == 0):
+                        field[idx] = ti.cast(src[base], field.dtype)
+                    else:
+                        for c in ti.static(range(comps)):
+                            field[idx][c] = ti.cast(src[base + c], field.dtype)
 
     @ti.kernel
     def _down(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
-        for field, is_int, off, n, cols, comps in ti.static(self.items):
-            dst = ti.static(ints if is_int else floats)
+        for n, cols, items in ti.static(self.groups):
             for k in range(n * max(cols, 1)):
-                idx, base = self._index(k, cols), off + k * max(comps, 1)
-                if ti.static(comps == 0):
-                    dst[base] = field[idx]
-                else:
-                    for c in ti.static(range(comps)):
-                        dst[base + c] = field[idx][c]
+                idx = self._index(k, cols)
+                for field, is_int, off, _rows, _cols, comps in ti.static(items):
+                    dst = ti.static(ints if is_int else floats)
+                    base = off + k * max(comps, 1)
+                    if ti.static(comps == 0):
+                        dst[base] = field[idx]
+                    else:
+                        for c in ti.static(range(comps)):
+                            dst[base + c] = field[idx][c]
 
     def shapes(self) -> list[tuple[int, ...]]:
         """The host shape of each item: (rows[, columns][, components])."""
@@ -97,11 +111,39 @@ def _copier(fields: list, rows: list[int]) -> _Copier:
     return copier
 
 
+@contextmanager
+def batched() -> Iterator[None]:
+    """Within the block, upload() queues its copies and they all run as one kernel when the block ends (each copy
+    kernel is a compile at start-up: a simulation's build uploads its tables from half a dozen places). Code in the
+    block must not read, in a kernel or from Python, a field it uploads. Nothing is copied if the block raises."""
+    global _staged
+    if _staged is not None:  # nested: the outer block copies
+        yield
+        return
+    _staged = []
+    try:
+        yield
+        pairs = _staged
+    finally:
+        _staged = None
+    upload(pairs)
+
+
 def upload(pairs: list) -> None:
     """Copy each (field, values) pair: values fill the field's leading len(values) rows, with the field's other axes
-    and vector components as trailing axes; the rest of the field is left as it is."""
+    and vector components as trailing axes; the rest of the field is left as it is. Inside batched(): queued."""
     if not pairs:
         return
+    if _staged is not None:
+        if {id(f) for f, _ in _staged} & {id(f) for f, _ in pairs}:  # a field again: its earlier values go first
+            upload_now, _staged[:] = list(_staged), []
+            _upload(upload_now)
+        _staged.extend((f, np.array(v)) for f, v in pairs)  # a copy: the caller may change its array
+        return
+    _upload(pairs)
+
+
+def _upload(pairs: list) -> None:
     fields = [f for f, _ in pairs]
     arrays = [np.asarray(v) for _, v in pairs]
     copier = _copier(fields, [len(a) for a in arrays])

@@ -46,18 +46,17 @@ class NeighbourList:
         self.stale = ti.field(ti.i32, shape=())  # 1 when the list must be rebuilt
         self.overflow = ti.field(ti.i32, shape=())  # 1 when some particle has more neighbours than fit
         self.n_listed = ti.field(ti.i32, shape=())  # the particle count at the last build
+        self.widest = ti.field(ti.i32, shape=())  # the widest full row when the lists were sized
         self.forced = True  # rebuild at the next check (invalidate())
         self.usable = False  # the last build fitted every list (no overflow)
         self.host_builds = 0  # builds run by ensure_fresh
         self.fused_builds = ti.field(ti.i32, shape=())  # builds run inside the fused step (Simulation._fused_steps)
         self.fused = False  # the fused step has run: `builds` must read fused_builds
-        self.grid.rebuild()
         # Sized from the widest full row even for half lists: a half row holds every neighbour ahead of i in cell
         # order, which for a particle at its cell's back corner is nearly all of them. The 1.5x margin covers a
         # lattice melting into a denser liquid (the melting block's half rows reach 1.6x their lattice widest);
         # growing the lists later recompiles every kernel that reads them, a stall of a second or more.
-        self._count_only()
-        widest = int(self.count.to_numpy()[: int(n[None])].max(initial=0))
+        widest = int(self._sort_and_count())
         self._allocate(max(16, int(math.ceil(1.5 * widest)) + 8))
         self.grown = 0
 
@@ -134,12 +133,17 @@ class NeighbourList:
         return d.dot(d) > (0.5 * self.skin) ** 2
 
     @ti.kernel
-    def _count_only(self):
-        """count[i] = the neighbours of i within reach + skin, all of them (a full row) even for half lists."""
+    def _sort_and_count(self) -> ti.i32:
+        """Sort the grid, then count[i] = the neighbours of i within reach + skin, all of them (a full row) even for
+        half lists; returns the widest count. One launch: each kernel costs its compile at start-up."""
+        self.grid.rebuild_loops()
         r2max = (self.reach + self.skin) ** 2
+        self.widest[None] = 0
         self.loops.pairs()
         for i in range(self.n[None]):
             self.count[i] = self._visit(i, r2max, False, self.count, False)
+            ti.atomic_max(self.widest[None], self.count[i])
+        return self.widest[None]
 
     @ti.kernel
     def _fill(self, ids: ti.template()):
