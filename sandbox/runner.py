@@ -63,7 +63,7 @@ def run_headless(
     """
     cfg = sim.scene.render
     width, height, fps = width or cfg.width, height or cfg.height, fps or cfg.fps
-    renderer = Renderer(sim, width, height, cfg, keep_image=False) if out is not None else None
+    renderer = Renderer(sim, width, height, cfg, output="picture") if out is not None else None
     writer = open_writer(out, width, height, fps, still_frame) if out is not None else None
     csv_file = None
     if stats_path is not None:

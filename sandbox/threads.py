@@ -14,13 +14,18 @@ import os
 import taichi as ti
 
 _probe_field = None
+PROBE_ATTEMPTS = 5  # rounds of probe launches to find the pool's threads (see pin_workers)
+PROBE_ROUNDS = 5_000  # steps of the probe's busy chain per item: a launch keeps each worker busy ~0.1 ms
 pinned: list[tuple[int, int]] = []  # (thread id, core) of the workers pinned by the last pin_workers()
 
 
 @ti.kernel
-def _probe(x: ti.template()):
+def _probe(x: ti.template(), rounds: ti.i32):
     for i in range(x.shape[0]):  # every worker of the pool runs its share of each parallel loop
-        x[i] += 1
+        v = x[i]
+        for _ in range(rounds):  # a dependent chain the compiler cannot drop: keeps each worker busy a while
+            v = (v * 1103515245 + 12345) & 0x7FFFFFFF
+        x[i] = v
 
 
 def _cpu_ns_by_thread() -> dict[int, int]:
@@ -49,18 +54,23 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
     if len(cores) < 2:
         return []
     _probe_field = ti.field(ti.i32, shape=threads * 64)
-    _probe(_probe_field)  # compiles
-    before = _cpu_ns_by_thread()
-    for _ in range(8):
-        _probe(_probe_field)
-    after = _cpu_ns_by_thread()
+    _probe(_probe_field, 1)  # compiles
     main = os.getpid()
-    ran = sorted(
-        (tid for tid in after if tid != main and after[tid] > before.get(tid, after[tid])),
-        key=lambda tid: after[tid] - before[tid],
-        reverse=True,
-    )
-    if len(ran) != threads:  # not just the pool ran: do not guess
+    # Another of Taichi's threads can stay busy for a while after the compile (on the 2-core machine, in some runs,
+    # about 0.5 ms of CPU per 8 launches for a tenth of a second), and the pool's workers, with a trivial loop,
+    # ran less than that. A probe loop that keeps each worker busy sets them apart (a quarter of a millisecond a
+    # launch); look again if they do not stand out, and otherwise do not guess.
+    for _attempt in range(PROBE_ATTEMPTS):
+        before = _cpu_ns_by_thread()
+        for _ in range(4):
+            _probe(_probe_field, PROBE_ROUNDS)
+        after = _cpu_ns_by_thread()
+        ran_ns = {tid: after[tid] - before.get(tid, after[tid]) for tid in after if tid != main}
+        busiest = max(ran_ns.values(), default=0)
+        ran = [tid for tid, ns in ran_ns.items() if busiest > 0 and ns >= busiest // 4]
+        if len(ran) == threads:
+            break
+    else:
         return []
     for k, tid in enumerate(sorted(ran)):
         core = cores[k % len(cores)]

@@ -217,15 +217,46 @@ def test_golden_images(request, scene):
     golden(request, scene, ren.frame())
 
 
+@pytest.mark.parametrize("scene", ["melting_block", "melting_block_3d"])
+def test_every_output_gives_the_same_picture_and_rgba_is_ggui_packed_layout(scene):
+    """The float image packed on request, the 8-bit picture written directly (video) and GGUI's packed RGBA (the
+    window on the CPU) are one picture, chart included; the packed one is (W, H) uint32, R in the low byte, y up."""
+    from types import SimpleNamespace
+
+    sim = Simulation(load_scene(SCENES / f"{scene}.toml", ["render.chart=['mean_temperature']", "render.legend=false"]))
+    w, h = 160, 90
+    renderers = {output: Renderer(sim, w, h, sim.scene.render, output) for output in ("image", "picture", "rgba")}
+    for k in range(3):
+        for ren in renderers.values():
+            ren.begin_frame()
+        sim.advance_frame()
+        pictures = {}
+        for output, ren in renderers.items():
+            ren.record(SimpleNamespace(mean_temperature=float(k)))
+            pictures[output] = ren.frame().copy()
+        assert np.array_equal(pictures["picture"], pictures["image"])
+        assert np.array_equal(pictures["rgba"], pictures["image"])
+    for ren in renderers.values():  # without the chart's labels, drawn on the host (as the legend would be)
+        ren.set_chart(())
+    picture = renderers["image"].frame()
+    renderers["rgba"].render()
+    packed = renderers["rgba"].out
+    assert packed.shape == (w, h) and packed.dtype == np.uint32
+    rgba = packed.view(np.uint8).reshape(w, h, 4)
+    assert np.array_equal(rgba[:, :, :3], picture[::-1].transpose(1, 0, 2)) and (rgba[:, :, 3] == 255).all()
+    assert picture.std() > 5  # a picture, not a blank
+
+
+@pytest.mark.parametrize("output", ["image", "picture", "rgba"])
 @pytest.mark.parametrize("dim", [2, 3])
-def test_chart_plots_each_series_across_its_box(dim):
+def test_chart_plots_each_series_across_its_box(dim, output):
     from types import SimpleNamespace
 
     from sandbox.render.chart import COLORS
 
     data = scene_dict(dim=dim, render={"chart": ["mean_temperature", "molten_fraction"], "background": [0.5] * 3})
     sim = Simulation(make_scene(data))
-    ren = Renderer(sim, 320, 180, sim.scene.render)
+    ren = Renderer(sim, 320, 180, sim.scene.render, output)
     for k in range(11):  # temperature rises 0 -> 100 (auto range); melt fraction 0 -> 0.5 (fixed [0, 1] scale)
         ren.record(SimpleNamespace(mean_temperature=10.0 * k, molten_fraction=0.05 * k))
     img = ren.frame().astype(int)

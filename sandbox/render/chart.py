@@ -9,7 +9,7 @@ import numpy as np
 import taichi as ti
 
 from ..oriented import data_oriented
-from .raster import draw_text, put_pixel
+from .raster import draw_text, get_pixel, put_pixel
 
 FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
 COLORS = ((1.0, 0.4, 0.25), (0.35, 0.65, 1.0), (0.5, 0.9, 0.4), (0.95, 0.85, 0.3))
@@ -21,7 +21,10 @@ HISTORY = 16 * SAMPLES  # samples kept; past it every other one is dropped and t
 class Chart:
     """Strip chart of some Stats fields; record() each frame, the renderer calls draw()."""
 
-    def __init__(self, image, width: int, height: int, series: tuple[str, ...]):
+    def __init__(self, image, width: int, height: int, series: tuple[str, ...], scene_in_image: bool = True):
+        """`image`: the renderer's float image; `scene_in_image`: the drawn scene is there (else only in the 8-bit
+        output draw() gets), which is what the box dims behind its lines."""
+        self.scene_in_image = scene_in_image
         self.series = tuple(series)
         self.n_series = len(self.series)
         self.image = image
@@ -61,7 +64,7 @@ class Chart:
         self.values.from_numpy(table)
 
     def draw(self, out) -> None:
-        """Draw the box and the series into the renderer's float image and its 8-bit picture `out` (H, W, 3)."""
+        """Draw the box and the series into the renderer's float image and its 8-bit output `out` (put_pixel)."""
         self._draw(self.n, out)
 
     @ti.func
@@ -71,11 +74,16 @@ class Chart:
         put_pixel(out, self.height, x, y, c)
 
     @ti.kernel
-    def _draw(self, n: ti.i32, out: ti.types.ndarray(dtype=ti.u8, ndim=3)):
+    def _draw(self, n: ti.i32, out: ti.types.ndarray()):
         x0, w, h = self.x0, self.box_w, self.box_h
         y0 = self.height - self.y_top - h  # bottom row of the box
         for i, j in ti.ndrange(w, h):
-            c = self.image[x0 + i, y0 + j] * 0.3  # dim what is behind, so the lines read
+            behind = ti.Vector([0.0, 0.0, 0.0])
+            if ti.static(self.scene_in_image):
+                behind = self.image[x0 + i, y0 + j]
+            else:
+                behind = get_pixel(out, self.height, x0 + i, y0 + j)
+            c = behind * 0.3  # dim what is behind, so the lines read
             if i == 0 or j == 0 or i == w - 1 or j == h - 1:
                 c = ti.Vector([0.6, 0.6, 0.6])
             self._put(out, x0 + i, y0 + j, c)
@@ -110,8 +118,8 @@ class CurvePlot(Chart):
     """A fixed curve (the window's potential panel: the pair force against distance) in the top-right corner, with
     its zero line; set_curve() replaces it."""
 
-    def __init__(self, image, width: int, height: int):
-        super().__init__(image, width, height, ("curve", "zero"))
+    def __init__(self, image, width: int, height: int, scene_in_image: bool = True):
+        super().__init__(image, width, height, ("curve", "zero"), scene_in_image)
         self.x0 = width - self.box_w - 10
         self.label_height = 0
 

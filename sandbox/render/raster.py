@@ -24,6 +24,12 @@ The image field is W x H with y up (Taichi's and GGUI's convention); `frame()` r
 first. On the CPU backend the kernels write that 8-bit picture straight into a numpy array (no copy); on a GPU it
 is a device array copied to the host once per picture.
 
+Outputs (Renderer's `output`): "image" keeps the float image (tests read it; a window on a GPU shows it);
+"picture" writes only the 8-bit H x W x 3 picture (headless video); "rgba" (CPU only) writes GGUI's own packed
+format, a W x H uint32 array of RGBA bytes with y up, which the window hands to GGUI as it is. GGUI's
+canvas.set_image of a float image runs a conversion kernel over every pixel (4.4 ms a 1280 x 720 frame on the
+2-core machine) before its copy to the screen (3.0 ms); "rgba" writes only the dirty tiles, 4 bytes a pixel.
+
 Cost. In 2D every drawing kernel stamps the 16 x 16 pixel tiles it touches, and the compositing pass visits only
 the tiles drawn in this frame or the previous one (plus the chart and legend rectangles); the rest of the picture
 is unchanged from the frame before. A 1,200-particle block in a 1280 x 720 frame touches a few per cent of it.
@@ -43,6 +49,7 @@ COLOR_MODES = {"temperature": 0, "material": 1, "speed": 2, "phase": 3}
 DRAW = {"dot": 0, "splat": 1, "sphere": 2}
 BLEND = {"opaque": 0, "alpha": 1, "additive": 2}
 R_MIN = 0.7  # pixels: the smallest drawn radius
+OUTPUTS = ("image", "picture", "rgba")  # see the module docstring
 ROW_MAJOR = "ji"  # image fields are indexed [x, y] (GGUI's convention) but stored row by row, as the output is
 MIN_FADE = 0.25  # the least opacity factor of an opaque or translucent particle smaller than R_MIN
 SPLINE_SEGMENTS = 4  # chords per curved (spline) motion-blur streak
@@ -56,14 +63,22 @@ SPRING_OPACITY = 0.6
 class Renderer:
     """Draws a Simulation's particles into `self.image` (W x H RGB floats)."""
 
-    def __init__(self, sim, width: int, height: int, render_cfg, keep_image: bool = True, strip_splat: bool = True):
-        """keep_image: keep the float image (the window shows it; the 8-bit picture is then packed from it only when
-        picture() asks); headless video needs only the 8-bit one, which 2D compositing then writes directly.
+    def __init__(
+        self, sim, width: int, height: int, render_cfg, output: str = "image", strip_splat: bool = True
+    ) -> None:
+        """output: what render() leaves (see OUTPUTS in the module docstring); "image" packs the 8-bit picture from
+        the float image only when picture() asks, "picture" and "rgba" have 2D compositing write it directly.
         strip_splat=False draws every 2D particle with atomic adds (the reference the strip binning is tested
         against)."""
+        if output not in OUTPUTS:
+            raise ValueError(f"unknown renderer output '{output}'; expected one of {', '.join(OUTPUTS)}")
+        self.on_cpu = runtime.running_arch() == "cpu"
+        if output == "rgba" and not self.on_cpu:
+            raise ValueError("the packed 'rgba' output is a host array: CPU backend only")
         self.sim = sim
         self.strip_splat = strip_splat
-        self.keep_image = keep_image
+        self.output = output
+        self.keep_image = output == "image"
         self.cfg = render_cfg
         self.width, self.height = width, height
         self.dim = sim.dim
@@ -107,10 +122,15 @@ class Renderer:
         if self.has_additive:
             self.light = self._layer(3)  # additive light (unbounded)
         self.depth = self._layer(dtype=ti.i32)  # depth bits of the nearest opaque surface (3D)
-        # The 8-bit picture, (H, W, 3) top row first. On the CPU it is a numpy array the kernels write straight
-        # into (no copy to the host at all); elsewhere a device ndarray copied to the host once per picture().
-        self.on_cpu = runtime.running_arch() == "cpu"
-        self.out = np.zeros((height, width, 3), np.uint8) if self.on_cpu else ti.ndarray(ti.u8, (height, width, 3))
+        # The 8-bit picture, (H, W, 3) top row first, or with output "rgba" GGUI's (W, H) packed RGBA, y up. On
+        # the CPU it is a numpy array the kernels write straight into (no copy to the host at all); elsewhere a
+        # device ndarray copied to the host once per picture().
+        if output == "rgba":
+            self.out = np.zeros((width, height), np.uint32)
+        elif self.on_cpu:
+            self.out = np.zeros((height, width, 3), np.uint8)
+        else:
+            self.out = ti.ndarray(ti.u8, (height, width, 3))
         if self.motion_blur:
             self.x_prev = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions a frame ago
             self.shutter = float(render_cfg.shutter)
@@ -136,7 +156,7 @@ class Renderer:
         if render_cfg.chart:
             from .chart import Chart
 
-            self.chart = Chart(self.image, width, height, tuple(render_cfg.chart))
+            self.chart = Chart(self.image, width, height, tuple(render_cfg.chart), self._scene_in_image())
         if self.motion_blur and sim.emitters is not None:
             sim.emitters.listeners.append(self._follow_moves)
         if self.motion_blur and sim.reorder is not None:
@@ -378,6 +398,21 @@ class Renderer:
             self.chart.draw(self.out)
         if self.potential is not None:
             self.potential.draw(self.out)
+        if self.output == "rgba" and self.dim == 3:
+            self._pack(self.out)
+
+    def _scene_in_image(self) -> bool:
+        """Whether the float image holds the drawn scene (else only the 8-bit output does): what a chart dims."""
+        return self.keep_image or self.dim == 3
+
+    def show_on(self, canvas) -> None:
+        """Hand the last rendered picture to a GGUI canvas: the packed output as it is, else the float image."""
+        if self.output == "rgba":
+            from taichi.ui.utils import get_field_info
+
+            canvas.canvas.set_image(get_field_info(self.out))  # what canvas.set_image does after its conversion
+        else:
+            canvas.set_image(self.image)
 
     def _composite(self) -> None:
         """2D: composite the dirty tiles (every tile after a change that affects the whole picture)."""
@@ -394,7 +429,7 @@ class Renderer:
         if self.potential is None:
             from .chart import CurvePlot
 
-            self.potential = CurvePlot(self.image, self.width, self.height)
+            self.potential = CurvePlot(self.image, self.width, self.height, self._scene_in_image())
             self._overlays_changed()
         self.potential.set_curve(values)
 
@@ -413,14 +448,19 @@ class Renderer:
         """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh."""
         from .chart import Chart
 
-        self.chart = Chart(self.image, self.width, self.height, tuple(series)) if series else None
+        scene_in_image = self._scene_in_image()
+        self.chart = Chart(self.image, self.width, self.height, tuple(series), scene_in_image) if series else None
         self._overlays_changed()
 
     def picture(self) -> np.ndarray:
         """The last rendered picture as an (H, W, 3) uint8 array (what frame() returns, without drawing again)."""
-        if self.dim == 3 or self.keep_image:
-            self._pack(self.out)
-        img = self.out if self.on_cpu else self.out.to_numpy()
+        if self.output == "rgba":  # packed already (2D compositing, or render() for 3D); unpack on the host
+            rgba = self.out.view(np.uint8).reshape(self.width, self.height, 4)
+            img = np.ascontiguousarray(rgba[:, ::-1, :3].transpose(1, 0, 2))
+        else:
+            if self.dim == 3 or self.keep_image:
+                self._pack(self.out)
+            img = self.out if self.on_cpu else self.out.to_numpy()
         if self.cfg.legend:
             self.draw_legend(img)
         if self.chart is not None:
@@ -709,7 +749,7 @@ class Renderer:
                                 _add(self.a_log, px, py, ti.log(1.0 - a), plain)
 
     @ti.kernel
-    def _resolve_2d(self, full: ti.i32, out: ti.types.ndarray(dtype=ti.u8, ndim=3)):
+    def _resolve_2d(self, full: ti.i32, out: ti.types.ndarray()):
         stamp = self.stamp[None]
         for tx, ty in self.tile_stamp:
             dirty = self.tile_stamp[tx, ty] >= stamp - 1 or full != 0
@@ -968,13 +1008,13 @@ class Renderer:
             self.image[x, y] = ti.min(self.image[x, y] + 1.0 - ti.exp(-self.exposure * self.light[x, y]), 1.0)
 
     @ti.kernel
-    def _pack(self, out: ti.types.ndarray(dtype=ti.u8, ndim=3)):
+    def _pack(self, out: ti.types.ndarray()):
         for x, y in self.image:
             self._put_out(out, x, y, self.image[x, y])
 
     @ti.func
     def _put_out(self, out: ti.template(), x, y, c):
-        """Write colour c (floats in [0, 1]) at pixel (x, y) (y up) of the 8-bit (H, W, 3) picture (top row first)."""
+        """Write colour c (floats in [0, 1]) at pixel (x, y) (y up) of the 8-bit output (see put_pixel)."""
         put_pixel(out, self.height, x, y, c)
 
     # ------------------------------------------------------------------ legend (host side, on the 8-bit frame)
@@ -1026,11 +1066,28 @@ def _add(layer: ti.template(), x, y, value, plain: ti.template()):
 
 @ti.func
 def put_pixel(out: ti.template(), height, x, y, c):
-    """Write colour c (floats in [0, 1]) at pixel (x, y), y counted up from the bottom, into the 8-bit (H, W, 3)
-    picture `out`, stored top row first."""
-    v = ti.cast(ti.math.clamp(c, 0.0, 1.0) * 255.0 + 0.5, ti.u8)
-    for k in ti.static(range(3)):
-        out[height - 1 - y, x, k] = v[k]
+    """Write colour c (floats in [0, 1]) at pixel (x, y), y counted up from the bottom, into the 8-bit output `out`:
+    an (H, W, 3) picture stored top row first, or GGUI's (W, H) packed RGBA (a uint32 per pixel, R in the low byte,
+    y up)."""
+    if ti.static(len(out.shape) == 2):
+        v = ti.cast(ti.math.clamp(c, 0.0, 1.0) * 255.0 + 0.5, ti.u32)
+        out[x, y] = v[0] | (v[1] << 8) | (v[2] << 16) | (ti.cast(255, ti.u32) << 24)
+    else:
+        v = ti.cast(ti.math.clamp(c, 0.0, 1.0) * 255.0 + 0.5, ti.u8)
+        for k in ti.static(range(3)):
+            out[height - 1 - y, x, k] = v[k]
+
+
+@ti.func
+def get_pixel(out: ti.template(), height, x, y):
+    """The colour (floats in [0, 1]) at pixel (x, y) of an 8-bit output written by put_pixel."""
+    c = ti.Vector([0.0, 0.0, 0.0])
+    if ti.static(len(out.shape) == 2):
+        v = out[x, y]
+        c = ti.Vector([v & 255, (v >> 8) & 255, (v >> 16) & 255]) / 255.0
+    else:
+        c = ti.Vector([out[height - 1 - y, x, k] for k in ti.static(range(3))]) / 255.0
+    return c
 
 
 # A 3 x 5 pixel font for legend numbers.

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import taichi as ti
 
+from .. import runtime
 from ..errors import SandboxError
 from ..integrators import REGISTRY
 from ..tools import TOOLS, Tools
@@ -175,6 +176,16 @@ def view_config(cfg, state: WindowState):
     )
 
 
+def window_output(canvas) -> str:
+    """The renderer output a window shows: GGUI's packed RGBA on the CPU backend, where this Taichi's canvas takes
+    it as it is (its set_image would convert a float image over every pixel each frame), else the float image."""
+    try:
+        from taichi.ui.utils import get_field_info  # noqa: F401  (what Renderer.show_on calls)
+    except ImportError:
+        return "image"
+    return "rgba" if runtime.running_arch() == "cpu" and hasattr(canvas, "canvas") else "image"
+
+
 def run_window(
     sim,
     frames: int | None = None,
@@ -182,20 +193,24 @@ def run_window(
     substeps: int | None = None,
     show: bool = True,
     record: str | None = None,
+    timings: dict[str, list[float]] | None = None,
 ) -> int:
     """Show the simulation in a GGUI window until closed (or for `frames` frames); returns frames shown. `record`:
     write the frames to this video from the start (the v key starts and stops recordings to out/SCENE_N.mp4).
+    `timings`: append each frame's seconds by part (FRAME_PARTS, and "frame" for the whole loop) to these lists
+    (the benchmark; it waits for each part's kernels to finish).
 
     Raises SandboxError with one line when no window can be opened (e.g. no Vulkan driver).
     """
     cfg = sim.scene.render
-    renderer = Renderer(sim, cfg.width, cfg.height, cfg)
     try:
         window = ti.ui.Window(f"sandbox: {sim.scene.name}", (cfg.width, cfg.height), vsync=True, show_window=show)
     except Exception as exc:  # GGUI raises RuntimeError without Vulkan; keep the message to one line
         first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SandboxError(f"cannot open a window: {first_line}") from None
     canvas = window.get_canvas()
+    output = window_output(canvas)
+    renderer = Renderer(sim, cfg.width, cfg.height, cfg, output)
     gui = window.get_gui()
     tools = Tools(sim)
     state = make_state(sim, substeps)
@@ -210,8 +225,12 @@ def run_window(
     gravity = np.asarray(sim.scene.world.gravity, dtype=float)
     g_norm = float(np.linalg.norm(gravity))
     cursor = ti.Vector.field(2, ti.f32, shape=1)
+    if sim.reorder is not None:  # sort the storage now: the sort's kernel loads before the first frame, not as a
+        sim.reorder.apply()  # pause of a tenth of a second or more at its first use mid-interaction
     shown, fps, last = 0, 0.0, time.perf_counter()
+    clock = _FrameClock(timings)
     while window.running:
+        clock.start()
         if show:  # a hidden window (show_window=False, for tests) has no events or cursor
             for event in window.get_events(ti.ui.PRESS):
                 state.handle_key(event.key)
@@ -230,7 +249,7 @@ def run_window(
         if view_config(cfg, state) != view:  # a view toggle: a renderer built for it (its kernels are specialised)
             view = view_config(cfg, state)
             renderer.detach()
-            renderer = Renderer(sim, cfg.width, cfg.height, view)
+            renderer = Renderer(sim, cfg.width, cfg.height, view, output)
             if orbit is not None:
                 renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
             chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below
@@ -273,18 +292,24 @@ def run_window(
                 renderer.px_per_unit
             )
             tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps, material=state.material or None)
+        clock.lap("events")
         renderer.begin_frame()
         if not state.paused:
             sim.advance_frame(state.substeps, renderer.mid_frame)
         elif state.single_step:
             sim.step(1)
         state.single_step = False
+        clock.lap("simulation")
         # the guard (a non-finite state stops with a named error instead of drawing garbage) and the readouts; the
         # pair energy's neighbour scan only every 10th frame unless the energy plot is on
         stats = sim.stats(pair_energy=state.energy_plot or shown % 10 == 0)
         renderer.record(stats)
+        if sim.springs is not None and shown % STABLE_DT_EVERY == 0:  # it copies every spring to the host
+            state.stable_dt = sim.stable_dt()
+        clock.lap("readouts")
         renderer.render()
-        canvas.set_image(renderer.image)
+        clock.lap("drawing")
+        renderer.show_on(canvas)
         message = recorder.update(state.recording, renderer)
         if message:
             state.log.append(message)
@@ -294,8 +319,6 @@ def run_window(
         now = time.perf_counter()
         fps = 0.9 * fps + 0.1 / max(now - last, 1e-6)
         last = now
-        if sim.springs is not None and shown % STABLE_DT_EVERY == 0:  # it copies every spring to the host
-            state.stable_dt = sim.stable_dt()
         _panel(gui, sim, state, stats, fps)
         shown += 1
         done = frames is not None and shown >= frames
@@ -304,6 +327,8 @@ def run_window(
             state.screenshot = False
         if show:  # a hidden window renders on save_image; show() is for real windows only
             window.show()
+        clock.lap("display")
+        clock.stop()
         if done:
             break
     message = recorder.update(False, renderer)
@@ -311,6 +336,36 @@ def run_window(
         print(message)
     window.destroy()
     return shown
+
+
+FRAME_PARTS = ("events", "simulation", "readouts", "drawing", "display")  # the window loop's parts, in order
+
+
+class _FrameClock:
+    """Seconds per part of each window frame, for `run_window(timings=...)`; does nothing without a dict."""
+
+    def __init__(self, timings: dict[str, list[float]] | None):
+        self.timings = timings
+        if timings is not None:
+            for part in (*FRAME_PARTS, "frame"):
+                timings.setdefault(part, [])
+
+    def start(self) -> None:
+        if self.timings is not None:
+            ti.sync()
+            self.t0 = self.last = time.perf_counter()
+
+    def lap(self, part: str) -> None:
+        """The time since the last lap (or the start) was spent on `part`."""
+        if self.timings is not None:
+            ti.sync()
+            now = time.perf_counter()
+            self.timings[part].append(now - self.last)
+            self.last = now
+
+    def stop(self) -> None:
+        if self.timings is not None:
+            self.timings["frame"].append(self.last - self.t0)
 
 
 ENERGY_SERIES = ("kinetic_energy", "potential_energy", "total_energy")
