@@ -247,6 +247,26 @@ def test_every_output_gives_the_same_picture_and_rgba_is_ggui_packed_layout(scen
     assert picture.std() > 5  # a picture, not a blank
 
 
+@pytest.mark.parametrize("output", ["image", "rgba"])
+def test_the_brush_outline_is_a_ring_of_its_radius_and_leaves_no_trace(output):
+    """The window's tool cursor: a ring of the brush radius about the cursor, drawn into the picture, and gone
+    from the next picture once moved away or removed (its tiles are composited again)."""
+    sim = dot_scene([one([50.0, 50.0])])
+    ren = Renderer(sim, 200, 200, sim.scene.render, output)
+    plain = ren.frame().copy()
+    ren.set_brush((100.0, 60.0), 30.0)
+    ringed = ren.frame().copy()
+    ys, xs = np.nonzero(np.abs(ringed.astype(int) - plain.astype(int)).sum(axis=2) > 30)
+    distance = np.hypot(xs + 0.5 - 100.0, (199 - ys) + 0.5 - 60.0)  # rows are counted from the top
+    assert len(xs) > 2 * math.pi * 30 and np.abs(distance - 30.0).max() < 1.5
+    ren.set_brush((20.0, 20.0), 5.0)
+    moved = ren.frame().copy()
+    ys, xs = np.nonzero(np.abs(moved.astype(int) - plain.astype(int)).sum(axis=2) > 0)
+    assert len(xs) > 0 and np.hypot(xs + 0.5 - 20.0, (199 - ys) + 0.5 - 20.0).max() < 7.5
+    ren.set_brush(None)
+    assert np.array_equal(ren.frame(), plain)
+
+
 @pytest.mark.parametrize("output", ["image", "picture", "rgba"])
 @pytest.mark.parametrize("dim", [2, 3])
 def test_chart_plots_each_series_across_its_box(dim, output):

@@ -57,6 +57,8 @@ TILE = 16  # 2D: pixels per side of the tiles the compositing pass skips when no
 MAX_OVERLAYS = 4  # 2D: rectangles redrawn every frame whatever moved (chart, potential panel, legend)
 SPRING_COLOR = (0.55, 0.6, 0.7)
 SPRING_OPACITY = 0.6
+BRUSH_COLOR = (0.92, 0.92, 0.92)  # the window's tool outline
+BRUSH_OPACITY = 0.85
 
 
 @data_oriented
@@ -151,6 +153,7 @@ class Renderer:
         self.particle_scale = float(render_cfg.particle_scale)
         self.has_heat = sim.heat is not None
         self.draw_springs = bool(render_cfg.draw_springs) and sim.springs is not None and self.dim == 2
+        self.brush: tuple[float, float, float] | None = None  # see set_brush
         self.chart = None
         self.potential = None  # the window's potential panel (a CurvePlot), when shown
         if render_cfg.chart:
@@ -398,8 +401,36 @@ class Renderer:
             self.chart.draw(self.out)
         if self.potential is not None:
             self.potential.draw(self.out)
+        if self.dim == 2 and self.brush is not None:
+            self._ring_2d(*self.brush, self.out)
         if self.output == "rgba" and self.dim == 3:
             self._pack(self.out)
+
+    def set_brush(self, centre_px: tuple[float, float] | None, radius_px: float = 0.0) -> None:
+        """2D: outline a tool's brush over the pictures from the next render(): a ring of radius_px pixels about
+        centre_px (pixels, y up, GGUI's cursor times the picture size); None: no outline (the window's cursor).
+        Drawn into the picture: GGUI's canvas.circles cost 3 ms a frame on the 2-core machine."""
+        self.brush = None if centre_px is None else (float(centre_px[0]), float(centre_px[1]), float(radius_px))
+
+    @ti.kernel
+    def _ring_2d(self, cx: ti.f32, cy: ti.f32, r: ti.f32, out: ti.types.ndarray()):
+        """The brush outline, anti-aliased, over the composited picture. Its tiles are stamped with this frame's
+        number (compositing has moved the count on), so the next frame composites them again and wipes it."""
+        x0 = ti.max(ti.cast(ti.floor(cx - r - 2.0), ti.i32), 0)
+        x1 = ti.min(ti.cast(ti.ceil(cx + r + 2.0), ti.i32), self.width - 1)
+        y0 = ti.max(ti.cast(ti.floor(cy - r - 2.0), ti.i32), 0)
+        y1 = ti.min(ti.cast(ti.ceil(cy + r + 2.0), ti.i32), self.height - 1)
+        if x0 <= x1 and y0 <= y1:
+            self._stamp_tiles_as(x0, x1, y0, y1, self.stamp[None] - 1)
+        for px, py in ti.ndrange((x0, x1 + 1), (y0, y1 + 1)):
+            d = ti.abs((ti.Vector([px + 0.5 - cx, py + 0.5 - cy])).norm() - r)
+            a = BRUSH_OPACITY * ti.math.clamp(1.25 - d, 0.0, 1.0)
+            if a > 0.0:
+                if ti.static(self.keep_image):
+                    self.image[px, py] = self.image[px, py] * (1.0 - a) + ti.Vector(BRUSH_COLOR) * a
+                else:
+                    behind = get_pixel(out, self.height, px, py)
+                    put_pixel(out, self.height, px, py, behind * (1.0 - a) + ti.Vector(BRUSH_COLOR) * a)
 
     def _scene_in_image(self) -> bool:
         """Whether the float image holds the drawn scene (else only the 8-bit output does): what a chart dims."""
@@ -600,8 +631,12 @@ class Renderer:
     @ti.func
     def _stamp_tiles(self, x0, x1, y0, y1):
         """2D: mark the tiles of pixel box [x0, x1] x [y0, y1] as drawn in this frame."""
+        self._stamp_tiles_as(x0, x1, y0, y1, self.stamp[None])
+
+    @ti.func
+    def _stamp_tiles_as(self, x0, x1, y0, y1, stamp):
+        """2D: mark the tiles of pixel box [x0, x1] x [y0, y1] as drawn in frame number `stamp`."""
         if ti.static(self.dim == 2):
-            stamp = self.stamp[None]
             for tx in range(x0 // TILE, x1 // TILE + 1):
                 for ty in range(y0 // TILE, y1 // TILE + 1):
                     self.tile_stamp[tx, ty] = stamp

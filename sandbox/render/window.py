@@ -224,7 +224,6 @@ def run_window(
     base_dt = sim.dt
     gravity = np.asarray(sim.scene.world.gravity, dtype=float)
     g_norm = float(np.linalg.norm(gravity))
-    cursor = ti.Vector.field(2, ti.f32, shape=1)
     if sim.reorder is not None:  # sort the storage now: the sort's kernel loads before the first frame, not as a
         sim.reorder.apply()  # pause of a tenth of a second or more at its first use mid-interaction
     shown, fps, last = 0, 0.0, time.perf_counter()
@@ -307,15 +306,16 @@ def run_window(
         if sim.springs is not None and shown % STABLE_DT_EVERY == 0:  # it copies every spring to the host
             state.stable_dt = sim.stable_dt()
         clock.lap("readouts")
+        if state.tool and sim.dim == 2:  # the brush, outlined at the cursor
+            renderer.set_brush((u * cfg.width, v * cfg.height), state.radius * renderer.px_per_unit)
+        else:
+            renderer.set_brush(None)
         renderer.render()
         clock.lap("drawing")
         renderer.show_on(canvas)
         message = recorder.update(state.recording, renderer)
         if message:
             state.log.append(message)
-        if state.tool and sim.dim == 2:
-            cursor[0] = [u, v]
-            canvas.circles(cursor, radius=state.radius * renderer.px_per_unit / cfg.width, color=(0.9, 0.9, 0.9))
         now = time.perf_counter()
         fps = 0.9 * fps + 0.1 / max(now - last, 1e-6)
         last = now
