@@ -22,11 +22,15 @@ PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the ne
 # serial and fused, 8.0, 9.2, 8.3 parallel; the 10,000-particle melting block's frame (springs and heat, three times
 # the work per particle) 29.6-30.7 ms serial against 21.4-25.2 ms parallel.
 PAIR_ONLY_PARALLEL_FROM = 20_000
-# ... but from TEAM_FROM slots up to there, a pair-only scene runs many steps to a launch on every thread at once
+# ... but from TEAM_FROM to TEAM_UNTIL slots a pair-only scene runs many steps to a launch on every thread at once
 # (sandbox/team.py): W1 at 10,000 particles, `python benchmarks/team_steps.py` (medians of alternating batches of
-# 100 steps in one process): 437-691 us a step as a team of two, 745-1102 serial and fused, 619-938 parallel. At
-# 100k the team did not beat the parallel loops (8.3 against 7.7 ms, thresholds overridden in a scratch script).
+# 100 steps in one process): 437-691 us a step as a team of two, 745-1102 serial and fused, 619-938 parallel. Above,
+# a scratch script (`sandbox.bench.measure` on W1, three rounds alternating team and parallel loops, thresholds
+# overridden): 32k particles 22.2, 20.6, 16.2 M particle-steps/s as a team against 17.6, 16.2, 13.4; 100k 19.1, 13.0,
+# 13.3 against 12.4, 12.3, 11.0; 316k 13.4, 12.3, 16.6 against 13.7, 12.8, 12.5; 1M 20.6, 20.0, 18.1 against 22.2,
+# 21.7, 13.6: a gain to 100k (150k slots), a draw past it.
 TEAM_FROM = 5_000
+TEAM_UNTIL = 200_000
 # Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64
 # iterations apart ran on one thread, 256 or more apart on both), so a loop over a few heavy items (the half-list
 # pass's chunks, the renderer's screen strips) runs over items * SPREAD_STRIDE iterations instead: see spread_item.
@@ -55,7 +59,7 @@ class LoopPolicy:
         cpu = arch == "cpu"
         self.serial_light = cpu and capacity < LIGHT_PARALLEL_FROM
         self.serial_pairs = cpu and capacity < (PAIR_ONLY_PARALLEL_FROM if pair_only else PAIR_PARALLEL_FROM)
-        self.team = cpu and pair_only and threads >= 2 and TEAM_FROM <= capacity < PAIR_ONLY_PARALLEL_FROM
+        self.team = cpu and pair_only and threads >= 2 and TEAM_FROM <= capacity < TEAM_UNTIL
         if self.team:
             self.serial_pairs = False
 

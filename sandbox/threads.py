@@ -10,12 +10,14 @@ cores this process may use. Linux only; SANDBOX_PIN_THREADS=0 leaves the threads
 """
 
 import os
+import time
 
 import taichi as ti
 
 _probe_field = None
-PROBE_ATTEMPTS = 5  # rounds of probe launches to find the pool's threads (see pin_workers)
-PROBE_ROUNDS = 5_000  # steps of the probe's busy chain per item: a launch keeps each worker busy ~0.1 ms
+PROBE_ATTEMPTS = 10  # rounds of probe launches to find the pool's threads (see pin_workers)
+PROBE_ROUNDS = 300  # steps of the probe's busy chain per item: a launch keeps each worker busy ~0.1 ms
+IDLE_SECONDS = 0.003  # the pause in which threads other than the pool show themselves
 pinned: list[tuple[int, int]] = []  # (thread id, core) of the workers pinned by the last pin_workers()
 
 
@@ -53,21 +55,25 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
     cores = sorted(os.sched_getaffinity(0))
     if len(cores) < 2:
         return []
-    _probe_field = ti.field(ti.i32, shape=threads * 64)
+    _probe_field = ti.field(ti.i32, shape=threads * 1024)  # enough items that the pool shares them out evenly
     _probe(_probe_field, 1)  # compiles
     main = os.getpid()
-    # Another of Taichi's threads can stay busy for a while after the compile (on the 2-core machine, in some runs,
-    # about 0.5 ms of CPU per 8 launches for a tenth of a second), and the pool's workers, with a trivial loop,
-    # ran less than that. A probe loop that keeps each worker busy sets them apart (a quarter of a millisecond a
-    # launch); look again if they do not stand out, and otherwise do not guess.
+    # Another of Taichi's threads can stay busy for a while after a compile (on the 2-core machine, in some runs, for
+    # a tenth of a second, writing more CPU time than the workers): it runs while the pool sleeps, so the threads
+    # that ran during a short pause are left out. Look again if that does not leave the pool alone; never guess.
     for _attempt in range(PROBE_ATTEMPTS):
+        start = _cpu_ns_by_thread()
+        time.sleep(IDLE_SECONDS)
         before = _cpu_ns_by_thread()
         for _ in range(4):
             _probe(_probe_field, PROBE_ROUNDS)
         after = _cpu_ns_by_thread()
-        ran_ns = {tid: after[tid] - before.get(tid, after[tid]) for tid in after if tid != main}
-        busiest = max(ran_ns.values(), default=0)
-        ran = [tid for tid, ns in ran_ns.items() if busiest > 0 and ns >= busiest // 4]
+        busy_while_idle = {tid for tid in before if before[tid] > start.get(tid, before[tid])}
+        ran = [
+            tid
+            for tid in after
+            if tid != main and tid not in busy_while_idle and after[tid] > before.get(tid, after[tid])
+        ]
         if len(ran) == threads:
             break
     else:
