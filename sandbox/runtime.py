@@ -32,17 +32,25 @@ def _lighten_kernel_debug_info() -> None:
     if os.environ.get("SANDBOX_TAICHI_DEBUG_INFO") == "full" or not hasattr(ASTTransformerContext, "get_pos_info"):
         return
 
-    def pos_info(self, node) -> str:
-        where = f'File "{self.file}", line {node.lineno + self.lineno_offset}, in {self.func.func.__name__}:\n'
-        if not 0 < node.lineno <= len(self.src):
-            return where
-        line = self.src[node.lineno - 1].rstrip()
-        mark = ""
-        if node.lineno == getattr(node, "end_lineno", None):
-            start = self.indent + node.col_offset
-            mark = " " * start + "^" * max(1, self.indent + node.end_col_offset - start)
-        return f"{where}{line}\n{mark}\n"
+    taichis_own = ASTTransformerContext.get_pos_info
+    if getattr(taichis_own, "lightened", False):
+        return
 
+    def pos_info(self, node) -> str:
+        try:
+            where = f'File "{self.file}", line {node.lineno + self.lineno_offset}, in {self.func.func.__name__}:\n'
+            if not 0 < node.lineno <= len(self.src):
+                return where
+            line = self.src[node.lineno - 1].rstrip()
+            mark = ""
+            if node.lineno == getattr(node, "end_lineno", None):
+                start = self.indent + node.col_offset
+                mark = " " * start + "^" * max(1, self.indent + node.end_col_offset - start)
+            return f"{where}{line}\n{mark}\n"
+        except (AttributeError, TypeError):  # a Taichi whose context differs: its own formatting
+            return taichis_own(self, node)
+
+    pos_info.lightened = True
     ASTTransformerContext.get_pos_info = pos_info
 
 

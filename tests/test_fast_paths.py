@@ -330,3 +330,28 @@ def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_w
     long_way.step(30)
     assert sim.team is None and not sim.fuses_steps and sim.step_count == 30
     assert_same_states(_state(long_way), _state(sim))
+
+
+def test_kernel_errors_still_name_the_file_and_line_and_mark_the_expression():
+    """runtime.py formats Taichi's per-statement error excerpts itself (a start-up cost): a compile error still says
+    where, quotes the line and marks the expression."""
+    import taichi as ti
+
+    from sandbox import runtime
+
+    runtime.init("cpu")
+    x = ti.field(float, shape=4)
+
+    @ti.kernel
+    def broken():
+        for i in x:
+            x[i] = not_defined_anywhere + 1.0  # noqa: F821
+
+    with pytest.raises(Exception) as err:
+        broken()
+    text = str(err.value)
+    quoted = next(line for line in text.splitlines() if "not_defined_anywhere + 1.0" in line)
+    marks = text.splitlines()[text.splitlines().index(quoted) + 1]
+    assert f'File "{__file__}"' in text and "in broken" in text
+    assert marks.strip() == "^" * len("not_defined_anywhere")  # the name that is not defined
+    assert marks.index("^") == quoted.index("not_defined_anywhere")
