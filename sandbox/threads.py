@@ -42,6 +42,11 @@ def _cpu_ns_by_thread() -> dict[int, int]:
     return out
 
 
+def _ran_between(earlier: dict[int, int], later: dict[int, int]) -> set[int]:
+    """The threads whose CPU time grew from `earlier` to `later` (two _cpu_ns_by_thread() readings)."""
+    return {tid for tid, ns in later.items() if ns > earlier.get(tid, ns)}
+
+
 def pin_workers(threads: int) -> list[tuple[int, int]]:
     """Give each of Taichi's `threads` CPU worker threads a core of its own; returns (thread id, core) pairs, empty
     when nothing was pinned (not Linux, one core, one thread, disabled by SANDBOX_PIN_THREADS=0, or the workers not
@@ -68,12 +73,7 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
         for _ in range(4):
             _probe(_probe_field, PROBE_ROUNDS)
         after = _cpu_ns_by_thread()
-        busy_while_idle = {tid for tid in before if before[tid] > start.get(tid, before[tid])}
-        ran = [
-            tid
-            for tid in after
-            if tid != main and tid not in busy_while_idle and after[tid] > before.get(tid, after[tid])
-        ]
+        ran = _ran_between(before, after) - _ran_between(start, before) - {main}
         if len(ran) == threads:
             break
     else:
