@@ -1,8 +1,8 @@
-"""W1 (the periodic 2D LJ box) stepped three ways in one process, batches alternating: as a team of threads
-(sandbox/team.py), many steps to a launch on one thread (Simulation._fused_steps), and one launch per pass with
-parallel loops (the long way).
+"""W1 (the periodic 2D LJ box) or the melting block (springs, heat, a hot plate) stepped three ways in one process,
+batches alternating: as a team of threads (sandbox/team.py), many steps to a launch on one thread
+(Simulation._fused_steps), and one launch per pass with parallel loops (the long way).
 
-    python benchmarks/team_steps.py [--side 100] [--rounds 10] [--steps 100]
+    python benchmarks/team_steps.py [--scene lj_box|melting_block] [--side 100] [--rounds 10] [--steps 100]
 
 `--side`: particles per row (100: 10,000 particles). Prints the median and minimum microseconds per step of each
 way. All three share the parallel storage layout (a buffer row per chunk of particles), so their trajectories are
@@ -16,16 +16,25 @@ import time
 
 import taichi as ti
 
-from sandbox.bench import _lj_box
+from sandbox.bench import SCENES, _lj_box, melting_block_of
+from sandbox.scene import load_scene
+from sandbox.simulation import Simulation
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", choices=("lj_box", "melting_block"), default="lj_box")
     parser.add_argument("--side", type=int, default=100)
     parser.add_argument("--rounds", type=int, default=10)
     parser.add_argument("--steps", type=int, default=100)
     args = parser.parse_args()
-    ways = {name: _lj_box(args.side, "cpu") for name in ("team", "one thread", "long way")}
+
+    def build() -> Simulation:
+        if args.scene == "lj_box":
+            return _lj_box(args.side, "cpu")
+        return Simulation(load_scene(SCENES / "melting_block.toml", melting_block_of(args.side)))
+
+    ways = {name: build() for name in ("team", "one thread", "long way")}
     if ways["team"].team is None:
         raise SystemExit("this size does not step as a team here (see sandbox/loops.py TEAM_FROM, and threads >= 2)")
     ways["one thread"].team = None  # _run_fused falls back to _fused_steps: the same batches on the calling thread

@@ -206,13 +206,20 @@ def render_cost(arch: str, repeats: int) -> dict:
     }
 
 
-INTERACTIVE_BLOCK = [  # the melting block at 100 x 100 = 10,000 particles, in a domain to match
-    "world.hi=[200.0, 120.0]",
-    "bodies.0.lo=[50.0, 0.0]",
-    "bodies.0.hi=[150.0, 100.0]",
-    "heat.sources.0.lo=[40.0, 0.0]",
-    "heat.sources.0.hi=[160.0, 0.5]",
-]
+def melting_block_of(side: int) -> list[str]:
+    """Overrides of scenes/melting_block.toml for a side x side block (side^2 particles) in a domain to match, the
+    hot plate reaching 10 past each side."""
+    left = side // 2
+    return [
+        f"world.hi=[{2.0 * side}, {1.2 * side}]",
+        f"bodies.0.lo=[{float(left)}, 0.0]",
+        f"bodies.0.hi=[{float(left + side)}, {float(side)}]",
+        f"heat.sources.0.lo=[{left - 10.0}, 0.0]",
+        f"heat.sources.0.hi=[{left + side + 10.0}, 0.5]",
+    ]
+
+
+INTERACTIVE_BLOCK = melting_block_of(100)  # the melting block at 100 x 100 = 10,000 particles
 
 
 def interactive_frame(arch: str, repeats: int) -> dict:

@@ -22,13 +22,16 @@ PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the ne
 # serial and fused, 8.0, 9.2, 8.3 parallel; the 10,000-particle melting block's frame (springs and heat, three times
 # the work per particle) 29.6-30.7 ms serial against 21.4-25.2 ms parallel.
 PAIR_ONLY_PARALLEL_FROM = 20_000
-# ... but from TEAM_FROM to TEAM_UNTIL slots a pair-only scene runs many steps to a launch on every thread at once
+# ... but from TEAM_FROM to TEAM_UNTIL slots a scene runs many steps to a launch on every thread at once
 # (sandbox/team.py): W1 at 10,000 particles, `python benchmarks/team_steps.py` (medians of alternating batches of
 # 100 steps in one process): 437-691 us a step as a team of two, 745-1102 serial and fused, 619-938 parallel. Above,
 # a scratch script (`sandbox.bench.measure` on W1, three rounds alternating team and parallel loops, thresholds
 # overridden): 32k particles 22.2, 20.6, 16.2 M particle-steps/s as a team against 17.6, 16.2, 13.4; 100k 19.1, 13.0,
 # 13.3 against 12.4, 12.3, 11.0; 316k 13.4, 12.3, 16.6 against 13.7, 12.8, 12.5; 1M 20.6, 20.0, 18.1 against 22.2,
-# 21.7, 13.6: a gain to 100k (150k slots), a draw past it.
+# 21.7, 13.6: a gain to 100k (150k slots), a draw past it. Scenes with springs and heat (the melting block at a
+# size, `/tmp` scratch script, medians of 12 alternating batches of 40 steps): 3,600 particles 0.84 ms a step as a
+# team against 0.97 serial and fused; 6,400: 1.15 against 1.40 parallel; 10,000: 2.46 against 2.82; 40,000: 7.95
+# against 8.96.
 TEAM_FROM = 5_000
 TEAM_UNTIL = 200_000
 # Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64
@@ -52,14 +55,15 @@ class LoopPolicy:
     """Put `self.loops.light()` before a per-particle loop with little work per item and `self.loops.pairs()`
     before a loop over neighbour pairs: each serializes the loop that follows it when the scene is small."""
 
-    def __init__(self, arch: str, capacity: int, pair_only: bool = False, threads: int = 1):
+    def __init__(self, arch: str, capacity: int, pair_only: bool = False, threads: int = 1, team_ok: bool = False):
         """`capacity`: particle slots; `pair_only`: no springs, no heat in the step (see PAIR_ONLY_PARALLEL_FROM);
-        `threads`: the CPU backend's worker threads. `team`: the scene's size suits team stepping (the pair loops
-        then keep their parallel layout, which the team shares, for the steps that do not run as a team)."""
+        `threads`: the CPU backend's worker threads; `team_ok`: the scene's steps can run as a team (see
+        Simulation._team_scene). `team`: they will, at this size (the pair loops then keep their parallel layout,
+        which the team shares, for the steps that do not run as a team)."""
         cpu = arch == "cpu"
         self.serial_light = cpu and capacity < LIGHT_PARALLEL_FROM
         self.serial_pairs = cpu and capacity < (PAIR_ONLY_PARALLEL_FROM if pair_only else PAIR_PARALLEL_FROM)
-        self.team = cpu and pair_only and threads >= 2 and TEAM_FROM <= capacity < TEAM_UNTIL
+        self.team = cpu and team_ok and threads >= 2 and TEAM_FROM <= capacity < TEAM_UNTIL
         if self.team:
             self.serial_pairs = False
 

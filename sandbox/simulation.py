@@ -64,6 +64,20 @@ REORDER_BATCH = 20  # most steps per fused launch when the storage is sorted int
 CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
 
 
+def host_work_between_steps(scene: Scene) -> bool:
+    """Whether `scene`'s steps need the host between them, so that they cannot run many to a launch: emitters,
+    scheduled heat sources, smoke, particles coupled to a velocity field (kinematic or drag), the implicit heat
+    solve."""
+    heat = scene.heat
+    coupled = bool(scene.fields or scene.smoke) and any(g.field != "none" for g in scene.groups)
+    return bool(
+        scene.emitters
+        or scene.smoke
+        or coupled
+        or (heat and (heat.stepper != "explicit" or any(src.schedule_times for src in heat.sources)))
+    )
+
+
 @dataclass
 class Stats:
     """Measurements of one instant (energies in scaled units; temperature in degrees)."""
@@ -120,7 +134,9 @@ class Simulation:
         self.capacity = max(self.capacity, built.count)
         pair_only = not (scene.heat or built.spring_count)
         threads = int(ti.lang.impl.current_cfg().cpu_max_num_threads) if self.arch == "cpu" else 1
-        self.loops = LoopPolicy(self.arch, self.capacity, pair_only, threads)
+        power = bool(scene.heat) and any(src.mode == "power" for src in scene.heat.sources)
+        team_ok = world.neighbor_list and not (power or host_work_between_steps(scene))  # see _team_scene
+        self.loops = LoopPolicy(self.arch, self.capacity, pair_only, threads, team_ok)
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
         # The tables and particles built here are copied to their fields in one kernel at the block's end (a copy
@@ -334,24 +350,12 @@ class Simulation:
 
     def _no_host_work(self) -> bool:
         """No work that the host does between steps (see _fusable_scene)."""
-        return (
-            not (self.heat is not None and self.heat.scheduled)
-            and self.emitters is None
-            and self.smoke is None
-            and not (self.has_kinematic or self.has_field_drag or self.has_lifetimes)
-            and self.implicit_heat is None
-        )
+        return not host_work_between_steps(self.scene)
 
     def _team_scene(self) -> bool:
-        """Whether team stepping (sandbox/team.py) can run this scene's steps: pair forces alone, from half lists,
-        and no host work between steps."""
-        return (
-            self.half_pairs
-            and self.neighbours is not None
-            and self.springs is None
-            and self.heat is None
-            and self._no_host_work()
-        )
+        """Whether team stepping (sandbox/team.py) can run this scene's steps: pair terms from half lists, no host
+        work between steps and no power sources (whose per-step mass sum the team does not share out)."""
+        return self.half_pairs and self.neighbours is not None and not self.has_power and self._no_host_work()
 
     def _fused_batch(self, n: int) -> int:
         """How many of the next n steps to run in one _fused_steps launch (0: step the long way)."""
@@ -374,14 +378,15 @@ class Simulation:
             forced = int(nb.forced)
             nb.forced, nb.fused = False, True
         ids = nb.ids if nb is not None else None
-        if self.team is not None:
-            done = self.team.run(batch, forced, self.integrator, ids, self.dt)
-            if done < 0:  # the thread pool did not start every worker: nothing ran; step the long way from now on
-                nb.forced = bool(forced)
-                self.team, self.fuses_steps = None, False
-                return 0
-        else:
-            done = int(self._fused_steps(batch, forced, self.integrator, ids, self.dt))
+        with runtime.without_cfg_pass():  # a whole step in one kernel: see the function
+            if self.team is not None:
+                done = self.team.run(batch, forced, self.integrator, ids, self.dt)
+            else:
+                done = int(self._fused_steps(batch, forced, self.integrator, ids, self.dt))
+        if done < 0:  # the team's thread pool did not start every worker: nothing ran; step the long way from now on
+            nb.forced = bool(forced)
+            self.team, self.fuses_steps = None, False
+            return 0
         self.fused_batches += 1
         if nb is not None:
             if done < batch:  # the build of step `done` overflowed: widen the lists (the next batch rebuilds them)

@@ -1,4 +1,4 @@
-"""Many steps of a pair-only scene in one launch on every CPU thread at once (a "team" of workers with barriers).
+"""Many steps of a scene in one launch on every CPU thread at once (a "team" of workers with barriers).
 
 Taichi runs only a kernel's top-level loops in parallel, so a step in parallel costs a launch of each pass and a
 wake-up of the thread pool per pass: at 10,000 particles (about 0.7 ms a step on one thread) that round trip eats
@@ -7,12 +7,13 @@ most of what the second thread brings, and the step runs many to a launch on one
 each worker runs every step over its share of the particles and waits for the others at a spin barrier between the
 passes that read what another worker wrote.
 
-A step of a pair-only scene with half neighbour lists, per worker w of W:
+A step of a scene with half neighbour lists, per worker w of W:
+  (springs only) the thermoelastic update and breaking of its share of the springs; barrier;
   (rebuild step only) worker 0 sorts the particles into cells; barrier; each builds the lists of its particles;
   barrier (all stop if some list overflowed);
-  the half-list pairs of its chunks of particles, into its chunks' buffer rows; barrier;
-  for its share of the particles in cell order: sum the rows, update the particle, and flag the next step's rebuild
-  if it has moved half the skin since the build; barrier.
+  the half-list pairs (forces and heat flows) of its chunks of particles, into its chunks' buffer rows; barrier;
+  for its share of the particles in cell order: sum the rows (and, with springs, add the spring forces; barrier),
+  update the particle, and flag the next step's rebuild if it has moved half the skin since the build; barrier.
 The trajectory is that of the parallel long way (same chunks, same rows, same sums in the same order).
 
 A worker that waits at the first barrier for longer than START_SPINS reads of the barrier gives up: the thread pool
@@ -110,6 +111,11 @@ class Team:
             done = 0
             while done < steps and self.gave_up[None] == 0:
                 parity = done % 2
+                if ti.static(sim.has_springs):
+                    span = sim.springs.span[None]
+                    for s in range(w * span // self.workers, (w + 1) * span // self.workers):
+                        sim.springs.update_one(s)  # the pair pass reads which springs live
+                    gen = self.barrier(gen, True)
                 if self.moved[parity]:
                     if w == 0:
                         grid.rebuild_loops()  # serial here: nested in the workers' loop
@@ -126,10 +132,17 @@ class Team:
                 if w == 0:
                     self.moved[1 - parity] = 0  # every worker has read moved[parity]; next step's flag
                 gen = self.barrier(gen, True)
+                if ti.static(sim.has_springs):  # a spring's force reads the other end: every force before any move
+                    for ks in range(lo, hi):
+                        sim._gather_particle(grid.sorted_ids[ks], True, ids, integrator, dt, False)
+                    gen = self.barrier(gen, True)
                 moved = 0
                 for ks in range(lo, hi):
                     i = grid.sorted_ids[ks]
-                    sim._gather_particle(i, True, ids, integrator, dt, True)
+                    if ti.static(sim.has_springs):
+                        integrator.update_particle(i, dt)
+                    else:
+                        sim._gather_particle(i, True, ids, integrator, dt, True)
                     if nb.moved_far(i):
                         moved = 1
                 if moved:

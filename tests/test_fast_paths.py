@@ -257,8 +257,12 @@ def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
     assert not Simulation(load_scene(SCENES / "fireworks.toml")).fuses_steps  # emitters act between steps
     from sandbox.bench import INTERACTIVE_BLOCK
 
-    big = Simulation(load_scene(SCENES / "melting_block.toml", INTERACTIVE_BLOCK))  # 10,000 particles, springs, heat
-    assert not big.loops.serial_pairs and not big.fuses_steps  # the pair pass runs on both threads
+    # 10,000 particles, springs, heat, and a power source (its per-step mass sum is not shared out in a team)
+    power = [*INTERACTIVE_BLOCK, 'heat.sources.0.mode="power"', "heat.sources.0.power=500.0"]
+    big = Simulation(load_scene(SCENES / "melting_block.toml", power))
+    assert not big.loops.serial_pairs and not big.fuses_steps and big.team is None  # each pass on both threads
+    big.step(2)
+    assert big.fused_batches == 0 and big.step_count == 2
     rk4 = lj_box()
     rk4.set_integrator("rk4")  # four force evaluations a step: not one update
     rk4.step(3)
@@ -313,6 +317,43 @@ def test_a_team_of_threads_gives_the_trajectory_of_the_parallel_long_way(reorder
     assert (team.time, team.step_count) == (long_way.time, long_way.step_count)
     assert team.neighbours.builds == long_way.neighbours.builds > 2
     assert team.neighbours.host_builds == 0  # every build ran inside the team's launches
+
+
+def _hot_melting_block(**world) -> Simulation:
+    over = ["world.precision=f64", "heat.sources.0.temperature=400.0"] + [f"world.{k}={v}" for k, v in world.items()]
+    return Simulation(load_scene(SCENES / "melting_block.toml", over))
+
+
+def _refreezing_wax(**world) -> Simulation:
+    data = _wax_refreezing_data()
+    data["world"].update(world)
+    return Simulation(make_scene(data))
+
+
+@pytest.mark.parametrize(
+    "make, refreezes", [(_hot_melting_block, False), (_refreezing_wax, True)], ids=["melting_block", "refreezing_wax"]
+)
+def test_a_team_steps_springs_and_heat_as_the_parallel_long_way_does(make, refreezes):
+    """Springs soften, break (and refreezing makes new ones between batches) and heat flows inside the team's
+    launches: bit for bit the states, springs and clock of launching each pass in parallel from the host. The room
+    for spawning (world.capacity) puts the small scenes in the team's size range."""
+    team, long_way = make(capacity=5100), make(capacity=5100)
+    if team.team is None:
+        pytest.skip("team stepping needs two or more CPU threads")
+    long_way.fuses_steps = False
+    alive_at_start = int(team.springs.alive.to_numpy().sum())
+    for n in (1, 60, 240):
+        team.step(n)
+        long_way.step(n)
+    assert team.fused_batches >= 3 and long_way.fused_batches == 0
+    assert_same_states(_state(long_way), _state(team))
+    assert np.array_equal(team.springs.factor.to_numpy(), long_way.springs.factor.to_numpy())
+    assert (team.time, team.step_count) == (long_way.time, long_way.step_count)
+    assert team.neighbours.host_builds == 0
+    if refreezes:
+        assert int(team.springs.created[None]) > team.springs.built_count + 10  # springs made between batches
+    else:
+        assert 0 < int(team.springs.alive.to_numpy().sum()) < alive_at_start  # springs broke inside the launches
 
 
 def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_way():

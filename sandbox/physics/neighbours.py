@@ -160,24 +160,9 @@ class NeighbourList:
         """Build the lists into `ids` from the grid as last sorted; sets `overflow` when some list did not fit. A
         ti.func, so the fused step (Simulation) can run it inside its own kernel."""
         self.begin_fill()
-        width = ids.shape[1]
         self.loops.pairs()
         for i in range(self.n[None]):
             self.fill_one(i, ids)
-        if ti.static(self.marks_bonds):
-            s = self.springs
-            self.loops.pairs()
-            for i in range(self.n[None]):  # each live bond of i: if the pair is in i's list (not j's), mark it
-                listed = ti.min(self.count[i], width)
-                for b in range(s.max_bonds):
-                    spring = s.bonds[i, b]
-                    if spring < 0:
-                        break
-                    if s.alive[spring]:
-                        j = s.other_end(i, spring)
-                        for k in range(listed):
-                            if ids[i, k] == j:
-                                ids[i, k] = -(spring + 1)
 
     @ti.func
     def begin_fill(self):
@@ -187,13 +172,25 @@ class NeighbourList:
 
     @ti.func
     def fill_one(self, i, ids: ti.template()):
-        """Build particle i's list into row i of `ids` (its count, its position at the build); set `overflow` when
-        it does not fit."""
+        """Build particle i's list into row i of `ids` (its count, its position at the build; bonded pairs marked);
+        set `overflow` when it does not fit."""
         c = self._visit(i, (self.reach + self.skin) ** 2, True, ids, self.half)
         self.count[i] = c
         self.x_ref[i] = self.x[i]
         if c > ids.shape[1]:
             self.overflow[None] = 1
+        if ti.static(self.marks_bonds):
+            s = self.springs
+            listed = ti.min(c, ids.shape[1])
+            for b in range(s.max_bonds):  # each live bond of i: if the pair is in i's list (not j's), mark it
+                spring = s.bonds[i, b]
+                if spring < 0:
+                    break
+                if s.alive[spring]:
+                    j = s.other_end(i, spring)
+                    for k in range(listed):
+                        if ids[i, k] == j:
+                            ids[i, k] = -(spring + 1)
 
     @ti.func
     def _visit(self, i, r2max, store: ti.template(), ids: ti.template(), half: ti.template()):
