@@ -564,6 +564,9 @@ class Simulation:
         shared = ti.Vector.zero(float, 5)
         if ti.static(self.has_pair):
             shared = self.pair.shared_coefficients()
+        t_i, c_i, mat_i = 0.0, 0.0, 0
+        if ti.static(self.has_explicit_heat):
+            t_i, c_i, mat_i = self.heat.own_terms(i)
         for k in range(self.neighbours.count[i]):
             j = ids[i, k]
             bonded = False  # joined by a live spring: no pair force (heat still flows)
@@ -580,7 +583,7 @@ class Simulation:
                 fi += fij
                 self.pair_f[t, j] = self.pair_f[t, j] - fij
             if ti.static(self.has_explicit_heat):
-                qij = ti.select(r2 < self.heat.support**2, 1.0, 0.0) * self.heat.flow(i, j, r2)
+                qij = ti.select(r2 < self.heat.support**2, 1.0, 0.0) * self.heat.flow_with(t_i, c_i, mat_i, j, r2)
                 qi += qij
                 self.pair_q[t, j] = self.pair_q[t, j] - qij
         self.pair_f[t, i] = self.pair_f[t, i] + fi

@@ -103,3 +103,41 @@ def test_only_what_the_scene_uses_is_built():
     assert not hasattr(no_heat.particles, "T")
     with pytest.raises(AttributeError):
         no_heat.temperatures()
+
+
+@pytest.mark.parametrize("half", [True, False], ids=["half_lists", "full_lists"])
+def test_heat_rates_between_two_materials_follow_the_harmonic_mean_conductance(half):
+    """Two materials of different conductivity and density side by side: every particle's enthalpy rate is the sum
+    over its neighbours of G_ij (T_j - T_i) / m_i, G_ij = 2 k_i k_j / (k_i + k_j) * W(r) * V_i V_j (V = m / density),
+    evaluated here in NumPy; the rates conserve heat (sum of m dh/dt is 0)."""
+    data = scene_dict(
+        world={"dim": 2, "lo": [0, 0], "hi": [20, 10], "dt": 0.01, "precision": "f64"},
+        heat={"ambient": 0.0, "radius": 2.5},
+        materials={
+            "poor": {"based_on": "jelly", "conductivity": 1.0, "density": 1.0},
+            "good": {"based_on": "jelly", "conductivity": 4.0, "density": 2.5},
+        },
+        bodies=[
+            {"material": "poor", "shape": "box", "lo": [2, 2], "hi": [10, 8], "springs": False},
+            {"material": "good", "shape": "box", "lo": [10, 2], "hi": [18, 8], "springs": False},
+        ],
+    )
+    sim = Simulation(make_scene(data), half_lists=half)
+    assert sim.half_pairs == half and not sim.heat.single_material
+    n = sim.built.count
+    rng = np.random.default_rng(3)
+    sim.set_temperatures(rng.uniform(0.0, 100.0, n))
+    sim.eval_rates()
+    x, t = sim.positions(), sim.temperatures()
+    mass, mat = sim.particles.mass.to_numpy()[:n], sim.particles.material.to_numpy()[:n]
+    k = sim.materials.host["conductivity"][mat]
+    volume = mass / sim.materials.host["density"][mat]
+    h = sim.heat.support
+    r = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=2)
+    w = np.where((r > 0) & (r < h), (1 - r / h) ** 3, 0.0)
+    g = 2 * k[:, None] * k[None, :] / (k[:, None] + k[None, :]) * sim.heat.norm * 40.0 / h**2 * w
+    expected = (g * volume[:, None] * volume[None, :] * (t[None, :] - t[:, None])).sum(axis=1) / mass
+    rates = sim.particles.dhdt.to_numpy()[:n]
+    assert np.abs(rates - expected).max() <= 1e-9 * np.abs(expected).max()
+    assert abs((mass * rates).sum()) <= 1e-12 * (mass * np.abs(rates)).sum()
+    assert len(set(mat)) == 2

@@ -76,6 +76,7 @@ class Heat:
         # per material 1 / density, so the per-pair conductance needs no division
         k = materials.host["conductivity"]
         k_pair = 2.0 * np.outer(k, k) / np.maximum(k[:, None] + k[None, :], 1e-30)
+        self.single_material = len(k) == 1
         self.g_pair, self.inv_density = real_fields(
             2.0 * k_pair * self.norm * 20.0 / self.support**2, 1.0 / materials.host["density"]
         )
@@ -143,7 +144,29 @@ class Heat:
     @ti.func
     def flow(self, i, j, r2):
         """Heat flow rate into i from j at squared distance r2 (< support^2)."""
-        return self.conductance(i, j, r2) * (self.p.T[j] - self.p.T[i])
+        t_i, c_i, mat_i = self.own_terms(i)
+        return self.flow_with(t_i, c_i, mat_i, j, r2)
+
+    @ti.func
+    def own_terms(self, i):
+        """What the flows into particle i read of i, for a loop over its neighbours to load once: (T_i, c_i, its
+        material), c_i being its volume m_i / density, times the pair constant and 1 / density again when every
+        particle has one material (the loop then reads only m_j, T_j and the distance of each neighbour)."""
+        mat_i = self.p.material[i]
+        c_i = self.p.mass[i] * self.inv_density[mat_i]
+        if ti.static(self.single_material):
+            c_i *= self.g_pair[0, 0] * self.inv_density[0]
+        return self.p.T[i], c_i, mat_i
+
+    @ti.func
+    def flow_with(self, t_i, c_i, mat_i, j, r2):
+        """flow(i, j, r2) from i's own_terms."""
+        w = 1.0 - ti.sqrt(r2) * self.inv_support
+        g = c_i * self.p.mass[j]
+        if ti.static(not self.single_material):
+            mat_j = self.p.material[j]
+            g *= self.g_pair[mat_i, mat_j] * self.inv_density[mat_j]
+        return g * w * w * w * (self.p.T[j] - t_i)
 
     @ti.func
     def conductance(self, i, j, r2):
