@@ -5,6 +5,7 @@ import os
 import numpy as np
 import pytest
 
+from sandbox.bench import melting_block_of
 from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
 
@@ -209,14 +210,17 @@ def assert_same_states(a: list[np.ndarray], b: list[np.ndarray]) -> None:
         assert np.array_equal(x, y)
 
 
+SMALL_BLOCK = melting_block_of(30)  # 900 particles: under the size that steps as a team (loops.py)
+
+
 @pytest.mark.parametrize(
     "make, refreezes",
     [
         (lambda: lj_box(), False),
-        (lambda: Simulation(load_scene(SCENES / "melting_block.toml", ["world.precision=f64"])), False),
+        (lambda: Simulation(load_scene(SCENES / "melting_block.toml", [*SMALL_BLOCK, "world.precision=f64"])), False),
         (_wax_refreezing_scene, True),
     ],
-    ids=["lj_box", "melting_block", "refreezing_wax"],
+    ids=["lj_box", "melting_block_900", "refreezing_wax"],
 )
 def test_many_steps_to_a_launch_give_the_trajectory_of_one_step_at_a_time(make, refreezes):
     """A small scene runs a whole batch of steps in one kernel launch (the list rebuild decided on the device):
