@@ -400,3 +400,29 @@ def test_kernel_errors_still_name_the_file_and_line_and_mark_the_expression():
     assert f'File "{__file__}"' in text and "in broken" in text
     assert marks.strip() == "^" * len("not_defined_anywhere")  # the name that is not defined
     assert marks.index("^") == quoted.index("not_defined_anywhere")
+
+
+def test_whole_step_launches_compile_without_the_cfg_pass_and_the_setting_comes_back():
+    """The team's and the fused steps' kernels compile without Taichi's CFG pass (a cold-start cost); every other
+    kernel (the renderer's, which run slower without it) keeps it, also after an error inside."""
+    import taichi as ti
+
+    from sandbox import runtime
+
+    sim = lj_box()
+    cfg = ti.lang.impl.current_cfg()
+    seen = []
+
+    class Spy:  # stands in for the team: records the setting during the launch, then declines (-1: step the long way)
+        def run(self, *args) -> int:
+            seen.append(cfg.cfg_optimization)
+            return -1
+
+    assert cfg.cfg_optimization
+    sim.team = Spy()
+    sim.step(1)
+    assert seen == [False] and cfg.cfg_optimization
+    assert sim.team is None and sim.step_count == 1
+    with pytest.raises(RuntimeError), runtime.without_cfg_pass():
+        raise RuntimeError("inside")
+    assert cfg.cfg_optimization
