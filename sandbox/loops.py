@@ -32,12 +32,11 @@ PAIR_ONLY_PARALLEL_FROM = 20_000
 # size, `/tmp` scratch script, medians of 12 alternating batches of 40 steps): 3,600 particles 0.84 ms a step as a
 # team against 0.97 serial and fused; 6,400: 1.15 against 1.40 parallel; 10,000: 2.46 against 2.82; 40,000: 7.95
 # against 8.96.
-TEAM_FROM = 5_000
-# A step with springs and heat does about three times the work per particle, and a team pays from smaller sizes (the
-# shipped melting block, the same scratch script against serial and fused steps, 12 alternating batches of 200
-# steps): 400 particles 92 us a step against 110, 900 178 against 226, 1,200 (2,224 slots) 223 against 303, 2,025
-# 477 against 649. Test-sized scenes (under 1,000 particles) keep the serial fused step.
-TEAM_FROM_WITH_SPRINGS_OR_HEAT = 2_000
+# Smaller scenes pay too (scratch scripts against the serial fused step, alternating batches, medians): the
+# melting block at 400 particles 92 us a step against 110, 900 178 against 226, 1,200 (shipped, 2,224 slots) 223
+# against 303, 2,025 477 against 649; W1 at 1,024 particles (2,048 slots) 45.9 against 70.1 us, 2,500 101.5 against
+# 173.5 (15 batches of 500 steps). Test-sized scenes (under about 1,000 particles) keep the serial fused step.
+TEAM_FROM = 2_000
 TEAM_UNTIL = 200_000
 # Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64
 # iterations apart ran on one thread, 256 or more apart on both), so a loop over a few heavy items (the half-list
@@ -68,8 +67,7 @@ class LoopPolicy:
         cpu = arch == "cpu"
         self.serial_light = cpu and capacity < LIGHT_PARALLEL_FROM
         self.serial_pairs = cpu and capacity < (PAIR_ONLY_PARALLEL_FROM if pair_only else PAIR_PARALLEL_FROM)
-        team_from = TEAM_FROM if pair_only else TEAM_FROM_WITH_SPRINGS_OR_HEAT
-        self.team = cpu and team_ok and threads >= 2 and team_from <= capacity < TEAM_UNTIL
+        self.team = cpu and team_ok and threads >= 2 and TEAM_FROM <= capacity < TEAM_UNTIL
         if self.team:
             self.serial_pairs = False
 
