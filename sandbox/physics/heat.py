@@ -161,21 +161,23 @@ class Heat:
     @ti.func
     def flow_with(self, t_i, c_i, mat_i, j, r2):
         """flow(i, j, r2) from i's own_terms."""
+        return self.conductance_with(c_i, mat_i, j, r2) * (self.p.T[j] - t_i)
+
+    @ti.func
+    def conductance(self, i, j, r2):
+        """G_ij >= 0 with flow_ij = G_ij (T_j - T_i); symmetric in i and j (to round-off)."""
+        _t_i, c_i, mat_i = self.own_terms(i)
+        return self.conductance_with(c_i, mat_i, j, r2)
+
+    @ti.func
+    def conductance_with(self, c_i, mat_i, j, r2):
+        """conductance(i, j, r2) from i's own_terms."""
         w = 1.0 - ti.sqrt(r2) * self.inv_support
         g = c_i * self.p.mass[j]
         if ti.static(not self.single_material):
             mat_j = self.p.material[j]
             g *= self.g_pair[mat_i, mat_j] * self.inv_density[mat_j]
-        return g * w * w * w * (self.p.T[j] - t_i)
-
-    @ti.func
-    def conductance(self, i, j, r2):
-        """G_ij >= 0 with flow_ij = G_ij (T_j - T_i); symmetric in i and j."""
-        w = 1.0 - ti.sqrt(r2) * self.inv_support
-        mi, mj = self.p.material[i], self.p.material[j]
-        vi = self.p.mass[i] * self.inv_density[mi]
-        vj = self.p.mass[j] * self.inv_density[mj]
-        return self.g_pair[mi, mj] * vi * vj * w * w * w
+        return g * w * w * w
 
     @ti.func
     def source_flow(self, i):
