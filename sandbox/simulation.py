@@ -78,6 +78,14 @@ def host_work_between_steps(scene: Scene) -> bool:
     )
 
 
+def can_step_as_a_team(scene: Scene) -> bool:
+    """Whether team stepping (sandbox/team.py) can run `scene`'s steps, given half neighbour lists (the CPU's): the
+    scene keeps neighbour lists, needs no host work between steps and has no power sources (whose per-step mass
+    sum the team does not share out)."""
+    power = bool(scene.heat) and any(src.mode == "power" for src in scene.heat.sources)
+    return scene.world.neighbor_list and not (power or host_work_between_steps(scene))
+
+
 @dataclass
 class Stats:
     """Measurements of one instant (energies in scaled units; temperature in degrees)."""
@@ -134,9 +142,7 @@ class Simulation:
         self.capacity = max(self.capacity, built.count)
         pair_only = not (scene.heat or built.spring_count)
         threads = int(ti.lang.impl.current_cfg().cpu_max_num_threads) if self.arch == "cpu" else 1
-        power = bool(scene.heat) and any(src.mode == "power" for src in scene.heat.sources)
-        team_ok = world.neighbor_list and not (power or host_work_between_steps(scene))  # see _team_scene
-        self.loops = LoopPolicy(self.arch, self.capacity, pair_only, threads, team_ok)
+        self.loops = LoopPolicy(self.arch, self.capacity, pair_only, threads, can_step_as_a_team(scene))
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
         # The tables and particles built here are copied to their fields in one kernel at the block's end (a copy
@@ -263,7 +269,7 @@ class Simulation:
         self._acc = ti.field(acc, shape=len(_ACC))  # indexed by _ACC
         self._count = ti.field(ti.i32, shape=len(_COUNT))  # counts for stats(), indexed by _COUNT
         self.integrator = make_integrator(world.integrator, self)
-        self.team = Team(self, threads) if self.loops.team and self._team_scene() else None
+        self.team = Team(self, threads) if self.loops.team and self.half_pairs else None  # it steps half lists
         self.fuses_steps = self._fusable_scene()
         self.fused_batches = 0  # launches of _fused_steps (or of the team) so far
         if self.emitters is not None:
@@ -351,11 +357,6 @@ class Simulation:
     def _no_host_work(self) -> bool:
         """No work that the host does between steps (see _fusable_scene)."""
         return not host_work_between_steps(self.scene)
-
-    def _team_scene(self) -> bool:
-        """Whether team stepping (sandbox/team.py) can run this scene's steps: pair terms from half lists, no host
-        work between steps and no power sources (whose per-step mass sum the team does not share out)."""
-        return self.half_pairs and self.neighbours is not None and not self.has_power and self._no_host_work()
 
     def _fused_batch(self, n: int) -> int:
         """How many of the next n steps to run in one _fused_steps launch (0: step the long way)."""

@@ -32,7 +32,8 @@ START_SPINS = 20_000_000  # reads of the barrier at the launch's first wait befo
 
 @data_oriented
 class Team:
-    """Team stepping for `sim` (a Simulation whose steps qualify: see Simulation._team_scene) on `workers` threads."""
+    """Team stepping for `sim` (a Simulation whose steps qualify: see simulation.can_step_as_a_team) on `workers`
+    threads."""
 
     def __init__(self, sim, workers: int):
         self.sim = sim
@@ -132,17 +133,18 @@ class Team:
                 if w == 0:
                     self.moved[1 - parity] = 0  # every worker has read moved[parity]; next step's flag
                 gen = self.barrier(gen, True)
-                if ti.static(sim.has_springs):  # a spring's force reads the other end: every force before any move
+                merged = ti.static(sim._updates_in_gather(True))  # not with springs: a force reads the other end
+                if ti.static(not merged):  # every force before any particle moves
                     for ks in range(lo, hi):
                         sim._gather_particle(grid.sorted_ids[ks], True, ids, integrator, dt, False)
                     gen = self.barrier(gen, True)
                 moved = 0
                 for ks in range(lo, hi):
                     i = grid.sorted_ids[ks]
-                    if ti.static(sim.has_springs):
-                        integrator.update_particle(i, dt)
-                    else:
+                    if ti.static(merged):
                         sim._gather_particle(i, True, ids, integrator, dt, True)
+                    else:
+                        integrator.update_particle(i, dt)
                     if nb.moved_far(i):
                         moved = 1
                 if moved:
