@@ -277,34 +277,26 @@ def interactive_frame(arch: str, repeats: int) -> dict:
 
 
 def launches_per_step(factory, arch: str, steps: int = 200) -> dict:
-    """Kernel launches per step (host reads of fields included) of the simulation `factory(arch)` builds, counted
-    by Taichi's kernel profiler over `steps` steps after a warm-up, and how many steps rebuilt the neighbour list."""
+    """Kernel launches per step (host reads and writes of field elements included) of the simulation
+    `factory(arch)` builds, counted from the host (sandbox.launch_count: Taichi's profiler crashes on Vulkan) over
+    `steps` steps after a warm-up, the kernels that made them, and how many steps rebuilt the neighbour list."""
     import taichi as ti
-    from taichi.profiler.kernel_profiler import get_default_kernel_profiler
 
     from . import runtime
+    from .launch_count import count_launches
 
     runtime.reset()
-    runtime.init(arch, "f32", profile=True)
     sim = factory(arch)
     sim.step(20)
     ti.sync()
-    ti.profiler.clear_kernel_profiler_info()
     builds = sim.neighbours.builds if sim.neighbours is not None else 0
-    sim.step(steps)
-    ti.sync()
-    profiler = get_default_kernel_profiler()
-    profiler._update_records()
-    profiler._count_statistics()
-    per_kernel: dict[str, int] = {}
-    for name, result in profiler._statistical_results.items():  # one entry per offloaded task of a kernel
-        kernel = name.split("_kernel_")[0]
-        per_kernel[kernel] = max(per_kernel.get(kernel, 0), result.counter)
+    with count_launches() as launches:
+        sim.step(steps)
+        ti.sync()
     rebuilt = (sim.neighbours.builds - builds) if sim.neighbours is not None else 0
-    runtime.reset()
-    runtime.init(arch, "f32", profile=False)
     return {
-        "launches_per_step": sum(per_kernel.values()) / steps,
+        "launches_per_step": launches.total / steps,
+        "per_step_by_kernel": {name: count / steps for name, count in launches.by_name.most_common()},
         "rebuild_fraction": rebuilt / steps,
         "particles": sim.built.count,
     }
