@@ -1,0 +1,39 @@
+"""The benchmark's workloads measure what they say: W2 is a steady spring lattice, W3 the same run every repeat."""
+
+import numpy as np
+
+from sandbox import bench
+
+
+def test_the_w2_lattice_holds_its_shape_under_its_own_weight():
+    """A 100-layer gel block on a plate: it sags and rebounds, but stays a block (a jelly one collapsed into a pile
+    while it was timed, its neighbour lists widening tenfold), so W2's cost does not drift with the time it runs."""
+    sim = bench._spring_heat_lattice("cpu")
+    y0 = sim.positions()[:, 1]
+    sim.step(1500)  # 3 time units: several sag-and-rebound periods
+    y = sim.positions()[:, 1]
+    assert abs(y.mean() - y0.mean()) < 0.05 * y0.mean()
+    assert y.max() > 0.95 * y0.max()
+    assert sim.neighbours.grown == 0  # no particle has gained neighbours beyond the lattice's
+    stats = sim.stats()
+    assert stats.broken_springs == 0 and stats.mean_temperature > 20.0  # heat flows in from the plate
+
+
+def test_w3_is_timed_over_the_same_run_from_the_start_every_repeat():
+    """measure_from_start resets the scene before each timed run: every run ends in the same state."""
+    sim = bench._melting_block("cpu")
+    ends = []
+    original = sim.reset
+
+    def reset_then_remember_the_last_end():
+        if sim.step_count:
+            ends.append((sim.step_count, sim.positions().copy()))
+        original()
+
+    sim.reset = reset_then_remember_the_last_end
+    res = bench.measure_from_start(sim, repeats=2)
+    ends.append((sim.step_count, sim.positions()))
+    assert res["steps_per_batch"] == 300 * 8  # the demo's frames x substeps
+    assert [count for count, _ in ends] == [2400, 2400, 2400]  # the compiling run, then each timed one
+    assert np.array_equal(ends[0][1], ends[1][1]) and np.array_equal(ends[1][1], ends[2][1])  # the same each time
+    assert sim.stats().molten_fraction > 0.8  # the run spans the melt, solid to puddle
