@@ -157,7 +157,11 @@ class Simulation:
                 self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze, lifetimes=self.has_lifetimes
             )
             self.particles.load(built, self.materials.colors, materials)
-            self.smoke = SmokeGrid(self.dim, world.lo, world.hi, scene.smoke, world.gravity) if scene.smoke else None
+            self.smoke = (
+                SmokeGrid(self.dim, world.lo, world.hi, scene.smoke, world.gravity, self.arch == "cpu")
+                if scene.smoke
+                else None
+            )
             self.fields = VelocityField(self.dim, scene.fields, self.smoke) if (scene.fields or scene.smoke) else None
             groups = scene.groups
             couplings = [g.field if self.fields is not None else "none" for g in groups]

@@ -22,17 +22,24 @@ import taichi as ti
 from ..oriented import data_oriented
 from ..solvers import CGResult, pcg
 
+# On the CPU backend a grid of up to this many cells is projected in one kernel launch on one thread (assembly, every
+# CG iteration, the gradient), instead of launching three kernels and reading three scalars back per CG iteration
+# (each launch a 20-40 us round trip through the thread pool on the 2-core machine). See project().
+ONE_LAUNCH_CELLS = 20_000
+
 
 @data_oriented
 class SmokeGrid:
     """MAC-grid smoke: face velocities, cell temperature, and a CG pressure projection."""
 
-    def __init__(self, dim: int, lo, hi, cfg, gravity):
+    def __init__(self, dim: int, lo, hi, cfg, gravity, on_cpu: bool = True):
+        """`on_cpu`: Taichi runs on the CPU backend (a small grid is then projected in one launch: ONE_LAUNCH_CELLS)."""
         self.dim = dim
         self.lo_np = np.asarray(lo, dtype=float)
         extent = np.asarray(hi, dtype=float) - self.lo_np
         self.h = float(extent.max() / cfg.resolution)
         self.res = tuple(max(2, int(math.ceil(e / self.h - 1e-9))) for e in extent)
+        self.one_launch = on_cpu and math.prod(self.res) <= ONE_LAUNCH_CELLS
         self.cfg = cfg
         g = np.asarray(gravity, dtype=float)
         self.up_axis = int(np.argmax(np.abs(g))) if np.any(g) else dim - 1
@@ -181,6 +188,12 @@ class SmokeGrid:
     # ------------------------------------------------------------------ projection
     def project(self) -> CGResult:
         """Make the face velocities discretely divergence-free (to the CG tolerance)."""
+        if self.one_launch:
+            iterations = int(self._project_in_one_launch())
+            self.divergence_before = float(self.scalars[3]) ** 0.5 / self.h**2
+            bnorm = max(float(self.scalars[3]) ** 0.5, 1e-300)
+            self.last = CGResult(iterations, float(self.scalars[2]) ** 0.5 / bnorm)
+            return self.last
         self._assemble()
         self.divergence_before = float(self.scalars[3]) ** 0.5 / self.h**2
         self.last = pcg(
@@ -225,38 +238,67 @@ class SmokeGrid:
             s += self.u[a][I + e] - self.u[a][I]
         return s / self.h
 
+    # Each CG stage per cell, shared by the host-driven kernels and the one-launch projection; each returns its
+    # cell's terms of the stage's sums.
+    @ti.func
+    def _assemble_cell(self, I):
+        """r = b - A p (warm start from the last step's pressure: the flow changes little between steps), z = M^-1 r,
+        d = z; returns (r.z, r.r, b.b) terms."""
+        b = -self.h * self.h * self.divergence(I)
+        r = b - self._laplace(self.p, I)
+        z = r / self._neighbours(I)
+        self.r[I] = r
+        self.z[I] = z
+        self.d[I] = z
+        return r * z, r * r, b * b
+
+    @ti.func
+    def _matvec_cell(self, I):
+        """ad = A d; returns the d.Ad term."""
+        ad = self._laplace(self.d, I)
+        self.ad[I] = ad
+        return self.d[I] * ad
+
+    @ti.func
+    def _update_cell(self, I, alpha):
+        """p += alpha d, r -= alpha Ad, z = M^-1 r; returns (r.z, r.r) terms."""
+        self.p[I] += alpha * self.d[I]
+        r = self.r[I] - alpha * self.ad[I]
+        z = r / self._neighbours(I)
+        self.r[I] = r
+        self.z[I] = z
+        return r * z, r * r
+
+    @ti.func
+    def _subtract_gradient_face(self, a: ti.template(), I):
+        if 0 < I[a] < self.res[a]:
+            below = I - ti.Vector.unit(self.dim, a, ti.i32)
+            self.u[a][I] -= (self.p[I] - self.p[below]) / self.h
+
     @ti.kernel
     def _assemble(self):
         for k in self.scalars:
             self.scalars[k] = 0.0
         for I in ti.grouped(self.p):
-            # warm start from the last step's pressure: r = b - A p (the flow changes little between steps)
-            b = -self.h * self.h * self.divergence(I)
-            r = b - self._laplace(self.p, I)
-            self.r[I] = r
-            self.z[I] = r / self._neighbours(I)
-            self.d[I] = self.z[I]
-            self.scalars[1] += r * self.z[I]
-            self.scalars[2] += r * r
-            self.scalars[3] += b * b
+            rz, rr, bb = self._assemble_cell(I)
+            self.scalars[1] += rz
+            self.scalars[2] += rr
+            self.scalars[3] += bb
 
     @ti.kernel
     def _matvec(self):
         self.scalars[0] = 0.0
         for I in ti.grouped(self.d):
-            self.ad[I] = self._laplace(self.d, I)
-            self.scalars[0] += self.d[I] * self.ad[I]
+            self.scalars[0] += self._matvec_cell(I)
 
     @ti.kernel
     def _update(self, alpha: ti.f64):
         self.scalars[1] = 0.0
         self.scalars[2] = 0.0
         for I in ti.grouped(self.p):
-            self.p[I] += alpha * self.d[I]
-            self.r[I] -= alpha * self.ad[I]
-            self.z[I] = self.r[I] / self._neighbours(I)
-            self.scalars[1] += self.r[I] * self.z[I]
-            self.scalars[2] += self.r[I] * self.r[I]
+            rz, rr = self._update_cell(I, alpha)
+            self.scalars[1] += rz
+            self.scalars[2] += rr
 
     @ti.kernel
     def _direction(self, beta: ti.f64):
@@ -267,9 +309,45 @@ class SmokeGrid:
     def _subtract_gradient(self):
         for a in ti.static(range(self.dim)):
             for I in ti.grouped(self.u[a]):
-                if 0 < I[a] < self.res[a]:
-                    below = I - ti.Vector.unit(self.dim, a, ti.i32)
-                    self.u[a][I] -= (self.p[I] - self.p[below]) / self.h
+                self._subtract_gradient_face(a, I)
+
+    @ti.kernel
+    def _project_in_one_launch(self) -> ti.i32:
+        """The whole projection on one thread (solvers.pcg's iteration, with the sums kept in registers): leaves
+        r.r in scalars[2] and b.b in scalars[3]; returns the CG iterations."""
+        iterations = 0
+        for _ in range(1):  # one task: the loops below are nested in it, so they run in order on its thread
+            rz, rr, bb = ti.f64(0.0), ti.f64(0.0), ti.f64(0.0)
+            for I in ti.grouped(ti.ndrange(*self.res)):
+                c_rz, c_rr, c_bb = self._assemble_cell(I)
+                rz += c_rz
+                rr += c_rr
+                bb += c_bb
+            bnorm = ti.max(ti.sqrt(bb), 1e-300)
+            while iterations < self.cfg.max_iterations and ti.sqrt(rr) > self.cfg.tolerance * bnorm:
+                p_ap = ti.f64(0.0)
+                for I in ti.grouped(ti.ndrange(*self.res)):
+                    p_ap += self._matvec_cell(I)
+                if p_ap <= 0.0:  # the search direction vanished (converged to round-off)
+                    break
+                alpha = rz / p_ap
+                rz_new = ti.f64(0.0)
+                rr = 0.0
+                for I in ti.grouped(ti.ndrange(*self.res)):
+                    c_rz, c_rr = self._update_cell(I, alpha)
+                    rz_new += c_rz
+                    rr += c_rr
+                beta = rz_new / rz if rz > 0.0 else 0.0
+                for I in ti.grouped(ti.ndrange(*self.res)):
+                    self.d[I] = self.z[I] + beta * self.d[I]
+                rz = rz_new
+                iterations += 1
+            for a in ti.static(range(self.dim)):
+                for I in ti.grouped(ti.ndrange(*self.u[a].shape)):
+                    self._subtract_gradient_face(a, I)
+            self.scalars[2] = rr
+            self.scalars[3] = bb
+        return iterations
 
     def divergence_norm(self) -> float:
         """L2 norm of the discrete divergence now (after a projection: the solver's residual / h^2)."""
