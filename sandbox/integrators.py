@@ -24,7 +24,7 @@ equation with its own stepping: explicit Euler on the rates of the step's last f
 import taichi as ti
 
 from .oriented import data_oriented
-from .solvers import pcg
+from .solvers import CGSums, pcg
 
 REGISTRY: dict[str, type] = {}
 
@@ -287,12 +287,12 @@ class ImplicitEuler(Integrator):
         dim = sim.dim
         self.block = ti.Matrix.field(dim, dim, float, shape=s)  # h D_s + h^2 K_s per spring
         self.kmat = ti.Matrix.field(dim, dim, float, shape=s)  # K_s per spring
-        self.scalars = ti.field(ti.f64, shape=4)  # p.Ap, r.z, r.r, b.b
+        self.sums = CGSums()
 
     def step(self, dt: float) -> None:
         self.sim.eval_rates()
         self._assemble(dt)
-        result = pcg(self.scalars, self._matvec, self._update, self._direction, self.tolerance, self.max_iterations)
+        result = pcg(self.sums, self._matvec, self._update, self._direction, self.tolerance, self.max_iterations)
         self.last_iterations = result.iterations
         self.total_iterations += result.iterations
         self.last_residual = result.relative_residual
@@ -313,8 +313,9 @@ class ImplicitEuler(Integrator):
 
     @ti.kernel
     def _assemble(self, h: float):
-        for k in self.scalars:
-            self.scalars[k] = 0.0
+        self.sums.rz[None] = 0.0
+        self.sums.rr[None] = 0.0
+        self.sums.bb[None] = 0.0
         if ti.static(self.has_springs):
             self.sim.loops.light()
             for s in range(self.springs.span[None]):
@@ -339,13 +340,13 @@ class ImplicitEuler(Integrator):
             self.r[i] = b
             self.z[i] = b / diag
             self.d[i] = self.z[i]
-            self.scalars[1] += b.dot(self.z[i])
-            self.scalars[2] += b.dot(b)
-            self.scalars[3] += b.dot(b)
+            self.sums.rz[None] += b.dot(self.z[i])
+            self.sums.rr[None] += b.dot(b)
+            self.sums.bb[None] += b.dot(b)
 
     @ti.kernel
     def _matvec(self):
-        self.scalars[0] = 0.0
+        self.sums.p_ap[None] = 0.0
         self.sim.loops.light()
         for i in range(self.p.n[None]):
             ap = self.p.mass[i] * self.d[i]
@@ -358,19 +359,19 @@ class ImplicitEuler(Integrator):
                         j = self.springs.other_end(i, s)
                         ap += self.block[s] @ (self.d[i] - self.d[j])
             self.Ap[i] = ap
-            self.scalars[0] += self.d[i].dot(ap)
+            self.sums.p_ap[None] += self.d[i].dot(ap)
 
     @ti.kernel
     def _update(self, alpha: ti.f64):
-        self.scalars[1] = 0.0
-        self.scalars[2] = 0.0
+        self.sums.rz[None] = 0.0
+        self.sums.rr[None] = 0.0
         self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.dv[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.Ap[i]
             self.z[i] = self.r[i] / self.diag[i]
-            self.scalars[1] += self.r[i].dot(self.z[i])
-            self.scalars[2] += self.r[i].dot(self.r[i])
+            self.sums.rz[None] += self.r[i].dot(self.z[i])
+            self.sums.rr[None] += self.r[i].dot(self.r[i])
 
     @ti.kernel
     def _direction(self, beta: ti.f64):

@@ -16,7 +16,7 @@ nonlinear backward Euler step by up to a step.
 import taichi as ti
 
 from ..oriented import data_oriented
-from ..solvers import CGResult, pcg
+from ..solvers import CGResult, CGSums, pcg
 
 
 @data_oriented
@@ -34,14 +34,14 @@ class ImplicitHeat:
         self.d = ti.field(float, shape=cap)
         self.ad = ti.field(float, shape=cap)
         self.diag = ti.field(float, shape=cap)  # C_i + h G_i + h sum_j G_ij
-        self.scalars = ti.field(ti.f64, shape=4)
+        self.sums = CGSums()
         self.last = CGResult(0, 0.0)
 
     def step(self, h: float, use_list: bool, ids) -> CGResult:
         """Advance every particle's temperature by h (positions as they are now)."""
         self._assemble(h, use_list, ids)
         self.last = pcg(
-            self.scalars,
+            self.sums,
             lambda: self._matvec(h, use_list, ids),
             self._update,
             self._direction,
@@ -85,8 +85,9 @@ class ImplicitHeat:
 
     @ti.kernel
     def _assemble(self, h: float, use_list: ti.template(), ids: ti.template()):
-        for k in self.scalars:
-            self.scalars[k] = 0.0
+        self.sums.rz[None] = 0.0
+        self.sums.rr[None] = 0.0
+        self.sums.bb[None] = 0.0
         for i in range(self.p.n[None]):
             cap = self.p.mass[i] * self.sim.materials.specific_heat[self.p.material[i]]
             g, gt = self.heat.source_terms(i)
@@ -98,30 +99,30 @@ class ImplicitHeat:
             self.z[i] = b / self.diag[i]
             self.d[i] = self.z[i]
             self.p.dhdt[i] = 0.0  # holds the accumulating dT during the solve
-            self.scalars[1] += b * self.z[i]
-            self.scalars[2] += b * b
-            self.scalars[3] += b * b
+            self.sums.rz[None] += b * self.z[i]
+            self.sums.rr[None] += b * b
+            self.sums.bb[None] += b * b
 
     @ti.kernel
     def _matvec(self, h: float, use_list: ti.template(), ids: ti.template()):
-        self.scalars[0] = 0.0
+        self.sums.p_ap[None] = 0.0
         for i in range(self.p.n[None]):
             cap = self.p.mass[i] * self.sim.materials.specific_heat[self.p.material[i]]
             g, _ = self.heat.source_terms(i)
             _, lap = self._laplacian(i, self.d, use_list, ids)
             self.ad[i] = (cap + h * g) * self.d[i] + h * lap
-            self.scalars[0] += self.d[i] * self.ad[i]
+            self.sums.p_ap[None] += self.d[i] * self.ad[i]
 
     @ti.kernel
     def _update(self, alpha: ti.f64):
-        self.scalars[1] = 0.0
-        self.scalars[2] = 0.0
+        self.sums.rz[None] = 0.0
+        self.sums.rr[None] = 0.0
         for i in range(self.p.n[None]):
             self.p.dhdt[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.ad[i]
             self.z[i] = self.r[i] / self.diag[i]
-            self.scalars[1] += self.r[i] * self.z[i]
-            self.scalars[2] += self.r[i] * self.r[i]
+            self.sums.rz[None] += self.r[i] * self.z[i]
+            self.sums.rr[None] += self.r[i] * self.r[i]
 
     @ti.kernel
     def _direction(self, beta: ti.f64):

@@ -20,12 +20,15 @@ import numpy as np
 import taichi as ti
 
 from ..oriented import data_oriented
-from ..solvers import CGResult, pcg
+from ..solvers import CGResult, CGSums, pcg
 
 # On the CPU backend a grid of up to this many cells is projected in one kernel launch on one thread (assembly, every
-# CG iteration, the gradient), instead of launching three kernels and reading three scalars back per CG iteration
-# (each launch a 20-40 us round trip through the thread pool on the 2-core machine). See project().
-ONE_LAUNCH_CELLS = 20_000
+# CG iteration, the gradient), instead of launching three kernels and reading three sums back per CG iteration
+# (each launch a 20-40 us round trip through the thread pool on the 2-core machine). smoke_vortex with
+# `smoke.resolution=N` (/tmp scratch script, ms a frame of 3 steps, three alternating runs, CG driven from the host
+# with its sums in 0-d fields): 128 x 72 cells 14.0-17.9 in one launch against 36.4-49.8; 256 x 144 84.8-103.2
+# against 111.6-139.6; 400 x 225 276-354 against 293-357, a draw.
+ONE_LAUNCH_CELLS = 50_000
 
 
 @data_oriented
@@ -58,7 +61,7 @@ class SmokeGrid:
         self.z = ti.field(float, shape=self.res)
         self.d = ti.field(float, shape=self.res)
         self.ad = ti.field(float, shape=self.res)
-        self.scalars = ti.field(ti.f64, shape=4)
+        self.sums = CGSums()
         n_src = max(len(cfg.sources), 1)
         self.src_lo = ti.Vector.field(dim, float, shape=n_src)
         self.src_hi = ti.Vector.field(dim, float, shape=n_src)
@@ -190,14 +193,14 @@ class SmokeGrid:
         """Make the face velocities discretely divergence-free (to the CG tolerance)."""
         if self.one_launch:
             iterations = int(self._project_in_one_launch())
-            self.divergence_before = float(self.scalars[3]) ** 0.5 / self.h**2
-            bnorm = max(float(self.scalars[3]) ** 0.5, 1e-300)
-            self.last = CGResult(iterations, float(self.scalars[2]) ** 0.5 / bnorm)
+            bb = float(self.sums.bb[None])
+            self.divergence_before = bb**0.5 / self.h**2
+            self.last = CGResult(iterations, float(self.sums.rr[None]) ** 0.5 / max(bb**0.5, 1e-300))
             return self.last
         self._assemble()
-        self.divergence_before = float(self.scalars[3]) ** 0.5 / self.h**2
+        self.divergence_before = float(self.sums.bb[None]) ** 0.5 / self.h**2
         self.last = pcg(
-            self.scalars,
+            self.sums,
             self._matvec,
             self._update,
             self._direction,
@@ -277,28 +280,29 @@ class SmokeGrid:
 
     @ti.kernel
     def _assemble(self):
-        for k in self.scalars:
-            self.scalars[k] = 0.0
+        self.sums.rz[None] = 0.0
+        self.sums.rr[None] = 0.0
+        self.sums.bb[None] = 0.0
         for I in ti.grouped(self.p):
             rz, rr, bb = self._assemble_cell(I)
-            self.scalars[1] += rz
-            self.scalars[2] += rr
-            self.scalars[3] += bb
+            self.sums.rz[None] += rz
+            self.sums.rr[None] += rr
+            self.sums.bb[None] += bb
 
     @ti.kernel
     def _matvec(self):
-        self.scalars[0] = 0.0
+        self.sums.p_ap[None] = 0.0
         for I in ti.grouped(self.d):
-            self.scalars[0] += self._matvec_cell(I)
+            self.sums.p_ap[None] += self._matvec_cell(I)
 
     @ti.kernel
     def _update(self, alpha: ti.f64):
-        self.scalars[1] = 0.0
-        self.scalars[2] = 0.0
+        self.sums.rz[None] = 0.0
+        self.sums.rr[None] = 0.0
         for I in ti.grouped(self.p):
             rz, rr = self._update_cell(I, alpha)
-            self.scalars[1] += rz
-            self.scalars[2] += rr
+            self.sums.rz[None] += rz
+            self.sums.rr[None] += rr
 
     @ti.kernel
     def _direction(self, beta: ti.f64):
@@ -314,7 +318,7 @@ class SmokeGrid:
     @ti.kernel
     def _project_in_one_launch(self) -> ti.i32:
         """The whole projection on one thread (solvers.pcg's iteration, with the sums kept in registers): leaves
-        r.r in scalars[2] and b.b in scalars[3]; returns the CG iterations."""
+        r.r and b.b in the sums; returns the CG iterations."""
         iterations = 0
         for _ in range(1):  # one task: the loops below are nested in it, so they run in order on its thread
             rz, rr, bb = ti.f64(0.0), ti.f64(0.0), ti.f64(0.0)
@@ -345,8 +349,8 @@ class SmokeGrid:
             for a in ti.static(range(self.dim)):
                 for I in ti.grouped(ti.ndrange(*self.u[a].shape)):
                     self._subtract_gradient_face(a, I)
-            self.scalars[2] = rr
-            self.scalars[3] = bb
+            self.sums.rr[None] = rr
+            self.sums.bb[None] = bb
         return iterations
 
     def divergence_norm(self) -> float:
