@@ -26,7 +26,7 @@ from .physics.emitters import NEVER_BONDS, Emitters
 from .physics.fields import VelocityField
 from .physics.grid import CellGrid
 from .physics.heat import Heat, lattice_correction
-from .physics.neighbours import NeighbourList
+from .physics.neighbours import LIST_ARRAY, NeighbourList, no_lists
 from .physics.pair import PairForce
 from .physics.phase import LIQUID, Phase, Refreezer
 from .physics.reorder import CellOrder
@@ -234,6 +234,7 @@ class Simulation:
             if self.grid is not None and world.neighbor_list
             else None
         )
+        self.no_lists = no_lists()  # what the step's kernels take for the lists when it does not use them
         if self.half_pairs:
             # Each worker thread takes a contiguous block of particles and writes what its pairs give to the other
             # particle into its own buffer row (no atomics, no write conflicts); the per-particle pass sums the rows.
@@ -329,7 +330,7 @@ class Simulation:
             use_list = self.neighbours is not None and self.neighbours.ensure_fresh()
             if not use_list and self.grid is not None:
                 self.grid.rebuild()
-            self.implicit_heat.step(self.dt, use_list, self.neighbours.ids if use_list else None)
+            self.implicit_heat.step(self.dt, use_list, self.neighbours.ids if use_list else self.no_lists)
             self.implicit_heat.apply()
         if self.has_kinematic:
             self._advect_kinematic(self.dt, self.time)
@@ -382,7 +383,7 @@ class Simulation:
         if nb is not None:
             forced = int(nb.forced)
             nb.forced, nb.fused = False, True
-        ids = nb.ids if nb is not None else None
+        ids = nb.ids if nb is not None else self.no_lists
         with runtime.without_cfg_pass():  # a whole step in one kernel: see the function
             if self.team is not None:
                 done = self.team.run(batch, forced, self.integrator, ids, self.dt)
@@ -406,7 +407,7 @@ class Simulation:
 
     @ti.kernel
     def _fused_steps(
-        self, steps: ti.i32, forced: ti.i32, integrator: ti.template(), ids: ti.template(), dt: float
+        self, steps: ti.i32, forced: ti.i32, integrator: ti.template(), ids: LIST_ARRAY, dt: float
     ) -> ti.i32:
         """Up to `steps` whole steps of a one-evaluation integrator in a single launch: the per-step passes, the
         neighbour-list check and rebuild decided here on the device, forces and heat rates, and the update. A
@@ -497,7 +498,7 @@ class Simulation:
                 )
         elif self.grid is not None:
             self.grid.rebuild()
-        ids = self.neighbours.ids if use_list else None
+        ids = self.neighbours.ids if use_list else self.no_lists
         if then_update is None:
             self._rates(use_list, ids)
         else:
@@ -555,7 +556,7 @@ class Simulation:
             self._half_row(t, i, ids)
 
     @ti.func
-    def _half_row(self, t, i, ids):
+    def _half_row(self, t, i, ids: ti.template()):
         """The pairs (i, j) of i's half list: i's share kept, j's (equal and opposite) written to chunk t's buffer
         row. Row t belongs to this chunk alone, so it is updated by a plain load and store: `+=` on a field would be
         an atomic compare-and-swap loop on the CPU (1.4x slower pass). Forces and heat flows are evaluated for every
@@ -596,11 +597,11 @@ class Simulation:
             self.pair_q[t, i] = self.pair_q[t, i] + qi
 
     @ti.kernel
-    def _rates(self, use_list: ti.template(), ids: ti.template()):
+    def _rates(self, use_list: ti.template(), ids: LIST_ARRAY):
         self._rate_loops(use_list, ids, None, 0.0, False)
 
     @ti.kernel
-    def _rates_update(self, use_list: ti.template(), ids: ti.template(), integrator: ti.template(), dt: float):
+    def _rates_update(self, use_list: ti.template(), ids: LIST_ARRAY, integrator: ti.template(), dt: float):
         merged = ti.static(self._updates_in_gather(use_list))
         self._rate_loops(use_list, ids, integrator, dt, merged)
         if ti.static(not merged):

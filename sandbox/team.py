@@ -26,6 +26,7 @@ import taichi as ti
 
 from .loops import SPREAD_STRIDE, spread_item
 from .oriented import data_oriented
+from .physics.neighbours import LIST_ARRAY
 
 START_SPINS = 20_000_000  # reads of the barrier at the launch's first wait before a worker gives up (~0.2-1 s)
 
@@ -73,7 +74,7 @@ class Team:
         return gen + 1
 
     @ti.kernel
-    def _steps(self, steps: ti.i32, forced: ti.i32, integrator: ti.template(), ids: ti.template(), dt: float) -> ti.i32:
+    def _steps(self, steps: ti.i32, forced: ti.i32, integrator: ti.template(), ids: LIST_ARRAY, dt: float) -> ti.i32:
         for u in range(self.workers * SPREAD_STRIDE):  # one item per thread (see spread_item)
             w = spread_item(u)
             if w >= 0:

@@ -426,3 +426,40 @@ def test_whole_step_launches_compile_without_the_cfg_pass_and_the_setting_comes_
     with pytest.raises(RuntimeError), runtime.without_cfg_pass():
         raise RuntimeError("inside")
     assert cfg.cfg_optimization
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: lj_box(),
+        lambda: Simulation(load_scene(SCENES / "melting_block.toml", [*SMALL_BLOCK, "world.precision=f64"])),
+    ],
+    ids=["lj_box", "melting_block_900"],
+)
+def test_widening_the_lists_recompiles_nothing_and_keeps_the_trajectory(make, monkeypatch):
+    """Lists that grow (an emitter or the spawn tool packing particles closer) are a new, wider array that every
+    compiled kernel takes as it is: no kernel is compiled again (it was a stall of about a second each time), and
+    the trajectory is the one the narrower lists give."""
+    from taichi.lang import kernel_impl
+
+    wide, narrow = make(), make()
+    wide.step(30)
+    narrow.step(30)
+    compiled = []
+    materialize = kernel_impl.Kernel.materialize
+
+    def materialize_and_note(self, key=None, args=None, arg_features=None):
+        if key not in self.compiled_kernels:
+            compiled.append(self.func.__qualname__)
+        return materialize(self, key, args, arg_features)
+
+    monkeypatch.setattr(kernel_impl.Kernel, "materialize", materialize_and_note)
+    width = wide.neighbours.width
+    wide.neighbours._allocate(2 * width)  # what grow() does, here without an overflow first
+    for sim in (wide, narrow):
+        sim.neighbours.invalidate()  # both rebuild now (a rebuild at another step sums the forces in another order)
+    wide.step(60)
+    narrow.step(60)
+    assert wide.neighbours.width == 2 * width and narrow.neighbours.width == width
+    assert compiled == []
+    assert_same_states(_state(wide), _state(narrow))

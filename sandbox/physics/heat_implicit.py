@@ -17,6 +17,7 @@ import taichi as ti
 
 from ..oriented import data_oriented
 from ..solvers import CGResult, CGSums, pcg
+from .neighbours import LIST_ARRAY
 
 
 @data_oriented
@@ -84,7 +85,7 @@ class ImplicitHeat:
         return gsum, lap
 
     @ti.kernel
-    def _assemble(self, h: float, use_list: ti.template(), ids: ti.template()):
+    def _assemble(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
         self.sums.rz[None] = 0.0
         self.sums.rr[None] = 0.0
         self.sums.bb[None] = 0.0
@@ -104,7 +105,7 @@ class ImplicitHeat:
             self.sums.bb[None] += b * b
 
     @ti.kernel
-    def _matvec(self, h: float, use_list: ti.template(), ids: ti.template()):
+    def _matvec(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
         self.sums.p_ap[None] = 0.0
         for i in range(self.p.n[None]):
             cap = self.p.mass[i] * self.sim.materials.specific_heat[self.p.material[i]]

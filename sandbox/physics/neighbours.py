@@ -4,8 +4,10 @@ Each particle lists every particle within reach + skin (a full list), or only th
 forward half of the cell stencil (a half list: each pair once, under one of its two particles). The list stays valid
 until some particle has moved more than skin / 2 since the build (then no pair within `reach` can be missing), or the
 particle count changes; a cheap check kernel decides each step. Lists have a width sized from the initial packing with a
-margin; when a particle gets more neighbours than fit, the lists are reallocated wider (the kernels that read them take
-the list field as a template argument, so they recompile for the new field). Past MAX_BYTES of lists (say, a thousand
+margin; when a particle gets more neighbours than fit, the lists are reallocated wider. They are a Taichi ndarray,
+which kernels take as an argument of fixed type and any shape, so widening them recompiles nothing (as a field
+passed as a template argument they did: every kernel that read them, a stall of about a second each time the candle
+scene's flame grew them, three times in its first 35 frames). Past MAX_BYTES of lists (say, a thousand
 particles crushed into one cell) the step falls back to scanning the cell grid directly: no interaction is ever dropped.
 
 Bonded pairs (half lists given `springs`): a pair joined by a live spring at the build is stored as -(s + 1), s the
@@ -21,6 +23,12 @@ import taichi as ti
 from ..oriented import data_oriented
 
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
+LIST_ARRAY = ti.types.ndarray(dtype=ti.i32, ndim=2)  # the type of the lists as a kernel argument: see the docstring
+
+
+def no_lists():
+    """A stand-in for the lists where a kernel takes them but the step does not use them (1 x 1, never read)."""
+    return ti.ndarray(ti.i32, shape=(1, 1))
 
 
 @data_oriented
@@ -54,15 +62,14 @@ class NeighbourList:
         self.fused = False  # the fused step has run: `builds` must read fused_builds
         # Sized from the widest full row even for half lists: a half row holds every neighbour ahead of i in cell
         # order, which for a particle at its cell's back corner is nearly all of them. The 1.5x margin covers a
-        # lattice melting into a denser liquid (the melting block's half rows reach 1.6x their lattice widest);
-        # growing the lists later recompiles every kernel that reads them, a stall of a second or more.
+        # lattice melting into a denser liquid (the melting block's half rows reach 1.6x their lattice widest).
         widest = int(self._sort_and_count())
         self._allocate(max(16, int(math.ceil(1.5 * widest)) + 8))
         self.grown = 0
 
     def _allocate(self, width: int) -> None:
         self.width = width
-        self.ids = ti.field(ti.i32, shape=(self.capacity, width))  # neighbour ids, first count[i] valid
+        self.ids = ti.ndarray(ti.i32, shape=(self.capacity, width))  # neighbour ids, first count[i] of row i valid
 
     def nbytes(self) -> int:
         return self.capacity * (4 * self.width + 4 + 4 * self.dim)
@@ -146,11 +153,11 @@ class NeighbourList:
         return self.widest[None]
 
     @ti.kernel
-    def _fill(self, ids: ti.template()):
+    def _fill(self, ids: LIST_ARRAY):
         self.fill_loops(ids)
 
     @ti.kernel
-    def _sort_and_fill(self, ids: ti.template()):
+    def _sort_and_fill(self, ids: LIST_ARRAY):
         """The grid's counting sort and the list build in one launch."""
         self.grid.rebuild_loops()
         self.fill_loops(ids)
@@ -197,6 +204,9 @@ class NeighbourList:
         """Count (and with `store`, write into the 2D field `ids`) the neighbours of i within sqrt(r2max); `half`:
         only those of a half row."""
         xi = self.x[i]
+        width = 0
+        if ti.static(store):
+            width = ids.shape[1]  # read once: an ndarray's shape is reloaded at every use after a store
         cell = self.grid.cell_of(xi)
         centre = self.grid.n_offsets // 2  # the offset (0, .., 0)
         first_offset = centre if ti.static(half) else 0
@@ -217,7 +227,7 @@ class NeighbourList:
                     j = self.grid.sorted_ids[k]
                     d = self.grid.x_sorted[k] - xs
                     if ti.static(store):
-                        if c < ids.shape[1]:
+                        if c < width:
                             ids[i, c] = j
                     c += ti.cast((d.dot(d) < r2max) and j != i, ti.i32)
         return c
