@@ -336,23 +336,40 @@ def launches_per_step(factory, arch: str, steps: int = 200) -> dict:
 SCALING_SIDES = (32, 64, 100, 180, 317, 562, 1000)  # W1 at about 1k, 4k, 10k, 32k, 100k, 316k and 1M particles
 
 
-def scaling(arch: str, repeats: int, out_dir: Path, sides=SCALING_SIDES) -> list[dict]:
+SCALING_ROUNDS = 5  # each size measured this many times, the sizes taken in turn; the median round is kept
+
+
+def scaling(arch: str, repeats: int, out_dir: Path, sides=SCALING_SIDES, rounds: int = SCALING_ROUNDS) -> list[dict]:
     """W1 throughput against N from 1k to 1M: writes scaling.json, scaling.csv and (with matplotlib) scaling.png in
-    out_dir; returns the rows (particles, particle-steps per second, ns per particle-step, bytes per particle)."""
+    out_dir; returns the rows (particles, particle-steps per second, ns per particle-step, bytes per particle, and
+    every round's rate). Every size is built first and measured once per round, in turn, so a change in the shared
+    machine's load falls on all sizes alike rather than on the one measured at that moment (one pass, size after
+    size, gave cost ratios of 1.73 and 1.61 on a noisy hour, the 316k point at 71-75 ns one time, 46 another; 3
+    rounds 1.57, 5 rounds 1.31 on that hour)."""
     from . import runtime
 
+    runtime.reset()
+    sims = [_lj_box(n_side, arch) for n_side in sides]  # about 0.7 GB at 1M: all alive at once
+    measured: list[list[dict]] = [[] for _ in sims]
+    for r in range(rounds):
+        for sim, results in zip(sims, measured):
+            results.append(measure(sim, repeats, target_seconds=0.3))
+        print(
+            f"  round {r + 1} of {rounds}: "
+            + ", ".join(f"{res[-1]['particle_steps_per_second'] / 1e6:.1f}" for res in measured)
+            + " M particle-steps/s",
+            flush=True,
+        )
     rows = []
-    for n_side in sides:
-        runtime.reset()
-        sim = _lj_box(n_side, arch)
-        res = measure(sim, repeats, target_seconds=0.3)
+    for sim, results in zip(sims, measured):
+        res = sorted(results, key=lambda x: x["particle_steps_per_second"])[len(results) // 2]
         memory = sim.memory_bytes()
         row = {
             "particles": res["particles"],
             "particle_steps_per_second": res["particle_steps_per_second"],
             "ns_per_particle_step": 1e9 / res["particle_steps_per_second"],
             "bytes_per_particle": sum(memory.values()) / res["particles"],
-            "spread": res["spread"],
+            "rounds": [x["particle_steps_per_second"] for x in results],
         }
         rows.append(row)
         print(
