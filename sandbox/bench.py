@@ -89,6 +89,20 @@ def _melting_block(arch: str):
     return Simulation(load_scene(SCENES / "melting_block.toml"), arch=arch)
 
 
+def _rates_of(sim, times: list[float], steps: int) -> dict:
+    """The measurement of runs of `steps` steps of `sim` that took `times` (wall seconds each): median rate."""
+    per_step = statistics.median(times) / steps
+    n = int(sim.particles.n[None])
+    return {
+        "particles": n,
+        "springs": sim.built.spring_count,
+        "steps_per_batch": steps,
+        "seconds_per_step": per_step,
+        "particle_steps_per_second": n / per_step,
+        "spread": (max(times) - min(times)) / statistics.median(times),
+    }
+
+
 def measure_from_start(sim, repeats: int) -> dict:
     """Particle-steps per second over the scene's headless run (render.frames x world.substeps steps from its
     initial state: the melting block's 2,400 steps, solid to puddle), median of `repeats` runs, each from
@@ -102,16 +116,7 @@ def measure_from_start(sim, repeats: int) -> dict:
     for _ in range(repeats):
         sim.reset()
         times.append(timed_steps(sim, steps))
-    per_step = statistics.median(times) / steps
-    n = int(sim.particles.n[None])
-    return {
-        "particles": n,
-        "springs": sim.built.spring_count,
-        "steps_per_batch": steps,
-        "seconds_per_step": per_step,
-        "particle_steps_per_second": n / per_step,
-        "spread": (max(times) - min(times)) / statistics.median(times),
-    }
+    return _rates_of(sim, times, steps)
 
 
 def measure(sim, repeats: int, target_seconds: float = 0.4) -> dict:
@@ -122,16 +127,7 @@ def measure(sim, repeats: int, target_seconds: float = 0.4) -> dict:
     probe = timed_steps(sim, 5) / 5
     steps = max(5, int(target_seconds / max(probe, 1e-6)))
     times = [timed_steps(sim, steps) for _ in range(repeats)]
-    per_step = statistics.median(times) / steps
-    n = int(sim.particles.n[None])
-    return {
-        "particles": n,
-        "springs": sim.built.spring_count,
-        "steps_per_batch": steps,
-        "seconds_per_step": per_step,
-        "particle_steps_per_second": n / per_step,
-        "spread": (max(times) - min(times)) / statistics.median(times),
-    }
+    return _rates_of(sim, times, steps)
 
 
 PEER_ROUNDS = 3  # W1 against LAMMPS: this many alternating runs of each, medians compared

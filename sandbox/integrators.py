@@ -313,9 +313,7 @@ class ImplicitEuler(Integrator):
 
     @ti.kernel
     def _assemble(self, h: float):
-        self.sums.rz[None] = 0.0
-        self.sums.rr[None] = 0.0
-        self.sums.bb[None] = 0.0
+        self.sums.clear_for_assembly()
         if ti.static(self.has_springs):
             self.sim.loops.light()
             for s in range(self.springs.span[None]):
@@ -363,8 +361,7 @@ class ImplicitEuler(Integrator):
 
     @ti.kernel
     def _update(self, alpha: ti.f64):
-        self.sums.rz[None] = 0.0
-        self.sums.rr[None] = 0.0
+        self.sums.clear_for_update()
         self.sim.loops.light()
         for i in range(self.p.n[None]):
             self.dv[i] += alpha * self.d[i]

@@ -330,7 +330,7 @@ class Simulation:
             use_list = self.neighbours is not None and self.neighbours.ensure_fresh()
             if not use_list and self.grid is not None:
                 self.grid.rebuild()
-            self.implicit_heat.step(self.dt, use_list, self.neighbours.ids if use_list else self.no_lists)
+            self.implicit_heat.step(self.dt, use_list, self._lists(use_list))
             self.implicit_heat.apply()
         if self.has_kinematic:
             self._advect_kinematic(self.dt, self.time)
@@ -363,6 +363,10 @@ class Simulation:
         """No work that the host does between steps (see _fusable_scene)."""
         return not host_work_between_steps(self.scene)
 
+    def _lists(self, use: bool):
+        """The neighbour lists to hand a kernel: the lists when the step uses them, else the 1 x 1 stand-in."""
+        return self.neighbours.ids if use else self.no_lists
+
     def _fused_batch(self, n: int) -> int:
         """How many of the next n steps to run in one _fused_steps launch (0: step the long way)."""
         if not (self.fuses_steps and self.integrator.single_update):
@@ -383,7 +387,7 @@ class Simulation:
         if nb is not None:
             forced = int(nb.forced)
             nb.forced, nb.fused = False, True
-        ids = nb.ids if nb is not None else self.no_lists
+        ids = self._lists(nb is not None)
         with runtime.without_cfg_pass():  # a whole step in one kernel: see the function
             if self.team is not None:
                 done = self.team.run(batch, forced, self.integrator, ids, self.dt)
@@ -498,7 +502,7 @@ class Simulation:
                 )
         elif self.grid is not None:
             self.grid.rebuild()
-        ids = self.neighbours.ids if use_list else self.no_lists
+        ids = self._lists(use_list)
         if then_update is None:
             self._rates(use_list, ids)
         else:

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import taichi as ti
 
+from .oriented import data_oriented
+
 
 @dataclass
 class CGResult:
@@ -18,6 +20,7 @@ class CGResult:
     relative_residual: float
 
 
+@data_oriented
 class CGSums:
     """The sums of a CG iteration, a 0-d f64 field each (kernels add with `sums.rr[None] += ...`). Taichi adds into
     a 0-d field per thread and once per thread at a parallel loop's end, where `scalars[k] += ...` on one field of
@@ -28,6 +31,19 @@ class CGSums:
         self.rz = ti.field(ti.f64, shape=())  # r . z (z = M^-1 r)
         self.rr = ti.field(ti.f64, shape=())  # r . r
         self.bb = ti.field(ti.f64, shape=())  # b . b
+
+    @ti.func
+    def clear_for_assembly(self):
+        """Before an assembly adds its r.z, r.r and b.b terms."""
+        self.rz[None] = 0.0
+        self.rr[None] = 0.0
+        self.bb[None] = 0.0
+
+    @ti.func
+    def clear_for_update(self):
+        """Before an update adds its r.z and r.r terms."""
+        self.rz[None] = 0.0
+        self.rr[None] = 0.0
 
 
 def pcg(

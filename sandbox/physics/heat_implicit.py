@@ -86,9 +86,7 @@ class ImplicitHeat:
 
     @ti.kernel
     def _assemble(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
-        self.sums.rz[None] = 0.0
-        self.sums.rr[None] = 0.0
-        self.sums.bb[None] = 0.0
+        self.sums.clear_for_assembly()
         for i in range(self.p.n[None]):
             cap = self.p.mass[i] * self.sim.materials.specific_heat[self.p.material[i]]
             g, gt = self.heat.source_terms(i)
@@ -116,8 +114,7 @@ class ImplicitHeat:
 
     @ti.kernel
     def _update(self, alpha: ti.f64):
-        self.sums.rz[None] = 0.0
-        self.sums.rr[None] = 0.0
+        self.sums.clear_for_update()
         for i in range(self.p.n[None]):
             self.p.dhdt[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.ad[i]

@@ -273,6 +273,11 @@ class SmokeGrid:
         return r * z, r * r
 
     @ti.func
+    def _direction_cell(self, I, beta):
+        """d = z + beta d."""
+        self.d[I] = self.z[I] + beta * self.d[I]
+
+    @ti.func
     def _subtract_gradient_face(self, a: ti.template(), I):
         if 0 < I[a] < self.res[a]:
             below = I - ti.Vector.unit(self.dim, a, ti.i32)
@@ -280,9 +285,7 @@ class SmokeGrid:
 
     @ti.kernel
     def _assemble(self):
-        self.sums.rz[None] = 0.0
-        self.sums.rr[None] = 0.0
-        self.sums.bb[None] = 0.0
+        self.sums.clear_for_assembly()
         for I in ti.grouped(self.p):
             rz, rr, bb = self._assemble_cell(I)
             self.sums.rz[None] += rz
@@ -297,8 +300,7 @@ class SmokeGrid:
 
     @ti.kernel
     def _update(self, alpha: ti.f64):
-        self.sums.rz[None] = 0.0
-        self.sums.rr[None] = 0.0
+        self.sums.clear_for_update()
         for I in ti.grouped(self.p):
             rz, rr = self._update_cell(I, alpha)
             self.sums.rz[None] += rz
@@ -307,7 +309,7 @@ class SmokeGrid:
     @ti.kernel
     def _direction(self, beta: ti.f64):
         for I in ti.grouped(self.d):
-            self.d[I] = self.z[I] + beta * self.d[I]
+            self._direction_cell(I, beta)
 
     @ti.kernel
     def _subtract_gradient(self):
@@ -343,7 +345,7 @@ class SmokeGrid:
                     rr += c_rr
                 beta = rz_new / rz if rz > 0.0 else 0.0
                 for I in ti.grouped(ti.ndrange(*self.res)):
-                    self.d[I] = self.z[I] + beta * self.d[I]
+                    self._direction_cell(I, beta)
                 rz = rz_new
                 iterations += 1
             for a in ti.static(range(self.dim)):
