@@ -23,8 +23,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from .resources import SCENES_DIR
+
 ROOT = Path(__file__).resolve().parent.parent
-SCENES = ROOT / "scenes"
+SCENES = SCENES_DIR
 LAMMPS_INPUT = ROOT / "benchmarks" / "lammps" / "in.lj2d"
 LAMMPS_INPUT_3D = ROOT / "benchmarks" / "lammps" / "in.lj3d"
 

@@ -7,9 +7,9 @@ import os
 import sys
 from pathlib import Path
 
+from . import __version__
 from .errors import SandboxError
-
-SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
+from .resources import shipped_scene, shipped_scenes
 
 
 def _scene_path(name: str) -> Path:
@@ -17,8 +17,7 @@ def _scene_path(name: str) -> Path:
     path = Path(name)
     if path.is_file() or path.suffix == ".toml":
         return path
-    shipped = SCENES_DIR / f"{name}.toml"
-    return shipped if shipped.exists() else path
+    return shipped_scene(name) or path
 
 
 def _load(args):
@@ -147,7 +146,7 @@ def cmd_list(args) -> int:
     from .scene import load_scene
 
     print("scenes:")
-    for path in sorted(SCENES_DIR.glob("*.toml")):
+    for path in shipped_scenes():
         scene = load_scene(path)
         print(f"  {path.stem:20s} {scene.description}")
     print("materials:")
@@ -225,6 +224,7 @@ def cmd_bench(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="sandbox", description="Taichi particle sandbox and melting-solid demo")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     def scene_args(p):
@@ -299,6 +299,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `sandbox list | head`: the reader left; nothing more to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

@@ -20,8 +20,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-ASSETS_DIR = Path(__file__).resolve().parent.parent / "assets"
-MATERIALS_FILE = ASSETS_DIR / "materials.toml"
+from .resources import ASSETS_DIR, MATERIALS_FILE  # noqa: F401 - ASSETS_DIR is re-exported for scene.py
 
 
 def _colour(c: tuple[float, ...]) -> str | None:

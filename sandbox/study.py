@@ -30,10 +30,11 @@ import numpy as np
 
 from . import runtime
 from .integrators import REGISTRY
+from .resources import SCENES_DIR
 from .scene import scene_from_dict
 from .simulation import Simulation, timed_steps
 
-STUDY_PATH = Path(__file__).resolve().parent.parent / "scenes" / "study.toml"  # names the generated scenes
+STUDY_PATH = SCENES_DIR / "study.toml"  # names the generated scenes
 INTEGRATORS = ("forward_euler", "symplectic_euler", "midpoint", "verlet", "velocity_verlet", "rk4", "implicit_euler")
 
 
@@ -379,7 +380,7 @@ def lj_cluster_runs(integrators, dts, end_time: float) -> list[Run]:
 def melting_runs(integrators, dts, end_time: float = 1.0) -> tuple[list[Run], dict]:
     from .scene import load_scene
 
-    scenes_dir = Path(__file__).resolve().parent.parent / "scenes"
+    scenes_dir = SCENES_DIR
     over = ["bodies.0.lo=[56.0, 0.0]", "bodies.0.hi=[72.0, 12.0]", "world.precision='f64'"]
 
     def build(name, dt):

@@ -1,0 +1,1 @@
+"""The shipped scenes (the repository's scenes/ folder, installed as sandbox.scenes)."""
