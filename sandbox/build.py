@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import SceneError
+from .errors import SandboxError, SceneError
 from .scene import Body, Scene
 
 LATTICE_BASIS = {
@@ -105,7 +105,12 @@ def load_mask(path: str) -> np.ndarray:
     luminance > 50%."""
     import taichi as ti
 
-    img = ti.tools.imread(path)  # (W, H, C) uint8, Taichi's convention: x first, y up
+    try:
+        img = ti.tools.imread(path)  # (W, H, C) uint8, Taichi's convention: x first, y up
+    except Exception as exc:  # a damaged PNG: Taichi raises whatever its decoder met
+        raise SandboxError(f"{path}: cannot read the mask image ({type(exc).__name__}); expected a valid PNG") from None
+    if img is None or img.ndim not in (2, 3) or min(img.shape[:2]) == 0:
+        raise SandboxError(f"{path}: cannot read the mask image; expected a valid PNG")
     if img.ndim == 2:
         return img > 127
     if img.shape[2] == 4:
@@ -126,8 +131,8 @@ def _lattice_springs(idx: np.ndarray, basis: np.ndarray, radius: float) -> tuple
         nz = [o for o in off if o != 0]
         if not nz or nz[0] < 0:
             continue  # each unordered offset once
-        if np.linalg.norm(np.asarray(off) @ basis) > radius + 1e-9:
-            continue
+        if np.linalg.norm(np.asarray(off) @ basis) > radius + 1e-9 or any(abs(k) >= n for k, n in zip(off, shape)):
+            continue  # too long, or longer than the body: no pair of its sites is this far apart
         src = tuple(slice(max(0, -k), n - max(0, k)) for k, n in zip(off, shape))
         dst = tuple(slice(max(0, k), n - max(0, -k)) for k, n in zip(off, shape))
         a, b = grid[src].ravel(), grid[dst].ravel()

@@ -7,8 +7,21 @@ import os
 import sys
 from pathlib import Path
 
-from . import __version__
-from .errors import SandboxError
+from . import __version__, runtime
+from .arguments import (
+    MAX_FPS,
+    MAX_FRAMES,
+    MAX_SIDE,
+    MAX_SUBSTEPS,
+    check_count,
+    check_file_output,
+    check_frames_output,
+    check_picture,
+    check_rate,
+    distinct_outputs,
+)
+from .errors import SandboxError, SimulationError
+from .render.video import check_output
 from .resources import shipped_scene, shipped_scenes
 
 
@@ -26,11 +39,55 @@ def _load(args):
     return load_scene(_scene_path(args.scene), args.set)
 
 
-def cmd_run(args) -> int:
-    scene = _load(args)
-    from .render.video import check_output
+EXIT_BAD_INPUT, EXIT_STOPPED, EXIT_INTERRUPTED = 2, 3, 130
 
+
+def _check_run_numbers(args) -> None:
+    """The run's numeric options, before the scene is read."""
+    check_count("--frames", args.frames, 1, MAX_FRAMES)
+    check_count("--substeps", args.substeps, 1, MAX_SUBSTEPS)
+    check_rate("--fps", args.fps, MAX_FPS)
+    check_count("--width", args.width, 16, MAX_SIDE)
+    check_count("--height", args.height, 16, MAX_SIDE)
+    if args.still_frame is not None:
+        if args.out is None or Path(args.out).suffix.lower() != ".png":
+            raise SandboxError(f"--still-frame {args.still_frame}: expected together with a .png --out")
+        check_count("--still-frame", args.still_frame, 0, MAX_FRAMES - 1)
+
+
+def _check_run_outputs(args, out: str | None) -> None:
+    """Every file the run will write: a known kind, a writable folder (created if missing), no two the same."""
+    distinct_outputs({"--out": out, "--stats": args.stats, "--screenshot": args.screenshot, "--record": args.record})
+    if out is not None:
+        check_frames_output("--out", out)
+        check_output(out)  # the packages its kind needs
+    if args.stats is not None:
+        check_file_output("--stats", args.stats)
+    if args.screenshot is not None:
+        check_file_output("--screenshot", args.screenshot, (".png",))
+    if args.record is not None:
+        check_file_output("--record", args.record, (".mp4",))
+        check_output(args.record)
+
+
+def stability_warnings(sim) -> list[str]:
+    """Steps above the stable limits of the chosen integrator (springs as built) and of explicit heat diffusion."""
+    dt, warnings = sim.scene.world.dt, []
+    if dt > sim.stable_dt_initial:
+        warnings.append(
+            f"dt {dt:g} is above the springs' stable limit {sim.stable_dt_initial:.3g} for {sim.integrator.name}"
+        )
+    if sim.heat is not None and dt > sim.heat_dt_limit():
+        warnings.append(f"dt {dt:g} is above the explicit heat limit {sim.heat_dt_limit():.3g}")
+    return warnings
+
+
+def cmd_run(args) -> int:
+    _check_run_numbers(args)
+    scene = _load(args)
     frames = args.frames or scene.render.frames
+    if args.still_frame is not None:
+        check_count("--still-frame", args.still_frame, 0, frames - 1)
     substeps = args.substeps  # None: the scene's (an integer, or "auto")
     headless = args.headless
     if not headless:
@@ -48,20 +105,26 @@ def cmd_run(args) -> int:
         except SandboxError:
             out = f"out/{scene.name}"
             print(f"imageio-ffmpeg is not installed: writing PNG frames to {out}/ instead of an MP4", file=sys.stderr)
-    if out is not None:
-        check_output(out)
+    width, height = args.width or scene.render.width, args.height or scene.render.height
+    check_picture(width, height, out)
+    _check_run_outputs(args, out)
+    runtime.require(args.arch, scene.world.precision)
     from .simulation import Simulation
 
     sim = Simulation(scene, arch=args.arch)
+    for line in stability_warnings(sim):
+        print(f"warning: {line}; expect the blow-up guard to stop the run", file=sys.stderr)
     if not headless:
-        from .render.window import run_window
+        from .render.window import WindowUnavailable, run_window
 
         try:
             run_window(sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record)
             return 0
-        except SandboxError as exc:
+        except WindowUnavailable as exc:
             print(f"{exc}: running headless", file=sys.stderr)
             out = out or f"out/{scene.name}.mp4"
+            check_picture(width, height, out)
+            _check_run_outputs(args, out)
     from .runner import run_headless
 
     print(
@@ -75,12 +138,23 @@ def cmd_run(args) -> int:
         substeps,
         out,
         args.stats,
-        width=args.width,
-        height=args.height,
+        width=width,
+        height=height,
         fps=args.fps,
         still_frame=args.still_frame,
         progress=not args.quiet,
     )
+    if result.stopped:
+        print(f"error: the blow-up guard stopped the run: {result.stopped}", file=sys.stderr)
+        if result.frames and out:
+            kept = f"kept the {result.frames} frames before it in {out}"
+            kept += f" and their measurements in {args.stats}" if args.stats else ""
+        else:
+            kept = "no frame was drawn, so no picture was written" + (
+                f"; {args.stats} holds the header only" if args.stats else ""
+            )
+        print(kept, file=sys.stderr)
+        return EXIT_STOPPED
     last = result.last
     summary = f"wrote {out} ({result.frames} frames, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
     if last is not None and sim.heat is not None:
@@ -88,12 +162,13 @@ def cmd_run(args) -> int:
     print(summary, file=sys.stderr)
     if result.interrupted:
         print("interrupted: the files written so far are complete and valid", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     return 0
 
 
 def cmd_check(args) -> int:
     scene = _load(args)
+    runtime.require(args.arch, scene.world.precision)
     from .simulation import Simulation
 
     sim = Simulation(scene, arch=args.arch)
@@ -131,12 +206,7 @@ def cmd_check(args) -> int:
         + ", ".join(f"{k} {v / 1024:.1f} KiB" for k, v in mem.items())
         + f" (total {sum(mem.values()) / 1024:.1f} KiB)"
     )
-    warnings = []
-    if w.dt > sim.stable_dt():
-        warnings.append(f"dt {w.dt:g} is above the springs' stable limit {sim.stable_dt():.3g}")
-    if sim.heat is not None and w.dt > sim.heat_dt_limit():
-        warnings.append(f"dt {w.dt:g} is above the explicit heat limit {sim.heat_dt_limit():.3g}")
-    for line in warnings:
+    for line in stability_warnings(sim):
         print(f"warning: {line}")
     return 0
 
@@ -293,9 +363,12 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("TI_LOG_LEVEL", "error")
     try:
         return args.func(args)
+    except SimulationError as exc:  # the blow-up guard, outside a headless run (the window, a check)
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_STOPPED
     except SandboxError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SceneError
-from .schema import non_negative, parse_table, positive, spec, unit_interval
+from .schema import celsius, non_negative, parse_table, positive, spec, unit_interval
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -40,12 +40,18 @@ class Material:
         1000.0, doc="spring stiffness k_s of bonds in this material (force per length)", check=positive
     )
     damping: float = spec(5.0, doc="spring damping k_d (force per speed)", check=non_negative)
-    soften_temperature: float = spec(math.inf, doc="bonds start to lose stiffness above this temperature")
-    melt_temperature: float = spec(math.inf, doc="solidus: melting starts at this temperature (inf: never melts)")
+    soften_temperature: float = spec(
+        math.inf, doc="bonds start to lose stiffness above this temperature (inf: never)", check=celsius, infinite=True
+    )
+    melt_temperature: float = spec(
+        math.inf, doc="solidus: melting starts at this temperature (inf: never melts)", check=celsius, infinite=True
+    )
     liquidus_temperature: float | None = spec(
         None,
         doc="fully liquid at this temperature (default: melt_temperature, a pure substance); the melt fraction "
         "rises linearly from the solidus to here",
+        check=celsius,
+        infinite=True,
     )
     latent_heat: float = spec(
         0.0, doc="heat per unit mass that melting absorbs and freezing releases (specific enthalpy)", check=non_negative

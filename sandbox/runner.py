@@ -11,8 +11,9 @@ from pathlib import Path
 
 import taichi as ti
 
+from .errors import SimulationError
 from .render.raster import Renderer
-from .render.video import open_writer
+from .render.video import open_writer, partial_path, publish
 from .simulation import STAT_COLUMNS, Simulation, Stats
 
 
@@ -23,6 +24,7 @@ class RunResult:
     wall_seconds: float
     last: Stats | None
     interrupted: bool = False
+    stopped: str | None = None  # the blow-up guard's message when it stopped the run
 
 
 def stats_row(frame: int, s: Stats, step_seconds: float) -> dict:
@@ -58,8 +60,10 @@ def run_headless(
     """Run `frames` frames of `substeps` steps each (None: the scene's, possibly "auto"); write frames to `out` (by
     extension) and stats to a CSV.
 
-    Ctrl-C stops the run between steps; the video and CSV written so far are closed properly and the result says
-    `interrupted`. A SimulationError (non-finite state) propagates after the files are closed.
+    Every frame is measured, and so checked by the blow-up guard, before its row and picture are written. Ctrl-C
+    stops the run between steps (the result says `interrupted`); the guard stops it with a SimulationError (the
+    result's `stopped` holds its message). Either way the video and CSV hold exactly the frames before, closed into
+    valid files under the names asked for (a video with no frame is not written).
     """
     cfg = sim.scene.render
     width, height, fps = width or cfg.width, height or cfg.height, fps or cfg.fps
@@ -67,8 +71,9 @@ def run_headless(
     writer = open_writer(out, width, height, fps, still_frame) if out is not None else None
     csv_file = None
     if stats_path is not None:
-        Path(stats_path).parent.mkdir(parents=True, exist_ok=True)
-        csv_file = open(stats_path, "w", newline="")  # noqa: SIM115 - closed in finally
+        stats_path = Path(stats_path)
+        stats_path.parent.mkdir(parents=True, exist_ok=True)
+        csv_file = open(partial_path(stats_path), "w", newline="")  # noqa: SIM115 - closed in finally
         table = csv.DictWriter(csv_file, fieldnames=STAT_COLUMNS)
         table.writeheader()
     bar = _progress(frames, progress, sim.scene.name)
@@ -76,6 +81,7 @@ def run_headless(
     last = None
     done = 0
     interrupted = False
+    stopped = None
     try:
         for frame in range(frames):
             ti.sync()
@@ -98,6 +104,8 @@ def run_headless(
                 bar.update(1)
     except KeyboardInterrupt:
         interrupted = True
+    except SimulationError as exc:
+        stopped = str(exc)
     finally:
         if bar is not None:
             bar.close()
@@ -105,5 +113,6 @@ def run_headless(
             writer.close()
         if csv_file is not None:
             csv_file.close()
+            publish(partial_path(stats_path), stats_path, keep=True)
     written = writer.frames_written if writer is not None else done
-    return RunResult(written, sim.time, time.perf_counter() - start, last, interrupted)
+    return RunResult(written, sim.time, time.perf_counter() - start, last, interrupted, stopped)

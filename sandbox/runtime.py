@@ -6,11 +6,15 @@ field allocated before (a Simulation built earlier must not be used after that).
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 import taichi as ti
+
+from .errors import SandboxError
 
 ARCHES = ("auto", "cpu", "cuda", "vulkan", "metal")
 PRECISIONS = ("f32", "f64")
@@ -74,17 +78,17 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
         return running_arch()
     _lighten_kernel_debug_info()
     fp = ti.f32 if precision == "f32" else ti.f64
-    kwargs = dict(default_fp=fp, log_level=ti.ERROR, offline_cache=True, kernel_profiler=profile)
+    kwargs = dict(default_fp=fp, offline_cache=True, kernel_profiler=profile)
+    if "TI_LOG_LEVEL" not in os.environ:  # Taichi warns when ti.init overrides the variable
+        kwargs["log_level"] = ti.ERROR
     threads = os.environ.get("SANDBOX_CPU_THREADS")
     if threads:
         kwargs["cpu_max_num_threads"] = int(threads)
     if _current is not None:
         _forget_copiers()
         ti.reset()
-    if arch == "auto":
-        ti.init(arch=ti.cuda, **kwargs)
-    else:
-        ti.init(arch=_arch_value(arch), **kwargs)
+    with contextlib.redirect_stdout(io.StringIO()):  # Taichi prints "[Taichi] Starting on arch=..." on stdout
+        ti.init(arch=ti.cuda if arch == "auto" else _arch_value(arch), **kwargs)
     _current = (arch, precision, profile)
     if running_arch() == "cpu":
         from .threads import pin_workers
@@ -128,6 +132,17 @@ def _forget_copiers() -> None:
     from . import transfer
 
     transfer.forget()
+
+
+def require(arch: str, precision: str) -> str:
+    """init(), and a SandboxError when a backend asked for by name is not available here (`auto` falls back)."""
+    running = init(arch, precision)
+    if arch != "auto" and running != arch:
+        raise SandboxError(
+            f"--arch {arch}: the {arch} backend is not available on this machine (Taichi would run on {running}); "
+            f"expected auto or {running}"
+        )
+    return running
 
 
 def running_arch() -> str:

@@ -13,9 +13,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .budget import check_size
 from .errors import SceneError
 from .materials import ASSETS_DIR, Material, resolve_materials
-from .schema import at_least, non_negative, one_of, parse_table, positive, spec, unit_interval
+from .schema import at_least, celsius, non_negative, one_of, parse_table, positive, spec, unit_interval
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -78,6 +79,11 @@ class World:
         doc="particle capacity (0: the initial count plus half again, at least 1,024, to spawn into)",
         check=at_least(0),
     )
+    max_particles: int = spec(
+        5_000_000,
+        doc="largest particle count (bodies, emitters, capacity) the scene may build; memory is checked as well",
+        check=at_least(1),
+    )
     implicit_tolerance: float = spec(1e-6, doc="implicit_euler: relative residual at which CG stops", check=positive)
     implicit_max_iterations: int = spec(200, doc="implicit_euler: CG iteration cap per step", check=at_least(1))
     neighbor_list: bool = spec(True, doc="Verlet neighbour lists (false: scan the cell grid every step)")
@@ -122,7 +128,9 @@ class HeatSource:
         "held at the temperature: a Dirichlet boundary) or power (a total heat rate shared by mass among them)",
         check=one_of(*SOURCE_MODES),
     )
-    temperature: float | None = spec(None, doc="the source's temperature (degrees); required unless mode = power")
+    temperature: float | None = spec(
+        None, doc="the source's temperature (degrees); required unless mode = power", check=celsius
+    )
     power: float = spec(0.0, doc="mode = power: total heat per unit time into the region (negative: cooling)")
     conductance: float = spec(
         20.0, doc="heat flow per degree of difference into each particle in the region", check=non_negative
@@ -142,7 +150,7 @@ class HeatSource:
 
 @dataclass(frozen=True, kw_only=True)
 class Heat:
-    ambient: float = spec(20.0, doc="ambient temperature (degrees)")
+    ambient: float = spec(20.0, doc="ambient temperature (degrees)", check=celsius)
     ambient_exchange: float = spec(
         0.0, doc="heat flow per degree between each particle and the ambient", check=non_negative
     )
@@ -202,7 +210,7 @@ class FieldCoupling:
 class SmokeSource:
     lo: tuple[float, ...] = spec(doc="lower corner of the region")
     hi: tuple[float, ...] = spec(doc="upper corner of the region")
-    temperature: float = spec(doc="cells inside are held at this temperature (degrees)")
+    temperature: float = spec(doc="cells inside are held at this temperature (degrees)", check=celsius)
     velocity: tuple[float, ...] = spec((), doc="inflow velocity imposed on the region's faces (default none)")
 
 
@@ -210,7 +218,7 @@ class SmokeSource:
 class Smoke:
     resolution: int = spec(64, doc="grid cells along the longest side of the domain", check=at_least(4))
     buoyancy: float = spec(0.5, doc="upward acceleration per degree above the ambient (against gravity)")
-    ambient: float = spec(20.0, doc="ambient temperature of the air (degrees)")
+    ambient: float = spec(20.0, doc="ambient temperature of the air (degrees)", check=celsius)
     cooling: float = spec(0.3, doc="rate at which hot air relaxes to the ambient (1/time)", check=non_negative)
     tolerance: float = spec(1e-5, doc="pressure solve: relative residual at which CG stops", check=positive)
     max_iterations: int = spec(400, doc="pressure solve: CG iteration cap per step", check=at_least(1))
@@ -240,7 +248,7 @@ class Emitter(FieldCoupling):
     count: int = spec(0, doc="particles emitted at the start", check=at_least(0))
     rate: float = spec(0.0, doc="particles per second (fractions carry over between steps)", check=non_negative)
     start: float = spec(0.0, doc="emit at the rate from this time on", check=non_negative)
-    stop: float = spec(math.inf, doc="... until this time")
+    stop: float = spec(math.inf, doc="... until this time (inf: for ever)", infinite=True)
     bursts: tuple[float, ...] = spec((), doc="times of bursts of burst_count particles each")
     burst_count: int = spec(0, doc="particles per burst", check=at_least(0))
     refill_density: float = spec(
@@ -261,7 +269,7 @@ class Emitter(FieldCoupling):
     jitter: float = spec(
         0.0, doc="random offset of each birth position (length), so particles do not stack", check=non_negative
     )
-    temperature: float | None = spec(None, doc="temperature (default: the ambient)")
+    temperature: float | None = spec(None, doc="temperature (default: the ambient)", check=celsius)
     particle_radius: float = spec(0.5, doc="radius of each particle (length); mass = density (2 r)^dim", check=positive)
     color: tuple[float, ...] = spec((), doc="colour [r, g, b] of the particles (default: the material's)")
     lifetime: float = spec(0.0, doc="seconds each particle lives (0: for ever)", check=non_negative)
@@ -290,7 +298,7 @@ class Body(FieldCoupling):
     spacing: float = spec(1.0, doc="nearest-neighbour distance of the lattice (length)", check=positive)
     springs: bool = spec(True, doc="join neighbours by springs (a solid); false: a liquid from the start")
     spring_radius: float = spec(1.5, doc="join lattice neighbours closer than this many spacings", check=at_least(1.0))
-    temperature: float | None = spec(None, doc="initial temperature (default: the ambient)")
+    temperature: float | None = spec(None, doc="initial temperature (default: the ambient)", check=celsius)
     velocity: tuple[float, ...] = spec((), doc="initial velocity")
     random_velocity: float = spec(0.0, doc="std. dev. of random initial velocity per component", check=non_negative)
     jitter: float = spec(0.0, doc="random displacement of lattice sites, as a fraction of spacing", check=unit_interval)
@@ -497,8 +505,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         _check_field(file, f"fields[{i}]", element, dim)
     if raw.smoke is not None:
         for i, src in enumerate(raw.smoke.sources):
-            _check_vec(file, f"smoke.sources[{i}].lo", src.lo, dim)
-            _check_vec(file, f"smoke.sources[{i}].hi", src.hi, dim)
+            _check_box(file, f"smoke.sources[{i}]", src.lo, src.hi, dim)
             if src.velocity:
                 _check_vec(file, f"smoke.sources[{i}].velocity", src.velocity, dim)
     bodies = [_check_body(file, f"bodies[{i}]", b, i, dim, materials, path) for i, b in enumerate(raw.bodies)]
@@ -517,6 +524,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
             raise SceneError(file, "world.periodic", f"expected every side of a periodic domain >= 3 x {reach}")
     render = raw.render
     _check_render(file, render, dim)
+    check_size(file, world, bodies, emitters, bool(raw.pair or heat), raw.smoke)
     return Scene(
         name=raw.scene.name or path.stem,
         description=raw.scene.description,
@@ -554,9 +562,16 @@ def _check_vec(file: str, key: str, vec: tuple, dim: int) -> None:
         raise SceneError(file, key, f"expected {dim} numbers (world.dim = {dim}), got {len(vec)}")
 
 
+def _check_box(file: str, key: str, lo: tuple, hi: tuple, dim: int) -> None:
+    """A region's corners: dim numbers each, and hi above lo on every axis."""
+    _check_vec(file, f"{key}.lo", lo, dim)
+    _check_vec(file, f"{key}.hi", hi, dim)
+    if any(h <= l for l, h in zip(lo, hi)):
+        raise SceneError(file, f"{key}.hi", f"expected every component above {key}.lo {list(lo)}, got {list(hi)}")
+
+
 def _check_source(file: str, key: str, src: HeatSource, dim: int) -> None:
-    _check_vec(file, f"{key}.lo", src.lo, dim)
-    _check_vec(file, f"{key}.hi", src.hi, dim)
+    _check_box(file, key, src.lo, src.hi, dim)
     if src.mode != "power" and src.temperature is None:
         raise SceneError(file, f"{key}.temperature", f"missing; expected a number (degrees) for a {src.mode} source")
     times, values = src.schedule_times, src.schedule_values
@@ -566,6 +581,11 @@ def _check_source(file: str, key: str, src: HeatSource, dim: int) -> None:
             f"{key}.schedule_values",
             f"expected as many values as schedule_times ({len(times)}), got {len(values)}",
         )
+    if src.mode != "power":
+        for k, value in enumerate(values):
+            problem = celsius(value)
+            if problem:
+                raise SceneError(file, f"{key}.schedule_values[{k}]", problem)
     if times and (times[0] != 0 or any(b <= a for a, b in zip(times, times[1:]))):
         raise SceneError(file, f"{key}.schedule_times", f"expected increasing times starting at 0, got {list(times)}")
     if src.schedule_period and times and src.schedule_period <= times[-1]:
@@ -598,12 +618,9 @@ def _check_emitter(file: str, key: str, e: Emitter, index: int, dim: int, materi
     if e.shape == "mask":
         if dim != 2:
             raise SceneError(file, f"{key}.shape", "a PNG mask shapes 2D emitters only")
-        changes["mask"] = str(resolve_data_file(file, f"{key}.mask", e.mask, path))
+        changes["mask"] = str(resolve_png(file, f"{key}.mask", e.mask, path))
     if e.shape in ("box", "mask"):
-        _check_vec(file, f"{key}.lo", e.lo, dim)
-        _check_vec(file, f"{key}.hi", e.hi, dim)
-        if any(h <= l for l, h in zip(e.lo, e.hi)):
-            raise SceneError(file, f"{key}.hi", f"expected every component above {key}.lo {list(e.lo)}")
+        _check_box(file, key, e.lo, e.hi, dim)
     else:
         _check_vec(file, f"{key}.center", e.center, dim)
     if e.shape in ("disk", "sphere"):
@@ -654,10 +671,7 @@ def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials
         raise SceneError(file, f"{key}.lattice", f"lattice {lattice!r} does not exist in {dim}D")
     changes["lattice"] = lattice
     if body.shape in ("box", "mask"):
-        _check_vec(file, f"{key}.lo", body.lo, dim)
-        _check_vec(file, f"{key}.hi", body.hi, dim)
-        if any(h <= l for l, h in zip(body.lo, body.hi)):
-            raise SceneError(file, f"{key}.hi", f"expected every component above {key}.lo {list(body.lo)}")
+        _check_box(file, key, body.lo, body.hi, dim)
     if body.shape in ("disk", "sphere"):
         want = 2 if body.shape == "disk" else 3
         if dim != want:
@@ -672,7 +686,7 @@ def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials
     if body.shape == "mask":
         if dim != 2:
             raise SceneError(file, f"{key}.shape", "a PNG mask shapes 2D bodies only")
-        changes["mask"] = str(resolve_data_file(file, f"{key}.mask", body.mask, scene_path))
+        changes["mask"] = str(resolve_png(file, f"{key}.mask", body.mask, scene_path))
     if body.velocity:
         _check_vec(file, f"{key}.velocity", body.velocity, dim)
     else:
@@ -698,6 +712,18 @@ def resolve_data_file(file: str, key: str, name: str, scene_path: Path) -> Path:
         if cand.is_file() and (cand.is_relative_to(scene_dir) or cand.is_relative_to(assets)):
             return cand
     raise SceneError(file, key, f"file {name!r} not found in the scene's folder or assets/")
+
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def resolve_png(file: str, key: str, name: str, scene_path: Path) -> Path:
+    """resolve_data_file for a PNG image: the file must start with the PNG signature."""
+    path = resolve_data_file(file, key, name, scene_path)
+    with open(path, "rb") as image:
+        if image.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
+            raise SceneError(file, key, f"{name!r} is not a PNG image; expected a .png file")
+    return path
 
 
 def _check_render(file: str, render: Render, dim: int) -> None:

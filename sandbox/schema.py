@@ -14,13 +14,17 @@ from collections.abc import Callable
 from typing import Any
 
 from .errors import SceneError
+from .guard import ABSOLUTE_ZERO
 
 Check = Callable[[Any], "str | None"]
 
 
-def spec(default: Any = dataclasses.MISSING, *, doc: str, check: Check | None = None, factory: Any = None):
-    """Declare a scene field: its default (omit for a required key), its one-line meaning and an optional check."""
-    meta = {"doc": doc, "check": check}
+def spec(
+    default: Any = dataclasses.MISSING, *, doc: str, check: Check | None = None, factory: Any = None, infinite=False
+):
+    """Declare a scene field: its default (omit for a required key), its one-line meaning, an optional check, and
+    whether a number may be infinite (`inf` in TOML: never, for ever); every other number must be finite."""
+    meta = {"doc": doc, "check": check, "infinite": infinite}
     if factory is not None:
         return dataclasses.field(default_factory=factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -36,6 +40,10 @@ def non_negative(x: float) -> str | None:
 
 def unit_interval(x: float) -> str | None:
     return None if 0 <= x <= 1 else f"expected a number in [0, 1], got {x}"
+
+
+def celsius(x: float) -> str | None:
+    return None if x >= ABSOLUTE_ZERO else f"expected a temperature >= {ABSOLUTE_ZERO} (absolute zero), got {x}"
 
 
 def one_of(*choices: str) -> Check:
@@ -150,6 +158,8 @@ def parse_table(cls: type, data: Any, file: str, key: str = "") -> Any:
         sub = _join(key, name)
         if name in data:
             value = _convert(hints[name], data[name], file, sub)
+            if isinstance(value, float) and math.isinf(value) and not f.metadata.get("infinite"):
+                raise SceneError(file, sub, f"expected a finite number, got {value}")
             check = f.metadata.get("check")
             if check is not None and value is not None:
                 problem = check(value)
@@ -165,6 +175,21 @@ def _join(key: str, name: str) -> str:
     return f"{key}.{name}" if key else name
 
 
+def toml_value(value: Any) -> str:
+    """`value` as it is written in a scene file (TOML): true, 2.5, "text", [1.0, 2.0], inf; unset (None) as ''."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, float) and math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
 def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
     """(key, default, meaning) for every field of `cls`, recursively: the reference table of scene keys."""
     rows = []
@@ -178,6 +203,11 @@ def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
         if dataclasses.is_dataclass(hint) or inner:
             rows.extend(describe(inner[0] if inner else hint, key))
             continue
-        default = "" if f.default is dataclasses.MISSING else repr(f.default)
+        if f.default is not dataclasses.MISSING:
+            default = toml_value(f.default)
+        elif f.default_factory is not dataclasses.MISSING:
+            default = toml_value(f.default_factory())
+        else:
+            default = ""  # required
         rows.append((key, default, f.metadata.get("doc", "")))
     return rows

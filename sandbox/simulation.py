@@ -15,8 +15,10 @@ import numpy as np
 import taichi as ti
 
 from . import runtime, transfer
+from .budget import emitter_population
 from .build import build_particles
 from .errors import SimulationError
+from .guard import BlowupGuard, scene_limits
 from .integrators import REGISTRY, make_integrator
 from .loops import SPREAD_STRIDE, LoopPolicy, spread_item
 from .model import ENTHALPY_LAW, MaterialTable, ParticleFields, material_column
@@ -55,8 +57,8 @@ STAT_COLUMNS = (
 
 SPRING_ARRAYS = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds")  # what refreezing changes (and `created`)
 NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
-RUNAWAY_FACTOR = 1e4  # kinetic energy above this many natural energy scales stops the run (see stats())
 _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
+_ACC.update(tcold=9, thot=10)  # the largest -T and T (degrees; 0 when none is above): the guard's temperature check
 _COUNT = {"alive": 0, "meltable": 1, "bad": 2}
 
 
@@ -281,7 +283,7 @@ class Simulation:
             self.emitters.emit_initial()
         self.time = 0.0
         self.step_count = 0
-        self._energy_scale: float | None = None
+        self.guard = BlowupGuard(scene_limits(scene, built, self.pair))
         self._last_pair_energy: float | None = None  # for stats(pair_energy=False)
         self._heat_limit = self.heat_dt_limit() if self.has_explicit_heat else math.inf
         self._initial = self.snapshot()
@@ -769,6 +771,8 @@ class Simulation:
                 count[_COUNT["bad"]][None] += 1
             if ti.static(self.has_heat):
                 acc[_ACC["tsum"]][None] += p.T[i]
+                ti.atomic_max(acc[_ACC["tcold"]][None], -p.T[i])
+                ti.atomic_max(acc[_ACC["thot"]][None], p.T[i])
                 acc[_ACC["heat"]][None] += p.mass[i] * p.h[i]
                 if self.materials.melt[p.material[i]] < 1e29:
                     count[_COUNT["meltable"]][None] += 1
@@ -828,15 +832,9 @@ class Simulation:
             acc["pair"] = self._last_pair_energy
         cnt = {k: int(cnt_values[i]) for k, i in _COUNT.items()}
         n = int(self.particles.n[None])
-        if cnt["bad"] or not all(math.isfinite(v) for v in acc.values()):
-            self._raise_blowup("non-finite state")
-        if self._energy_scale is None or self.emitters is not None:  # emitters bring new mass: grow the scale
-            self._energy_scale = max(self._energy_scale or 0.0, self._natural_energy(acc))
-        if acc["ke"] > RUNAWAY_FACTOR * self._energy_scale:
-            self._raise_blowup(
-                f"runaway kinetic energy {acc['ke']:.3g} (over {RUNAWAY_FACTOR:g} x the scene's "
-                f"natural scale {self._energy_scale:.3g})"
-            )
+        problem = self.guard.problem(acc, cnt["bad"], self.dt, self.heat is not None)
+        if problem:
+            self._raise_blowup(problem)
         return Stats(
             time=self.time,
             kinetic_energy=acc["ke"],
@@ -850,14 +848,6 @@ class Simulation:
             max_speed=acc["vmax"],
             particles=n,
         )
-
-    def _natural_energy(self, acc: dict) -> float:
-        """Energy scale of the state: its kinetic and bound energies, the work gravity can do across the
-        domain, and every particle moving at one domain length per unit time."""
-        size = float(np.max(np.asarray(self.scene.world.hi) - np.asarray(self.scene.world.lo)))
-        g = float(np.linalg.norm(self.scene.world.gravity))
-        mass = acc["mass"]
-        return acc["ke"] + abs(acc["spring"]) + abs(acc["pair"]) + mass * g * size + 0.5 * mass * size**2
 
     def _raise_blowup(self, what: str) -> None:
         n = int(self.particles.n[None])
@@ -1154,19 +1144,3 @@ def timed_steps(sim: Simulation, n: int) -> float:
     sim.step(n)
     ti.sync()
     return time.perf_counter() - t0
-
-
-def emitter_population(e) -> int:
-    """Most particles an emitter keeps alive at once (capacity planning): all it ever emits if they never die."""
-    bursts = len(e.bursts) * e.burst_count
-    if e.refill_density:
-        if e.shape == "box":
-            measure = float(np.prod(np.asarray(e.hi) - np.asarray(e.lo)))
-        else:
-            measure = math.pi * e.size**2 if e.shape == "disk" else 4 / 3 * math.pi * e.size**3
-        bursts += int(2 * e.refill_density * measure)  # the region full, and room for what flows out
-    if e.lifetime <= 0:
-        horizon = 0.0 if e.rate == 0 else (e.stop - e.start if math.isfinite(e.stop) else 600.0)
-        return int(e.count + bursts + e.rate * horizon) + 16
-    longest = e.lifetime * (1 + e.lifetime_spread)
-    return int(e.count + min(bursts, e.burst_count * (1 + longest)) + e.rate * longest * 1.1) + 16

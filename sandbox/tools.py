@@ -16,6 +16,7 @@ import numpy as np
 import taichi as ti
 
 from .errors import SandboxError
+from .guard import ABSOLUTE_ZERO
 from .model import initial_enthalpy
 from .oriented import data_oriented
 from .physics.phase import LIQUID
@@ -38,7 +39,8 @@ class Tools:
 
     # ------------------------------------------------------------------ brushes (kernels)
     def heat(self, centre, radius: float, rate: float, dt: float) -> None:
-        """Raise temperatures by up to rate * dt degrees (negative: cool) within `radius` of `centre`."""
+        """Raise temperatures by up to rate * dt degrees (negative: cool, never below absolute zero) within `radius`
+        of `centre`."""
         if self.sim.heat is None:
             raise SandboxError("this scene has no heat: the heat and cool tools are not available")
         self._at(centre)
@@ -50,8 +52,10 @@ class Tools:
         for i in range(self.p.n[None]):
             w = 1.0 - (self.p.x[i] - c).norm() / radius
             if w > 0.0:  # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
-                cap = self.sim.materials.specific_heat[self.p.material[i]]
-                self.sim.set_enthalpy(i, self.p.h[i] + cap * amount * w)
+                m = self.p.material[i]
+                cap = self.sim.materials.specific_heat[m]
+                coldest = self.sim.phase.enthalpy(ABSOLUTE_ZERO, m)
+                self.sim.set_enthalpy(i, ti.max(self.p.h[i] + cap * amount * w, coldest))
 
     def push(self, centre, radius: float, strength: float, dt: float) -> None:
         """Change velocities by strength * dt (towards the centre when positive) within the brush."""
@@ -186,7 +190,9 @@ class Tools:
     def apply(
         self, tool: str, centre, radius: float, dt: float, strength: float = 1.0, material: str | None = None
     ) -> None:
-        """Apply `tool` (one of TOOLS) for one frame of `dt` seconds: what the mouse does while held."""
+        """Apply `tool` (one of TOOLS) for one frame of `dt` seconds: what the mouse does while held. The blow-up
+        guard takes the energy and heat a tool puts in by hand as part of the scene from then on."""
+        self.sim.guard.accept_current_state()
         if tool == "heat":
             self.heat(centre, radius, 400.0 * strength, dt)
         elif tool == "cool":

@@ -1,11 +1,14 @@
 """Frame writers chosen by the output path: .mp4 (H.264, yuv420p), .gif (palette per clip), .png (one still) or a
 folder (a numbered PNG sequence). MP4 and GIF use imageio-ffmpeg, whose wheel carries its own ffmpeg binary, so no
 system ffmpeg is needed. Frames are (H, W, 3) uint8 arrays, top row first. Every writer is a context manager: on
-any exit, including Ctrl-C, what was written so far is closed into a valid file.
+any exit, including Ctrl-C, what was written so far is closed into a valid file. A video or still is written under a
+hidden partial name and renamed when it is complete, so no half-written file ever carries the name asked for; a run
+that wrote no frame leaves no file.
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +69,19 @@ class PngSequenceWriter(FrameWriter):
         write_png(self.path / f"frame_{self.frames_written:05d}.png", frame)
 
 
+def partial_path(path: Path) -> Path:
+    """The hidden name a file is written under until it is complete (the suffix kept, for ffmpeg)."""
+    return path.with_name(f".{path.stem}.partial{path.suffix}")
+
+
+def publish(partial: Path, path: Path, keep: bool) -> None:
+    """Rename a completed `partial` file to `path`, or remove it when there is nothing to keep."""
+    if keep:
+        os.replace(partial, path)
+    else:
+        partial.unlink(missing_ok=True)
+
+
 class StillWriter(FrameWriter):
     """Keeps the frame numbered `still_frame` (default: the last) and writes it as one PNG on close."""
 
@@ -80,7 +96,9 @@ class StillWriter(FrameWriter):
 
     def close(self):
         if self._kept is not None:
-            write_png(self.path, self._kept)
+            partial = partial_path(self.path)
+            write_png(partial, self._kept)
+            publish(partial, self.path, keep=True)
             self._kept = None
 
 
@@ -89,8 +107,14 @@ class FfmpegWriter(FrameWriter):
 
     def __init__(self, path: Path, width: int, height: int, fps: float):
         super().__init__(path, width, height, fps)
+        import imageio_ffmpeg  # noqa: F401 - fail here, before the run, when it is missing
+
+        self._gen = None  # ffmpeg starts with the first frame, so a run that draws none writes nothing
+
+    def _start(self):
         import imageio_ffmpeg
 
+        path, width, height, fps = self.path, self.width, self.height, self.fps
         if path.suffix.lower() == ".gif":
             kwargs = dict(
                 codec="gif",
@@ -103,17 +127,20 @@ class FfmpegWriter(FrameWriter):
         else:
             kwargs = dict(codec="libx264", pix_fmt_out="yuv420p", quality=7, output_params=["-movflags", "+faststart"])
         self._gen = imageio_ffmpeg.write_frames(
-            str(path), (width, height), fps=fps, macro_block_size=2, ffmpeg_log_level="error", **kwargs
+            str(partial_path(path)), (width, height), fps=fps, macro_block_size=2, ffmpeg_log_level="error", **kwargs
         )
         self._gen.send(None)
 
     def _write(self, frame):
+        if self._gen is None:
+            self._start()
         self._gen.send(np.ascontiguousarray(frame))
 
     def close(self):
         if self._gen is not None:
             self._gen.close()
             self._gen = None
+            publish(partial_path(self.path), self.path, keep=self.frames_written > 0)
 
 
 def check_output(path: str | Path) -> None:

@@ -48,6 +48,10 @@ HELP = [
 ]
 
 
+class WindowUnavailable(SandboxError):
+    """No window can be opened here (no display, no Vulkan driver): the CLI runs headless instead."""
+
+
 def window_unavailable_reason() -> str | None:
     """Why no window can be opened here (no display), or None when one may be tried."""
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
@@ -207,7 +211,7 @@ def run_window(
         window = ti.ui.Window(f"sandbox: {sim.scene.name}", (cfg.width, cfg.height), vsync=True, show_window=show)
     except Exception as exc:  # GGUI raises RuntimeError without Vulkan; keep the message to one line
         first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise SandboxError(f"cannot open a window: {first_line}") from None
+        raise WindowUnavailable(f"cannot open a window: {first_line}") from None
     canvas = window.get_canvas()
     output = window_output(canvas)
     renderer = Renderer(sim, cfg.width, cfg.height, cfg, output)
