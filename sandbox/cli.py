@@ -107,8 +107,8 @@ def cmd_run(args) -> int:
             print(f"imageio-ffmpeg is not installed: writing PNG frames to {out}/ instead of an MP4", file=sys.stderr)
     width, height = args.width or scene.render.width, args.height or scene.render.height
     check_picture(width, height, out)
-    _check_run_outputs(args, out)
     runtime.require(args.arch, scene.world.precision)
+    _check_run_outputs(args, out)
     from .simulation import Simulation
 
     sim = Simulation(scene, arch=args.arch)

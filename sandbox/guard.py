@@ -144,11 +144,12 @@ class BlowupGuard:
         """Widen the limits to the next measurement (after a tool put energy or heat in by hand)."""
         self._accept_next = True
 
-    def problem(self, acc: dict, bad_particles: int, dt: float, has_heat: bool) -> str | None:
-        """What is wrong with a measurement (`acc`: the sums of Simulation._measure), or None.
-        `bad_particles`: particles with a non-finite or huge coordinate; `dt`: the step (time)."""
+    def problem(self, acc: dict, bad_particles: int, dt: float, has_heat: bool) -> tuple[str, str] | None:
+        """What is wrong with a measurement (`acc`: the sums of Simulation._measure), or None: (kind, description)
+        with kind "state", "temperature" or "motion". `bad_particles`: particles with a non-finite or huge
+        coordinate; `dt`: the step (time)."""
         if bad_particles or not all(math.isfinite(v) for v in acc.values()):
-            return "non-finite state"
+            return "state", "non-finite state"
         lim = self.limits
         coldest, hottest = -acc["tcold"], acc["thot"]
         if self._accept_next:
@@ -158,22 +159,22 @@ class BlowupGuard:
                 lim.temperature_lo = min(lim.temperature_lo, coldest)
                 lim.temperature_hi = max(lim.temperature_hi, hottest)
         if has_heat and coldest < ABSOLUTE_ZERO - 1e-3:
-            return f"temperature {coldest:.4g} C, below absolute zero"
+            return "temperature", f"temperature {coldest:.4g} C, below absolute zero"
         if has_heat and lim.heat_bounded and not (lim.temperature_lo <= coldest and hottest <= lim.temperature_hi):
             worst = hottest if hottest > lim.temperature_hi else coldest
-            return (
+            return "temperature", (
                 f"runaway temperature {worst:.4g} C (the scene's temperatures allow "
                 f"{lim.temperature_lo:.4g} .. {lim.temperature_hi:.4g} C)"
             )
         travel = acc["vmax"] * dt
         if travel > lim.step_travel:
-            return (
+            return "motion", (
                 f"a particle moved {travel:.3g} in one step (speed {acc['vmax']:.3g}), more than half the domain "
                 f"({lim.step_travel:.3g})"
             )
         scale = lim.energy_scale(acc["mass"])
         if acc["ke"] > RUNAWAY_FACTOR * scale:
-            return (
+            return "motion", (
                 f"runaway kinetic energy {acc['ke']:.3g} (over {RUNAWAY_FACTOR:g} x the scene's energy scale "
                 f"{scale:.3g})"
             )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -28,10 +29,11 @@ class RunResult:
 
 
 def stats_row(frame: int, s: Stats, step_seconds: float) -> dict:
-    """One CSV row (the STAT_COLUMNS) for frame `frame`."""
+    """One CSV row (the STAT_COLUMNS) for frame `frame`; a measurement the scene does not have (the temperature of a
+    scene without heat) is left empty."""
     row = {"frame": frame, "step_seconds": step_seconds}
     row.update({k: getattr(s, k) for k in STAT_COLUMNS if k not in row})
-    return {k: (f"{v:.9g}" if isinstance(v, float) else v) for k, v in row.items()}
+    return {k: (("" if math.isnan(v) else f"{v:.9g}") if isinstance(v, float) else v) for k, v in row.items()}
 
 
 def _progress(total: int, enabled: bool, label: str):

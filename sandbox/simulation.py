@@ -834,7 +834,7 @@ class Simulation:
         n = int(self.particles.n[None])
         problem = self.guard.problem(acc, cnt["bad"], self.dt, self.heat is not None)
         if problem:
-            self._raise_blowup(problem)
+            self._raise_blowup(*problem)
         return Stats(
             time=self.time,
             kinetic_energy=acc["ke"],
@@ -849,7 +849,9 @@ class Simulation:
             particles=n,
         )
 
-    def _raise_blowup(self, what: str) -> None:
+    def _raise_blowup(self, kind: str, what: str) -> None:
+        """Raise the SimulationError for the guard's finding (`kind`: state, temperature or motion), naming the step,
+        the particle and the likeliest cause."""
         n = int(self.particles.n[None])
         x = self.particles.x.to_numpy()[:n]
         v = self.particles.v.to_numpy()[:n]
@@ -861,17 +863,28 @@ class Simulation:
                 & (np.abs(v) < 1e30).all(axis=1)
             )
         )
+        heat_limit_passed = self.has_explicit_heat and self.dt > self._heat_limit
         if len(bad):
             who = f"particle {int(bad[0])}"
+        elif kind == "temperature":
+            temps = self.particles.T.to_numpy()[:n]
+            worst = int(np.argmax(np.abs(temps - np.median(temps))))
+            who = f"particle {worst} (at {temps[worst]:.4g} C)"
         else:
             who = f"particle {int(np.argmax(np.linalg.norm(v, axis=1)))} (the fastest)"
         limit = self.stable_dt_initial
         name = self.integrator.name
-        if limit == 0.0:
+        if kind == "temperature":
+            cause = (
+                f"dt {self.dt:g} is above the explicit heat limit {self._heat_limit:.3g}"
+                if heat_limit_passed
+                else "heat flowed without bound (check the sources' power, conductivities and specific heats)"
+            )
+        elif limit == 0.0:
             cause = f"{name} is unstable on undamped springs at any step; use symplectic_euler or implicit_euler"
         elif limit < self.dt:
             cause = f"dt {self.dt:g} is above the stable limit {limit:.3g} for the stiffest spring with {name}"
-        elif self.has_explicit_heat and self.dt > self._heat_limit:
+        elif heat_limit_passed:
             cause = f"dt {self.dt:g} is above the explicit heat limit {self._heat_limit:.3g}"
         else:
             cause = "a force grew without bound (check stiffness, masses and the pair-force core)"

@@ -1,0 +1,87 @@
+"""Every bad command-line value ends in one line naming it, exit 2, no traceback, and nothing written."""
+
+import subprocess
+import sys
+
+import pytest
+
+from sandbox.cli import EXIT_BAD_INPUT, main
+from tests.conftest import ROOT
+
+RUN = ["run", "spring_lattice", "--headless", "--quiet"]
+
+
+@pytest.mark.parametrize(
+    "extra, expected",
+    [
+        (["--frames", "0"], "--frames 0: expected an integer from 1"),
+        (["--frames", "-1"], "--frames -1: expected an integer from 1"),
+        (["--substeps", "0"], "--substeps 0: expected an integer from 1"),
+        (["--substeps", "-3"], "--substeps -3: expected an integer from 1"),
+        (["--width", "0"], "--width 0: expected an integer from 16"),
+        (["--width", "-5"], "--width -5: expected an integer from 16"),
+        (["--width", "100000"], "--width 100000: expected an integer from 16 to 8,192"),
+        (["--height", "9"], "--height 9: expected an integer from 16"),
+        (["--fps", "0"], "--fps 0.0: expected a number above 0"),
+        (["--fps", "nan"], "--fps nan: expected a number above 0"),
+        (["--fps", "inf"], "--fps inf: expected a number above 0"),
+        (["--still-frame", "3"], "--still-frame 3: expected together with a .png --out"),
+        (["--still-frame", "1000", "--out", "{tmp}/s.png"], "--still-frame 1000: expected an integer from 0 to 239"),
+        (["--still-frame", "-1", "--out", "{tmp}/s.png"], "--still-frame -1: expected an integer from 0"),
+        (["--width", "101", "--out", "{tmp}/v.mp4"], "expected even numbers for .mp4 video"),
+        (["--out", "{tmp}/v.avi"], "unknown output kind '.avi'"),
+        (["--out", "/proc/x/y.mp4"], "cannot write in '/proc/x'"),
+        (["--stats", "/proc/x/s.csv"], "cannot write in '/proc/x'"),
+        (["--out", "{tmp}/file.txt/x.mp4"], "exists and is not a folder"),
+        (["--out", "{tmp}/file.txt"], "unknown output kind '.txt'"),
+        (["--out", "{tmp}/plain"], "is a file; expected a folder for PNG frames"),
+        (["--stats", "{tmp}/sub"], "is a folder; expected a file name"),
+        (["--out", "{tmp}/a.mp4", "--stats", "{tmp}/a.mp4"], "the same file as --out"),
+        (["--screenshot", "{tmp}/s.jpg"], "expected a file ending in .png"),
+        (["--set", "world.dt=-1"], "key 'world.dt': expected a number > 0"),
+        (["--set", "world.dt"], "key 'world.dt': expected key=value"),
+    ],
+)
+def test_bad_values_give_one_line_and_exit_2_writing_nothing(extra, expected, tmp_path, capsys):
+    (tmp_path / "file.txt").write_text("x")
+    (tmp_path / "plain").write_text("x")
+    (tmp_path / "sub").mkdir()
+    before = sorted(tmp_path.rglob("*"))
+    args = [a.replace("{tmp}", str(tmp_path)) for a in extra]
+    assert main(RUN + args) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    assert expected in err[0]
+    assert sorted(tmp_path.rglob("*")) == before  # nothing written, no folder made
+
+
+def test_a_missing_output_folder_is_created_before_the_run(tmp_path, capsys):
+    out = tmp_path / "new" / "deeper" / "still.png"
+    stats = tmp_path / "other" / "s.csv"
+    args = ["--frames", "1", "--width", "32", "--height", "32", "--out", str(out), "--stats", str(stats)]
+    assert main(RUN + args) == 0
+    assert out.is_file() and stats.is_file()
+    assert not list(tmp_path.rglob(".*partial*"))
+
+
+def test_the_real_command_prints_no_traceback(tmp_path):
+    """In a process of its own: an unavailable backend named explicitly, and a value argparse rejects."""
+    cases = [
+        (["--arch", "cuda", "--frames", "1"], 2, "--arch cuda: the cuda backend is not available"),
+        (["--frames", "ten"], 2, "argument --frames: invalid int value: 'ten'"),
+    ]
+    for extra, code, expected in cases:
+        done = subprocess.run(
+            [sys.executable, "-m", "sandbox", *RUN, *extra],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+        )
+        if "cuda" in extra and done.returncode == 0:
+            pytest.skip("this machine has CUDA")
+        assert done.returncode == code, done.stderr
+        assert "Traceback" not in done.stderr and expected in done.stderr
+        assert done.stdout == ""
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,106 @@
+"""The blow-up guard stops an unstable run from its first frame, with the cause named, keeping only sane frames."""
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from sandbox.cli import EXIT_STOPPED, main
+from sandbox.errors import SimulationError
+from sandbox.guard import ABSOLUTE_ZERO, RUNAWAY_FACTOR
+from sandbox.scene import load_scene
+from sandbox.simulation import Simulation
+from sandbox.tools import Tools
+from tests.conftest import SCENES, make_scene, scene_dict
+
+SMALL = ["--headless", "--quiet", "--width", "64", "--height", "48"]
+
+
+def _rows(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def test_a_blow_up_in_the_first_frames_stops_with_the_cause_and_keeps_only_the_frames_before(tmp_path, capsys):
+    frames, stats = tmp_path / "frames", tmp_path / "stats.csv"
+    args = ["run", "spring_lattice", *SMALL, "--frames", "6", "--set", "world.dt=0.05"]
+    code = main([*args, "--out", str(frames), "--stats", str(stats)])
+    err = capsys.readouterr().err
+    assert code == EXIT_STOPPED
+    warning = err.index("warning: dt 0.05 is above the springs' stable limit")
+    started = err.index("spring_lattice: 432 particles")
+    assert warning < started  # the same warning as `sandbox check`, before the run starts
+    assert "error: the blow-up guard stopped the run" in err and "above the stable limit 0.0204" in err
+    assert "at step 16" in err  # the second frame of 8 steps: the first was still drawable
+    rows = _rows(stats)
+    pictures = sorted(frames.glob("*.png"))
+    assert len(rows) == len(pictures) == 1  # exactly the frames before the stop, each with its row
+    sim = Simulation(load_scene(SCENES / "spring_lattice.toml", ["world.dt=0.05"]))
+    limit = RUNAWAY_FACTOR * sim.guard.limits.energy_scale(float(np.sum(sim.built.mass)))
+    for row in rows:
+        assert row["mean_temperature"] == row["heat_content"] == ""  # no heat in this scene: not measured
+        values = [float(v) for v in row.values() if v != ""]
+        assert all(math.isfinite(v) for v in values)
+        assert float(row["kinetic_energy"]) < limit
+
+
+def test_a_blow_up_in_the_first_frame_writes_no_video(tmp_path, capsys):
+    video, stats = tmp_path / "jelly.mp4", tmp_path / "stats.csv"
+    args = ["run", "spring_lattice", *SMALL, "--frames", "4", "--set", "materials.jelly.stiffness=1e8"]
+    assert main([*args, "--out", str(video), "--stats", str(stats)]) == EXIT_STOPPED
+    err = capsys.readouterr().err
+    assert "stable limit 5e-05" in err and "no frame was drawn" in err
+    assert not video.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["stats.csv"]  # no partial file left behind
+    assert _rows(stats) == []  # the header only
+
+
+def test_a_heat_blow_up_is_named_before_any_row_goes_below_absolute_zero(tmp_path, capsys):
+    stats = tmp_path / "stats.csv"
+    over = ["--set", "world.dt=0.05", "--set", "world.integrator='implicit_euler'"]  # springs stable, heat not
+    code = main(["run", "melting_block", *SMALL, "--frames", "3", *over, "--stats", str(stats)])
+    err = capsys.readouterr().err
+    assert code == EXIT_STOPPED
+    assert "below absolute zero" in err and "above the explicit heat limit" in err
+    assert all(float(r["mean_temperature"]) >= ABSOLUTE_ZERO for r in _rows(stats))
+
+
+def test_the_limits_come_from_the_scene_not_from_a_measured_frame():
+    sim = Simulation(load_scene(SCENES / "spring_lattice.toml"))
+    b = sim.built
+    kinetic = 0.5 * np.sum(b.mass * np.sum(b.v**2, axis=1))
+    springs = 0.5 * np.sum(b.stiffness * b.rest_length**2)
+    assert sim.guard.limits.fixed_energy == pytest.approx(kinetic + springs, rel=1e-12)
+    size, g = 96.0, 9.8
+    assert sim.guard.limits.specific_energy == pytest.approx(g * size + 0.5 * 6.0**2, rel=1e-12)
+    assert sim.guard.limits.step_travel == 27.0  # half the domain's smaller side
+    before = vars(sim.guard.limits).copy()
+    sim.advance_frame()
+    sim.stats()
+    assert vars(sim.guard.limits) == before  # measuring never moves the limits
+
+
+def test_tools_put_energy_in_without_tripping_the_guard_and_cooling_stops_at_absolute_zero():
+    sim = Simulation(make_scene(scene_dict(heat={"ambient": 20.0})))
+    tools = Tools(sim)
+    centre = [6.5, 6.5]
+    tools.apply("cool", centre, 5.0, dt=10.0)  # 4,000 degrees of cooling asked for
+    assert sim.particles.T.to_numpy()[: sim.built.count].min() == pytest.approx(ABSOLUTE_ZERO, abs=1e-3)
+    mass = float(np.sum(sim.built.mass))
+    allowed = RUNAWAY_FACTOR * sim.guard.limits.energy_scale(mass)
+    sim.stats()
+    for _ in range(3):  # a hard push: far more kinetic energy than the scene allowed
+        tools.apply("impulse", centre, 5.0, dt=0.01, strength=50.0)
+    assert sim.stats().kinetic_energy > 10 * allowed
+    sim.advance_frame()
+    sim.stats()  # and accepted as part of the scene from then on
+
+
+def test_a_non_finite_state_is_named_at_once():
+    sim = Simulation(make_scene(scene_dict()))
+    v = sim.particles.v.to_numpy()
+    v[3] = [np.nan, 0.0]
+    sim.particles.v.from_numpy(v)
+    with pytest.raises(SimulationError, match="non-finite state at step 0 .* in particle 3"):
+        sim.stats()
