@@ -47,16 +47,18 @@ def body_particles(body, dim: int) -> int:
     return int(volume / (LATTICE_CELL[body.lattice] * body.spacing**dim)) + 1
 
 
-def _bonds_per_particle(body, dim: int) -> int:
-    """Springs a particle inside the body has (lattice offsets within spring_radius spacings), 0 without springs."""
+def _bonds_per_particle(body, dim: int, sites: int) -> int:
+    """Springs a particle inside the body has: lattice offsets within spring_radius spacings (counted exactly up to
+    4 spacings, by the ball's volume beyond), and never more than the body's other sites; 0 without springs."""
     if not body.springs:
         return 0
-    reach = int(math.ceil(body.spring_radius)) + 1
-    return sum(
-        1
-        for off in np.ndindex(*(2 * reach + 1,) * dim)
-        if 0 < math.dist(off, (reach,) * dim) <= body.spring_radius + 1e-9
-    )
+    r = body.spring_radius
+    if r > 4:
+        ball = math.pi * r**2 if dim == 2 else 4.0 / 3.0 * math.pi * r**3
+        return int(min(ball / LATTICE_CELL[body.lattice], sites - 1))
+    reach = int(math.ceil(r)) + 1
+    offsets = sum(1 for off in np.ndindex(*(2 * reach + 1,) * dim) if 0 < math.dist(off, (reach,) * dim) <= r + 1e-9)
+    return min(offsets, sites - 1)
 
 
 def available_memory() -> int | None:
@@ -97,7 +99,7 @@ def check_size(file: str, world, bodies: list, emitters: list, has_neighbours: b
     if world.capacity > limit:
         raise SceneError(file, "world.capacity", f"{world.capacity:,} slots; expected at most {limit:,}")
     slots = max(world.capacity, total + total // 2)
-    springs = sum(n * _bonds_per_particle(b, dim) // 2 for n, b in zip(counts, bodies))
+    springs = sum(n * _bonds_per_particle(b, dim, n) // 2 for n, b in zip(counts, bodies))
     cells = 0
     if smoke is not None:
         extent = np.subtract(world.hi, world.lo)

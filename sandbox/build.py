@@ -125,7 +125,7 @@ def _lattice_springs(idx: np.ndarray, basis: np.ndarray, radius: float) -> tuple
     shape = tuple(idx.max(axis=0) - lo + 1)
     grid = np.full(shape, -1, dtype=np.int64)
     grid[tuple((idx - lo).T)] = np.arange(len(idx))
-    reach = int(math.ceil(radius / np.min(np.linalg.norm(basis, axis=1)))) + 1
+    reach = min(int(math.ceil(radius / np.min(np.linalg.norm(basis, axis=1)))) + 1, max(shape))  # within the body
     pi, pj = [], []
     for off in itertools.product(range(-reach, reach + 1), repeat=dim):
         nz = [o for o in off if o != 0]

@@ -13,10 +13,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .arguments import MAX_FRAMES, MAX_SIDE, MAX_SUBSTEPS
 from .budget import check_size
 from .errors import SceneError
 from .materials import ASSETS_DIR, Material, resolve_materials
-from .schema import at_least, celsius, non_negative, one_of, parse_table, positive, spec, unit_interval
+from .schema import at_least, between, celsius, non_negative, one_of, parse_table, positive, spec, unit_interval
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -64,7 +65,9 @@ class World:
         doc='steps per rendered frame, or "auto": chosen each frame from the stability '
         "bound (stiffest live spring, fastest particle, heat), each at most dt",
         check=lambda s: (
-            None if s == "auto" or (isinstance(s, int) and s >= 1) else f'expected an integer >= 1 or "auto", got {s!r}'
+            None
+            if s == "auto" or (isinstance(s, int) and 1 <= s <= MAX_SUBSTEPS)
+            else f'expected an integer from 1 to {MAX_SUBSTEPS:,} or "auto", got {s!r}'
         ),
     )
     frame_time: float = spec(0.02, doc='with substeps = "auto": simulated seconds per frame', check=positive)
@@ -319,10 +322,10 @@ class Body(FieldCoupling):
 
 @dataclass(frozen=True, kw_only=True)
 class Render:
-    width: int = spec(1280, doc="image width (pixels)", check=at_least(16))
-    height: int = spec(720, doc="image height (pixels)", check=at_least(16))
+    width: int = spec(1280, doc="image width (pixels)", check=between(16, MAX_SIDE))
+    height: int = spec(720, doc="image height (pixels)", check=between(16, MAX_SIDE))
     fps: float = spec(30.0, doc="frames per second of the video", check=positive)
-    frames: int = spec(300, doc="frames in a headless run", check=at_least(1))
+    frames: int = spec(300, doc="frames in a headless run", check=between(1, MAX_FRAMES))
     color_by: str = spec("temperature", doc="temperature, material, speed or phase", check=one_of(*COLOR_BY))
     temperature_range: tuple[float, ...] = spec((20.0, 200.0), doc="[cold, hot] ends of the glow colour map")
     speed_range: float = spec(10.0, doc="speed drawn brightest when colouring by speed", check=positive)
@@ -472,6 +475,13 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     _check_vec(file, "world.hi", world.hi, dim)
     if any(h <= l for l, h in zip(world.lo, world.hi)):
         raise SceneError(file, "world.hi", f"expected every component above world.lo {list(world.lo)}")
+    if world.substeps == "auto" and world.frame_time / world.dt > MAX_SUBSTEPS:
+        raise SceneError(
+            file,
+            "world.frame_time",
+            f"{world.frame_time:g} is over {MAX_SUBSTEPS:,} steps of dt {world.dt:g}; expected a shorter frame or a "
+            "longer step",
+        )
     if world.gravity:
         _check_vec(file, "world.gravity", world.gravity, dim)
     else:

@@ -53,6 +53,13 @@ def one_of(*choices: str) -> Check:
     return check
 
 
+def between(lo: float, hi: float) -> Check:
+    def check(x: float) -> str | None:
+        return None if lo <= x <= hi else f"expected a number from {lo:,} to {hi:,}, got {x}"
+
+    return check
+
+
 def at_least(lo: float) -> Check:
     def check(x: float) -> str | None:
         return None if x >= lo else f"expected a number >= {lo}, got {x}"

@@ -15,6 +15,7 @@ import numpy as np
 import taichi as ti
 
 from . import runtime, transfer
+from .arguments import MAX_SUBSTEPS
 from .budget import emitter_population
 from .build import build_particles
 from .errors import SimulationError
@@ -945,6 +946,11 @@ class Simulation:
         if world.substeps != "auto":
             return int(world.substeps), self.dt
         n = max(1, math.ceil(world.frame_time / self.auto_step() - 1e-9))
+        if n > 10 * MAX_SUBSTEPS:
+            raise SimulationError(
+                f'substeps = "auto" needs {n:,} steps for one frame at t = {self.time:.4g}: the stable step has fallen '
+                f"to {world.frame_time / n:.3g} (a spring stiffened, or a particle moves too fast)"
+            )
         return n, world.frame_time / n
 
     def advance_frame(self, substeps: int | None = None, midway: Callable[[], None] | None = None) -> int:

@@ -432,3 +432,19 @@ def test_a_blurred_opaque_sphere_stays_solid_and_leaves_a_fading_streak_of_its_d
 
 def test_a_still_opaque_sphere_is_identical_with_and_without_motion_blur_3d():
     assert np.array_equal(moved_sphere_3d(True, 0.0)[1], moved_sphere_3d(False, 0.0)[1])
+
+
+def test_a_chart_or_colour_bar_too_big_for_the_picture_is_left_out(tmp_path):
+    """A 48 x 48 picture cannot hold the chart box (64 x 40 and its margins) or the colour bar: they are not drawn
+    (drawing them wrote out of bounds and crashed the process), and the picture is the one without them."""
+    from sandbox.cli import main
+
+    pictures = []
+    for extra in (["render.chart=['mean_temperature']", "render.legend=true"], ["render.chart=[]"]):
+        out = tmp_path / f"{len(pictures)}.png"
+        sets = [a for x in extra for a in ("--set", x)]
+        args = ["run", "ice_cube", "--headless", "--quiet", "--frames", "2", "--width", "48", "--height", "48"]
+        assert main([*args, *sets, "--out", str(out)]) == 0
+        pictures.append(read_png(out))
+    assert pictures[0].shape == (48, 48, 3)
+    assert np.array_equal(pictures[0], pictures[1])

@@ -32,6 +32,8 @@ class Chart:
         self.box_w, self.box_h = max(64, width // 4), max(40, height // 5)
         self.label_height = 4 + 5 * max(1, height // 240)  # the values printed under the box
         self.x0, self.y_top = 10, 10  # top-left corner of the box, pixels from the top-left of the picture
+        # A picture too small to hold the box and its margins gets no chart (drawing it would write out of bounds).
+        self.fits = width >= self.box_w + 2 * self.x0 and height >= self.box_h + 2 * self.y_top
         self.values = ti.field(ti.f32, shape=(len(self.series), SAMPLES))  # normalised to [0, 1]
         self.colors = ti.Vector.field(3, ti.f32, shape=len(self.series))
         for k in range(len(self.series)):
@@ -65,7 +67,8 @@ class Chart:
 
     def draw(self, out) -> None:
         """Draw the box and the series into the renderer's float image and its 8-bit output `out` (put_pixel)."""
-        self._draw(self.n, out)
+        if self.fits:
+            self._draw(self.n, out)
 
     @ti.func
     def _put(self, out: ti.template(), x, y, c):
@@ -102,7 +105,7 @@ class Chart:
 
     def label(self, img: np.ndarray) -> None:
         """Print each series' latest value under the box, in its colour, on an (H, W, 3) uint8 frame."""
-        if not self.history[0]:
+        if not self.history[0] or not self.fits:
             return
         scale = max(1, self.height // 240)
         y = self.y_top + self.box_h + 3

@@ -206,9 +206,9 @@ class Renderer:
             return
         rects = []  # (x0, x1, row0, row1) in pixels, rows counted from the top
         for plot in (self.chart, self.potential):
-            if plot is not None:
+            if plot is not None and plot.fits:
                 rects.append((plot.x0, plot.x0 + plot.box_w, plot.y_top, plot.y_top + plot.box_h + plot.label_height))
-        if self.cfg.legend and self.cfg.color_by in ("temperature", "speed"):
+        if self._legend_shown():
             rects.append(self._legend_rect())
         table = np.zeros((MAX_OVERLAYS, 4), np.int32)
         for k, (x0, x1, r0, r1) in enumerate(rects[:MAX_OVERLAYS]):
@@ -1071,9 +1071,15 @@ class Renderer:
         x0, y0, bar_w, bar_h, scale = self._legend_geometry()
         return x0 - 64 * scale, x0 + bar_w + 1, y0 - 1, y0 + bar_h + 4 + 5 * scale
 
+    def _legend_shown(self) -> bool:
+        """Whether the colour bar is drawn: asked for, colouring by a scale, and room for it in the picture."""
+        x0, x1, row0, row1 = self._legend_rect()
+        fits = x0 >= 0 and row0 >= 0 and x1 <= self.width and row1 <= self.height
+        return self.cfg.legend and self.cfg.color_by in ("temperature", "speed") and fits
+
     def draw_legend(self, img: np.ndarray) -> None:
         """A colour bar with its range labelled, in the bottom-right corner of an (H, W, 3) uint8 frame."""
-        if self.cfg.color_by not in ("temperature", "speed"):
+        if not self._legend_shown():
             return
         x0, y0, bar_w, bar_h, scale = self._legend_geometry()
         colors = (self.legend_colors(bar_w) * 255).astype(np.uint8)
