@@ -76,8 +76,14 @@ def check_frames_output(option: str, path: str | Path) -> Path:
         raise SandboxError(f"{option} {path}: unknown output kind {suffix!r}; expected .mp4, .gif, .png or a folder")
     if suffix:
         return check_file_output(option, path)
+    return check_folder_output(option, path, "a folder for PNG frames (or a .mp4, .gif or .png)")
+
+
+def check_folder_output(option: str, path: str | Path, what: str = "a folder") -> Path:
+    """An output folder: not an existing file, writable (created if missing). Returns the path."""
+    path = Path(path)
     if path.exists() and not path.is_dir():
-        raise SandboxError(f"{option} {path}: is a file; expected a folder for PNG frames (or a .mp4, .gif or .png)")
+        raise SandboxError(f"{option} {path}: is a file; expected {what}")
     _probe_folder(option, path, path)
     return path
 

@@ -15,6 +15,7 @@ from .arguments import (
     MAX_SUBSTEPS,
     check_count,
     check_file_output,
+    check_folder_output,
     check_frames_output,
     check_picture,
     check_rate,
@@ -266,7 +267,7 @@ def cmd_keys(args) -> int:
 
 
 def cmd_study(args) -> int:
-    out = Path(args.out)
+    out = check_folder_output("--out", args.out)
     if args.phase:
         from .phase_study import run_phase_study
 
@@ -287,6 +288,12 @@ def cmd_study(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    check_count("--repeats", args.repeats, 1, 1000)
+    if args.json is not None:
+        check_file_output("--json", args.json, (".json",))
+    if args.scaling:
+        check_folder_output("--out", args.out)
+    runtime.require(args.arch, "f32")
     from .bench import run_bench
 
     return run_bench(args)

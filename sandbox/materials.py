@@ -137,6 +137,8 @@ def resolve_materials(scene_tables: dict, file: str) -> dict[str, Material]:
         if not isinstance(table, dict):
             raise SceneError(file, key, "expected a table")
         base_name = table.get("based_on", "")
+        if not isinstance(base_name, str):
+            raise SceneError(file, f"{key}.based_on", f"expected a material name (a string), got {base_name!r}")
         if base_name:
             if base_name not in result:  # the library, or a material defined earlier in the scene
                 raise SceneError(

@@ -55,6 +55,25 @@ def test_bad_values_give_one_line_and_exit_2_writing_nothing(extra, expected, tm
     assert sorted(tmp_path.rglob("*")) == before  # nothing written, no folder made
 
 
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["study", "--out", "{tmp}/plain"], "--out {tmp}/plain: is a file; expected a folder"),
+        (["study", "--out", "/proc/x"], "--out /proc/x: cannot write in '/proc/x'"),
+        (["bench", "--repeats", "0"], "--repeats 0: expected an integer from 1"),
+        (["bench", "--json", "{tmp}/b.txt"], "expected a file ending in .json"),
+        (["bench", "--scaling", "--out", "{tmp}/plain"], "is a file; expected a folder"),
+    ],
+)
+def test_study_and_bench_check_their_arguments_first(argv, expected, tmp_path, capsys):
+    (tmp_path / "plain").write_text("x")
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(argv) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ")
+    assert expected.replace("{tmp}", str(tmp_path)) in err[0]
+
+
 def test_a_missing_output_folder_is_created_before_the_run(tmp_path, capsys):
     out = tmp_path / "new" / "deeper" / "still.png"
     stats = tmp_path / "other" / "s.csv"
