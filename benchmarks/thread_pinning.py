@@ -41,7 +41,7 @@ def _timed() -> float:
 
 
 if __name__ == "__main__":
-    workers = threads.pin_workers(int(ti.lang.impl.current_cfg().cpu_max_num_threads))
+    workers = threads.pin_workers(int(ti.cfg.cpu_max_num_threads))
     if not workers:
         raise SystemExit("no workers pinned (one core, not Linux, or SANDBOX_PIN_THREADS=0)")
     every_core = set(os.sched_getaffinity(0))

@@ -368,6 +368,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     os.environ.setdefault("TI_LOG_LEVEL", "error")
+    runtime.own_process()
     try:
         return args.func(args)
     except SimulationError as exc:  # the blow-up guard, outside a headless run (the window, a check)

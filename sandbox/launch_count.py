@@ -10,16 +10,12 @@ over 200 steps: 0.120 against 0.125 launches a step; the melting block 0.500 aga
 
 from __future__ import annotations
 
-import importlib
 from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-from taichi.lang import kernel_impl
-
-_field_module = importlib.import_module("taichi.lang.field")  # `taichi.lang.field` the attribute is ti.field
-_matrix_module = importlib.import_module("taichi.lang.matrix")
+from .taichi_compat import launch_paths
 
 
 @dataclass
@@ -48,13 +44,10 @@ def count_launches() -> Iterator[Launches]:
     """Count, until the block ends, every kernel launch the host makes: kernel calls and host reads and writes of
     field elements (each component of a vector or matrix element once, as Taichi launches an accessor for each)."""
     launches = Launches()
-    # (owner, attribute, what a call counts as): a class's method or a module's function
+    # (owner, attribute, how a call is named): a class's method or a module's function
     patched = [
-        (kernel_impl.Kernel, "__call__", lambda args: args[0].func.__qualname__),
-        (_field_module.ScalarField, "__getitem__", lambda args: "field read"),
-        (_field_module.ScalarField, "__setitem__", lambda args: "field write"),
-        (_matrix_module, "_read_host_access", lambda args: "field read"),  # one component of a vector or matrix
-        (_matrix_module, "_write_host_access", lambda args: "field write"),
+        (owner, name, (lambda args: args[0].func.__qualname__) if kind == "kernel" else (lambda args, k=kind: k))
+        for owner, name, kind in launch_paths()
     ]
     originals = [(owner, name, vars(owner)[name]) for owner, name, _ in patched]
     try:

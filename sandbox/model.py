@@ -3,7 +3,7 @@
 import numpy as np
 import taichi as ti
 
-from . import transfer
+from . import taichi_compat, transfer
 from .build import Particles
 from .materials import Material
 from .oriented import data_oriented
@@ -135,4 +135,4 @@ class MaterialTable:
 
 
 def _is_f64() -> bool:
-    return ti.lang.impl.get_runtime().default_fp == ti.f64
+    return taichi_compat.default_fp_is_f64()

@@ -8,10 +8,12 @@ a free kernel, and a small scene's step spent more time in these reads than in i
 
 Here the class is decorated by Taichi as usual, and its `__getattribute__` is then wrapped so that only the names of
 the class's kernel methods go through Taichi's lookup; every other name is read the ordinary way. Where Taichi does
-not install its own lookup (a later version), the class is left as Taichi made it.
+not install its own lookup, or is a version taichi_compat does not know, the class is left as Taichi made it.
 """
 
 import taichi as ti
+
+from . import taichi_compat
 
 
 def _kernel_names(cls) -> frozenset[str]:
@@ -20,7 +22,7 @@ def _kernel_names(cls) -> frozenset[str]:
     for klass in cls.__mro__:
         for name, value in vars(klass).items():
             target = value.fget if isinstance(value, property) else value
-            if hasattr(target, "_is_wrapped_kernel"):
+            if taichi_compat.is_kernel(target):
                 names.add(name)
     return frozenset(names)
 
@@ -28,7 +30,7 @@ def _kernel_names(cls) -> frozenset[str]:
 def data_oriented(cls):
     """Class decorator: ti.data_oriented(cls), with plain attribute reads for every name that is not a kernel."""
     cls = ti.data_oriented(cls)
-    taichi_lookup = cls.__dict__.get("__getattribute__")
+    taichi_lookup = taichi_compat.data_oriented_lookup(cls)
     if taichi_lookup is None:
         return cls
     kernels_of: dict[type, frozenset[str]] = {}  # per concrete class: subclasses may add kernel methods

@@ -9,55 +9,30 @@ from __future__ import annotations
 import contextlib
 import io
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 import taichi as ti
 
+from . import taichi_compat
 from .errors import SandboxError
 
 ARCHES = ("auto", "cpu", "cuda", "vulkan", "metal")
 PRECISIONS = ("f32", "f64")
 
 _current: tuple[str, str, bool] | None = None  # (arch, precision, kernel profiler on)
+_owns_process = False  # own_process() was called: process-wide tuning of Taichi is allowed
 
 
 def _arch_value(name: str):
     return {"cpu": ti.cpu, "cuda": ti.cuda, "vulkan": ti.vulkan, "metal": ti.metal}[name]
 
 
-def _lighten_kernel_debug_info() -> None:
-    """Taichi formats, for every statement of every kernel it parses (at each process start, warm offline cache or
-    not), the source excerpt a compile error would quote, wrapped by textwrap: a quarter of a second of a 10k box's
-    warm start-up on the 2-core machine. This quotes the line and marks the node as Taichi does, without the
-    wrapping. SANDBOX_TAICHI_DEBUG_INFO=full keeps Taichi's own."""
-    try:
-        from taichi.lang.ast.ast_transformer_utils import ASTTransformerContext
-    except ImportError:  # another Taichi layout: leave it alone
-        return
-    if os.environ.get("SANDBOX_TAICHI_DEBUG_INFO") == "full" or not hasattr(ASTTransformerContext, "get_pos_info"):
-        return
-
-    taichis_own = ASTTransformerContext.get_pos_info
-    if getattr(taichis_own, "lightened", False):
-        return
-
-    def pos_info(self, node) -> str:
-        try:
-            where = f'File "{self.file}", line {node.lineno + self.lineno_offset}, in {self.func.func.__name__}:\n'
-            if not 0 < node.lineno <= len(self.src):
-                return where
-            line = self.src[node.lineno - 1].rstrip()
-            mark = ""
-            if node.lineno == getattr(node, "end_lineno", None):
-                start = self.indent + node.col_offset
-                mark = " " * start + "^" * max(1, self.indent + node.end_col_offset - start)
-            return f"{where}{line}\n{mark}\n"
-        except (AttributeError, TypeError):  # a Taichi whose context differs: its own formatting
-            return taichis_own(self, node)
-
-    pos_info.lightened = True
-    ASTTransformerContext.get_pos_info = pos_info
+def own_process() -> None:
+    """The sandbox owns this process (its command line, its tests): from the next Taichi start on, Taichi's CPU
+    workers are pinned one per core (threads.py) and compile-error excerpts are formatted the lighter way
+    (taichi_compat). A program that embeds the sandbox beside its own Taichi code keeps Taichi's behaviour unless it
+    calls this too."""
+    global _owns_process
+    _owns_process = True
 
 
 def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None) -> str:
@@ -76,7 +51,8 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
         profile = _current is not None and _current[2]
     if _current == (arch, precision, profile):
         return running_arch()
-    _lighten_kernel_debug_info()
+    if _owns_process:
+        taichi_compat.lighten_kernel_debug_info()
     fp = ti.f32 if precision == "f32" else ti.f64
     kwargs = dict(default_fp=fp, offline_cache=True, kernel_profiler=profile)
     if "TI_LOG_LEVEL" not in os.environ:  # Taichi warns when ti.init overrides the variable
@@ -90,28 +66,14 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
     with contextlib.redirect_stdout(io.StringIO()):  # Taichi prints "[Taichi] Starting on arch=..." on stdout
         ti.init(arch=ti.cuda if arch == "auto" else _arch_value(arch), **kwargs)
     _current = (arch, precision, profile)
-    if running_arch() == "cpu":
+    if _owns_process and running_arch() == "cpu":
         from .threads import pin_workers
 
-        pin_workers(int(ti.lang.impl.current_cfg().cpu_max_num_threads))
+        pin_workers(taichi_compat.cpu_threads())
     return running_arch()
 
 
-@contextmanager
-def without_cfg_pass() -> Iterator[None]:
-    """Kernels first launched inside compile without Taichi's control-flow-graph optimisation pass (store-to-load
-    forwarding and dead-store elimination over the whole kernel), which takes most of the compile time of a kernel
-    that runs many whole steps (the team's and the fused steps' launch: 1.9 -> 1.1 s and 2.9 -> 2.0 s of CPU with a
-    cold cache, `/tmp` scratch scripts alternating the setting) while their steps run no slower (W1 at 10k, W2, W3
-    within 2%). The renderer's kernels do lose by it (a 1280x720 frame 1.95 -> 2.49 ms), so it is not global.
-    Taichi reads the setting when it compiles a kernel; a compiled kernel keeps its code, wherever launched later."""
-    cfg = ti.lang.impl.current_cfg()
-    before = cfg.cfg_optimization
-    cfg.cfg_optimization = False
-    try:
-        yield
-    finally:
-        cfg.cfg_optimization = before
+without_cfg_pass = taichi_compat.without_cfg_pass
 
 
 def reset() -> None:
@@ -145,10 +107,7 @@ def require(arch: str, precision: str) -> str:
     return running
 
 
-def running_arch() -> str:
-    """Name of the backend Taichi is running on now ('x64' and 'arm64' are reported as 'cpu')."""
-    name = ti.lang.impl.current_cfg().arch.name
-    return "cpu" if name in ("x64", "arm64") else name
+running_arch = taichi_compat.running_arch
 
 
 def real_fields(*tables, also: tuple = ()) -> list:

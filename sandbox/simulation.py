@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from . import runtime, transfer
+from . import runtime, taichi_compat, transfer
 from .arguments import MAX_SUBSTEPS
 from .budget import emitter_population
 from .build import build_particles
@@ -144,7 +144,7 @@ class Simulation:
             self.capacity += sum(emitter_population(e) for e in scene.emitters)
         self.capacity = max(self.capacity, built.count)
         pair_only = not (scene.heat or built.spring_count)
-        threads = int(ti.lang.impl.current_cfg().cpu_max_num_threads) if self.arch == "cpu" else 1
+        threads = taichi_compat.cpu_threads() if self.arch == "cpu" else 1
         self.loops = LoopPolicy(self.arch, self.capacity, pair_only, threads, can_step_as_a_team(scene))
         self.material_names = scene.used_materials()
         materials = [scene.materials[name] for name in self.material_names]
@@ -241,7 +241,7 @@ class Simulation:
         if self.half_pairs:
             # Each worker thread takes a contiguous block of particles and writes what its pairs give to the other
             # particle into its own buffer row (no atomics, no write conflicts); the per-particle pass sums the rows.
-            self.n_chunks = CHUNKS_PER_THREAD * max(1, int(ti.lang.impl.current_cfg().cpu_max_num_threads))
+            self.n_chunks = CHUNKS_PER_THREAD * max(1, taichi_compat.cpu_threads())
             self.n_pair_rows = 1 if self.loops.serial_pairs else self.n_chunks  # rows the pair pass writes
             self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_pair_rows, self.capacity))
             if scene.heat:

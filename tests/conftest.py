@@ -22,6 +22,9 @@ def scene_dict(dim: int = 2, **sections) -> dict:
     return base
 
 
+runtime.own_process()  # the tests are the sandbox's own: pinned CPU workers, light compile-error excerpts (as the CLI)
+
+
 @pytest.fixture(autouse=True, scope="module")
 def fresh_taichi():
     """A fresh Taichi runtime per test module: a runtime holds at most ~512 field trees (runtime.reset)."""

@@ -287,7 +287,7 @@ def test_taichi_worker_threads_are_pinned_one_per_core():
 
     runtime.reset()  # a Taichi start of its own (the pinning runs at each start), kernels compiled by now
     sim = lj_box()
-    workers = int(ti.lang.impl.current_cfg().cpu_max_num_threads)
+    workers = int(ti.cfg.cpu_max_num_threads)
     assert sim.arch == "cpu" and workers >= 2
     assert len(threads.pinned) == workers
     cores = [core for _tid, core in threads.pinned]
@@ -410,7 +410,7 @@ def test_whole_step_launches_compile_without_the_cfg_pass_and_the_setting_comes_
     from sandbox import runtime
 
     sim = lj_box()
-    cfg = ti.lang.impl.current_cfg()
+    cfg = ti.cfg
     seen = []
 
     class Spy:  # stands in for the team: records the setting during the launch, then declines (-1: step the long way)

@@ -1,0 +1,57 @@
+"""How close each shipped scene comes to the blow-up guard's limits over its whole run (no drawing).
+
+    python benchmarks/guard_margins.py [SCENE ...]
+
+For every frame it reads the measurement the guard checks and prints, per scene, the largest fraction of each limit
+used: kinetic energy over RUNAWAY_FACTOR x the energy scale, one step's travel over half the domain, and the
+temperature range seen against the range allowed. A healthy scene stays far below 1 on each.
+"""
+
+import sys
+import time
+
+from sandbox.guard import RUNAWAY_FACTOR
+from sandbox.resources import shipped_scenes
+from sandbox.scene import load_scene
+from sandbox.simulation import _ACC, Simulation
+
+
+def margins(path) -> str:
+    scene = load_scene(path)
+    sim = Simulation(scene, arch="cpu")
+    limits = sim.guard.limits
+    energy = travel = 0.0
+    coldest, hottest = float("inf"), float("-inf")
+    start = time.perf_counter()
+    for _ in range(scene.render.frames):
+        sim.advance_frame()
+        sim.stats()
+        values = sim._acc.to_numpy()
+        acc = {k: float(values[i]) for k, i in _ACC.items()}
+        scale = RUNAWAY_FACTOR * limits.energy_scale(acc["mass"])
+        energy = max(energy, acc["ke"] / scale if scale > 0 else 0.0)
+        travel = max(travel, acc["vmax"] * sim.dt / limits.step_travel)
+        if sim.heat is not None:
+            coldest, hottest = min(coldest, -acc["tcold"]), max(hottest, acc["thot"])  # the guard reads the coldest
+            # only below 0 C: -0.0 means "0 C or warmer"
+    heat = (
+        f"T {coldest:.1f}..{hottest:.1f} C of {limits.temperature_lo:.0f}..{limits.temperature_hi:.0f}"
+        if sim.heat is not None
+        else "no heat"
+    )
+    wall = time.perf_counter() - start
+    return (
+        f"{path.stem:18s} {scene.render.frames:4d} frames  energy {energy:.1e}  travel {travel:.1e}  {heat}"
+        f"  ({wall:.0f} s)"
+    )
+
+
+def main() -> None:
+    names = set(sys.argv[1:])
+    for path in shipped_scenes():
+        if not names or path.stem in names:
+            print(margins(path), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,94 @@
+"""Taichi's internals are touched in one module: each fast path is active on the pinned Taichi, each falls back to
+the plain path on a Taichi it does not know, and nothing changes Taichi for the whole process unless asked."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+import taichi as ti
+
+from sandbox import runtime, taichi_compat
+from sandbox.errors import SandboxError
+from sandbox.oriented import data_oriented
+from sandbox.simulation import Simulation
+from tests.conftest import ROOT
+
+
+def _counter_class():
+    runtime.init("cpu", "f32")
+
+    @data_oriented
+    class Counter:
+        def __init__(self):
+            self.total = ti.field(ti.i32, shape=())
+            self.step = 3
+
+        @ti.kernel
+        def add(self, k: ti.i32):
+            self.total[None] += k * self.step
+
+    return Counter
+
+
+def test_every_fast_path_is_active_on_the_pinned_taichi():
+    assert taichi_compat.SUPPORTED and tuple(ti.__version__[:2]) == (1, 7)
+    # data-oriented classes read plain attributes the ordinary way, only kernels through Taichi's lookup
+    assert Simulation.__getattribute__.__module__ == "sandbox.oriented"
+    counter = _counter_class()()
+    counter.add(2)
+    assert counter.total[None] == 6
+    # the whole-step kernels compile without the CFG pass, which comes back afterwards
+    assert ti.cfg.cfg_optimization
+    with taichi_compat.without_cfg_pass():
+        assert not ti.cfg.cfg_optimization
+    assert ti.cfg.cfg_optimization
+    # the launch paths launch_count wraps exist
+    paths = taichi_compat.launch_paths()
+    assert len(paths) == 5 and all(callable(getattr(owner, name)) for owner, name, _ in paths)
+    # the tests own their process (conftest): compile-error excerpts are the light ones
+    assert taichi_compat.kernel_debug_info_lightened()
+
+
+def test_an_unknown_taichi_gets_the_plain_path_with_one_warning(monkeypatch):
+    monkeypatch.setattr(taichi_compat, "SUPPORTED", False)
+    monkeypatch.setattr(taichi_compat, "_warned", set())
+    with pytest.warns(RuntimeWarning, match="not a version the sandbox knows") as said:
+        plain = _counter_class()
+        _counter_class()  # said once only
+    assert len(said) == 1
+    assert plain.__getattribute__.__module__.startswith("taichi.")  # Taichi's own lookup
+    counter = plain()
+    counter.add(5)
+    assert counter.total[None] == 15  # kernels work the same
+    with pytest.warns(RuntimeWarning, match="CFG pass"), taichi_compat.without_cfg_pass():
+        assert ti.cfg.cfg_optimization  # left as Taichi has it
+    with pytest.raises(SandboxError, match="counting kernel launches needs Taichi 1.7"):
+        taichi_compat.launch_paths()
+
+
+PROBE = """
+import json, sys
+from sandbox import runtime, taichi_compat, threads
+from sandbox.scene import load_scene
+from sandbox.simulation import Simulation
+if sys.argv[1] == "own":
+    runtime.own_process()
+Simulation(load_scene("scenes/spring_lattice.toml"))
+print(json.dumps({"pinned": len(threads.pinned), "light": taichi_compat.kernel_debug_info_lightened()}))
+"""
+
+
+@pytest.mark.parametrize("mode", ["embedded", "own"])
+def test_nothing_changes_taichi_for_the_whole_process_unless_asked(mode):
+    """Embedded in another program, the sandbox neither pins Taichi's CPU workers nor reformats its compile errors;
+    the CLI (and these tests) opt in with runtime.own_process()."""
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE, mode], cwd=ROOT, capture_output=True, text=True, timeout=300, check=True
+    )
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert seen["light"] == (mode == "own")
+    if mode == "embedded":
+        assert seen["pinned"] == 0
+    elif taichi_compat.cpu_threads() >= 2 and hasattr(__import__("os"), "sched_getaffinity"):
+        assert seen["pinned"] == taichi_compat.cpu_threads()
