@@ -23,6 +23,7 @@ hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
+from sandbox import runtime  # noqa: E402
 from sandbox.budget import body_particles  # noqa: E402
 from sandbox.build import build_particles  # noqa: E402
 from sandbox.cli import EXIT_BAD_INPUT, EXIT_STOPPED, main  # noqa: E402
@@ -150,6 +151,7 @@ def hostile_run(draw):
 @given(hostile_run())
 def test_hostile_command_lines_end_in_one_line_or_a_sane_short_run(tmp_path_factory, capsys, case):
     name, args = case
+    runtime.reset()  # each run builds fields of its own: a runtime holds a few hundred field trees at most
     folder = tmp_path_factory.mktemp("run")
     out, stats = folder / "still.png", folder / "stats.csv"
     size = [] if {"--width", "--height"} & set(args) else ["--width", "32", "--height", "32"]
