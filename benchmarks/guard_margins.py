@@ -32,8 +32,7 @@ def margins(path) -> str:
         energy = max(energy, acc["ke"] / scale if scale > 0 else 0.0)
         travel = max(travel, acc["vmax"] * sim.dt / limits.step_travel)
         if sim.heat is not None:
-            coldest, hottest = min(coldest, -acc["tcold"]), max(hottest, acc["thot"])  # the guard reads the coldest
-            # only below 0 C: -0.0 means "0 C or warmer"
+            coldest, hottest = min(coldest, -acc["tcold"]), max(hottest, acc["thot"])
     heat = (
         f"T {coldest:.1f}..{hottest:.1f} C of {limits.temperature_lo:.0f}..{limits.temperature_hi:.0f}"
         if sim.heat is not None

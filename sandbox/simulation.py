@@ -59,7 +59,7 @@ STAT_COLUMNS = (
 SPRING_ARRAYS = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds")  # what refreezing changes (and `created`)
 NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
 _ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
-_ACC.update(tcold=9, thot=10)  # the largest -T and T (degrees; 0 when none is above): the guard's temperature check
+_ACC.update(tcold=9, thot=10)  # the largest -T and T (degrees; -1e30 without particles): the guard's temperatures
 _COUNT = {"alive": 0, "meltable": 1, "bad": 2}
 
 
@@ -757,6 +757,8 @@ class Simulation:
             acc[k][None] = 0
         for k in ti.static(range(len(_COUNT))):
             count[k][None] = 0
+        acc[_ACC["tcold"]][None] = -1e30  # maxima start below any temperature, not at 0
+        acc[_ACC["thot"]][None] = -1e30
         self.loops.light()
         for i in range(p.n[None]):
             v2 = p.v[i].dot(p.v[i])
