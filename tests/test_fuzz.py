@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from sandbox import runtime  # noqa: E402
@@ -38,7 +38,9 @@ else:  # pragma: no cover
 
 CAMPAIGN = os.environ.get("SANDBOX_FUZZ") == "campaign"
 settings.register_profile("scenes", max_examples=2000 if CAMPAIGN else 250, deadline=None)
-settings.register_profile("runs", max_examples=300 if CAMPAIGN else 12, deadline=None)
+# Runs cost seconds each: a campaign reports its first failure as found instead of shrinking it for hours.
+NO_SHRINK = [Phase.explicit, Phase.reuse, Phase.generate]
+settings.register_profile("runs", max_examples=300 if CAMPAIGN else 12, deadline=None, phases=NO_SHRINK)
 QUIET = [HealthCheck.too_slow, HealthCheck.function_scoped_fixture, HealthCheck.filter_too_much]
 
 RAW = {p.stem: tomllib.loads(p.read_text()) for p in sorted(SCENES.glob("*.toml"))}
