@@ -17,25 +17,13 @@ from .oriented import data_oriented
 LIGHT_PARALLEL_FROM = 400_000  # particle slots from which per-particle loops with little work run in parallel
 PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the neighbour-list build run in parallel
 # ... and when the pair force is the whole step (no springs, no heat): such a step is cheap enough that running it
-# serially, many steps to a launch (Simulation._fused_steps), beats two threads woken every step up to here. W1 at
-# 10,000 particles (15,000 slots), three alternating runs of `sandbox.bench.measure`: 10.2, 11.9, 8.3 M particle-steps/s
-# serial and fused, 8.0, 9.2, 8.3 parallel; the 10,000-particle melting block's frame (springs and heat, three times
-# the work per particle) 29.6-30.7 ms serial against 21.4-25.2 ms parallel.
+# serially, many steps to a launch (Simulation._fused_steps), beats two threads woken every step up to here; a step
+# with springs and heat does about three times the work per particle and gains from the parallel loops earlier.
 PAIR_ONLY_PARALLEL_FROM = 20_000
 # ... but from TEAM_FROM to TEAM_UNTIL slots a scene runs many steps to a launch on every thread at once
-# (sandbox/team.py): W1 at 10,000 particles, `python benchmarks/team_steps.py` (medians of alternating batches of
-# 100 steps in one process): 437-691 us a step as a team of two, 745-1102 serial and fused, 619-938 parallel. Above,
-# a scratch script (`sandbox.bench.measure` on W1, three rounds alternating team and parallel loops, thresholds
-# overridden): 32k particles 22.2, 20.6, 16.2 M particle-steps/s as a team against 17.6, 16.2, 13.4; 100k 19.1, 13.0,
-# 13.3 against 12.4, 12.3, 11.0; 316k 13.4, 12.3, 16.6 against 13.7, 12.8, 12.5; 1M 20.6, 20.0, 18.1 against 22.2,
-# 21.7, 13.6: a gain to 100k (150k slots), a draw past it. Scenes with springs and heat (the melting block at a
-# size, `/tmp` scratch script, medians of 12 alternating batches of 40 steps): 3,600 particles 0.84 ms a step as a
-# team against 0.97 serial and fused; 6,400: 1.15 against 1.40 parallel; 10,000: 2.46 against 2.82; 40,000: 7.95
-# against 8.96.
-# Smaller scenes pay too (scratch scripts against the serial fused step, alternating batches, medians): the
-# melting block at 400 particles 92 us a step against 110, 900 178 against 226, 1,200 (shipped, 2,224 slots) 223
-# against 303, 2,025 477 against 649; W1 at 1,024 particles (2,048 slots) 45.9 against 70.1 us, 2,500 101.5 against
-# 173.5 (15 batches of 500 steps). Test-sized scenes (under about 1,000 particles) keep the serial fused step.
+# (sandbox/team.py): faster than both the serial fused step and the parallel loops from about 2,000 slots (pair-only
+# or with springs and heat) to about 150,000, a draw past that. `python benchmarks/team_steps.py [--scene S --side N]`
+# compares the three ways in one process; docs/performance.md says how the thresholds were chosen.
 TEAM_FROM = 2_000
 TEAM_UNTIL = 200_000
 # Taichi's CPU range-for hands each thread blocks of consecutive iterations (under 256 of them: 8 heavy items 64

@@ -1,8 +1,8 @@
 """Particle storage sorted into cell order, so that a particle's neighbours sit near it in memory.
 
 A liquid's particles wander away from the neighbours they were stored beside; after a while every neighbour read in
-the force loop is a cache miss (measured on the 2D LJ box: a shuffled order runs at 0.47x the throughput of a sorted
-one at 1M particles, 0.69x at 100k). Every `every` neighbour-list rebuilds the simulation calls `apply()` at a step
+the force loop is a cache miss (a shuffled 2D LJ box runs at about half the throughput of a sorted one at 1M
+particles). Every `every` neighbour-list rebuilds the simulation calls `apply()` at a step
 boundary: the cell grid's counting sort gives the order, every per-particle field is gathered into it, spring ends
 are renumbered and bond tables moved, and listeners (the renderer's motion-blur tails) are told. Particles keep
 their identity in `ident` (the index in the built scene).

@@ -24,10 +24,8 @@ from ..solvers import CGResult, CGSums, pcg
 
 # On the CPU backend a grid of up to this many cells is projected in one kernel launch on one thread (assembly, every
 # CG iteration, the gradient), instead of launching three kernels and reading three sums back per CG iteration
-# (each launch a 20-40 us round trip through the thread pool on the 2-core machine). smoke_vortex with
-# `smoke.resolution=N` (/tmp scratch script, ms a frame of 3 steps, three alternating runs, CG driven from the host
-# with its sums in 0-d fields): 128 x 72 cells 14.0-17.9 in one launch against 36.4-49.8; 256 x 144 84.8-103.2
-# against 111.6-139.6; 400 x 225 276-354 against 293-357, a draw.
+# (each launch a 20-40 us round trip through the thread pool): faster up to about 37,000 cells, a draw at 90,000
+# (`python benchmarks/smoke_projection.py` times both ways).
 ONE_LAUNCH_CELLS = 50_000
 
 
