@@ -14,7 +14,7 @@ import numpy as np
 from .physics.heat import lattice_correction, wendland_grad_factor
 from .scene import scene_from_dict
 from .simulation import Simulation, timed_steps
-from .study import STUDY_PATH, Run
+from .study_runs import STUDY_PATH, Run
 
 SIDE = 25
 CENTRE = SIDE / 2

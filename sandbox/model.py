@@ -7,7 +7,7 @@ from . import taichi_compat, transfer
 from .build import Particles
 from .materials import Material
 from .oriented import data_oriented
-from .runtime import real_fields
+from .transfer import real_fields
 
 
 @data_oriented

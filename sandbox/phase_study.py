@@ -25,7 +25,7 @@ import numpy as np
 
 from .scene import scene_from_dict
 from .simulation import Simulation
-from .study import STUDY_PATH
+from .study_runs import STUDY_PATH
 
 STEFAN_LENGTH = 60.0  # slab length (periodic), in units where the coarsest spacing is 1
 STEFAN_HEIGHT = 8.0  # slab height (periodic)

@@ -20,6 +20,7 @@ PRECISIONS = ("f32", "f64")
 
 _current: tuple[str, str, bool] | None = None  # (arch, precision, kernel profiler on)
 _owns_process = False  # own_process() was called: process-wide tuning of Taichi is allowed
+_reset_hooks: list = []  # called when the runtime is dropped (runtime.on_reset)
 
 
 def _arch_value(name: str):
@@ -90,10 +91,16 @@ def reset() -> None:
         _current = None
 
 
-def _forget_copiers() -> None:
-    from . import transfer
+def on_reset(hook) -> None:
+    """Call `hook()` whenever the runtime is dropped (what was compiled for it, such as transfer's copy kernels,
+    must be forgotten with it)."""
+    if hook not in _reset_hooks:
+        _reset_hooks.append(hook)
 
-    transfer.forget()
+
+def _forget_copiers() -> None:
+    for hook in _reset_hooks:
+        hook()
 
 
 def require(arch: str, precision: str) -> str:
@@ -108,20 +115,6 @@ def require(arch: str, precision: str) -> str:
 
 
 running_arch = taichi_compat.running_arch
-
-
-def real_fields(*tables, also: tuple = ()) -> list:
-    """Taichi fields of the running float precision, shaped and filled like each of `tables` (arrays or lists),
-    filled by one copy kernel together with the (field, values) pairs in `also` (see transfer.py: a from_numpy per
-    field costs a compiled kernel each)."""
-    import numpy as np
-
-    from . import transfer
-
-    arrays = [np.asarray(t, dtype=np.float64) for t in tables]
-    fields = [ti.field(float, shape=a.shape) for a in arrays]
-    transfer.upload(list(zip(fields, arrays)) + list(also))
-    return fields
 
 
 def real_dtype():

@@ -33,23 +33,9 @@ from .integrators import REGISTRY
 from .resources import SCENES_DIR
 from .scene import scene_from_dict
 from .simulation import Simulation, timed_steps
+from .study_runs import STUDY_PATH, Run
 
-STUDY_PATH = SCENES_DIR / "study.toml"  # names the generated scenes
 INTEGRATORS = ("forward_euler", "symplectic_euler", "midpoint", "verlet", "velocity_verlet", "rk4", "implicit_euler")
-
-
-@dataclass
-class Run:
-    problem: str
-    integrator: str
-    dt: float
-    steps: int
-    error: float
-    energy_error: float
-    wall_seconds: float
-    particle_steps_per_second: float
-    stable: bool
-    note: str = ""
 
 
 @dataclass

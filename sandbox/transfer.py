@@ -190,3 +190,16 @@ def _numpy_dtype(field):
 def forget() -> None:
     """Drop the cached copy kernels (with the runtime they were compiled for: runtime.reset())."""
     _cache.clear()
+
+
+def real_fields(*tables, also: tuple = ()) -> list:
+    """Taichi fields of the running float precision, shaped and filled like each of `tables` (arrays or lists),
+    filled by one copy kernel together with the (field, values) pairs in `also` (a from_numpy per field costs a
+    compiled kernel each)."""
+    arrays = [np.asarray(t, dtype=np.float64) for t in tables]
+    fields = [ti.field(float, shape=a.shape) for a in arrays]
+    upload(list(zip(fields, arrays)) + list(also))
+    return fields
+
+
+runtime.on_reset(forget)

@@ -27,8 +27,8 @@ import numpy as np
 import taichi as ti
 
 from ..oriented import data_oriented
-from ..runtime import real_fields
 from ..scene import SOURCE_MODES
+from ..transfer import real_fields
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
 

@@ -21,7 +21,7 @@ import taichi as ti
 
 from .. import transfer
 from ..oriented import data_oriented
-from ..runtime import real_fields
+from ..transfer import real_fields
 
 
 def radial_force(r, alpha, beta, eps, a, b):

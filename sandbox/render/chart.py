@@ -9,7 +9,7 @@ import numpy as np
 import taichi as ti
 
 from ..oriented import data_oriented
-from .raster import draw_text, get_pixel, put_pixel
+from .pixels import draw_text, get_pixel, put_pixel
 
 FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
 COLORS = ((1.0, 0.4, 0.25), (0.35, 0.65, 1.0), (0.5, 0.9, 0.4), (0.95, 0.85, 0.3))

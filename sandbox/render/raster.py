@@ -42,7 +42,9 @@ import taichi as ti
 
 from .. import runtime
 from ..oriented import data_oriented
+from .chart import Chart, CurvePlot
 from .colormaps import GLOW_STOPS, SPEED_STOPS, glow, glow_over_base, ramp_np, speed_map
+from .pixels import draw_text, get_pixel, put_pixel
 from .strips import StripBins
 
 COLOR_MODES = {"temperature": 0, "material": 1, "speed": 2, "phase": 3}
@@ -157,8 +159,6 @@ class Renderer:
         self.chart = None
         self.potential = None  # the window's potential panel (a CurvePlot), when shown
         if render_cfg.chart:
-            from .chart import Chart
-
             self.chart = Chart(self.image, width, height, tuple(render_cfg.chart), self._scene_in_image())
         if self.motion_blur and sim.emitters is not None:
             sim.emitters.listeners.append(self._follow_moves)
@@ -458,8 +458,6 @@ class Renderer:
                 self._overlays_changed()
             return
         if self.potential is None:
-            from .chart import CurvePlot
-
             self.potential = CurvePlot(self.image, self.width, self.height, self._scene_in_image())
             self._overlays_changed()
         self.potential.set_curve(values)
@@ -477,7 +475,6 @@ class Renderer:
 
     def set_chart(self, series: tuple[str, ...]) -> None:
         """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh."""
-        from .chart import Chart
 
         scene_in_image = self._scene_in_image()
         self.chart = Chart(self.image, self.width, self.height, tuple(series), scene_in_image) if series else None
@@ -1103,62 +1100,3 @@ def _add(layer: ti.template(), x, y, value, plain: ti.template()):
         layer[x, y] = layer[x, y] + value
     else:
         layer[x, y] += value
-
-
-@ti.func
-def put_pixel(out: ti.template(), height, x, y, c):
-    """Write colour c (floats in [0, 1]) at pixel (x, y), y counted up from the bottom, into the 8-bit output `out`:
-    an (H, W, 3) picture stored top row first, or GGUI's (W, H) packed RGBA (a uint32 per pixel, R in the low byte,
-    y up)."""
-    if ti.static(len(out.shape) == 2):
-        v = ti.cast(ti.math.clamp(c, 0.0, 1.0) * 255.0 + 0.5, ti.u32)
-        out[x, y] = v[0] | (v[1] << 8) | (v[2] << 16) | (ti.cast(255, ti.u32) << 24)
-    else:
-        v = ti.cast(ti.math.clamp(c, 0.0, 1.0) * 255.0 + 0.5, ti.u8)
-        for k in ti.static(range(3)):
-            out[height - 1 - y, x, k] = v[k]
-
-
-@ti.func
-def get_pixel(out: ti.template(), height, x, y):
-    """The colour (floats in [0, 1]) at pixel (x, y) of an 8-bit output written by put_pixel."""
-    c = ti.Vector([0.0, 0.0, 0.0])
-    if ti.static(len(out.shape) == 2):
-        v = out[x, y]
-        c = ti.Vector([v & 255, (v >> 8) & 255, (v >> 16) & 255]) / 255.0
-    else:
-        c = ti.Vector([out[height - 1 - y, x, k] for k in ti.static(range(3))]) / 255.0
-    return c
-
-
-# A 3 x 5 pixel font for legend numbers.
-_GLYPHS = {
-    "0": "111101101101111",
-    "1": "010110010010111",
-    "2": "111001111100111",
-    "3": "111001111001111",
-    "4": "101101111001001",
-    "5": "111100111001111",
-    "6": "111100111101111",
-    "7": "111001001001001",
-    "8": "111101111101111",
-    "9": "111101111001111",
-    ".": "000000000000010",
-    "-": "000000111000000",
-    "e": "000111101110111",
-    "+": "000010111010000",
-}
-
-
-def draw_text(img: np.ndarray, text: str, x: int, y: int, scale: int = 1, color=(230, 230, 230)) -> None:
-    """Draw `text` (digits . - + e) into an (H, W, 3) uint8 image with its top-left corner at (x, y)."""
-    for k, ch in enumerate(text):
-        glyph = _GLYPHS.get(ch)
-        if glyph is None:
-            continue
-        for row in range(5):
-            for col in range(3):
-                if glyph[row * 3 + col] == "1":
-                    ys, xs = y + row * scale, x + (4 * k + col) * scale
-                    if 0 <= ys and ys + scale <= img.shape[0] and 0 <= xs and xs + scale <= img.shape[1]:
-                        img[ys : ys + scale, xs : xs + scale] = color
