@@ -136,6 +136,16 @@ def test_view_toggles_cycle_the_colour_maps_the_scene_can_use():
     assert "temperature" not in no_heat.color_modes and "phase" not in no_heat.color_modes
 
 
+def test_the_empty_sandbox_starts_with_the_spawn_tool_and_reads_no_nan():
+    from sandbox.render.window import make_state, reading
+
+    empty = make_state(Simulation(load_scene(SCENES / "sandbox.toml")), None)
+    assert empty.tool == "spawn"  # the heat tool did nothing in an empty box
+    block = make_state(Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"])), None)
+    assert block.tool == "heat"
+    assert reading(float("nan"), "C") == "-" and reading(61.04, "C") == "61.0 C"
+
+
 def test_orbit_camera_round_trips_and_keeps_its_target():
     from sandbox.render.window import OrbitCamera
 

@@ -10,6 +10,7 @@ Everything the keys do goes through WindowState.handle_key, which needs no scree
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -158,8 +159,10 @@ def make_state(sim, substeps: int | None) -> WindowState:
     cfg = sim.scene.render
     modes = ["temperature", "phase"] if sim.heat is not None else []
     modes += ["speed", "material"]
+    tools = tools_for(sim)
+    empty = sim.built.count == 0 and not sim.scene.emitters  # nothing to heat or push: start by spawning
     return WindowState(
-        tools_for(sim),
+        tools,
         list(REGISTRY),
         sim.integrator.name,
         int(fixed),
@@ -168,7 +171,14 @@ def make_state(sim, substeps: int | None) -> WindowState:
         color_by=cfg.color_by if cfg.color_by in modes else modes[0],
         motion_blur=cfg.motion_blur,
         draw_springs=cfg.draw_springs,
+        tool="spawn" if empty and "spawn" in tools else "",
     )
+
+
+def reading(value: float, unit: str = "", digits: int = 1) -> str:
+    """A readout: the value with its unit, or "-" where there is nothing to measure (the mean temperature of no
+    particles). ASCII: the window's font has no en dash."""
+    return f"{value:.{digits}f}{' ' + unit if unit else ''}" if math.isfinite(value) else "-"
 
 
 def view_config(cfg, state: WindowState):
@@ -461,7 +471,7 @@ def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
             + (f"   broken springs {stats.broken_springs}" if sim.springs is not None else "")
         )
         if sim.heat is not None:
-            gui.text(f"mean T {stats.mean_temperature:.1f} C   molten {100 * stats.molten_fraction:.0f}%")
+            gui.text(f"mean T {reading(stats.mean_temperature, 'C')}   molten {100 * stats.molten_fraction:.0f}%")
             for name, temperature in thermometers(sim)[:6]:
                 gui.text(f"  {name}: {temperature:.1f} C")
             sim.heat.ambient[None] = gui.slider_float("ambient C", float(sim.heat.ambient[None]), -50.0, 300.0)
