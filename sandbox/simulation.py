@@ -19,7 +19,7 @@ from .arguments import MAX_SUBSTEPS
 from .budget import emitter_population
 from .build import build_particles
 from .errors import SimulationError
-from .guard import BlowupGuard, scene_limits
+from .guard import ABSOLUTE_ZERO, BlowupGuard, scene_limits
 from .integrators import REGISTRY, make_integrator
 from .loops import SPREAD_STRIDE, LoopPolicy, spread_item
 from .model import ENTHALPY_LAW, MaterialTable, ParticleFields, material_column
@@ -870,7 +870,8 @@ class Simulation:
             who = f"particle {int(bad[0])}"
         elif kind == "temperature":
             temps = self.particles.T.to_numpy()[:n]
-            worst = int(np.argmax(np.abs(temps - np.median(temps))))
+            below = temps.min() < ABSOLUTE_ZERO
+            worst = int(np.argmin(temps)) if below else int(np.argmax(np.abs(temps - np.median(temps))))
             who = f"particle {worst} (at {temps[worst]:.4g} C)"
         else:
             who = f"particle {int(np.argmax(np.linalg.norm(v, axis=1)))} (the fastest)"

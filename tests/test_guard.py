@@ -2,6 +2,7 @@
 
 import csv
 import math
+import re
 
 import numpy as np
 import pytest
@@ -63,6 +64,8 @@ def test_a_heat_blow_up_is_named_before_any_row_goes_below_absolute_zero(tmp_pat
     err = capsys.readouterr().err
     assert code == EXIT_STOPPED
     assert "below absolute zero" in err and "above the explicit heat limit" in err
+    coldest = re.search(r"temperature (\S+) C, below absolute zero .* \(at (\S+) C\)", err)
+    assert coldest and coldest.group(1) == coldest.group(2)  # the particle named is the coldest
     assert all(float(r["mean_temperature"]) >= ABSOLUTE_ZERO for r in _rows(stats))
 
 
