@@ -10,10 +10,11 @@ temperature range seen against the range allowed. A healthy scene stays far belo
 import sys
 import time
 
+from sandbox.diagnostics import SUMS
 from sandbox.guard import RUNAWAY_FACTOR
 from sandbox.resources import shipped_scenes
 from sandbox.scene import load_scene
-from sandbox.simulation import _ACC, Simulation
+from sandbox.simulation import Simulation
 
 
 def margins(path) -> str:
@@ -27,7 +28,7 @@ def margins(path) -> str:
         sim.advance_frame()
         sim.stats()
         values = sim._acc.to_numpy()
-        acc = {k: float(values[i]) for k, i in _ACC.items()}
+        acc = {k: float(values[i]) for k, i in SUMS.items()}
         scale = RUNAWAY_FACTOR * limits.energy_scale(acc["mass"])
         energy = max(energy, acc["ke"] / scale if scale > 0 else 0.0)
         travel = max(travel, acc["vmax"] * sim.dt / limits.step_travel)

@@ -9,7 +9,6 @@ import math
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 import taichi as ti
@@ -18,8 +17,9 @@ from . import runtime, taichi_compat, transfer
 from .arguments import MAX_SUBSTEPS
 from .budget import emitter_population
 from .build import build_particles
+from .diagnostics import STAT_COLUMNS, Measurements, Stats  # noqa: F401 - STAT_COLUMNS, Stats re-exported
 from .errors import SimulationError
-from .guard import ABSOLUTE_ZERO, BlowupGuard, scene_limits
+from .guard import BlowupGuard, scene_limits
 from .integrators import REGISTRY, make_integrator
 from .loops import SPREAD_STRIDE, LoopPolicy, spread_item
 from .model import ENTHALPY_LAW, MaterialTable, ParticleFields, material_column
@@ -36,33 +36,11 @@ from .physics.reorder import CellOrder
 from .physics.smoke import SmokeGrid
 from .physics.springs import Springs
 from .scene import COUPLINGS, Scene
+from .stability import StabilityBounds
 from .team import Team
-
-STAT_COLUMNS = (
-    "frame",
-    "time",
-    "kinetic_energy",
-    "potential_energy",
-    "total_energy",
-    "spring_energy",
-    "pair_energy",
-    "gravity_energy",
-    "mean_temperature",
-    "molten_fraction",
-    "heat_content",
-    "broken_springs",
-    "max_speed",
-    "particles",
-    "step_seconds",
-)
 
 SPRING_ARRAYS = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds")  # what refreezing changes (and `created`)
 NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
-_ACC = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
-_ACC.update(tcold=9, thot=10)  # the largest -T and T (degrees; -1e30 without particles): the guard's temperatures
-_COUNT = {"alive": 0, "meltable": 1, "bad": 2}
-
-
 REORDER_BATCH = 20  # most steps per fused launch when the storage is sorted into cell order between launches
 CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
 
@@ -89,41 +67,8 @@ def can_step_as_a_team(scene: Scene) -> bool:
     return scene.world.neighbor_list and not (power or host_work_between_steps(scene))
 
 
-@dataclass
-class Stats:
-    """Measurements of one instant (energies in scaled units; temperature in degrees)."""
-
-    time: float
-    kinetic_energy: float
-    spring_energy: float
-    pair_energy: float
-    gravity_energy: float
-    mean_temperature: float
-    molten_fraction: float  # mean melt fraction of the particles of meltable materials
-    heat_content: float  # sum of m h: the heat (enthalpy) in the particles, conserved without sources
-    broken_springs: int
-    max_speed: float
-    particles: int
-
-    @property
-    def potential_energy(self) -> float:
-        return self.spring_energy + self.pair_energy + self.gravity_energy
-
-    @property
-    def total_energy(self) -> float:
-        return self.kinetic_energy + self.potential_energy
-
-
-def _omega_bound(ks, factor, alive, i, j, mass, n: int) -> float:
-    """Gershgorin bound on the fastest spring frequency (1/time): sqrt(max_p 2 sum_s k_s / m_p) over live springs
-    s at stiffness ks * factor, for the first n particles (host arrays, one entry per spring or particle)."""
-    k = ks * factor * alive
-    ksum = np.bincount(i, weights=k, minlength=n)[:n] + np.bincount(j, weights=k, minlength=n)[:n]
-    return float(math.sqrt(np.max(2 * ksum / mass[:n]))) if n else 0.0
-
-
 @data_oriented
-class Simulation:
+class Simulation(Measurements, StabilityBounds):
     """A running scene: fields, passes, integrator, clock."""
 
     def __init__(self, scene: Scene, arch: str = "cpu", half_lists: bool | None = None):
@@ -268,14 +213,7 @@ class Simulation:
         self.gravity[None] = world.gravity
         self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
         self.drag[None] = world.drag
-        acc = ti.f64 if self.arch in ("cpu", "cuda") else ti.f32
-        # Sums (and the largest speed) for stats(), one 0-d field each: Taichi accumulates a 0-d field per thread
-        # and adds once per thread at the end of a loop, but turns `field[k] += ...` into one contended atomic per
-        # iteration. _measure copies them into _acc and _count, which the host reads.
-        self._sums = [ti.field(acc, shape=()) for _ in _ACC]
-        self._counts = [ti.field(ti.i32, shape=()) for _ in _COUNT]
-        self._acc = ti.field(acc, shape=len(_ACC))  # indexed by _ACC
-        self._count = ti.field(ti.i32, shape=len(_COUNT))  # counts for stats(), indexed by _COUNT
+        self._build_measurements()
         self.integrator = make_integrator(world.integrator, self)
         self.team = Team(self, threads) if self.loops.team and self.half_pairs else None  # it steps half lists
         self.fuses_steps = self._fusable_scene()
@@ -747,200 +685,6 @@ class Simulation:
             self.particles.h[i] = self.phase.enthalpy(self.particles.T[i], self.particles.material[i])
             self.set_enthalpy(i, self.particles.h[i])
 
-    # ------------------------------------------------------------------ measurements
-    @ti.kernel
-    def _measure(self, pair_energy: ti.template()):
-        p = self.particles
-        acc, count = ti.static(self._sums, self._counts)
-        for k in ti.static(range(len(_ACC))):
-            acc[k][None] = 0
-        for k in ti.static(range(len(_COUNT))):
-            count[k][None] = 0
-        acc[_ACC["tcold"]][None] = -1e30  # maxima start below any temperature, not at 0
-        acc[_ACC["thot"]][None] = -1e30
-        self.loops.light()
-        for i in range(p.n[None]):
-            v2 = p.v[i].dot(p.v[i])
-            acc[_ACC["ke"]][None] += 0.5 * p.mass[i] * v2
-            acc[_ACC["mass"]][None] += p.mass[i]
-            acc[_ACC["grav"]][None] += -p.mass[i] * self.gravity[None].dot(p.x[i])
-            ti.atomic_max(acc[_ACC["vmax"]][None], ti.sqrt(v2))
-            finite = 1
-            for a in ti.static(range(self.dim)):
-                if not (ti.abs(p.x[i][a]) < 1e30 and ti.abs(p.v[i][a]) < 1e30):
-                    finite = 0
-            if finite == 0:
-                count[_COUNT["bad"]][None] += 1
-            if ti.static(self.has_heat):
-                acc[_ACC["tsum"]][None] += p.T[i]
-                ti.atomic_max(acc[_ACC["tcold"]][None], -p.T[i])
-                ti.atomic_max(acc[_ACC["thot"]][None], p.T[i])
-                acc[_ACC["heat"]][None] += p.mass[i] * p.h[i]
-                if self.materials.melt[p.material[i]] < 1e29:
-                    count[_COUNT["meltable"]][None] += 1
-                    acc[_ACC["phi"]][None] += self.phase.fraction(p.h[i], p.material[i])
-        if ti.static(self.has_springs):
-            self.loops.light()
-            for s in range(self.springs.span[None]):
-                acc[_ACC["spring"]][None] += self.springs.energy(s)
-                if self.springs.alive[s]:
-                    count[_COUNT["alive"]][None] += 1
-        if ti.static(self.has_pair and pair_energy):
-            self.loops.pairs()
-            for i in range(p.n[None]):
-                e = 0.0
-                c = self.grid.cell_of(p.x[i])
-                for o in range(self.grid.n_offsets):
-                    nc, shift = self.grid.neighbour_cell(c, self.grid.offset(o))
-                    if nc >= 0:
-                        start = self.grid.cell_start[nc]
-                        for k in range(start, start + self.grid.cell_count[nc]):
-                            j = self.grid.sorted_ids[k]
-                            if j > i:
-                                d = self.grid.x_sorted[k] + shift - p.x[i]
-                                r2 = d.dot(d)
-                                if r2 < self.pair.cutoff**2:
-                                    e += self.pair.energy(i, j, r2)
-                if ti.static(self.has_springs):
-                    for k in range(self.springs.max_bonds):
-                        s = self.springs.bonds[i, k]
-                        if s < 0:
-                            break
-                        j = self.springs.other_end(i, s)
-                        if self.springs.alive[s] and j > i:
-                            d = self.domain.separation(p.x[i], p.x[j])
-                            r2 = d.dot(d)
-                            if r2 < self.pair.cutoff**2:
-                                e -= self.pair.energy(i, j, r2)
-                acc[_ACC["pair"]][None] += e
-        for k in ti.static(range(len(_ACC))):
-            self._acc[k] = acc[k][None]
-        for k in ti.static(range(len(_COUNT))):
-            self._count[k] = count[k][None]
-
-    def stats(self, pair_energy: bool = True) -> Stats:
-        """Energies, temperatures and counts now. Raises SimulationError if any particle is not finite.
-        pair_energy=False skips the pair energy's neighbour scan (the costliest part) and reports the last one
-        measured: the window does so on most frames."""
-        pair_energy = pair_energy or self._last_pair_energy is None or not self.has_pair
-        if pair_energy and self.grid is not None:
-            self.grid.rebuild()
-        self._measure(pair_energy)
-        acc_values, cnt_values = self._acc.to_numpy(), self._count.to_numpy()
-        acc = {k: float(acc_values[i]) for k, i in _ACC.items()}
-        if pair_energy:
-            self._last_pair_energy = acc["pair"]
-        else:
-            acc["pair"] = self._last_pair_energy
-        cnt = {k: int(cnt_values[i]) for k, i in _COUNT.items()}
-        n = int(self.particles.n[None])
-        problem = self.guard.problem(acc, cnt["bad"], self.dt, self.heat is not None)
-        if problem:
-            self._raise_blowup(*problem)
-        return Stats(
-            time=self.time,
-            kinetic_energy=acc["ke"],
-            spring_energy=acc["spring"],
-            pair_energy=acc["pair"],
-            gravity_energy=acc["grav"],
-            mean_temperature=acc["tsum"] / n if (self.heat is not None and n) else float("nan"),
-            molten_fraction=acc["phi"] / cnt["meltable"] if cnt["meltable"] else 0.0,
-            heat_content=acc["heat"] if self.heat is not None else float("nan"),
-            broken_springs=int(self.springs.created[None]) - cnt["alive"] if self.springs is not None else 0,
-            max_speed=acc["vmax"],
-            particles=n,
-        )
-
-    def _raise_blowup(self, kind: str, what: str) -> None:
-        """Raise the SimulationError for the guard's finding (`kind`: state, temperature or motion), naming the step,
-        the particle and the likeliest cause."""
-        n = int(self.particles.n[None])
-        x = self.particles.x.to_numpy()[:n]
-        v = self.particles.v.to_numpy()[:n]
-        bad = np.flatnonzero(
-            ~(
-                np.isfinite(x).all(axis=1)
-                & np.isfinite(v).all(axis=1)
-                & (np.abs(x) < 1e30).all(axis=1)
-                & (np.abs(v) < 1e30).all(axis=1)
-            )
-        )
-        heat_limit_passed = self.has_explicit_heat and self.dt > self._heat_limit
-        if len(bad):
-            who = f"particle {int(bad[0])}"
-        elif kind == "temperature":
-            temps = self.particles.T.to_numpy()[:n]
-            below = temps.min() < ABSOLUTE_ZERO
-            worst = int(np.argmin(temps)) if below else int(np.argmax(np.abs(temps - np.median(temps))))
-            who = f"particle {worst} (at {temps[worst]:.4g} C)"
-        else:
-            who = f"particle {int(np.argmax(np.linalg.norm(v, axis=1)))} (the fastest)"
-        limit = self.stable_dt_initial
-        name = self.integrator.name
-        if kind == "temperature":
-            cause = (
-                f"dt {self.dt:g} is above the explicit heat limit {self._heat_limit:.3g}"
-                if heat_limit_passed
-                else "heat flowed without bound (check the sources' power, conductivities and specific heats)"
-            )
-        elif limit == 0.0:
-            cause = f"{name} is unstable on undamped springs at any step; use symplectic_euler or implicit_euler"
-        elif limit < self.dt:
-            cause = f"dt {self.dt:g} is above the stable limit {limit:.3g} for the stiffest spring with {name}"
-        elif heat_limit_passed:
-            cause = f"dt {self.dt:g} is above the explicit heat limit {self._heat_limit:.3g}"
-        else:
-            cause = "a force grew without bound (check stiffness, masses and the pair-force core)"
-        raise SimulationError(f"{what} at step {self.step_count} (t = {self.time:.4g}) in {who}: {cause}")
-
-    @property
-    def stable_dt_initial(self) -> float:
-        """stable_dt() for the springs as built (before softening and breaking), for this integrator."""
-        if self._spring_omega0 == 0.0:
-            return math.inf
-        return self.integrator.stable_h_omega / self._spring_omega0
-
-    def omega_max(self) -> float:
-        """Upper bound on the fastest spring frequency now: omega_max^2 <= max_i 2 sum_s k_s / m_i over live
-        springs at their current (softened) stiffness (Gershgorin bound on M^-1 K); 0 without springs."""
-        if self.springs is None:
-            return 0.0
-        s = self.springs
-        ks, factor, alive, i, j, mass = transfer.download([s.ks, s.factor, s.alive, s.i, s.j, self.particles.mass])
-        return _omega_bound(ks, factor, alive, i, j, mass, int(self.particles.n[None]))
-
-    def _snapshot_omega_max(self, snap: dict) -> float:
-        """omega_max() of the state in `snap` (from the host copies: no copy kernel to compile at start-up)."""
-        if self.springs is None:
-            return 0.0
-        springs = (snap[f"spring_{name}"] for name in ("ks", "factor", "alive", "i", "j"))
-        return _omega_bound(*springs, snap["mass"], snap["n"])
-
-    def stable_dt(self) -> float:
-        """Largest stable step for the springs with this integrator: (its stable h w) / omega_max. 0 for methods
-        unstable on undamped springs at any step (forward Euler, midpoint); inf without springs."""
-        omega = self.omega_max()
-        if omega == 0.0:
-            return math.inf
-        return self.integrator.stable_h_omega / omega
-
-    def auto_step(self) -> float:
-        """The step substeps = "auto" uses now: the integrator's auto h w over omega_max, half the time for the
-        fastest particle to cross the smallest radius, half the explicit heat limit, and world.dt."""
-        limits = [self.scene.world.dt]
-        omega = self.omega_max()
-        if omega > 0 and math.isfinite(self.integrator.auto_h_omega):
-            limits.append(self.integrator.auto_h_omega / omega)
-        n = int(self.particles.n[None])
-        if n:
-            v = np.linalg.norm(self.velocities(), axis=1).max()
-            r = self.particles.radius.to_numpy()[:n].min()
-            if v > 0:
-                limits.append(0.5 * r / v)
-        if self.has_explicit_heat:
-            limits.append(0.5 * self._heat_limit)
-        return min(limits)
-
     def frame_substeps(self) -> tuple[int, float]:
         """(steps, step size) for the next frame: the scene's fixed substeps at world.dt, or under "auto" the
         fewest equal steps of at most auto_step() that span world.frame_time."""
@@ -968,31 +712,6 @@ class Simulation:
             midway()
             self.step(substeps - substeps // 2)
         return substeps
-
-    def heat_dt_limit(self) -> float:
-        """Largest stable explicit heat step on the initial particles (Gershgorin bound), inf without heat."""
-        if self.heat is None or self.built.count < 2:
-            return math.inf
-        from .physics.heat import wendland_grad_factor
-
-        b = self.built
-        mats = [self.scene.materials[m] for m in self.material_names]
-        rho = material_column(mats, b.material, "density")
-        cap = material_column(mats, b.material, "specific_heat") * b.mass
-        k = material_column(mats, b.material, "conductivity")
-        # Probe a few particles: the diagonal coefficient sum of the heat matrix row.
-        probe = np.linspace(0, b.count - 1, num=min(b.count, 64)).astype(int)
-        worst = 0.0
-        for i in probe:
-            r = np.linalg.norm(b.x - b.x[i], axis=1)
-            near = (r > 0) & (r < self.heat.support)
-            vol = b.mass / rho
-            kij = 2 * k[i] * k[near] / np.maximum(k[i] + k[near], 1e-30)
-            grad = np.array([wendland_grad_factor(rr, self.heat.support, self.dim) for rr in r[near]])
-            grad /= self.heat.correction
-            row = np.sum(vol[i] * vol[near] * 2 * kij * grad) / cap[i]
-            worst = max(worst, row)
-        return 2.0 / (2.0 * worst) if worst > 0 else math.inf
 
     # ------------------------------------------------------------------ state
     def snapshot(self) -> dict[str, np.ndarray]:

@@ -1,0 +1,223 @@
+"""Measurements of a running simulation and the blow-up guard's verdict on them.
+
+`Measurements` is a mixin of Simulation: one kernel (`_measure`) sums energies, temperatures, counts and the largest
+speed over the particles and springs into 0-d fields, `stats()` reads them as a `Stats`, asks the guard
+(guard.py) whether the state is sane, and raises a SimulationError naming the step, the particle and the likely cause
+when it is not.
+"""
+
+# No `from __future__ import annotations` in a module with kernels: Taichi reads their annotations as objects.
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from .errors import SimulationError
+from .guard import ABSOLUTE_ZERO
+
+STAT_COLUMNS = (
+    "frame",
+    "time",
+    "kinetic_energy",
+    "potential_energy",
+    "total_energy",
+    "spring_energy",
+    "pair_energy",
+    "gravity_energy",
+    "mean_temperature",
+    "molten_fraction",
+    "heat_content",
+    "broken_springs",
+    "max_speed",
+    "particles",
+    "step_seconds",
+)
+
+# Sums (and maxima) of one measurement, one 0-d field each, by name -> index in Measurements._acc
+SUMS = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
+SUMS.update(tcold=9, thot=10)  # the largest -T and T (degrees; -1e30 without particles): the guard's temperatures
+COUNTS = {"alive": 0, "meltable": 1, "bad": 2}
+
+
+@dataclass
+class Stats:
+    """Measurements of one instant (energies in scaled units; temperature in degrees)."""
+
+    time: float
+    kinetic_energy: float
+    spring_energy: float
+    pair_energy: float
+    gravity_energy: float
+    mean_temperature: float
+    molten_fraction: float  # mean melt fraction of the particles of meltable materials
+    heat_content: float  # sum of m h: the heat (enthalpy) in the particles, conserved without sources
+    broken_springs: int
+    max_speed: float
+    particles: int
+
+    @property
+    def potential_energy(self) -> float:
+        return self.spring_energy + self.pair_energy + self.gravity_energy
+
+    @property
+    def total_energy(self) -> float:
+        return self.kinetic_energy + self.potential_energy
+
+
+class Measurements:
+    """Simulation's measurements: _build_measurements() in its constructor, then stats() whenever asked."""
+
+    def _build_measurements(self) -> None:
+        acc = ti.f64 if self.arch in ("cpu", "cuda") else ti.f32
+        # Sums (and the largest speed) for stats(), one 0-d field each: Taichi accumulates a 0-d field per thread
+        # and adds once per thread at the end of a loop, but turns `field[k] += ...` into one contended atomic per
+        # iteration. _measure copies them into _acc and _count, which the host reads.
+        self._sums = [ti.field(acc, shape=()) for _ in SUMS]
+        self._counts = [ti.field(ti.i32, shape=()) for _ in COUNTS]
+        self._acc = ti.field(acc, shape=len(SUMS))  # indexed by SUMS
+        self._count = ti.field(ti.i32, shape=len(COUNTS))  # counts for stats(), indexed by COUNTS
+
+    @ti.kernel
+    def _measure(self, pair_energy: ti.template()):
+        p = self.particles
+        acc, count = ti.static(self._sums, self._counts)
+        for k in ti.static(range(len(SUMS))):
+            acc[k][None] = 0
+        for k in ti.static(range(len(COUNTS))):
+            count[k][None] = 0
+        acc[SUMS["tcold"]][None] = -1e30  # maxima start below any temperature, not at 0
+        acc[SUMS["thot"]][None] = -1e30
+        self.loops.light()
+        for i in range(p.n[None]):
+            v2 = p.v[i].dot(p.v[i])
+            acc[SUMS["ke"]][None] += 0.5 * p.mass[i] * v2
+            acc[SUMS["mass"]][None] += p.mass[i]
+            acc[SUMS["grav"]][None] += -p.mass[i] * self.gravity[None].dot(p.x[i])
+            ti.atomic_max(acc[SUMS["vmax"]][None], ti.sqrt(v2))
+            finite = 1
+            for a in ti.static(range(self.dim)):
+                if not (ti.abs(p.x[i][a]) < 1e30 and ti.abs(p.v[i][a]) < 1e30):
+                    finite = 0
+            if finite == 0:
+                count[COUNTS["bad"]][None] += 1
+            if ti.static(self.has_heat):
+                acc[SUMS["tsum"]][None] += p.T[i]
+                ti.atomic_max(acc[SUMS["tcold"]][None], -p.T[i])
+                ti.atomic_max(acc[SUMS["thot"]][None], p.T[i])
+                acc[SUMS["heat"]][None] += p.mass[i] * p.h[i]
+                if self.materials.melt[p.material[i]] < 1e29:
+                    count[COUNTS["meltable"]][None] += 1
+                    acc[SUMS["phi"]][None] += self.phase.fraction(p.h[i], p.material[i])
+        if ti.static(self.has_springs):
+            self.loops.light()
+            for s in range(self.springs.span[None]):
+                acc[SUMS["spring"]][None] += self.springs.energy(s)
+                if self.springs.alive[s]:
+                    count[COUNTS["alive"]][None] += 1
+        if ti.static(self.has_pair and pair_energy):
+            self.loops.pairs()
+            for i in range(p.n[None]):
+                e = 0.0
+                c = self.grid.cell_of(p.x[i])
+                for o in range(self.grid.n_offsets):
+                    nc, shift = self.grid.neighbour_cell(c, self.grid.offset(o))
+                    if nc >= 0:
+                        start = self.grid.cell_start[nc]
+                        for k in range(start, start + self.grid.cell_count[nc]):
+                            j = self.grid.sorted_ids[k]
+                            if j > i:
+                                d = self.grid.x_sorted[k] + shift - p.x[i]
+                                r2 = d.dot(d)
+                                if r2 < self.pair.cutoff**2:
+                                    e += self.pair.energy(i, j, r2)
+                if ti.static(self.has_springs):
+                    for k in range(self.springs.max_bonds):
+                        s = self.springs.bonds[i, k]
+                        if s < 0:
+                            break
+                        j = self.springs.other_end(i, s)
+                        if self.springs.alive[s] and j > i:
+                            d = self.domain.separation(p.x[i], p.x[j])
+                            r2 = d.dot(d)
+                            if r2 < self.pair.cutoff**2:
+                                e -= self.pair.energy(i, j, r2)
+                acc[SUMS["pair"]][None] += e
+        for k in ti.static(range(len(SUMS))):
+            self._acc[k] = acc[k][None]
+        for k in ti.static(range(len(COUNTS))):
+            self._count[k] = count[k][None]
+
+    def stats(self, pair_energy: bool = True) -> Stats:
+        """Energies, temperatures and counts now. Raises SimulationError if any particle is not finite.
+        pair_energy=False skips the pair energy's neighbour scan (the costliest part) and reports the last one
+        measured: the window does so on most frames."""
+        pair_energy = pair_energy or self._last_pair_energy is None or not self.has_pair
+        if pair_energy and self.grid is not None:
+            self.grid.rebuild()
+        self._measure(pair_energy)
+        acc_values, cnt_values = self._acc.to_numpy(), self._count.to_numpy()
+        acc = {k: float(acc_values[i]) for k, i in SUMS.items()}
+        if pair_energy:
+            self._last_pair_energy = acc["pair"]
+        else:
+            acc["pair"] = self._last_pair_energy
+        cnt = {k: int(cnt_values[i]) for k, i in COUNTS.items()}
+        n = int(self.particles.n[None])
+        problem = self.guard.problem(acc, cnt["bad"], self.dt, self.heat is not None)
+        if problem:
+            self._raise_blowup(*problem)
+        return Stats(
+            time=self.time,
+            kinetic_energy=acc["ke"],
+            spring_energy=acc["spring"],
+            pair_energy=acc["pair"],
+            gravity_energy=acc["grav"],
+            mean_temperature=acc["tsum"] / n if (self.heat is not None and n) else float("nan"),
+            molten_fraction=acc["phi"] / cnt["meltable"] if cnt["meltable"] else 0.0,
+            heat_content=acc["heat"] if self.heat is not None else float("nan"),
+            broken_springs=int(self.springs.created[None]) - cnt["alive"] if self.springs is not None else 0,
+            max_speed=acc["vmax"],
+            particles=n,
+        )
+
+    def _raise_blowup(self, kind: str, what: str) -> None:
+        """Raise the SimulationError for the guard's finding (`kind`: state, temperature or motion), naming the step,
+        the particle and the likeliest cause."""
+        n = int(self.particles.n[None])
+        x = self.particles.x.to_numpy()[:n]
+        v = self.particles.v.to_numpy()[:n]
+        bad = np.flatnonzero(
+            ~(
+                np.isfinite(x).all(axis=1)
+                & np.isfinite(v).all(axis=1)
+                & (np.abs(x) < 1e30).all(axis=1)
+                & (np.abs(v) < 1e30).all(axis=1)
+            )
+        )
+        heat_limit_passed = self.has_explicit_heat and self.dt > self._heat_limit
+        if len(bad):
+            who = f"particle {int(bad[0])}"
+        elif kind == "temperature":
+            temps = self.particles.T.to_numpy()[:n]
+            below = temps.min() < ABSOLUTE_ZERO
+            worst = int(np.argmin(temps)) if below else int(np.argmax(np.abs(temps - np.median(temps))))
+            who = f"particle {worst} (at {temps[worst]:.4g} C)"
+        else:
+            who = f"particle {int(np.argmax(np.linalg.norm(v, axis=1)))} (the fastest)"
+        limit = self.stable_dt_initial
+        name = self.integrator.name
+        if kind == "temperature":
+            cause = (
+                f"dt {self.dt:g} is above the explicit heat limit {self._heat_limit:.3g}"
+                if heat_limit_passed
+                else "heat flowed without bound (check the sources' power, conductivities and specific heats)"
+            )
+        elif limit == 0.0:
+            cause = f"{name} is unstable on undamped springs at any step; use symplectic_euler or implicit_euler"
+        elif limit < self.dt:
+            cause = f"dt {self.dt:g} is above the stable limit {limit:.3g} for the stiffest spring with {name}"
+        elif heat_limit_passed:
+            cause = f"dt {self.dt:g} is above the explicit heat limit {self._heat_limit:.3g}"
+        else:
+            cause = "a force grew without bound (check stiffness, masses and the pair-force core)"
+        raise SimulationError(f"{what} at step {self.step_count} (t = {self.time:.4g}) in {who}: {cause}")
