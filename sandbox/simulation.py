@@ -10,19 +10,19 @@ import time
 import warnings
 from collections.abc import Callable
 
-import numpy as np
 import taichi as ti
 
 from . import runtime, taichi_compat, transfer
 from .arguments import MAX_SUBSTEPS
 from .budget import emitter_population
 from .build import build_particles
+from .description import Description
 from .diagnostics import STAT_COLUMNS, Measurements, Stats  # noqa: F401 - STAT_COLUMNS, Stats re-exported
 from .errors import SimulationError
 from .guard import BlowupGuard, scene_limits
-from .integrators import REGISTRY, make_integrator
+from .integrators import make_integrator
 from .loops import SPREAD_STRIDE, LoopPolicy, spread_item
-from .model import ENTHALPY_LAW, MaterialTable, ParticleFields, material_column
+from .model import MaterialTable, ParticleFields, material_column
 from .oriented import data_oriented
 from .physics.boundary import Domain
 from .physics.emitters import NEVER_BONDS, Emitters
@@ -37,9 +37,9 @@ from .physics.smoke import SmokeGrid
 from .physics.springs import Springs
 from .scene import COUPLINGS, Scene
 from .stability import StabilityBounds
+from .state import StateAccess
 from .team import Team
 
-SPRING_ARRAYS = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds")  # what refreezing changes (and `created`)
 NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
 REORDER_BATCH = 20  # most steps per fused launch when the storage is sorted into cell order between launches
 CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
@@ -68,7 +68,7 @@ def can_step_as_a_team(scene: Scene) -> bool:
 
 
 @data_oriented
-class Simulation(Measurements, StabilityBounds):
+class Simulation(Measurements, StabilityBounds, StateAccess, Description):
     """A running scene: fields, passes, integrator, clock."""
 
     def __init__(self, scene: Scene, arch: str = "cpu", half_lists: bool | None = None):
@@ -712,169 +712,6 @@ class Simulation(Measurements, StabilityBounds):
             midway()
             self.step(substeps - substeps // 2)
         return substeps
-
-    # ------------------------------------------------------------------ state
-    def snapshot(self) -> dict[str, np.ndarray]:
-        """Copies of every state field, particles and springs (for reset, and tests)."""
-        p = self.particles
-        snap = {"n": int(p.n[None]), "time": self.time, "step": self.step_count}
-        if self.emitters is not None:
-            snap["emitters"] = (list(self.emitters.serial), list(self.emitters.carry), list(self.emitters.emitted))
-        names = self.field_names()
-        fields = [getattr(p, name) for name in names]
-        if self.springs is not None:
-            fields += [getattr(self.springs, name) for name in SPRING_ARRAYS]
-            snap["spring_created"] = int(self.springs.created[None])
-            snap["spring_span"] = int(self.springs.span[None])
-        arrays = transfer.download(fields)  # one copy kernel for all of them
-        snap.update(zip(names, arrays))
-        snap.update((f"spring_{name}", a) for name, a in zip(SPRING_ARRAYS, arrays[len(names) :]))
-        return snap
-
-    def restore(self, snap: dict) -> None:
-        """Put the state back exactly as `snapshot()` saw it."""
-        p = self.particles
-        p.n[None] = snap["n"]
-        pairs = [(getattr(p, name), snap[name]) for name in self.field_names()]
-        if self.springs is not None:
-            pairs += [(getattr(self.springs, name), snap[f"spring_{name}"]) for name in SPRING_ARRAYS]
-            self.springs.created[None] = snap["spring_created"]
-            self.springs.span[None] = snap["spring_span"]
-        transfer.upload(pairs)
-        self.time = snap["time"]
-        self.step_count = snap["step"]
-        if self.emitters is not None:
-            serial, carry, emitted = snap["emitters"]
-            self.emitters.serial, self.emitters.carry, self.emitters.emitted = list(serial), list(carry), list(emitted)
-        if self.heat is not None:
-            self.heat.set_time(self.time)
-        if self.neighbours is not None:
-            self.neighbours.invalidate()
-
-    def mark_initial(self) -> None:
-        """Make the current state the one reset() returns to."""
-        self._initial = self.snapshot()
-        self._spring_omega0 = self._snapshot_omega_max(self._initial)
-
-    def reset(self) -> None:
-        """Back to the scene's initial state."""
-        self.restore(self._initial)
-
-    def positions(self) -> np.ndarray:
-        """Active positions, (N, D) NumPy copy."""
-        return self.particles.x.to_numpy()[: int(self.particles.n[None])]
-
-    def velocities(self) -> np.ndarray:
-        return self.particles.v.to_numpy()[: int(self.particles.n[None])]
-
-    def temperatures(self) -> np.ndarray:
-        return self.particles.T.to_numpy()[: int(self.particles.n[None])]
-
-    def set_temperatures(self, temperatures: np.ndarray) -> None:
-        """Set the active particles' temperatures (degrees, (N,)); enthalpies and liquid flags follow."""
-        n = int(self.particles.n[None])
-        full = self.particles.T.to_numpy()
-        full[:n] = temperatures
-        self.particles.T.from_numpy(full)
-        self.sync_temperatures()
-
-    def melt_fractions(self) -> np.ndarray:
-        """Melt fraction phi in [0, 1] of the active particles, (N,) (0 without heat)."""
-        n = int(self.particles.n[None])
-        if self.heat is None:
-            return np.zeros(n)
-        from .physics.phase import temperature_np
-
-        ids = self.particles.material.to_numpy()[:n]
-        mats = [self.scene.materials[name] for name in self.material_names]
-        law = [material_column(mats, ids, name) for name in ENTHALPY_LAW]
-        return temperature_np(self.particles.h.to_numpy()[:n], *law)[1]
-
-    def forces(self) -> np.ndarray:
-        """Forces of the last evaluation, (N, D)."""
-        return self.particles.f.to_numpy()[: int(self.particles.n[None])]
-
-    # ------------------------------------------------------------------ description
-    def pipeline(self) -> list[str]:
-        """The passes a step runs, in order."""
-        passes = []
-        if self.emitters is not None:
-            passes.append(f"emitters: {', '.join(e.name for e in self.scene.emitters)} (rate, bursts)")
-        if self.smoke is not None:
-            passes.append(f"smoke: stable fluids on a {self.smoke.describe()} (buoyancy, advection, CG projection)")
-        if self.has_field_drag:
-            passes.append("velocity field sampled at field-coupled particles (their drag target)")
-        if self.neighbours is not None:
-            passes.append(
-                f"{'half' if self.half_pairs else 'full'} neighbour lists (reach {self.neighbours.reach:g} + skin "
-                f"{self.neighbours.skin:g}, width {self.neighbours.width}), rebuilt from a counting-sort "
-                f"{self.grid.describe()} when a particle has moved half the skin"
-            )
-            if self.reorder is not None:
-                passes.append(f"particle storage sorted into cell order every {self.reorder.every} list rebuilds")
-        elif self.grid is not None:
-            passes.append(f"neighbour grid: counting sort into a {self.grid.describe()}, every step")
-        if self.springs is not None:
-            what = "thermoelastic softening and breaking by melt fraction" if self.heat else "overstretch breaking"
-            slots = f" ({self.springs.count} slots, room to refreeze)" if self.refreezer is not None else ""
-            passes.append(f"spring update ({what}) over {self.springs.built_count} springs{slots}")
-        forces = []
-        if self.pair is not None:
-            forces.append(f"pair force (a={self.pair.a:g}, b={self.pair.b:g}, cutoff {self.pair.cutoff:g})")
-        if self.heat is not None:
-            forces.append(f"heat diffusion (kernel support {self.heat.support:g}, {self.heat.n_sources} sources)")
-        if self.springs is not None:
-            forces.append("spring-damper forces (gathered per particle)")
-        if any(self.scene.world.gravity):
-            forces.append("gravity")
-        if self.scene.world.drag:
-            forces.append("drag")
-        pairs = " (each neighbour pair once, applied to both)" if self.half_pairs else ""
-        passes.append(f"fused rates kernel{pairs}: " + ", ".join(forces))
-        walls = "periodic wrap" if self.scene.world.periodic else "walls (restitution, friction)"
-        heat = ""
-        if self.heat is not None:
-            heat = ", enthalpy update (temperature and melt fraction from it)" if self.has_explicit_heat else ""
-        passes.append(f"integrator {self.integrator.name}, then {walls}{heat}")
-        if self.implicit_heat is not None:
-            passes.append("implicit heat: backward Euler by preconditioned CG, then the enthalpy update")
-        if self.has_kinematic:
-            passes.append(f"kinematic advection through the velocity field ({self.scene.world.advection})")
-        if self.has_lifetimes:
-            passes.append("ageing; the dead retired by compaction after each step() call")
-        if self.fuses_steps:
-            fused = "/".join(name for name, cls in REGISTRY.items() if cls.single_update)
-            team = f", run by a team of {self.team.workers} threads meeting at barriers" if self.team else ""
-            passes.append(
-                "launch: every pass of a step, and many steps, in one kernel launch (the list rebuild decided on the "
-                f"device{team}) with {fused}; other integrators one launch per pass"
-            )
-        if self.refreezer is not None:
-            passes.append(
-                f"every {self.scene.heat.refreeze_interval} steps: refreezing (new bonds within "
-                f"{self.refreezer.radius:g} between frozen particles where one was molten)"
-            )
-        return passes
-
-    def field_names(self) -> list[str]:
-        """Names of the per-particle fields allocated for this scene."""
-        return self.particles.names()
-
-    def memory_bytes(self) -> dict[str, int]:
-        """Bytes of field memory by part."""
-        fbytes = 8 if self.scene.world.precision == "f64" else 4
-        out = {"particles": self.particles.nbytes()}
-        if self.springs is not None:
-            out["springs"] = self.springs.count * (3 * 4 + 4 * fbytes) + self.capacity * self.springs.max_bonds * 4
-        if self.grid is not None:
-            out["grid"] = CellGrid.footprint_bytes(self.capacity, self.grid.n_cells, self.dim)
-        if self.neighbours is not None:
-            out["neighbour lists"] = self.neighbours.nbytes()
-        if self.half_pairs:
-            out["half-list buffers"] = self.n_pair_rows * self.capacity * (self.dim + (1 if self.heat else 0)) * fbytes
-        if self.reorder is not None:
-            out["reorder scratch"] = self.reorder.nbytes()
-        return out
 
 
 def timed_steps(sim: Simulation, n: int) -> float:
