@@ -108,10 +108,17 @@ class World:
     )
 
 
+MAX_EXPONENT = 64  # a whole-number exponent is unrolled into multiplications when the kernels compile
+
+
+def exponent(x: float) -> str | None:
+    return None if 0 < x <= MAX_EXPONENT else f"expected a number above 0 and at most {MAX_EXPONENT}, got {x}"
+
+
 @dataclass(frozen=True, kw_only=True)
 class PairForce:
-    a: float = spec(2.0, doc="exponent of the attraction term alpha/(d+eps)^a", check=positive)
-    b: float = spec(4.0, doc="exponent of the repulsion term beta/d^b", check=positive)
+    a: float = spec(2.0, doc="exponent of the attraction term alpha/(d+eps)^a (at most 64)", check=exponent)
+    b: float = spec(4.0, doc="exponent of the repulsion term beta/d^b (at most 64)", check=exponent)
     cutoff: float = spec(2.5, doc="cutoff distance of the pair force (length)", check=positive)
     core: float = spec(
         0.6,

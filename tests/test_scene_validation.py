@@ -66,6 +66,7 @@ def test_good_scene_loads_with_defaults(scene_file):
             "expected every component above heat.sources[0].lo",
         ),
         (GOOD.replace("dim = 2", "dim = 2\ncapacity = 6000000"), "world.capacity", "expected at most 5,000,000"),
+        (GOOD + "\n[pair]\na = 1e12\nb = 2e12\n", "pair.a", "expected a number above 0 and at most 64"),
         (
             GOOD.replace("hi = [8.0, 8.0]", "hi = [8.0, 8.0]\nspacing = 0.0005"),
             "bodies[0]",
