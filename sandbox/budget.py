@@ -109,7 +109,12 @@ def check_size(file: str, world, bodies: list, emitters: list, has_neighbours: b
     free = available_memory()
     if free is not None and need > MEMORY_SHARE * free:
         biggest = int(np.argmax(counts)) if counts else None
-        where = f"bodies[{biggest}]" if biggest is not None and counts[biggest] >= total // 2 else "world"
+        if cells * SMOKE_BYTES >= need // 2:
+            where = "smoke.resolution"
+        elif biggest is not None and counts[biggest] >= total // 2:
+            where = f"bodies[{biggest}]"
+        else:
+            where = "world"
         raise SceneError(
             file,
             where,

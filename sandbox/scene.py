@@ -43,6 +43,15 @@ CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
 )
 
 
+MAX_ITERATIONS = 100_000  # CG iteration caps: a step must end
+MAX_BONDS = 64  # bonds per particle that refreezing may fill up to (spare spring slots: capacity x bonds / 2)
+MAX_EXPONENT = 64  # a whole-number exponent is unrolled into multiplications when the kernels compile
+
+
+def exponent(x: float) -> str | None:
+    return None if 0 < x <= MAX_EXPONENT else f"expected a number above 0 and at most {MAX_EXPONENT}, got {x}"
+
+
 @dataclass(frozen=True, kw_only=True)
 class SceneInfo:
     name: str = spec("", doc="scene name (default: the file name)")
@@ -88,7 +97,9 @@ class World:
         check=at_least(1),
     )
     implicit_tolerance: float = spec(1e-6, doc="implicit_euler: relative residual at which CG stops", check=positive)
-    implicit_max_iterations: int = spec(200, doc="implicit_euler: CG iteration cap per step", check=at_least(1))
+    implicit_max_iterations: int = spec(
+        200, doc="implicit_euler: CG iteration cap per step", check=between(1, MAX_ITERATIONS)
+    )
     neighbor_list: bool = spec(True, doc="Verlet neighbour lists (false: scan the cell grid every step)")
     skin: float = spec(
         0.3, doc="neighbour-list skin (length): lists are rebuilt after a particle moves skin/2", check=positive
@@ -106,13 +117,6 @@ class World:
         doc="kinematic particles: x += dt v(x, t) by forward Euler, or by the midpoint rule",
         check=one_of("euler", "midpoint"),
     )
-
-
-MAX_EXPONENT = 64  # a whole-number exponent is unrolled into multiplications when the kernels compile
-
-
-def exponent(x: float) -> str | None:
-    return None if 0 < x <= MAX_EXPONENT else f"expected a number above 0 and at most {MAX_EXPONENT}, got {x}"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -176,7 +180,7 @@ class Heat:
         1.5, doc="refreezing bonds particles closer than this (length; at most the heat radius)", check=positive
     )
     refreeze_max_bonds: int = spec(
-        0, doc="bonds per particle that refreezing fills up to (0: 8 in 2D, 12 in 3D)", check=at_least(0)
+        0, doc="bonds per particle that refreezing fills up to (0: 8 in 2D, 12 in 3D)", check=between(0, MAX_BONDS)
     )
     refreeze_interval: int = spec(10, doc="steps between refreezing passes", check=at_least(1))
 
@@ -231,7 +235,7 @@ class Smoke:
     ambient: float = spec(20.0, doc="ambient temperature of the air (degrees)", check=celsius)
     cooling: float = spec(0.3, doc="rate at which hot air relaxes to the ambient (1/time)", check=non_negative)
     tolerance: float = spec(1e-5, doc="pressure solve: relative residual at which CG stops", check=positive)
-    max_iterations: int = spec(400, doc="pressure solve: CG iteration cap per step", check=at_least(1))
+    max_iterations: int = spec(400, doc="pressure solve: CG iteration cap per step", check=between(1, MAX_ITERATIONS))
     interval: int = spec(
         1,
         doc="simulation steps per smoke step (stable fluids is stable at any step; the smoke steps interval x dt)",

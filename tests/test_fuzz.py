@@ -134,7 +134,8 @@ RUN_OPTIONS = {
     "--fps": ["0", "nan", "inf", "-1", "24", "1e9"],
     "--still-frame": ["-1", "0", "1", "5"],
 }
-SCENE_KEYS = {name: [".".join(map(str, p)) for p, _ in _leaves(RAW[name])] for name in ("spring_lattice", "ice_cube")}
+RUN_SCENES = sorted(RAW) if CAMPAIGN else ["spring_lattice", "ice_cube"]  # a campaign mutates every shipped scene
+SCENE_KEYS = {name: [".".join(map(str, p)) for p, _ in _leaves(RAW[name])] for name in RUN_SCENES}
 
 
 @st.composite

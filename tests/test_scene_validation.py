@@ -67,6 +67,8 @@ def test_good_scene_loads_with_defaults(scene_file):
         ),
         (GOOD.replace("dim = 2", "dim = 2\ncapacity = 6000000"), "world.capacity", "expected at most 5,000,000"),
         (GOOD + "\n[pair]\na = 1e12\nb = 2e12\n", "pair.a", "expected a number above 0 and at most 64"),
+        (GOOD + "\n[heat]\nrefreeze_max_bonds = 1000000000000\n", "heat.refreeze_max_bonds", "from 0 to 64"),
+        (GOOD.replace("dim = 2", "dim = 2\nimplicit_max_iterations = 0"), "world.implicit_max_iterations", "from 1"),
         (
             GOOD.replace("hi = [8.0, 8.0]", "hi = [8.0, 8.0]\nspacing = 0.0005"),
             "bodies[0]",
