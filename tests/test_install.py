@@ -1,6 +1,7 @@
 """A plain (non-editable) install works from any folder: the wheel carries the scenes and the materials library."""
 
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -21,7 +22,10 @@ def installed_wheel(tmp_path_factory):
     """A fresh virtual environment holding only the wheel built from this tree; Taichi, NumPy and imageio-ffmpeg
     come from the test environment through a .pth file (so the test needs no download beyond the build backend)."""
     base = tmp_path_factory.mktemp("wheel")
-    built = _run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(base / "dist"), str(ROOT)], base)
+    source = base / "source"  # a copy: setuptools leaves build/ in the tree it builds, which could go stale
+    skip = ("build", "dist", "out", "*.egg-info", "__pycache__")
+    shutil.copytree(ROOT, source, ignore=shutil.ignore_patterns(".*", *skip))
+    built = _run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(base / "dist"), str(source)], base)
     if built.returncode != 0:
         if "setuptools" in built.stderr and ("Could not find" in built.stderr or "No matching" in built.stderr):
             pytest.skip("the build backend (setuptools>=77) could not be fetched")
