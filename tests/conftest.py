@@ -1,6 +1,7 @@
 """Shared helpers: scenes from Python dicts, and Taichi on the CPU backend."""
 
 import copy
+import os
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,12 @@ from sandbox.scene import Scene, scene_from_dict
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
+
+# Compiled kernels are cached in the checkout (.cache/taichi, ignored by git): a second run of the suite compiles
+# little, and the suite's kernels (over 100 MB) neither crowd the user's own Taichi cache out of its 100 MB nor are
+# evicted from their own halfway through a run.
+os.environ.setdefault("TI_OFFLINE_CACHE_FILE_PATH", str(ROOT / ".cache" / "taichi"))
+os.environ.setdefault("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES", str(1 << 30))
 
 
 def scene_dict(dim: int = 2, **sections) -> dict:
@@ -25,9 +32,11 @@ def scene_dict(dim: int = 2, **sections) -> dict:
 runtime.own_process()  # the tests are the sandbox's own: pinned CPU workers, light compile-error excerpts (as the CLI)
 
 
-@pytest.fixture(autouse=True, scope="module")
+@pytest.fixture(autouse=True)
 def fresh_taichi():
-    """A fresh Taichi runtime per test module: a runtime holds at most ~512 field trees (runtime.reset)."""
+    """A fresh Taichi runtime per test. A runtime holds at most ~512 field trees (runtime.reset), and a kernel's
+    offline-cache key names the field ids it reads, which restart at each start: a scene built first in a test has the
+    ids, and so the cached kernels, of the same scene built first in any earlier test."""
     runtime.reset()
     yield
 

@@ -12,12 +12,14 @@ import pytest
 
 from tests.conftest import ROOT
 
+pytestmark = pytest.mark.xdist_group("wheel")  # one worker builds the session fixture, once
+
 
 def _run(args, cwd, **kw):
     return subprocess.run(args, cwd=cwd, capture_output=True, text=True, timeout=600, **kw)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def installed_wheel(tmp_path_factory):
     """A fresh virtual environment holding only the wheel built from this tree; Taichi, NumPy and imageio-ffmpeg
     come from the test environment through a .pth file (so the test needs no download beyond the build backend)."""

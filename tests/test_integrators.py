@@ -12,10 +12,12 @@ from sandbox.simulation import Simulation
 
 from .conftest import make_scene, scene_dict
 
+pytestmark = pytest.mark.xdist_group("study")  # one worker builds the session fixture, once
+
 ALL = study.INTEGRATORS
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def quick(tmp_path_factory):
     """`sandbox study --quick` once for the module: its numbers are what these tests hold."""
     out = tmp_path_factory.mktemp("study")

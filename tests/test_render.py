@@ -15,15 +15,6 @@ from sandbox.simulation import Simulation
 
 from .conftest import ROOT, SCENES, make_scene, scene_dict
 
-
-@pytest.fixture(autouse=True)
-def fresh_runtime_per_test():
-    """Renderers allocate many small fields: a fresh Taichi runtime per test keeps under its ~512 field trees."""
-    from sandbox import runtime
-
-    runtime.reset()
-
-
 GOLDEN = ROOT / "tests" / "golden"
 
 
