@@ -10,3 +10,27 @@ if not os.environ.get("HOME"):  # importing Taichi aborts the process without it
     os.environ["HOME"] = tempfile.gettempdir()
 
 __version__ = "0.1.0"
+
+# The Python API (sandbox/api.py), imported on first use so that `import sandbox` stays light.
+__all__ = ["FrameTable", "Simulation", "load", "material_names", "resume", "scene_names", "use"]
+_EXPORTS = {
+    "load": "api",
+    "resume": "api",
+    "scene_names": "api",
+    "material_names": "api",
+    "use": "api",
+    "Simulation": "simulation",
+    "FrameTable": "table",
+}
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+    raise AttributeError(f"module 'sandbox' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

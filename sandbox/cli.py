@@ -54,11 +54,32 @@ def _check_run_numbers(args) -> None:
         if args.out is None or Path(args.out).suffix.lower() != ".png":
             raise SandboxError(f"--still-frame {args.still_frame}: expected together with a .png --out")
         check_count("--still-frame", args.still_frame, 0, MAX_FRAMES - 1)
+    check_count("--checkpoint-every", args.checkpoint_every, 1, MAX_FRAMES)
+    check_count("--dump-every", args.dump_every, 1, MAX_FRAMES)
+    if args.checkpoint is not None and args.checkpoint_every is None:
+        raise SandboxError(f"--checkpoint {args.checkpoint}: expected together with --checkpoint-every N")
+    if args.dump_every is not None and args.dump is None:
+        raise SandboxError(f"--dump-every {args.dump_every}: expected together with --dump PATH.extxyz")
+    if args.resume is not None and args.set:
+        raise SandboxError("--set with --resume: a resumed run continues the saved scene; expected no --set")
 
 
 def _check_run_outputs(args, out: str | None) -> None:
     """Every file the run will write: a known kind, a writable folder (created if missing), no two the same."""
-    distinct_outputs({"--out": out, "--stats": args.stats, "--screenshot": args.screenshot, "--record": args.record})
+    distinct_outputs(
+        {
+            "--out": out,
+            "--stats": args.stats,
+            "--screenshot": args.screenshot,
+            "--record": args.record,
+            "--dump": args.dump,
+            "--checkpoint": args.checkpoint,
+        }
+    )
+    if args.dump is not None:
+        check_file_output("--dump", args.dump, (".extxyz", ".xyz"))
+    if args.checkpoint is not None:
+        check_file_output("--checkpoint", args.checkpoint, (".npz",))
     if out is not None:
         check_frames_output("--out", out)
         check_output(out)  # the packages its kind needs
@@ -84,14 +105,36 @@ def stability_warnings(sim) -> list[str]:
     return warnings
 
 
+def _resumed_scene(args):
+    """The scene a --resume state file holds (SCENE must name it), and the frame it was saved at."""
+    from .persist import read_meta
+    from .scene import scene_from_dict
+
+    meta = read_meta(args.resume)
+    named = Path(args.scene).stem
+    if named not in (meta["scene_name"], Path(meta["scene_path"]).stem):
+        raise SandboxError(
+            f"--resume {args.resume}: saved from scene {meta['scene_name']!r}; expected SCENE to name it"
+        )
+    return scene_from_dict(meta["scene"], Path(meta["scene_path"])), int(meta["frame"])
+
+
 def cmd_run(args) -> int:
     _check_run_numbers(args)
-    scene = _load(args)
+    scene, first_frame = _resumed_scene(args) if args.resume else (_load(args), 0)
     frames = args.frames or scene.render.frames
+    if frames <= first_frame:
+        raise SandboxError(f"--frames {frames}: the state was saved at frame {first_frame}; expected more frames")
+    if args.checkpoint_every and args.checkpoint is None:
+        args.checkpoint = f"out/{scene.name}.state.npz"
     if args.still_frame is not None:
         check_count("--still-frame", args.still_frame, 0, frames - 1)
     substeps = args.substeps  # None: the scene's (an integer, or "auto")
     headless = args.headless
+    if not headless and (args.dump or args.checkpoint_every):
+        if not args.headless:
+            print("--dump and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
+        headless = True
     if not headless:
         from .render.window import window_unavailable_reason
 
@@ -113,7 +156,12 @@ def cmd_run(args) -> int:
     _check_run_outputs(args, out)
     from .simulation import Simulation
 
-    sim = Simulation(scene, arch=args.arch)
+    if args.resume:
+        from .persist import load_state
+
+        sim = load_state(args.resume, arch=args.arch)
+    else:
+        sim = Simulation(scene, arch=args.arch)
     for line in stability_warnings(sim):
         print(f"warning: {line}; expect the blow-up guard to stop the run", file=sys.stderr)
     if not headless:
@@ -127,25 +175,33 @@ def cmd_run(args) -> int:
             out = out or f"out/{scene.name}.mp4"
             check_picture(width, height, out)
             _check_run_outputs(args, out)
+    from .run_files import RunFiles
     from .runner import run_headless
 
+    start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
     print(
-        f"{scene.name}: {sim.built.count} particles, {sim.built.spring_count} springs, {frames} frames x "
+        f"{scene.name}: {sim.built.count} particles, {sim.built.spring_count} springs, {start} x "
         f"{substeps or scene.world.substeps} steps on {sim.arch} -> {out}",
         file=sys.stderr,
     )
-    result = run_headless(
-        sim,
-        frames,
-        substeps,
-        out,
-        args.stats,
-        width=width,
-        height=height,
-        fps=args.fps,
-        still_frame=args.still_frame,
-        progress=not args.quiet,
-    )
+    files = RunFiles(sim, args.dump, args.dump_every or 1, args.checkpoint, args.checkpoint_every)
+    try:
+        result = run_headless(
+            sim,
+            frames - first_frame,
+            substeps,
+            out,
+            args.stats,
+            width=width,
+            height=height,
+            fps=args.fps,
+            still_frame=args.still_frame,
+            progress=not args.quiet,
+            on_frame=files.after_frame,
+            first_frame=first_frame,
+        )
+    finally:
+        files.close()
     if result.stopped:
         print(f"error: the blow-up guard stopped the run: {result.stopped}", file=sys.stderr)
         if result.frames and out:
@@ -335,6 +391,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--screenshot", help="window: save the last frame here (with --frames)")
     run.add_argument("--record", help="window: record what it shows to this MP4 from the start (v toggles too)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--resume", metavar="STATE", help="continue a saved state (.npz) bit for bit; SCENE names it")
+    run.add_argument("--checkpoint-every", type=int, metavar="N", help="save the state every N frames (headless)")
+    run.add_argument("--checkpoint", metavar="PATH", help="the checkpoint file (default: out/SCENE.state.npz)")
+    run.add_argument("--dump", metavar="PATH", help="write particles as extended XYZ frames (.extxyz) for ASE/OVITO")
+    run.add_argument("--dump-every", type=int, metavar="N", help="with --dump: every N frames (default 1)")
     run.set_defaults(func=cmd_run)
 
     check = sub.add_parser("check", help="validate a scene and print the pipeline it will run")

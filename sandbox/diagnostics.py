@@ -151,6 +151,7 @@ class Measurements:
         """Energies, temperatures and counts now. Raises SimulationError if any particle is not finite.
         pair_energy=False skips the pair energy's neighbour scan (the costliest part) and reports the last one
         measured: the window does so on most frames."""
+        self.check_alive()
         pair_energy = pair_energy or self._last_pair_energy is None or not self.has_pair
         if pair_energy and self.grid is not None:
             self.grid.rebuild()

@@ -29,8 +29,11 @@ class ParticleFields:
         self.material = ti.field(ti.i32, shape=capacity)  # index into the scene's used materials, (C,)
         self.color = ti.Vector.field(3, ti.f32, shape=capacity)  # base colour, RGB in [0, 1], (C, 3)
         self.group = ti.field(ti.i32, shape=capacity)  # the body a particle came from: its drawing style, (C,)
-        # index in the built scene (stable when storage is reordered or compacted); -1 for particles added later
+        # the particle's id: its index in the built scene, then numbered on as emitters and tools add particles
+        # (stable when storage is reordered or compacted; never reused)
         self.ident = ti.field(ti.i32, shape=capacity)
+        self.next_ident = 0  # the id the next added particle gets
+        self.table_of = None  # what calling this object returns: set by the Simulation (Scripting.particle_table)
         if heat:
             self.h = ti.field(float, shape=capacity)  # specific enthalpy (heat / mass): the heat state, (C,)
             self.T = ti.field(float, shape=capacity)  # temperature (degrees), derived from h (physics/phase.py), (C,)
@@ -40,6 +43,11 @@ class ParticleFields:
         if lifetimes:
             self.age = ti.field(float, shape=capacity)  # time since birth, (C,)
             self.lifetime = ti.field(float, shape=capacity)  # retired when age reaches it; 0: for ever, (C,)
+
+    def __call__(self) -> dict:
+        """`sim.particles()`: the live particles as NumPy arrays keyed by name, sorted by id (see
+        Scripting.particle_table for the keys, units and shapes)."""
+        return self.table_of()
 
     def names(self) -> list[str]:
         """Names of the per-particle fields allocated (the state a snapshot copies)."""
@@ -57,6 +65,7 @@ class ParticleFields:
         turn the initial temperatures into enthalpies and liquid flags."""
         n = built.count
         self.n[None] = n
+        self.next_ident = n
         pairs = [
             (self.x, built.x),
             (self.v, built.v),

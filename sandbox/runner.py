@@ -58,9 +58,10 @@ def run_headless(
     still_frame: int | None = None,
     progress: bool = True,
     on_frame: Callable[[int, Stats], None] | None = None,
+    first_frame: int = 0,
 ) -> RunResult:
     """Run `frames` frames of `substeps` steps each (None: the scene's, possibly "auto"); write frames to `out` (by
-    extension) and stats to a CSV.
+    extension) and stats to a CSV. `first_frame`: the frames run before (a resumed run numbers its rows on from it).
 
     Every frame is measured, and so checked by the blow-up guard, before its row and picture are written. Ctrl-C
     stops the run between steps (the result says `interrupted`); the guard stops it with a SimulationError (the
@@ -85,7 +86,7 @@ def run_headless(
     interrupted = False
     stopped = None
     try:
-        for frame in range(frames):
+        for frame in range(first_frame, first_frame + frames):
             ti.sync()
             t0 = time.perf_counter()
             if renderer is not None:

@@ -21,6 +21,7 @@ PRECISIONS = ("f32", "f64")
 _current: tuple[str, str, bool] | None = None  # (arch, precision, kernel profiler on)
 _owns_process = False  # own_process() was called: process-wide tuning of Taichi is allowed
 _reset_hooks: list = []  # called when the runtime is dropped (runtime.on_reset)
+_generation = 0  # counts Taichi starts: what was built under an earlier one is gone
 
 
 def _arch_value(name: str):
@@ -52,6 +53,8 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
         profile = _current is not None and _current[2]
     if _current == (arch, precision, profile):
         return running_arch()
+    if _current is not None and _current[1:] == (precision, profile) and arch in ("auto", running_arch()):
+        return running_arch()  # what runs is what was asked for (auto: whatever runs); a restart would drop it all
     if _owns_process:
         taichi_compat.lighten_kernel_debug_info()
     fp = ti.f32 if precision == "f32" else ti.f64
@@ -67,6 +70,8 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
     with contextlib.redirect_stdout(io.StringIO()):  # Taichi prints "[Taichi] Starting on arch=..." on stdout
         ti.init(arch=ti.cuda if arch == "auto" else _arch_value(arch), **kwargs)
     _current = (arch, precision, profile)
+    global _generation
+    _generation += 1
     if _owns_process and running_arch() == "cpu":
         from .threads import pin_workers
 
@@ -115,6 +120,16 @@ def require(arch: str, precision: str) -> str:
 
 
 running_arch = taichi_compat.running_arch
+
+
+def generation() -> int:
+    """Which Taichi start is running (0: none yet); fields made under an earlier one no longer exist."""
+    return _generation if _current is not None else 0
+
+
+def current() -> tuple[str, str, bool] | None:
+    """(arch asked for, precision, kernel profiler on) of the running Taichi, or None before init()."""
+    return _current
 
 
 def real_dtype():

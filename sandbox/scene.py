@@ -7,6 +7,7 @@ A scene is data: [scene], [world], optional [pair] and [heat] (a scene without t
 
 from __future__ import annotations
 
+import copy
 import math
 import sys
 from dataclasses import dataclass, field
@@ -410,6 +411,7 @@ class Scene:
         return self.world.dim
 
     palette: list[str] = field(default_factory=list)
+    source: dict = field(default_factory=dict, repr=False, compare=False)  # the raw table it was read from
 
     def used_materials(self) -> list[str]:
         """Names of the materials the bodies, emitters and palette use, in first-use order (material ids follow)."""
@@ -563,6 +565,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         emitters=emitters,
         fields=list(raw.fields),
         smoke=raw.smoke,
+        source=copy.deepcopy(data),
     )
 
 

@@ -18,7 +18,7 @@ from .budget import emitter_population
 from .build import build_particles
 from .description import Description
 from .diagnostics import STAT_COLUMNS, Measurements, Stats  # noqa: F401 - STAT_COLUMNS, Stats re-exported
-from .errors import SimulationError
+from .errors import SandboxError, SimulationError
 from .guard import BlowupGuard, scene_limits
 from .integrators import make_integrator
 from .loops import SPREAD_STRIDE, LoopPolicy, spread_item
@@ -36,6 +36,7 @@ from .physics.reorder import CellOrder
 from .physics.smoke import SmokeGrid
 from .physics.springs import Springs
 from .scene import COUPLINGS, Scene
+from .scripting import Scripting
 from .stability import StabilityBounds
 from .state import StateAccess
 from .team import Team
@@ -68,7 +69,7 @@ def can_step_as_a_team(scene: Scene) -> bool:
 
 
 @data_oriented
-class Simulation(Measurements, StabilityBounds, StateAccess, Description):
+class Simulation(Measurements, StabilityBounds, StateAccess, Description, Scripting):
     """A running scene: fields, passes, integrator, clock."""
 
     def __init__(self, scene: Scene, arch: str = "cpu", half_lists: bool | None = None):
@@ -77,6 +78,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description):
         full lists instead, which needs no write conflicts)."""
         self.scene = scene
         self.arch = runtime.init(arch, scene.world.precision)
+        self.runtime_generation = runtime.generation()
         built = build_particles(scene)
         self.built = built
         world = scene.world
@@ -105,6 +107,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description):
                 self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze, lifetimes=self.has_lifetimes
             )
             self.particles.load(built, self.materials.colors, materials)
+            self.particles.table_of = self.particle_table
             self.smoke = (
                 SmokeGrid(self.dim, world.lo, world.hi, scene.smoke, world.gravity, self.arch == "cpu")
                 if scene.smoke
@@ -222,6 +225,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description):
             self.emitters.emit_initial()
         self.time = 0.0
         self.step_count = 0
+        self.frames_done = 0  # frames advanced (advance_frame)
         self.guard = BlowupGuard(scene_limits(scene, built, self.pair))
         self._last_pair_energy: float | None = None  # for stats(pair_energy=False)
         self._heat_limit = self.heat_dt_limit() if self.has_explicit_heat else math.inf
@@ -234,8 +238,18 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description):
             self.integrator = make_integrator(name, self)
 
     # ------------------------------------------------------------------ stepping
+    def check_alive(self) -> None:
+        """SandboxError when Taichi was restarted since this simulation was built (another precision or backend
+        was asked for, or runtime.reset()): its fields are gone, and using them would crash."""
+        if self.runtime_generation != runtime.generation():
+            raise SandboxError(
+                f"this {self.scene.name} simulation was built before Taichi was restarted (a later simulation asked "
+                f"for another precision or backend, or runtime.reset()); build it again"
+            )
+
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
+        self.check_alive()
         while n > 0:
             if self.reorder is not None and self.fuses_steps and self.reorder.due():
                 self.reorder.apply()  # between fused batches (the long way sorts at the start of its step)
@@ -711,6 +725,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description):
             self.step(substeps // 2)
             midway()
             self.step(substeps - substeps // 2)
+        self.frames_done += 1
         return substeps
 
 

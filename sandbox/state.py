@@ -14,8 +14,10 @@ class StateAccess:
 
     def snapshot(self) -> dict[str, np.ndarray]:
         """Copies of every state field, particles and springs (for reset, and tests)."""
+        self.check_alive()
         p = self.particles
-        snap = {"n": int(p.n[None]), "time": self.time, "step": self.step_count}
+        snap = {"n": int(p.n[None]), "time": self.time, "step": self.step_count, "next_ident": p.next_ident}
+        snap["frames"] = self.frames_done
         if self.emitters is not None:
             snap["emitters"] = (list(self.emitters.serial), list(self.emitters.carry), list(self.emitters.emitted))
         names = self.field_names()
@@ -33,6 +35,7 @@ class StateAccess:
         """Put the state back exactly as `snapshot()` saw it."""
         p = self.particles
         p.n[None] = snap["n"]
+        p.next_ident = snap["next_ident"]
         pairs = [(getattr(p, name), snap[name]) for name in self.field_names()]
         if self.springs is not None:
             pairs += [(getattr(self.springs, name), snap[f"spring_{name}"]) for name in SPRING_ARRAYS]
@@ -41,6 +44,7 @@ class StateAccess:
         transfer.upload(pairs)
         self.time = snap["time"]
         self.step_count = snap["step"]
+        self.frames_done = snap["frames"]
         if self.emitters is not None:
             serial, carry, emitted = snap["emitters"]
             self.emitters.serial, self.emitters.carry, self.emitters.emitted = list(serial), list(carry), list(emitted)

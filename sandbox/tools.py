@@ -165,7 +165,7 @@ class Tools:
             "material": np.full(m, mat_id),
             "color": np.tile(sim.materials.colors[mat_id], (m, 1)),
             "group": np.full(m, len(sim.scene.groups)),  # the spawn tool's own group, after bodies and emitters
-            "ident": np.full(m, -1),
+            "ident": np.arange(self.p.next_ident, self.p.next_ident + m),
         }
         if self.p.heat:
             t = np.full(m, ambient if temperature is None else temperature)
@@ -180,6 +180,7 @@ class Tools:
             data[n : n + m] = vals
             field.from_numpy(data)
         self.p.n[None] = n + m
+        self.p.next_ident += m
         self._changed()
         return m
 

@@ -17,7 +17,7 @@ import taichi as ti
 from . import runtime
 from .oriented import data_oriented
 
-_INTS = (ti.i32, ti.i8, ti.i16, ti.u8, ti.u16)
+_INTS = (ti.i32, ti.i8, ti.i16, ti.u8, ti.u16)  # through int32 staging; u32 goes through the float staging exactly
 _cache: dict = {}  # key -> _Copier; the copier holds its fields, so their ids stay unique while it is cached
 _staged: list | None = None  # inside batched(): the (field, values) pairs waiting for the block's end
 
@@ -40,16 +40,17 @@ class _Copier:
     """Copies the leading `rows` of each field (all of its other axes) to or from flat staging arrays."""
 
     def __init__(self, fields: list, rows: list[int]):
-        self.items = []  # (field, is_int, offset, rows, columns, components)
+        self.items = []  # (field, is_int, offset, rows, columns, components, 0-d)
         offsets = {False: 0, True: 0}
         for field, n in zip(fields, rows):
             shape = tuple(field.shape)
-            if len(shape) not in (1, 2) or not 0 <= n <= shape[0]:
+            zero_d = len(shape) == 0  # a 0-d field is one row
+            if not (zero_d and n == 1) and (len(shape) not in (1, 2) or not 0 <= n <= shape[0]):
                 raise ValueError(f"cannot batch-copy {n} rows of a field of shape {shape}")
             cols = shape[1] if len(shape) == 2 else 0
             comps = field.n if _is_vector(field) else 0
             is_int = _is_int(field)
-            self.items.append((field, is_int, offsets[is_int], n, cols, comps))
+            self.items.append((field, is_int, offsets[is_int], n, cols, comps, zero_d))
             offsets[is_int] += n * max(cols, 1) * max(comps, 1)
         self.n_float, self.n_int = offsets[False], offsets[True]
         # Items with the same rows and columns share one loop: each loop is a task that LLVM compiles on its own, and
@@ -72,10 +73,15 @@ class _Copier:
         for n, cols, items in ti.static(self.groups):
             for k in range(n * max(cols, 1)):
                 idx = self._index(k, cols)
-                for field, is_int, off, _rows, _cols, comps in ti.static(items):
+                for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
                     src = ti.static(ints if is_int else floats)
                     base = off + k * max(comps, 1)
-                    if ti.static(comps == 0):
+                    if ti.static(zero_d and comps == 0):
+                        field[None] = ti.cast(src[base], field.dtype)
+                    elif ti.static(zero_d):
+                        for c in ti.static(range(comps)):
+                            field[None][c] = ti.cast(src[base + c], field.dtype)
+                    elif ti.static(comps == 0):
                         field[idx] = ti.cast(src[base], field.dtype)
                     else:
                         for c in ti.static(range(comps)):
@@ -86,10 +92,15 @@ class _Copier:
         for n, cols, items in ti.static(self.groups):
             for k in range(n * max(cols, 1)):
                 idx = self._index(k, cols)
-                for field, is_int, off, _rows, _cols, comps in ti.static(items):
+                for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
                     dst = ti.static(ints if is_int else floats)
                     base = off + k * max(comps, 1)
-                    if ti.static(comps == 0):
+                    if ti.static(zero_d and comps == 0):
+                        dst[base] = field[None]
+                    elif ti.static(zero_d):
+                        for c in ti.static(range(comps)):
+                            dst[base + c] = field[None][c]
+                    elif ti.static(comps == 0):
                         dst[base] = field[idx]
                     else:
                         for c in ti.static(range(comps)):
@@ -98,8 +109,8 @@ class _Copier:
     def shapes(self) -> list[tuple[int, ...]]:
         """The host shape of each item: (rows[, columns][, components])."""
         out = []
-        for _, _, _, n, cols, comps in self.items:
-            out.append((n,) + ((cols,) if cols else ()) + ((comps,) if comps else ()))
+        for _, _, _, n, cols, comps, zero_d in self.items:
+            out.append(((n,) if not zero_d else ()) + ((cols,) if cols else ()) + ((comps,) if comps else ()))
         return out
 
 
@@ -146,7 +157,7 @@ def upload(pairs: list) -> None:
 def _upload(pairs: list) -> None:
     fields = [f for f, _ in pairs]
     arrays = [np.asarray(v) for _, v in pairs]
-    copier = _copier(fields, [len(a) for a in arrays])
+    copier = _copier(fields, [len(a) if f.shape else 1 for f, a in zip(fields, arrays)])
     floats = np.zeros(max(copier.n_float, 1), _float_staging())
     ints = np.zeros(max(copier.n_int, 1), np.int32)
     for (_, is_int, off, *_), array, shape in zip(copier.items, arrays, copier.shapes()):
@@ -162,7 +173,7 @@ def download(fields: list, rows: list[int] | None = None) -> list[np.ndarray]:
     field's own precision."""
     if not fields:
         return []
-    rows = rows if rows is not None else [f.shape[0] for f in fields]
+    rows = rows if rows is not None else [f.shape[0] if f.shape else 1 for f in fields]
     copier = _copier(list(fields), list(rows))
     floats = np.empty(max(copier.n_float, 1), _float_staging())
     ints = np.empty(max(copier.n_int, 1), np.int32)
@@ -184,7 +195,13 @@ def _numpy_dtype(field):
         ti.i16: np.int16,
         ti.u8: np.uint8,
         ti.u16: np.uint16,
+        ti.u32: np.uint32,
     }[field.dtype]
+
+
+def batchable(field) -> bool:
+    """Whether upload() and download() can copy this field (0-d, 1D or 2D, of a dtype they stage exactly)."""
+    return len(field.shape) <= 2 and field.dtype in (ti.f32, ti.f64, ti.u32, *_INTS)
 
 
 def forget() -> None:

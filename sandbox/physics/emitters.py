@@ -255,7 +255,8 @@ class Emitters:
             count = room
         if count <= 0:
             return
-        self._spawn(k, count, n, self.serial[k], t)
+        self._spawn(k, count, n, self.serial[k], t, self.p.next_ident)
+        self.p.next_ident += count
         self.serial[k] += count
         self.emitted[k] += count
         self.p.n[None] = n + count
@@ -365,10 +366,11 @@ class Emitters:
         return v
 
     @ti.kernel
-    def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float):
+    def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float, ident0: ti.i32):
         for e in range(count):
             serial = serial0 + e
             self._init_particle(k, first + e, serial, self.sample_position(k, serial), t)
+            self.p.ident[first + e] = ident0 + e
 
     @ti.func
     def _init_particle(self, k, i, serial, pos, t):
@@ -383,7 +385,6 @@ class Emitters:
         p.material[i] = mat
         p.color[i] = self.color[k]
         p.group[i] = self.first_group + k
-        p.ident[i] = -1
         mortal = 0
         if ti.static(self.sim.has_lifetimes):
             p.age[i] = 0.0

@@ -5,7 +5,7 @@ the force loop is a cache miss (a shuffled 2D LJ box runs at about half the thro
 particles). Every `every` neighbour-list rebuilds the simulation calls `apply()` at a step
 boundary: the cell grid's counting sort gives the order, every per-particle field is gathered into it, spring ends
 are renumbered and bond tables moved, and listeners (the renderer's motion-blur tails) are told. Particles keep
-their identity in `ident` (the index in the built scene).
+their identity in `ident` (the particle id).
 """
 
 import taichi as ti

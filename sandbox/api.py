@@ -1,0 +1,127 @@
+"""The Python API's entry points (exported from `sandbox`): load a scene, resume a saved state, list what ships.
+
+    import sandbox
+    sim = sandbox.load("melting_block", set={"world.dt": 0.001})
+    table = sim.run(60)                  # per-frame measurements (FrameTable; .to_pandas() with pandas)
+    parts = sim.particles()              # NumPy arrays by particle id
+    image = sim.picture(640, 360)        # (360, 640, 3) uint8
+    sim.save("block.npz"); again = sandbox.resume("block.npz")
+
+Taichi runs one backend at one precision per process. The first simulation chooses them (or `sandbox.use`); a
+later one that asks for others gets a SandboxError while simulations of the first choice are alive, instead of
+silently invalidating them.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from . import runtime
+from .errors import SandboxError
+from .simulation import Simulation
+
+_alive: weakref.WeakSet = weakref.WeakSet()  # simulations made here, on the running runtime
+_arch = "auto"  # the backend sandbox.use() chose
+
+
+def scene_names() -> list[str]:
+    """Names of the shipped scenes (for sandbox.load)."""
+    from .resources import shipped_scenes
+
+    return sorted(p.stem for p in shipped_scenes())
+
+
+def material_names() -> list[str]:
+    """Names of the materials in the library (a scene's bodies name them; scenes can add their own)."""
+    from .materials import load_library
+
+    return sorted(load_library())
+
+
+def use(arch: str = "auto", precision: str = "f32") -> str:
+    """Choose the Taichi backend (auto, cpu, cuda, vulkan, metal) and float precision (f32, f64) for this process,
+    before building simulations; returns the backend running. SandboxError when simulations of another choice are
+    alive, or a backend named is not available."""
+    global _arch
+    _check_switch(arch, precision)
+    _arch = arch
+    return runtime.require(arch, precision)
+
+
+def _check_switch(arch: str, precision: str) -> None:
+    running = runtime.current()
+    if running is None or not list(_alive):
+        return
+    if precision != running[1] or (arch != "auto" and arch != runtime.running_arch()):
+        raise SandboxError(
+            f"Taichi already runs {runtime.running_arch()} at {running[1]} in this process for "
+            f"{len(list(_alive))} live simulation(s); a scene asking for {arch} at {precision} needs a new process "
+            "(or delete those simulations first)"
+        )
+
+
+def _overrides(set: Mapping[str, Any] | Sequence[str] | None) -> list[tuple[str, Any]]:
+    from .scene import parse_override
+
+    if set is None:
+        return []
+    if isinstance(set, Mapping):
+        return [(str(k), v) for k, v in set.items()]
+    if isinstance(set, str):
+        raise TypeError("set: expected a dict {'world.dt': 0.001} or a list of 'key=value' strings, not one string")
+    return [parse_override(text) for text in set]
+
+
+def load(
+    scene: str | Path | Mapping,
+    set: Mapping[str, Any] | Sequence[str] | None = None,  # noqa: A002 - the CLI's --set
+    arch: str | None = None,
+) -> Simulation:
+    """Build a simulation of `scene`: a shipped scene's name ("melting_block"), a scene file's path, or a scene
+    table as a dict (the TOML's structure). `set`: overrides by dotted key ({"world.dt": 0.001,
+    "bodies.0.temperature": 80}) or as 'key=value' strings like the CLI's --set. `arch`: the backend (default: the
+    one chosen by sandbox.use, else auto). SceneError names the file, key and expectation when the scene is invalid."""
+    import copy
+
+    import tomllib
+
+    from .resources import shipped_scene
+    from .scene import SceneError, apply_override, scene_from_dict
+
+    if isinstance(scene, Mapping):
+        data, path = copy.deepcopy(dict(scene)), Path.cwd() / "scene.toml"
+    else:
+        path = Path(scene)
+        if not path.exists() and isinstance(scene, str) and shipped_scene(scene) is not None:
+            path = shipped_scene(scene)
+        try:
+            data = tomllib.loads(path.read_text())
+        except FileNotFoundError as exc:
+            raise SceneError(
+                str(path), "", f"no such scene file or shipped scene; expected one of {scene_names()}"
+            ) from exc
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError, IsADirectoryError) as exc:
+            raise SceneError(str(path), "", f"not a valid TOML scene file: {exc}") from exc
+    for key, value in _overrides(set):
+        apply_override(data, key, value)
+    built = scene_from_dict(data, path)
+    arch = arch or _arch
+    _check_switch(arch, built.world.precision)
+    sim = Simulation(built, arch=arch)
+    _alive.add(sim)
+    return sim
+
+
+def resume(path: str | Path, arch: str | None = None) -> Simulation:
+    """The simulation saved in `path` (sim.save, or the CLI's --checkpoint-every), ready to continue bit for bit.
+    SandboxError when the file is not a state file, is damaged, or comes from another version of the sandbox."""
+    from .persist import load_state, read_meta
+
+    meta = read_meta(path)
+    _check_switch(arch or meta["arch"], meta["precision"])
+    sim = load_state(path, arch)
+    _alive.add(sim)
+    return sim
