@@ -35,6 +35,39 @@ class Scripting:
                 bar.close()
         return table
 
+    def movie(self, frames: int, width: int = 480, height: int = 270, every: int = 1, progress: bool = False):
+        """Run `frames` frames, drawing every `every`-th as a `width` x `height` picture (even sizes, for MP4);
+        returns a notebook.Movie (it plays inline in Jupyter; .save(path) writes it; .table holds the run's
+        measurements, as run() returns them)."""
+        from .notebook import Movie
+
+        if width % 2 or height % 2:
+            raise ValueError(f"a movie needs an even width and height, got {width}x{height}")
+        pictures: list[np.ndarray] = []
+        table = FrameTable()
+        bar = _progress_bar(frames, self.scene.name) if progress else None
+        try:
+            for k in range(frames):
+                t0 = time.perf_counter()
+                taken = self.advance_frame()
+                table.append(self.frames_done, self.stats(), (time.perf_counter() - t0) / taken)
+                if k % every == every - 1:
+                    pictures.append(self.picture(width, height))
+                if bar is not None:
+                    bar.update(1)
+        finally:
+            if bar is not None:
+                bar.close()
+        return Movie(pictures, self.scene.render.fps / every, table, self.scene.name)
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view of a simulation: its picture now, and where it stands."""
+        from .notebook import png_html
+
+        n = int(self.particles.n[None])
+        caption = f"{self.scene.name}: {n:,} particles, t = {self.time:.3g} s after {self.frames_done} frames"
+        return png_html(self.picture(480, 270), caption)
+
     def particle_table(self) -> dict[str, np.ndarray]:
         """What `sim.particles()` returns (sim.particles is also the particle fields, sim.particles.x and so on):
         the live particles, sorted by their stable id (the same particle keeps its id while storage is
