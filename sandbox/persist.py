@@ -100,10 +100,22 @@ def _quiet_unrolling():
         yield
 
 
-def _download(fields: dict) -> dict[str, np.ndarray]:
-    batch = [name for name, f in fields.items() if transfer.batchable(f)]
+def _download(sim, fields: dict) -> dict[str, np.ndarray]:
+    """Every field's values. The particle and spring fields go through the copy kernel snapshot() compiled when the
+    simulation was built (the same list, so no compile), the rest through one more (and per-field for the few a copy
+    kernel cannot take: 3D grids)."""
+    from .state import SPRING_ARRAYS
+
+    snapped = [getattr(sim.particles, name) for name in sim.field_names()]
+    if sim.springs is not None:
+        snapped += [getattr(sim.springs, name) for name in SPRING_ARRAYS]
+    by_id = {id(f): name for name, f in fields.items()}
+    first = [by_id[id(f)] for f in snapped if id(f) in by_id]
+    rest = [name for name, f in fields.items() if transfer.batchable(f) and name not in set(first)]
+    out = {}
     with _quiet_unrolling():
-        out = dict(zip(batch, transfer.download([fields[name] for name in batch])))  # one copy kernel for most
+        for names in (first, rest):
+            out.update(zip(names, transfer.download([fields[name] for name in names])))
     for name, f in fields.items():
         if name not in out:
             out[name] = f.to_numpy()
@@ -118,7 +130,7 @@ def save_state(sim, path: str | Path, frame: int | None = None) -> Path:
     if path.suffix != ".npz":
         path = path.with_name(path.name + ".npz")
     fields, ndarrays, host = walk(sim)
-    arrays = {f"field:{k}": v for k, v in _download(fields).items()}
+    arrays = {f"field:{k}": v for k, v in _download(sim, fields).items()}
     arrays.update({f"ndarray:{k}": getattr(owner, name).to_numpy() for k, (owner, name) in ndarrays.items()})
     scene = sim.scene
     meta = {
