@@ -344,6 +344,49 @@ def cmd_study(args) -> int:
     return 0
 
 
+def cmd_sweep(args) -> int:
+    from .sweep import METRICS, parse_vary, plan_runs, plot_sweep, run_sweep
+
+    check_count("--frames", args.frames, 1, MAX_FRAMES)
+    check_count("--workers", args.workers, 1, 1024)
+    check_count("--threads", args.threads, 1, 1024)
+    check_count("--width", args.width, 16, MAX_SIDE)
+    check_count("--height", args.height, 16, MAX_SIDE)
+    if args.metric not in METRICS:
+        raise SandboxError(f"--metric {args.metric}: expected one of {', '.join(METRICS)}")
+    variations = [parse_vary(text) for text in args.vary]
+    runs = plan_runs(variations, args.zip)
+    scene = _load(args)  # the scene itself must be valid; each run's overrides are checked by its run
+    out = check_folder_output("--out", args.out)
+    if args.video:
+        check_output(out / "out.mp4")
+    print(f"{scene.name}: {len(runs)} runs -> {out}", file=sys.stderr)
+    try:
+        records = run_sweep(
+            _scene_path(args.scene),
+            runs,
+            out,
+            frames=args.frames,
+            video=args.video,
+            width=args.width,
+            height=args.height,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            threads=args.threads,
+            log=lambda line: print(line, file=sys.stderr),
+        )
+    except KeyboardInterrupt:
+        print(
+            f"interrupted: the completed runs are kept in {out}; run the same command again to resume", file=sys.stderr
+        )
+        return EXIT_INTERRUPTED
+    counts = {o: sum(r["outcome"] == o for r in records) for o in ("done", "stopped", "error", "pending")}
+    plot = plot_sweep(out, records, [v.key for v in variations], args.metric)
+    summary = ", ".join(f"{n} {o}" for o, n in counts.items() if n)
+    print(f"wrote {out}/manifest.csv ({summary})" + (f" and {plot.name}" if plot else ""), file=sys.stderr)
+    return 0 if counts["pending"] == 0 else EXIT_STOPPED
+
+
 def cmd_bench(args) -> int:
     check_count("--repeats", args.repeats, 1, 1000)
     if args.json is not None:
@@ -412,6 +455,32 @@ def build_parser() -> argparse.ArgumentParser:
         "--phase", action="store_true", help="instead: phase change (Stefan problem, heating curve) validation"
     )
     study.set_defaults(func=cmd_study)
+
+    sweep = sub.add_parser("sweep", help="run a scene headless for every combination of overrides (Dask workers)")
+    sweep.add_argument("scene", help="scene file, or the name of a shipped scene")
+    sweep.add_argument(
+        "--vary",
+        action="append",
+        default=[],
+        required=True,
+        metavar="KEY=VALUES",
+        help="KEY=V1,V2,... or KEY=START:STOP:COUNT; several --vary give their cross product",
+    )
+    sweep.add_argument("--zip", action="store_true", help="pair the --vary lists value by value instead")
+    sweep.add_argument("--out", required=True, help="folder: a folder per run, manifest.csv, sweep.png")
+    sweep.add_argument("--frames", type=int, help="frames per run (default: render.frames)")
+    sweep.add_argument("--video", action="store_true", help="also an MP4 per run")
+    sweep.add_argument("--width", type=int)
+    sweep.add_argument("--height", type=int)
+    sweep.add_argument(
+        "--scheduler",
+        default="auto",
+        help="auto (a local Dask cluster with the sweep extra, else serial), local, serial, or tcp://HOST:8786",
+    )
+    sweep.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
+    sweep.add_argument("--threads", type=int, help="Taichi CPU threads per run (default: the cores / workers)")
+    sweep.add_argument("--metric", default="final_molten_fraction", help="what sweep.png plots")
+    sweep.set_defaults(func=cmd_sweep, set=[], arch="cpu")
 
     bench = sub.add_parser("bench", help="throughput benchmarks (particle-steps per second)")
     bench.add_argument("--json", help="also write the results as JSON here")

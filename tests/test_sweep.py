@@ -1,0 +1,92 @@
+"""`sandbox sweep`: the plan, runs on a local Dask cluster equal to the same runs one by one (through a worker that
+dies mid-run), resume, and errors recorded without stopping the sweep."""
+
+import csv
+import json
+
+import pytest
+
+from sandbox.errors import SandboxError
+from sandbox.sweep import Variation, parse_vary, plan_runs, run_sweep, write_manifest
+from sandbox.sweep_run import CRASH_HOOK
+
+from .conftest import SCENES
+
+SMALL = {"bodies.0.lo": [56.0, 0.0], "bodies.0.hi": [64.0, 6.0]}  # 48 particles
+
+
+def _rows(path):
+    """A stats CSV's rows without the wall-time column."""
+    with open(path, newline="") as f:
+        return [{k: v for k, v in row.items() if k != "step_seconds"} for row in csv.DictReader(f)]
+
+
+def test_vary_reads_lists_and_spans_and_plans_products_or_zips():
+    assert parse_vary("bodies.0.material=wax,chocolate") == Variation("bodies.0.material", ("wax", "chocolate"))
+    assert parse_vary("heat.sources.0.temperature=100:200:3").values == (100.0, 150.0, 200.0)
+    assert parse_vary("world.dt=0.001,2e-3").values == (0.001, 0.002)
+    a, b = parse_vary("a=1,2"), parse_vary("b=x,y,z")
+    assert plan_runs([a, b]) == [{"a": i, "b": s} for i in (1, 2) for s in "xyz"]
+    assert plan_runs([a, parse_vary("b=x,y")], zipped=True) == [{"a": 1, "b": "x"}, {"a": 2, "b": "y"}]
+    for bad, match in (("nokey", "expected KEY="), ("a=1:2:0", "COUNT from 1"), ("=1,2", "expected KEY=")):
+        with pytest.raises(SandboxError, match=match):
+            parse_vary(bad)
+    with pytest.raises(SandboxError, match="equal lengths"):
+        plan_runs([a, b], zipped=True)
+    with pytest.raises(SandboxError, match="varied twice"):
+        plan_runs([a, a])
+
+
+def test_a_local_cluster_sweep_equals_the_runs_one_by_one_and_resumes(tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    base = [
+        {**SMALL, "heat.sources.0.temperature": t, "bodies.0.material": m}
+        for t in (150.0, 250.0)
+        for m in ("wax", "chocolate")
+    ]
+    scene = SCENES / "melting_block.toml"
+    serial = run_sweep(scene, base, tmp_path / "serial", frames=4, scheduler="serial", threads=1, log=lambda s: None)
+    marker = tmp_path / "crashed"
+    monkeypatch.setenv(CRASH_HOOK, str(marker))  # the first run to reach mid-run kills its worker process
+    said = []
+    spread = run_sweep(
+        scene, base, tmp_path / "dask", frames=4, scheduler="local", workers=2, threads=1, log=said.append
+    )
+    assert marker.exists()  # a worker did die ...
+    assert [r["outcome"] for r in spread] == ["done"] * 4  # ... and its run was retried to completion
+    assert not list((tmp_path / "dask").rglob(".*partial*"))  # leaving no half-written file
+    for a, b in zip(serial, spread):
+        assert a["overrides"] == b["overrides"]
+        assert _rows(a["stats"]) == _rows(b["stats"])  # bit for bit: every measurement's printed digits
+        assert len(_rows(b["stats"])) == 4
+    molten = {
+        (r["overrides"]["heat.sources.0.temperature"], r["overrides"]["bodies.0.material"]): r["final_molten_fraction"]
+        for r in spread
+    }
+    assert molten[(250.0, "wax")] > molten[(150.0, "wax")]  # a hotter plate melts more
+    records = {p: p.stat().st_mtime_ns for p in (tmp_path / "dask").glob("*/run.json")}
+    said.clear()
+    again = run_sweep(scene, base, tmp_path / "dask", frames=4, scheduler="local", workers=2, log=said.append)
+    assert said[0] == "4 of 4 runs already complete: skipped"
+    assert {p: p.stat().st_mtime_ns for p in records} == records  # nothing ran again
+    assert [r["outcome"] for r in again] == ["done"] * 4
+    with open(tmp_path / "dask" / "manifest.csv", newline="") as f:
+        manifest = list(csv.DictReader(f))
+    assert [m["bodies.0.material"] for m in manifest] == ["wax", "chocolate", "wax", "chocolate"]
+    assert manifest[0]["stats"] == "000_lo=-56.0--0.0-_hi=-64.0--6.0-_temperature=150_material=wax/stats.csv"
+
+
+def test_an_invalid_value_is_recorded_and_the_rest_complete(tmp_path):
+    runs = [{**SMALL, "bodies.0.material": m} for m in ("wax", "unobtainium", "chocolate")]
+    records = run_sweep(SCENES / "melting_block.toml", runs, tmp_path, frames=2, scheduler="serial", log=lambda s: None)
+    assert [r["outcome"] for r in records] == ["done", "error", "done"]
+    assert "unknown material 'unobtainium'" in records[1]["message"]
+    assert json.loads((tmp_path / records[1]["folder"].split("/")[-1] / "run.json").read_text())["outcome"] == "error"
+    rows = list(csv.DictReader(open(tmp_path / "manifest.csv", newline="")))
+    assert [r["outcome"] for r in rows] == ["done", "error", "done"] and rows[1]["frames"] == ""
+
+
+def test_the_manifest_lists_runs_not_yet_complete_as_pending(tmp_path):
+    folder = tmp_path / "000_a=1"
+    records = write_manifest(tmp_path, [(0, {"a": 1}, folder)])
+    assert records[0]["outcome"] == "pending"
