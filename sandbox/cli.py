@@ -352,6 +352,8 @@ def cmd_sweep(args) -> int:
     check_count("--threads", args.threads, 1, 1024)
     check_count("--width", args.width, 16, MAX_SIDE)
     check_count("--height", args.height, 16, MAX_SIDE)
+    if args.scheduler not in ("auto", "local", "serial") and "://" not in args.scheduler:
+        raise SandboxError(f"--scheduler {args.scheduler}: expected auto, local, serial or an address tcp://HOST:PORT")
     if args.metric not in METRICS:
         raise SandboxError(f"--metric {args.metric}: expected one of {', '.join(METRICS)}")
     variations = [parse_vary(text) for text in args.vary]

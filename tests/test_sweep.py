@@ -90,3 +90,16 @@ def test_the_manifest_lists_runs_not_yet_complete_as_pending(tmp_path):
     folder = tmp_path / "000_a=1"
     records = write_manifest(tmp_path, [(0, {"a": 1}, folder)])
     assert records[0]["outcome"] == "pending"
+
+
+def test_bad_sweep_arguments_end_in_one_line(tmp_path, capsys):
+    from sandbox.cli import main
+
+    out = str(tmp_path / "s")
+    assert main(["sweep", "melting_block", "--vary", "world.dt", "--out", out]) == 2
+    assert main(["sweep", "melting_block", "--vary", "a=1", "--out", out, "--scheduler", "locall"]) == 2
+    assert main(["sweep", "melting_block", "--vary", "a=1", "--out", out, "--metric", "speed"]) == 2
+    assert main(["sweep", "no_such_scene", "--vary", "a=1", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert "expected KEY=V1,V2" in err and "expected auto, local, serial" in err and "no such scene" in err
+    assert not (tmp_path / "s").exists()  # nothing written
