@@ -18,22 +18,7 @@ class Scripting:
         """Advance `frames` frames (the scene's substeps each) and return their measurements, one row per frame,
         numbered on from the frames already run. `progress`: a progress bar (tqdm; in Jupyter, its notebook bar).
         Raises SimulationError when the blow-up guard stops the run (the frames before it have been run)."""
-        if not isinstance(frames, int) or frames < 0:
-            raise ValueError(f"frames must be a whole number >= 0, got {frames!r}")
-        table = FrameTable()
-        bar = _progress_bar(frames, self.scene.name) if progress else None
-        try:
-            for _ in range(frames):
-                t0 = time.perf_counter()
-                taken = self.advance_frame()
-                stats = self.stats()
-                table.append(self.frames_done, stats, (time.perf_counter() - t0) / taken)
-                if bar is not None:
-                    bar.update(1)
-        finally:
-            if bar is not None:
-                bar.close()
-        return table
+        return self._run_frames(frames, progress)
 
     def movie(self, frames: int, width: int = 480, height: int = 270, every: int = 1, progress: bool = False):
         """Run `frames` frames, drawing every `every`-th as a `width` x `height` picture (even sizes, for MP4);
@@ -44,6 +29,18 @@ class Scripting:
         if width % 2 or height % 2:
             raise ValueError(f"a movie needs an even width and height, got {width}x{height}")
         pictures: list[np.ndarray] = []
+
+        def draw(k: int) -> None:
+            if k % every == every - 1:
+                pictures.append(self.picture(width, height))
+
+        table = self._run_frames(frames, progress, draw)
+        return Movie(pictures, self.scene.render.fps / every, table, self.scene.name)
+
+    def _run_frames(self, frames: int, progress: bool, after=None) -> FrameTable:
+        """Advance and measure `frames` frames into a FrameTable, calling after(k) after frame k (0-based)."""
+        if not isinstance(frames, int) or frames < 0:
+            raise ValueError(f"frames must be a whole number >= 0, got {frames!r}")
         table = FrameTable()
         bar = _progress_bar(frames, self.scene.name) if progress else None
         try:
@@ -51,14 +48,14 @@ class Scripting:
                 t0 = time.perf_counter()
                 taken = self.advance_frame()
                 table.append(self.frames_done, self.stats(), (time.perf_counter() - t0) / taken)
-                if k % every == every - 1:
-                    pictures.append(self.picture(width, height))
+                if after is not None:
+                    after(k)
                 if bar is not None:
                     bar.update(1)
         finally:
             if bar is not None:
                 bar.close()
-        return Movie(pictures, self.scene.render.fps / every, table, self.scene.name)
+        return table
 
     def _repr_html_(self) -> str:
         """Jupyter's view of a simulation: its picture now, and where it stands."""
