@@ -426,12 +426,12 @@ def build_parser() -> argparse.ArgumentParser:
     scene_args(run)
     run.add_argument("--headless", action="store_true", help="no window: write frames to --out")
     run.add_argument("--frames", type=int, help="number of frames (default: render.frames)")
-    run.add_argument("--substeps", type=int, help="steps per frame (default: world.substeps)")
+    run.add_argument("--substeps", type=int, help="steps of world.dt per frame (default: world.substeps)")
     run.add_argument("--out", help="output: .mp4, .gif, .png (a still) or a folder for PNG frames")
     run.add_argument("--stats", help="write per-frame measurements to this CSV")
-    run.add_argument("--width", type=int)
-    run.add_argument("--height", type=int)
-    run.add_argument("--fps", type=float)
+    run.add_argument("--width", type=int, help="picture width in pixels (default: render.width)")
+    run.add_argument("--height", type=int, help="picture height in pixels (default: render.height)")
+    run.add_argument("--fps", type=float, help="video frames per second (default: render.fps)")
     run.add_argument("--still-frame", type=int, help="with a .png output: which frame to keep (default: last)")
     run.add_argument("--screenshot", help="window: save the last frame here (with --frames)")
     run.add_argument("--record", help="window: record what it shows to this MP4 from the start (v toggles too)")
@@ -472,8 +472,8 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", required=True, help="folder: a folder per run, manifest.csv, sweep.png")
     sweep.add_argument("--frames", type=int, help="frames per run (default: render.frames)")
     sweep.add_argument("--video", action="store_true", help="also an MP4 per run")
-    sweep.add_argument("--width", type=int)
-    sweep.add_argument("--height", type=int)
+    sweep.add_argument("--width", type=int, help="video width in pixels (default: render.width)")
+    sweep.add_argument("--height", type=int, help="video height in pixels (default: render.height)")
     sweep.add_argument(
         "--scheduler",
         default="auto",
