@@ -86,10 +86,8 @@ def load(
     one chosen by sandbox.use, else auto). SceneError names the file, key and expectation when the scene is invalid."""
     import copy
 
-    import tomllib
-
     from .resources import shipped_scene
-    from .scene import SceneError, apply_override, scene_from_dict
+    from .scene import apply_override, read_scene_table, scene_from_dict
 
     if isinstance(scene, Mapping):
         data, path = copy.deepcopy(dict(scene)), Path.cwd() / "scene.toml"
@@ -97,14 +95,7 @@ def load(
         path = Path(scene)
         if not path.exists() and isinstance(scene, str) and shipped_scene(scene) is not None:
             path = shipped_scene(scene)
-        try:
-            data = tomllib.loads(path.read_text())
-        except FileNotFoundError as exc:
-            raise SceneError(
-                str(path), "", f"no such scene file or shipped scene; expected one of {scene_names()}"
-            ) from exc
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError, IsADirectoryError) as exc:
-            raise SceneError(str(path), "", f"not a valid TOML scene file: {exc}") from exc
+        data = read_scene_table(path, f"no such scene file or shipped scene; expected one of {scene_names()}")
     for key, value in _overrides(set):
         apply_override(data, key, value)
     built = scene_from_dict(data, path)

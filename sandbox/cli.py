@@ -132,8 +132,7 @@ def cmd_run(args) -> int:
     substeps = args.substeps  # None: the scene's (an integer, or "auto")
     headless = args.headless
     if not headless and (args.dump or args.checkpoint_every):
-        if not args.headless:
-            print("--dump and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
+        print("--dump and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
         headless = True
     if not headless:
         from .render.window import window_unavailable_reason

@@ -459,18 +459,24 @@ def apply_override(data: dict, key: str, value: Any) -> None:
             raise SceneError("--set", key, f"'{'.'.join(parts[:i])}' is not a table or array")
 
 
-def load_scene(path: str | Path, overrides: list[str] | None = None) -> Scene:
-    """Read, override and validate a scene file. Raises SceneError naming the file, key and expectation."""
-    path = Path(path)
+def read_scene_table(path: Path, missing: str = "no such scene file") -> dict:
+    """The raw table of a scene file (TOML); SceneError naming the file when it is missing (`missing` says what was
+    expected), a folder, or not TOML."""
     file = str(path)
     try:
-        data = tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text())
     except FileNotFoundError as exc:
-        raise SceneError(file, "", "no such scene file") from exc
+        raise SceneError(file, "", missing) from exc
     except IsADirectoryError as exc:
         raise SceneError(file, "", "is a folder; expected a scene file (.toml)") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SceneError(file, "", f"not valid TOML: {exc}") from exc
+
+
+def load_scene(path: str | Path, overrides: list[str] | None = None) -> Scene:
+    """Read, override and validate a scene file. Raises SceneError naming the file, key and expectation."""
+    path = Path(path)
+    data = read_scene_table(path)
     for text in overrides or []:
         key, value = parse_override(text)
         apply_override(data, key, value)

@@ -232,13 +232,11 @@ def plot_sweep(out: Path, records: list[dict], keys: list[str], metric: str) -> 
         for r in done:
             groups.setdefault(tuple(str(r["overrides"][k]) for k in others), []).append(r)
         for label, group in groups.items():
-            group.sort(key=lambda r: str(r["overrides"][key]) if isinstance(r["overrides"][key], str) else 0)
-            xs = [r["overrides"][key] for r in group]
-            if all(isinstance(x, int | float) for x in xs):
-                order = np.argsort(xs)
-                xs, group = [xs[i] for i in order], [group[i] for i in order]
+            values = [r["overrides"][key] for r in group]
+            if all(isinstance(v, int | float) for v in values) or all(isinstance(v, str) for v in values):
+                group.sort(key=lambda r: r["overrides"][key])  # numbers in order, words alphabetically
             ax.plot(
-                [str(x) if isinstance(x, str) else x for x in xs],
+                [r["overrides"][key] for r in group],
                 [r[metric] for r in group],
                 "o-",
                 label=", ".join(label) or None,
