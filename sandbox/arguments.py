@@ -98,3 +98,32 @@ def distinct_outputs(paths: dict[str, str | None]) -> None:
         if key in seen:
             raise SandboxError(f"{option} {path}: the same file as {seen[key]}; expected different outputs")
         seen[key] = option
+
+
+def check_pool_arguments(args) -> None:
+    """--scheduler, --workers and --threads of sweep and study."""
+    check_count("--workers", args.workers, 1, 1024)
+    check_count("--threads", args.threads, 1, 1024)
+    if args.scheduler not in ("auto", "local", "serial") and "://" not in args.scheduler:
+        raise SandboxError(f"--scheduler {args.scheduler}: expected auto, local, serial or an address tcp://HOST:PORT")
+
+
+def pool_arguments(parser, job: str) -> None:
+    """Add --scheduler, --workers and --threads to `parser`; `job` names what one task is ("run", "task")."""
+    parser.add_argument(
+        "--scheduler",
+        default="auto",
+        help="auto (a local Dask cluster with the sweep extra, else serial), local, serial, or tcp://HOST:8786",
+    )
+    parser.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
+    parser.add_argument("--threads", type=int, help=f"Taichi CPU threads per {job} (default: the cores / workers)")
+
+
+def check_names(option: str, text: str | None, known: tuple) -> tuple:
+    if text is None:
+        return known
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in known]
+    if unknown or not names:
+        raise SandboxError(f"{option} {text}: expected a comma-separated list of {', '.join(known)}")
+    return names

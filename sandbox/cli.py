@@ -17,9 +17,12 @@ from .arguments import (
     check_file_output,
     check_folder_output,
     check_frames_output,
+    check_names,
     check_picture,
+    check_pool_arguments,
     check_rate,
     distinct_outputs,
+    pool_arguments,
 )
 from .errors import SandboxError, SimulationError
 from .render.video import check_output
@@ -323,6 +326,11 @@ def cmd_keys(args) -> int:
 
 
 def cmd_study(args) -> int:
+    from .study import INTEGRATORS, PROBLEMS, run_study
+
+    check_pool_arguments(args)
+    integrators = check_names("--integrators", args.integrators, INTEGRATORS)
+    problems = check_names("--problems", args.problems, PROBLEMS)
     out = check_folder_output("--out", args.out)
     if args.phase:
         from .phase_study import run_phase_study
@@ -333,9 +341,20 @@ def cmd_study(args) -> int:
             + (" and plots" if (out / "stefan.png").exists() else "")
         )
         return 0
-    from .study import run_study
-
-    run_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+    try:
+        run_study(
+            out,
+            quick=args.quick,
+            integrators=integrators,
+            problems_to_run=problems,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            threads=args.threads,
+            log=lambda line: print(line, file=sys.stderr),
+        )
+    except KeyboardInterrupt:
+        print("interrupted: the study writes its files only when every task is done", file=sys.stderr)
+        return EXIT_INTERRUPTED
     print(
         f"wrote {out}/report.md, runs.csv, stability.csv, stiff.csv"
         + ("" if not list(out.glob("*.png")) else " and plots")
@@ -347,12 +366,9 @@ def cmd_sweep(args) -> int:
     from .sweep import METRICS, parse_vary, plan_runs, plot_sweep, run_sweep
 
     check_count("--frames", args.frames, 1, MAX_FRAMES)
-    check_count("--workers", args.workers, 1, 1024)
-    check_count("--threads", args.threads, 1, 1024)
+    check_pool_arguments(args)
     check_count("--width", args.width, 16, MAX_SIDE)
     check_count("--height", args.height, 16, MAX_SIDE)
-    if args.scheduler not in ("auto", "local", "serial") and "://" not in args.scheduler:
-        raise SandboxError(f"--scheduler {args.scheduler}: expected auto, local, serial or an address tcp://HOST:PORT")
     if args.metric not in METRICS:
         raise SandboxError(f"--metric {args.metric}: expected one of {', '.join(METRICS)}")
     variations = [parse_vary(text) for text in args.vary]
@@ -455,6 +471,9 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_argument(
         "--phase", action="store_true", help="instead: phase change (Stefan problem, heating curve) validation"
     )
+    study.add_argument("--integrators", help="comma-separated integrators to study (default: all)")
+    study.add_argument("--problems", help="comma-separated problems to run (default: all)")
+    pool_arguments(study, "task")
     study.set_defaults(func=cmd_study)
 
     sweep = sub.add_parser("sweep", help="run a scene headless for every combination of overrides (Dask workers)")
@@ -473,13 +492,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--video", action="store_true", help="also an MP4 per run")
     sweep.add_argument("--width", type=int, help="video width in pixels (default: render.width)")
     sweep.add_argument("--height", type=int, help="video height in pixels (default: render.height)")
-    sweep.add_argument(
-        "--scheduler",
-        default="auto",
-        help="auto (a local Dask cluster with the sweep extra, else serial), local, serial, or tcp://HOST:8786",
-    )
-    sweep.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
-    sweep.add_argument("--threads", type=int, help="Taichi CPU threads per run (default: the cores / workers)")
+    pool_arguments(sweep, "run")
     sweep.add_argument("--metric", default="final_molten_fraction", help="what sweep.png plots")
     sweep.set_defaults(func=cmd_sweep, set=[], arch="cpu")
 

@@ -1,41 +1,29 @@
-"""Error against run time, convergence orders and stability limits of the integrators on reference problems.
+"""`sandbox study`: error against run time, convergence orders and stability limits of the integrators.
 
-`sandbox study --out DIR [--quick]` writes runs.csv (every run), stability.csv, report.md and, with matplotlib,
-PNG plots (work-precision and error-against-dt per problem). Each problem's reference is not the method under test:
-
-1. oscillator     one undamped spring: the analytic solution (position error at T, and energy error)
-2. lattice        a damped spring lattice falling and spinning under gravity: RK4 at a step 64x smaller than the
-                  smallest tested (its own error estimated by Richardson from a run at twice that step, and
-                  reported). Not velocity Verlet: with velocity-dependent (damping) forces both Verlet methods
-                  evaluate the damper with a velocity half a step old and drop to first order.
-3. lj_cluster     a 2D Lennard-Jones droplet: energy drift per unit time over a long run (no reference needed)
-4. heat_pulse     a Gaussian heat pulse: the analytic solution (total error) and the same particles at a step 64x
-                  smaller (time error alone), for the explicit and the implicit heat stepper
-5. melting        the melting block (small): molten fraction and centre of mass against a converged run
-
-Stability: the largest stable h*w of each integrator on the undamped spring, found on a bank of independent
-springs (one simulation, each spring its own stiffness) refined twice around the first unstable one; forward
-Euler and midpoint have none and get their amplitude growth per period instead, next to the theory.
+`sandbox study --out DIR [--quick] [--scheduler auto|serial|local|ADDRESS]` writes runs.csv (every run),
+stability.csv, stiff.csv, report.md and, with matplotlib, PNG plots. The problems are in study_problems.py; here
+they are cut into tasks (a problem for some integrators, plus each problem's shared reference) that run one after
+another in this process or spread over Dask workers (dask_pool.py). Every task starts from a fresh Taichi runtime
+and builds its own simulations, so its results do not depend on where it ran: with the same Taichi threads per task,
+the CSVs from a cluster equal the serial run's apart from the wall-time columns.
 """
 
 from __future__ import annotations
 
-import csv
-import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from . import runtime
-from .integrators import REGISTRY
-from .resources import SCENES_DIR
-from .scene import scene_from_dict
-from .simulation import Simulation, timed_steps
-from .study_runs import STUDY_PATH, Run
+from . import study_problems as problems
+from .dask_pool import choose_scheduler, cpu_threads, dask_client, local_shape
+from .errors import SandboxError
+from .study_runs import Run
 
 INTEGRATORS = ("forward_euler", "symplectic_euler", "midpoint", "verlet", "velocity_verlet", "rk4", "implicit_euler")
+PROBLEMS = ("oscillator", "lattice", "lj_cluster", "melting", "heat_pulse", "stability", "stiff")
+QUICK_SKIPS = ("melting",)  # --quick leaves these out
+WALL_TIME_COLUMNS = ("wall_seconds", "particle_steps_per_second")  # the only columns that differ between machines
 
 
 @dataclass
@@ -46,620 +34,191 @@ class StudyResult:
     notes: dict = field(default_factory=dict)
 
 
-# ---------------------------------------------------------------------------- problem 1 and stability: springs
-def spring_bank(
-    h_omegas: np.ndarray | list[float],
-    dt: float,
-    integrator: str = "symplectic_euler",
-    amplitude: float = 0.1,
-    damping: float = 0.0,
-) -> Simulation:
-    """Independent two-particle springs (unit masses, rest length 1), spring m stiff enough that h w_m equals
-    h_omegas[m] at step dt (w = sqrt(2k/m) for the pair's relative motion); each starts stretched by `amplitude`."""
-    h_omegas = np.asarray(h_omegas, dtype=float)
-    m = len(h_omegas)
-    data = {  # walls far away in x: an unstable spring must be free to grow, not be caught by a wall
-        "world": {
-            "dim": 2,
-            "lo": [-1e12, 0],
-            "hi": [1e12, 3 * m + 3],
-            "dt": dt,
-            "precision": "f64",
-            "integrator": integrator,
-            "substeps": 1,
-        },
-        "materials": {"spring": {"based_on": "jelly", "damping": damping, "particle_mass": 1.0}},
-        "bodies": [
-            {"material": "spring", "shape": "box", "lo": [2, 1 + 3 * k], "hi": [4, 2 + 3 * k], "spring_radius": 1.0}
-            for k in range(m)
-        ],
+@dataclass(frozen=True)
+class StudyTask:
+    """One job of the study: `problem` for some integrators (sharing its simulations), or with no integrators the
+    problem's shared reference (lattice, melting) or the whole problem (heat_pulse, which compares heat steppers)."""
+
+    problem: str
+    integrators: tuple[str, ...]
+    quick: bool
+
+    @property
+    def key(self) -> str:
+        return f"study-{self.problem}-{'-'.join(self.integrators) or 'reference'}"
+
+    @property
+    def name(self) -> str:
+        if self.integrators:
+            return f"{self.problem} {', '.join(self.integrators)}"
+        return f"{self.problem} reference" if self.problem in REFERENCED else self.problem
+
+
+def ladders(quick: bool) -> dict:
+    """The steps (or h*w, stiffnesses, substeps) each problem runs at."""
+    return {
+        "oscillator_h_omegas": [0.08, 0.04, 0.02, 0.01] if quick else [0.16, 0.08, 0.04, 0.02, 0.01, 0.005],
+        "lattice_dts": [0.008, 0.004, 0.002] if quick else [0.008, 0.004, 0.002, 0.001, 0.0005],
+        "lattice_end": 0.256 if quick else 1.024,
+        "lj_dts": [0.005] if quick else [0.005, 0.0025],
+        "lj_end": 5.0 if quick else 50.0,
+        "melting_dts": [0.0025, 0.00125],
+        "melting_end": 1.0,
+        "stiffnesses": [1e2, 1e4, 1e6, 1e8] if quick else [1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8],
+        "substeps": [1, 4, 16, 64, 256] if quick else [1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048],
+        "stiff_frames": 5 if quick else 20,
     }
-    sim = Simulation(scene_from_dict(data, STUDY_PATH))
-    set_bank_stiffness(sim, h_omegas, dt)
-    x = sim.particles.x.to_numpy()
-    x[1 : 2 * m : 2, 0] += amplitude
-    sim.particles.x.from_numpy(x)
-    sim.mark_initial()
-    return sim
 
 
-def set_bank_stiffness(sim: Simulation, h_omegas: np.ndarray, dt: float) -> np.ndarray:
-    """Give spring m the stiffness k = (h_omegas[m] / dt)^2 / 2 (unit masses); returns k."""
-    k = (np.asarray(h_omegas, dtype=float) / dt) ** 2 / 2
-    sim.springs.ks.from_numpy(k)
-    sim.dt = dt
-    return k
+REFERENCED = ("lattice", "melting")  # problems whose integrator tasks need their reference task's result
 
 
-def bank_energy(sim: Simulation, k: np.ndarray) -> np.ndarray:
-    """Energy of each spring's relative motion: 1/2 mu v_rel^2 + 1/2 k ext^2 (mu = 1/2)."""
-    x, v = sim.positions(), sim.velocities()
-    ext = np.linalg.norm(x[1::2] - x[0::2], axis=1) - 1.0
-    vrel = v[1::2] - v[0::2]
-    return 0.25 * (vrel**2).sum(axis=1) + 0.5 * k * ext**2
+def plan_tasks(quick: bool, integrators=INTEGRATORS, problems_to_run=PROBLEMS, split: int = 1) -> list[StudyTask]:
+    """The study's tasks in report order: each problem's reference first, then its integrators cut into `split`
+    tasks (one task per problem when 1: the integrators share the problem's simulations and compiled kernels)."""
+    unknown = [p for p in problems_to_run if p not in PROBLEMS]
+    if unknown:
+        raise SandboxError(f"study: unknown problem {unknown[0]!r}; expected one of {', '.join(PROBLEMS)}")
+    bad = [name for name in integrators if name not in INTEGRATORS]
+    if bad:
+        raise SandboxError(f"study: unknown integrator {bad[0]!r}; expected one of {', '.join(INTEGRATORS)}")
+    split = max(1, min(split, len(integrators)))
+    cuts = [round(k * len(integrators) / split) for k in range(split + 1)]  # contiguous: the report's order
+    groups = [tuple(integrators[a:b]) for a, b in zip(cuts, cuts[1:])]
+    tasks = []
+    for problem in PROBLEMS:
+        if problem not in problems_to_run or (quick and problem in QUICK_SKIPS):
+            continue
+        if problem in REFERENCED or problem == "heat_pulse":
+            tasks.append(StudyTask(problem, (), quick))
+        if problem != "heat_pulse":
+            tasks += [StudyTask(problem, group, quick) for group in groups]
+    return tasks
 
 
-def bank_growth(sim: Simulation, h_omegas: np.ndarray, steps: int) -> np.ndarray:
-    """Energy ratio E(steps)/E(0) of each spring of the bank after `steps` steps from its initial state."""
-    sim.reset()
-    k = set_bank_stiffness(sim, h_omegas, sim.dt)
-    e0 = bank_energy(sim, k)
-    sim.step(steps)
-    with np.errstate(over="ignore", invalid="ignore"):
-        ratio = bank_energy(sim, k) / e0
-    return np.where(np.isfinite(ratio), ratio, np.inf)
+def run_task(task: StudyTask, threads: int, reference=None) -> dict:
+    """Run one task in a fresh Taichi runtime with `threads` CPU threads; `reference`: the result of the problem's
+    reference task (for lattice and melting). Returns {"runs": [...], "stability": [...], "stiff": [...],
+    "notes": {...}, "reference": ...}, each part present where the task makes it."""
+    with cpu_threads(threads):
+        runtime.reset()  # fields of earlier tasks go; shared kernels come back from the offline cache
+        try:
+            return _run_task(task, reference)
+        finally:
+            runtime.reset()
 
 
-BANK_SIZE = 120
-# Stability runs start each spring 1e-6 from rest: even a 1e4-fold amplitude growth keeps it far below its rest
-# length, where a spring is a linear oscillator (squeezed through zero length it is not, and growth saturates).
-LINEAR_AMPLITUDE = 1e-6
+def _run_task(task: StudyTask, reference) -> dict:
+    lad = ladders(task.quick)
+    names = list(task.integrators)
+    if task.problem == "oscillator":
+        return {"runs": problems.oscillator_runs(names, lad["oscillator_h_omegas"])}
+    if task.problem == "lattice":
+        if not task.integrators:
+            ref, notes = problems.lattice_reference(lad["lattice_dts"], lad["lattice_end"])
+            return {"reference": ref, "notes": notes}
+        return {"runs": problems.lattice_runs(names, lad["lattice_dts"], lad["lattice_end"], reference)}
+    if task.problem == "lj_cluster":
+        return {"runs": problems.lj_cluster_runs(names, lad["lj_dts"], lad["lj_end"])}
+    if task.problem == "melting":
+        if not task.integrators:
+            ref, notes = problems.melting_reference(lad["melting_dts"], lad["melting_end"])
+            return {"reference": ref, "notes": notes}
+        return {"runs": problems.melting_runs(names, lad["melting_dts"], lad["melting_end"], reference)}
+    if task.problem == "heat_pulse":
+        from .heat_study import heat_runs
+
+        runs, notes = heat_runs(task.quick)
+        return {"runs": runs, "notes": notes}
+    if task.problem == "stability":
+        return {"stability": problems.stability_rows(names, task.quick)}
+    rows = problems.stiff_sweep(names, lad["stiffnesses"], lad["substeps"], frames=lad["stiff_frames"])
+    return {"stiff": rows}
 
 
-def stable_limit(
-    integrator: str,
-    sim: Simulation | None = None,
-    steps: int = 2000,
-    threshold: float = 1e8,
-    top: float = 4.0,
-    refinements: int = 3,
-) -> dict:
-    """Largest stable h*w on the undamped spring, by scanning a bank of springs and refining around the first
-    unstable one (each pass narrows the bracket BANK_SIZE-fold). Stable: energy after `steps` steps below
-    `threshold` times the initial energy. Below the limit symplectic Euler's energy stays bounded but swings by up to
-    about 1/(1 - (hw/2)^2)^2 (1e4 at hw = 1.995), so the threshold is 1e8: an unstable spring passes it within a
-    few hundred steps anywhere but within 1e-4 of the limit. `sim`: a spring_bank of BANK_SIZE springs to reuse."""
-    lo, hi = 0.0, top
-    grid = np.linspace(lo, hi, BANK_SIZE + 1)[1:]
-    sim = sim or spring_bank(grid, 0.01, integrator, amplitude=LINEAR_AMPLITUDE)
-    sim.set_integrator(integrator)
-    for _ in range(refinements):
-        ratio = bank_growth(sim, grid, steps)
-        unstable = np.flatnonzero(ratio > threshold)
-        if len(unstable) == 0:
-            return {"integrator": integrator, "h_omega_limit": math.inf, "searched_up_to": float(grid[-1])}
-        first = unstable[0]
-        if first == 0 and lo == 0.0:
-            return {"integrator": integrator, "h_omega_limit": 0.0, "searched_up_to": float(grid[-1])}
-        lo, hi = (grid[first - 1], grid[first]) if first > 0 else (lo, grid[0])
-        grid = np.linspace(lo, hi, len(grid) + 1)[1:]
-    return {"integrator": integrator, "h_omega_limit": float(0.5 * (lo + hi)), "searched_up_to": top}
+def run_study(
+    out: Path,
+    quick: bool = False,
+    integrators=INTEGRATORS,
+    problems_to_run=PROBLEMS,
+    scheduler: str = "serial",
+    workers: int | None = None,
+    threads: int | None = None,
+    log=print,
+) -> StudyResult:
+    """Run the study's tasks and write runs.csv, stability.csv, stiff.csv, report.md (and plots with matplotlib).
 
+    `scheduler`: "serial" (one task per problem, one after another here), "local" (a local Dask cluster of `workers`
+    processes), "auto" (local where the sweep extra is installed) or a Dask scheduler's address; on Dask each
+    problem's integrators are cut into as many tasks as the cluster has worker threads. `threads`: Taichi CPU
+    threads per task (default: the cores, shared among the local workers)."""
+    from .study_report import write_outputs
 
-def unconditional_check(integrator: str, h_omegas=(1.0, 10.0, 100.0, 1000.0), steps: int = 10) -> dict:
-    """For an unconditionally stable method: the energy ratio after `steps` steps at large h*w, one spring at a
-    time (CG's residual is relative to the whole right-hand side, so springs of very different stiffness in one
-    solve would not each be solved to the tolerance), with backward Euler's theory (1 + (h w)^2)^-steps beside
-    it: its numerical damping."""
-    sim = spring_bank([1.0], 0.01, integrator, amplitude=LINEAR_AMPLITUDE)
-    sim.integrator.tolerance = 1e-12
-    row = {"integrator": integrator, "h_omega_limit": math.inf, "searched_up_to": float(max(h_omegas))}
-    for hw in h_omegas:
-        row[f"energy_ratio_after_{steps}_steps_at_{hw:g}"] = float(bank_growth(sim, np.array([hw]), steps)[0])
-        row[f"theory_energy_ratio_after_{steps}_steps_at_{hw:g}"] = (1 + hw**2) ** -steps
-    return row
-
-
-def growth_per_period(integrator: str, h_omega: float, periods: int = 1, sim: Simulation | None = None) -> float:
-    """Measured amplitude factor per oscillation period at h*w, from the energy ratio after a whole number of
-    periods (E scales as amplitude^2 for these methods: each step is a scaled rotation). Few periods, so the
-    spring's extension stays well below its rest length (a spring squeezed through zero length is not linear)."""
-    sim = sim or spring_bank([h_omega], 0.01, integrator, amplitude=LINEAR_AMPLITUDE)
-    sim.set_integrator(integrator)
-    steps = round(periods * 2 * math.pi / h_omega)
-    bank = np.full(len(sim.springs.ks.to_numpy()), h_omega)
-    ratio = float(bank_growth(sim, bank, steps)[0])
-    return ratio ** (0.5 / (steps * h_omega / (2 * math.pi)))
-
-
-def theory_growth_per_period(integrator: str, h_omega: float) -> float:
-    """|amplification per step|^(steps per period) for the explicit methods on the undamped oscillator."""
-    per_step = {"forward_euler": math.sqrt(1 + h_omega**2), "midpoint": math.sqrt(1 + h_omega**4 / 4)}[integrator]
-    return per_step ** (2 * math.pi / h_omega)
-
-
-def oscillator_runs(integrators, h_omegas, periods: float = 2.125) -> list[Run]:
-    """Problem 1: one spring with w = 2 pi (period 1) for `periods` periods at each h*w; error against the analytic
-    extension A cos(w t), energy error |E - E0| / E0. The end is not at an extremum of cos, so both phase and
-    amplitude errors show."""
-    omega, amplitude = 2 * math.pi, 0.1
-    sim = spring_bank([0.1], 0.1 / omega)
-    runs = []
-    for name in integrators:
-        warmed(sim, name)
-        for hw in h_omegas:
-            dt = hw / omega
-            steps = round(periods * 2 * math.pi / hw)
-            sim.reset()
-            k = set_bank_stiffness(sim, [hw], dt)
-            e0 = bank_energy(sim, k)[0]
-            wall = timed_steps(sim, steps)
-            x = sim.positions()
-            ext = np.linalg.norm(x[1] - x[0]) - 1.0
-            err = abs(ext - amplitude * math.cos(omega * sim.time))
-            e_err = abs(bank_energy(sim, k)[0] - e0) / e0
-            runs.append(
-                Run(
-                    "oscillator",
-                    name,
-                    dt,
-                    steps,
-                    float(err),
-                    float(e_err),
-                    wall,
-                    2 * steps / wall,
-                    bool(np.isfinite(err) and err < 10 * amplitude),
-                )
-            )
-    return runs
-
-
-def warmed(sim: Simulation, name: str) -> Simulation:
-    """Switch to integrator `name` and compile its kernels with one step, then reset: timed runs exclude compiling."""
-    sim.set_integrator(name)
-    sim.step(1)
-    sim.reset()
-    return sim
-
-
-def fitted_order(dts, errors, last: int = 3) -> float:
-    """Least-squares slope of log(error) against log(dt) over the `last` smallest steps (the asymptotic range)."""
-    dts, errors = np.asarray(dts, float), np.asarray(errors, float)
-    order = np.argsort(dts)[:last]
-    dts, errors = dts[order], errors[order]
-    keep = np.isfinite(errors) & (errors > 0)
-    if keep.sum() < 2:
-        return float("nan")
-    return float(np.polyfit(np.log(dts[keep]), np.log(errors[keep]), 1)[0])
-
-
-# ---------------------------------------------------------------------------- problem 2: damped lattice
-def lattice_sim(integrator: str, dt: float) -> Simulation:
-    """A 6 x 6 damped spring lattice, spinning and falling under gravity in a large box (no wall contact)."""
-    data = {
-        "world": {
-            "dim": 2,
-            "lo": [0, 0],
-            "hi": [60, 60],
-            "dt": dt,
-            "precision": "f64",
-            "gravity": [0, -9.8],
-            "integrator": integrator,
-            "implicit_tolerance": 1e-10,
-        },
-        "materials": {"gel": {"based_on": "jelly", "stiffness": 400.0, "damping": 2.0}},
-        "bodies": [{"material": "gel", "shape": "box", "lo": [27, 40], "hi": [33, 46], "jitter": 0.1, "seed": 7}],
-    }
-    sim = Simulation(scene_from_dict(data, STUDY_PATH))
-    x = sim.positions()
-    centre = x.mean(axis=0)
-    v = np.zeros_like(sim.particles.v.to_numpy())
-    r = x - centre
-    v[: len(x)] = 3.0 * np.stack([-r[:, 1], r[:, 0]], axis=1)  # spin at 3 rad/s
-    sim.particles.v.from_numpy(v)
-    sim.mark_initial()
-    return sim
-
-
-def lattice_runs(integrators, dts, end_time: float = 1.024) -> tuple[list[Run], dict]:
-    dt_ref = min(dts) / 64
-    sim = lattice_sim("rk4", dt_ref)
-    sim.step(round(end_time / dt_ref))
-    ref = sim.positions()
-    sim.reset()
-    sim.dt = 2 * dt_ref
-    sim.step(round(end_time / (2 * dt_ref)))
-    ref_error = float(np.sqrt(((sim.positions() - ref) ** 2).sum(axis=1).mean()) / 15)  # Richardson, order 4
-    runs = []
-    n = sim.built.count
-    for name in integrators:
-        warmed(sim, name)
-        for dt in dts:
-            sim.reset()
-            sim.dt = dt
-            steps = round(end_time / dt)
-            wall = timed_steps(sim, steps)
-            err = float(np.sqrt(((sim.positions() - ref) ** 2).sum(axis=1).mean()))
-            runs.append(
-                Run(
-                    "lattice",
-                    name,
-                    dt,
-                    steps,
-                    err,
-                    float("nan"),
-                    wall,
-                    n * steps / wall,
-                    bool(np.isfinite(err) and err < 10),
-                )
-            )
-    return runs, {"lattice_reference (rk4) dt": dt_ref, "lattice_reference_error (Richardson)": ref_error}
-
-
-# ---------------------------------------------------------------------------- problem 3: LJ droplet
-def lj_cluster_runs(integrators, dts, end_time: float) -> list[Run]:
-    """Energy drift of a 2D LJ droplet: the error is max |E(t) - E0| / |E0| over the run, and the note gives the
-    fitted drift per unit time."""
-    data = {
-        "world": {"dim": 2, "lo": [0, 0], "hi": [40, 40], "dt": dts[0], "precision": "f64", "neighbor_list": True},
-        "pair": {"a": 8.0, "b": 14.0, "cutoff": 2.5},
-        "bodies": [
-            {
-                "material": "lj",
-                "shape": "disk",
-                "lattice": "hex",
-                "center": [20, 20],
-                "radius": 4.5,
-                "spacing": 1.1225,
-                "springs": False,
-                "random_velocity": 0.3,
-                "seed": 11,
-            }
-        ],
-    }
-    sim = Simulation(scene_from_dict(data, STUDY_PATH))
-    n = sim.built.count
-    runs = []
-    for name in integrators:
-        warmed(sim, name)
-        for dt in dts:
-            sim.reset()
-            sim.dt = dt
-            e0 = sim.stats().total_energy
-            samples, times = [e0], [0.0]
-            steps = round(end_time / dt)
-            chunk = max(1, steps // 50)
-            t0 = time.perf_counter()
-            done = 0
-            stable = True
-            while done < steps:
-                sim.step(min(chunk, steps - done))
-                done += min(chunk, steps - done)
-                try:
-                    samples.append(sim.stats().total_energy)
-                except Exception:  # a blow-up is a result here, not a failure
-                    stable = False
-                    break
-                times.append(sim.time)
-            wall = time.perf_counter() - t0
-            e = np.asarray(samples)
-            err = float(np.max(np.abs(e - e0)) / abs(e0)) if stable else float("inf")
-            drift = float(np.polyfit(times, e, 1)[0] / abs(e0)) if stable and len(times) > 2 else float("nan")
-            runs.append(
-                Run(
-                    "lj_cluster",
-                    name,
-                    dt,
-                    done,
-                    err,
-                    err,
-                    wall,
-                    n * done / max(wall, 1e-9),
-                    stable,
-                    f"drift per unit time {drift:.3g}",
-                )
-            )
-    return runs
-
-
-# ---------------------------------------------------------------------------- problem 5: melting block
-def melting_runs(integrators, dts, end_time: float = 1.0) -> tuple[list[Run], dict]:
-    from .scene import load_scene
-
-    scenes_dir = SCENES_DIR
-    over = ["bodies.0.lo=[56.0, 0.0]", "bodies.0.hi=[72.0, 12.0]", "world.precision='f64'"]
-
-    def build(name, dt):
-        return Simulation(
-            load_scene(scenes_dir / "melting_block.toml", over + [f"world.integrator='{name}'", f"world.dt={dt}"])
-        )
-
-    dt_ref = min(dts) / 16
-    ref = build("velocity_verlet", dt_ref)
-    ref.step(round(end_time / dt_ref))
-    ref_stats, ref_com = ref.stats(), ref.positions().mean(axis=0)
-    sim = build("symplectic_euler", dts[0])
-    runs = []
-    for name in integrators:
-        warmed(sim, name)
-        for dt in dts:
-            sim.reset()
-            sim.dt = dt
-            steps = round(end_time / dt)
-            t0 = time.perf_counter()
-            stable = True
-            try:
-                sim.step(steps)
-                s = sim.stats()
-            except Exception:
-                stable = False
-            wall = time.perf_counter() - t0
-            if stable:
-                err = float(np.linalg.norm(sim.positions().mean(axis=0) - ref_com))
-                molten = abs(s.molten_fraction - ref_stats.molten_fraction)
-            else:
-                err, molten = float("inf"), float("inf")
-            runs.append(
-                Run(
-                    "melting",
-                    name,
-                    dt,
-                    steps,
-                    err,
-                    molten,
-                    wall,
-                    sim.built.count * steps / wall,
-                    stable,
-                    "error: centre of mass distance; energy_error column: molten fraction difference",
-                )
-            )
-    return runs, {"melting_reference_dt": dt_ref, "melting_reference_molten_fraction": ref_stats.molten_fraction}
-
-
-# ---------------------------------------------------------------------------- stiff sweep
-def stiff_sweep(integrators, stiffnesses, substeps_list, frame_time: float = 1 / 60, frames: int = 20) -> list[dict]:
-    """For k/m over many decades at a fixed frame rate, the fewest substeps per frame (from `substeps_list`) at which
-    each integrator keeps a damped lattice bounded (one simulation: a lattice per stiffness, independent)."""
-    m = len(stiffnesses)
-    data = {
-        "world": {"dim": 2, "lo": [0, 0], "hi": [10 * m + 10, 20], "dt": frame_time, "precision": "f64"},
-        "materials": {"gel": {"based_on": "jelly", "damping": 0.0, "particle_mass": 1.0}},
-        "bodies": [
-            {"material": "gel", "shape": "box", "lo": [5 + 10 * k, 5], "hi": [9 + 10 * k, 9], "jitter": 0.2, "seed": k}
-            for k in range(m)
-        ],
-    }
-    sim = Simulation(scene_from_dict(data, STUDY_PATH))
-    per_body = sim.built.count // m
-    springs_per_body = sim.springs.count // m
-    ks = np.repeat(np.asarray(stiffnesses, float), springs_per_body)
-    x0 = sim.positions()
-    v = sim.particles.v.to_numpy()
-    v[: len(x0)] = np.random.default_rng(3).normal(0, 0.05, x0.shape)  # a small kick into every mode
-    sim.particles.v.from_numpy(v)
-    sim.springs.ks.from_numpy(ks)
-    sim.mark_initial()
-    rows = []
-    for name in integrators:
-        warmed(sim, name)
-        needed = {k: None for k in stiffnesses}
-        for sub in substeps_list:
-            if all(v is not None for v in needed.values()):
-                break  # bounded at every stiffness; more substeps stay bounded
-            sim.reset()
-            sim.dt = frame_time / sub
-            sim.step(frames * sub)
-            x = sim.positions()
-            disp = np.linalg.norm(x - x0, axis=1).reshape(m, per_body).max(axis=1)
-            ok = np.isfinite(disp) & (disp < 1.0)
-            for k, good in zip(stiffnesses, ok):
-                if good and needed[k] is None:
-                    needed[k] = sub
-        for k in stiffnesses:
-            rows.append(
-                {
-                    "integrator": name,
-                    "k_over_m": k,
-                    "min_substeps": needed[k],
-                    "h_omega_at_that": (frame_time / needed[k]) * math.sqrt(2 * k * 8) if needed[k] else None,
-                }
-            )
-    return rows
-
-
-# ---------------------------------------------------------------------------- the command
-def run_study(out: Path, quick: bool = False, integrators=INTEGRATORS, log=print) -> StudyResult:
-    """Run every problem and write runs.csv, stability.csv, stiff.csv, report.md (and plots with matplotlib)."""
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    res = StudyResult()
+    integrators = tuple(integrators)
+    scheduler = choose_scheduler(scheduler, len(PROBLEMS), log, "study")
+    workers, threads = local_shape(len(integrators), workers if scheduler != "serial" else 1, threads)
     start = time.perf_counter()
 
-    def done(what):
-        log(f"study: {what} done at {time.perf_counter() - start:.1f} s")
-        runtime.reset()  # the problems share no simulation; a runtime holds at most ~512 field trees
+    def done(task: StudyTask) -> None:
+        log(f"study: {task.name} done at {time.perf_counter() - start:.1f} s")
 
-    hws = [0.08, 0.04, 0.02, 0.01] if quick else [0.16, 0.08, 0.04, 0.02, 0.01, 0.005]
-    res.runs += oscillator_runs(integrators, hws)
-    done("oscillator")
-    lat_dts = [0.008, 0.004, 0.002] if quick else [0.008, 0.004, 0.002, 0.001, 0.0005]
-    lattice, notes = lattice_runs(integrators, lat_dts, end_time=0.256 if quick else 1.024)
-    res.runs += lattice
-    res.notes.update(notes)
-    done("lattice")
-    res.runs += lj_cluster_runs(integrators, [0.005] if quick else [0.005, 0.0025], 5.0 if quick else 50.0)
-    done("lj_cluster")
-    if not quick:
-        melt, notes = melting_runs(integrators, [0.0025, 0.00125])
-        res.runs += melt
-        res.notes.update(notes)
-        done("melting")
-    from .heat_study import heat_runs
-
-    heat, notes = heat_runs(quick)
-    res.runs += heat
-    res.notes.update(notes)
-    done("heat_pulse")
-    bank = spring_bank(np.linspace(0, 4, BANK_SIZE + 1)[1:], 0.01, amplitude=LINEAR_AMPLITUDE)
-    single = spring_bank([0.1], 0.01, amplitude=LINEAR_AMPLITUDE)
-    for name in integrators:
-        if REGISTRY[name].stable_h_omega == 0:
-            row = {"integrator": name, "h_omega_limit": 0.0, "searched_up_to": 0.0}
-        elif math.isinf(REGISTRY[name].stable_h_omega):
-            row = unconditional_check(name)
-        else:
-            row = stable_limit(name, bank, steps=1000 if quick else 2000, refinements=2 if quick else 3)
-        row["theory"] = REGISTRY[name].stable_h_omega
-        if name in ("forward_euler", "midpoint"):
-            for hw in (0.1, 0.5):
-                row[f"growth_per_period_at_{hw}"] = growth_per_period(name, hw, sim=single)
-                row[f"theory_growth_per_period_at_{hw}"] = theory_growth_per_period(name, hw)
-        res.stability.append(row)
-    done("stability")
-    ks = [1e2, 1e4, 1e6, 1e8] if quick else [1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8]
-    subs = [1, 4, 16, 64, 256] if quick else [1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048]
-    res.stiff = stiff_sweep(integrators, ks, subs, frames=5 if quick else 20)
-    done("stiff sweep")
+    if scheduler == "serial":
+        tasks = plan_tasks(quick, integrators, problems_to_run)
+        results = _run_serial(tasks, threads, done)
+        where = "this process"
+    else:
+        plan_tasks(quick, integrators, problems_to_run)  # its errors before a cluster starts
+        with dask_client(scheduler, workers) as client:
+            slots = sum(client.nthreads().values()) or 1
+            tasks = plan_tasks(quick, integrators, problems_to_run, split=slots)
+            results = _run_on_dask(client, threads, tasks, done)
+        where = f"Dask ({scheduler}, {slots} worker slots)"
+    res = StudyResult()
+    for task in tasks:
+        part = results[task]
+        res.runs += part.get("runs", [])
+        res.stability += part.get("stability", [])
+        res.stiff += part.get("stiff", [])
+        res.notes.update(part.get("notes", {}))
+    res.notes["tasks ran on"] = f"{where}, {threads} Taichi threads per task"
     write_outputs(out, res)
     return res
 
 
-def write_outputs(out: Path, res: StudyResult) -> None:
-    with open(out / "runs.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(asdict(res.runs[0]).keys()))
-        writer.writeheader()
-        for run in res.runs:
-            writer.writerow(asdict(run))
-    for name, rows in (("stability", res.stability), ("stiff", res.stiff)):
-        keys = list(dict.fromkeys(k for row in rows for k in row))
-        with open(out / f"{name}.csv", "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=keys)
-            writer.writeheader()
-            writer.writerows(rows)
-    plots = make_plots(out, res)
-    (out / "report.md").write_text(report_markdown(res, plots))
+def _reference_task(task: StudyTask) -> StudyTask | None:
+    """The task whose result `task` needs: its problem's reference, if it has one and `task` is not it."""
+    return StudyTask(task.problem, (), task.quick) if task.problem in REFERENCED and task.integrators else None
 
 
-def theory_order(problem: str, name: str) -> int:
-    """Theoretical order; both Verlet methods are first order on the damped lattice (the damper sees a velocity
-    half a step old), and both heat steppers are first order."""
-    if problem == "heat_pulse_time":
-        return 1
-    if problem == "lattice" and name in ("verlet", "velocity_verlet"):
-        return 1
-    return REGISTRY[name].order
+def _run_serial(tasks: list[StudyTask], threads: int, done) -> dict:
+    results = {}
+    for task in tasks:
+        ref = _reference_task(task)
+        results[task] = run_task(task, threads, results[ref]["reference"] if ref else None)
+        done(task)
+    return results
 
 
-def orders_by_problem(res: StudyResult) -> dict:
-    table = {}
-    for problem in ("oscillator", "lattice", "heat_pulse_time"):  # fitted over the three smallest steps
-        for name in dict.fromkeys(r.integrator for r in res.runs if r.problem == problem):
-            runs = [r for r in res.runs if r.problem == problem and r.integrator == name and r.stable]
-            table[(problem, name)] = fitted_order([r.dt for r in runs], [r.error for r in runs])
-    return table
+def _run_on_dask(client, threads: int, tasks: list[StudyTask], done) -> dict:
+    from distributed import as_completed
+
+    futures, references = {}, {}
+    for task in tasks:  # a reference comes before its problem's integrator tasks in the plan
+        ref = _reference_task(task)
+        reference = references[ref] if ref else None
+        futures[task] = client.submit(run_task, task, threads, reference, key=task.key, pure=False, retries=3)
+        if task.problem in REFERENCED and not task.integrators:  # the reference alone travels to the tasks
+            references[task] = client.submit(_reference_of, futures[task], pure=False)
+    by_future = {future: task for task, future in futures.items()}
+    results = {}
+    for future in as_completed(list(futures.values())):
+        task = by_future[future]
+        results[task] = future.result()
+        done(task)
+    return results
 
 
-def report_markdown(res: StudyResult, plots: list[str]) -> str:
-    lines = [
-        "# Integrator study",
-        "",
-        "Generated by `sandbox study`. Errors are absolute in scene units; wall "
-        "seconds on the machine that ran it (compare within a table, not across machines).",
-        "",
-    ]
-    orders = orders_by_problem(res)
-    lines += ["## Convergence orders", "", "| problem | integrator | fitted order | theory |", "|---|---|---:|---:|"]
-    for (problem, name), order in orders.items():
-        lines.append(f"| {problem} | {name} | {order:.2f} | {theory_order(problem, name)} |")
-    lines += [
-        "",
-        "Fitted over the three smallest steps. On the damped lattice both Verlet methods are first order: "
-        "they evaluate the velocity-dependent damper with a velocity half a step old.",
-    ]
-    lines += [
-        "",
-        "## Stability on the undamped spring (largest stable h w)",
-        "",
-        "| integrator | measured | theory | growth per period (measured / theory) |",
-        "|---|---:|---:|---|",
-    ]
-    for row in res.stability:
-        grow = "; ".join(
-            f"h w = {hw}: {row[f'growth_per_period_at_{hw}']:.5f} / {row[f'theory_growth_per_period_at_{hw}']:.5f}"
-            for hw in (0.1, 0.5)
-            if f"growth_per_period_at_{hw}" in row
-        )
-        limit = row["h_omega_limit"]
-        shown = (
-            f">= {row['searched_up_to']:g} (none found)"
-            if math.isinf(limit)
-            else "none (unstable at every step)"
-            if limit == 0
-            else f"{limit:.4f}"
-        )
-        theory = row["theory"]
-        theory_s = "unconditional" if math.isinf(theory) else "none" if theory == 0 else f"{theory:.4f}"
-        lines.append(f"| {row['integrator']} | {shown} | {theory_s} | {grow} |")
-    lines += ["", "## Stiff springs at a fixed frame rate (1/60 s): fewest substeps that stay bounded", ""]
-    ks = list(dict.fromkeys(r["k_over_m"] for r in res.stiff))
-    lines += ["| integrator | " + " | ".join(f"k/m = {k:.0e}" for k in ks) + " |", "|---|" + "---:|" * len(ks)]
-    for name in dict.fromkeys(r["integrator"] for r in res.stiff):
-        cells = [
-            next(r for r in res.stiff if r["integrator"] == name and r["k_over_m"] == k)["min_substeps"] for k in ks
-        ]
-        lines.append(f"| {name} | " + " | ".join("-" if c is None else str(c) for c in cells) + " |")
-    lines += [
-        "",
-        "('-': not bounded at any substep count tried.)",
-        "",
-        "## Runs",
-        "",
-        "| problem | integrator | dt | steps | error | energy / 2nd error | wall s | stable | note |",
-        "|---|---|---:|---:|---:|---:|---:|---|---|",
-    ]
-    for r in res.runs:
-        lines.append(
-            f"| {r.problem} | {r.integrator} | {r.dt:.3g} | {r.steps} | {r.error:.3e} | "
-            f"{r.energy_error:.3e} | {r.wall_seconds:.3f} | {'yes' if r.stable else 'no'} | {r.note} |"
-        )
-    lines += ["", "## Notes", ""]
-    for key, value in res.notes.items():
-        lines.append(f"- {key}: {value:.4g}" if isinstance(value, float) else f"- {key}: {value}")
-    if plots:
-        lines += ["", "## Plots", ""] + [f"![{p}]({p})" for p in plots]
-    return "\n".join(lines) + "\n"
-
-
-def make_plots(out: Path, res: StudyResult) -> list[str]:
-    """Work-precision (error against wall seconds) and error against dt per problem; [] without matplotlib."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return []
-    names = []
-    for problem in dict.fromkeys(r.problem for r in res.runs):
-        runs = [r for r in res.runs if r.problem == problem and r.stable and r.error > 0 and np.isfinite(r.error)]
-        if not runs:
-            continue
-        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
-        for name in dict.fromkeys(r.integrator for r in runs):
-            mine = sorted((r for r in runs if r.integrator == name), key=lambda r: r.dt)
-            dts, errs, walls = [r.dt for r in mine], [r.error for r in mine], [r.wall_seconds for r in mine]
-            order = fitted_order(dts, errs)
-            ax1.loglog(walls, errs, "o-", label=name)
-            ax2.loglog(dts, errs, "o-", label=f"{name} (order {order:.2f}, theory {theory_order(problem, name)})")
-        ax1.set_xlabel("wall seconds")
-        ax1.set_ylabel("error")
-        ax1.set_title(f"{problem}: error against run time")
-        ax2.set_xlabel("dt")
-        ax2.set_title(f"{problem}: error against dt")
-        ax1.legend(fontsize=7)
-        ax2.legend(fontsize=7)
-        fig.tight_layout()
-        fname = f"{problem}.png"
-        fig.savefig(out / fname, dpi=90)
-        plt.close(fig)
-        names.append(fname)
-    return names
+def _reference_of(part: dict):
+    return part["reference"]

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .dask_pool import choose_scheduler, dask_client, local_shape
 from .errors import SandboxError
 from .sweep_run import RECORD, execute_run
 
@@ -101,13 +102,6 @@ def run_folder_name(index: int, overrides: dict) -> str:
     return "_".join(parts)[:120]
 
 
-def _local_workers(runs: int, workers: int | None, threads: int | None) -> tuple[int, int]:
-    cores = os.cpu_count() or 1
-    workers = workers or max(1, min(cores, runs))
-    threads = threads or max(1, cores // workers)
-    return workers, threads
-
-
 def run_sweep(
     scene_path: str | Path,
     runs: list[dict],
@@ -133,11 +127,8 @@ def run_sweep(
     todo = [(k, o, f) for k, o, f in jobs if not (f / RECORD).exists()]
     if len(todo) < len(jobs):
         log(f"{len(jobs) - len(todo)} of {len(jobs)} runs already complete: skipped")
-    workers, threads = _local_workers(len(todo), workers, threads)
-    if scheduler == "auto":
-        scheduler = "local" if _have_dask() else "serial"
-        if scheduler == "serial" and len(todo) > 1:
-            log("running the sweep one run at a time: pip install -e '.[sweep]' (dask) to run it in parallel")
+    workers, threads = local_shape(len(todo), workers, threads)
+    scheduler = choose_scheduler(scheduler, len(todo), log, "sweep")
     args = (frames, video, width, height, threads)
     try:
         if scheduler == "serial":
@@ -151,31 +142,10 @@ def run_sweep(
     return records
 
 
-def _have_dask() -> bool:
-    try:
-        import distributed  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 def _run_on_dask(scheduler, workers, threads, scene_path, todo, args, log) -> None:
-    if not _have_dask():
-        raise SandboxError(f"--scheduler {scheduler}: needs dask; pip install -e '.[sweep]'")
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import as_completed
 
-    cluster = None
-    if scheduler == "local":
-        cluster = LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
-        )
-        client = Client(cluster)
-    else:
-        try:
-            client = Client(scheduler, timeout=30)
-        except (OSError, TimeoutError) as exc:
-            raise SandboxError(f"--scheduler {scheduler}: no Dask scheduler answered ({exc})") from exc
-    try:
+    with dask_client(scheduler, workers) as client:
         futures = {
             client.submit(execute_run, scene_path, o, str(f), *args, pure=False, retries=3, key=f"run-{k}-{f.name}"): k
             for k, o, f in todo
@@ -183,10 +153,6 @@ def _run_on_dask(scheduler, workers, threads, scene_path, todo, args, log) -> No
         for future in as_completed(futures):
             record = future.result()
             log(f"run {futures[future]}: {record['outcome']} {record.get('message', '')}".rstrip())
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
 
 
 def write_manifest(out: Path, jobs: list) -> list[dict]:

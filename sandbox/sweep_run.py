@@ -15,6 +15,7 @@ import os
 import time
 from pathlib import Path
 
+from .dask_pool import cpu_threads
 from .errors import SandboxError
 
 RECORD = "run.json"
@@ -88,40 +89,36 @@ def execute_run(
     folder.mkdir(parents=True, exist_ok=True)
     record = {"overrides": overrides, "folder": str(folder), "stats": None, "video": None}
     start = time.perf_counter()
-    threads_before = os.environ.get("SANDBOX_CPU_THREADS")
-    os.environ["SANDBOX_CPU_THREADS"] = str(threads)
-    try:
-        scene = load_scene(scene_path, [override_text(k, v) for k, v in overrides.items()])
-        runtime.reset()  # the last run's fields go; its kernels come back from the offline cache (same field ids)
-        sim = Simulation(scene, arch="cpu")
-        n = frames or scene.render.frames
-        crash_marker = os.environ.get(CRASH_HOOK)
-        stats_path = folder / "stats.csv"
-        video_path = folder / "out.mp4" if video else None
+    with cpu_threads(threads):
+        try:
+            scene = load_scene(scene_path, [override_text(k, v) for k, v in overrides.items()])
+            runtime.reset()  # the last run's fields go; its kernels come back from the offline cache (same field ids)
+            sim = Simulation(scene, arch="cpu")
+            n = frames or scene.render.frames
+            crash_marker = os.environ.get(CRASH_HOOK)
+            stats_path = folder / "stats.csv"
+            video_path = folder / "out.mp4" if video else None
 
-        def maybe_crash(frame, stats):
-            if crash_marker and frame == n // 2 and not Path(crash_marker).exists():
-                Path(crash_marker).write_text(str(os.getpid()))
-                os._exit(17)  # a worker dying mid-run, its partial files left behind
+            def maybe_crash(frame, stats):
+                if crash_marker and frame == n // 2 and not Path(crash_marker).exists():
+                    Path(crash_marker).write_text(str(os.getpid()))
+                    os._exit(17)  # a worker dying mid-run, its partial files left behind
 
-        result = run_headless(sim, n, None, video_path, stats_path, width, height, progress=False, on_frame=maybe_crash)
-        with open(stats_path, newline="") as f:
-            rows = list(csv.DictReader(f))
-        conserves = not (scene.heat and scene.heat.sources) and not scene.emitters and not scene.world.drag
-        record.update(summarise(rows, conserves))
-        record["stats"] = str(stats_path)
-        record["video"] = str(video_path) if video_path and video_path.exists() else None
-        if result.stopped:
-            record.update(outcome="stopped", message=result.stopped)
-        else:
-            record.update(outcome="done", message="")
-    except SandboxError as exc:
-        record.update(outcome="error", message=str(exc))
-    finally:
-        if threads_before is None:
-            os.environ.pop("SANDBOX_CPU_THREADS", None)
-        else:
-            os.environ["SANDBOX_CPU_THREADS"] = threads_before
+            result = run_headless(
+                sim, n, None, video_path, stats_path, width, height, progress=False, on_frame=maybe_crash
+            )
+            with open(stats_path, newline="") as f:
+                rows = list(csv.DictReader(f))
+            conserves = not (scene.heat and scene.heat.sources) and not scene.emitters and not scene.world.drag
+            record.update(summarise(rows, conserves))
+            record["stats"] = str(stats_path)
+            record["video"] = str(video_path) if video_path and video_path.exists() else None
+            if result.stopped:
+                record.update(outcome="stopped", message=result.stopped)
+            else:
+                record.update(outcome="done", message="")
+        except SandboxError as exc:
+            record.update(outcome="error", message=str(exc))
     record["wall_seconds"] = time.perf_counter() - start
     _write_json(folder / RECORD, record)
     return record

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sandbox import study
+from sandbox import study, study_problems, study_report
 from sandbox.errors import SimulationError
 from sandbox.integrators import REGISTRY
 from sandbox.simulation import Simulation
@@ -27,15 +27,15 @@ def quick(tmp_path_factory):
 @pytest.mark.parametrize("name", ALL)
 def test_convergence_order_on_the_undamped_spring(quick, name):
     runs = [r for r in quick[1].runs if r.problem == "oscillator" and r.integrator == name]
-    order = study.fitted_order([r.dt for r in runs], [r.error for r in runs])
+    order = study_problems.fitted_order([r.dt for r in runs], [r.error for r in runs])
     assert abs(order - REGISTRY[name].order) <= 0.15, order
 
 
 @pytest.mark.parametrize("name", ALL)
 def test_convergence_order_on_the_damped_lattice(quick, name):
     runs = [r for r in quick[1].runs if r.problem == "lattice" and r.integrator == name]
-    order = study.fitted_order([r.dt for r in runs], [r.error for r in runs])
-    assert abs(order - study.theory_order("lattice", name)) <= 0.2, order
+    order = study_problems.fitted_order([r.dt for r in runs], [r.error for r in runs])
+    assert abs(order - study_report.theory_order("lattice", name)) <= 0.2, order
     assert quick[1].notes["lattice_reference_error (Richardson)"] < 1e-3 * min(r.error for r in runs)
 
 
@@ -54,11 +54,11 @@ def test_explicit_euler_and_midpoint_grow_at_every_step_as_theory_says(quick, na
     for hw in (0.1, 0.5):
         measured = row[f"growth_per_period_at_{hw}"]
         assert measured > 1.0
-        assert measured == pytest.approx(study.theory_growth_per_period(name, hw), rel=1e-6)
+        assert measured == pytest.approx(study_problems.theory_growth_per_period(name, hw), rel=1e-6)
 
 
 def test_implicit_euler_is_stable_at_any_step_with_the_theoretical_damping():
-    row = study.unconditional_check("implicit_euler", h_omegas=(0.5, 10.0, 1000.0), steps=10)
+    row = study_problems.unconditional_check("implicit_euler", h_omegas=(0.5, 10.0, 1000.0), steps=10)
     for hw in (0.5, 10.0, 1000.0):
         ratio = row[f"energy_ratio_after_10_steps_at_{hw:g}"]
         # backward Euler multiplies the oscillator's energy by 1 / (1 + (h w)^2) each step: excess damping
@@ -68,14 +68,14 @@ def test_implicit_euler_is_stable_at_any_step_with_the_theoretical_damping():
 def long_run_energy(name, periods, hw=1.9, amplitude=0.01):
     """Relative energy error of one undamped spring over `periods` periods, sampled 50 times. h w = 1.9 (near the
     limit 2, about 3.3 steps per period) keeps 10^4 periods to 33,000 steps."""
-    sim = study.spring_bank([hw], 0.01, name, amplitude=amplitude)
-    k = study.set_bank_stiffness(sim, [hw], 0.01)
-    e0 = study.bank_energy(sim, k)[0]
+    sim = study_problems.spring_bank([hw], 0.01, name, amplitude=amplitude)
+    k = study_problems.set_bank_stiffness(sim, [hw], 0.01)
+    e0 = study_problems.bank_energy(sim, k)[0]
     steps = round(periods * 2 * math.pi / hw)
     worst = []
     for _ in range(50):
         sim.step(steps // 50)
-        worst.append(abs(study.bank_energy(sim, k)[0] - e0) / e0)
+        worst.append(abs(study_problems.bank_energy(sim, k)[0] - e0) / e0)
     return np.array(worst)
 
 
@@ -98,7 +98,7 @@ def test_heat_steppers_are_first_order_in_time_and_the_explicit_limit_matches_th
     res = quick[1]
     for stepper in ("explicit", "implicit"):
         mine = [r for r in res.runs if r.problem == "heat_pulse_time" and r.integrator == stepper]
-        order = study.fitted_order([r.dt for r in mine], [r.error for r in mine])
+        order = study_problems.fitted_order([r.dt for r in mine], [r.error for r in mine])
         assert abs(order - 1.0) <= 0.15, (stepper, order)
         assert all(r.energy_error < 0.03 for r in mine)  # total error against the analytic Gaussian
     measured, theory = res.notes["heat_explicit_dt_limit_measured"], res.notes["heat_explicit_dt_limit_theory"]
@@ -122,7 +122,7 @@ def test_quick_study_writes_its_report(quick):
 
 
 def test_integrators_switch_live_and_keep_the_state():
-    sim = study.spring_bank([0.1, 0.2], 0.01)
+    sim = study_problems.spring_bank([0.1, 0.2], 0.01)
     x0 = sim.positions().copy()
     for name in ALL:
         sim.set_integrator(name)
