@@ -24,6 +24,10 @@ STAT_COLUMNS = (
     "spring_energy",
     "pair_energy",
     "gravity_energy",
+    "kinetic_energy_per_particle",
+    "potential_energy_per_particle",
+    "total_energy_per_particle",
+    "pressure",
     "mean_temperature",
     "molten_fraction",
     "heat_content",
@@ -36,12 +40,14 @@ STAT_COLUMNS = (
 # Sums (and maxima) of one measurement, one 0-d field each, by name -> index in Measurements._acc
 SUMS = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
 SUMS.update(tcold=9, thot=10)  # the largest -T and T (degrees; -1e30 without particles): the guard's temperatures
+SUMS.update(pair_virial=11, spring_virial=12)  # sums over pairs and live springs of r_ij . F_ij, r_ij = x_i - x_j
 COUNTS = {"alive": 0, "meltable": 1, "bad": 2}
 
 
 @dataclass
 class Stats:
-    """Measurements of one instant (energies in scaled units; temperature in degrees)."""
+    """Measurements of one instant. Energies are totals over the particles in scaled units (mass x length^2 /
+    time^2); the pair energy is shifted to zero at the cutoff unless pair.shift = false. Temperatures in degrees."""
 
     time: float
     kinetic_energy: float
@@ -54,6 +60,7 @@ class Stats:
     broken_springs: int
     max_speed: float
     particles: int
+    pressure: float = float("nan")  # virial pressure (sum m v^2 + sum r_ij . F_ij) / (dim V), V the box's volume
 
     @property
     def potential_energy(self) -> float:
@@ -62,6 +69,18 @@ class Stats:
     @property
     def total_energy(self) -> float:
         return self.kinetic_energy + self.potential_energy
+
+    @property
+    def kinetic_energy_per_particle(self) -> float:
+        return self.kinetic_energy / self.particles if self.particles else float("nan")
+
+    @property
+    def potential_energy_per_particle(self) -> float:
+        return self.potential_energy / self.particles if self.particles else float("nan")
+
+    @property
+    def total_energy_per_particle(self) -> float:
+        return self.total_energy / self.particles if self.particles else float("nan")
 
 
 class Measurements:
@@ -76,6 +95,8 @@ class Measurements:
         self._counts = [ti.field(ti.i32, shape=()) for _ in COUNTS]
         self._acc = ti.field(acc, shape=len(SUMS))  # indexed by SUMS
         self._count = ti.field(ti.i32, shape=len(COUNTS))  # counts for stats(), indexed by COUNTS
+        lo, hi = self.scene.world.lo, self.scene.world.hi
+        self._box_volume = float(np.prod(np.subtract(hi, lo)))  # the pressure's V (area in 2D)
 
     @ti.kernel
     def _measure(self, pair_energy: ti.template()):
@@ -114,10 +135,14 @@ class Measurements:
                 acc[SUMS["spring"]][None] += self.springs.energy(s)
                 if self.springs.alive[s]:
                     count[COUNTS["alive"]][None] += 1
+                    a, b = self.springs.i[s], self.springs.j[s]
+                    d = self.domain.separation(p.x[a], p.x[b])
+                    acc[SUMS["spring_virial"]][None] += -d.dot(self.springs.force(a, b, s, d))
         if ti.static(self.has_pair and pair_energy):
             self.loops.pairs()
             for i in range(p.n[None]):
                 e = 0.0
+                w = 0.0  # the pair virial: -d . F_i for d = x_j - x_i
                 c = self.grid.cell_of(p.x[i])
                 for o in range(self.grid.n_offsets):
                     nc, shift = self.grid.neighbour_cell(c, self.grid.offset(o))
@@ -130,6 +155,7 @@ class Measurements:
                                 r2 = d.dot(d)
                                 if r2 < self.pair.cutoff**2:
                                     e += self.pair.energy(i, j, r2)
+                                    w -= d.dot(self.pair.force(i, j, d, r2))
                 if ti.static(self.has_springs):
                     for k in range(self.springs.max_bonds):
                         s = self.springs.bonds[i, k]
@@ -141,7 +167,9 @@ class Measurements:
                             r2 = d.dot(d)
                             if r2 < self.pair.cutoff**2:
                                 e -= self.pair.energy(i, j, r2)
+                                w += d.dot(self.pair.force(i, j, d, r2))
                 acc[SUMS["pair"]][None] += e
+                acc[SUMS["pair_virial"]][None] += w
         for k in ti.static(range(len(SUMS))):
             self._acc[k] = acc[k][None]
         for k in ti.static(range(len(COUNTS))):
@@ -159,9 +187,9 @@ class Measurements:
         acc_values, cnt_values = self._acc.to_numpy(), self._count.to_numpy()
         acc = {k: float(acc_values[i]) for k, i in SUMS.items()}
         if pair_energy:
-            self._last_pair_energy = acc["pair"]
+            self._last_pair_energy = acc["pair"], acc["pair_virial"]
         else:
-            acc["pair"] = self._last_pair_energy
+            acc["pair"], acc["pair_virial"] = self._last_pair_energy
         cnt = {k: int(cnt_values[i]) for k, i in COUNTS.items()}
         n = int(self.particles.n[None])
         problem = self.guard.problem(acc, cnt["bad"], self.dt, self.heat is not None)
@@ -179,6 +207,7 @@ class Measurements:
             broken_springs=int(self.springs.created[None]) - cnt["alive"] if self.springs is not None else 0,
             max_speed=acc["vmax"],
             particles=n,
+            pressure=(2.0 * acc["ke"] + acc["pair_virial"] + acc["spring_virial"]) / (self.dim * self._box_volume),
         )
 
     def _raise_blowup(self, kind: str, what: str) -> None:

@@ -130,6 +130,11 @@ class PairForce:
         doc="below core * r_eq the force is held at its value there (caps the singularity)",
         check=lambda c: None if 0 < c < 1 else f"expected a number in (0, 1), got {c}",
     )
+    shift: bool = spec(
+        True,
+        doc="shift the pair energy to zero at the cutoff (false: the plain potential, as LAMMPS's lj/cut); "
+        "forces are the same",
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

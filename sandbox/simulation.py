@@ -142,6 +142,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
                     p.mass,
                     p.material,
                     p.v,
+                    scene.pair.shift,
                 )
                 if scene.pair
                 else None
@@ -227,7 +228,9 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         self.step_count = 0
         self.frames_done = 0  # frames advanced (advance_frame)
         self.guard = BlowupGuard(scene_limits(scene, built, self.pair))
-        self._last_pair_energy: float | None = None  # for stats(pair_energy=False)
+        self._last_pair_energy: tuple[float, float] | None = (
+            None  # pair energy and virial, for stats(pair_energy=False)
+        )
         self._heat_limit = self.heat_dt_limit() if self.has_explicit_heat else math.inf
         self._initial = self.snapshot()
         self._spring_omega0 = self._snapshot_omega_max(self._initial)
@@ -250,6 +253,9 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
         self.check_alive()
+        if n <= 0:
+            return
+        self.integrator.begin(self.dt)
         while n > 0:
             if self.reorder is not None and self.fuses_steps and self.reorder.due():
                 self.reorder.apply()  # between fused batches (the long way sorts at the start of its step)
@@ -263,6 +269,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
             n -= done
         if self.has_lifetimes:
             self.emitters.retire()
+        self.integrator.end(self.dt)
 
     def _step_once(self) -> None:
         """One step of dt, each pass launched from here (any scene, any integrator)."""

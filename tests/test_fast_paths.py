@@ -463,3 +463,26 @@ def test_widening_the_lists_recompiles_nothing_and_keeps_the_trajectory(make, mo
     assert wide.neighbours.width == 2 * width and narrow.neighbours.width == width
     assert compiled == []
     assert_same_states(_state(wide), _state(narrow))
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: lj_box(),
+        lambda: Simulation(load_scene(SCENES / "melting_block.toml", [*SMALL_BLOCK, "world.precision=f64"])),
+        lambda: team_box(),
+    ],
+    ids=["lj_box", "melting_block_900", "team"],
+)
+def test_velocity_verlet_fused_or_teamed_steps_as_the_long_way_does(make):
+    """Velocity Verlet as leapfrog updates each particle once per step, so it runs many steps to a launch (and as a
+    team) like symplectic Euler: over 1,000 steps in calls of several sizes, bit for bit the long way's states."""
+    fast, long_way = make(), make()
+    long_way.fuses_steps = False
+    for sim in (fast, long_way):
+        sim.set_integrator("velocity_verlet")
+        for n in (1, 7, 64, 928):
+            sim.step(n)
+    assert fast.fused_batches >= 4 and long_way.fused_batches == 0
+    assert_same_states(_state(long_way), _state(fast))
+    assert (fast.time, fast.step_count) == (long_way.time, long_way.step_count) == (long_way.time, 1000)

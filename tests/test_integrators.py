@@ -225,3 +225,46 @@ def test_a_body_hitting_a_wall_at_high_speed_stays_inside_and_finite():
         return
     x = sim.positions()
     assert np.all(np.isfinite(x)) and x[:, 0].min() >= 0.5 - 1e-5 and x[:, 0].max() <= 39.5 + 1e-5
+
+
+def _textbook_velocity_verlet(x, v, k, dt, steps):
+    """Velocity Verlet on one undamped spring of rest length 1 between unit masses, in NumPy, the textbook way."""
+
+    def accel(x):
+        d = x[1] - x[0]
+        r = np.linalg.norm(d)
+        f0 = k * (r - 1.0) * d / r
+        return np.array([f0, -f0])
+
+    a = accel(x)
+    for _ in range(steps):
+        v = v + 0.5 * dt * a
+        x = x + dt * v
+        a = accel(x)
+        v = v + 0.5 * dt * a
+    return x, v
+
+
+def test_velocity_verlet_as_leapfrog_is_the_textbook_method_and_its_velocities_are_synchronised():
+    """One force evaluation a step (leapfrog), yet the positions and the velocities read after any step() are those
+    of the textbook velocity Verlet (to round-off); how the steps are split into calls changes nothing, bit for bit;
+    a velocity written between calls is taken as the velocity at that instant."""
+    sim = study_problems.spring_bank([0.3], 0.01, "velocity_verlet", amplitude=0.1)
+    k = study_problems.set_bank_stiffness(sim, [0.3], 0.01)[0]
+    x0, v0 = sim.positions().copy(), sim.velocities().copy()
+    sim.step(500)
+    x, v = _textbook_velocity_verlet(x0, v0, k, 0.01, 500)
+    assert np.abs(sim.positions() - x).max() < 1e-12 and np.abs(sim.velocities() - v).max() < 1e-12
+    at_once = sim.positions().copy(), sim.velocities().copy()
+    sim.reset()
+    study_problems.set_bank_stiffness(sim, [0.3], 0.01)
+    for _ in range(50):
+        sim.step(10)
+    assert np.array_equal(sim.positions(), at_once[0]) and np.array_equal(sim.velocities(), at_once[1])
+    kicked = sim.particles.v.to_numpy()
+    kicked[0] += [0.0, 0.25]  # a tool's push between two calls
+    sim.particles.v.from_numpy(kicked)
+    x1, v1 = sim.positions().copy(), sim.velocities().copy()
+    sim.step(100)
+    x, v = _textbook_velocity_verlet(x1, v1, k, 0.01, 100)
+    assert np.abs(sim.positions() - x).max() < 1e-12 and np.abs(sim.velocities() - v).max() < 1e-12

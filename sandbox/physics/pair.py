@@ -8,7 +8,8 @@ The 12-6 Lennard-Jones force is the case a = 8, b = 14, eps = 0, alpha = 24 e s^
 Below r_core = core * r_eq (r_eq: where the force vanishes) the force keeps its magnitude at r_core, so two particles
 at (almost) the same point get a large but finite push; at r = 0 exactly the push is along the first axis, in
 opposite directions for i and j (by index order). The energy is continued linearly there, so dU/dr still equals the
-force. Energy is shifted to zero at the cutoff.
+force. Energy is shifted to zero at the cutoff unless pair.shift = false (then U is the plain potential, as in
+LAMMPS's lj/cut without pair_modify shift yes); the forces are the same either way.
 
 A viscous term -gamma ((v_i - v_j) . n) n w(r), w = 1 - r/cutoff, gives the melt its viscosity; it is antisymmetric,
 so momentum is conserved. Materials mix by geometric means of alpha and beta, arithmetic means of eps and gamma.
@@ -71,8 +72,21 @@ def pair_energy(r: float, alpha: float, beta: float, eps: float, a: float, b: fl
 class PairForce:
     """Pair-force parameters per material pair (n_mat x n_mat tables) and the per-pair force and energy funcs."""
 
-    def __init__(self, dim: int, materials: list, a: float, b: float, cutoff: float, core: float, mass, material, v):
+    def __init__(
+        self,
+        dim: int,
+        materials: list,
+        a: float,
+        b: float,
+        cutoff: float,
+        core: float,
+        mass,
+        material,
+        v,
+        shift: bool = True,
+    ):
         n = len(materials)
+        self.shifted = bool(shift)  # the energy shifted to zero at the cutoff (forces are the same either way)
         self.dim = dim
         self.a, self.b = float(a), float(b)
         self.int_exponents = self.a.is_integer() and self.b.is_integer()
@@ -114,8 +128,11 @@ class PairForce:
         )
         finite_req = np.where(np.isfinite(self.r_eq_np), self.r_eq_np, 1.0)
         self.r_core_np = np.maximum(self.core * finite_req, 1e-6)
-        # Energy shift so that U(cutoff) = 0, and U at the core for the linear continuation below it.
+        # Energy shift so that U(cutoff) = 0 (zero with pair.shift = false), and U at the core for the linear
+        # continuation below it.
         self.shift_np = np.array([[self._u(self.cutoff, p, q) for q in range(n)] for p in range(n)])
+        if not self.shifted:
+            self.shift_np = np.zeros_like(self.shift_np)
         # Force magnitude at the core radius, g(r_core) r_core per unit mass product (held below the core).
         rc = self.r_core_np
         g_core = self.alpha_np / (rc + self.eps_np) ** self.a - self.beta_np / rc**self.b
@@ -247,7 +264,8 @@ class PairForce:
 
     @ti.func
     def energy(self, i, j, r2):
-        """Potential energy of the pair (i, j) at squared distance r2 (< cutoff^2), shifted to zero at the cutoff."""
+        """Potential energy of the pair (i, j) at squared distance r2 (< cutoff^2), shifted to zero at the cutoff
+        unless pair.shift is false."""
         p, q = self.material[i], self.material[j]
         r = ti.sqrt(r2)
         rc = self.r_core[p, q]
