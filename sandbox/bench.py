@@ -126,10 +126,26 @@ def measure(sim, repeats: int, target_seconds: float = 0.4) -> dict:
     from .simulation import timed_steps
 
     sim.step(2)
-    probe = timed_steps(sim, 5) / 5
+    sim.step(2)  # compiles what only a second call runs (velocity Verlet's restore of its half-step velocities)
+    probe = timed_steps(sim, 20) / 20  # 20 steps: a call's fixed costs (velocity Verlet's synchronisation) shared
     steps = max(5, int(target_seconds / max(probe, 1e-6)))
     times = [timed_steps(sim, steps) for _ in range(repeats)]
     return _rates_of(sim, times, steps)
+
+
+LIKE_LAMMPS = "velocity_verlet"  # LAMMPS's fix nve
+
+
+def integrator_rates(sim, repeats: int) -> dict:
+    """`measure(sim)` with each registered integrator in turn, each from the scene's initial state."""
+    from .integrators import REGISTRY
+
+    rates = {}
+    for name in REGISTRY:
+        sim.reset()  # each from the same state: an unstable method heats the fluid it leaves behind
+        sim.set_integrator(name)
+        rates[name] = measure(sim, repeats)
+    return rates
 
 
 PEER_ROUNDS = 3  # W1 against LAMMPS: this many alternating runs of each, medians compared
@@ -423,22 +439,27 @@ def run_bench(args) -> int:
     sizes = [100] if args.quick else [100, 317]
     rounds = 1 if args.quick else PEER_ROUNDS
     rows = []
-    for n_side in sizes:
-        runtime.reset()  # independent workloads: a runtime holds at most ~512 field trees
-        sim = _lj_box(n_side, args.arch)
-        res = _against_lammps(sim, lambda n=n_side: lammps_w1(n), repeats, rounds if args.lammps else 0)
-        res["arch"] = runtime.running_arch()
-        if "ratio_to_lammps" in res:
-            res["lammps_one_process"] = lammps_w1(n_side, procs=1)  # how much its second process adds
-        name = f"W1 lj_box N={res['particles']}"
-        results["workloads"][name] = res
-        rows.append((name, res))
+    peers = [("W1 lj_box", lambda n=n_side: _lj_box(n, args.arch), lambda n=n_side: lammps_w1(n)) for n_side in sizes]
     if not args.quick:
-        sim = _lj_box_3d(32, args.arch)
-        res = _against_lammps(sim, lambda: lammps_w1(32, dim=3), repeats, rounds if args.lammps else 0)
-        name = f"W1-3D LJ liquid N={res['particles']}"
+        peers.append(("W1-3D LJ liquid", lambda: _lj_box_3d(32, args.arch), lambda: lammps_w1(32, dim=3)))
+    for label, factory, run_lammps in peers:
+        runtime.reset()  # independent workloads: a runtime holds at most ~512 field trees
+        sim = factory()
+        sim.set_integrator(LIKE_LAMMPS)  # fix nve: the same integrator on both sides
+        res = _against_lammps(sim, run_lammps, repeats, rounds if args.lammps else 0)
+        res["arch"] = runtime.running_arch()
+        res["integrator"] = LIKE_LAMMPS
+        name = f"{label} N={res['particles']} {LIKE_LAMMPS}"
         results["workloads"][name] = res
         rows.append((name, res))
+        sim.set_integrator("symplectic_euler")  # the scene's default, beside it
+        res = measure(sim, repeats)
+        res["integrator"] = "symplectic_euler"
+        name = f"{label} N={res['particles']} symplectic_euler"
+        results["workloads"][name] = res
+        rows.append((name, res))
+    runtime.reset()
+    results["integrators_w1"] = integrator_rates(_lj_box(100, args.arch), repeats)
     for name, factory, timing in (
         ("W2 spring lattice + heat", _spring_heat_lattice, measure),
         ("W3 melting_block", _melting_block, measure_from_start),
@@ -461,19 +482,23 @@ def run_bench(args) -> int:
     with tempfile.TemporaryDirectory() as cache:
         results["startup"] = {"cold_seconds": startup_seconds(cache), "warm_seconds": startup_seconds(cache)}
 
-    print(f"{'workload':32s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s}")
+    print(f"{'workload':42s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s}")
     for name, res in rows:
         lmp = res.get("lammps", {})
         lrate = f"{lmp['particle_steps_per_second'] / 1e6:8.2f}" if "particle_steps_per_second" in lmp else "       -"
         ratio = f"{res['ratio_to_lammps']:6.2f}" if "ratio_to_lammps" in res else "     -"
         print(
-            f"{name:32s} {res['particles']:8d} {res['particle_steps_per_second'] / 1e6:19.2f} "
+            f"{name:42s} {res['particles']:8d} {res['particle_steps_per_second'] / 1e6:19.2f} "
             f"{res['seconds_per_step'] * 1e3:8.3f} {lrate} {ratio}"
         )
     for name, res in rows:
         one = res.get("lammps_one_process") or {}
         if "particle_steps_per_second" in one:
             print(f"LAMMPS on one process, {name}: {one['particle_steps_per_second'] / 1e6:.2f} M particle-steps/s")
+    print(
+        "W1 N=10000 by integrator (M particle-steps/s): "
+        + ", ".join(f"{k} {v['particle_steps_per_second'] / 1e6:.2f}" for k, v in results["integrators_w1"].items())
+    )
     for name, launch in results["launches"].items():
         print(
             f"kernel launches per step, {name}: {launch['launches_per_step']:.2f} "
