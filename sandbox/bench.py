@@ -151,27 +151,36 @@ def integrator_rates(sim, repeats: int) -> dict:
 PEER_ROUNDS = 3  # W1 against LAMMPS: this many alternating runs of each, medians compared
 
 
-def _against_lammps(sim, run_lammps, repeats: int, rounds: int) -> dict:
-    """`measure(sim)` and LAMMPS (`run_lammps()`) alternately, `rounds` times each (0: no LAMMPS); the medians and
-    their ratio. Alternating spreads the machine's changing load over both sides."""
-    ours, peer = [], []
+def _against_lammps(sim, run_lammps, repeats: int, rounds: int, integrators=(LIKE_LAMMPS,)) -> dict:
+    """Each of `integrators` in turn (`measure(sim)` from the scene's initial state) and LAMMPS (`run_lammps()`),
+    alternately, `rounds` times (0: no LAMMPS); {integrator: its median, with LAMMPS's median and their ratio for
+    LIKE_LAMMPS}. Alternating spreads the machine's changing load over every side."""
+    ours: dict = {name: [] for name in integrators}
+    peer = []
     for _ in range(max(rounds, 1)):
-        ours.append(measure(sim, repeats))
+        for name in integrators:
+            sim.reset()
+            sim.set_integrator(name)
+            ours[name].append(measure(sim, repeats))
         if rounds:
             lmp = run_lammps()
             if lmp is None or "error" in lmp:
-                res = ours[-1]
+                rounds = 0
                 if lmp is not None:
-                    res["lammps"] = lmp
-                return res
+                    ours[integrators[0]][-1]["lammps"] = lmp
+                break
             peer.append(lmp)
-    res = sorted(ours, key=lambda r: r["particle_steps_per_second"])[len(ours) // 2]
-    res["rounds"] = [r["particle_steps_per_second"] for r in ours]
-    if peer:
-        lmp = sorted(peer, key=lambda r: r["particle_steps_per_second"])[len(peer) // 2]
-        res["lammps"] = dict(lmp, rounds=[r["particle_steps_per_second"] for r in peer])
-        res["ratio_to_lammps"] = res["particle_steps_per_second"] / lmp["particle_steps_per_second"]
-    return res
+    out = {}
+    for name, runs in ours.items():
+        res = dict(sorted(runs, key=lambda r: r["particle_steps_per_second"])[len(runs) // 2])
+        res["rounds"] = [r["particle_steps_per_second"] for r in runs]
+        res["integrator"] = name
+        if peer and name == LIKE_LAMMPS:
+            lmp = sorted(peer, key=lambda r: r["particle_steps_per_second"])[len(peer) // 2]
+            res["lammps"] = dict(lmp, rounds=[r["particle_steps_per_second"] for r in peer])
+            res["ratio_to_lammps"] = res["particle_steps_per_second"] / lmp["particle_steps_per_second"]
+        out[name] = res
+    return out
 
 
 def lammps_w1(n_side: int, procs: int = 2, steps: int = 500, dim: int = 2) -> dict | None:
@@ -445,19 +454,15 @@ def run_bench(args) -> int:
     for label, factory, run_lammps in peers:
         runtime.reset()  # independent workloads: a runtime holds at most ~512 field trees
         sim = factory()
-        sim.set_integrator(LIKE_LAMMPS)  # fix nve: the same integrator on both sides
-        res = _against_lammps(sim, run_lammps, repeats, rounds if args.lammps else 0)
-        res["arch"] = runtime.running_arch()
-        res["integrator"] = LIKE_LAMMPS
-        name = f"{label} N={res['particles']} {LIKE_LAMMPS}"
-        results["workloads"][name] = res
-        rows.append((name, res))
-        sim.set_integrator("symplectic_euler")  # the scene's default, beside it
-        res = measure(sim, repeats)
-        res["integrator"] = "symplectic_euler"
-        name = f"{label} N={res['particles']} symplectic_euler"
-        results["workloads"][name] = res
-        rows.append((name, res))
+        # fix nve is velocity Verlet: the same integrator on both sides; the scenes' default beside it
+        both = _against_lammps(
+            sim, run_lammps, repeats, rounds if args.lammps else 0, (LIKE_LAMMPS, "symplectic_euler")
+        )
+        for integrator, res in both.items():
+            res["arch"] = runtime.running_arch()
+            name = f"{label} N={res['particles']} {integrator}"
+            results["workloads"][name] = res
+            rows.append((name, res))
     runtime.reset()
     results["integrators_w1"] = integrator_rates(_lj_box(100, args.arch), repeats)
     for name, factory, timing in (
@@ -491,10 +496,6 @@ def run_bench(args) -> int:
             f"{name:42s} {res['particles']:8d} {res['particle_steps_per_second'] / 1e6:19.2f} "
             f"{res['seconds_per_step'] * 1e3:8.3f} {lrate} {ratio}"
         )
-    for name, res in rows:
-        one = res.get("lammps_one_process") or {}
-        if "particle_steps_per_second" in one:
-            print(f"LAMMPS on one process, {name}: {one['particle_steps_per_second'] / 1e6:.2f} M particle-steps/s")
     print(
         "W1 N=10000 by integrator (M particle-steps/s): "
         + ", ".join(f"{k} {v['particle_steps_per_second'] / 1e6:.2f}" for k, v in results["integrators_w1"].items())

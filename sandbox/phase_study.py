@@ -113,8 +113,10 @@ def stefan_scene(spacing: float, superheat: float = 10.0, latent: float = 10.0) 
     }
 
 
-def stefan_run(spacing: float, t_end: float = 60.0, samples: int = 12, superheat: float = 10.0) -> StefanResult:
-    """Run the Stefan slab to t_end, sampling the front `samples` times; St = superheat / 10 (c = 1, L = 10)."""
+def stefan_run(spacing: float, t_end: float = 60.0, samples: int = 1200, superheat: float = 10.0) -> StefanResult:
+    """Run the Stefan slab to t_end, sampling the front `samples` times; St = superheat / 10 (c = 1, L = 10). The
+    front advances a particle column at a time, so its error swings between columns: 1,200 samples take each swing's
+    extreme (the maximum error changes by under 1% of itself from 600 samples to 1,200)."""
     latent = 10.0
     sim = Simulation(scene_from_dict(stefan_scene(spacing, superheat, latent), STUDY_PATH))
     x = sim.positions()[:, 0]

@@ -95,31 +95,58 @@ def bank_growth(sim: Simulation, h_omegas: np.ndarray, steps: int) -> np.ndarray
 
 
 BANK_SIZE = 120
-# Stability runs start each spring 1e-6 from rest: even a 1e4-fold amplitude growth keeps it far below its rest
+# Growth runs start each spring 1e-6 from rest: even a 1e4-fold amplitude growth keeps it far below its rest
 # length, where a spring is a linear oscillator (squeezed through zero length it is not, and growth saturates).
 LINEAR_AMPLITUDE = 1e-6
+
+
+def amplification(sim: Simulation, h_omegas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Trace and determinant of each bank spring's one-step map of (extension, dt x relative velocity), measured by
+    stepping the integrator once from two states: stretched at rest, and unstretched and moving. The springs lie
+    along the first axis and move along it, where a spring is exactly linear, so the map is the method's own
+    amplification matrix (to round-off, about 1e-13 at the bank's amplitude of 0.01)."""
+    columns = []
+    dt = sim.dt
+    for stretched in (True, False):
+        sim.reset()
+        set_bank_stiffness(sim, h_omegas, dt)
+        x0 = sim.positions()
+        a = np.linalg.norm(x0[1::2] - x0[0::2], axis=1) - 1.0  # the bank's initial stretch
+        if not stretched:
+            x = sim.particles.x.to_numpy()
+            v = np.zeros_like(sim.particles.v.to_numpy())
+            x[1 : 2 * len(a) : 2, 0] -= a  # back to rest length ...
+            v[1 : 2 * len(a) : 2, 0] = a / dt  # ... moving apart at a/dt
+            sim.particles.x.from_numpy(x)
+            sim.particles.v.from_numpy(v)
+        sim.step(1)
+        x, v = sim.positions(), sim.velocities()
+        ext = (x[1::2, 0] - x[0::2, 0] - 1.0) / a
+        vel = (v[1::2, 0] - v[0::2, 0]) * dt / a
+        columns.append((ext, vel))
+    (m11, m21), (m12, m22) = columns
+    return m11 + m22, m11 * m22 - m12 * m21
 
 
 def stable_limit(
     integrator: str,
     sim: Simulation | None = None,
-    steps: int = 2000,
-    threshold: float = 1e8,
     top: float = 4.0,
     refinements: int = 3,
+    tolerance: float = 1e-9,
 ) -> dict:
-    """Largest stable h*w on the undamped spring, by scanning a bank of springs and refining around the first
-    unstable one (each pass narrows the bracket BANK_SIZE-fold). Stable: energy after `steps` steps below
-    `threshold` times the initial energy. Below the limit symplectic Euler's energy stays bounded but swings by up to
-    about 1/(1 - (hw/2)^2)^2 (1e4 at hw = 1.995), so the threshold is 1e8: an unstable spring passes it within a
-    few hundred steps anywhere but within 1e-4 of the limit. `sim`: a spring_bank of BANK_SIZE springs to reuse."""
+    """Largest stable h*w on the undamped spring: a bank of springs up to h*w = `top` is scanned and the bracket
+    around the first unstable one refined (each pass narrows it BANK_SIZE-fold). Unstable: the one-step map has an
+    eigenvalue outside the unit circle by more than `tolerance`, i.e. the amplitude grows at all (Schur-Cohn for a
+    2 x 2 map: |det| <= 1 and |trace| <= 1 + det). `sim`: a spring_bank of BANK_SIZE springs to reuse."""
     lo, hi = 0.0, top
     grid = np.linspace(lo, hi, BANK_SIZE + 1)[1:]
-    sim = sim or spring_bank(grid, 0.01, integrator, amplitude=LINEAR_AMPLITUDE)
+    sim = sim or spring_bank(grid, 0.01, integrator, amplitude=0.01)
     sim.set_integrator(integrator)
     for _ in range(refinements):
-        ratio = bank_growth(sim, grid, steps)
-        unstable = np.flatnonzero(ratio > threshold)
+        trace, det = amplification(sim, grid)
+        grows = (np.abs(det) > 1 + tolerance) | (np.abs(trace) > 1 + det + tolerance) | ~np.isfinite(trace * det)
+        unstable = np.flatnonzero(grows)
         if len(unstable) == 0:
             return {"integrator": integrator, "h_omega_limit": math.inf, "searched_up_to": float(grid[-1])}
         first = unstable[0]
@@ -174,8 +201,8 @@ def stability_rows(integrators, quick: bool) -> list[dict]:
         elif math.isinf(REGISTRY[name].stable_h_omega):
             row = unconditional_check(name)
         else:
-            bank = bank or spring_bank(np.linspace(0, 4, BANK_SIZE + 1)[1:], 0.01, amplitude=LINEAR_AMPLITUDE)
-            row = stable_limit(name, bank, steps=1000 if quick else 2000, refinements=2 if quick else 3)
+            bank = bank or spring_bank(np.linspace(0, 4, BANK_SIZE + 1)[1:], 0.01, amplitude=0.01)
+            row = stable_limit(name, bank, refinements=2 if quick else 3)
         row["theory"] = REGISTRY[name].stable_h_omega
         if name in ("forward_euler", "midpoint"):
             single = single or spring_bank([0.1], 0.01, amplitude=LINEAR_AMPLITUDE)
