@@ -15,8 +15,8 @@ equation with its own stepping: explicit Euler on the rates of the step's last f
 | forward_euler    | 1     | no         | 1                          |
 | symplectic_euler | 1     | yes        | 1                          |
 | midpoint         | 2     | no         | 2                          |
-| verlet           | 2     | yes        | 1 (position Verlet: drift-kick-drift) |
-| velocity_verlet  | 2     | yes        | 1 (leapfrog), + 1 per Simulation.step call to synchronise |
+| verlet           | 2     | yes        | 1 (position Verlet as leapfrog)  |
+| velocity_verlet  | 2     | yes        | 1 (leapfrog), + 1 per Simulation.step call            |
 | rk4              | 4     | no         | 4                          |
 | implicit_euler   | 1     | no         | 1 + conjugate-gradient iterations on the springs |
 """
@@ -116,100 +116,6 @@ class ForwardEuler(Integrator):
         self.sim.finish_particle(i, dt)
 
 
-@register("velocity_verlet")
-class VelocityVerlet(Integrator):
-    """Velocity Verlet as leapfrog: one force evaluation per step, second order, symplectic for position-only forces.
-
-    The textbook step (v += dt/2 a; x += dt v; a = f(x)/m; v += dt/2 a) ends with a half kick that the next step's
-    first half kick repeats with the same forces; merged, the two are one kick, and the step becomes symplectic
-    Euler's kick-drift on the velocities of half steps (v_{n+1/2} = v_{n-1/2} + dt a(x_n); x_{n+1} = x_n + dt
-    v_{n+1/2}), so it runs on every path symplectic Euler runs on (fused, team). Velocities are synchronised at the
-    end of every Simulation.step call (one force evaluation: v_n = v_{n-1/2} + dt/2 a(x_n)), so everything outside
-    stepping sees v_n; the next call restores v_{n-1/2} exactly when nothing changed the state in between, so the
-    trajectory does not depend on how the steps are split into calls. Velocity-dependent forces (dampers, drag,
-    viscosity) are evaluated with v_{n-1/2}, as the textbook step's second evaluation does.
-    A state changed between calls (positions, velocities or temperatures written by a tool, a reset, a restore, a
-    particle added or removed) is staggered afresh: v_{n-1/2} = v_n - dt/2 a(x_n, v_n), one force evaluation."""
-
-    order = 2
-    symplectic = True
-    stable_h_omega = 2.0
-    auto_h_omega = 1.0
-    single_update = True
-
-    def __init__(self, sim):
-        super().__init__(sim)
-        self._stage_fields("v_half", "x_synced", "v_synced")
-        self.ident_synced = ti.field(ti.i32, shape=sim.capacity)
-        self.has_heat = sim.heat is not None
-        self.t_synced = ti.field(float, shape=sim.capacity if self.has_heat else 1)
-        self.synced_count = -1  # particles when last synchronised; -1: never
-        self.synced_dt = 0.0
-
-    def step(self, dt: float) -> None:
-        self.sim.eval_rates(then_update=dt)
-
-    @ti.func
-    def update_particle(self, i, dt):
-        self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
-        self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
-        self.sim.finish_particle(i, dt)
-
-    def begin(self, dt: float) -> None:
-        """Turn the synchronised velocities v_n into v_{n-1/2} before a run of steps of `dt`."""
-        n = int(self.p.n[None])
-        if self.synced_count == n and self.synced_dt == dt and self._changed() == 0:
-            self._restore()
-        else:
-            self.sim.eval_rates()
-            self._kick(-0.5 * dt)
-
-    def end(self, dt: float) -> None:
-        """Synchronise: v_n = v_{n-1/2} + dt/2 a(x_n), keeping v_{n-1/2} for the next begin."""
-        self.sim.eval_rates()
-        self._sync(0.5 * dt)
-        self.synced_count, self.synced_dt = int(self.p.n[None]), dt
-
-    @ti.kernel
-    def _kick(self, h: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.p.v[i] = self.p.v[i] + h * self.p.f[i] / self.p.mass[i]
-
-    @ti.kernel
-    def _sync(self, h: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.v_half[i] = self.p.v[i]
-            self.p.v[i] = self.p.v[i] + h * self.p.f[i] / self.p.mass[i]
-            self.v_synced[i] = self.p.v[i]
-            self.x_synced[i] = self.p.x[i]
-            self.ident_synced[i] = self.p.ident[i]
-            if ti.static(self.has_heat):
-                self.t_synced[i] = self.p.T[i]
-
-    @ti.kernel
-    def _changed(self) -> ti.i32:
-        """Particles whose position, velocity, temperature or id is not what the last synchronisation left."""
-        changed = 0
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            same = self.p.ident[i] == self.ident_synced[i]
-            if ti.static(self.has_heat):
-                same = same and self.p.T[i] == self.t_synced[i]
-            for a in ti.static(range(self.sim.dim)):
-                same = same and self.p.x[i][a] == self.x_synced[i][a] and self.p.v[i][a] == self.v_synced[i][a]
-            if not same:
-                changed += 1
-        return changed
-
-    @ti.kernel
-    def _restore(self):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.p.v[i] = self.v_half[i]
-
-
 @register("midpoint")
 class Midpoint(Integrator):
     """Explicit midpoint (RK2): evaluate at t + dt/2 from an Euler half step, then take the full step with those
@@ -244,36 +150,6 @@ class Midpoint(Integrator):
             v_mid = self.p.v[i]
             self.p.x[i] = self.x0[i] + dt * v_mid
             self.p.v[i] = self.v0[i] + dt * self.p.f[i] / self.p.mass[i]
-            self.sim.finish_particle(i, dt)
-
-
-@register("verlet")
-class PositionVerlet(Integrator):
-    """Position Verlet (drift-kick-drift): x += dt/2 v; v += dt a(x); x += dt/2 v. Second order, symplectic,
-    one force evaluation per step; its positions obey Stormer's x_{n+1} = 2 x_n - x_{n-1} + dt^2 a(x_n)."""
-
-    order = 2
-    symplectic = True
-    stable_h_omega = 2.0
-    auto_h_omega = 1.0
-
-    def step(self, dt: float) -> None:
-        self._drift(dt)
-        self.sim.eval_rates()
-        self._kick_drift(dt)
-
-    @ti.kernel
-    def _drift(self, dt: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.p.x[i] = self.p.x[i] + 0.5 * dt * self.p.v[i]
-
-    @ti.kernel
-    def _kick_drift(self, dt: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
-            self.p.x[i] = self.p.x[i] + 0.5 * dt * self.p.v[i]
             self.sim.finish_particle(i, dt)
 
 
@@ -452,3 +328,6 @@ class ImplicitEuler(Integrator):
             self.p.v[i] = self.p.v[i] + self.dv[i]
             self.p.x[i] = self.p.x[i] + h * self.p.v[i]
             self.sim.finish_particle(i, h)
+
+
+from . import leapfrog  # noqa: E402, F401 - registers velocity_verlet and verlet

@@ -466,21 +466,25 @@ def test_widening_the_lists_recompiles_nothing_and_keeps_the_trajectory(make, mo
 
 
 @pytest.mark.parametrize(
-    "make",
+    "make, integrator",
     [
-        lambda: lj_box(),
-        lambda: Simulation(load_scene(SCENES / "melting_block.toml", [*SMALL_BLOCK, "world.precision=f64"])),
-        lambda: team_box(),
+        (lambda: lj_box(), "velocity_verlet"),
+        (
+            lambda: Simulation(load_scene(SCENES / "melting_block.toml", [*SMALL_BLOCK, "world.precision=f64"])),
+            "velocity_verlet",
+        ),
+        (lambda: team_box(), "velocity_verlet"),
+        (lambda: lj_box(), "verlet"),
     ],
-    ids=["lj_box", "melting_block_900", "team"],
+    ids=["lj_box", "melting_block_900", "team", "lj_box_position_verlet"],
 )
-def test_velocity_verlet_fused_or_teamed_steps_as_the_long_way_does(make):
-    """Velocity Verlet as leapfrog updates each particle once per step, so it runs many steps to a launch (and as a
-    team) like symplectic Euler: over 1,000 steps in calls of several sizes, bit for bit the long way's states."""
+def test_verlet_methods_fused_or_teamed_step_as_the_long_way_does(make, integrator):
+    """The Verlet methods as leapfrog update each particle once per step, so they run many steps to a launch (and
+    as a team) like symplectic Euler: over 1,000 steps in calls of several sizes, bit for bit the long way's states."""
     fast, long_way = make(), make()
     long_way.fuses_steps = False
     for sim in (fast, long_way):
-        sim.set_integrator("velocity_verlet")
+        sim.set_integrator(integrator)
         for n in (1, 7, 64, 928):
             sim.step(n)
     assert fast.fused_batches >= 4 and long_way.fused_batches == 0

@@ -269,3 +269,25 @@ def test_velocity_verlet_as_leapfrog_is_the_textbook_method_and_its_velocities_a
     sim.step(100)
     x, v = _textbook_velocity_verlet(x1, v1, k, 0.01, 100)
     assert np.abs(sim.positions() - x).max() < 1e-12 and np.abs(sim.velocities() - v).max() < 1e-12
+
+
+def test_position_verlet_as_leapfrog_is_the_textbook_method():
+    """Drift-kick-drift with the half drifts of neighbouring steps merged: the positions and velocities read after
+    any step() are the textbook method's (to round-off), however the steps are split into calls."""
+    sim = study_problems.spring_bank([0.3], 0.01, "verlet", amplitude=0.1)
+    k = study_problems.set_bank_stiffness(sim, [0.3], 0.01)[0]
+    x, v = sim.positions().copy(), sim.velocities().copy()
+    for _ in range(500):
+        x = x + 0.005 * v
+        d = x[1] - x[0]
+        f0 = k * (np.linalg.norm(d) - 1.0) * d / np.linalg.norm(d)
+        v = v + 0.01 * np.array([f0, -f0])
+        x = x + 0.005 * v
+    sim.step(500)
+    assert np.abs(sim.positions() - x).max() < 1e-12 and np.abs(sim.velocities() - v).max() < 1e-11
+    at_once = sim.positions().copy(), sim.velocities().copy()
+    sim.reset()
+    study_problems.set_bank_stiffness(sim, [0.3], 0.01)
+    for _ in range(25):
+        sim.step(20)
+    assert np.array_equal(sim.positions(), at_once[0]) and np.array_equal(sim.velocities(), at_once[1])

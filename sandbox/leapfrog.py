@@ -1,0 +1,166 @@
+"""Velocity Verlet and position Verlet as leapfrog: one force evaluation a step, on every path symplectic Euler
+runs on (many steps to a launch, a team of threads).
+
+Both Verlet steps are symplectic Euler's kick-drift (v += dt a(x); x += dt v) on a staggered state: velocity Verlet
+on the velocities of half steps (v_{n+1/2} = v_{n-1/2} + dt a(x_n); its closing half kick and the next step's
+opening one use the same forces, so they merge), position Verlet on the positions of half steps (its closing half
+drift and the next opening one merge). The state is staggered at the start of a Simulation.step call and
+synchronised at its end, so everything outside stepping (measurements, pictures, tools, saves) sees x_n and v_n;
+velocity Verlet's synchronisation costs one force evaluation (v_n = v_{n-1/2} + dt/2 a(x_n)), position Verlet's none
+(x_n = x_{n+1/2} - dt/2 v_n). The next call restores the staggered values exactly when nothing changed the state in
+between, so the trajectory does not depend on how the steps are split into calls; a state changed between calls
+(positions, velocities or temperatures written by a tool, a reset, a restore, a particle added or removed) is
+staggered afresh. Forces that depend on velocity see v_{n-1/2} (velocity Verlet) or v_n (position Verlet), as in the
+textbook steps; walls act at the end of each kick-drift, on the staggered state.
+"""
+
+import taichi as ti
+
+from .integrators import Integrator, register
+
+
+class Leapfrog(Integrator):
+    """What both leapfrog methods share: the kick-drift update, and the bookkeeping that makes staggering exact."""
+
+    order = 2
+    symplectic = True
+    stable_h_omega = 2.0
+    auto_h_omega = 1.0
+    single_update = True
+
+    def __init__(self, sim):
+        super().__init__(sim)
+        self._stage_fields("held", "x_synced", "v_synced")  # held: the staggered value left at the last sync
+        self.ident_synced = ti.field(ti.i32, shape=sim.capacity)
+        self.has_heat = sim.heat is not None
+        self.periodic = sim.scene.world.periodic
+        self.t_synced = ti.field(float, shape=sim.capacity if self.has_heat else 1)
+        self.synced_count = -1  # particles when last synchronised; -1: never
+        self.synced_dt = 0.0
+
+    def step(self, dt: float) -> None:
+        self.sim.eval_rates(then_update=dt)
+
+    @ti.func
+    def update_particle(self, i, dt):
+        self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
+        self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
+        self.sim.finish_particle(i, dt)
+
+    def begin(self, dt: float) -> None:
+        """Stagger the synchronised state before a run of steps of `dt`: restore what the last sync held when
+        nothing changed since, else stagger afresh."""
+        if self.synced_count == int(self.p.n[None]) and self.synced_dt == dt and self._changed() == 0:
+            self._restore()
+        else:
+            self._stagger(dt)
+
+    def end(self, dt: float) -> None:
+        """Synchronise after a run of steps of `dt`, holding the staggered value for the next begin."""
+        self._synchronise(dt)
+        self._record()
+        self.synced_count, self.synced_dt = int(self.p.n[None]), dt
+
+    def _stagger(self, dt: float) -> None:
+        raise NotImplementedError
+
+    def _synchronise(self, dt: float) -> None:
+        raise NotImplementedError
+
+    @ti.kernel
+    def _record(self):
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            self.v_synced[i] = self.p.v[i]
+            self.x_synced[i] = self.p.x[i]
+            self.ident_synced[i] = self.p.ident[i]
+            if ti.static(self.has_heat):
+                self.t_synced[i] = self.p.T[i]
+
+    @ti.kernel
+    def _changed(self) -> ti.i32:
+        """Particles whose position, velocity, temperature or id is not what the last synchronisation left."""
+        changed = 0
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            same = self.p.ident[i] == self.ident_synced[i]
+            if ti.static(self.has_heat):
+                same = same and self.p.T[i] == self.t_synced[i]
+            for a in ti.static(range(self.sim.dim)):
+                same = same and self.p.x[i][a] == self.x_synced[i][a] and self.p.v[i][a] == self.v_synced[i][a]
+            if not same:
+                changed += 1
+        return changed
+
+
+@register("velocity_verlet")
+class VelocityVerlet(Leapfrog):
+    """Velocity Verlet (v += dt/2 a; x += dt v; a = f(x)/m; v += dt/2 a) as leapfrog on half-step velocities:
+    second order, symplectic for position-only forces, one force evaluation a step plus one per Simulation.step
+    call (the synchronisation)."""
+
+    def _stagger(self, dt: float) -> None:
+        self.sim.eval_rates()
+        self._kick(-0.5 * dt)
+
+    def _synchronise(self, dt: float) -> None:
+        self.sim.eval_rates()
+        self._hold_and_kick(0.5 * dt)
+
+    @ti.kernel
+    def _kick(self, h: float):
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            self.p.v[i] = self.p.v[i] + h * self.p.f[i] / self.p.mass[i]
+
+    @ti.kernel
+    def _hold_and_kick(self, h: float):
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            self.held[i] = self.p.v[i]
+            self.p.v[i] = self.p.v[i] + h * self.p.f[i] / self.p.mass[i]
+
+    @ti.kernel
+    def _restore(self):
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            self.p.v[i] = self.held[i]
+
+
+@register("verlet")
+class PositionVerlet(Leapfrog):
+    """Position Verlet (x += dt/2 v; v += dt a(x); x += dt/2 v) as leapfrog on half-step positions: second order,
+    symplectic, one force evaluation a step and none to synchronise; its positions obey Stormer's
+    x_{n+1} = 2 x_n - x_{n-1} + dt^2 a(x_{n+1/2}) at the staggered points."""
+
+    def _stagger(self, dt: float) -> None:
+        self._drift(0.5 * dt)
+
+    def _synchronise(self, dt: float) -> None:
+        self._hold_and_drift(-0.5 * dt)
+
+    @ti.func
+    def _wrap(self, i):
+        if ti.static(self.periodic):  # a half drift back may leave a periodic box: wrap (walls stay as they act)
+            self.p.x[i], self.p.v[i] = self.sim.domain.enforce(self.p.x[i], self.p.v[i], self.p.radius[i])
+
+    @ti.kernel
+    def _drift(self, h: float):
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            self.p.x[i] = self.p.x[i] + h * self.p.v[i]
+            self._wrap(i)
+
+    @ti.kernel
+    def _hold_and_drift(self, h: float):
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            self.held[i] = self.p.x[i]
+            self.p.x[i] = self.p.x[i] + h * self.p.v[i]
+            self._wrap(i)
+
+    @ti.kernel
+    def _restore(self):
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            self.p.x[i] = self.held[i]
