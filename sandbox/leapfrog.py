@@ -16,17 +16,14 @@ textbook steps; walls act at the end of each kick-drift, on the staggered state.
 
 import taichi as ti
 
-from .integrators import Integrator, register
+from .integrators import SymplecticEuler, register
 
 
-class Leapfrog(Integrator):
-    """What both leapfrog methods share: the kick-drift update, and the bookkeeping that makes staggering exact."""
+class Leapfrog(SymplecticEuler):
+    """What both leapfrog methods share: symplectic Euler's step (kick-drift, one update per particle) on the
+    staggered state, and the bookkeeping that makes staggering exact."""
 
     order = 2
-    symplectic = True
-    stable_h_omega = 2.0
-    auto_h_omega = 1.0
-    single_update = True
 
     def __init__(self, sim):
         super().__init__(sim)
@@ -37,15 +34,6 @@ class Leapfrog(Integrator):
         self.t_synced = ti.field(float, shape=sim.capacity if self.has_heat else 1)
         self.synced_count = -1  # particles when last synchronised; -1: never
         self.synced_dt = 0.0
-
-    def step(self, dt: float) -> None:
-        self.sim.eval_rates(then_update=dt)
-
-    @ti.func
-    def update_particle(self, i, dt):
-        self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
-        self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
-        self.sim.finish_particle(i, dt)
 
     def begin(self, dt: float) -> None:
         """Stagger the synchronised state before a run of steps of `dt`: restore what the last sync held when
