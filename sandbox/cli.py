@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import textwrap
 from pathlib import Path
 
 from . import __version__, runtime
@@ -279,6 +280,8 @@ def cmd_list(args) -> int:
     for path in shipped_scenes():
         scene = load_scene(path)
         print(f"  {path.stem:20s} {scene.description}")
+        for label, text in scene.lesson.parts():
+            print(textwrap.fill(text, 116, initial_indent=f"{'':23s}{label}: ", subsequent_indent=" " * 25))
     print("materials:")
     for name, mat in load_library().items():
         print(f"  {name:20s} {mat.note}")
@@ -293,6 +296,7 @@ def cmd_keys(args) -> int:
         FieldElement,
         Heat,
         HeatSource,
+        Lesson,
         PairForce,
         Render,
         SceneInfo,
@@ -304,6 +308,7 @@ def cmd_keys(args) -> int:
 
     sections = [
         ("scene", SceneInfo),
+        ("scene.lesson", Lesson),
         ("world", World),
         ("pair", PairForce),
         ("heat", Heat),

@@ -331,3 +331,7 @@ class ImplicitEuler(Integrator):
 
 
 from . import leapfrog  # noqa: E402, F401 - registers velocity_verlet and verlet
+
+# The order the window's i key cycles through and reports list: cheap first-order methods, then second, then the rest.
+for _name in ("symplectic_euler", "forward_euler", "velocity_verlet", "midpoint", "verlet", "rk4", "implicit_euler"):
+    REGISTRY[_name] = REGISTRY.pop(_name)

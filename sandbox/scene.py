@@ -54,9 +54,24 @@ def exponent(x: float) -> str | None:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Lesson:
+    """[scene.lesson]: a short lesson in a teacher's words, shown by `sandbox list` and at the top of the window."""
+
+    happens: str = spec("", doc="what happens in the scene, in a sentence or two")
+    explore: str = spec("", doc="what to try: keys, tools, --set values")
+    physics: str = spec("", doc="the physics it shows")
+
+    def parts(self) -> list[tuple[str, str]]:
+        """(label, text) for each part given: "What happens", "Try", "The physics"."""
+        parts = (("What happens", self.happens), ("Try", self.explore), ("The physics", self.physics))
+        return [(label, text) for label, text in parts if text]
+
+
+@dataclass(frozen=True, kw_only=True)
 class SceneInfo:
     name: str = spec("", doc="scene name (default: the file name)")
     description: str = spec("", doc="one paragraph shown by `sandbox list` and `sandbox check`")
+    lesson: Lesson = spec(doc="[scene.lesson]: what happens, what to try, the physics", factory=Lesson)
     palette: list[str] = spec(
         doc="materials the window's spawn tool offers (m cycles them), besides those of the bodies and emitters",
         factory=list,
@@ -416,6 +431,7 @@ class Scene:
         return self.world.dim
 
     palette: list[str] = field(default_factory=list)
+    lesson: Lesson = field(default_factory=Lesson)
     source: dict = field(default_factory=dict, repr=False, compare=False)  # the raw table it was read from
 
     def used_materials(self) -> list[str]:
@@ -573,6 +589,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
             for name in dict.fromkeys([b.material for b in bodies] + [e.material for e in emitters] + raw.scene.palette)
         },
         palette=list(raw.scene.palette),
+        lesson=raw.scene.lesson,
         emitters=emitters,
         fields=list(raw.fields),
         smoke=raw.smoke,

@@ -125,3 +125,30 @@ def test_list_and_keys_describe_everything(capsys):
     out = capsys.readouterr().out
     for key in ("dt", "substeps", "integrator", "cutoff", "stepper", "material", "blend", "motion_blur", "stiffness"):
         assert f"  {key} " in out
+
+
+def test_every_shipped_scene_has_a_lesson_that_list_and_the_window_show(capsys):
+    """What happens, what to try and the physics, in each shipped scene's file: `sandbox list` prints all three, and
+    the window's panel shows them wrapped to its width, every word kept."""
+    from sandbox.render.window import LESSON_WIDTH, lesson_text
+
+    for name in SHIPPED:
+        lesson = load_scene(SCENES / f"{name}.toml").lesson
+        parts = dict(lesson.parts())
+        assert list(parts) == ["What happens", "Try", "The physics"], name
+        assert all(len(text) > 60 for text in parts.values()), name
+        lines = lesson_text(lesson)
+        assert all(len(line) <= LESSON_WIDTH for line in lines)
+        assert " ".join(lines).split() == " ".join(f"{k}: {v}" for k, v in parts.items()).split()
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for label in ("What happens: ", "Try: ", "The physics: "):
+        assert out.count(label) == len(SHIPPED)
+
+
+def test_a_lesson_of_the_wrong_type_is_one_clear_error(scene_file):
+    from sandbox.errors import SceneError
+
+    path = scene_file((SCENES / "spring_lattice.toml").read_text().replace('happens = "', 'happens = 3\nx = "', 1))
+    with pytest.raises(SceneError, match="scene.lesson"):
+        load_scene(path)

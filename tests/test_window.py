@@ -50,6 +50,9 @@ def test_keys_drive_the_state():
         assert getattr(s, attr)
         s.handle_key(key)
         assert not getattr(s, attr)
+    assert s.show_lesson  # the lesson shows until l hides it
+    s.handle_key("l")
+    assert not s.show_lesson
 
 
 def test_panel_offers_only_what_the_scene_uses():

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import textwrap
 import time
 from dataclasses import dataclass, field
 
@@ -42,6 +43,7 @@ HELP = [
     "c      next colour map (temperature, phase, speed, material)",
     "b      motion blur on / off",
     "k      springs drawn on / off (2D)",
+    "l      the scene's lesson on / off",
     "h, F1  this help",
     "q, Esc quit",
     "left mouse: apply the tool at the cursor (2D)",
@@ -91,6 +93,7 @@ class WindowState:
     color_by: str = ""
     motion_blur: bool = False  # b
     draw_springs: bool = False  # k
+    show_lesson: bool = True  # l: the scene's lesson at the top of the panel
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
@@ -143,6 +146,8 @@ class WindowState:
             self.motion_blur = not self.motion_blur
         elif key == "k":
             self.draw_springs = not self.draw_springs
+        elif key == "l":
+            self.show_lesson = not self.show_lesson
         elif key == "m" and self.materials:
             self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
 
@@ -463,8 +468,25 @@ def thermometers(sim) -> list[tuple[str, float]]:
     return [(names[k], float(sums[k] / counts[k])) for k in range(len(names)) if counts[k]]
 
 
+LESSON_WIDTH = 46  # characters per line of the lesson in the panel
+
+
+def lesson_text(lesson) -> list[str]:
+    """The scene's lesson as the panel's lines: each part labelled and wrapped to LESSON_WIDTH characters."""
+    lines = []
+    for label, text in lesson.parts():
+        lines += textwrap.wrap(f"{label}: {text}", LESSON_WIDTH)
+    return lines
+
+
 def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
-    with gui.sub_window("sandbox", 0.0, 0.0, 0.28, 0.6):
+    with gui.sub_window(sim.scene.name, 0.0, 0.0, 0.28, 0.6):
+        lesson = lesson_text(sim.scene.lesson)
+        if lesson:
+            state.show_lesson = gui.checkbox("lesson (l)", state.show_lesson)
+            if state.show_lesson:
+                for line in lesson:
+                    gui.text(line)
         gui.text(f"t = {stats.time:.2f} s   {fps:.0f} fps   {'paused' if state.paused else ''}")
         gui.text(
             f"particles {stats.particles}"
