@@ -183,3 +183,13 @@ def test_3d_brush_acts_at_the_particle_under_the_cursor():
     picked = ren.pick(0.5, 0.5)
     assert np.allclose(picked, top_centre)  # the nearest under the cursor: the one looked at, not one behind
     assert ren.pick(0.02, 0.98) is None  # empty sky
+
+
+def test_the_selected_tool_is_marked_and_every_button_names_its_key():
+    from sandbox.render.window import tool_label
+
+    assert tool_label("heat", "heat") == "> 1 heat <"
+    assert tool_label("spawn", "heat") == "  8 spawn  "
+    labels = [tool_label(name, "drag") for name in ("heat", "cool", "drag")]
+    assert [label.startswith(">") for label in labels] == [False, False, True]
+    assert len(set(labels)) == 3  # ImGui tells buttons apart by their labels

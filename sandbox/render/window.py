@@ -468,6 +468,12 @@ def thermometers(sim) -> list[tuple[str, float]]:
     return [(names[k], float(sums[k] / counts[k])) for k in range(len(names)) if counts[k]]
 
 
+def tool_label(name: str, selected: str) -> str:
+    """A tool button's label: its key and name, marked when it is the selected tool."""
+    key = TOOLS.index(name) + 1
+    return f"> {key} {name} <" if name == selected else f"  {key} {name}  "
+
+
 LESSON_WIDTH = 46  # characters per line of the lesson in the panel
 
 
@@ -503,8 +509,10 @@ def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
         gui.text(f"integrator {state.integrator}   substeps {state.substeps}")
         if state.tools_available:
             gui.text(f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")
+            if sim.dim == 3:
+                gui.text("3D: Shift + left button uses the tool")
             for name in state.tools_available:
-                if gui.button(name):
+                if gui.button(tool_label(name, state.tool)):
                     state.tool = name
             state.radius = gui.slider_float("radius", state.radius, 0.5, 30.0)
         state.paused = gui.checkbox("paused", state.paused)
