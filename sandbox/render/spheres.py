@@ -53,6 +53,25 @@ class Spheres3D:
             if ti.static(self.has_additive):
                 self.light[x, y] = ti.Vector([0.0, 0.0, 0.0])
 
+    @ti.func
+    def _sphere_disc(self, i, z):
+        """Particle i at camera depth z: its drawn radius (world) and the radius of its disc on screen (px)."""
+        rad = self.drawn_radius(i)
+        return rad, ti.max(rad * self.focal_field[None] / z, R_MIN)
+
+    @ti.func
+    def _on_disc(self, centre, r, px, py):
+        """Pixel (px, py) against a disc of radius r (px) at centre: the offset u in radii and q = |u|^2 (on the
+        disc when q <= 1)."""
+        u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
+        return u, u.dot(u)
+
+    @ti.func
+    def _surface_depth_key(self, z, rad, q):
+        """The depth of a sphere's front surface where the disc's q (<= 1) is, as the depth buffer's i32 key."""
+        zs = z - rad * ti.sqrt(1.0 - q)
+        return ti.bit_cast(ti.cast(ti.max(zs, 0.0), ti.f32), ti.i32)
+
     @ti.kernel
     def _depth_3d(self):
         p = self.sim.particles
@@ -60,16 +79,13 @@ class Spheres3D:
             if self.g_blend[p.group[i]] == 0:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
-                    rad = self.drawn_radius(i)
-                    r = ti.max(rad * self.focal_field[None] / z, R_MIN)
+                    rad, r = self._sphere_disc(i, z)
                     x0, x1, y0, y1 = self._box(centre, centre, r, centre)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
-                            u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
-                            q = u.dot(u)
+                            _, q = self._on_disc(centre, r, px, py)
                             if q <= 1.0:
-                                zs = z - rad * ti.sqrt(1.0 - q)
-                                ti.atomic_min(self.depth[px, py], ti.bit_cast(ti.cast(ti.max(zs, 0.0), ti.f32), ti.i32))
+                                ti.atomic_min(self.depth[px, py], self._surface_depth_key(z, rad, q))
 
     @ti.kernel
     def _shade_3d(self):
@@ -79,19 +95,15 @@ class Spheres3D:
             if self.g_blend[g] == 0:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
-                    rad = self.drawn_radius(i)
-                    r = ti.max(rad * self.focal_field[None] / z, R_MIN)
+                    rad, r = self._sphere_disc(i, z)
                     col = self.particle_color(i)
                     shaded = self.g_draw[g] == 2
                     x0, x1, y0, y1 = self._box(centre, centre, r, centre)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
-                            u = (ti.Vector([px + 0.5, py + 0.5]) - centre) / r
-                            q = u.dot(u)
+                            u, q = self._on_disc(centre, r, px, py)
                             if q <= 1.0:
-                                zs = z - rad * ti.sqrt(1.0 - q)
-                                bits = ti.bit_cast(ti.cast(ti.max(zs, 0.0), ti.f32), ti.i32)
-                                if bits == self.depth[px, py]:
+                                if self._surface_depth_key(z, rad, q) == self.depth[px, py]:
                                     c = col
                                     if shaded:
                                         nz = ti.sqrt(1.0 - q)
@@ -134,7 +146,7 @@ class Spheres3D:
             if self.g_blend[g] == 0:
                 tail, ctrl, head, z_tail, z, blurred = self._streak_3d(i)
                 if blurred and (tail - head).norm() > 0.5:  # moved half a pixel or more
-                    r = ti.max(self.drawn_radius(i) * self.focal_field[None] / z, R_MIN)
+                    _, r = self._sphere_disc(i, z)
                     col = self.particle_color(i)
                     if self.g_draw[g] == 2:  # the shade of the sphere's centre, facing the camera
                         col = col * (0.3 + 0.7 * ti.max(-self.camera[3].dot(self.light_dir), 0.0))
@@ -190,7 +202,7 @@ class Spheres3D:
             i = self.order[k]
             centre, z = self._project(p.x[i])
             if z > 1e-3:
-                r = ti.max(self.drawn_radius(i) * self.focal_field[None] / z, R_MIN)
+                _, r = self._sphere_disc(i, z)
                 col = self.particle_color(i)
                 opacity = self.group_opacity(i)
                 zbits = ti.bit_cast(ti.cast(z, ti.f32), ti.i32)
