@@ -113,18 +113,18 @@ def _run_task(task: StudyTask, reference) -> dict:
     names = list(task.integrators)
     if task.problem == "oscillator":
         return {"runs": problems.oscillator_runs(names, lad["oscillator_h_omegas"])}
-    if task.problem == "lattice":
+    if task.problem in REFERENCED:  # lattice, melting: (reference, runs against it) over the same ladder
+        make_reference, runs_against = {
+            "lattice": (problems.lattice_reference, problems.lattice_runs),
+            "melting": (problems.melting_reference, problems.melting_runs),
+        }[task.problem]
+        dts, end = lad[f"{task.problem}_dts"], lad[f"{task.problem}_end"]
         if not task.integrators:
-            ref, notes = problems.lattice_reference(lad["lattice_dts"], lad["lattice_end"])
+            ref, notes = make_reference(dts, end)
             return {"reference": ref, "notes": notes}
-        return {"runs": problems.lattice_runs(names, lad["lattice_dts"], lad["lattice_end"], reference)}
+        return {"runs": runs_against(names, dts, end, reference)}
     if task.problem == "lj_cluster":
         return {"runs": problems.lj_cluster_runs(names, lad["lj_dts"], lad["lj_end"])}
-    if task.problem == "melting":
-        if not task.integrators:
-            ref, notes = problems.melting_reference(lad["melting_dts"], lad["melting_end"])
-            return {"reference": ref, "notes": notes}
-        return {"runs": problems.melting_runs(names, lad["melting_dts"], lad["melting_end"], reference)}
     if task.problem == "heat_pulse":
         from .heat_study import heat_runs
 
