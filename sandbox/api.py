@@ -113,6 +113,6 @@ def resume(path: str | Path, arch: str | None = None) -> Simulation:
 
     meta = read_meta(path)
     _check_switch(arch or meta["arch"], meta["precision"])
-    sim = load_state(path, arch)
+    sim = load_state(path, arch, meta)
     _alive.add(sim)
     return sim

@@ -110,7 +110,7 @@ def stability_warnings(sim) -> list[str]:
 
 
 def _resumed_scene(args):
-    """The scene a --resume state file holds (SCENE must name it), and the frame it was saved at."""
+    """The scene a --resume state file holds (SCENE must name it), the frame it was saved at, and the file's meta."""
     from .persist import read_meta
     from .scene import scene_from_dict
 
@@ -120,12 +120,12 @@ def _resumed_scene(args):
         raise SandboxError(
             f"--resume {args.resume}: saved from scene {meta['scene_name']!r}; expected SCENE to name it"
         )
-    return scene_from_dict(meta["scene"], Path(meta["scene_path"])), int(meta["frame"])
+    return scene_from_dict(meta["scene"], Path(meta["scene_path"])), int(meta["frame"]), meta
 
 
 def cmd_run(args) -> int:
     _check_run_numbers(args)
-    scene, first_frame = _resumed_scene(args) if args.resume else (_load(args), 0)
+    scene, first_frame, saved_meta = _resumed_scene(args) if args.resume else (_load(args), 0, None)
     frames = args.frames or scene.render.frames
     if frames <= first_frame:
         raise SandboxError(f"--frames {frames}: the state was saved at frame {first_frame}; expected more frames")
@@ -162,7 +162,7 @@ def cmd_run(args) -> int:
     if args.resume:
         from .persist import load_state
 
-        sim = load_state(args.resume, arch=args.arch)
+        sim = load_state(args.resume, arch=args.arch, meta=saved_meta, scene=scene)
     else:
         sim = Simulation(scene, arch=args.arch)
     for line in stability_warnings(sim):

@@ -189,15 +189,16 @@ def read_meta(path: str | Path) -> dict:
     return meta
 
 
-def load_state(path: str | Path, arch: str | None = None):
+def load_state(path: str | Path, arch: str | None = None, meta: dict | None = None, scene=None):
     """Build the simulation a state file describes and put its saved state back; returns the Simulation.
-    `arch`: the backend (default: the one it was saved on). SandboxError when the file cannot be resumed here."""
+    `arch`: the backend (default: the one it was saved on); `meta`, `scene`: the file's read_meta() and the scene
+    built from it, where the caller has them already. SandboxError when the file cannot be resumed here."""
     from .scene import scene_from_dict
     from .simulation import Simulation
 
     path = Path(path)
-    meta = read_meta(path)
-    scene = scene_from_dict(meta["scene"], Path(meta["scene_path"]))
+    meta = meta or read_meta(path)
+    scene = scene or scene_from_dict(meta["scene"], Path(meta["scene_path"]))
     sim = Simulation(scene, arch=arch or meta["arch"])
     sim.set_integrator(meta["integrator"])
     threads = taichi_compat.cpu_threads() if sim.arch == "cpu" else 1
