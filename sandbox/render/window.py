@@ -10,6 +10,7 @@ Everything the keys do goes through WindowState.handle_key, which needs no scree
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import textwrap
@@ -477,12 +478,13 @@ def tool_label(name: str, selected: str) -> str:
 LESSON_WIDTH = 46  # characters per line of the lesson in the panel
 
 
-def lesson_text(lesson) -> list[str]:
+@functools.cache  # the panel asks every frame; a lesson (frozen) wraps the same way each time
+def lesson_text(lesson) -> tuple[str, ...]:
     """The scene's lesson as the panel's lines: each part labelled and wrapped to LESSON_WIDTH characters."""
     lines = []
     for label, text in lesson.parts():
         lines += textwrap.wrap(f"{label}: {text}", LESSON_WIDTH)
-    return lines
+    return tuple(lines)
 
 
 def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
