@@ -37,6 +37,14 @@ STAT_COLUMNS = (
     "step_seconds",
 )
 
+
+def stat_values(frame: int, stats: "Stats", step_seconds: float) -> dict:
+    """The STAT_COLUMNS of frame `frame` by name: its measurements `stats` and its steps' wall time (seconds)."""
+    row = {"frame": frame, "step_seconds": step_seconds}
+    row.update({k: getattr(stats, k) for k in STAT_COLUMNS if k not in row})
+    return row
+
+
 # Sums (and maxima) of one measurement, one 0-d field each, by name -> index in Measurements._acc
 SUMS = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi": 6, "heat": 7, "mass": 8}
 SUMS.update(tcold=9, thot=10)  # the largest -T and T (degrees; -1e30 without particles): the guard's temperatures

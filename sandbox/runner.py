@@ -12,6 +12,7 @@ from pathlib import Path
 
 import taichi as ti
 
+from .diagnostics import stat_values
 from .errors import SimulationError
 from .render.raster import Renderer
 from .render.video import open_writer, partial_path, publish
@@ -31,8 +32,7 @@ class RunResult:
 def stats_row(frame: int, s: Stats, step_seconds: float) -> dict:
     """One CSV row (the STAT_COLUMNS) for frame `frame`; a measurement the scene does not have (the temperature of a
     scene without heat) is left empty."""
-    row = {"frame": frame, "step_seconds": step_seconds}
-    row.update({k: getattr(s, k) for k in STAT_COLUMNS if k not in row})
+    row = stat_values(frame, s, step_seconds)
     return {k: (("" if math.isnan(v) else f"{v:.9g}") if isinstance(v, float) else v) for k, v in row.items()}
 
 

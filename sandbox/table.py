@@ -10,7 +10,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from .diagnostics import STAT_COLUMNS, Stats
+from .diagnostics import STAT_COLUMNS, Stats, stat_values
 
 
 class FrameTable:
@@ -28,9 +28,7 @@ class FrameTable:
 
     def append(self, frame: int, stats: Stats, step_seconds: float) -> None:
         """Add the row of frame `frame` (its measurements `stats`, its steps' wall time in seconds)."""
-        row = {"frame": frame, "step_seconds": step_seconds}
-        row.update({k: getattr(stats, k) for k in STAT_COLUMNS if k not in row})
-        self._rows.append(row)
+        self._rows.append(stat_values(frame, stats, step_seconds))
 
     def __len__(self) -> int:
         return len(self._rows)
