@@ -63,7 +63,7 @@ class StefanResult:
 
 def stefan_scene(spacing: float, superheat: float = 10.0, latent: float = 10.0) -> dict:
     """Scene table of the Stefan slab at particle spacing `spacing` (conductivity, density, c = 1; Tm = 0)."""
-    dt = 0.05 * spacing**2  # explicit heat limit is about 0.11 h^2 for alpha = 1 and H = 2.5 h
+    dt = 0.05 * spacing**2  # explicit heat limit is about 0.11 h^2 for alpha = 1 and the default H = 2.5 h
     mid = STEFAN_LENGTH / 2
     return {
         "world": {
@@ -76,7 +76,6 @@ def stefan_scene(spacing: float, superheat: float = 10.0, latent: float = 10.0) 
         },
         "heat": {
             "ambient": 0.0,
-            "radius": 2.5 * spacing,
             "refreeze": False,
             "sources": [
                 {

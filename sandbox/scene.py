@@ -189,7 +189,12 @@ class Heat:
     ambient_exchange: float = spec(
         0.0, doc="heat flow per degree between each particle and the ambient", check=non_negative
     )
-    radius: float = spec(2.5, doc="support radius of the heat-diffusion kernel (length)", check=positive)
+    radius: float = spec(
+        2.5, doc="support radius of the heat-diffusion kernel, in particle spacings (so refinement converges)", check=positive
+    )
+    radius_length: float = spec(
+        0.0, doc="the support radius as a length instead; overrides radius when above 0", check=non_negative
+    )
     stepper: str = spec(
         "explicit",
         doc="explicit (Euler; limited step) or implicit (backward Euler by CG)",
@@ -198,7 +203,8 @@ class Heat:
     sources: list[HeatSource] = spec(doc="hot or cold regions", factory=list)
     refreeze: bool = spec(True, doc="molten particles that cool below their solidus bond again into a solid")
     refreeze_radius: float = spec(
-        1.5, doc="refreezing bonds particles closer than this (length; at most the heat radius)", check=positive
+        1.5, doc="refreezing bonds particles closer than this many particle spacings (at most the heat radius)",
+        check=positive,
     )
     refreeze_max_bonds: int = spec(
         0, doc="bonds per particle that refreezing fills up to (0: 8 in 2D, 12 in 3D)", check=between(0, MAX_BONDS)
@@ -432,6 +438,7 @@ class Scene:
 
     palette: list[str] = field(default_factory=list)
     lesson: Lesson = field(default_factory=Lesson)
+    spacing: float = 1.0  # the particle spacing (length): see particle_spacing
     source: dict = field(default_factory=dict, repr=False, compare=False)  # the raw table it was read from
 
     def used_materials(self) -> list[str]:
@@ -441,9 +448,34 @@ class Scene:
         )
 
     @property
+    def heat_radius(self) -> float:
+        """Support radius of the heat kernel (length): heat.radius_length, else heat.radius spacings; 0 without heat."""
+        return heat_support(self.heat, self.spacing) if self.heat else 0.0
+
+    @property
+    def refreeze_radius(self) -> float:
+        """Refreezing bonds particles closer than this (length): heat.refreeze_radius spacings."""
+        return self.heat.refreeze_radius * self.spacing if self.heat else 0.0
+
+    @property
     def groups(self) -> list:
         """The drawing/coupling groups: every body, then every emitter (a particle's `group` indexes this)."""
         return [*self.bodies, *self.emitters]
+
+
+def heat_support(heat: Heat, spacing: float) -> float:
+    """The heat kernel's support radius (length) at particle spacing `spacing` (length)."""
+    return heat.radius_length or heat.radius * spacing
+
+
+def particle_spacing(bodies: list, emitters: list) -> float:
+    """A scene's particle spacing (length): its finest body lattice spacing; without bodies, its emitters' finest
+    particle diameter; else 1. Lengths given in spacings (heat.radius, heat.refreeze_radius) scale with it."""
+    if bodies:
+        return min(b.spacing for b in bodies)
+    if emitters:
+        return min(2 * e.particle_radius for e in emitters)
+    return 1.0
 
 
 def parse_override(text: str) -> tuple[str, Any]:
@@ -528,17 +560,6 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         world = _replace(world, gravity=(0.0,) * dim)
     if raw.pair is not None and raw.pair.b <= raw.pair.a:
         raise SceneError(file, "pair.b", f"expected the repulsion exponent b above a = {raw.pair.a}")
-    heat = raw.heat
-    if heat is not None:
-        for i, src in enumerate(heat.sources):
-            _check_source(file, f"heat.sources[{i}]", src, dim)
-        reach = max(heat.radius, raw.pair.cutoff if raw.pair else 0.0)
-        if heat.refreeze and heat.refreeze_radius > reach:
-            raise SceneError(
-                file,
-                "heat.refreeze_radius",
-                f"expected at most the neighbour reach {reach:g} (heat.radius, pair.cutoff)",
-            )
     for i, name in enumerate(raw.scene.palette):
         if name not in materials:
             raise SceneError(
@@ -568,8 +589,21 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
                 f"the body ({list(lo)}..{list(hi)}) lies outside the domain "
                 f"{list(world.lo)}..{list(world.hi)}; expected it inside world.lo..world.hi",
             )
+    spacing = particle_spacing(bodies, emitters)
+    heat = raw.heat
+    if heat is not None:
+        for i, src in enumerate(heat.sources):
+            _check_source(file, f"heat.sources[{i}]", src, dim)
+        reach = max(heat_support(heat, spacing), raw.pair.cutoff if raw.pair else 0.0)
+        if heat.refreeze and heat.refreeze_radius * spacing > reach + 1e-12:
+            raise SceneError(
+                file,
+                "heat.refreeze_radius",
+                f"{heat.refreeze_radius:g} spacings is {heat.refreeze_radius * spacing:g} long; expected at most the "
+                f"neighbour reach {reach:g} (the heat radius, pair.cutoff)",
+            )
     if world.periodic:
-        reach = max(raw.pair.cutoff if raw.pair else 0.0, heat.radius if heat else 0.0)
+        reach = max(raw.pair.cutoff if raw.pair else 0.0, heat_support(heat, spacing) if heat else 0.0)
         if any((h - l) < 3 * reach for l, h in zip(world.lo, world.hi)):
             raise SceneError(file, "world.periodic", f"expected every side of a periodic domain >= 3 x {reach}")
     render = raw.render
@@ -593,6 +627,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         emitters=emitters,
         fields=list(raw.fields),
         smoke=raw.smoke,
+        spacing=spacing,
         source=copy.deepcopy(data),
     )
 

@@ -150,8 +150,8 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
             self.heat = None
             if scene.heat:
                 density = material_column(materials, built.material, "density")
-                correction = lattice_correction(built.x, built.mass / density, scene.heat.radius)
-                self.heat = Heat(self.dim, scene.heat, p, self.materials, self.phase, correction)
+                correction = lattice_correction(built.x, built.mass / density, scene.heat_radius)
+                self.heat = Heat(self.dim, scene.heat, scene.heat_radius, p, self.materials, self.phase, correction)
             self.springs = None
             if built.spring_count or self.can_refreeze:
                 bonds = (heat.refreeze_max_bonds or (8 if self.dim == 2 else 12)) if self.can_refreeze else 0
@@ -159,7 +159,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
                 self.springs = Springs(
                     built, self.capacity, p, self.materials, self.phase, self.domain.separation, spare, bonds
                 )
-        reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat.radius if scene.heat else 0.0)
+        reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat_radius)
         skin = world.skin if world.neighbor_list else 0.0
         self.grid = (
             CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, self.capacity, self.loops)
@@ -197,7 +197,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
                 self.pair_q = ti.field(float, shape=(self.n_pair_rows, self.capacity))
         every = world.reorder if world.reorder != "auto" else (20 if built.count >= 5000 else 0)
         self.reorder = CellOrder(self, every) if every and self.neighbours is not None else None
-        self.refreezer = Refreezer(self, heat.refreeze_radius) if self.can_refreeze else None
+        self.refreezer = Refreezer(self, scene.refreeze_radius) if self.can_refreeze else None
         self.emitters = Emitters(self, scene.emitters, len(scene.bodies)) if scene.emitters else None
         self._warned_overflow = False
         self.has_neighbours = self.neighbours is not None

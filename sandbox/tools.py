@@ -128,8 +128,8 @@ class Tools:
         self, material: str, centre, radius: float, spacing: float | None = None, temperature: float | None = None
     ) -> int:
         """Add particles of `material` (one of the scene's) on a square/cubic lattice filling the brush, skipping
-        sites closer than 0.9 spacing to an existing particle; they spawn as liquid (no springs). Returns how
-        many were added (limited by world.capacity)."""
+        sites closer than 0.9 spacing to an existing particle; they spawn as liquid (no springs). The spacing (length)
+        defaults to the scene's particle spacing. Returns how many were added (limited by world.capacity)."""
         sim = self.sim
         if material not in sim.material_names:
             raise SandboxError(
@@ -137,7 +137,7 @@ class Tools:
             )
         mat_id = sim.material_names.index(material)
         mat = sim.scene.materials[material]
-        spacing = spacing or 1.0
+        spacing = spacing or sim.scene.spacing
         centre = np.asarray(centre, dtype=float)
         k = int(np.ceil(radius / spacing))
         axes = [np.arange(-k, k + 1) * spacing] * self.dim

@@ -64,10 +64,10 @@ def lattice_correction(x: np.ndarray, volume: np.ndarray, h: float, samples: int
 class Heat:
     """Heat-diffusion parameters and sources, with the per-pair flow and per-particle source funcs."""
 
-    def __init__(self, dim: int, heat_scene, particles, materials, phase, correction: float = 1.0):
+    def __init__(self, dim: int, heat_scene, support: float, particles, materials, phase, correction: float = 1.0):
         self.dim = dim
         self.phase = phase
-        self.support = float(heat_scene.radius)
+        self.support = float(support)  # the kernel's support radius (length)
         self.correction = correction
         self.norm = (7 / (math.pi * self.support**2) if dim == 2 else 21 / (2 * math.pi * self.support**3)) / correction
         self.p = particles
