@@ -190,7 +190,9 @@ class Heat:
         0.0, doc="heat flow per degree between each particle and the ambient", check=non_negative
     )
     radius: float = spec(
-        2.5, doc="support radius of the heat-diffusion kernel, in particle spacings (so refinement converges)", check=positive
+        2.5,
+        doc="support radius of the heat-diffusion kernel, in particle spacings (so refinement converges)",
+        check=positive,
     )
     radius_length: float = spec(
         0.0, doc="the support radius as a length instead; overrides radius when above 0", check=non_negative
@@ -203,7 +205,8 @@ class Heat:
     sources: list[HeatSource] = spec(doc="hot or cold regions", factory=list)
     refreeze: bool = spec(True, doc="molten particles that cool below their solidus bond again into a solid")
     refreeze_radius: float = spec(
-        1.5, doc="refreezing bonds particles closer than this many particle spacings (at most the heat radius)",
+        1.5,
+        doc="refreezing bonds particles closer than this many particle spacings (at most the heat radius)",
         check=positive,
     )
     refreeze_max_bonds: int = spec(
