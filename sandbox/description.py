@@ -56,7 +56,7 @@ class Description:
         if self.has_lifetimes:
             passes.append("ageing; the dead retired by compaction after each step() call")
         if self.fuses_steps:
-            fused = "/".join(name for name, cls in REGISTRY.items() if cls.single_update)
+            fused = "/".join(name for name, cls in REGISTRY.items() if cls.stages)
             team = f", run by a team of {self.team.workers} threads meeting at barriers" if self.team else ""
             passes.append(
                 "launch: every pass of a step, and many steps, in one kernel launch (the list rebuild decided on the "

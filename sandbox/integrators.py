@@ -1,10 +1,14 @@
 """Time integrators: a registry of name -> class, one signature for all: `step(dt)` advances the simulation by dt.
 
-Each integrator is a few lines over the simulation's shared pieces:
-  sim.eval_rates()        forces into p.f (and heat rates into p.dTdt) at the current positions and velocities;
-                          eval_rates(then_update=dt) also runs the integrator's ti.func update_particle(i, dt) on
-                          every particle in the same launch (the one-evaluation methods step this way)
-  sim.finish_particle()   (ti.func) walls / periodic wrap and the explicit heat update for one particle
+Most integrators are a sequence of stages, each one force evaluation followed by a per-particle update:
+  sim.eval_rates(then_update=dt, stage=k)
+                          forces into p.f (and heat rates into p.dhdt) at the current positions and velocities,
+                          then the integrator's ti.func update_particle(i, dt, k) on every particle, in one launch
+  sim.finish_particle()   (ti.func) walls / periodic wrap and the explicit heat update for one particle, called by
+                          the last stage's update
+A staged integrator (`stages` > 0) runs on every path symplectic Euler runs on: the long way (a launch per
+evaluation), many steps to a launch (Simulation._fused_steps) and a team of threads (team.py); each path runs the
+stages in order with the same per-evaluation passes, so all three give the same trajectory bit for bit.
 Particle updates write `x[i] = x[i] + ...`, never `x[i] += ...`: Taichi turns `+=` on a field into an atomic
 (a compare-and-swap loop for floats) unless the index is the loop's own, and update_particle runs where i is read
 from the cell order (the per-particle pass, the team's workers).
@@ -57,17 +61,23 @@ class Integrator:
     # the study's growth table).
     auto_h_omega = 0.01
 
-    evaluations = 1
-    # One force evaluation and a per-particle update_particle(i, dt) make the step: small scenes run many such
-    # steps to a kernel launch (Simulation._fused_steps).
-    single_update = False
+    # Stages of a step: each is a force evaluation and then update_particle(i, dt, stage) on every particle (see
+    # the module docstring). 0: the integrator steps its own way (step() launches its own kernels).
+    stages = 1
 
     def __init__(self, sim):
         self.sim = sim
         self.p = sim.particles
 
-    def step(self, dt: float) -> None:
-        raise NotImplementedError
+    @property
+    def evaluations(self) -> int:
+        """Force evaluations per step."""
+        return self.stages
+
+    def step(self, dt: float, first_stage: int = 0) -> None:
+        """One step of dt from stage `first_stage` on (a step that a fused launch left after its first stages)."""
+        for stage in range(first_stage, self.stages):
+            self.sim.eval_rates(then_update=dt, stage=stage)
 
     def begin(self, dt: float) -> None:
         """Called before a run of steps of `dt` (Simulation.step): a leapfrog method staggers its state here."""
@@ -88,13 +98,9 @@ class SymplecticEuler(Integrator):
     symplectic = True
     stable_h_omega = 2.0
     auto_h_omega = 1.0
-    single_update = True
-
-    def step(self, dt: float) -> None:
-        self.sim.eval_rates(then_update=dt)
 
     @ti.func
-    def update_particle(self, i, dt):
+    def update_particle(self, i, dt, stage):
         self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
         self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
         self.sim.finish_particle(i, dt)
@@ -104,13 +110,8 @@ class SymplecticEuler(Integrator):
 class ForwardEuler(Integrator):
     """x += dt v; v += dt f(x, v)/m (explicit Euler: first order; an undamped oscillator's amplitude grows)."""
 
-    single_update = True
-
-    def step(self, dt: float) -> None:
-        self.sim.eval_rates(then_update=dt)
-
     @ti.func
-    def update_particle(self, i, dt):
+    def update_particle(self, i, dt, stage):
         self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
         self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
         self.sim.finish_particle(i, dt)
@@ -122,34 +123,24 @@ class Midpoint(Integrator):
     rates. Second order; an undamped oscillator's amplitude grows slowly (by (dt w)^4 / 8 per step)."""
 
     order = 2
-    evaluations = 2
+    stages = 2
     auto_h_omega = 0.05
 
     def __init__(self, sim):
         super().__init__(sim)
         self._stage_fields("x0", "v0")
 
-    def step(self, dt: float) -> None:
-        self.sim.eval_rates()
-        self._half(dt)
-        self.sim.eval_rates()
-        self._full(dt)
-
-    @ti.kernel
-    def _half(self, dt: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.x0[i], self.v0[i] = self.p.x[i], self.p.v[i]
-            self.p.x[i] = self.p.x[i] + 0.5 * dt * self.p.v[i]
-            self.p.v[i] = self.p.v[i] + 0.5 * dt * self.p.f[i] / self.p.mass[i]
-
-    @ti.kernel
-    def _full(self, dt: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            v_mid = self.p.v[i]
-            self.p.x[i] = self.x0[i] + dt * v_mid
-            self.p.v[i] = self.v0[i] + dt * self.p.f[i] / self.p.mass[i]
+    @ti.func
+    def update_particle(self, i, dt, stage):
+        p = self.p
+        if stage == 0:  # rates at the step's start: keep it, and go half a step along them
+            self.x0[i], self.v0[i] = p.x[i], p.v[i]
+            p.x[i] = p.x[i] + 0.5 * dt * p.v[i]
+            p.v[i] = p.v[i] + 0.5 * dt * p.f[i] / p.mass[i]
+        else:  # rates at the midpoint: the whole step along them
+            v_mid = p.v[i]
+            p.x[i] = self.x0[i] + dt * v_mid
+            p.v[i] = self.v0[i] + dt * p.f[i] / p.mass[i]
             self.sim.finish_particle(i, dt)
 
 
@@ -158,7 +149,7 @@ class RungeKutta4(Integrator):
     """Classical fourth-order Runge-Kutta: the high-accuracy reference (4 evaluations per step, not symplectic)."""
 
     order = 4
-    evaluations = 4
+    stages = 4
     stable_h_omega = 2 * 2**0.5
     auto_h_omega = 1.4
 
@@ -166,40 +157,26 @@ class RungeKutta4(Integrator):
         super().__init__(sim)
         self._stage_fields("x0", "v0", "dx", "dv")
 
-    def step(self, dt: float) -> None:
-        self._begin()
-        for weight, advance in ((1.0, 0.5), (2.0, 0.5), (2.0, 1.0)):
-            self.sim.eval_rates()
-            self._stage(dt, weight, advance)
-        self.sim.eval_rates()
-        self._end(dt)
-
-    @ti.kernel
-    def _begin(self):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.x0[i], self.v0[i] = self.p.x[i], self.p.v[i]
-            self.dx[i] = ti.Vector.zero(float, self.sim.dim)
-            self.dv[i] = ti.Vector.zero(float, self.sim.dim)
-
-    @ti.kernel
-    def _stage(self, dt: float, weight: float, advance: float):
-        """Accumulate stage k (rates at the current trial state) and set the next trial state x0 + advance dt k."""
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            kx, kv = self.p.v[i], self.p.f[i] / self.p.mass[i]
-            self.dx[i] += weight * kx
-            self.dv[i] += weight * kv
-            self.p.x[i] = self.x0[i] + advance * dt * kx
-            self.p.v[i] = self.v0[i] + advance * dt * kv
-
-    @ti.kernel
-    def _end(self, dt: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            kx, kv = self.p.v[i], self.p.f[i] / self.p.mass[i]
-            self.p.x[i] = self.x0[i] + dt / 6.0 * (self.dx[i] + kx)
-            self.p.v[i] = self.v0[i] + dt / 6.0 * (self.dv[i] + kv)
+    @ti.func
+    def update_particle(self, i, dt, stage):
+        """Stage k's rates (at the current trial state) k1..k4: accumulate dx, dv = k1 + 2 k2 + 2 k3 and set the next
+        trial state x0 + (dt/2, dt/2, dt) k; after k4 the step is x0 + dt/6 (k1 + 2 k2 + 2 k3 + k4)."""
+        p = self.p
+        kx, kv = p.v[i], p.f[i] / p.mass[i]
+        if stage == 0:
+            self.x0[i], self.v0[i] = p.x[i], p.v[i]
+            self.dx[i], self.dv[i] = kx, kv
+            p.x[i] = self.x0[i] + 0.5 * dt * kx
+            p.v[i] = self.v0[i] + 0.5 * dt * kv
+        elif stage < 3:
+            self.dx[i] = self.dx[i] + 2.0 * kx
+            self.dv[i] = self.dv[i] + 2.0 * kv
+            advance = 0.5 if stage == 1 else 1.0
+            p.x[i] = self.x0[i] + advance * dt * kx
+            p.v[i] = self.v0[i] + advance * dt * kv
+        else:
+            p.x[i] = self.x0[i] + dt / 6.0 * (self.dx[i] + kx)
+            p.v[i] = self.v0[i] + dt / 6.0 * (self.dv[i] + kv)
             self.sim.finish_particle(i, dt)
 
 
@@ -216,6 +193,7 @@ class ImplicitEuler(Integrator):
 
     stable_h_omega = float("inf")
     auto_h_omega = float("inf")
+    stages = 0  # a step of its own: the CG iterations between the evaluation and the update
 
     def __init__(self, sim):
         super().__init__(sim)
@@ -234,7 +212,11 @@ class ImplicitEuler(Integrator):
         self.kmat = ti.Matrix.field(dim, dim, float, shape=s)  # K_s per spring
         self.sums = CGSums()
 
-    def step(self, dt: float) -> None:
+    @property
+    def evaluations(self) -> int:
+        return 1
+
+    def step(self, dt: float, first_stage: int = 0) -> None:
         self.sim.eval_rates()
         self._assemble(dt)
         result = pcg(self.sums, self._matvec, self._update, self._direction, self.tolerance, self.max_iterations)

@@ -222,6 +222,8 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         self.team = Team(self, threads) if self.loops.team and self.half_pairs else None  # it steps half lists
         self.fuses_steps = self._fusable_scene()
         self.fused_batches = 0  # launches of _fused_steps (or of the team) so far
+        self.stopped_stage = ti.field(ti.i32, shape=())  # where a fused launch stopped inside a step (overflow)
+        self.pending_stage = 0  # the stage the current step goes on from (0: at a step boundary)
         if self.emitters is not None:
             self.emitters.emit_initial()
         self.time = 0.0
@@ -257,7 +259,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
             return
         self.integrator.begin(self.dt)
         while n > 0:
-            if self.reorder is not None and self.fuses_steps and self.reorder.due():
+            if self.reorder is not None and self.fuses_steps and self.reorder.due() and not self.pending_stage:
                 self.reorder.apply()  # between fused batches (the long way sorts at the start of its step)
             batch = self._fused_batch(n)
             done = self._run_fused(batch) if batch else 0
@@ -272,7 +274,13 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         self.integrator.end(self.dt)
 
     def _step_once(self) -> None:
-        """One step of dt, each pass launched from here (any scene, any integrator)."""
+        """One step of dt, each pass launched from here (any scene, any integrator); or the rest of a step whose
+        first stages a fused launch ran (self.pending_stage: only fusable scenes, which have no host work)."""
+        if self.pending_stage:
+            self.integrator.step(self.dt, self.pending_stage)
+            self.pending_stage = 0
+            self._count_steps(1)
+            return
         if self.reorder is not None and self.reorder.due():
             self.reorder.apply()
         if self.heat is not None and self.heat.scheduled:
@@ -331,7 +339,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
 
     def _fused_batch(self, n: int) -> int:
         """How many of the next n steps to run in one _fused_steps launch (0: step the long way)."""
-        if not (self.fuses_steps and self.integrator.single_update):
+        if not (self.fuses_steps and self.integrator.stages):
             return 0
         if self.neighbours is not None and not (self.neighbours.usable or self.neighbours.forced):
             return 0  # lists too wide to allocate: the long way scans the grid
@@ -343,7 +351,8 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         return n
 
     def _run_fused(self, batch: int) -> int:
-        """Run up to `batch` steps in one launch; returns the steps done (fewer when a list build overflowed)."""
+        """Run up to `batch` steps in one launch (the first from self.pending_stage on); returns the steps done: fewer
+        when a list build overflowed, which leaves self.pending_stage at the stage it stopped before."""
         nb = self.neighbours
         forced = 0
         if nb is not None:
@@ -352,14 +361,15 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         ids = self._lists(nb is not None)
         with runtime.without_cfg_pass():  # a whole step in one kernel: see the function
             if self.team is not None:
-                done = self.team.run(batch, forced, self.integrator, ids, self.dt)
+                done = self.team.run(batch, forced, self.pending_stage, self.integrator, ids, self.dt)
             else:
-                done = int(self._fused_steps(batch, forced, self.integrator, ids, self.dt))
+                done = int(self._fused_steps(batch, forced, self.pending_stage, self.integrator, ids, self.dt))
         if done < 0:  # the team's thread pool did not start every worker: nothing ran; step the long way from now on
             nb.forced = bool(forced)
             self.team, self.fuses_steps = None, False
             return 0
         self.fused_batches += 1
+        self.pending_stage = int(self.stopped_stage[None]) if done < batch else 0
         if nb is not None:
             if done < batch:  # the build of step `done` overflowed: widen the lists (the next batch rebuilds them)
                 if nb.grow():
@@ -373,32 +383,41 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
 
     @ti.kernel
     def _fused_steps(
-        self, steps: ti.i32, forced: ti.i32, integrator: ti.template(), ids: LIST_ARRAY, dt: float
+        self, steps: ti.i32, forced: ti.i32, first_stage: ti.i32, integrator: ti.template(), ids: LIST_ARRAY, dt: float
     ) -> ti.i32:
-        """Up to `steps` whole steps of a one-evaluation integrator in a single launch: the per-step passes, the
-        neighbour-list check and rebuild decided here on the device, forces and heat rates, and the update. A
-        launch costs 30-50 us of host time, as much as a whole step of a 1,000-particle scene. Stops before the
-        forces of a step whose list build overflowed (returns the steps done; the host grows the list)."""
+        """Up to `steps` whole steps of a staged integrator in a single launch, the first from `first_stage` on: per
+        stage the per-step passes, the neighbour-list check and rebuild decided here on the device, forces and heat
+        rates, and the update. A launch costs 30-50 us of host time, as much as a whole step of a 1,000-particle
+        scene. Stops before the forces of a stage whose list build overflowed (returns the steps done and leaves
+        the stage in stopped_stage; the host grows the list and goes on from there)."""
         done = 0
         rebuild = forced
-        while done < steps:
-            self._prestep_loops()
-            if ti.static(self.has_neighbours):
-                if rebuild or self.neighbours.stale[None]:
+        stage = first_stage
+        stopped = 0
+        while done < steps and not stopped:
+            while stage < ti.static(integrator.stages) and not stopped:
+                self._prestep_loops()
+                if ti.static(self.has_neighbours):
+                    if rebuild or self.neighbours.stale[None]:
+                        self.grid.rebuild_loops()
+                        self.neighbours.fill_loops(ids)
+                        self.neighbours.fused_builds[None] += 1
+                        if self.neighbours.overflow[None]:
+                            stopped = 1
+                            self.stopped_stage[None] = stage
+                elif ti.static(self.has_grid):
                     self.grid.rebuild_loops()
-                    self.neighbours.fill_loops(ids)
-                    self.neighbours.fused_builds[None] += 1
-                    if self.neighbours.overflow[None]:
-                        break
-            elif ti.static(self.has_grid):
-                self.grid.rebuild_loops()
-            rebuild = 0
-            merged = ti.static(self._updates_in_gather(self.has_neighbours))
-            self._rate_loops(self.has_neighbours, ids, integrator, dt, merged)
-            if ti.static(not merged):
-                for i in range(self.particles.n[None]):
-                    integrator.update_particle(i, dt)
-            done += 1
+                if not stopped:
+                    rebuild = 0
+                    merged = ti.static(self._updates_in_gather(self.has_neighbours))
+                    self._rate_loops(self.has_neighbours, ids, integrator, dt, stage, merged)
+                    if ti.static(not merged):
+                        for i in range(self.particles.n[None]):
+                            integrator.update_particle(i, dt, stage)
+                    stage += 1
+            if not stopped:
+                done += 1
+                stage = 0
         return done
 
     @ti.kernel
@@ -445,10 +464,10 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         for i in range(self.particles.n[None]):
             self.particles.age[i] += dt
 
-    def eval_rates(self, then_update: float | None = None) -> None:
-        """Forces (p.f) and heat rates (p.dTdt) at the current state. `then_update`: a step dt for the integrator's
-        per-particle update (`update_particle`), run in the same kernel launch as the forces (one launch less per
-        step: a launch costs about 30 us on the CPU backend)."""
+    def eval_rates(self, then_update: float | None = None, stage: int = 0) -> None:
+        """Forces (p.f) and heat rates (p.dhdt) at the current state. `then_update`: a step dt for the integrator's
+        per-particle update of `stage` (`update_particle`), run in the same kernel launch as the forces (one launch
+        less per step: a launch costs about 30 us on the CPU backend)."""
         use_list = False
         moved = bool(self._prestep()) if (self.has_neighbours or self.has_springs or self.has_power) else False
         if self.neighbours is not None:
@@ -468,7 +487,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         if then_update is None:
             self._rates(use_list, ids)
         else:
-            self._rates_update(use_list, ids, self.integrator, then_update)
+            self._rates_update(use_list, ids, self.integrator, then_update, stage)
 
     @ti.kernel
     def _prestep(self) -> ti.i32:
@@ -563,16 +582,18 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
 
     @ti.kernel
     def _rates(self, use_list: ti.template(), ids: LIST_ARRAY):
-        self._rate_loops(use_list, ids, None, 0.0, False)
+        self._rate_loops(use_list, ids, None, 0.0, 0, False)
 
     @ti.kernel
-    def _rates_update(self, use_list: ti.template(), ids: LIST_ARRAY, integrator: ti.template(), dt: float):
+    def _rates_update(
+        self, use_list: ti.template(), ids: LIST_ARRAY, integrator: ti.template(), dt: float, stage: ti.i32
+    ):
         merged = ti.static(self._updates_in_gather(use_list))
-        self._rate_loops(use_list, ids, integrator, dt, merged)
+        self._rate_loops(use_list, ids, integrator, dt, stage, merged)
         if ti.static(not merged):
             self.loops.light()
             for i in range(self.particles.n[None]):
-                integrator.update_particle(i, dt)
+                integrator.update_particle(i, dt, stage)
 
     def _updates_in_gather(self, use_list: bool) -> bool:
         """Whether the per-particle pass of _rate_loops may update each particle as soon as its force is summed (one
@@ -584,11 +605,17 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
 
     @ti.func
     def _rate_loops(
-        self, use_list: ti.template(), ids: ti.template(), integrator: ti.template(), dt, update_here: ti.template()
+        self,
+        use_list: ti.template(),
+        ids: ti.template(),
+        integrator: ti.template(),
+        dt,
+        stage,
+        update_here: ti.template(),
     ):
         """The loops of a force and heat-rate evaluation (see eval_rates); each runs in parallel unless self.loops
         serializes it. `update_here` (allowed when _updates_in_gather): the per-particle pass also updates each
-        particle by `dt` with `integrator` once its rates are in."""
+        particle by `dt` with `integrator`'s `stage` once its rates are in."""
         p = self.particles
         if ti.static(use_list and self.half_pairs):
             n = p.n[None]
@@ -609,14 +636,22 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
             i = ks
             if ti.static(self.has_grid):
                 i = self.grid.sorted_ids[ks]  # visit particles cell by cell: neighbours stay in cache
-            self._gather_particle(i, use_list, ids, integrator, dt, update_here)
+            self._gather_particle(i, use_list, ids, integrator, dt, stage, update_here)
 
     @ti.func
     def _gather_particle(
-        self, i, use_list: ti.template(), ids: ti.template(), integrator: ti.template(), dt, update_here: ti.template()
+        self,
+        i,
+        use_list: ti.template(),
+        ids: ti.template(),
+        integrator: ti.template(),
+        dt,
+        stage,
+        update_here: ti.template(),
     ):
         """Particle i's force (p.f) and heat rate (p.dhdt): gravity, drag, its pair terms (summed from the half-list
-        rows, or gathered from its list or the grid), its springs; then, with `update_here`, its update by `dt`."""
+        rows, or gathered from its list or the grid), its springs; then, with `update_here`, its update by `dt`
+        (the integrator's `stage`)."""
         p = self.particles
         xi = p.x[i]
         f = p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
@@ -673,7 +708,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
             q += self.heat.source_flow(i)
             p.dhdt[i] = q / p.mass[i]
         if ti.static(update_here):
-            integrator.update_particle(i, dt)
+            integrator.update_particle(i, dt, stage)
 
     @ti.func
     def finish_particle(self, i, dt):

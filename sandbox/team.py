@@ -7,13 +7,14 @@ most of what the second thread brings, and the step runs many to a launch on one
 each worker runs every step over its share of the particles and waits for the others at a spin barrier between the
 passes that read what another worker wrote.
 
-A step of a scene with half neighbour lists, per worker w of W:
+Each stage of a step (one for symplectic Euler and the Verlet methods: see integrators.py) of a scene with half
+neighbour lists, per worker w of W:
   (springs only) the thermoelastic update and breaking of its share of the springs; barrier;
   (rebuild step only) worker 0 sorts the particles into cells; barrier; each builds the lists of its particles;
   barrier (all stop if some list overflowed);
   the half-list pairs (forces and heat flows) of its chunks of particles, into its chunks' buffer rows; barrier;
   for its share of the particles in cell order: sum the rows (and, with springs, add the spring forces; barrier),
-  update the particle, and flag the next step's rebuild if it has moved half the skin since the build; barrier.
+  update the particle, and flag the next stage's rebuild if it has moved half the skin since the build; barrier.
 The trajectory is that of the parallel long way (same chunks, same rows, same sums in the same order).
 
 A worker that waits at the first barrier for longer than START_SPINS reads of the barrier gives up: the thread pool
@@ -46,11 +47,12 @@ class Team:
         self.moved = ti.field(ti.i32, shape=2)  # rebuild flags, by step parity (set by one step, read by the next)
         self.done = ti.field(ti.i32, shape=())  # steps completed in the last launch
 
-    def run(self, steps: int, forced: int, integrator, ids, dt: float) -> int:
-        """Up to `steps` steps of `integrator` (a one-update one: see Integrator.single_update) in one launch over
-        the neighbour lists `ids`, built first if `forced`; returns the steps done: fewer when a list build
-        overflowed (the caller widens the lists), -1 when the team could not start (nothing changed)."""
-        return int(self._steps(steps, forced, integrator, ids, dt))
+    def run(self, steps: int, forced: int, first_stage: int, integrator, ids, dt: float) -> int:
+        """Up to `steps` steps of `integrator` (a staged one: see Integrator.stages), the first from `first_stage`
+        on, in one launch over the neighbour lists `ids`, built first if `forced`; returns the steps done: fewer
+        when a list build overflowed (the caller widens the lists; sim.stopped_stage says which stage stopped), -1
+        when the team could not start (nothing changed)."""
+        return int(self._steps(steps, forced, first_stage, integrator, ids, dt))
 
     @ti.func
     def barrier(self, gen, patient: ti.template()):
@@ -74,11 +76,13 @@ class Team:
         return gen + 1
 
     @ti.kernel
-    def _steps(self, steps: ti.i32, forced: ti.i32, integrator: ti.template(), ids: LIST_ARRAY, dt: float) -> ti.i32:
+    def _steps(
+        self, steps: ti.i32, forced: ti.i32, first_stage: ti.i32, integrator: ti.template(), ids: LIST_ARRAY, dt: float
+    ) -> ti.i32:
         for u in range(self.workers * SPREAD_STRIDE):  # one item per thread (see spread_item)
             w = spread_item(u)
             if w >= 0:
-                self._work(w, steps, forced, integrator, ids, dt)
+                self._work(w, steps, forced, first_stage, integrator, ids, dt)
         done = self.done[None]
         if self.gave_up[None]:  # set the barrier up for a later launch (after all workers have left it)
             done = -1
@@ -88,7 +92,7 @@ class Team:
         return done
 
     @ti.func
-    def _work(self, w, steps, forced, integrator: ti.template(), ids: ti.template(), dt):
+    def _work(self, w, steps, forced, first_stage, integrator: ti.template(), ids: ti.template(), dt):
         sim = self.sim
         p, nb, grid = sim.particles, sim.neighbours, sim.grid
         n = p.n[None]
@@ -111,47 +115,59 @@ class Team:
                 self.moved[0] = 1
             gen = self.barrier(gen, True)
             done = 0
-            while done < steps and self.gave_up[None] == 0:
-                parity = done % 2
-                if ti.static(sim.has_springs):
-                    span = sim.springs.span[None]
-                    for s in range(w * span // self.workers, (w + 1) * span // self.workers):
-                        sim.springs.update_one(s)  # the pair pass reads which springs live
-                    gen = self.barrier(gen, True)
-                if self.moved[parity]:
-                    if w == 0:
-                        grid.rebuild_loops()  # serial here: nested in the workers' loop
-                        nb.begin_fill()
-                        nb.fused_builds[None] += 1
-                    gen = self.barrier(gen, True)
-                    for i in range(lo, hi):
-                        nb.fill_one(i, ids)
-                    gen = self.barrier(gen, True)
-                    if nb.overflow[None]:
-                        break
-                for t in range(w * self.chunks_per_worker, (w + 1) * self.chunks_per_worker):
-                    sim.half_rows_of_chunk(t, n, ids)
-                if w == 0:
-                    self.moved[1 - parity] = 0  # every worker has read moved[parity]; next step's flag
-                gen = self.barrier(gen, True)
-                merged = ti.static(sim._updates_in_gather(True))  # not with springs: a force reads the other end
-                if ti.static(not merged):  # every force before any particle moves
-                    for ks in range(lo, hi):
-                        sim._gather_particle(grid.sorted_ids[ks], True, ids, integrator, dt, False)
-                    gen = self.barrier(gen, True)
-                moved = 0
-                for ks in range(lo, hi):
-                    i = grid.sorted_ids[ks]
-                    if ti.static(merged):
-                        sim._gather_particle(i, True, ids, integrator, dt, True)
-                    else:
-                        integrator.update_particle(i, dt)
-                    if nb.moved_far(i):
-                        moved = 1
-                if moved:
-                    self.moved[1 - parity] = 1
-                gen = self.barrier(gen, True)
-                done += 1
+            stage = first_stage
+            evaluation = 0  # evaluations in this launch: the rebuild flags alternate by its parity
+            stopped = 0
+            while done < steps and self.gave_up[None] == 0 and not stopped:
+                while stage < ti.static(integrator.stages) and not stopped:
+                    parity = evaluation % 2
+                    if ti.static(sim.has_springs):
+                        span = sim.springs.span[None]
+                        for s in range(w * span // self.workers, (w + 1) * span // self.workers):
+                            sim.springs.update_one(s)  # the pair pass reads which springs live
+                        gen = self.barrier(gen, True)
+                    if self.moved[parity]:
+                        if w == 0:
+                            grid.rebuild_loops()  # serial here: nested in the workers' loop
+                            nb.begin_fill()
+                            nb.fused_builds[None] += 1
+                        gen = self.barrier(gen, True)
+                        for i in range(lo, hi):
+                            nb.fill_one(i, ids)
+                        gen = self.barrier(gen, True)
+                        if nb.overflow[None]:
+                            stopped = 1
+                            if w == 0:
+                                sim.stopped_stage[None] = stage
+                    if not stopped:
+                        for t in range(w * self.chunks_per_worker, (w + 1) * self.chunks_per_worker):
+                            sim.half_rows_of_chunk(t, n, ids)
+                        if w == 0:
+                            self.moved[1 - parity] = 0  # every worker has read moved[parity]; next evaluation's flag
+                        gen = self.barrier(gen, True)
+                        # not with springs: a spring force reads the other end
+                        merged = ti.static(sim._updates_in_gather(True))
+                        if ti.static(not merged):  # every force before any particle moves
+                            for ks in range(lo, hi):
+                                sim._gather_particle(grid.sorted_ids[ks], True, ids, integrator, dt, stage, False)
+                            gen = self.barrier(gen, True)
+                        moved = 0
+                        for ks in range(lo, hi):
+                            i = grid.sorted_ids[ks]
+                            if ti.static(merged):
+                                sim._gather_particle(i, True, ids, integrator, dt, stage, True)
+                            else:
+                                integrator.update_particle(i, dt, stage)
+                            if nb.moved_far(i):
+                                moved = 1
+                        if moved:
+                            self.moved[1 - parity] = 1
+                        gen = self.barrier(gen, True)
+                        stage += 1
+                        evaluation += 1
+                if not stopped:
+                    done += 1
+                    stage = 0
             if w == 0:
                 self.done[None] = done
                 self.generation[None] = 0  # all have passed the last barrier: a waiter reads 0 != its number

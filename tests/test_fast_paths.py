@@ -267,10 +267,10 @@ def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
     assert not big.loops.serial_pairs and not big.fuses_steps and big.team is None  # each pass on both threads
     big.step(2)
     assert big.fused_batches == 0 and big.step_count == 2
-    rk4 = lj_box()
-    rk4.set_integrator("rk4")  # four force evaluations a step: not one update
-    rk4.step(3)
-    assert rk4.fused_batches == 0 and rk4.step_count == 3
+    implicit = lj_box()
+    implicit.set_integrator("implicit_euler")  # conjugate-gradient iterations between evaluation and update
+    implicit.step(3)
+    assert implicit.fused_batches == 0 and implicit.step_count == 3
 
 
 @pytest.mark.skipif(
@@ -369,7 +369,7 @@ def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_w
     long_way.fuses_steps = False
     sim.team = Team(sim, 2 * sim.team.workers)
     before = _state(sim)
-    assert sim.team.run(5, 1, sim.integrator, sim.neighbours.ids, sim.dt) == -1
+    assert sim.team.run(5, 1, 0, sim.integrator, sim.neighbours.ids, sim.dt) == -1
     assert_same_states(before, _state(sim))
     sim.step(30)
     long_way.step(30)
@@ -475,12 +475,29 @@ def test_widening_the_lists_recompiles_nothing_and_keeps_the_trajectory(make, mo
         ),
         (lambda: team_box(), "velocity_verlet"),
         (lambda: lj_box(), "verlet"),
+        (lambda: lj_box(), "midpoint"),
+        (lambda: team_box(), "midpoint"),
+        (
+            lambda: Simulation(load_scene(SCENES / "melting_block.toml", [*SMALL_BLOCK, "world.precision=f64"])),
+            "rk4",
+        ),
+        (lambda: team_box(), "rk4"),
     ],
-    ids=["lj_box", "melting_block_900", "team", "lj_box_position_verlet"],
+    ids=[
+        "lj_box",
+        "melting_block_900",
+        "team",
+        "lj_box_position_verlet",
+        "lj_box_midpoint",
+        "team_midpoint",
+        "melting_block_900_rk4",
+        "team_rk4",
+    ],
 )
-def test_verlet_methods_fused_or_teamed_step_as_the_long_way_does(make, integrator):
-    """The Verlet methods as leapfrog update each particle once per step, so they run many steps to a launch (and
-    as a team) like symplectic Euler: over 1,000 steps in calls of several sizes, bit for bit the long way's states."""
+def test_staged_integrators_fused_or_teamed_step_as_the_long_way_does(make, integrator):
+    """The Verlet methods as leapfrog update each particle once per step, midpoint and RK4 once per stage, so they
+    run many steps to a launch (and as a team) like symplectic Euler: over 1,000 steps in calls of several sizes,
+    bit for bit the long way's states."""
     fast, long_way = make(), make()
     long_way.fuses_steps = False
     for sim in (fast, long_way):
@@ -490,3 +507,35 @@ def test_verlet_methods_fused_or_teamed_step_as_the_long_way_does(make, integrat
     assert fast.fused_batches >= 4 and long_way.fused_batches == 0
     assert_same_states(_state(long_way), _state(fast))
     assert (fast.time, fast.step_count) == (long_way.time, long_way.step_count) == (long_way.time, 1000)
+
+
+@pytest.mark.parametrize("make", [lambda: lj_box(), lambda: team_box()], ids=["one_thread", "team"])
+def test_a_list_that_overflows_between_the_stages_of_a_step_is_widened_and_the_step_goes_on(make, monkeypatch):
+    """RK4 with lists exactly as wide as the widest count: a later rebuild overflows, mostly at a stage after the
+    first (its positions are the trial ones). The launch stops before that stage's forces, the host widens the lists
+    and the next launch goes on from that stage: bit for bit the long way, which widens them inside the stage."""
+    fast, long_way = make(), make()
+    long_way.fuses_steps = False
+    stopped_at = []
+    run_fused = fast._run_fused
+
+    def run_and_note(batch):
+        done = run_fused(batch)
+        stopped_at.append(fast.pending_stage)
+        return done
+
+    monkeypatch.setattr(fast, "_run_fused", run_and_note)
+    for sim in (fast, long_way):
+        sim.set_integrator("rk4")
+        sim.step(1)
+        nb, n = sim.neighbours, int(sim.particles.n[None])
+        nb.invalidate()
+        nb.ensure_fresh()  # a build at the current positions
+        nb._allocate(int(nb.count.to_numpy()[:n].max()))  # no room for one more neighbour
+        nb._sort_and_fill(nb.ids)  # the same build again, into the narrow lists
+        assert int(nb.overflow[None]) == 0
+        sim.step(300)
+    assert fast.neighbours.grown == long_way.neighbours.grown == 1
+    assert any(stage > 0 for stage in stopped_at), stopped_at  # the overflow came between stages
+    assert fast.pending_stage == 0 and fast.step_count == long_way.step_count == 301
+    assert_same_states(_state(long_way), _state(fast))
