@@ -65,6 +65,7 @@ def test_stefan_front_follows_the_neumann_solution_and_converges():
     coarse = stefan_run(1.0, t_end=60.0)
     runtime.reset()
     fine = stefan_run(0.5, t_end=60.0)
+    assert len(coarse.times) == 1200 and len(fine.times) == 4800  # every step (dt = 0.05 h^2): every crossing
     assert coarse.front[-1] > 9.0  # the front ran nine coarse spacings
     assert coarse.error < 0.015, coarse.error
     assert fine.error < 0.6 * coarse.error, (fine.error, coarse.error)
