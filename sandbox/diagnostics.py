@@ -28,6 +28,7 @@ STAT_COLUMNS = (
     "potential_energy_per_particle",
     "total_energy_per_particle",
     "pressure",
+    "wall_pressure",
     "mean_temperature",
     "molten_fraction",
     "heat_content",
@@ -69,6 +70,9 @@ class Stats:
     max_speed: float
     particles: int
     pressure: float = float("nan")  # virial pressure (sum m v^2 + sum r_ij . F_ij) / (dim V), V the box's volume
+    # momentum the walls took per unit time and wall area since the gauge restarted (each frame); nan without walls
+    # or before any time has passed
+    wall_pressure: float = float("nan")
 
     @property
     def potential_energy(self) -> float:
@@ -105,6 +109,20 @@ class Measurements:
         self._count = ti.field(ti.i32, shape=len(COUNTS))  # counts for stats(), indexed by COUNTS
         lo, hi = self.scene.world.lo, self.scene.world.hi
         self._box_volume = float(np.prod(np.subtract(hi, lo)))  # the pressure's V (area in 2D)
+        self._gauge_since = 0.0  # the time the wall gauge restarted
+
+    def restart_wall_gauge(self) -> None:
+        """Zero the walls' momentum gauge: stats().wall_pressure averages from now (advance_frame restarts it)."""
+        self.domain.impulse[None] = 0.0
+        self._gauge_since = self.time
+
+    def _wall_pressure(self) -> float:
+        """The walls' gauge: momentum into them per unit time and wall area since it restarted (nan without walls
+        or elapsed time)."""
+        elapsed = self.time - self._gauge_since
+        if not self.domain.wall_area or elapsed <= 0.0:
+            return float("nan")
+        return float(self.domain.impulse[None]) / (elapsed * self.domain.wall_area)
 
     @ti.kernel
     def _measure(self, pair_energy: ti.template()):
@@ -216,6 +234,7 @@ class Measurements:
             max_speed=acc["vmax"],
             particles=n,
             pressure=(2.0 * acc["ke"] + acc["pair_virial"] + acc["spring_virial"]) / (self.dim * self._box_volume),
+            wall_pressure=self._wall_pressure(),
         )
 
     def _raise_blowup(self, kind: str, what: str) -> None:

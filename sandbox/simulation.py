@@ -454,7 +454,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
             if self.g_coupling[p.group[i]] == KINEMATIC:
                 x = self.x_start[i] + dt * self.v_field[i]
                 if ti.static(final):
-                    p.x[i], p.v[i] = self.domain.enforce(x, self.v_field[i], p.radius[i])
+                    p.x[i], p.v[i] = self.domain.enforce(x, self.v_field[i], p.radius[i], 0.0)
                 else:
                     p.x[i] = x
 
@@ -714,7 +714,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
     def finish_particle(self, i, dt):
         """Walls (or periodic wrap) and the explicit heat update for particle i, at the end of a step."""
         p = self.particles
-        p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i])
+        p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i], p.mass[i])
         if ti.static(self.has_kinematic):
             if self.g_coupling[p.group[i]] == KINEMATIC:  # the integrator does not move them: _advect_kinematic does
                 p.x[i], p.v[i] = self.x_start[i], self.v_start[i]
@@ -758,9 +758,10 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
     def advance_frame(self, substeps: int | None = None, midway: Callable[[], None] | None = None) -> int:
         """Advance one frame (the scene's substeps, or `substeps` steps of dt); returns the steps taken. `midway` is
         called after half of them, rounded down (the renderer's mid_frame: the bend of curved motion-blur streaks);
-        not for a single step, which has no middle."""
+        not for a single step, which has no middle. The wall gauge (stats().wall_pressure) restarts with the frame."""
         if substeps is None:
             substeps, self.dt = self.frame_substeps()
+        self.restart_wall_gauge()  # stats().wall_pressure: this frame's average
         if midway is None or substeps < 2:
             self.step(substeps)
         else:

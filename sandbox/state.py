@@ -52,6 +52,7 @@ class StateAccess:
             self.heat.set_time(self.time)
         if self.neighbours is not None:
             self.neighbours.invalidate()
+        self.restart_wall_gauge()
 
     def mark_initial(self) -> None:
         """Make the current state the one reset() returns to."""

@@ -76,7 +76,7 @@ def test_without_the_cutoff_shift_the_pair_energy_drops_by_u_at_the_cutoff_per_p
 def test_an_ideal_gas_pushes_its_walls_with_the_virial_pressure():
     """No pair forces and elastic walls: the momentum the particles give the walls per unit time and length is the
     pressure. The centres reach only L - 2 r of each side L, so the walls feel L / (L - 2 r) times the virial
-    pressure, which uses the box's volume."""
+    pressure, which uses the box's volume. The walls' gauge (stats().wall_pressure) reads it too."""
     side = 24.0
     data = {
         "world": {"dim": 2, "lo": [0, 0], "hi": [side, side], "dt": 0.05, "restitution": 1.0, "friction": 0.0},
@@ -111,3 +111,36 @@ def test_an_ideal_gas_pushes_its_walls_with_the_virial_pressure():
     wall_pressure = impulse / (2 * duration * side)  # per wall: half the impulse on each of its axis's two walls
     measured = wall_pressure.mean() * (side - 2 * radius) / side
     assert measured == pytest.approx(pressure, rel=0.05)
+    gauge = sim.stats().wall_pressure  # the walls' own count over the whole run (no frame restarted it)
+    assert gauge == pytest.approx(wall_pressure.mean(), rel=0.01)
+    assert gauge * (side - 2 * radius) / side == pytest.approx(pressure, rel=0.05)
+
+
+def test_the_wall_gauge_counts_each_bounce_as_its_momentum_over_time_and_wall_area():
+    """One particle at speed 3 across a 20 x 10 box with elastic walls: the walls take 2 m u per bounce, and the gauge
+    reads that over the elapsed time and the walls' length (60); a frame restarts it; a periodic box has no walls."""
+    data = {
+        "world": {"dim": 2, "lo": [0, 0], "hi": [20, 10], "dt": 0.01, "restitution": 1.0, "precision": "f64"},
+        "bodies": [
+            {
+                "material": "lj",
+                "shape": "box",
+                "lo": [9.5, 4.5],
+                "hi": [10.5, 5.5],
+                "springs": False,
+                "velocity": [3, 0],
+            },
+        ],
+    }
+    sim = Simulation(make_scene(data))
+    assert sim.built.count == 1 and sim.domain.wall_area == 60.0
+    assert np.isnan(sim.stats().wall_pressure)  # no time has passed
+    m = float(sim.particles.mass.to_numpy()[0])
+    sim.step(1800)  # from x = 10: bounces at x = 19.5 (t = 3.17), 0.5 (t = 9.5) and 19.5 (t = 15.83); at 13 by t = 18
+    bounces = 3
+    assert sim.positions()[0, 0] == pytest.approx(13.0, abs=0.1)  # a hit clamps to the wall within a step
+    assert sim.velocities()[0, 0] == pytest.approx(-3.0)
+    assert sim.stats().wall_pressure == pytest.approx(bounces * 2 * m * 3.0 / (sim.time * 60.0), rel=1e-9)
+    sim.advance_frame(substeps=100)  # 1 time unit, no bounce (the particle crosses the middle)
+    assert sim.stats().wall_pressure == 0.0
+    assert np.isnan(lj_fluid().stats().wall_pressure) and lj_fluid().domain.wall_area == 0.0

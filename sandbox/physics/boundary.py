@@ -20,6 +20,22 @@ class Domain:
         self.friction = ti.field(float, shape=())  # Coulomb coefficient: tangential impulse <= mu * normal impulse
         self.restitution[None] = restitution
         self.friction[None] = friction
+        # momentum the walls have taken (sum of m (1 + e) |v_n| over hits) since the gauge was last zeroed
+        self.impulse = ti.field(float, shape=())
+        self.wall_area = self._wall_area(lo, hi) if not periodic else 0.0
+
+    @staticmethod
+    def _wall_area(lo, hi) -> float:
+        """Total area of the box's walls (their length in 2D)."""
+        sides = [h - l for l, h in zip(lo, hi)]
+        total = 0.0
+        for a in range(len(sides)):
+            face = 1.0
+            for b, side in enumerate(sides):
+                if b != a:
+                    face *= side
+            total += 2.0 * face
+        return total
 
     @ti.func
     def separation(self, xi, xj):
@@ -36,8 +52,9 @@ class Domain:
         return d
 
     @ti.func
-    def enforce(self, x, v, radius):
-        """Position and velocity after the walls (or the periodic wrap) act on a particle of the given radius."""
+    def enforce(self, x, v, radius, mass):
+        """Position and velocity after the walls (or the periodic wrap) act on a particle of the given radius; a hit
+        adds its momentum, mass times the normal velocity change, to the walls' gauge (mass 0: not counted)."""
         if ti.static(self.periodic):
             x -= self.box * ti.floor((x - self.lo) / self.box)
         else:
@@ -56,6 +73,8 @@ class Domain:
                 if sign != 0.0 and vn < 0.0:
                     impulse = -(1.0 + e) * vn
                     v[a] = -e * v[a]
+                    if mass > 0.0:
+                        self.impulse[None] += mass * impulse
                     vt2 = 0.0
                     for b in ti.static(range(self.dim)):
                         if b != a:

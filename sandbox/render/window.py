@@ -507,7 +507,8 @@ def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
             sim.heat.ambient[None] = gui.slider_float("ambient C", float(sim.heat.ambient[None]), -50.0, 300.0)
         gui.text(f"energy: kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
         per_particle = reading(stats.total_energy_per_particle, digits=3)
-        gui.text(f"pressure {reading(stats.pressure, digits=3)}   energy per particle {per_particle}")
+        walls = f"   on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
+        gui.text(f"pressure {reading(stats.pressure, digits=3)}{walls}   energy per particle {per_particle}")
         gui.text(f"integrator {state.integrator}   substeps {state.substeps}")
         if state.tools_available:
             gui.text(f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")
