@@ -130,7 +130,7 @@ def test_list_and_keys_describe_everything(capsys):
 def test_every_shipped_scene_has_a_lesson_that_list_and_the_window_show(capsys):
     """What happens, what to try and the physics, in each shipped scene's file: `sandbox list` prints all three, and
     the window's panel shows them wrapped to its width, every word kept."""
-    from sandbox.render.window import LESSON_WIDTH, lesson_text
+    from sandbox.render.window_state import LESSON_WIDTH, lesson_text
 
     for name in SHIPPED:
         lesson = load_scene(SCENES / f"{name}.toml").lesson

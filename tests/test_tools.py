@@ -99,7 +99,7 @@ def test_reset_restores_the_initial_state_exactly(melt):
 
 def test_empty_sandbox_spawns_palette_materials_and_cold_wax_freezes_into_one_solid():
     from sandbox.cli import _scene_path
-    from sandbox.render.window import make_state
+    from sandbox.render.window_state import make_state
 
     path = _scene_path("sandbox")  # a shipped scene, not the package folder of the same name
     assert path == SCENES / "sandbox.toml"

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sandbox.render.video import read_png
-from sandbox.render.window import WindowState, tools_for
+from sandbox.render.window_state import WindowState, tools_for
 from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
 
@@ -114,7 +114,7 @@ def test_window_records_what_it_shows_to_mp4(tmp_path):
 
 
 def test_thermometers_read_each_body():
-    from sandbox.render.window import thermometers
+    from sandbox.render.window_panel import thermometers
 
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"]))
     assert thermometers(sim) == [("block", pytest.approx(20.0))]
@@ -126,7 +126,7 @@ def test_thermometers_read_each_body():
 
 
 def test_view_toggles_cycle_the_colour_maps_the_scene_can_use():
-    from sandbox.render.window import make_state, view_config
+    from sandbox.render.window_state import make_state, view_config
 
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"]))
     s = make_state(sim, None)
@@ -140,7 +140,7 @@ def test_view_toggles_cycle_the_colour_maps_the_scene_can_use():
 
 
 def test_the_empty_sandbox_starts_with_the_spawn_tool_and_reads_no_nan():
-    from sandbox.render.window import make_state, reading
+    from sandbox.render.window_state import make_state, reading
 
     empty = make_state(Simulation(load_scene(SCENES / "sandbox.toml")), None)
     assert empty.tool == "spawn"  # the heat tool did nothing in an empty box
@@ -150,7 +150,7 @@ def test_the_empty_sandbox_starts_with_the_spawn_tool_and_reads_no_nan():
 
 
 def test_orbit_camera_round_trips_and_keeps_its_target():
-    from sandbox.render.window import OrbitCamera
+    from sandbox.render.window_parts import OrbitCamera
 
     eye, target = np.array([24.0, 22.0, 56.0]), np.array([24.0, 4.0, 24.0])
     cam = OrbitCamera(eye, target)
@@ -186,7 +186,7 @@ def test_3d_brush_acts_at_the_particle_under_the_cursor():
 
 
 def test_the_selected_tool_is_marked_and_every_button_names_its_key():
-    from sandbox.render.window import tool_label
+    from sandbox.render.window_state import tool_label
 
     assert tool_label("heat", "heat") == "> 1 heat <"
     assert tool_label("spawn", "heat") == "  8 spawn  "

@@ -10,46 +10,21 @@ Everything the keys do goes through WindowState.handle_key, which needs no scree
 
 from __future__ import annotations
 
-import functools
-import math
 import os
-import textwrap
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 import taichi as ti
 
 from .. import runtime
 from ..errors import SandboxError
-from ..integrators import REGISTRY
-from ..tools import TOOLS, Tools
+from ..tools import Tools
 from .raster import Renderer
+from .window_panel import draw_panel
+from .window_parts import FRAME_PARTS, FrameClock, OrbitCamera, Recorder
+from .window_state import make_state, view_config
 
-TOOL_KEYS = {str(k + 1): name for k, name in enumerate(TOOLS)}
-HELP = [
-    "space  pause / resume",
-    "s      single step (paused)",
-    "r      reset to the start",
-    "1-8    tool: " + ", ".join(f"{k} {v}" for k, v in TOOL_KEYS.items()),
-    "[ ]    brush radius",
-    "+ -    substeps per frame",
-    "g      gravity on / off",
-    "i      next integrator",
-    "p      screenshot",
-    "m      next material for the spawn tool",
-    "v      start / stop recording an MP4 (out/SCENE_N.mp4)",
-    "e      live energy plot on / off",
-    "f      pair-force panel on / off (with attraction and repulsion sliders)",
-    "c      next colour map (temperature, phase, speed, material)",
-    "b      motion blur on / off",
-    "k      springs drawn on / off (2D)",
-    "l      the scene's lesson on / off",
-    "h, F1  this help",
-    "q, Esc quit",
-    "left mouse: apply the tool at the cursor (2D)",
-    "3D: left drag orbit, right drag zoom, middle drag pan",
-]
+__all__ = ["FRAME_PARTS", "WindowUnavailable", "run_window", "window_unavailable_reason"]
 
 
 class WindowUnavailable(SandboxError):
@@ -61,139 +36,6 @@ def window_unavailable_reason() -> str | None:
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         return "no display"
     return None
-
-
-@dataclass
-class WindowState:
-    """What the window's keys control; handle_key is the single place keys change it."""
-
-    tools_available: list[str]
-    integrators: list[str]
-    integrator: str
-    substeps: int
-    tool: str = ""
-    radius: float = 3.0
-    paused: bool = False
-    single_step: bool = False
-    reset: bool = False
-    quit: bool = False
-    show_help: bool = False
-    gravity_on: bool = True
-    screenshot: bool = False
-    materials: list[str] = field(default_factory=list)  # what the spawn tool can make
-    material: str = ""
-    recording: bool = False  # v: writing the window's frames to an MP4
-    energy_plot: bool = False  # e: a live plot of kinetic, potential and total energy
-    gravity_angle: float = 0.0  # degrees from straight down (2D), set by the panel's slider
-    potential: bool = False  # f: show the pair-force law against distance, with attraction/repulsion sliders
-    attraction: float = 1.0  # scale of every pair's alpha (the panel's slider)
-    repulsion: float = 1.0  # scale of every pair's beta
-    dt_scale: float = 1.0  # the time step as a multiple of the scene's (the panel's slider)
-    stable_dt: float = float("inf")  # the springs' stable step, refreshed every STABLE_DT_EVERY frames
-    color_modes: list[str] = field(default_factory=list)  # c cycles the colour map through these
-    color_by: str = ""
-    motion_blur: bool = False  # b
-    draw_springs: bool = False  # k
-    show_lesson: bool = True  # l: the scene's lesson at the top of the panel
-    log: list[str] = field(default_factory=list)
-
-    def __post_init__(self):
-        if not self.tool and self.tools_available:
-            self.tool = self.tools_available[0]
-        if not self.material and self.materials:
-            self.material = self.materials[0]
-
-    def handle_key(self, key: str) -> None:
-        """Apply one key press (GGUI key names: single characters, 'Escape', ' ', 'F1')."""
-        if key in ("q", "Escape"):
-            self.quit = True
-        elif key == " ":
-            self.paused = not self.paused
-        elif key == "s":
-            self.single_step = True
-        elif key == "r":
-            self.reset = True
-        elif key in TOOL_KEYS:
-            if TOOL_KEYS[key] in self.tools_available:
-                self.tool = TOOL_KEYS[key]
-            else:
-                self.log.append(f"{TOOL_KEYS[key]} is not available in this scene")
-        elif key == "[":
-            self.radius = max(0.5, self.radius / 1.25)
-        elif key == "]":
-            self.radius = min(100.0, self.radius * 1.25)
-        elif key in ("+", "="):
-            self.substeps = min(1000, self.substeps + 1)
-        elif key == "-":
-            self.substeps = max(1, self.substeps - 1)
-        elif key == "g":
-            self.gravity_on = not self.gravity_on
-        elif key == "i":
-            k = self.integrators.index(self.integrator)
-            self.integrator = self.integrators[(k + 1) % len(self.integrators)]
-        elif key in ("h", "F1"):
-            self.show_help = not self.show_help
-        elif key == "p":
-            self.screenshot = True
-        elif key == "v":
-            self.recording = not self.recording
-        elif key == "e":
-            self.energy_plot = not self.energy_plot
-        elif key == "f":
-            self.potential = not self.potential
-        elif key == "c" and self.color_modes:
-            self.color_by = self.color_modes[(self.color_modes.index(self.color_by) + 1) % len(self.color_modes)]
-        elif key == "b":
-            self.motion_blur = not self.motion_blur
-        elif key == "k":
-            self.draw_springs = not self.draw_springs
-        elif key == "l":
-            self.show_lesson = not self.show_lesson
-        elif key == "m" and self.materials:
-            self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
-
-
-def tools_for(sim) -> list[str]:
-    """The tools that make sense in this scene: no heat tools without heat (in 3D they act with shift held, at the
-    depth of the particle under the cursor)."""
-    return [t for t in TOOLS if sim.heat is not None or t not in ("heat", "cool")]
-
-
-def make_state(sim, substeps: int | None) -> WindowState:
-    world = sim.scene.world
-    fixed = substeps or (world.substeps if world.substeps != "auto" else 8)
-    cfg = sim.scene.render
-    modes = ["temperature", "phase"] if sim.heat is not None else []
-    modes += ["speed", "material"]
-    tools = tools_for(sim)
-    empty = sim.built.count == 0 and not sim.scene.emitters  # nothing to heat or push: start by spawning
-    return WindowState(
-        tools,
-        list(REGISTRY),
-        sim.integrator.name,
-        int(fixed),
-        materials=sim.material_names,
-        color_modes=modes,
-        color_by=cfg.color_by if cfg.color_by in modes else modes[0],
-        motion_blur=cfg.motion_blur,
-        draw_springs=cfg.draw_springs,
-        tool="spawn" if empty and "spawn" in tools else "",
-    )
-
-
-def reading(value: float, unit: str = "", digits: int = 1) -> str:
-    """A readout: the value with its unit, or "-" where there is nothing to measure (the mean temperature of no
-    particles). ASCII: the window's font has no en dash."""
-    return f"{value:.{digits}f}{' ' + unit if unit else ''}" if math.isfinite(value) else "-"
-
-
-def view_config(cfg, state: WindowState):
-    """The scene's [render] table with the window's view toggles applied (colour map, motion blur, springs)."""
-    import dataclasses
-
-    return dataclasses.replace(
-        cfg, color_by=state.color_by, motion_blur=state.motion_blur, draw_springs=state.draw_springs
-    )
 
 
 def window_output(canvas) -> str:
@@ -247,7 +89,7 @@ def run_window(
     if sim.reorder is not None:  # sort the storage now: the sort's kernel loads before the first frame, not as a
         sim.reorder.apply()  # pause of a tenth of a second or more at its first use mid-interaction
     shown, fps, last = 0, 0.0, time.perf_counter()
-    clock = _FrameClock(timings)
+    clock = FrameClock(timings)
     while window.running:
         clock.start()
         if show:  # a hidden window (show_window=False, for tests) has no events or cursor
@@ -339,7 +181,7 @@ def run_window(
         now = time.perf_counter()
         fps = 0.9 * fps + 0.1 / max(now - last, 1e-6)
         last = now
-        _panel(gui, sim, state, stats, fps)
+        draw_panel(gui, sim, state, stats, fps)
         shown += 1
         done = frames is not None and shown >= frames
         if state.screenshot or (done and screenshot):
@@ -358,184 +200,5 @@ def run_window(
     return shown
 
 
-FRAME_PARTS = ("events", "simulation", "readouts", "drawing", "display")  # the window loop's parts, in order
-
-
-class _FrameClock:
-    """Seconds per part of each window frame, for `run_window(timings=...)`; does nothing without a dict."""
-
-    def __init__(self, timings: dict[str, list[float]] | None):
-        self.timings = timings
-        if timings is not None:
-            for part in (*FRAME_PARTS, "frame"):
-                timings.setdefault(part, [])
-
-    def start(self) -> None:
-        if self.timings is not None:
-            ti.sync()
-            self.t0 = self.last = time.perf_counter()
-
-    def lap(self, part: str) -> None:
-        """The time since the last lap (or the start) was spent on `part`."""
-        if self.timings is not None:
-            ti.sync()
-            now = time.perf_counter()
-            self.timings[part].append(now - self.last)
-            self.last = now
-
-    def stop(self) -> None:
-        if self.timings is not None:
-            self.timings["frame"].append(self.last - self.t0)
-
-
 ENERGY_SERIES = ("kinetic_energy", "potential_energy", "total_energy")
 STABLE_DT_EVERY = 30  # frames between refreshes of the panel's stable-step readout
-
-
-class OrbitCamera:
-    """3D camera for the mouse: orbit about a target (yaw, pitch), zoom (distance) and pan (moves the target).
-    Cursor movements are fractions of the window (GGUI's cursor coordinates)."""
-
-    def __init__(self, eye, target):
-        self.target = np.asarray(target, dtype=float)
-        d = np.asarray(eye, dtype=float) - self.target
-        self.distance = float(np.linalg.norm(d))
-        self.yaw = float(np.arctan2(d[0], d[2]))
-        self.pitch = float(np.arcsin(np.clip(d[1] / self.distance, -1.0, 1.0)))
-
-    def eye(self) -> np.ndarray:
-        c = np.cos(self.pitch)
-        return self.target + self.distance * np.array([c * np.sin(self.yaw), np.sin(self.pitch), c * np.cos(self.yaw)])
-
-    def orbit(self, du: float, dv: float) -> None:
-        """A drag across the whole window turns the view half a turn (and tilts it a quarter, within the poles)."""
-        self.yaw -= np.pi * du
-        self.pitch = float(np.clip(self.pitch - 0.5 * np.pi * dv, -1.45, 1.45))
-
-    def zoom(self, dv: float) -> None:
-        """Dragging up by the window's height moves 7.4x closer (exponential, so it never reaches the target)."""
-        self.distance *= float(np.exp(-2.0 * dv))
-
-    def pan(self, du: float, dv: float) -> None:
-        """Move the target across the view, by the distance per window width."""
-        fwd = self.target - self.eye()
-        fwd /= np.linalg.norm(fwd)
-        right = np.cross(fwd, [0.0, 1.0, 0.0])
-        right /= max(np.linalg.norm(right), 1e-9)
-        up = np.cross(right, fwd)
-        self.target = self.target - self.distance * (du * right + dv * up)
-
-
-class Recorder:
-    """Starts, feeds and stops MP4 recordings of the window's pictures through the headless video writer."""
-
-    def __init__(self, scene_name: str, width: int, height: int, fps: float, first_path: str | None = None):
-        self.scene_name, self.size, self.fps = scene_name, (width, height), fps
-        self.next_path = first_path
-        self.writer = None
-        self.count = 0
-
-    def update(self, recording: bool, renderer) -> str:
-        """Called once per frame after rendering; returns a message when a recording starts or stops."""
-        from .video import open_writer
-
-        message = ""
-        if recording and self.writer is None:
-            self.count += 1
-            path = self.next_path or f"out/{self.scene_name}_{self.count}.mp4"
-            self.next_path = None
-            self.writer = open_writer(path, *self.size, self.fps)
-            self.path = path
-            message = f"recording {path}"
-        if self.writer is not None and recording:
-            self.writer.write(renderer.picture())
-        if self.writer is not None and not recording:
-            self.writer.close()
-            message = f"saved {self.path} ({self.writer.frames_written} frames)"
-            self.writer = None
-        return message
-
-
-def thermometers(sim) -> list[tuple[str, float]]:
-    """(name, mean temperature) of each body and emitter that has particles now, for the panel's readout."""
-    if sim.heat is None:
-        return []
-    n = int(sim.particles.n[None])
-    groups = sim.particles.group.to_numpy()[:n]
-    temps = sim.particles.T.to_numpy()[:n]
-    names = [g.name for g in sim.scene.groups] + ["spawned"]
-    sums = np.bincount(groups, weights=temps, minlength=len(names))
-    counts = np.bincount(groups, minlength=len(names))
-    return [(names[k], float(sums[k] / counts[k])) for k in range(len(names)) if counts[k]]
-
-
-def tool_label(name: str, selected: str) -> str:
-    """A tool button's label: its key and name, marked when it is the selected tool."""
-    key = TOOLS.index(name) + 1
-    return f"> {key} {name} <" if name == selected else f"  {key} {name}  "
-
-
-LESSON_WIDTH = 46  # characters per line of the lesson in the panel
-
-
-@functools.cache  # the panel asks every frame; a lesson (frozen) wraps the same way each time
-def lesson_text(lesson) -> tuple[str, ...]:
-    """The scene's lesson as the panel's lines: each part labelled and wrapped to LESSON_WIDTH characters."""
-    lines = []
-    for label, text in lesson.parts():
-        lines += textwrap.wrap(f"{label}: {text}", LESSON_WIDTH)
-    return tuple(lines)
-
-
-def _panel(gui, sim, state: WindowState, stats, fps: float) -> None:
-    with gui.sub_window(sim.scene.name, 0.0, 0.0, 0.28, 0.6):
-        lesson = lesson_text(sim.scene.lesson)
-        if lesson:
-            state.show_lesson = gui.checkbox("lesson (l)", state.show_lesson)
-            if state.show_lesson:
-                for line in lesson:
-                    gui.text(line)
-        gui.text(f"t = {stats.time:.2f} s   {fps:.0f} fps   {'paused' if state.paused else ''}")
-        gui.text(
-            f"particles {stats.particles}"
-            + (f"   broken springs {stats.broken_springs}" if sim.springs is not None else "")
-        )
-        if sim.heat is not None:
-            gui.text(f"mean T {reading(stats.mean_temperature, 'C')}   molten {100 * stats.molten_fraction:.0f}%")
-            for name, temperature in thermometers(sim)[:6]:
-                gui.text(f"  {name}: {temperature:.1f} C")
-            sim.heat.ambient[None] = gui.slider_float("ambient C", float(sim.heat.ambient[None]), -50.0, 300.0)
-        gui.text(f"energy: kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
-        per_particle = reading(stats.total_energy_per_particle, digits=3)
-        walls = f"   on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
-        gui.text(f"pressure {reading(stats.pressure, digits=3)}{walls}   energy per particle {per_particle}")
-        gui.text(f"integrator {state.integrator}   substeps {state.substeps}")
-        if state.tools_available:
-            gui.text(f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")
-            if sim.dim == 3:
-                gui.text("3D: Shift + left button uses the tool")
-            for name in state.tools_available:
-                if gui.button(tool_label(name, state.tool)):
-                    state.tool = name
-            state.radius = gui.slider_float("radius", state.radius, 0.5, 30.0)
-        state.paused = gui.checkbox("paused", state.paused)
-        state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
-        if sim.scene.world.substeps != "auto":
-            state.dt_scale = gui.slider_float("dt x", state.dt_scale, 0.1, 2.0)
-            gui.text(f"dt {sim.dt:.4g}  (stable for springs below {state.stable_dt:.3g})" if sim.springs else "")
-        state.recording = gui.checkbox("record MP4 (v)", state.recording)
-        if sim.pair is not None:
-            state.potential = gui.checkbox("pair force (f)", state.potential)
-            if state.potential:
-                state.attraction = gui.slider_float("attraction x", state.attraction, 0.0, 4.0)
-                state.repulsion = gui.slider_float("repulsion x", state.repulsion, 0.25, 4.0)
-                r_eq = sim.pair.r_eq_np[0, 0]
-                gui.text(f"equilibrium distance {r_eq:.3f} (curve crosses zero)")
-        if sim.dim == 2 and any(sim.scene.world.gravity):
-            state.gravity_angle = gui.slider_float("gravity angle", state.gravity_angle, -180.0, 180.0)
-        if state.log:
-            gui.text(state.log[-1])
-    if state.show_help:
-        with gui.sub_window("keys", 0.3, 0.05, 0.4, 0.5):
-            for line in HELP:
-                gui.text(line)
