@@ -200,7 +200,26 @@ def load_state(path: str | Path, arch: str | None = None, meta: dict | None = No
     meta = meta or read_meta(path)
     scene = scene or scene_from_dict(meta["scene"], Path(meta["scene_path"]))
     sim = Simulation(scene, arch=arch or meta["arch"])
-    sim.set_integrator(meta["integrator"])
+    _restore_from(sim, path, meta)
+    return sim
+
+
+def load_into(sim, path: str | Path) -> None:
+    """Put a state file saved from `sim`'s own scene back into `sim` (the window's load key): the state, clock and
+    integrator as saved. SandboxError when the file is of another scene or cannot be resumed here (checked before
+    anything in `sim` changes)."""
+    path = Path(path)
+    meta = read_meta(path)
+    if meta["scene"] != sim.scene.source:
+        raise SandboxError(
+            f"{path}: saved from the scene {meta.get('scene_name')!r} as it was then; expected one saved from this "
+            f"{sim.scene.name!r}"
+        )
+    _restore_from(sim, path, meta)
+
+
+def _restore_from(sim, path: Path, meta: dict) -> None:
+    """Check that `sim` runs where the file was saved, read it and put its state back."""
     threads = taichi_compat.cpu_threads() if sim.arch == "cpu" else 1
     if sim.arch != meta["arch"] or threads != meta["threads"]:
         raise SandboxError(
@@ -213,8 +232,8 @@ def load_state(path: str | Path, arch: str | None = None, meta: dict | None = No
             saved = {key: data[key] for key in data.files}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise SandboxError(f"{path}: the state file is damaged ({type(exc).__name__})") from exc
+    sim.set_integrator(meta["integrator"])
     _put_back(sim, saved, path)
-    return sim
 
 
 def _put_back(sim, saved: dict, path: Path) -> None:

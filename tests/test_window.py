@@ -53,6 +53,73 @@ def test_keys_drive_the_state():
     assert s.show_lesson  # the lesson shows until l hides it
     s.handle_key("l")
     assert not s.show_lesson
+    for key, attr in (("z", "undo"), ("w", "save"), ("o", "load")):
+        s.handle_key(key)
+        assert getattr(s, attr)
+
+
+def _block():
+    """A 20 x 6 wax block on the hot plate (120 particles, springs and heat)."""
+    return Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]", "world.precision=f64"]))
+
+
+def _same(a: dict, b: dict) -> bool:
+    """Two snapshots equal in every array and number."""
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+def test_undo_puts_back_the_state_before_each_stroke_and_keeps_memory_bounded():
+    from sandbox.history import UndoRing, snapshot_bytes
+    from sandbox.tools import Tools
+
+    sim = _block()
+    tools, ring = Tools(sim), UndoRing(size=3)
+    before = []
+    centre = sim.positions().mean(axis=0)
+    for k, tool in enumerate(("heat", "spawn", "erase", "drag", "spawn")):
+        ring.push(sim)  # the window pushes as the mouse button goes down
+        before.append(sim.snapshot())
+        for _ in range(3):  # a stroke over a few frames
+            tools.apply(tool, centre + [3.0 * k, 2.0], 4.0, 0.01, material="wax")
+            sim.step(5)
+    assert len(ring) == 3 and ring.nbytes == sum(snapshot_bytes(s) for s in before[2:])
+    assert sim.built.count != int(sim.particles.n[None])  # spawned and erased
+    for k in (4, 3, 2):
+        assert ring.undo(sim)
+        assert _same(sim.snapshot(), before[k])  # exactly the state before stroke k, clock included
+    assert not ring.undo(sim) and len(ring) == 0 and ring.nbytes == 0
+    small = UndoRing(size=10, max_bytes=snapshot_bytes(before[0]) + 1)
+    for _ in range(4):
+        small.push(sim)
+    assert len(small) == 1  # the byte bound: only the newest fits
+
+
+def test_save_and_load_keys_continue_as_the_uninterrupted_run(tmp_path):
+    from sandbox.history import UndoRing
+    from sandbox.render.window_state import apply_requests
+
+    sim, s, path = _block(), state(), tmp_path / "quick.state.npz"
+    s.handle_key("o")
+    apply_requests(sim, s, UndoRing(), path)
+    assert "press w first" in s.log[-1]
+    sim.step(20)
+    s.handle_key("w")
+    apply_requests(sim, s, UndoRing(), path)
+    assert path.exists() and s.log[-1] == f"saved {path}" and not s.save
+    sim.step(40)
+    uninterrupted = sim.snapshot()
+    sim.step(7)  # wander off, then load back
+    s.handle_key("o")
+    apply_requests(sim, s, UndoRing(), path)
+    assert s.log[-1].startswith(f"loaded {path}") and sim.step_count == 20
+    sim.step(40)
+    assert _same(sim.snapshot(), uninterrupted)
+    other = Simulation(load_scene(SCENES / "spring_lattice.toml"))
+    kept = other.snapshot()
+    s.handle_key("o")
+    apply_requests(other, s, UndoRing(), path)
+    assert "expected one saved from this 'spring_lattice'" in s.log[-1]
+    assert _same(other.snapshot(), kept)
 
 
 def test_panel_offers_only_what_the_scene_uses():

@@ -2,7 +2,8 @@
 
 Keys (also listed by the help overlay, h or F1): space pause/resume, s single step, r reset, 1-8 choose a tool
 (heat, cool, drag, attract, repel, impulse, erase, spawn), [ and ] brush radius, + and - substeps per frame, g
-gravity on/off, i next integrator, m next spawn material, p screenshot, q or Esc quit. The left mouse button applies
+gravity on/off, i next integrator, m next spawn material, p screenshot, z undo the last tool stroke, w save the
+state, o load it back, q or Esc quit. The left mouse button applies
 the tool at the cursor (2D scenes); in 3D the mouse orbits (left), zooms (right) and pans (middle). The side panel
 shows only the controls the scene uses (no heat tools without heat).
 Everything the keys do goes through WindowState.handle_key, which needs no screen, so it is tested directly.
@@ -18,11 +19,12 @@ import taichi as ti
 
 from .. import runtime
 from ..errors import SandboxError
+from ..history import UndoRing
 from ..tools import Tools
 from .raster import Renderer
 from .window_panel import draw_panel
 from .window_parts import FRAME_PARTS, FrameClock, OrbitCamera, Recorder
-from .window_state import make_state, view_config
+from .window_state import apply_requests, make_state, quick_save_path, view_config
 
 __all__ = ["FRAME_PARTS", "WindowUnavailable", "run_window", "window_unavailable_reason"]
 
@@ -88,6 +90,8 @@ def run_window(
     g_norm = float(np.linalg.norm(gravity))
     if sim.reorder is not None:  # sort the storage now: the sort's kernel loads before the first frame, not as a
         sim.reorder.apply()  # pause of a tenth of a second or more at its first use mid-interaction
+    history, stroking = UndoRing(), False
+    save_path = quick_save_path(sim)
     shown, fps, last = 0, 0.0, time.perf_counter()
     clock = FrameClock(timings)
     while window.running:
@@ -100,6 +104,7 @@ def run_window(
         if state.reset:
             sim.reset()
             state.reset = False
+        apply_requests(sim, state, history, save_path)
         if state.integrator != sim.integrator.name:
             sim.set_integrator(state.integrator)
         if sim.dim == 2 and g_norm > 0 and state.gravity_angle:  # the panel's slider turns gravity
@@ -129,6 +134,11 @@ def run_window(
             renderer.set_chart(wanted)
             chart_series = wanted
         u, v = window.get_cursor_pos() if show else (0.5, 0.5)
+        stroke = show and bool(state.tool) and window.is_pressed(ti.ui.LMB)
+        stroke = stroke and (sim.dim == 2 or window.is_pressed(ti.ui.SHIFT))
+        if stroke and not stroking:  # a tool stroke starts: keep the state before it for undo
+            history.push(sim)
+        stroking = stroke
         if orbit is not None and show:  # left drag orbits, right drag zooms, middle drag pans
             buttons = [window.is_pressed(b) for b in (ti.ui.LMB, ti.ui.RMB, ti.ui.MMB)]
             if buttons[0] and window.is_pressed(ti.ui.SHIFT):  # shift: the tool, not the camera

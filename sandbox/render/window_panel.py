@@ -52,6 +52,12 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
                 if gui.button(tool_label(name, state.tool)):
                     state.tool = name
             state.radius = gui.slider_float("radius", state.radius, 0.5, 30.0)
+            if gui.button("undo stroke (z)"):
+                state.undo = True
+        if gui.button("save state (w)"):
+            state.save = True
+        if gui.button("load state (o)"):
+            state.load = True
         state.paused = gui.checkbox("paused", state.paused)
         state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
         if sim.scene.world.substeps != "auto":

@@ -7,6 +7,7 @@ import functools
 import math
 import textwrap
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from ..integrators import REGISTRY
 from ..tools import TOOLS
@@ -21,6 +22,9 @@ HELP = [
     "+ -    substeps per frame",
     "g      gravity on / off",
     "i      next integrator",
+    "z      undo the last tool stroke (Ctrl+Z too)",
+    "w      save the state (out/SCENE.state.npz)",
+    "o      load the saved state back",
     "p      screenshot",
     "m      next material for the spawn tool",
     "v      start / stop recording an MP4 (out/SCENE_N.mp4)",
@@ -69,6 +73,9 @@ class WindowState:
     motion_blur: bool = False  # b
     draw_springs: bool = False  # k
     show_lesson: bool = True  # l: the scene's lesson at the top of the panel
+    undo: bool = False  # z: put back the state before the last tool stroke
+    save: bool = False  # w: write the state to the quick-save file
+    load: bool = False  # o: read it back
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
@@ -123,6 +130,12 @@ class WindowState:
             self.draw_springs = not self.draw_springs
         elif key == "l":
             self.show_lesson = not self.show_lesson
+        elif key == "z":
+            self.undo = True
+        elif key == "w":
+            self.save = True
+        elif key == "o":
+            self.load = True
         elif key == "m" and self.materials:
             self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
 
@@ -186,3 +199,36 @@ def lesson_text(lesson) -> tuple[str, ...]:
     for label, text in lesson.parts():
         lines += textwrap.wrap(f"{label}: {text}", LESSON_WIDTH)
     return tuple(lines)
+
+
+def quick_save_path(sim) -> Path:
+    """Where the window's save key writes the state, and its load key reads it: out/SCENE.state.npz."""
+    return Path("out") / f"{sim.scene.name}.state.npz"
+
+
+def apply_requests(sim, state: WindowState, history, path: Path) -> None:
+    """Carry out the undo, save and load keys pressed this frame on `sim` (history: an UndoRing; path: the
+    quick-save file), each leaving a line in the panel's log."""
+    from ..errors import SandboxError
+    from ..persist import load_into, save_state
+
+    if state.undo:
+        state.undo = False
+        state.log.append("undone" if history.undo(sim) else "nothing to undo")
+    if state.save:
+        state.save = False
+        try:
+            state.log.append(f"saved {save_state(sim, path)}")
+        except OSError as exc:
+            state.log.append(f"cannot save {path}: {exc.strerror or exc}")
+    if state.load:
+        state.load = False
+        if not path.exists():
+            state.log.append(f"no saved state yet ({path}): press w first")
+        else:
+            try:
+                load_into(sim, path)
+                state.integrator = sim.integrator.name
+                state.log.append(f"loaded {path} (t = {sim.time:.2f} s)")
+            except SandboxError as exc:
+                state.log.append(str(exc))
