@@ -759,6 +759,7 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         """Advance one frame (the scene's substeps, or `substeps` steps of dt); returns the steps taken. `midway` is
         called after half of them, rounded down (the renderer's mid_frame: the bend of curved motion-blur streaks);
         not for a single step, which has no middle. The wall gauge (stats().wall_pressure) restarts with the frame."""
+        self.check_alive()
         if substeps is None:
             substeps, self.dt = self.frame_substeps()
         self.restart_wall_gauge()  # stats().wall_pressure: this frame's average
