@@ -260,3 +260,23 @@ def test_the_selected_tool_is_marked_and_every_button_names_its_key():
     labels = [tool_label(name, "drag") for name in ("heat", "cool", "drag")]
     assert [label.startswith(">") for label in labels] == [False, False, True]
     assert len(set(labels)) == 3  # ImGui tells buttons apart by their labels
+
+
+def test_the_probe_reads_the_particle_under_the_cursor():
+    from sandbox.probe import particle_at, probe
+
+    sim = _block()
+    sim.set_temperatures(np.linspace(20.0, 120.0, sim.built.count))  # solid through melting to liquid
+    x, v, phi = sim.positions(), sim.velocities(), sim.melt_fractions()
+    readings = [probe(sim, i) for i in range(sim.built.count)]
+    assert [r.melt_fraction for r in readings] == pytest.approx(phi, abs=1e-12)
+    assert [r.temperature for r in readings] == pytest.approx(sim.temperatures())
+    assert [r.speed for r in readings] == pytest.approx(np.linalg.norm(v, axis=1))
+    phases = [r.phase for r in readings]
+    assert phases.count("melting") == int(((phi > 0) & (phi < 1)).sum()) > 0
+    assert phases.count("solid") == int((phi == 0).sum()) > 0 and phases.count("liquid") == int((phi == 1).sum()) > 0
+    assert readings[0].text().startswith("wax, solid, 20.0 C, 0% molten, speed ")
+    assert particle_at(sim, x[7] + [0.3, -0.2]) == 7
+    assert particle_at(sim, [-50.0, -50.0]) is None
+    lattice = Simulation(load_scene(SCENES / "spring_lattice.toml"))
+    assert probe(lattice, 0).phase == "solid" and probe(lattice, 0).temperature is None

@@ -307,6 +307,17 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
     def pick(self, u: float, v: float, reach_px: float = 12.0) -> np.ndarray | None:
         """3D: the position of the nearest particle drawn within reach_px pixels of the window point (u, v) (fractions
         of width and height, from the bottom left, as GGUI's cursor), or None: where a 3D brush acts."""
+        i = self.pick_index(u, v, reach_px)
+        return None if i is None else self.sim.positions()[i].astype(float)
+
+    def world_point(self, u: float, v: float) -> np.ndarray:
+        """2D: the world position (length units, (2,)) under the window point (u, v) (fractions from the bottom
+        left, as GGUI's cursor)."""
+        pixel = np.array([u * self.width, v * self.height]) - np.asarray(self.offset.to_list())
+        return pixel / self.px_per_unit
+
+    def pick_index(self, u: float, v: float, reach_px: float = 12.0) -> int | None:
+        """3D: the index of the nearest particle drawn within reach_px pixels of the window point (u, v), or None."""
         x = self.sim.positions().astype(float)
         if self.dim != 3 or len(x) == 0:
             return None
@@ -320,7 +331,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         if not near.any():
             return None
         candidates = np.flatnonzero(near)
-        return x[candidates[np.argmin(z[candidates])]]
+        return int(candidates[np.argmin(z[candidates])])
 
     def detach(self) -> None:
         """Stop following the simulation's particle moves (before this renderer is replaced)."""

@@ -20,6 +20,7 @@ import taichi as ti
 from .. import runtime
 from ..errors import SandboxError
 from ..history import UndoRing
+from ..probe import particle_at, probe
 from ..tools import Tools
 from .raster import Renderer
 from .window_panel import draw_panel
@@ -159,9 +160,7 @@ def run_window(
                 renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
             last_cursor = (u, v)
         if show and state.tool and window.is_pressed(ti.ui.LMB) and sim.dim == 2:
-            pos = (np.array([u * cfg.width, v * cfg.height]) - np.asarray(renderer.offset.to_list())) / (
-                renderer.px_per_unit
-            )
+            pos = renderer.world_point(u, v)
             tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps, material=state.material or None)
         clock.lap("events")
         renderer.begin_frame()
@@ -177,6 +176,7 @@ def run_window(
         renderer.record(stats)
         if sim.springs is not None and shown % STABLE_DT_EVERY == 0:  # it copies every spring to the host
             state.stable_dt = sim.stable_dt()
+        state.probe = probe_under(sim, renderer, u, v) if show else ""
         clock.lap("readouts")
         if state.tool and sim.dim == 2:  # the brush, outlined at the cursor
             renderer.set_brush((u * cfg.width, v * cfg.height), state.radius * renderer.px_per_unit)
@@ -212,3 +212,9 @@ def run_window(
 
 ENERGY_SERIES = ("kinetic_energy", "potential_energy", "total_energy")
 STABLE_DT_EVERY = 30  # frames between refreshes of the panel's stable-step readout
+
+
+def probe_under(sim, renderer, u: float, v: float) -> str:
+    """The probe's line for the particle under the window point (u, v), or "" where there is none."""
+    i = particle_at(sim, renderer.world_point(u, v)) if sim.dim == 2 else renderer.pick_index(u, v)
+    return "" if i is None else probe(sim, i).text()

@@ -43,6 +43,7 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
         per_particle = reading(stats.total_energy_per_particle, digits=3)
         walls = f"   on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
         gui.text(f"pressure {reading(stats.pressure, digits=3)}{walls}   energy per particle {per_particle}")
+        gui.text(f"under cursor: {state.probe or '-'}")
         gui.text(f"integrator {state.integrator}   substeps {state.substeps}")
         if state.tools_available:
             gui.text(f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")

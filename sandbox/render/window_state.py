@@ -76,6 +76,7 @@ class WindowState:
     undo: bool = False  # z: put back the state before the last tool stroke
     save: bool = False  # w: write the state to the quick-save file
     load: bool = False  # o: read it back
+    probe: str = ""  # what the particle under the cursor is (the panel shows it)
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
