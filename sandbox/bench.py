@@ -276,60 +276,6 @@ def melting_block_of(side: int) -> list[str]:
 INTERACTIVE_BLOCK = melting_block_of(100)  # the melting block at 100 x 100 = 10,000 particles
 
 
-def interactive_frame(arch: str, repeats: int) -> dict:
-    """The window's frame on the 10,000-particle melting block at its default substeps, split into its parts: the
-    window loop itself (sandbox.render.window.run_window, in a hidden GGUI window) timed part by part, from the
-    simulation to handing the picture to GGUI and drawing the panel. GGUI presenting the frame on a screen is not
-    included (a hidden window does not present; on a display that is the GPU's work). Without Vulkan the same parts
-    are timed in a loop that stands in for the window (no GGUI: "display" is 0), and `window` says so."""
-    import taichi as ti
-
-    from .errors import SandboxError
-    from .render.raster import Renderer
-    from .render.window import FRAME_PARTS, run_window
-    from .scene import load_scene
-    from .simulation import Simulation
-
-    sim = Simulation(load_scene(SCENES / "melting_block.toml", INTERACTIVE_BLOCK), arch=arch)
-    frames, warm = max(repeats, 5) * 8, 10  # the first frames compile (or load) what the window runs: not timed
-    timings: dict[str, list[float]] = {}
-    try:
-        run_window(sim, frames=warm + frames, show=False, timings=timings)
-        timings = {part: seconds[warm:] for part, seconds in timings.items()}
-        window = "hidden GGUI window"
-    except SandboxError as exc:
-        window = f"no window ({exc}): the window's parts in a plain loop"
-        timings = {part: [] for part in (*FRAME_PARTS, "frame")}
-        renderer = Renderer(sim, 1280, 720, sim.scene.render)
-        for k in range(frames):
-            ti.sync()
-            t0 = time.perf_counter()
-            renderer.begin_frame()
-            sim.advance_frame(midway=renderer.mid_frame)
-            ti.sync()
-            t1 = time.perf_counter()
-            renderer.record(sim.stats(pair_energy=k % 10 == 0))
-            t2 = time.perf_counter()
-            renderer.render()
-            ti.sync()
-            t3 = time.perf_counter()
-            for part, seconds in zip(FRAME_PARTS, (0.0, t1 - t0, t2 - t1, t3 - t2, 0.0)):
-                timings[part].append(seconds)
-            timings["frame"].append(t3 - t0)
-    ms = {part: statistics.median(timings[part]) * 1e3 for part in FRAME_PARTS}
-    frame_ms = statistics.median(timings["frame"]) * 1e3
-    return {
-        "particles": sim.built.count,
-        "substeps": sim.scene.world.substeps,
-        "window": window,
-        "ms": ms,
-        "frame_ms": frame_ms,
-        "slowest_frame_ms": max(timings["frame"]) * 1e3,
-        "fps": 1e3 / frame_ms,
-        "window_overhead": 1.0 - ms["simulation"] / sum(ms.values()),
-    }
-
-
 def launches_per_step(factory, arch: str, steps: int = 200) -> dict:
     """Kernel launches per step (host reads and writes of field elements included) of the simulation
     `factory(arch)` builds, counted from the host (sandbox.launch_count: Taichi's profiler crashes on Vulkan) over
@@ -435,11 +381,19 @@ def scaling(arch: str, repeats: int, out_dir: Path, sides=SCALING_SIDES, rounds:
 
 def run_bench(args) -> int:
     from . import runtime
+    from .bench_window import interactive_frame, print_window_rates, window_rates
 
     repeats = 3 if args.quick else args.repeats
     if args.scaling:
         print("W1 throughput against N:")
         scaling(args.arch, repeats, Path(args.out))
+        return 0
+    if args.window:
+        rates = window_rates(args.arch, frames=40 if args.quick else 120)
+        print_window_rates(rates)
+        if args.json:
+            Path(args.json).write_text(json.dumps(rates, indent=2))
+            print(f"wrote {args.json}")
         return 0
     results: dict = {
         "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},

@@ -511,6 +511,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--scaling", action="store_true", help="only W1 against N from 1k to 1M: scaling.json/.csv/.png in --out"
     )
     bench.add_argument("--out", default="bench-out", help="folder for --scaling's files")
+    bench.add_argument(
+        "--window",
+        action="store_true",
+        help="only the window: the frame rate it holds on every shipped scene (hidden window, pacing on; needs Vulkan)",
+    )
     bench.set_defaults(func=cmd_bench)
     return parser
 

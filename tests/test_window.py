@@ -280,3 +280,25 @@ def test_the_probe_reads_the_particle_under_the_cursor():
     assert particle_at(sim, [-50.0, -50.0]) is None
     lattice = Simulation(load_scene(SCENES / "spring_lattice.toml"))
     assert probe(lattice, 0).phase == "solid" and probe(lattice, 0).temperature is None
+
+
+def test_pacing_runs_fewer_substeps_when_a_frame_of_them_would_not_fit_and_says_so():
+    from sandbox.render.window_parts import FramePacer
+    from sandbox.render.window_state import pace_text
+
+    pacer = FramePacer(target_fps=50.0)  # 20 ms a frame
+    assert pacer.choose(20) == 20  # nothing measured yet: what is wanted
+    pacer.record(20, simulation_seconds=0.040, rest_seconds=0.006)  # 2 ms a substep, 6 ms for the rest
+    assert pacer.choose(20) == 7 and pacer.choose(5) == 5  # 14 ms of room: 7 substeps; fewer wanted: as wanted
+    for _ in range(60):  # the cost doubles: the smoothed estimate follows within a few frames
+        pacer.record(7, simulation_seconds=0.028, rest_seconds=0.006)
+    assert pacer.choose(20) == 3
+    pacer.record(3, simulation_seconds=0.300, rest_seconds=0.030)  # a frame of one substep over budget: still 1
+    for _ in range(30):
+        pacer.record(1, simulation_seconds=0.100, rest_seconds=0.030)
+    assert pacer.choose(20) == 1
+    s = state()
+    s.frame_substeps, s.pace = 3, 0.412
+    assert pace_text(s) == "slow motion: 3 of 8 substeps, 0.412 sim s per s"
+    s.frame_substeps = 8
+    assert pace_text(s) == "substeps 8, 0.412 sim s per s"

@@ -24,7 +24,7 @@ from ..probe import particle_at, probe
 from ..tools import Tools
 from .raster import Renderer
 from .window_panel import draw_panel
-from .window_parts import FRAME_PARTS, FrameClock, OrbitCamera, Recorder
+from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder
 from .window_state import apply_requests, make_state, quick_save_path, view_config
 
 __all__ = ["FRAME_PARTS", "WindowUnavailable", "run_window", "window_unavailable_reason"]
@@ -59,11 +59,13 @@ def run_window(
     show: bool = True,
     record: str | None = None,
     timings: dict[str, list[float]] | None = None,
+    steady: bool = True,
 ) -> int:
     """Show the simulation in a GGUI window until closed (or for `frames` frames); returns frames shown. `record`:
     write the frames to this video from the start (the v key starts and stops recordings to out/SCENE_N.mp4).
     `timings`: append each frame's seconds by part (FRAME_PARTS, and "frame" for the whole loop) to these lists
-    (the benchmark; it waits for each part's kernels to finish).
+    (the benchmark; it waits for each part's kernels to finish). `steady`: pace the substeps to hold the frame rate
+    (FramePacer); False runs the wanted substeps every frame whatever they cost.
 
     Raises SandboxError with one line when no window can be opened (e.g. no Vulkan driver).
     """
@@ -95,8 +97,10 @@ def run_window(
     save_path = quick_save_path(sim)
     shown, fps, last = 0, 0.0, time.perf_counter()
     clock = FrameClock(timings)
+    pacer = FramePacer()
     while window.running:
         clock.start()
+        frame_start = time.perf_counter()
         if show:  # a hidden window (show_window=False, for tests) has no events or cursor
             for event in window.get_events(ti.ui.PRESS):
                 state.handle_key(event.key)
@@ -164,11 +168,18 @@ def run_window(
             tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps, material=state.material or None)
         clock.lap("events")
         renderer.begin_frame()
+        state.frame_substeps = pacer.choose(state.substeps) if steady else state.substeps
+        if timings is not None:  # what the pacing chose, for `sandbox bench --window`
+            timings.setdefault("substeps", []).append(state.frame_substeps)
+            timings.setdefault("wanted_substeps", []).append(state.substeps)
+        sim_start = time.perf_counter()
         if not state.paused:
-            sim.advance_frame(state.substeps, renderer.mid_frame)
+            sim.advance_frame(state.frame_substeps, renderer.mid_frame)
         elif state.single_step:
             sim.step(1)
         state.single_step = False
+        ti.sync()
+        sim_end = time.perf_counter()
         clock.lap("simulation")
         # the guard (a non-finite state stops with a named error instead of drawing garbage) and the readouts; the
         # pair energy's neighbour scan only every 10th frame unless the energy plot is on
@@ -191,7 +202,11 @@ def run_window(
         now = time.perf_counter()
         fps = 0.9 * fps + 0.1 / max(now - last, 1e-6)
         last = now
+        state.pace = 0.0 if state.paused else fps * state.frame_substeps * sim.dt  # simulated s per wall s
         draw_panel(gui, sim, state, stats, fps)
+        if not state.paused:
+            rest = (sim_start - frame_start) + (time.perf_counter() - sim_end)  # the frame's work besides stepping
+            pacer.record(state.frame_substeps, sim_end - sim_start, rest)
         shown += 1
         done = frames is not None and shown >= frames
         if state.screenshot or (done and screenshot):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .window_state import HELP, WindowState, lesson_text, reading, tool_label
+from .window_state import HELP, WindowState, lesson_text, pace_text, reading, tool_label
 
 
 def thermometers(sim) -> list[tuple[str, float]]:
@@ -44,7 +44,7 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
         walls = f"   on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
         gui.text(f"pressure {reading(stats.pressure, digits=3)}{walls}   energy per particle {per_particle}")
         gui.text(f"under cursor: {state.probe or '-'}")
-        gui.text(f"integrator {state.integrator}   substeps {state.substeps}")
+        gui.text(f"integrator {state.integrator}   {pace_text(state)}")
         if state.tools_available:
             gui.text(f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")
             if sim.dim == 3:

@@ -9,6 +9,37 @@ import numpy as np
 import taichi as ti
 
 FRAME_PARTS = ("events", "simulation", "readouts", "drawing", "display")  # the window loop's parts, in order
+TARGET_FPS = 60.0  # the frame rate the window's pacing aims for
+
+
+class FramePacer:
+    """Each window frame's substeps from what they cost, so the frame rate holds: at most the wanted substeps (the
+    scene's, or as + and - set them), fewer when a frame of them would not fit in 1 / TARGET_FPS beside the rest of
+    the frame's work (events, readouts, drawing). The simulation then runs slower than its pace: slow motion, which
+    the panel reports as simulated seconds per wall second. Costs are smoothed over the last few frames."""
+
+    def __init__(self, target_fps: float = TARGET_FPS, smoothing: float = 0.25):
+        self.budget = 1.0 / target_fps
+        self.smoothing = smoothing
+        self.step_seconds: float | None = None  # the simulation's seconds per substep
+        self.rest_seconds = 0.0  # the frame's other work, seconds
+
+    def choose(self, wanted: int) -> int:
+        """Substeps for the next frame: `wanted` while they fit the budget, else as many as fit (at least 1)."""
+        if self.step_seconds is None or self.step_seconds <= 0.0:
+            return wanted
+        room = self.budget - self.rest_seconds
+        return max(1, min(wanted, int(room / self.step_seconds)))
+
+    def record(self, substeps: int, simulation_seconds: float, rest_seconds: float) -> None:
+        """What the last frame cost: its `substeps` took simulation_seconds, everything else rest_seconds."""
+        per_step = simulation_seconds / max(substeps, 1)
+        if self.step_seconds is None:
+            self.step_seconds, self.rest_seconds = per_step, rest_seconds
+        else:
+            a = self.smoothing
+            self.step_seconds += a * (per_step - self.step_seconds)
+            self.rest_seconds += a * (rest_seconds - self.rest_seconds)
 
 
 class FrameClock:

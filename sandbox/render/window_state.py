@@ -77,6 +77,8 @@ class WindowState:
     save: bool = False  # w: write the state to the quick-save file
     load: bool = False  # o: read it back
     probe: str = ""  # what the particle under the cursor is (the panel shows it)
+    frame_substeps: int = 0  # what this frame ran: substeps, or fewer when pacing holds the frame rate
+    pace: float = 0.0  # simulated seconds per wall second
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
@@ -200,6 +202,15 @@ def lesson_text(lesson) -> tuple[str, ...]:
     for label, text in lesson.parts():
         lines += textwrap.wrap(f"{label}: {text}", LESSON_WIDTH)
     return tuple(lines)
+
+
+def pace_text(state: WindowState) -> str:
+    """The panel's line on substeps and pace: "substeps 20, 1.2 sim s per s", and when pacing holds the frame rate
+    with fewer substeps than wanted, "slow motion: 8 of 20 substeps, 0.41 sim s per s"."""
+    pace = f"{state.pace:.3g} sim s per s"
+    if state.frame_substeps and state.frame_substeps < state.substeps:
+        return f"slow motion: {state.frame_substeps} of {state.substeps} substeps, {pace}"
+    return f"substeps {state.substeps}, {pace}"
 
 
 def quick_save_path(sim) -> Path:
