@@ -387,7 +387,8 @@ class Render:
     )
     exposure: float = spec(1.0, doc="additive light: tone map 1 - exp(-exposure * light)", check=positive)
     draw_springs: bool = spec(False, doc="2D: draw live springs as lines")
-    legend: bool = spec(False, doc="draw a colour bar for the colour map in a corner")
+    legend: bool = spec(False, doc="draw a colour bar for the colour map, with its range and unit, in a corner")
+    clock: bool = spec(False, doc="videos and pictures: print the simulated time (t = 2.40 s) in the bottom-left")
     ground: bool = spec(True, doc="3D: a faint grid on the floor of the domain so depth reads")
     chart: list[str] = spec(
         doc="measurements to plot against time in a corner (window and video), e.g. "

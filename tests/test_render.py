@@ -187,6 +187,80 @@ def test_legend_draws_a_colour_bar_with_labels(tmp_path):
     assert changed.sum() > 300
 
 
+def lit_where_text_is(img: np.ndarray, text: str, x: int, y: int, scale: int, color=(230, 230, 230)) -> bool:
+    """Whether `img` has `color` on every pixel that `text` drawn at (x, y) lights."""
+    from sandbox.render.pixels import draw_text
+
+    mask = np.zeros_like(img)
+    draw_text(mask, text, x, y, scale, (255, 255, 255))
+    lit = mask[:, :, 0] == 255
+    return lit.sum() > 5 * len(text.replace(" ", "")) and bool((img[lit] == color).all())
+
+
+def test_the_font_has_letters_digits_the_degree_sign_and_units():
+    from sandbox.render.pixels import _GLYPHS, draw_text, glyph
+
+    text = "t = 2.40 s, 45.2 °C (molten 31%) mean T: /s"
+    assert all(glyph(ch) is not None for ch in text)
+    img = np.zeros((10, 4 * len(text), 3), dtype=np.uint8)
+    draw_text(img, text, 0, 0)
+    expected = sum((_GLYPHS.get(ch) or _GLYPHS[ch.upper()]).count("1") for ch in text)
+    assert int((img[:, :, 0] == 230).sum()) == expected  # every glyph's pixels, none outside them
+
+
+def test_the_legend_labels_its_range_with_the_unit_and_the_clock_prints_the_time():
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true", "render.clock=true"]))
+    sim.step(30)
+    ren = Renderer(sim, 320, 180, sim.scene.render)
+    img = ren.frame()
+    x0, y0, bar_w, bar_h, scale = ren._legend_geometry()
+    lo, hi = sim.scene.render.temperature_range
+    label = f"{hi:g} °C"
+    assert lit_where_text_is(img, label, x0 + bar_w - 4 * scale * len(label), y0 + bar_h + 3, scale)
+    assert lit_where_text_is(img, f"{lo:g}", x0, y0 + bar_h + 3, scale)
+    assert lit_where_text_is(img, f"t = {sim.time:.2f} s", 10, 180 - 10 - 5 * scale, scale)
+
+
+def test_the_window_picture_carries_the_colour_bar_and_the_chart_labels():
+    """The window shows GGUI's packed output without picture()'s host copy: the labels are drawn on it in place."""
+    over = ["render.legend=true", "render.chart=['mean_temperature']"]
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", over))
+    ren = Renderer(sim, 320, 180, sim.scene.render, "rgba")
+    ren.record(sim.stats())
+    ren.render()
+    before = ren.out.copy()
+    ren.label_window_output()
+    rgba = ren.out.view(np.uint8).reshape(320, 180, 4)
+    shown = np.ascontiguousarray(rgba[:, ::-1, :3].transpose(1, 0, 2))
+    x0, y0, bar_w, bar_h, scale = ren._legend_geometry()
+    label = f"{sim.scene.render.temperature_range[1]:g} °C"
+    assert lit_where_text_is(shown, label, x0 + bar_w - 4 * scale * len(label), y0 + bar_h + 3, scale)
+    assert (ren.out != before).sum() > 200 and np.array_equal(shown, ren.picture())
+
+
+def test_chart_series_of_one_unit_share_a_scale_and_are_labelled():
+    from sandbox.render.chart import Chart
+
+    sim = Simulation(load_scene(SCENES / "melting_block.toml"))
+    ren = Renderer(sim, 320, 180, sim.scene.render)
+    energies = Chart(ren.image, 320, 180, ("kinetic_energy", "potential_energy", "total_energy"))
+    mixed = Chart(ren.image, 320, 180, ("mean_temperature", "molten_fraction"))
+    for _ in range(3):
+        sim.step(20)
+        stats = sim.stats()
+        energies.record(stats)
+        mixed.record(stats)
+    assert energies.shared_scale() and not mixed.shared_scale()
+    assert energies.ranges[0] == energies.ranges[1] == energies.ranges[2]  # one scale for the three energies
+    low = min(min(h) for h in energies.history)
+    assert energies.ranges[0] == (low, max(max(h) for h in energies.history))
+    assert mixed.ranges[1] == (0.0, 1.0)
+    img = np.zeros((180, 320, 3), dtype=np.uint8)
+    mixed.label(img)
+    temperature = f"mean T {mixed.history[0][-1]:.3g} °C"  # in the series' colour
+    assert lit_where_text_is(img, temperature, mixed.x0, mixed.y_top + mixed.box_h + 3, 1, (255, 102, 63))
+
+
 def golden(request, name, img):
     path = GOLDEN / f"{name}.png"
     if request.config.getoption("--regen-golden") or not path.exists():

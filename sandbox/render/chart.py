@@ -1,17 +1,28 @@
 """A strip chart of measurements over time, drawn into the renderer's image, so the window and videos both show it.
 
 `render.chart = ["mean_temperature", "molten_fraction"]` plots those Stats fields against simulated time in a box in
-the top-left corner: each series scaled to its own range so far (fractions to [0, 1]), the whole run squeezed into
-the box's width. Videos also print each series' latest value under the box, in the series' colour.
+the top-left corner, the whole run squeezed into the box's width. Series of one unit (the energies) share a scale, the
+others each have their own range so far (fractions [0, 1]). Under the box each series' name, latest value and unit
+in its colour and the time span; beside it, when the series share one scale, its top and bottom values.
 """
 
 import numpy as np
 import taichi as ti
 
 from ..oriented import data_oriented
-from .pixels import draw_text, get_pixel, put_pixel
+from .pixels import draw_text, get_pixel, put_pixel, text_width
 
 FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
+# Each series' label and unit; series of one unit share the chart's scale (the energies), which its ticks then give.
+SERIES_LABELS = {
+    "mean_temperature": ("mean T", "°C"),
+    "molten_fraction": ("molten", ""),
+    "heat_content": ("heat", "E"),
+    "kinetic_energy": ("kinetic", "E"),
+    "potential_energy": ("potential", "E"),
+    "total_energy": ("total", "E"),
+    "max_speed": ("max speed", "/s"),
+}
 COLORS = ((1.0, 0.4, 0.25), (0.35, 0.65, 1.0), (0.5, 0.9, 0.4), (0.95, 0.85, 0.3))
 SAMPLES = 256  # points per series drawn (the history is resampled to this many)
 HISTORY = 16 * SAMPLES  # samples kept; past it every other one is dropped and the sampling stride doubles
@@ -39,6 +50,8 @@ class Chart:
         for k in range(len(self.series)):
             self.colors[k] = COLORS[k % len(COLORS)]
         self.history: list[list[float]] = [[] for _ in self.series]
+        self.times: list[float] = []  # simulated time of each kept sample
+        self.ranges: list[tuple[float, float]] = [(0.0, 1.0)] * len(self.series)  # each series' scale
         self.n = 0
         self.frames = 0  # frames offered to record()
         self.stride = 1  # one sample kept per this many frames
@@ -51,8 +64,10 @@ class Chart:
         for k, name in enumerate(self.series):
             value = float(getattr(stats, name))
             self.history[k].append(value if np.isfinite(value) else 0.0)
+        self.times.append(float(stats.time))
         if len(self.history[0]) > HISTORY:  # bounded work per frame on a long run: keep every other sample, and
             self.history = [h[::2] for h in self.history]  # from now on record every other frame, so the samples
+            self.times = self.times[::2]
             self.stride *= 2  # stay evenly spread in time
         length = len(self.history[0])
         self.n = min(length, SAMPLES)
@@ -60,10 +75,23 @@ class Chart:
         table = np.zeros((len(self.series), SAMPLES), dtype=np.float32)
         for k, name in enumerate(self.series):
             values = np.asarray(self.history[k])
-            lo, hi = (0.0, 1.0) if name in FRACTIONS else (values.min(), values.max())
+            lo, hi = self.ranges[k] = self._range(name)
             span = hi - lo if hi > lo else 1.0
             table[k, : self.n] = np.clip((values[pick] - lo) / span, 0.0, 1.0)
         self.values.from_numpy(table)
+
+    def _range(self, name: str) -> tuple[float, float]:
+        """The scale of series `name`: [0, 1] for fractions, else the range so far of every series of its unit."""
+        if name in FRACTIONS:
+            return 0.0, 1.0
+        unit = SERIES_LABELS.get(name, (name, name))[1]
+        same = [np.asarray(h) for n, h in zip(self.series, self.history) if SERIES_LABELS.get(n, (n, n))[1] == unit]
+        return float(min(v.min() for v in same)), float(max(v.max() for v in same))
+
+    def shared_scale(self) -> bool:
+        """Whether every series is drawn on one scale (one unit, not a fraction), so ticks can give it."""
+        units = {SERIES_LABELS.get(n, (n, n))[1] for n in self.series}
+        return len(units) == 1 and not any(n in FRACTIONS for n in self.series)
 
     def draw(self, out) -> None:
         """Draw the box and the series into the renderer's float image and its 8-bit output `out` (put_pixel)."""
@@ -104,17 +132,26 @@ class Chart:
                     self._put(out, px, py, self.colors[s])
 
     def label(self, img: np.ndarray) -> None:
-        """Print each series' latest value under the box, in its colour, on an (H, W, 3) uint8 frame."""
+        """Under the box, each series' name, latest value and unit in its colour, then the time span; beside the box
+        its scale's top and bottom values when the series share one; on an (H, W, 3) uint8 frame."""
         if not self.history[0] or not self.fits:
             return
         scale = max(1, self.height // 240)
         y = self.y_top + self.box_h + 3
         x = self.x0
-        for k in range(len(self.series)):
-            text = f"{self.history[k][-1]:.3g}"
+        for k, name in enumerate(self.series):
+            label, unit = SERIES_LABELS.get(name, (name, ""))
+            unit = "" if unit == "E" else unit  # energies: in the scene's units (docs/physics.md)
+            text = f"{label} {self.history[k][-1]:.3g}{' ' + unit if unit.startswith('°') else unit}"
             color = tuple(int(255 * c) for c in COLORS[k % len(COLORS)])
             draw_text(img, text, x, y, scale, color)
-            x += 4 * scale * (len(text) + 2)
+            x += text_width(text + "  ", scale)
+        draw_text(img, f"t 0-{self.times[-1]:.3g} s", x, y, scale, (200, 200, 200))
+        if self.shared_scale():
+            lo, hi = self.ranges[0]
+            right = self.x0 + self.box_w + 3
+            draw_text(img, f"{hi:.3g}", right, self.y_top, scale, (200, 200, 200))
+            draw_text(img, f"{lo:.3g}", right, self.y_top + self.box_h - 5 * scale, scale, (200, 200, 200))
 
 
 class CurvePlot(Chart):

@@ -5,7 +5,7 @@ import numpy as np
 import taichi as ti
 
 from .colormaps import GLOW_STOPS, SPEED_STOPS, ramp_np
-from .pixels import draw_text, put_pixel
+from .pixels import draw_text, put_pixel, text_width
 
 
 class Output:
@@ -61,9 +61,26 @@ class Output:
         img[y0 - 1, x0 - 1 : x0 + bar_w + 1] = 200
         img[y0 + bar_h, x0 - 1 : x0 + bar_w + 1] = 200
         if self.cfg.color_by == "speed":
-            lo, hi = 0.0, self.cfg.speed_range
+            (lo, hi), unit = (0.0, self.cfg.speed_range), "/s"
         else:
-            lo, hi = self.cfg.temperature_range
+            (lo, hi), unit = self.cfg.temperature_range, " °C"
         draw_text(img, f"{lo:g}", x0, y0 + bar_h + 3, scale)
-        label = f"{hi:g}"
-        draw_text(img, label, x0 + bar_w - 4 * scale * len(label), y0 + bar_h + 3, scale)
+        label = f"{hi:g}{unit}"
+        draw_text(img, label, x0 + bar_w - text_width(label, scale), y0 + bar_h + 3, scale)
+
+    def draw_clock(self, img: np.ndarray) -> None:
+        """The simulated time, "t = 2.40 s", in the bottom-left corner of an (H, W, 3) uint8 frame."""
+        scale = max(1, self.height // 240)
+        draw_text(img, f"t = {self.sim.time:.2f} s", 10, self.height - 10 - 5 * scale, scale)
+
+    def label_window_output(self) -> None:
+        """The window's picture (GGUI's packed RGBA on the CPU, the renderer's own NumPy buffer): draw the host-side
+        text on it in place, as picture() does on its copy: the colour bar and the chart's labels."""
+        if self.output != "rgba" or not isinstance(self.out, np.ndarray):
+            return
+        rgba = self.out.view(np.uint8).reshape(self.width, self.height, 4)
+        view = rgba[:, ::-1, :3].transpose(1, 0, 2)  # (H, W, 3), top row first: a view, so drawing writes `out`
+        if self.cfg.legend:
+            self.draw_legend(view)
+        if self.chart is not None:
+            self.chart.label(view)

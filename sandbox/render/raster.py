@@ -441,6 +441,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         if self.output == "rgba":
             from taichi.ui.utils import get_field_info
 
+            self.label_window_output()
             canvas.canvas.set_image(get_field_info(self.out))  # what canvas.set_image does after its conversion
         else:
             canvas.set_image(self.image)
@@ -493,4 +494,6 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             self.draw_legend(img)
         if self.chart is not None:
             self.chart.label(img)
+        if self.cfg.clock:
+            self.draw_clock(img)
         return img

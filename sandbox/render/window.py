@@ -77,15 +77,15 @@ def run_window(
         raise WindowUnavailable(f"cannot open a window: {first_line}") from None
     canvas = window.get_canvas()
     output = window_output(canvas)
-    renderer = Renderer(sim, cfg.width, cfg.height, cfg, output)
+    state = make_state(sim, substeps)
+    view = view_config(cfg, state)  # the renderer's configuration; the window's toggles rebuild it when they differ
+    renderer = Renderer(sim, cfg.width, cfg.height, view, output)
     gui = window.get_gui()
     tools = Tools(sim)
-    state = make_state(sim, substeps)
     state.recording = record is not None
     recorder = Recorder(sim.scene.name, cfg.width, cfg.height, cfg.fps, record)
     chart_series = tuple(cfg.chart)
     potential_shown = (False, 1.0, 1.0)
-    view = cfg  # the renderer's configuration; the window's toggles rebuild it when they differ
     orbit = OrbitCamera(renderer.eye_np, renderer.target_np) if sim.dim == 3 else None
     last_cursor = None
     base_dt = sim.dt

@@ -178,11 +178,12 @@ def reading(value: float, unit: str = "", digits: int = 1) -> str:
 
 
 def view_config(cfg, state: WindowState):
-    """The scene's [render] table with the window's view toggles applied (colour map, motion blur, springs)."""
+    """The scene's [render] table with the window's view toggles applied (colour map, motion blur, springs); the
+    window always shows the colour bar."""
     import dataclasses
 
     return dataclasses.replace(
-        cfg, color_by=state.color_by, motion_blur=state.motion_blur, draw_springs=state.draw_springs
+        cfg, color_by=state.color_by, motion_blur=state.motion_blur, draw_springs=state.draw_springs, legend=True
     )
 
 
