@@ -302,3 +302,10 @@ def test_pacing_runs_fewer_substeps_when_a_frame_of_them_would_not_fit_and_says_
     assert pace_text(s) == "slow motion: 3 of 8 substeps, 0.412 sim s per s"
     s.frame_substeps = 8
     assert pace_text(s) == "substeps 8, 0.412 sim s per s"
+
+
+def test_energies_read_in_the_scenes_units():
+    from sandbox.render.window_state import energy_unit
+
+    assert energy_unit(_block()) == "pJ"
+    assert energy_unit(Simulation(load_scene(SCENES / "lj_box.toml", ["bodies.0.hi=[11.18, 11.18]"]))) == "eps"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .window_state import HELP, WindowState, lesson_text, pace_text, reading, tool_label
+from .window_state import HELP, WindowState, energy_unit, lesson_text, pace_text, reading, tool_label
 
 
 def thermometers(sim) -> list[tuple[str, float]]:
@@ -39,7 +39,8 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
             for name, temperature in thermometers(sim)[:6]:
                 gui.text(f"  {name}: {temperature:.1f} C")
             sim.heat.ambient[None] = gui.slider_float("ambient C", float(sim.heat.ambient[None]), -50.0, 300.0)
-        gui.text(f"energy: kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
+        unit = energy_unit(sim)
+        gui.text(f"energy ({unit}): kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
         per_particle = reading(stats.total_energy_per_particle, digits=3)
         walls = f"   on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
         gui.text(f"pressure {reading(stats.pressure, digits=3)}{walls}   energy per particle {per_particle}")

@@ -205,6 +205,12 @@ def lesson_text(lesson) -> tuple[str, ...]:
     return tuple(lines)
 
 
+def energy_unit(sim) -> str:
+    """The unit the scene's energies come in: epsilon for reduced Lennard-Jones scenes (every material "lj"), else
+    picojoules (a spacing is 1 mm, a particle of density 1 weighs 1 mg, time is in seconds: mg mm^2/s^2 = pJ)."""
+    return "eps" if set(sim.material_names) == {"lj"} else "pJ"
+
+
 def pace_text(state: WindowState) -> str:
     """The panel's line on substeps and pace: "substeps 20, 1.2 sim s per s", and when pacing holds the frame rate
     with fewer substeps than wanted, "slow motion: 8 of 20 substeps, 0.41 sim s per s"."""
