@@ -309,3 +309,32 @@ def test_energies_read_in_the_scenes_units():
 
     assert energy_unit(_block()) == "pJ"
     assert energy_unit(Simulation(load_scene(SCENES / "lj_box.toml", ["bodies.0.hi=[11.18, 11.18]"]))) == "eps"
+
+
+def test_the_panel_never_covers_the_scene_or_its_chart():
+    """The four scenes a class starts with, in windows of 1280 x 720 and 640 x 360: the renderer draws the domain
+    (2D) or every particle (3D) and the chart right of the panel's column and inside the picture; the lesson's lines
+    fit the panel."""
+    from sandbox.render.raster import Renderer
+    from sandbox.render.window_panel import PANEL_WIDTH
+    from sandbox.render.window_state import lesson_text, panel_characters
+
+    for name in ("sandbox", "melting_block", "melting_block_3d", "ice_cube"):
+        sim = Simulation(load_scene(SCENES / f"{name}.toml", ["render.chart=['mean_temperature']"]))
+        for width, height in ((1280, 720), (640, 360)):
+            ren = Renderer(sim, width, height, sim.scene.render, panel=PANEL_WIDTH)
+            left = ren.panel_px
+            assert left == round(PANEL_WIDTH * width)
+            if sim.dim == 2:
+                lo, hi = ren.px_lo.to_numpy(), ren.px_hi.to_numpy()
+                assert lo[0] >= left and hi[0] <= width and lo[1] >= 0 and hi[1] <= height, (name, lo, hi)
+            else:
+                rel = sim.positions() - ren.eye_np
+                z = rel @ ren.fwd_np
+                focal = 0.5 * height / np.tan(np.radians(ren.fov) / 2)
+                sx = ren.cx + focal * (rel @ ren.right_np) / z
+                assert sx.min() >= left and sx.max() <= width, (name, sx.min(), sx.max())
+            assert ren.chart.x0 >= left and ren.chart.fits
+            chars = panel_characters(width, PANEL_WIDTH)
+            assert all(len(line) <= chars for line in lesson_text(sim.scene.lesson, chars))
+            ren.detach()

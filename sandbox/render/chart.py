@@ -32,9 +32,11 @@ HISTORY = 16 * SAMPLES  # samples kept; past it every other one is dropped and t
 class Chart:
     """Strip chart of some Stats fields; record() each frame, the renderer calls draw()."""
 
-    def __init__(self, image, width: int, height: int, series: tuple[str, ...], scene_in_image: bool = True):
+    def __init__(
+        self, image, width: int, height: int, series: tuple[str, ...], scene_in_image: bool = True, left: int = 0
+    ):
         """`image`: the renderer's float image; `scene_in_image`: the drawn scene is there (else only in the 8-bit
-        output draw() gets), which is what the box dims behind its lines."""
+        output draw() gets), which is what the box dims behind its lines; `left`: pixels a side panel covers."""
         self.scene_in_image = scene_in_image
         self.series = tuple(series)
         self.n_series = len(self.series)
@@ -42,9 +44,9 @@ class Chart:
         self.width, self.height = width, height
         self.box_w, self.box_h = max(64, width // 4), max(40, height // 5)
         self.label_height = 4 + 5 * max(1, height // 240)  # the values printed under the box
-        self.x0, self.y_top = 10, 10  # top-left corner of the box, pixels from the top-left of the picture
+        self.x0, self.y_top = left + 10, 10  # top-left corner of the box, pixels from the top-left of the picture
         # A picture too small to hold the box and its margins gets no chart (drawing it would write out of bounds).
-        self.fits = width >= self.box_w + 2 * self.x0 and height >= self.box_h + 2 * self.y_top
+        self.fits = width >= self.box_w + self.x0 + 10 and height >= self.box_h + 2 * self.y_top
         self.values = ti.field(ti.f32, shape=(len(self.series), SAMPLES))  # normalised to [0, 1]
         self.colors = ti.Vector.field(3, ti.f32, shape=len(self.series))
         for k in range(len(self.series)):

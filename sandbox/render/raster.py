@@ -57,12 +57,20 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
     """Draws a Simulation's particles into `self.image` (W x H RGB floats)."""
 
     def __init__(
-        self, sim, width: int, height: int, render_cfg, output: str = "image", strip_splat: bool = True
+        self,
+        sim,
+        width: int,
+        height: int,
+        render_cfg,
+        output: str = "image",
+        strip_splat: bool = True,
+        panel: float = 0.0,
     ) -> None:
         """output: what render() leaves (see OUTPUTS in the module docstring); "image" packs the 8-bit picture from
         the float image only when picture() asks, "picture" and "rgba" have 2D compositing write it directly.
         strip_splat=False draws every 2D particle with atomic adds (the reference the strip binning is tested
-        against)."""
+        against). panel: the fraction of the width on the left that a side panel covers (the window's); the scene
+        and the chart are drawn right of it."""
         if output not in OUTPUTS:
             raise ValueError(f"unknown renderer output '{output}'; expected one of {', '.join(OUTPUTS)}")
         self.on_cpu = runtime.running_arch() == "cpu"
@@ -74,6 +82,8 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         self.keep_image = output == "image"
         self.cfg = render_cfg
         self.width, self.height = width, height
+        self.panel_px = int(round(panel * width))  # pixels on the left under a side panel
+        self.cx = self.panel_px + 0.5 * (width - self.panel_px)  # 3D: where the view's axis meets the picture
         self.dim = sim.dim
         bodies = sim.scene.groups  # every body, then every emitter, then (last) the spawn tool's particles
         self.n_groups = len(bodies) + 1
@@ -148,7 +158,9 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         self.chart = None
         self.potential = None  # the window's potential panel (a CurvePlot), when shown
         if render_cfg.chart:
-            self.chart = Chart(self.image, width, height, tuple(render_cfg.chart), self._scene_in_image())
+            self.chart = Chart(
+                self.image, width, height, tuple(render_cfg.chart), self._scene_in_image(), self.panel_px
+            )
         if self.motion_blur and sim.emitters is not None:
             sim.emitters.listeners.append(self._follow_moves)
         if self.motion_blur and sim.reorder is not None:
@@ -217,9 +229,10 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         self.lo_np, self.hi_np = lo, hi
         if self.dim == 2:
             extent = hi - lo
-            scale = min(self.width / extent[0], self.height / extent[1]) * 0.98
+            free = self.width - self.panel_px  # the width right of a side panel
+            scale = min(free / extent[0], self.height / extent[1]) * 0.98
             self.px_per_unit = float(scale)
-            centre_px = np.array([self.width, self.height]) / 2
+            centre_px = np.array([self.panel_px + free / 2, self.height / 2])
             self.offset = ti.Vector(list(centre_px - scale * (lo + hi) / 2))
             self.px_lo = ti.Vector(list(centre_px - scale * extent / 2))
             self.px_hi = ti.Vector(list(centre_px + scale * extent / 2))
@@ -325,7 +338,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         z = rel @ self.fwd_np
         focal = 0.5 * self.height / math.tan(math.radians(self.fov) / 2)
         front = z > 1e-6
-        sx = self.width * 0.5 + focal * (rel @ self.right_np) / np.where(front, z, 1.0)
+        sx = self.cx + focal * (rel @ self.right_np) / np.where(front, z, 1.0)
         sy = self.height * 0.5 + focal * (rel @ self.up_np) / np.where(front, z, 1.0)
         near = front & ((sx - u * self.width) ** 2 + (sy - v * self.height) ** 2 <= reach_px**2)
         if not near.any():
@@ -478,7 +491,9 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh."""
 
         scene_in_image = self._scene_in_image()
-        self.chart = Chart(self.image, self.width, self.height, tuple(series), scene_in_image) if series else None
+        self.chart = (
+            Chart(self.image, self.width, self.height, tuple(series), scene_in_image, self.panel_px) if series else None
+        )
         self._overlays_changed()
 
     def picture(self) -> np.ndarray:

@@ -18,7 +18,7 @@ class Spheres3D:
     def _project(self, pos):
         rel = ti.cast(pos, ti.f32) - self.camera[0]
         z = rel.dot(self.camera[3])
-        sx = self.width * 0.5 + self.focal_field[None] * rel.dot(self.camera[1]) / ti.max(z, 1e-6)
+        sx = self.cx + self.focal_field[None] * rel.dot(self.camera[1]) / ti.max(z, 1e-6)
         sy = self.height * 0.5 + self.focal_field[None] * rel.dot(self.camera[2]) / ti.max(z, 1e-6)
         return ti.Vector([sx, sy]), z
 
@@ -31,7 +31,7 @@ class Spheres3D:
                 # the floor plane y = floor_y, with a faint grid so depth reads
                 ray = (
                     self.camera[3] * self.focal_field[None]
-                    + self.camera[1] * (x + 0.5 - 0.5 * self.width)
+                    + self.camera[1] * (x + 0.5 - self.cx)
                     + self.camera[2] * (y + 0.5 - 0.5 * self.height)
                 ).normalized()
                 if ray[1] < -1e-6:

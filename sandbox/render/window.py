@@ -23,7 +23,7 @@ from ..history import UndoRing
 from ..probe import particle_at, probe
 from ..tools import Tools
 from .raster import Renderer
-from .window_panel import draw_panel
+from .window_panel import PANEL_WIDTH, draw_panel
 from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder
 from .window_state import apply_requests, make_state, quick_save_path, view_config
 
@@ -79,7 +79,7 @@ def run_window(
     output = window_output(canvas)
     state = make_state(sim, substeps)
     view = view_config(cfg, state)  # the renderer's configuration; the window's toggles rebuild it when they differ
-    renderer = Renderer(sim, cfg.width, cfg.height, view, output)
+    renderer = Renderer(sim, cfg.width, cfg.height, view, output, panel=PANEL_WIDTH)
     gui = window.get_gui()
     tools = Tools(sim)
     state.recording = record is not None
@@ -120,7 +120,7 @@ def run_window(
         if view_config(cfg, state) != view:  # a view toggle: a renderer built for it (its kernels are specialised)
             view = view_config(cfg, state)
             renderer.detach()
-            renderer = Renderer(sim, cfg.width, cfg.height, view, output)
+            renderer = Renderer(sim, cfg.width, cfg.height, view, output, panel=PANEL_WIDTH)
             if orbit is not None:
                 renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
             chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below

@@ -4,7 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from .window_state import HELP, WindowState, energy_unit, lesson_text, pace_text, reading, tool_label
+from .window_state import (
+    HELP,
+    WindowState,
+    energy_unit,
+    lesson_text,
+    pace_text,
+    panel_characters,
+    reading,
+    tool_label,
+)
+
+PANEL_WIDTH = 0.28  # of the window's width: the panel's column, full height; the renderer draws right of it
 
 
 def thermometers(sim) -> list[tuple[str, float]]:
@@ -22,8 +33,8 @@ def thermometers(sim) -> list[tuple[str, float]]:
 
 def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
     """The panel for this frame: reads `stats`, and sets `state` from its widgets."""
-    with gui.sub_window(sim.scene.name, 0.0, 0.0, 0.28, 0.6):
-        lesson = lesson_text(sim.scene.lesson)
+    with gui.sub_window(sim.scene.name, 0.0, 0.0, PANEL_WIDTH, 1.0):
+        lesson = lesson_text(sim.scene.lesson, panel_characters(sim.scene.render.width, PANEL_WIDTH))
         if lesson:
             state.show_lesson = gui.checkbox("lesson (l)", state.show_lesson)
             if state.show_lesson:

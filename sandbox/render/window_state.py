@@ -193,15 +193,16 @@ def tool_label(name: str, selected: str) -> str:
     return f"> {key} {name} <" if name == selected else f"  {key} {name}  "
 
 
-LESSON_WIDTH = 46  # characters per line of the lesson in the panel
+LESSON_WIDTH = 46  # characters per line of the lesson in the panel of a 1280-pixel window
+CHARACTER_PX = 7.5  # the width of one of GGUI's panel characters, pixels (its font is 13 px high)
 
 
 @functools.cache  # the panel asks every frame; a lesson (frozen) wraps the same way each time
-def lesson_text(lesson) -> tuple[str, ...]:
-    """The scene's lesson as the panel's lines: each part labelled and wrapped to LESSON_WIDTH characters."""
+def lesson_text(lesson, width: int = LESSON_WIDTH) -> tuple[str, ...]:
+    """The scene's lesson as the panel's lines: each part labelled and wrapped to `width` characters."""
     lines = []
     for label, text in lesson.parts():
-        lines += textwrap.wrap(f"{label}: {text}", LESSON_WIDTH)
+        lines += textwrap.wrap(f"{label}: {text}", width)
     return tuple(lines)
 
 
@@ -251,3 +252,9 @@ def apply_requests(sim, state: WindowState, history, path: Path) -> None:
                 state.log.append(f"loaded {path} (t = {sim.time:.2f} s)")
             except SandboxError as exc:
                 state.log.append(str(exc))
+
+
+def panel_characters(window_width: int, panel: float) -> int:
+    """Characters a line of the panel holds in a window `window_width` pixels wide whose panel is `panel` of it
+    (LESSON_WIDTH at 1280 pixels and the window's panel; at least 20)."""
+    return max(20, min(LESSON_WIDTH, int(panel * window_width / CHARACTER_PX) - 1))
