@@ -293,10 +293,13 @@ def test_pacing_runs_fewer_substeps_when_a_frame_of_them_would_not_fit_and_says_
     for _ in range(60):  # the cost doubles: the smoothed estimate follows within a few frames
         pacer.record(7, simulation_seconds=0.028, rest_seconds=0.006)
     assert pacer.choose(20) == 3
-    pacer.record(3, simulation_seconds=0.300, rest_seconds=0.030)  # a frame of one substep over budget: still 1
+    pacer.record(3, simulation_seconds=0.300, rest_seconds=0.010)  # a frame of one substep over budget: still 1
     for _ in range(30):
-        pacer.record(1, simulation_seconds=0.100, rest_seconds=0.030)
+        pacer.record(1, simulation_seconds=0.100, rest_seconds=0.010)
     assert pacer.choose(20) == 1
+    drawing = FramePacer()  # 60 fps, floor 30: drawing takes 15 ms of the 16.7, so it aims for 33.3 ms
+    drawing.record(10, simulation_seconds=0.010, rest_seconds=0.015)
+    assert drawing.choose(30) == 18
     s = state()
     s.frame_substeps, s.pace = 3, 0.412
     assert pace_text(s) == "slow motion: 3 of 8 substeps, 0.412 sim s per s"

@@ -10,16 +10,20 @@ import taichi as ti
 
 FRAME_PARTS = ("events", "simulation", "readouts", "drawing", "display")  # the window loop's parts, in order
 TARGET_FPS = 60.0  # the frame rate the window's pacing aims for
+FLOOR_FPS = 30.0  # ... and where the frame's other work leaves too little room for that, this one
 
 
 class FramePacer:
     """Each window frame's substeps from what they cost, so the frame rate holds: at most the wanted substeps (the
     scene's, or as + and - set them), fewer when a frame of them would not fit in 1 / TARGET_FPS beside the rest of
-    the frame's work (events, readouts, drawing). The simulation then runs slower than its pace: slow motion, which
-    the panel reports as simulated seconds per wall second. Costs are smoothed over the last few frames."""
+    the frame's work (events, readouts, drawing); where that work leaves under a quarter of the frame, the budget is
+    1 / FLOOR_FPS instead (a frame of drawing alone cannot be made faster by stepping less). The simulation then
+    runs slower than its pace: slow motion, which the panel reports as simulated seconds per wall second. Costs are
+    smoothed over the last few frames."""
 
-    def __init__(self, target_fps: float = TARGET_FPS, smoothing: float = 0.25):
+    def __init__(self, target_fps: float = TARGET_FPS, smoothing: float = 0.25, floor_fps: float = FLOOR_FPS):
         self.budget = 1.0 / target_fps
+        self.floor_budget = 1.0 / min(floor_fps, target_fps)
         self.smoothing = smoothing
         self.step_seconds: float | None = None  # the simulation's seconds per substep
         self.rest_seconds = 0.0  # the frame's other work, seconds
@@ -29,6 +33,8 @@ class FramePacer:
         if self.step_seconds is None or self.step_seconds <= 0.0:
             return wanted
         room = self.budget - self.rest_seconds
+        if room < 0.25 * self.budget:  # drawing alone nearly fills the target's frame: aim for the floor instead
+            room = self.floor_budget - self.rest_seconds
         return max(1, min(wanted, int(room / self.step_seconds)))
 
     def record(self, substeps: int, simulation_seconds: float, rest_seconds: float) -> None:
