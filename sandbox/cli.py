@@ -168,10 +168,13 @@ def cmd_run(args) -> int:
     for line in stability_warnings(sim):
         print(f"warning: {line}; expect the blow-up guard to stop the run", file=sys.stderr)
     if not headless:
-        from .render.window import WindowUnavailable, run_window
+        from .render.window import WindowUnavailable, open_scene, run_window
 
         try:
-            run_window(sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record)
+            ran = run_window(sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record)
+            while ran.next_scene:  # the panel's scene picker: the same process opens the next scene
+                sim = open_scene(ran.next_scene, args.arch)
+                ran = run_window(sim)
             return 0
         except WindowUnavailable as exc:
             print(f"{exc}: running headless", file=sys.stderr)

@@ -136,7 +136,7 @@ from sandbox.simulation import Simulation
 from sandbox.render.window import run_window
 sim = Simulation(load_scene(sys.argv[1]))
 record = sys.argv[3] if len(sys.argv) > 3 else None
-print("frames", run_window(sim, frames=3, screenshot=sys.argv[2], show=False, record=record))
+print("frames", run_window(sim, frames=3, screenshot=sys.argv[2], show=False, record=record).frames)
 """
 
 
@@ -341,3 +341,39 @@ def test_the_panel_never_covers_the_scene_or_its_chart():
             chars = panel_characters(width, PANEL_WIDTH)
             assert all(len(line) <= chars for line in lesson_text(sim.scene.lesson, chars))
             ren.detach()
+
+
+def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(monkeypatch):
+    """The panel's scene picker, without a screen: picking closes the window and names the scene; opening it
+    restarts Taichi, so going back and forth between two scenes keeps the memory and the kernels compiled per visit
+    the same (a runtime that kept every scene's fields would run out of field trees)."""
+    import resource
+
+    from taichi.lang import kernel_impl
+
+    from sandbox.render.window import open_scene
+    from sandbox.render.window_state import pick_scene
+
+    s = state()
+    s.handle_key("n")
+    assert s.picking
+    pick_scene(s, "freeze_thaw")
+    assert s.switch_to == "freeze_thaw" and s.quit
+    compiled = []
+    materialize = kernel_impl.Kernel.materialize
+
+    def materialize_and_note(self, key=None, args=None, arg_features=None):
+        if key not in self.compiled_kernels:
+            compiled.append(self.func.__qualname__)
+        return materialize(self, key, args, arg_features)
+
+    monkeypatch.setattr(kernel_impl.Kernel, "materialize", materialize_and_note)
+    visits, peak = [], []
+    for name in ("spring_lattice", "freeze_thaw") * 3:
+        before = len(compiled)
+        sim = open_scene(name)
+        sim.run(3)
+        visits.append(len(compiled) - before)
+        peak.append(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+    assert visits[2:] == visits[:2] * 2 and min(visits) > 0  # each visit compiles (or loads) the same kernels
+    assert peak[-1] - peak[1] < 100_000  # kB: the third round trip's peak within 100 MB of the first's

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import taichi as ti
@@ -27,7 +28,7 @@ from .window_panel import PANEL_WIDTH, draw_panel
 from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder
 from .window_state import apply_requests, make_state, quick_save_path, view_config
 
-__all__ = ["FRAME_PARTS", "WindowUnavailable", "run_window", "window_unavailable_reason"]
+__all__ = ["FRAME_PARTS", "WindowRun", "WindowUnavailable", "open_scene", "run_window", "window_unavailable_reason"]
 
 
 class WindowUnavailable(SandboxError):
@@ -60,8 +61,9 @@ def run_window(
     record: str | None = None,
     timings: dict[str, list[float]] | None = None,
     steady: bool = True,
-) -> int:
-    """Show the simulation in a GGUI window until closed (or for `frames` frames); returns frames shown. `record`:
+) -> WindowRun:
+    """Show the simulation in a GGUI window until closed (or for `frames` frames); returns the frames shown and the
+    scene the user picked to switch to, if any (the caller opens it: open_scene, then run_window again). `record`:
     write the frames to this video from the start (the v key starts and stops recordings to out/SCENE_N.mp4).
     `timings`: append each frame's seconds by part (FRAME_PARTS, and "frame" for the whole loop) to these lists
     (the benchmark; it waits for each part's kernels to finish). `steady`: pace the substeps to hold the frame rate
@@ -222,7 +224,32 @@ def run_window(
     if message:
         print(message)
     window.destroy()
-    return shown
+    return WindowRun(shown, state.switch_to or None)
+
+
+@dataclass(frozen=True)
+class WindowRun:
+    """How a window ended: the frames it showed, and the shipped scene picked in its panel to open next (or None)."""
+
+    frames: int
+    next_scene: str | None = None
+
+
+def open_scene(name: str, arch: str = "cpu"):
+    """A fresh Simulation of the shipped scene `name` for the window's scene picker: Taichi is restarted first, so
+    the last scene's fields and compiled kernels are freed (a runtime holds at most ~512 field trees, so switching
+    without it would run out), and started again at the new scene's precision."""
+    from ..resources import shipped_scene
+    from ..scene import load_scene
+    from ..simulation import Simulation
+
+    path = shipped_scene(name)
+    if path is None:
+        raise SandboxError(f"no shipped scene {name!r}")
+    scene = load_scene(path)
+    runtime.reset()
+    runtime.require(arch, scene.world.precision)
+    return Simulation(scene, arch=arch)
 
 
 ENERGY_SERIES = ("kinetic_energy", "potential_energy", "total_energy")

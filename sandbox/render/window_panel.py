@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..resources import shipped_scenes
 from .window_state import (
     HELP,
     WindowState,
@@ -11,6 +12,7 @@ from .window_state import (
     lesson_text,
     pace_text,
     panel_characters,
+    pick_scene,
     reading,
     tool_label,
 )
@@ -67,6 +69,11 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
             state.radius = gui.slider_float("radius", state.radius, 0.5, 30.0)
             if gui.button("undo stroke (z)"):
                 state.undo = True
+        state.picking = gui.checkbox("switch scene (n)", state.picking)
+        if state.picking:
+            for path in shipped_scenes():
+                if path.stem != sim.scene.name and gui.button(path.stem):
+                    pick_scene(state, path.stem)
         if gui.button("save state (w)"):
             state.save = True
         if gui.button("load state (o)"):

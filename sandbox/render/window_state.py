@@ -25,6 +25,7 @@ HELP = [
     "z      undo the last tool stroke (Ctrl+Z too)",
     "w      save the state (out/SCENE.state.npz)",
     "o      load the saved state back",
+    "n      the scene picker (switch scene) on / off",
     "p      screenshot",
     "m      next material for the spawn tool",
     "v      start / stop recording an MP4 (out/SCENE_N.mp4)",
@@ -78,6 +79,8 @@ class WindowState:
     load: bool = False  # o: read it back
     probe: str = ""  # what the particle under the cursor is (the panel shows it)
     frame_substeps: int = 0  # what this frame ran: substeps, or fewer when pacing holds the frame rate
+    switch_to: str = ""  # a shipped scene picked in the panel: the window closes and opens it
+    picking: bool = False  # the panel lists the shipped scenes to switch to
     pace: float = 0.0  # simulated seconds per wall second
     log: list[str] = field(default_factory=list)
 
@@ -139,6 +142,8 @@ class WindowState:
             self.save = True
         elif key == "o":
             self.load = True
+        elif key == "n":
+            self.picking = not self.picking
         elif key == "m" and self.materials:
             self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
 
@@ -258,3 +263,9 @@ def panel_characters(window_width: int, panel: float) -> int:
     """Characters a line of the panel holds in a window `window_width` pixels wide whose panel is `panel` of it
     (LESSON_WIDTH at 1280 pixels and the window's panel; at least 20)."""
     return max(20, min(LESSON_WIDTH, int(panel * window_width / CHARACTER_PX) - 1))
+
+
+def pick_scene(state: WindowState, name: str) -> None:
+    """The panel's scene picker chose `name`: close this window and open that scene (run_window returns it)."""
+    state.switch_to = name
+    state.quit = True
