@@ -297,7 +297,7 @@ def test_every_output_gives_the_same_picture_and_rgba_is_ggui_packed_layout(scen
         sim.advance_frame()
         pictures = {}
         for output, ren in renderers.items():
-            ren.record(SimpleNamespace(mean_temperature=float(k)))
+            ren.record(SimpleNamespace(mean_temperature=float(k), time=0.1 * k))
             pictures[output] = ren.frame().copy()
         assert np.array_equal(pictures["picture"], pictures["image"])
         assert np.array_equal(pictures["rgba"], pictures["image"])
@@ -343,7 +343,7 @@ def test_chart_plots_each_series_across_its_box(dim, output):
     sim = Simulation(make_scene(data))
     ren = Renderer(sim, 320, 180, sim.scene.render, output)
     for k in range(11):  # temperature rises 0 -> 100 (auto range); melt fraction 0 -> 0.5 (fixed [0, 1] scale)
-        ren.record(SimpleNamespace(mean_temperature=10.0 * k, molten_fraction=0.05 * k))
+        ren.record(SimpleNamespace(mean_temperature=10.0 * k, molten_fraction=0.05 * k, time=0.1 * k))
     img = ren.frame().astype(int)
     chart = ren.chart
     x0, y0, w, h = chart.x0, chart.y_top, chart.box_w, chart.box_h  # y0: top of the box, from the top of the image
@@ -371,11 +371,12 @@ def test_the_chart_can_be_switched_and_removed_live():
     plain = ren.frame().copy()
     ren.set_chart(("kinetic_energy", "total_energy"))  # the window's energy plot (key e)
     for k in range(5):
-        ren.record(SimpleNamespace(kinetic_energy=float(k), total_energy=10.0 - k))
+        ren.record(SimpleNamespace(kinetic_energy=float(k), total_energy=10.0 - k, time=0.1 * k))
     with_chart = ren.frame()
     changed = np.abs(with_chart.astype(int) - plain.astype(int)).sum(axis=2) > 0
     ys, xs = np.nonzero(changed)
-    assert changed.sum() > 100 and xs.max() < 320 // 4 + 40 and ys.max() < 180 // 5 + 40  # top-left corner only
+    # the top-left only: the box, its labels underneath and its scale's values beside it
+    assert changed.sum() > 100 and xs.max() < 320 // 4 + 60 and ys.max() < 180 // 5 + 40
     ren.set_chart(())
     assert np.array_equal(ren.frame(), plain)
 
@@ -425,7 +426,7 @@ def test_compositing_only_the_dirty_tiles_gives_the_full_picture():
         x[0] += (9.0, 4.0 * (-1) ** k)  # crosses tiles, back and forth
         sim.particles.x.from_numpy(x)
         for ren in (tiled, full):
-            ren.record(SimpleNamespace(kinetic_energy=float(k * k)))
+            ren.record(SimpleNamespace(kinetic_energy=float(k * k), time=0.1 * k))
         full.full_refresh = True
         a, b = tiled.frame().copy(), full.frame()
         assert np.array_equal(a, b), f"frame {k}"
@@ -513,3 +514,10 @@ def test_a_chart_or_colour_bar_too_big_for_the_picture_is_left_out(tmp_path):
         pictures.append(read_png(out))
     assert pictures[0].shape == (48, 48, 3)
     assert np.array_equal(pictures[0], pictures[1])
+
+
+@pytest.mark.parametrize("size", [(1280, 720), (640, 360), (320, 180)])
+def test_the_colour_bar_fits_at_every_common_size(size):
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true"]))
+    ren = Renderer(sim, *size, sim.scene.render)
+    assert ren._legend_shown()  # the bar and its labels inside the picture

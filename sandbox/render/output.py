@@ -37,8 +37,8 @@ class Output:
     def _legend_geometry(self) -> tuple[int, int, int, int, int]:
         """(x0, row0, bar width, bar height, text scale) of the colour bar, rows counted from the top."""
         h, w = self.height, self.width
-        bar_w, bar_h = max(60, w // 6), max(6, h // 60)
-        return w - bar_w - 12, h - bar_h - 16, bar_w, bar_h, max(1, h // 240)
+        bar_w, bar_h, scale = max(60, w // 6), max(6, h // 60), max(1, h // 240)
+        return w - bar_w - 12, h - bar_h - 5 * scale - 12, bar_w, bar_h, scale  # its labels fit below it
 
     def _legend_rect(self) -> tuple[int, int, int, int]:
         """(x0, x1, row0, row1): the pixels the legend (bar, frame and labels) may draw on."""

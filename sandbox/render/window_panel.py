@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 from ..resources import shipped_scenes
@@ -36,7 +38,8 @@ def thermometers(sim) -> list[tuple[str, float]]:
 def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
     """The panel for this frame: reads `stats`, and sets `state` from its widgets."""
     with gui.sub_window(sim.scene.name, 0.0, 0.0, PANEL_WIDTH, 1.0):
-        lesson = lesson_text(sim.scene.lesson, panel_characters(sim.scene.render.width, PANEL_WIDTH))
+        chars = panel_characters(sim.scene.render.width, PANEL_WIDTH)
+        lesson = lesson_text(sim.scene.lesson, chars)
         if lesson:
             state.show_lesson = gui.checkbox("lesson (l)", state.show_lesson)
             if state.show_lesson:
@@ -54,11 +57,13 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
             sim.heat.ambient[None] = gui.slider_float("ambient C", float(sim.heat.ambient[None]), -50.0, 300.0)
         unit = energy_unit(sim)
         gui.text(f"energy ({unit}): kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
-        per_particle = reading(stats.total_energy_per_particle, digits=3)
-        walls = f"   on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
-        gui.text(f"pressure {reading(stats.pressure, digits=3)}{walls}   energy per particle {per_particle}")
-        gui.text(f"under cursor: {state.probe or '-'}")
-        gui.text(f"integrator {state.integrator}   {pace_text(state)}")
+        gui.text(f"  per particle {reading(stats.total_energy_per_particle, digits=3)}")
+        walls = f"  on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
+        gui.text(f"pressure {reading(stats.pressure, digits=3)}{walls}")
+        for line in textwrap.wrap(f"under cursor: {state.probe or '-'}", chars):
+            gui.text(line)
+        gui.text(f"integrator {state.integrator}")
+        gui.text(pace_text(state))
         if state.tools_available:
             gui.text(f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")
             if sim.dim == 3:

@@ -218,9 +218,9 @@ def energy_unit(sim) -> str:
 
 
 def pace_text(state: WindowState) -> str:
-    """The panel's line on substeps and pace: "substeps 20, 1.2 sim s per s", and when pacing holds the frame rate
-    with fewer substeps than wanted, "slow motion: 8 of 20 substeps, 0.41 sim s per s"."""
-    pace = f"{state.pace:.3g} sim s per s"
+    """The panel's line on substeps and pace (simulated seconds per wall second): "substeps 20, 1.2 sim s/s", and
+    when pacing holds the frame rate with fewer substeps than wanted, "slow motion: 8 of 20 substeps, 0.41 sim s/s"."""
+    pace = f"{state.pace:.3g} sim s/s"
     if state.frame_substeps and state.frame_substeps < state.substeps:
         return f"slow motion: {state.frame_substeps} of {state.substeps} substeps, {pace}"
     return f"substeps {state.substeps}, {pace}"
