@@ -382,3 +382,12 @@ def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(monke
         peak.append(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
     assert visits[2:] == visits[:2] * 2 and min(visits) > 0  # each visit compiles (or loads) the same kernels
     assert peak[-1] - peak[1] < 100_000  # kB: the third round trip's peak within 100 MB of the first's
+
+
+def test_the_window_draws_3d_at_half_size_and_2d_at_full_size():
+    from types import SimpleNamespace
+
+    from sandbox.render.window import picture_size
+
+    assert picture_size(SimpleNamespace(dim=3), 1280, 720) == (640, 360)
+    assert picture_size(SimpleNamespace(dim=2), 1280, 720) == (1280, 720)

@@ -81,11 +81,12 @@ def run_window(
     output = window_output(canvas)
     state = make_state(sim, substeps)
     view = view_config(cfg, state)  # the renderer's configuration; the window's toggles rebuild it when they differ
-    renderer = Renderer(sim, cfg.width, cfg.height, view, output, panel=PANEL_WIDTH)
+    size = picture_size(sim, cfg.width, cfg.height)  # what the renderer draws; GGUI stretches it to the window
+    renderer = Renderer(sim, *size, view, output, panel=PANEL_WIDTH)
     gui = window.get_gui()
     tools = Tools(sim)
     state.recording = record is not None
-    recorder = Recorder(sim.scene.name, cfg.width, cfg.height, cfg.fps, record)
+    recorder = Recorder(sim.scene.name, *size, cfg.fps, record)
     chart_series = tuple(cfg.chart)
     potential_shown = (False, 1.0, 1.0)
     orbit = OrbitCamera(renderer.eye_np, renderer.target_np) if sim.dim == 3 else None
@@ -122,7 +123,7 @@ def run_window(
         if view_config(cfg, state) != view:  # a view toggle: a renderer built for it (its kernels are specialised)
             view = view_config(cfg, state)
             renderer.detach()
-            renderer = Renderer(sim, cfg.width, cfg.height, view, output, panel=PANEL_WIDTH)
+            renderer = Renderer(sim, *size, view, output, panel=PANEL_WIDTH)
             if orbit is not None:
                 renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
             chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below
@@ -225,6 +226,17 @@ def run_window(
         print(message)
     window.destroy()
     return WindowRun(shown, state.switch_to or None)
+
+
+WINDOW_3D_SCALE = 0.5  # the window draws 3D scenes at this fraction of its size: shading every pixel of 1280 x 720
+
+
+def picture_size(sim, width: int, height: int) -> tuple[int, int]:
+    """The size the window's renderer draws at for a `width` x `height` window: the full size in 2D; in 3D
+    WINDOW_3D_SCALE of it (spheres are shaded per pixel; at full size the 3D block drew 12-18 fps on two cores)."""
+    if sim.dim == 3:
+        return max(64, int(width * WINDOW_3D_SCALE)), max(36, int(height * WINDOW_3D_SCALE))
+    return width, height
 
 
 @dataclass(frozen=True)
