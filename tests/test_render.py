@@ -392,11 +392,18 @@ def test_potential_panel_draws_the_force_curve_top_right():
     )
     ren = Renderer(sim, 320, 180, sim.scene.render)
     plain = ren.frame().copy()
-    ren.set_potential(sim.pair.curve()[1])
+    r, force = sim.pair.curve()
+    ren.set_potential(force, (float(r[0]), float(r[-1])))
     shown = ren.frame()
     changed = np.abs(shown.astype(int) - plain.astype(int)).sum(axis=2) > 0
     ys, xs = np.nonzero(changed)
-    assert changed.sum() > 100 and xs.min() > 320 - 320 // 4 - 20 and ys.max() < 180 // 5 + 20
+    # the top-right corner: the box, the 0 of its zero line left of it, its distance axis under it
+    assert changed.sum() > 100 and xs.min() > 320 - 320 // 4 - 30 and ys.max() < 180 // 5 + 30
+    panel = ren.potential  # named, its zero line marked, its distance axis given
+    assert lit_where_text_is(shown, "pair force, + attracts", panel.x0 + 3, panel.y_top + 3, 1, (200, 200, 200))
+    axis = f"r {r[0]:.2g} to {r[-1]:.2g}"
+    x = panel.x0 + panel.box_w - 4 * len(axis)
+    assert lit_where_text_is(shown, axis, x, panel.y_top + panel.box_h + 3, 1, (200, 200, 200))
     ren.set_potential(None)
     assert np.array_equal(ren.frame(), plain)
 

@@ -164,10 +164,12 @@ class CurvePlot(Chart):
         super().__init__(image, width, height, ("curve", "zero"), scene_in_image)
         self.x0 = width - self.box_w - 10
         self.label_height = 0
+        self.r_range: tuple[float, float] | None = None
 
-    def set_curve(self, values: np.ndarray) -> None:
-        """Plot `values` (any length up to SAMPLES) scaled so that zero is mid-height and the largest attraction
-        reaches a third of the way up; repulsion beyond the box is clipped."""
+    def set_curve(self, values: np.ndarray, r_range: tuple[float, float] | None = None) -> None:
+        """Plot `values` (any length up to SAMPLES; distances r_range, evenly spaced) scaled so that zero is
+        mid-height and the largest attraction reaches a third of the way up; repulsion beyond the box is clipped."""
+        self.r_range = r_range
         values = np.asarray(values, dtype=float)
         scale = max(float(np.max(values)), 1e-12) * 3.0
         self.n = min(len(values), SAMPLES)
@@ -181,4 +183,16 @@ class CurvePlot(Chart):
         pass
 
     def label(self, img: np.ndarray) -> None:
-        pass
+        """Name the curve and its axes on an (H, W, 3) uint8 frame: "pair force" with which way attracts above the
+        box, the zero line's 0, and the distance axis's range under the box."""
+        if not self.fits:
+            return
+        scale = max(1, self.height // 240)
+        grey = (200, 200, 200)
+        draw_text(img, "pair force, + attracts", self.x0 + 3, self.y_top + 3, scale, grey)
+        draw_text(img, "0", self.x0 - text_width("0 ", scale), self.y_top + (self.box_h - 5 * scale) // 2, scale, grey)
+        if self.r_range is not None:
+            lo, hi = self.r_range
+            axis = f"r {lo:.2g} to {hi:.2g}"
+            x = self.x0 + self.box_w - text_width(axis, scale)
+            draw_text(img, axis, x, self.y_top + self.box_h + 3, scale, grey)

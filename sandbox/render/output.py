@@ -84,3 +84,5 @@ class Output:
             self.draw_legend(view)
         if self.chart is not None:
             self.chart.label(view)
+        if self.potential is not None:
+            self.potential.label(view)

@@ -464,8 +464,9 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         self._resolve_2d(int(self.full_refresh), self.out)
         self.full_refresh = False
 
-    def set_potential(self, values: np.ndarray | None) -> None:
-        """Show a curve (the pair force against distance) in the top-right corner; None hides it."""
+    def set_potential(self, values: np.ndarray | None, r_range: tuple[float, float] | None = None) -> None:
+        """Show a curve (the pair force against distance, over distances r_range) in the top-right corner; None
+        hides it."""
         if values is None:
             if self.potential is not None:
                 self.potential = None
@@ -474,7 +475,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         if self.potential is None:
             self.potential = CurvePlot(self.image, self.width, self.height, self._scene_in_image())
             self._overlays_changed()
-        self.potential.set_curve(values)
+        self.potential.set_curve(values, r_range)
 
     def record(self, stats) -> None:
         """Give the chart (if the scene has one) this frame's measurements."""
@@ -509,6 +510,8 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             self.draw_legend(img)
         if self.chart is not None:
             self.chart.label(img)
+        if self.potential is not None:
+            self.potential.label(img)
         if self.cfg.clock:
             self.draw_clock(img)
         return img

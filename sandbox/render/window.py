@@ -135,7 +135,8 @@ def run_window(
             shown_law = (state.potential, state.attraction, state.repulsion)
             if shown_law != potential_shown:
                 sim.pair.set_scale(state.attraction, state.repulsion)
-                renderer.set_potential(sim.pair.curve()[1] if state.potential else None)
+                r, force = sim.pair.curve()
+                renderer.set_potential(force if state.potential else None, (float(r[0]), float(r[-1])))
                 potential_shown = shown_law
         wanted = ENERGY_SERIES if state.energy_plot else tuple(cfg.chart)
         if wanted != chart_series:
