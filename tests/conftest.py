@@ -59,3 +59,20 @@ def scene_file(tmp_path):
 
 def pytest_addoption(parser):
     parser.addoption("--regen-golden", action="store_true", help="rewrite the stored golden images in tests/golden")
+
+
+@pytest.fixture
+def compiled_kernels(monkeypatch) -> list[str]:
+    """The names of the kernels compiled (or loaded from the offline cache) from now on in this test, in order."""
+    from taichi.lang import kernel_impl
+
+    compiled: list[str] = []
+    materialize = kernel_impl.Kernel.materialize
+
+    def materialize_and_note(self, key=None, args=None, arg_features=None):
+        if key not in self.compiled_kernels:
+            compiled.append(self.func.__qualname__)
+        return materialize(self, key, args, arg_features)
+
+    monkeypatch.setattr(kernel_impl.Kernel, "materialize", materialize_and_note)
+    return compiled

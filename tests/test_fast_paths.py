@@ -436,24 +436,14 @@ def test_whole_step_launches_compile_without_the_cfg_pass_and_the_setting_comes_
     ],
     ids=["lj_box", "melting_block_900"],
 )
-def test_widening_the_lists_recompiles_nothing_and_keeps_the_trajectory(make, monkeypatch):
+def test_widening_the_lists_recompiles_nothing_and_keeps_the_trajectory(make, request):
     """Lists that grow (an emitter or the spawn tool packing particles closer) are a new, wider array that every
     compiled kernel takes as it is: no kernel is compiled again (it was a stall of about a second each time), and
     the trajectory is the one the narrower lists give."""
-    from taichi.lang import kernel_impl
-
     wide, narrow = make(), make()
     wide.step(30)
     narrow.step(30)
-    compiled = []
-    materialize = kernel_impl.Kernel.materialize
-
-    def materialize_and_note(self, key=None, args=None, arg_features=None):
-        if key not in self.compiled_kernels:
-            compiled.append(self.func.__qualname__)
-        return materialize(self, key, args, arg_features)
-
-    monkeypatch.setattr(kernel_impl.Kernel, "materialize", materialize_and_note)
+    compiled = request.getfixturevalue("compiled_kernels")  # from here on
     width = wide.neighbours.width
     wide.neighbours._allocate(2 * width)  # what grow() does, here without an overflow first
     for sim in (wide, narrow):

@@ -348,13 +348,11 @@ def test_the_panel_never_covers_the_scene_or_its_chart():
             ren.detach()
 
 
-def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(monkeypatch):
+def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(compiled_kernels):
     """The panel's scene picker, without a screen: picking closes the window and names the scene; opening it
     restarts Taichi, so going back and forth between two scenes keeps the memory and the kernels compiled per visit
     the same (a runtime that kept every scene's fields would run out of field trees)."""
     import resource
-
-    from taichi.lang import kernel_impl
 
     from sandbox.render.window import open_scene
     from sandbox.render.window_state import pick_scene
@@ -364,15 +362,7 @@ def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(monke
     assert s.picking
     pick_scene(s, "freeze_thaw")
     assert s.switch_to == "freeze_thaw" and s.quit
-    compiled = []
-    materialize = kernel_impl.Kernel.materialize
-
-    def materialize_and_note(self, key=None, args=None, arg_features=None):
-        if key not in self.compiled_kernels:
-            compiled.append(self.func.__qualname__)
-        return materialize(self, key, args, arg_features)
-
-    monkeypatch.setattr(kernel_impl.Kernel, "materialize", materialize_and_note)
+    compiled = compiled_kernels
     visits, peak = [], []
     for name in ("spring_lattice", "freeze_thaw") * 3:
         before = len(compiled)

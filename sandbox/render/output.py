@@ -75,14 +75,20 @@ class Output:
 
     def label_window_output(self) -> None:
         """The window's picture (GGUI's packed RGBA on the CPU, the renderer's own NumPy buffer): draw the host-side
-        text on it in place, as picture() does on its copy: the colour bar and the chart's labels."""
+        text on it in place, as picture() does on its copy (draw_text_overlays)."""
         if self.output != "rgba" or not isinstance(self.out, np.ndarray):
             return
         rgba = self.out.view(np.uint8).reshape(self.width, self.height, 4)
-        view = rgba[:, ::-1, :3].transpose(1, 0, 2)  # (H, W, 3), top row first: a view, so drawing writes `out`
+        self.draw_text_overlays(rgba[:, ::-1, :3].transpose(1, 0, 2))  # (H, W, 3) top row first: a view of `out`
+
+    def draw_text_overlays(self, img: np.ndarray) -> None:
+        """What is drawn on the host onto an (H, W, 3) uint8 frame (or a view of one): the colour bar, the chart's
+        and the pair-force panel's labels, and the clock."""
         if self.cfg.legend:
-            self.draw_legend(view)
+            self.draw_legend(img)
         if self.chart is not None:
-            self.chart.label(view)
+            self.chart.label(img)
         if self.potential is not None:
-            self.potential.label(view)
+            self.potential.label(img)
+        if self.cfg.clock:
+            self.draw_clock(img)

@@ -506,12 +506,5 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             if self.dim == 3 or self.keep_image:
                 self._pack(self.out)
             img = self.out if self.on_cpu else self.out.to_numpy()
-        if self.cfg.legend:
-            self.draw_legend(img)
-        if self.chart is not None:
-            self.chart.label(img)
-        if self.potential is not None:
-            self.potential.label(img)
-        if self.cfg.clock:
-            self.draw_clock(img)
+        self.draw_text_overlays(img)
         return img
