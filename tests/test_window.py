@@ -381,3 +381,19 @@ def test_the_window_draws_3d_at_half_size_and_2d_at_full_size():
 
     assert picture_size(SimpleNamespace(dim=3), 1280, 720) == (640, 360)
     assert picture_size(SimpleNamespace(dim=2), 1280, 720) == (1280, 720)
+
+
+def test_every_panel_line_is_wrapped_to_the_panel_width():
+    from sandbox.render.window_panel import say
+
+    class Gui:
+        lines: list[str] = []
+
+        def text(self, line):
+            self.lines.append(line)
+
+    gui = Gui()
+    say(gui, 22, "energy (pJ): kinetic 1031  total 1.351e+05")
+    say(gui, 22, "")
+    assert all(len(line) <= 22 for line in gui.lines) and len(gui.lines) == 4 and gui.lines[-1] == ""
+    assert " ".join(gui.lines).split() == "energy (pJ): kinetic 1031 total 1.351e+05".split()

@@ -35,39 +35,47 @@ def thermometers(sim) -> list[tuple[str, float]]:
     return [(names[k], float(sums[k] / counts[k])) for k in range(len(names)) if counts[k]]
 
 
+def say(gui, chars: int, text: str) -> None:
+    """A line of the panel, wrapped at `chars` characters so that no text runs past the panel's edge."""
+    for line in textwrap.wrap(text, chars, subsequent_indent="  ", drop_whitespace=False) or [""]:
+        gui.text(line)
+
+
 def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
     """The panel for this frame: reads `stats`, and sets `state` from its widgets."""
+    chars = panel_characters(sim.scene.render.width, PANEL_WIDTH)
     with gui.sub_window(sim.scene.name, 0.0, 0.0, PANEL_WIDTH, 1.0):
-        chars = panel_characters(sim.scene.render.width, PANEL_WIDTH)
         lesson = lesson_text(sim.scene.lesson, chars)
         if lesson:
             state.show_lesson = gui.checkbox("lesson (l)", state.show_lesson)
             if state.show_lesson:
                 for line in lesson:
                     gui.text(line)
-        gui.text(f"t = {stats.time:.2f} s   {fps:.0f} fps   {'paused' if state.paused else ''}")
-        gui.text(
+        say(gui, chars, f"t = {stats.time:.2f} s   {fps:.0f} fps   {'paused' if state.paused else ''}")
+        say(
+            gui,
+            chars,
             f"particles {stats.particles}"
-            + (f"   broken springs {stats.broken_springs}" if sim.springs is not None else "")
+            + (f"   broken springs {stats.broken_springs}" if sim.springs is not None else ""),
         )
         if sim.heat is not None:
-            gui.text(f"mean T {reading(stats.mean_temperature, 'C')}   molten {100 * stats.molten_fraction:.0f}%")
+            molten = f"molten {100 * stats.molten_fraction:.0f}%"
+            say(gui, chars, f"mean T {reading(stats.mean_temperature, 'C')}   {molten}")
             for name, temperature in thermometers(sim)[:6]:
-                gui.text(f"  {name}: {temperature:.1f} C")
+                say(gui, chars, f"  {name}: {temperature:.1f} C")
             sim.heat.ambient[None] = gui.slider_float("ambient C", float(sim.heat.ambient[None]), -50.0, 300.0)
         unit = energy_unit(sim)
-        gui.text(f"energy ({unit}): kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
-        gui.text(f"  per particle {reading(stats.total_energy_per_particle, digits=3)}")
+        say(gui, chars, f"energy ({unit}): kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
+        say(gui, chars, f"  per particle {reading(stats.total_energy_per_particle, digits=3)}")
         walls = f"  on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
-        gui.text(f"pressure {reading(stats.pressure, digits=3)}{walls}")
-        for line in textwrap.wrap(f"under cursor: {state.probe or '-'}", chars):
-            gui.text(line)
-        gui.text(f"integrator {state.integrator}")
-        gui.text(pace_text(state))
+        say(gui, chars, f"pressure {reading(stats.pressure, digits=3)}{walls}")
+        say(gui, chars, f"under cursor: {state.probe or '-'}")
+        say(gui, chars, f"integrator {state.integrator}")
+        say(gui, chars, pace_text(state))
         if state.tools_available:
-            gui.text(f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")
+            say(gui, chars, f"tool: {state.tool}   radius {state.radius:.1f}   spawns {state.material} (m)")
             if sim.dim == 3:
-                gui.text("3D: Shift + left button uses the tool")
+                say(gui, chars, "3D: Shift + left button uses the tool")
             for name in state.tools_available:
                 if gui.button(tool_label(name, state.tool)):
                     state.tool = name
@@ -87,7 +95,7 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
         state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
         if sim.scene.world.substeps != "auto":
             state.dt_scale = gui.slider_float("dt x", state.dt_scale, 0.1, 2.0)
-            gui.text(f"dt {sim.dt:.4g}  (stable for springs below {state.stable_dt:.3g})" if sim.springs else "")
+            say(gui, chars, f"dt {sim.dt:.4g}  (stable for springs below {state.stable_dt:.3g})" if sim.springs else "")
         state.recording = gui.checkbox("record MP4 (v)", state.recording)
         if sim.pair is not None:
             state.potential = gui.checkbox("pair force (f)", state.potential)
@@ -95,12 +103,12 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
                 state.attraction = gui.slider_float("attraction x", state.attraction, 0.0, 4.0)
                 state.repulsion = gui.slider_float("repulsion x", state.repulsion, 0.25, 4.0)
                 r_eq = sim.pair.r_eq_np[0, 0]
-                gui.text(f"equilibrium distance {r_eq:.3f} (curve crosses zero)")
+                say(gui, chars, f"equilibrium distance {r_eq:.3f} (curve crosses zero)")
         if sim.dim == 2 and any(sim.scene.world.gravity):
             state.gravity_angle = gui.slider_float("gravity angle", state.gravity_angle, -180.0, 180.0)
         if state.log:
-            gui.text(state.log[-1])
+            say(gui, chars, state.log[-1])
     if state.show_help:
         with gui.sub_window("keys", 0.3, 0.05, 0.4, 0.5):
             for line in HELP:
-                gui.text(line)
+                say(gui, chars, line)
