@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import SandboxError, SceneError
-from .scene import Body, Scene
+from .scene_tables import Body, Scene
 
 LATTICE_BASIS = {
     "square": np.array([[1.0, 0.0], [0.0, 1.0]]),

@@ -293,7 +293,7 @@ def cmd_list(args) -> int:
 
 def cmd_keys(args) -> int:
     from .materials import Material
-    from .scene import (
+    from .scene_tables import (
         Body,
         Emitter,
         FieldElement,

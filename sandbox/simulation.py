@@ -35,7 +35,7 @@ from .physics.phase import LIQUID, Phase, Refreezer
 from .physics.reorder import CellOrder
 from .physics.smoke import SmokeGrid
 from .physics.springs import Springs
-from .scene import COUPLINGS, Scene
+from .scene_tables import COUPLINGS, Scene
 from .scripting import Scripting
 from .stability import StabilityBounds
 from .state import StateAccess

@@ -5,7 +5,7 @@ import pytest
 
 from sandbox.errors import SimulationError
 from sandbox.integrators import REGISTRY
-from sandbox.scene import INTEGRATORS
+from sandbox.scene_tables import INTEGRATORS
 from sandbox.simulation import Simulation
 
 from .conftest import make_scene, scene_dict

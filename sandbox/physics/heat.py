@@ -27,7 +27,7 @@ import numpy as np
 import taichi as ti
 
 from ..oriented import data_oriented
-from ..scene import SOURCE_MODES
+from ..scene_tables import SOURCE_MODES
 from ..transfer import real_fields
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
