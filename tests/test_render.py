@@ -257,7 +257,8 @@ def test_chart_series_of_one_unit_share_a_scale_and_are_labelled():
     assert mixed.ranges[1] == (0.0, 1.0)
     img = np.zeros((180, 320, 3), dtype=np.uint8)
     mixed.label(img)
-    temperature = f"mean T {mixed.history[0][-1]:.3g} °C"  # in the series' colour
+    lo, hi = mixed.ranges[0]
+    temperature = f"mean T {mixed.history[0][-1]:.3g} °C ({lo:.3g} to {hi:.3g})"  # its own scale, in its colour
     assert lit_where_text_is(img, temperature, mixed.x0, mixed.y_top + mixed.box_h + 3, 1, (255, 102, 63))
 
 
@@ -397,10 +398,12 @@ def test_potential_panel_draws_the_force_curve_top_right():
     shown = ren.frame()
     changed = np.abs(shown.astype(int) - plain.astype(int)).sum(axis=2) > 0
     ys, xs = np.nonzero(changed)
-    # the top-right corner: the box, the 0 of its zero line left of it, its distance axis under it
-    assert changed.sum() > 100 and xs.min() > 320 - 320 // 4 - 30 and ys.max() < 180 // 5 + 30
+    # the top-right corner: the box, its force values left of it, its distance axis under it
+    assert changed.sum() > 100 and xs.min() > 320 - 320 // 4 - 45 and ys.max() < 180 // 5 + 30
     panel = ren.potential  # named, its zero line marked, its distance axis given
     assert lit_where_text_is(shown, "pair force, + attracts", panel.x0 + 3, panel.y_top + 3, 1, (200, 200, 200))
+    top = f"{3 * force.max():.2g}"  # the force at the top of the box: attraction's peak reaches a third of the way
+    assert lit_where_text_is(shown, top, panel.x0 - 4 * (len(top) + 1), panel.y_top, 1, (200, 200, 200))
     axis = f"r {r[0]:.2g} to {r[-1]:.2g}"
     x = panel.x0 + panel.box_w - 4 * len(axis)
     assert lit_where_text_is(shown, axis, x, panel.y_top + panel.box_h + 3, 1, (200, 200, 200))

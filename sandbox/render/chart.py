@@ -134,8 +134,9 @@ class Chart:
                     self._put(out, px, py, self.colors[s])
 
     def label(self, img: np.ndarray) -> None:
-        """Under the box, each series' name, latest value and unit in its colour, then the time span; beside the box
-        its scale's top and bottom values when the series share one; on an (H, W, 3) uint8 frame."""
+        """Under the box, each series' name, latest value and unit in its colour (with its own scale's bottom and top
+        when the series do not share one), then the time span; beside the box the shared scale's top and bottom
+        values; on an (H, W, 3) uint8 frame."""
         if not self.history[0] or not self.fits:
             return
         scale = max(1, self.height // 240)
@@ -145,6 +146,9 @@ class Chart:
             label, unit = SERIES_LABELS.get(name, (name, ""))
             unit = "" if unit == "E" else unit  # energies: in the scene's units (docs/physics.md)
             text = f"{label} {self.history[k][-1]:.3g}{' ' + unit if unit.startswith('°') else unit}"
+            if not self.shared_scale() and name not in FRACTIONS:  # its own scale: bottom and top of the box
+                lo, hi = self.ranges[k]
+                text += f" ({lo:.3g} to {hi:.3g})"
             color = tuple(int(255 * c) for c in COLORS[k % len(COLORS)])
             draw_text(img, text, x, y, scale, color)
             x += text_width(text + "  ", scale)
@@ -165,6 +169,7 @@ class CurvePlot(Chart):
         self.x0 = width - self.box_w - 10
         self.label_height = 0
         self.r_range: tuple[float, float] | None = None
+        self.force_top = 1.0
 
     def set_curve(self, values: np.ndarray, r_range: tuple[float, float] | None = None) -> None:
         """Plot `values` (any length up to SAMPLES; distances r_range, evenly spaced) scaled so that zero is
@@ -172,6 +177,7 @@ class CurvePlot(Chart):
         self.r_range = r_range
         values = np.asarray(values, dtype=float)
         scale = max(float(np.max(values)), 1e-12) * 3.0
+        self.force_top = scale  # the force at the top of the box (the bottom is minus it)
         self.n = min(len(values), SAMPLES)
         pick = np.linspace(0, len(values) - 1, self.n).round().astype(int)
         table = np.zeros((2, SAMPLES), dtype=np.float32)
@@ -183,14 +189,19 @@ class CurvePlot(Chart):
         pass
 
     def label(self, img: np.ndarray) -> None:
-        """Name the curve and its axes on an (H, W, 3) uint8 frame: "pair force" with which way attracts above the
-        box, the zero line's 0, and the distance axis's range under the box."""
+        """Name the curve and its axes on an (H, W, 3) uint8 frame: "pair force" with which way attracts at the top of
+        the box, the force at its top, zero line and bottom, and the distance axis's range under the box."""
         if not self.fits:
             return
         scale = max(1, self.height // 240)
         grey = (200, 200, 200)
         draw_text(img, "pair force, + attracts", self.x0 + 3, self.y_top + 3, scale, grey)
         draw_text(img, "0", self.x0 - text_width("0 ", scale), self.y_top + (self.box_h - 5 * scale) // 2, scale, grey)
+        top = f"{self.force_top:.2g}"
+        draw_text(img, top, self.x0 - text_width(top + " ", scale), self.y_top, scale, grey)
+        bottom = f"-{self.force_top:.2g}"
+        low = self.y_top + self.box_h - 5 * scale
+        draw_text(img, bottom, self.x0 - text_width(bottom + " ", scale), low, scale, grey)
         if self.r_range is not None:
             lo, hi = self.r_range
             axis = f"r {lo:.2g} to {hi:.2g}"
