@@ -3,6 +3,7 @@ their memory. A mixin of Simulation; `sandbox check` prints it."""
 
 from .integrators import REGISTRY
 from .physics.grid import CellGrid
+from .step_plan import host_work_reasons
 
 
 class Description:
@@ -55,6 +56,9 @@ class Description:
             passes.append(f"kinematic advection through the velocity field ({self.scene.world.advection})")
         if self.has_lifetimes:
             passes.append("ageing; the dead retired by compaction after each step() call")
+        reasons = host_work_reasons(self.scene)
+        if reasons:
+            passes.append("launch: one launch per pass, one step at a time: " + "; ".join(reasons))
         if self.fuses_steps:
             fused = "/".join(name for name, cls in REGISTRY.items() if cls.stages)
             team = f", run by a team of {self.team.workers} threads meeting at barriers" if self.team else ""

@@ -50,7 +50,7 @@ class LoopPolicy:
     def __init__(self, arch: str, capacity: int, pair_only: bool = False, threads: int = 1, team_ok: bool = False):
         """`capacity`: particle slots; `pair_only`: no springs, no heat in the step (see PAIR_ONLY_PARALLEL_FROM);
         `threads`: the CPU backend's worker threads; `team_ok`: the scene's steps can run as a team (see
-        simulation.can_step_as_a_team). `team`: they will, at this size (the pair loops then keep their parallel layout,
+        step_plan.can_step_as_a_team). `team`: they will, at this size (the pair loops then keep their parallel layout,
         which the team shares, for the steps that do not run as a team)."""
         cpu = arch == "cpu"
         self.serial_light = cpu and capacity < LIGHT_PARALLEL_FROM

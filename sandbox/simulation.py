@@ -29,6 +29,7 @@ from .physics.emitters import NEVER_BONDS, Emitters
 from .physics.fields import VelocityField
 from .physics.grid import CellGrid
 from .physics.heat import Heat, lattice_correction
+from .physics.heat_implicit import ImplicitHeat
 from .physics.neighbours import LIST_ARRAY, NeighbourList, no_lists
 from .physics.pair import PairForce
 from .physics.phase import LIQUID, Phase, Refreezer
@@ -39,33 +40,12 @@ from .scene_tables import COUPLINGS, Scene
 from .scripting import Scripting
 from .stability import StabilityBounds
 from .state import StateAccess
+from .step_plan import can_step_as_a_team, host_work_between_steps
 from .team import Team
 
 NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
 REORDER_BATCH = 20  # most steps per fused launch when the storage is sorted into cell order between launches
 CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
-
-
-def host_work_between_steps(scene: Scene) -> bool:
-    """Whether `scene`'s steps need the host between them, so that they cannot run many to a launch: emitters,
-    scheduled heat sources, smoke, particles coupled to a velocity field (kinematic or drag), the implicit heat
-    solve."""
-    heat = scene.heat
-    coupled = bool(scene.fields or scene.smoke) and any(g.field != "none" for g in scene.groups)
-    return bool(
-        scene.emitters
-        or scene.smoke
-        or coupled
-        or (heat and (heat.stepper != "explicit" or any(src.schedule_times for src in heat.sources)))
-    )
-
-
-def can_step_as_a_team(scene: Scene) -> bool:
-    """Whether team stepping (sandbox/team.py) can run `scene`'s steps, given half neighbour lists (the CPU's): the
-    scene keeps neighbour lists, needs no host work between steps and has no power sources (whose per-step mass
-    sum the team does not share out)."""
-    power = bool(scene.heat) and any(src.mode == "power" for src in scene.heat.sources)
-    return scene.world.neighbor_list and not (power or host_work_between_steps(scene))
 
 
 @data_oriented
@@ -210,8 +190,6 @@ class Simulation(Measurements, StabilityBounds, StateAccess, Description, Script
         self.has_explicit_heat = self.has_heat and scene.heat.stepper == "explicit"
         self.implicit_heat = None
         if self.has_heat and not self.has_explicit_heat:
-            from .physics.heat_implicit import ImplicitHeat
-
             self.implicit_heat = ImplicitHeat(self)
         self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
         self.gravity[None] = world.gravity

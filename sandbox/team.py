@@ -34,7 +34,7 @@ START_SPINS = 20_000_000  # reads of the barrier at the launch's first wait befo
 
 @data_oriented
 class Team:
-    """Team stepping for `sim` (a Simulation whose steps qualify: see simulation.can_step_as_a_team) on `workers`
+    """Team stepping for `sim` (a Simulation whose steps qualify: see step_plan.can_step_as_a_team) on `workers`
     threads."""
 
     def __init__(self, sim, workers: int):

@@ -257,6 +257,26 @@ def test_a_list_build_that_overflows_inside_a_batch_grows_the_list_and_goes_on(m
     assert_same_states(_state(one_by_one), _state(fused))
 
 
+def test_each_pass_says_why_a_scene_steps_the_long_way():
+    """The stepping plan asks each pass (step_plan): the reasons name the passes the scene uses, and `sandbox check`
+    (pipeline) prints them."""
+    from sandbox.step_plan import can_step_as_a_team, host_work_reasons
+
+    block = SCENES / "melting_block.toml"
+    assert host_work_reasons(load_scene(block)) == [] and can_step_as_a_team(load_scene(block))
+    assert host_work_reasons(load_scene(SCENES / "fireworks.toml")) == ["emitters seed particles between steps"]
+    smoke = host_work_reasons(load_scene(SCENES / "smoke_vortex.toml"))
+    assert smoke == ["emitters seed particles between steps", "the smoke grid steps between particle steps"] + [
+        "particles follow a velocity field sampled at each step"
+    ]
+    implicit = load_scene(block, ['heat.stepper="implicit"'])
+    assert host_work_reasons(implicit) == ["the implicit heat solve iterates from the host"]
+    power = load_scene(block, ['heat.sources.0.mode="power"', "heat.sources.0.power=500.0"])
+    assert host_work_reasons(power) == [] and not can_step_as_a_team(power)
+    sim = Simulation(load_scene(SCENES / "fireworks.toml"))
+    assert "launch: one launch per pass, one step at a time: emitters seed particles between steps" in sim.pipeline()
+
+
 def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
     assert not Simulation(load_scene(SCENES / "fireworks.toml")).fuses_steps  # emitters act between steps
     from sandbox.bench import INTERACTIVE_BLOCK

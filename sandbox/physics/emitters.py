@@ -32,6 +32,11 @@ MASK = SHAPES.index("mask")
 class Emitters:
     """The scene's emitters: parameter fields, the emit kernel, and retirement of the dead by compaction."""
 
+    @staticmethod
+    def host_work(scene) -> str | None:
+        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None."""
+        return "emitters seed particles between steps" if scene.emitters else None
+
     def __init__(self, sim, emitters: list, first_group: int):
         self.sim = sim
         self.p = sim.particles

@@ -87,6 +87,13 @@ def gradient_noise(p, seed: ti.u32):
 class VelocityField:
     """The scene's field elements as small parameter fields, and velocity(x, t) as a Taichi func."""
 
+    @staticmethod
+    def host_work(scene) -> str | None:
+        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None: particles
+        coupled to the field (kinematic or drag) sample it at each step's start."""
+        coupled = bool(scene.fields or scene.smoke) and any(g.field != "none" for g in scene.groups)
+        return "particles follow a velocity field sampled at each step" if coupled else None
+
     def __init__(self, dim: int, elements: list, grid=None):
         """`grid`: a SmokeGrid whose velocity is added to the elements' (None: elements only)."""
         self.dim = dim

@@ -64,6 +64,19 @@ def lattice_correction(x: np.ndarray, volume: np.ndarray, h: float, samples: int
 class Heat:
     """Heat-diffusion parameters and sources, with the per-pair flow and per-particle source funcs."""
 
+    @staticmethod
+    def host_work(scene) -> str | None:
+        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None."""
+        scheduled = scene.heat is not None and any(src.schedule_times for src in scene.heat.sources)
+        return "scheduled heat sources change between steps" if scheduled else None
+
+    @staticmethod
+    def team_blocker(scene) -> str | None:
+        """Why a team of threads cannot step `scene` (team.py), or None: a power source's per-step mass sum is not
+        shared out among the workers."""
+        power = scene.heat is not None and any(src.mode == "power" for src in scene.heat.sources)
+        return "power sources sum their mass each step" if power else None
+
     def __init__(self, dim: int, heat_scene, support: float, particles, materials, phase, correction: float = 1.0):
         self.dim = dim
         self.phase = phase

@@ -24,6 +24,12 @@ from .neighbours import LIST_ARRAY
 class ImplicitHeat:
     """Backward-Euler heat stepper over the simulation's neighbours (lists or grid)."""
 
+    @staticmethod
+    def host_work(scene) -> str | None:
+        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None."""
+        implicit = scene.heat is not None and scene.heat.stepper != "explicit"
+        return "the implicit heat solve iterates from the host" if implicit else None
+
     def __init__(self, sim, tolerance: float = 1e-10, max_iterations: int = 500):
         self.sim = sim
         self.p = sim.particles

@@ -33,6 +33,11 @@ ONE_LAUNCH_CELLS = 50_000
 class SmokeGrid:
     """MAC-grid smoke: face velocities, cell temperature, and a CG pressure projection."""
 
+    @staticmethod
+    def host_work(scene) -> str | None:
+        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None."""
+        return "the smoke grid steps between particle steps" if scene.smoke else None
+
     def __init__(self, dim: int, lo, hi, cfg, gravity, on_cpu: bool = True):
         """`on_cpu`: Taichi runs on the CPU backend (a small grid is then projected in one launch: ONE_LAUNCH_CELLS)."""
         self.dim = dim
