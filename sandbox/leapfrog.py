@@ -24,6 +24,7 @@ class Leapfrog(SymplecticEuler):
     staggered state, and the bookkeeping that makes staggering exact."""
 
     order = 2
+    staggered = ""  # which state the method keeps at half steps: "v" (velocity Verlet) or "x" (position Verlet)
 
     def __init__(self, sim):
         super().__init__(sim)
@@ -32,6 +33,7 @@ class Leapfrog(SymplecticEuler):
         self.has_heat = sim.heat is not None
         self.periodic = sim.scene.world.periodic
         self.t_synced = ti.field(float, shape=sim.capacity if self.has_heat else 1)
+        self.moving = getattr(self.p, self.staggered)  # the field that holds the staggered state
         self.synced_count = -1  # particles when last synchronised; -1: never
         self.synced_dt = 0.0
 
@@ -54,6 +56,13 @@ class Leapfrog(SymplecticEuler):
 
     def _synchronise(self, dt: float) -> None:
         raise NotImplementedError
+
+    @ti.kernel
+    def _restore(self):
+        """Put back the staggered values the last synchronisation held."""
+        self.sim.loops.light()
+        for i in range(self.p.n[None]):
+            self.moving[i] = self.held[i]
 
     @ti.kernel
     def _record(self):
@@ -87,32 +96,24 @@ class VelocityVerlet(Leapfrog):
     second order, symplectic for position-only forces, one force evaluation a step plus one per Simulation.step
     call (the synchronisation)."""
 
+    staggered = "v"
+
     def _stagger(self, dt: float) -> None:
         self.sim.eval_rates()
-        self._kick(-0.5 * dt)
+        self._kick(-0.5 * dt, False)
 
     def _synchronise(self, dt: float) -> None:
         self.sim.eval_rates()
-        self._hold_and_kick(0.5 * dt)
+        self._kick(0.5 * dt, True)
 
     @ti.kernel
-    def _kick(self, h: float):
+    def _kick(self, h: float, hold: ti.template()):
+        """v += h a, keeping the velocity before the kick in `held` when `hold`."""
         self.sim.loops.light()
         for i in range(self.p.n[None]):
+            if ti.static(hold):
+                self.held[i] = self.p.v[i]
             self.p.v[i] = self.p.v[i] + h * self.p.f[i] / self.p.mass[i]
-
-    @ti.kernel
-    def _hold_and_kick(self, h: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.held[i] = self.p.v[i]
-            self.p.v[i] = self.p.v[i] + h * self.p.f[i] / self.p.mass[i]
-
-    @ti.kernel
-    def _restore(self):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.p.v[i] = self.held[i]
 
 
 @register("verlet")
@@ -121,11 +122,13 @@ class PositionVerlet(Leapfrog):
     symplectic, one force evaluation a step and none to synchronise; its positions obey Stormer's
     x_{n+1} = 2 x_n - x_{n-1} + dt^2 a(x_{n+1/2}) at the staggered points."""
 
+    staggered = "x"
+
     def _stagger(self, dt: float) -> None:
-        self._drift(0.5 * dt)
+        self._drift(0.5 * dt, False)
 
     def _synchronise(self, dt: float) -> None:
-        self._hold_and_drift(-0.5 * dt)
+        self._drift(-0.5 * dt, True)
 
     @ti.func
     def _wrap(self, i):
@@ -133,22 +136,11 @@ class PositionVerlet(Leapfrog):
             self.p.x[i], self.p.v[i] = self.sim.domain.enforce(self.p.x[i], self.p.v[i], self.p.radius[i], 0.0)
 
     @ti.kernel
-    def _drift(self, h: float):
+    def _drift(self, h: float, hold: ti.template()):
+        """x += h v, keeping the position before the drift in `held` when `hold`."""
         self.sim.loops.light()
         for i in range(self.p.n[None]):
+            if ti.static(hold):
+                self.held[i] = self.p.x[i]
             self.p.x[i] = self.p.x[i] + h * self.p.v[i]
             self._wrap(i)
-
-    @ti.kernel
-    def _hold_and_drift(self, h: float):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.held[i] = self.p.x[i]
-            self.p.x[i] = self.p.x[i] + h * self.p.v[i]
-            self._wrap(i)
-
-    @ti.kernel
-    def _restore(self):
-        self.sim.loops.light()
-        for i in range(self.p.n[None]):
-            self.p.x[i] = self.held[i]
