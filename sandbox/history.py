@@ -47,7 +47,3 @@ class UndoRing:
         self.nbytes -= snapshot_bytes(snap)
         sim.restore(snap)
         return True
-
-    def clear(self) -> None:
-        self._snaps.clear()
-        self.nbytes = 0

@@ -69,11 +69,6 @@ class Integrator:
         self.sim = sim
         self.p = sim.particles
 
-    @property
-    def evaluations(self) -> int:
-        """Force evaluations per step."""
-        return self.stages
-
     def step(self, dt: float, first_stage: int = 0) -> None:
         """One step of dt from stage `first_stage` on (a step that a fused launch left after its first stages)."""
         for stage in range(first_stage, self.stages):
@@ -211,10 +206,6 @@ class ImplicitEuler(Integrator):
         self.block = ti.Matrix.field(dim, dim, float, shape=s)  # h D_s + h^2 K_s per spring
         self.kmat = ti.Matrix.field(dim, dim, float, shape=s)  # K_s per spring
         self.sums = CGSums()
-
-    @property
-    def evaluations(self) -> int:
-        return 1
 
     def step(self, dt: float, first_stage: int = 0) -> None:
         self.sim.eval_rates()

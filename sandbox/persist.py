@@ -206,8 +206,8 @@ def load_state(path: str | Path, arch: str | None = None, meta: dict | None = No
 
 def load_into(sim, path: str | Path) -> None:
     """Put a state file saved from `sim`'s own scene back into `sim` (the window's load key): the state, clock and
-    integrator as saved. SandboxError when the file is of another scene or cannot be resumed here (checked before
-    anything in `sim` changes)."""
+    integrator as saved. SandboxError when the file is of another scene, backend or thread count (checked before
+    anything in `sim` changes) or does not fit it."""
     path = Path(path)
     meta = read_meta(path)
     if meta["scene"] != sim.scene.source:

@@ -1,5 +1,7 @@
 """The domain box: minimum-image separations and walls (restitution and Coulomb friction) or periodic wrapping."""
 
+import math
+
 import taichi as ti
 
 from ..oriented import data_oriented
@@ -28,14 +30,7 @@ class Domain:
     def _wall_area(lo, hi) -> float:
         """Total area of the box's walls (their length in 2D)."""
         sides = [h - l for l, h in zip(lo, hi)]
-        total = 0.0
-        for a in range(len(sides)):
-            face = 1.0
-            for b, side in enumerate(sides):
-                if b != a:
-                    face *= side
-            total += 2.0 * face
-        return total
+        return 2.0 * sum(math.prod(sides[:a] + sides[a + 1 :]) for a in range(len(sides)))  # two walls per axis
 
     @ti.func
     def separation(self, xi, xj):

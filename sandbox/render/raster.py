@@ -320,8 +320,9 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
     def pick(self, u: float, v: float, reach_px: float = 12.0) -> np.ndarray | None:
         """3D: the position of the nearest particle drawn within reach_px pixels of the window point (u, v) (fractions
         of width and height, from the bottom left, as GGUI's cursor), or None: where a 3D brush acts."""
-        i = self.pick_index(u, v, reach_px)
-        return None if i is None else self.sim.positions()[i].astype(float)
+        x = self.sim.positions().astype(float) if self.dim == 3 else np.zeros((0, 3))
+        i = self._drawn_under(x, u, v, reach_px)
+        return None if i is None else x[i]
 
     def world_point(self, u: float, v: float) -> np.ndarray:
         """2D: the world position (length units, (2,)) under the window point (u, v) (fractions from the bottom
@@ -331,8 +332,11 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
 
     def pick_index(self, u: float, v: float, reach_px: float = 12.0) -> int | None:
         """3D: the index of the nearest particle drawn within reach_px pixels of the window point (u, v), or None."""
-        x = self.sim.positions().astype(float)
-        if self.dim != 3 or len(x) == 0:
+        return self._drawn_under(self.sim.positions().astype(float), u, v, reach_px) if self.dim == 3 else None
+
+    def _drawn_under(self, x: np.ndarray, u: float, v: float, reach_px: float) -> int | None:
+        """Of the 3D positions x (N, 3), the index of the nearest drawn within reach_px pixels of (u, v), or None."""
+        if len(x) == 0:
             return None
         rel = x - self.eye_np
         z = rel @ self.fwd_np
