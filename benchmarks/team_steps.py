@@ -1,5 +1,5 @@
 """W1 (the periodic 2D LJ box) or the melting block (springs, heat, a hot plate) stepped three ways in one process,
-batches alternating: as a team of threads (sandbox/team.py), many steps to a launch on one thread
+batches alternating: as a team of threads (sandbox/step/team.py), many steps to a launch on one thread
 (Simulation._fused_steps), and one launch per pass with parallel loops (the long way).
 
     python benchmarks/team_steps.py [--scene lj_box|melting_block] [--side 100] [--rounds 10] [--steps 100]

@@ -21,7 +21,7 @@ PAIR_PARALLEL_FROM = 8_000  # particle slots from which the pair pass and the ne
 # with springs and heat does about three times the work per particle and gains from the parallel loops earlier.
 PAIR_ONLY_PARALLEL_FROM = 20_000
 # ... but from TEAM_FROM to TEAM_UNTIL slots a scene runs many steps to a launch on every thread at once
-# (sandbox/team.py): faster than both the serial fused step and the parallel loops from about 2,000 slots (pair-only
+# (step/team.py): faster than both the serial fused step and the parallel loops from about 2,000 slots (pair-only
 # or with springs and heat) to about 150,000, a draw past that. `python benchmarks/team_steps.py [--scene S --side N]`
 # compares the three ways in one process; docs/performance.md says how the thresholds were chosen.
 TEAM_FROM = 2_000
@@ -50,7 +50,7 @@ class LoopPolicy:
     def __init__(self, arch: str, capacity: int, pair_only: bool = False, threads: int = 1, team_ok: bool = False):
         """`capacity`: particle slots; `pair_only`: no springs, no heat in the step (see PAIR_ONLY_PARALLEL_FROM);
         `threads`: the CPU backend's worker threads; `team_ok`: the scene's steps can run as a team (see
-        step_plan.can_step_as_a_team). `team`: they will, at this size (the pair loops then keep their parallel layout,
+        step.plan.can_step_as_a_team). `team`: they will, at this size (the pair loops then keep their parallel layout,
         which the team shares, for the steps that do not run as a team)."""
         cpu = arch == "cpu"
         self.serial_light = cpu and capacity < LIGHT_PARALLEL_FROM

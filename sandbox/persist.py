@@ -29,7 +29,8 @@ from .errors import SandboxError
 
 FORMAT = "sandbox-state"
 FORMAT_VERSION = 1
-SKIPPED = {"scene", "built", "_initial", "loops", "arch", "runtime_generation"}  # configuration, or of this process
+# configuration, or of this process
+SKIPPED = {"scene", "built", "_initial", "loops", "arch", "runtime_generation", "plan"}
 _HOST_TYPES = (bool, int, float, str, type(None))
 
 

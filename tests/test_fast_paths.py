@@ -258,9 +258,9 @@ def test_a_list_build_that_overflows_inside_a_batch_grows_the_list_and_goes_on(m
 
 
 def test_each_pass_says_why_a_scene_steps_the_long_way():
-    """The stepping plan asks each pass (step_plan): the reasons name the passes the scene uses, and `sandbox check`
+    """The stepping plan asks each pass (step/plan.py): the reasons name the passes the scene uses, and `sandbox check`
     (pipeline) prints them."""
-    from sandbox.step_plan import can_step_as_a_team, host_work_reasons
+    from sandbox.step.plan import can_step_as_a_team, host_work_reasons
 
     block = SCENES / "melting_block.toml"
     assert host_work_reasons(load_scene(block)) == [] and can_step_as_a_team(load_scene(block))
@@ -383,7 +383,7 @@ def test_a_team_steps_springs_and_heat_as_the_parallel_long_way_does(make, refre
 def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_way():
     """More workers than the thread pool has threads: the started ones give up at the first barrier, before any
     work; the launch reports it (-1), nothing has moved, and the simulation steps the long way from then on."""
-    from sandbox.team import Team
+    from sandbox.step.team import Team
 
     sim, long_way = team_box(), team_box()
     long_way.fuses_steps = False

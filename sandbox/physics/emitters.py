@@ -147,6 +147,12 @@ class Emitters:
             if e.count:
                 self._emit(k, e.count, 0.0)
 
+    def before_step(self, t: float, dt: float) -> None:
+        """The emitters' work before the step [t, t + dt): emit what is due, then top up the refill regions."""
+        self.emit_due(t, dt)
+        if self.refills:
+            self.refill(t)
+
     def emit_due(self, t: float, dt: float) -> None:
         """Emit what is due in the step [t, t + dt): the rate's share (with carry) and bursts falling in it."""
         for k, e in enumerate(self.specs):

@@ -67,6 +67,13 @@ class NeighbourList:
         self._allocate(max(16, int(math.ceil(1.5 * widest)) + 8))
         self.grown = 0
 
+    def describe(self, grid) -> str:
+        """The lists in words, for Simulation.pipeline(); `grid` is the cell grid they are built from."""
+        return (
+            f"{'half' if self.half else 'full'} neighbour lists (reach {self.reach:g} + skin {self.skin:g}, width "
+            f"{self.width}), rebuilt from a counting-sort {grid.describe()} when a particle has moved half the skin"
+        )
+
     def _allocate(self, width: int) -> None:
         self.width = width
         self.ids = ti.ndarray(ti.i32, shape=(self.capacity, width))  # neighbour ids, first count[i] of row i valid

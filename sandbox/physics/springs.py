@@ -101,6 +101,13 @@ class Springs:
         self.heat_enabled = phase is not None
         self.separation = periodic_sep
 
+    def describe(self, thermal: bool, refreezing: bool) -> str:
+        """The springs' per-step update in words, for Simulation.pipeline(): `thermal` with heat (softening and
+        breaking by melt fraction), `refreezing` when spare slots wait for new bonds."""
+        what = "thermoelastic softening and breaking by melt fraction" if thermal else "overstretch breaking"
+        slots = f" ({self.count} slots, room to refreeze)" if refreezing else ""
+        return f"spring update ({what}) over {self.built_count} springs{slots}"
+
     def rebuild_bonds(self) -> None:
         """Rebuild every particle's bond list from the live springs (after particles were removed or renumbered)."""
         alive, i, j = transfer.download([self.alive, self.i, self.j], [self.count] * 3)

@@ -25,16 +25,16 @@ done and the caller steps the long way from then on.
 
 import taichi as ti
 
-from .loops import SPREAD_STRIDE, spread_item
-from .oriented import data_oriented
-from .physics.neighbours import LIST_ARRAY
+from ..loops import SPREAD_STRIDE, spread_item
+from ..oriented import data_oriented
+from ..physics.neighbours import LIST_ARRAY
 
 START_SPINS = 20_000_000  # reads of the barrier at the launch's first wait before a worker gives up (~0.2-1 s)
 
 
 @data_oriented
 class Team:
-    """Team stepping for `sim` (a Simulation whose steps qualify: see step_plan.can_step_as_a_team) on `workers`
+    """Team stepping for `sim` (a Simulation whose steps qualify: see plan.can_step_as_a_team) on `workers`
     threads."""
 
     def __init__(self, sim, workers: int):
