@@ -277,6 +277,34 @@ def test_each_pass_says_why_a_scene_steps_the_long_way():
     assert "launch: one launch per pass, one step at a time: emitters seed particles between steps" in sim.pipeline()
 
 
+def test_a_step_the_long_way_runs_the_host_passes_that_the_pipeline_lists_in_its_order():
+    """pipeline() is printed from the plan that the long way runs: the smoke scene's host passes (emitters, smoke,
+    kinematic start; then advection, ageing) each run once a step, in the printed order."""
+    from sandbox.step.plan import HostPass
+
+    sim = Simulation(load_scene(SCENES / "smoke_vortex.toml"))
+    ran = []
+
+    def noting(k, part):
+        def run():
+            ran.append(k)
+            part.run()
+
+        return HostPass(part.text, run)
+
+    plan = sim.plan
+    parts = plan.before + plan.after
+    plan.before = [noting(k, p) for k, p in enumerate(plan.before)]
+    plan.after = [noting(len(plan.before) + k, p) for k, p in enumerate(plan.after)]
+    sim.step(2)
+    assert ran == list(range(len(parts))) * 2 and len(parts) == 5
+    lines = sim.pipeline()
+    described = [lines.index(p.text) for p in parts if p.text]
+    assert described == sorted(described) and len(described) == 4  # the kinematic start is told with its advection
+    integrator = lines.index("integrator symplectic_euler, then walls (restitution, friction)")
+    assert lines.index(plan.before[-1].text or plan.before[-2].text) < integrator < lines.index(plan.after[0].text)
+
+
 def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
     assert not Simulation(load_scene(SCENES / "fireworks.toml")).fuses_steps  # emitters act between steps
     from sandbox.bench import INTERACTIVE_BLOCK
