@@ -260,6 +260,14 @@ def test_chart_series_of_one_unit_share_a_scale_and_are_labelled():
     lo, hi = mixed.ranges[0]
     temperature = f"mean T {mixed.history[0][-1]:.3g} °C ({lo:.3g} to {hi:.3g})"  # its own scale, in its colour
     assert lit_where_text_is(img, temperature, mixed.x0, mixed.y_top + mixed.box_h + 3, 1, (255, 102, 63))
+    img[:] = 0
+    energies.label(img)  # the shared scale beside the box: top, middle (at its tick) and bottom
+    lo, hi = energies.ranges[0]
+    right, grey = energies.x0 + energies.box_w + 3, (200, 200, 200)
+    assert lit_where_text_is(img, f"{hi:.3g}", right, energies.y_top, 1, grey)
+    middle = energies.y_top + energies.box_h - 1 - energies.box_h // 2 - 2
+    assert lit_where_text_is(img, f"{0.5 * (lo + hi):.3g}", right, middle, 1, grey)
+    assert lit_where_text_is(img, f"{lo:.3g}", right, energies.y_top + energies.box_h - 5, 1, grey)
 
 
 def golden(request, name, img):
@@ -362,6 +370,14 @@ def test_chart_plots_each_series_across_its_box(dim, output):
     assert drawn(red, x0 + 1 + (w - 3) // 2, (h - 3) / 2)  # and the temperature is half way at half time
     assert img[y0 + 5, x0 + 5].max() < 0.35 * 255  # behind the lines the picture is dimmed
     assert img[y0 + h + 20, x0 + w + 20].min() > 100  # outside the box it is not
+    grey = np.abs(img - 153).max(axis=2) <= 1  # the frame's colour
+    bottom_inside = y0 + h - 2  # the row above the bottom edge
+    ticks = [x for x in range(x0 + 1, x0 + w - 1) if grey[bottom_inside - 1, x] and grey[bottom_inside, x]]
+    assert ticks == [x0 + w // 4, x0 + w // 2, x0 + 3 * w // 4]  # time in quarters, two pixels into the box
+    assert not grey[bottom_inside - 2, ticks].any()
+    middle = y0 + h - 1 - h // 2
+    sides = [y for y in range(y0 + 1, y0 + h - 1) if grey[y, x0 + 2] and grey[y, x0 + w - 3]]
+    assert sides == [middle]  # the scale's middle, on both sides
 
 
 def test_the_chart_can_be_switched_and_removed_live():

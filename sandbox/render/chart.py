@@ -3,7 +3,8 @@
 `render.chart = ["mean_temperature", "molten_fraction"]` plots those Stats fields against simulated time in a box in
 the top-left corner, the whole run squeezed into the box's width. Series of one unit (the energies) share a scale, the
 others each have their own range so far (fractions [0, 1]). Under the box each series' name, latest value and unit
-in its colour and the time span; beside it, when the series share one scale, its top and bottom values.
+in its colour and the time span; beside it, when the series share one scale, its top, middle and bottom values.
+Tick marks divide the time axis into quarters and mark the middle of the scale.
 """
 
 import numpy as np
@@ -26,6 +27,7 @@ SERIES_LABELS = {
 COLORS = ((1.0, 0.4, 0.25), (0.35, 0.65, 1.0), (0.5, 0.9, 0.4), (0.95, 0.85, 0.3))
 SAMPLES = 256  # points per series drawn (the history is resampled to this many)
 HISTORY = 16 * SAMPLES  # samples kept; past it every other one is dropped and the sampling stride doubles
+TICK = 3  # pixels a tick mark reaches into the box
 
 
 @data_oriented
@@ -117,7 +119,10 @@ class Chart:
             else:
                 behind = get_pixel(out, self.height, x0 + i, y0 + j)
             c = behind * 0.3  # dim what is behind, so the lines read
-            if i == 0 or j == 0 or i == w - 1 or j == h - 1:
+            # the frame, with ticks pointing in: time at each quarter along the bottom, the scale's middle at the sides
+            time_tick = j < TICK and (i == w // 4 or i == w // 2 or i == 3 * w // 4)
+            value_tick = (i < TICK or i >= w - TICK) and j == h // 2
+            if i == 0 or j == 0 or i == w - 1 or j == h - 1 or time_tick or value_tick:
                 c = ti.Vector([0.6, 0.6, 0.6])
             self._put(out, x0 + i, y0 + j, c)
         for s, k in ti.ndrange(self.n_series, SAMPLES - 1):
@@ -153,10 +158,12 @@ class Chart:
             draw_text(img, text, x, y, scale, color)
             x += text_width(text + "  ", scale)
         draw_text(img, f"t 0-{self.times[-1]:.3g} s", x, y, scale, (200, 200, 200))
-        if self.shared_scale():
+        if self.shared_scale():  # the scale at the top, the middle tick and the bottom of the box
             lo, hi = self.ranges[0]
             right = self.x0 + self.box_w + 3
+            middle = self.y_top + self.box_h - 1 - self.box_h // 2 - (5 * scale) // 2
             draw_text(img, f"{hi:.3g}", right, self.y_top, scale, (200, 200, 200))
+            draw_text(img, f"{0.5 * (lo + hi):.3g}", right, middle, scale, (200, 200, 200))
             draw_text(img, f"{lo:.3g}", right, self.y_top + self.box_h - 5 * scale, scale, (200, 200, 200))
 
 
