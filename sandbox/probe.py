@@ -25,11 +25,12 @@ class ProbeReading:
     speed: float  # length / time
 
     def text(self) -> str:
-        """One line for the panel, e.g. "wax, melting, 52.1 C, 40% molten, speed 0.31"."""
+        """One line for the panel, e.g. "wax, melting, 52.1 C, 40% molten, speed 0.31 /s" (lengths per second, the
+        unit of the speed colour bar)."""
         parts = [self.material, self.phase]
         if self.temperature is not None:
             parts += [f"{self.temperature:.1f} C", f"{100 * self.melt_fraction:.0f}% molten"]
-        return ", ".join(parts + [f"speed {self.speed:.3g}"])
+        return ", ".join(parts + [f"speed {self.speed:.3g} /s"])
 
 
 def particle_at(sim, point, reach: float | None = None) -> int | None:

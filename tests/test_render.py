@@ -436,28 +436,37 @@ def test_a_frame_calls_its_midway_hook_once_half_way_and_a_single_step_has_none(
     assert seen == [2] and sim.step_count == 6
 
 
-def test_compositing_only_the_dirty_tiles_gives_the_full_picture():
-    """A particle that moves leaves no trace, and overlays whose content changes (chart values, legend) are
-    redrawn: every frame equals the picture of a renderer that composites every pixel every frame."""
+@pytest.mark.parametrize("output", ["image", "picture", "rgba"])
+def test_compositing_only_the_dirty_tiles_gives_the_full_picture(output):
+    """A particle that moves leaves no trace, and overlays whose content changes (chart values and their labels,
+    which run right of the box and change length, the pair-force panel, legend, clock) are redrawn: every frame
+    equals the picture of a renderer that composites every pixel every frame."""
     from types import SimpleNamespace
 
     sim = dot_scene(
         [one([20.0, 50.0], spacing=4.0), one([80.0, 20.0], spacing=4.0, blend="additive")],
-        render={"legend": True, "color_by": "speed", "chart": ["kinetic_energy"]},
+        render={"legend": True, "color_by": "speed", "chart": ["kinetic_energy", "max_speed"], "clock": True},
     )
     cfg = sim.scene.render
-    tiled, full = Renderer(sim, 160, 120, cfg), Renderer(sim, 160, 120, cfg)
+    tiled, full = Renderer(sim, 480, 120, cfg, output), Renderer(sim, 480, 120, cfg, output)
+    for ren in (tiled, full):
+        ren.set_potential(np.linspace(-1.0, 1.0, 50), (0.5, 2.5))
     for k in range(6):
         x = sim.particles.x.to_numpy()
         x[0] += (9.0, 4.0 * (-1) ** k)  # crosses tiles, back and forth
         sim.particles.x.from_numpy(x)
+        sim.time = 10.0 ** (k - 2)  # the clock's text changes length
         for ren in (tiled, full):
-            ren.record(SimpleNamespace(kinetic_energy=float(k * k), time=0.1 * k))
+            ren.record(SimpleNamespace(kinetic_energy=7.0 ** (k * k % 7), max_speed=1.0 / (k + 3), time=0.1 * k))
+            ren.set_potential(np.linspace(-1.0, 1.0 + 10.0**k, 50), (0.5, 2.5 + k))
         full.full_refresh = True
         a, b = tiled.frame().copy(), full.frame()
         assert np.array_equal(a, b), f"frame {k}"
-        assert np.array_equal(tiled.image.to_numpy(), full.image.to_numpy())
-    assert tiled.stamp[None] == 6 and np.count_nonzero(tiled.tile_stamp.to_numpy() >= 4) < 20  # few tiles drawn
+        for ren in (tiled, full):
+            ren.label_window_output()  # the window's text, drawn on its packed picture in place (rgba only)
+        if output == "image":
+            assert np.array_equal(tiled.image.to_numpy(), full.image.to_numpy())
+    assert tiled.stamp[None] == 6 and np.count_nonzero(tiled.tile_stamp.to_numpy() >= 4) < 40  # few tiles drawn
 
 
 def test_splatting_strip_by_strip_without_atomics_gives_the_picture_of_atomic_splatting():

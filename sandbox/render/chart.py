@@ -92,6 +92,11 @@ class Chart:
         same = [np.asarray(h) for n, h in zip(self.series, self.history) if SERIES_LABELS.get(n, (n, n))[1] == unit]
         return float(min(v.min() for v in same)), float(max(v.max() for v in same))
 
+    def drawn_rect(self) -> tuple[int, int, int, int]:
+        """(x0, x1, row0, row1), rows from the top: the pixels the box and its labels may draw on. The labels under
+        the box and the scale beside it run to the right, as long as their text is (it changes every frame)."""
+        return self.x0, self.width, self.y_top, self.y_top + self.box_h + self.label_height
+
     def shared_scale(self) -> bool:
         """Whether every series is drawn on one scale (one unit, not a fraction), so ticks can give it."""
         units = {SERIES_LABELS.get(n, (n, n))[1] for n in self.series}
@@ -174,7 +179,6 @@ class CurvePlot(Chart):
     def __init__(self, image, width: int, height: int, scene_in_image: bool = True):
         super().__init__(image, width, height, ("curve", "zero"), scene_in_image)
         self.x0 = width - self.box_w - 10
-        self.label_height = 0
         self.r_range: tuple[float, float] | None = None
         self.force_top = 1.0
 
@@ -194,6 +198,13 @@ class CurvePlot(Chart):
 
     def record(self, stats) -> None:  # a fixed curve: nothing to record
         pass
+
+    def drawn_rect(self) -> tuple[int, int, int, int]:
+        """(x0, x1, row0, row1), rows from the top: the box, the force values left of it and the distance axis under
+        it."""
+        scale = max(1, self.height // 240)
+        left = max(0, self.x0 - text_width("-1.2e+03 ", scale))  # the widest force value (2 significant digits)
+        return left, self.width, self.y_top, self.y_top + self.box_h + self.label_height
 
     def label(self, img: np.ndarray) -> None:
         """Name the curve and its axes on an (H, W, 3) uint8 frame: "pair force" with which way attracts at the top of

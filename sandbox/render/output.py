@@ -73,6 +73,11 @@ class Output:
         scale = max(1, self.height // 240)
         draw_text(img, f"t = {self.sim.time:.2f} s", 10, self.height - 10 - 5 * scale, scale)
 
+    def _clock_rect(self) -> tuple[int, int, int, int]:
+        """(x0, x1, row0, row1): the pixels the clock may draw on (room for "t = 100000.00 s")."""
+        scale = max(1, self.height // 240)
+        return 10, min(self.width, 10 + text_width("t = 100000.00 s", scale)), self.height - 10 - 5 * scale, self.height
+
     def label_window_output(self) -> None:
         """The window's picture (GGUI's packed RGBA on the CPU, the renderer's own NumPy buffer): draw the host-side
         text on it in place, as picture() does on its copy (draw_text_overlays)."""

@@ -208,9 +208,11 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         rects = []  # (x0, x1, row0, row1) in pixels, rows counted from the top
         for plot in (self.chart, self.potential):
             if plot is not None and plot.fits:
-                rects.append((plot.x0, plot.x0 + plot.box_w, plot.y_top, plot.y_top + plot.box_h + plot.label_height))
+                rects.append(plot.drawn_rect())
         if self._legend_shown():
             rects.append(self._legend_rect())
+        if self.cfg.clock:
+            rects.append(self._clock_rect())
         table = np.zeros((MAX_OVERLAYS, 4), np.int32)
         for k, (x0, x1, r0, r1) in enumerate(rects[:MAX_OVERLAYS]):
             y0, y1 = self.height - 1 - r1, self.height - 1 - r0  # rows from the top -> y up
