@@ -312,6 +312,28 @@ def test_pacing_runs_fewer_substeps_when_a_frame_of_them_would_not_fit_and_says_
     assert pace_text(s) == "substeps 8, 0.412 sim s/s"
 
 
+def test_pacing_learns_a_frames_fixed_simulation_cost_and_runs_the_substeps_that_fit():
+    """A frame's simulation costs 3 ms plus 0.5 ms a substep and its drawing 28 ms, so the 30 fps floor leaves room
+    for 4 substeps (28 + 3 + 4 x 0.5 = 33 ms). Taking the whole cost as per substep, a pacer that starts at one
+    substep (3.5 ms) would stay there; this one tries more after frames that fit and fits both parts."""
+    from sandbox.render.window_parts import FramePacer
+
+    pacer = FramePacer()
+    pacer.record(1, simulation_seconds=0.0035, rest_seconds=0.028)
+    chosen = []
+    for _ in range(60):
+        n = pacer.choose(10)
+        chosen.append(n)
+        pacer.record(n, simulation_seconds=0.003 + 0.0005 * n, rest_seconds=0.028)
+    assert max(chosen) <= 5 and set(chosen[-20:]) <= {4, 5} and chosen[-20:].count(4) >= 10
+    fixed, per_step = pacer.costs()
+    assert fixed == pytest.approx(0.003, rel=1e-6) and per_step == pytest.approx(0.0005, rel=1e-6)
+    quick = FramePacer()  # a cheap scene: every wanted substep, every frame
+    for _ in range(20):
+        quick.record(quick.choose(8), simulation_seconds=0.0002 + 0.0005 * 8, rest_seconds=0.004)
+    assert quick.choose(8) == 8
+
+
 def test_energies_read_in_the_scenes_units():
     from sandbox.render.window_state import energy_unit
 
