@@ -176,6 +176,15 @@ def test_alpha_compositing_blends_in_depth_order():
     assert np.allclose(blue_front, [0.25, 0.0, 0.5], atol=1e-5)
 
 
+def test_the_colour_bar_samples_each_map_as_the_particles_colour_ramp_does():
+    """The bar's colours (three NumPy calls a frame) are those of the per-point ramp, exactly."""
+    from sandbox.render.colormaps import GLOW_STOPS, SPEED_STOPS, ramp_np, ramp_np_many
+
+    ts = np.r_[-0.5, np.linspace(0.0, 1.0, 213), 1.5]
+    for stops in (GLOW_STOPS, SPEED_STOPS):
+        assert np.array_equal(ramp_np_many(stops, ts), np.array([ramp_np(stops, t) for t in ts]))
+
+
 def test_legend_draws_a_colour_bar_with_labels(tmp_path):
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true"]))
     ren = Renderer(sim, 320, 180, sim.scene.render)

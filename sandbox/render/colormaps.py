@@ -26,6 +26,13 @@ def ramp_np(stops: np.ndarray, t: float) -> np.ndarray:
     return np.array([np.interp(t, stops[:, 0], stops[:, k]) for k in (1, 2, 3)], dtype=np.float32)
 
 
+def ramp_np_many(stops: np.ndarray, ts: np.ndarray) -> np.ndarray:
+    """ramp_np at each of the positions `ts` ((n,) in [0, 1]): an (n, 3) float32 array, in three NumPy calls (the
+    window draws its colour bar every frame)."""
+    ts = np.clip(np.asarray(ts, dtype=float), 0.0, 1.0)
+    return np.stack([np.interp(ts, stops[:, 0], stops[:, k]) for k in (1, 2, 3)], axis=1).astype(np.float32)
+
+
 def _ramp_func(stops: np.ndarray):
     pos = [float(s[0]) for s in stops]
     cols = [ti.Vector([float(s[1]), float(s[2]), float(s[3])]) for s in stops]

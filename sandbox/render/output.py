@@ -4,7 +4,7 @@ colour-bar legend drawn on it on the host. A mixin of Renderer."""
 import numpy as np
 import taichi as ti
 
-from .colormaps import GLOW_STOPS, SPEED_STOPS, ramp_np
+from .colormaps import GLOW_STOPS, SPEED_STOPS, ramp_np_many
 from .pixels import draw_text, put_pixel, text_width
 
 
@@ -29,10 +29,7 @@ class Output:
     # ------------------------------------------------------------------ legend (host side, on the 8-bit frame)
     def legend_colors(self, n: int) -> np.ndarray:
         """The active colour map sampled at n points, (n, 3) floats."""
-        ts = np.linspace(0, 1, n)
-        if self.cfg.color_by == "speed":
-            return np.array([ramp_np(SPEED_STOPS, t) for t in ts])
-        return np.array([ramp_np(GLOW_STOPS, t) for t in ts])
+        return ramp_np_many(SPEED_STOPS if self.cfg.color_by == "speed" else GLOW_STOPS, np.linspace(0, 1, n))
 
     def _legend_geometry(self) -> tuple[int, int, int, int, int]:
         """(x0, row0, bar width, bar height, text scale) of the colour bar, rows counted from the top."""
