@@ -11,7 +11,7 @@ import numpy as np
 import taichi as ti
 
 from ..oriented import data_oriented
-from .pixels import draw_text, get_pixel, put_pixel, text_width
+from .pixels import draw_text, get_pixel, put_pixel, text_scale, text_width
 
 FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
 # Each series' label and unit; series of one unit share the chart's scale (the energies), which its ticks then give.
@@ -45,7 +45,7 @@ class Chart:
         self.image = image
         self.width, self.height = width, height
         self.box_w, self.box_h = max(64, width // 4), max(40, height // 5)
-        self.label_height = 4 + 5 * max(1, height // 240)  # the values printed under the box
+        self.label_height = 4 + 5 * text_scale(height)  # the values printed under the box
         self.x0, self.y_top = left + 10, 10  # top-left corner of the box, pixels from the top-left of the picture
         # A picture too small to hold the box and its margins gets no chart (drawing it would write out of bounds).
         self.fits = width >= self.box_w + self.x0 + 10 and height >= self.box_h + 2 * self.y_top
@@ -149,7 +149,7 @@ class Chart:
         values; on an (H, W, 3) uint8 frame."""
         if not self.history[0] or not self.fits:
             return
-        scale = max(1, self.height // 240)
+        scale = text_scale(self.height)
         y = self.y_top + self.box_h + 3
         x = self.x0
         for k, name in enumerate(self.series):
@@ -202,7 +202,7 @@ class CurvePlot(Chart):
     def drawn_rect(self) -> tuple[int, int, int, int]:
         """(x0, x1, row0, row1), rows from the top: the box, the force values left of it and the distance axis under
         it."""
-        scale = max(1, self.height // 240)
+        scale = text_scale(self.height)
         left = max(0, self.x0 - text_width("-1.2e+03 ", scale))  # the widest force value (2 significant digits)
         return left, self.width, self.y_top, self.y_top + self.box_h + self.label_height
 
@@ -211,7 +211,7 @@ class CurvePlot(Chart):
         the box, the force at its top, zero line and bottom, and the distance axis's range under the box."""
         if not self.fits:
             return
-        scale = max(1, self.height // 240)
+        scale = text_scale(self.height)
         grey = (200, 200, 200)
         draw_text(img, "pair force, + attracts", self.x0 + 3, self.y_top + 3, scale, grey)
         draw_text(img, "0", self.x0 - text_width("0 ", scale), self.y_top + (self.box_h - 5 * scale) // 2, scale, grey)

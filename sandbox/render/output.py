@@ -5,7 +5,7 @@ import numpy as np
 import taichi as ti
 
 from .colormaps import GLOW_STOPS, SPEED_STOPS, ramp_np_many
-from .pixels import draw_text, put_pixel, text_width
+from .pixels import draw_text, put_pixel, text_scale, text_width
 
 
 class Output:
@@ -34,7 +34,7 @@ class Output:
     def _legend_geometry(self) -> tuple[int, int, int, int, int]:
         """(x0, row0, bar width, bar height, text scale) of the colour bar, rows counted from the top."""
         h, w = self.height, self.width
-        bar_w, bar_h, scale = max(60, w // 6), max(6, h // 60), max(1, h // 240)
+        bar_w, bar_h, scale = max(60, w // 6), max(6, h // 60), text_scale(h)
         return w - bar_w - 12, h - bar_h - 5 * scale - 12, bar_w, bar_h, scale  # its labels fit below it
 
     def _legend_rect(self) -> tuple[int, int, int, int]:
@@ -67,12 +67,12 @@ class Output:
 
     def draw_clock(self, img: np.ndarray) -> None:
         """The simulated time, "t = 2.40 s", in the bottom-left corner of an (H, W, 3) uint8 frame."""
-        scale = max(1, self.height // 240)
-        draw_text(img, f"t = {self.sim.time:.2f} s", 10, self.height - 10 - 5 * scale, scale)
+        x0, _, row0, _ = self._clock_rect()
+        draw_text(img, f"t = {self.sim.time:.2f} s", x0, row0, text_scale(self.height))
 
     def _clock_rect(self) -> tuple[int, int, int, int]:
         """(x0, x1, row0, row1): the pixels the clock may draw on (room for "t = 100000.00 s")."""
-        scale = max(1, self.height // 240)
+        scale = text_scale(self.height)
         return 10, min(self.width, 10 + text_width("t = 100000.00 s", scale)), self.height - 10 - 5 * scale, self.height
 
     def label_window_output(self) -> None:

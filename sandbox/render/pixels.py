@@ -92,6 +92,11 @@ def glyph(ch: str) -> str | None:
     return _GLYPHS.get(ch) or _GLYPHS.get(ch.upper())
 
 
+def text_scale(height: int) -> int:
+    """The font's scale for a picture `height` pixels tall: one font pixel per 240 rows (at least 1)."""
+    return max(1, height // 240)
+
+
 def text_width(text: str, scale: int = 1) -> int:
     """Pixels `text` takes across: 4 per character (3 and a gap) at scale 1."""
     return 4 * scale * len(text)

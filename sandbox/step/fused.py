@@ -24,11 +24,8 @@ class FusedStepping:
         as a team of threads (self.team); and the step has no work that the host does between steps (emitters,
         scheduled sources, smoke, velocity fields, lifetimes, the implicit heat solve). Sorting the storage into
         cell order runs between batches, which are at most REORDER_BATCH steps long when the scene sorts."""
-        return (self.loops.serial_pairs and self.loops.serial_light or self.team is not None) and self._no_host_work()
-
-    def _no_host_work(self) -> bool:
-        """No work that the host does between steps (see _fusable_scene)."""
-        return not host_work_between_steps(self.scene)
+        one_launch = self.loops.serial_pairs and self.loops.serial_light or self.team is not None
+        return one_launch and not host_work_between_steps(self.scene)
 
     def _fused_batch(self, n: int) -> int:
         """How many of the next n steps to run in one _fused_steps launch (0: step the long way)."""
