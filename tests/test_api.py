@@ -29,9 +29,10 @@ CASES = {
 
 
 def _everything(sim) -> dict:
-    """Every field and host number the state file holds, read from the simulation."""
+    """Every field and host number the state file holds, read from the simulation (the fields in one batched copy,
+    as save() reads them: a to_numpy() per field would compile a copy kernel for each)."""
     fields, ndarrays, host = persist.walk(sim)
-    out = {f"field:{k}": f.to_numpy() for k, f in fields.items()}
+    out = {f"field:{k}": v for k, v in persist._download(sim, fields).items()}
     out.update({f"ndarray:{k}": getattr(o, a).to_numpy() for k, (o, a) in ndarrays.items()})
     out.update({f"host:{k}": getattr(o, a) for k, (o, a) in host.items()})
     return out
