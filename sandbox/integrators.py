@@ -28,6 +28,7 @@ equation with its own stepping: explicit Euler on the rates of the step's last f
 import taichi as ti
 
 from .oriented import data_oriented
+from .scene_tables import INTEGRATORS
 from .solvers import CGSums, pcg
 
 REGISTRY: dict[str, type] = {}
@@ -305,6 +306,6 @@ class ImplicitEuler(Integrator):
 
 from . import leapfrog  # noqa: E402, F401 - registers velocity_verlet and verlet
 
-# The order the window's i key cycles through and reports list: cheap first-order methods, then second, then the rest.
-for _name in ("symplectic_euler", "forward_euler", "velocity_verlet", "midpoint", "verlet", "rk4", "implicit_euler"):
+# The order the window's i key cycles through and reports list: the registry of names (scene_tables.INTEGRATORS).
+for _name in INTEGRATORS:
     REGISTRY[_name] = REGISTRY.pop(_name)

@@ -43,9 +43,12 @@ def _is_ndarray(value) -> bool:
 
 
 def _is_part(value) -> bool:
-    """An object of the sandbox's own whose attributes are walked (a component of the simulation)."""
+    """An object whose attributes are walked (a component of the simulation): the sandbox's own, or a Taichi
+    data-oriented object from elsewhere (a body-force term registered by a user)."""
     module = type(value).__module__
-    return module.startswith("sandbox.") and not module.startswith(("sandbox.scene", "sandbox.build"))
+    if module.startswith("sandbox."):
+        return not module.startswith(("sandbox.scene", "sandbox.build"))
+    return getattr(type(value), "_data_oriented", False) is True
 
 
 def _host_value(value) -> bool:
@@ -71,11 +74,17 @@ def walk(sim) -> tuple[dict, dict, dict]:
             items = (
                 list(enumerate(value)) if isinstance(value, list | tuple) and value and _is_field(value[0]) else None
             )
+            parts = isinstance(value, list | tuple) and value and all(_is_part(v) for v in value)
             if items is not None:
                 for k, item in items:
                     if _is_field(item) and id(item) not in seen:
                         seen.add(id(item))
                         fields[f"{where}.{k}"] = item
+            elif parts:  # a list of components (the body-force terms)
+                for k, item in enumerate(value):
+                    if id(item) not in seen:
+                        seen.add(id(item))
+                        queue.append((item, f"{where}.{k}"))
             elif _is_field(value):
                 if id(value) not in seen:
                     seen.add(id(value))

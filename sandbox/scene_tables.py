@@ -12,8 +12,9 @@ from .arguments import MAX_FRAMES, MAX_SIDE, MAX_SUBSTEPS
 from .materials import Material
 from .schema import at_least, between, celsius, non_negative, one_of, positive, spec, unit_interval
 
-# Kept equal to integrators.REGISTRY (a test checks), so validating a scene needs no Taichi import.
-INTEGRATORS = ("symplectic_euler", "forward_euler", "midpoint", "verlet", "velocity_verlet", "rk4", "implicit_euler")
+# The registry of integrator names, in the order the window cycles through them: every class registered in
+# integrators.py has its name here (a test checks), so validating a scene needs no Taichi import.
+INTEGRATORS = ("symplectic_euler", "forward_euler", "velocity_verlet", "midpoint", "verlet", "rk4", "implicit_euler")
 SHAPES = ("box", "disk", "sphere", "mask")
 LATTICES = ("square", "hex", "cubic", "fcc")
 COLOR_BY = ("temperature", "material", "speed", "phase")

@@ -4,7 +4,7 @@ The facade over its rooms: the passes (physics/), the rates of a step over them 
 running steps (step/long_way.py, step/fused.py, step/team.py, chosen by step/plan.py), the measurements
 (diagnostics.py), the stability bounds (stability.py), state access (state.py) and its self-description
 (description.py). Per step, the integrator calls eval_rates() (neighbour grid rebuild -> spring update -> one fused
-kernel for pair force, heat flow, springs, gravity and drag) and then its own update kernel, which ends with
+kernel for pair force, heat flow, springs and the body forces) and then its own update kernel, which ends with
 finish_particle() (walls and the heat update) for each particle.
 """
 
@@ -26,6 +26,7 @@ from .integrators import make_integrator
 from .loops import LoopPolicy
 from .model import MaterialTable, ParticleFields, material_column
 from .oriented import data_oriented
+from .physics.body_forces import build_body_forces
 from .physics.boundary import Domain
 from .physics.emitters import Emitters
 from .physics.fields import VelocityField
@@ -198,6 +199,7 @@ class Simulation(Rates, LongWay, FusedStepping, Measurements, StabilityBounds, S
         self.gravity[None] = world.gravity
         self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
         self.drag[None] = world.drag
+        self.body_forces = build_body_forces(self)  # summed per particle by the rates pass
         self._build_measurements()
         self.integrator = make_integrator(world.integrator, self)
         self.team = Team(self, threads) if self.loops.team and self.half_pairs else None  # it steps half lists

@@ -260,3 +260,54 @@ def test_light_stats_reuse_the_last_pair_energy_and_measure_the_rest():
     assert light.pair_energy == full.pair_energy  # not rescanned ...
     assert light.kinetic_energy == pytest.approx(0.5) and light.gravity_energy != full.gravity_energy  # ... the rest is
     assert sim.stats().pair_energy != full.pair_energy  # a full call measures it again
+
+
+def test_a_body_force_added_to_the_registry_acts_in_every_way_of_stepping(monkeypatch):
+    """A new force term is one class and the registry: a harmonic trap F = -m w^2 (x - c) moves free particles on
+    x(t) = c + (x0 - c) cos(w t), the same bits stepped one launch per pass or many steps to a launch; pipeline()
+    names it and its field is part of the saved state."""
+    import taichi as ti
+
+    from sandbox import persist
+    from sandbox.oriented import data_oriented
+    from sandbox.physics import body_forces
+
+    monkeypatch.setattr(body_forces, "BODY_FORCES", list(body_forces.BODY_FORCES))
+    centre = np.array([11.0, 10.0])
+
+    @body_forces.body_force
+    @data_oriented
+    class Trap:
+        @staticmethod
+        def wanted(sim) -> bool:
+            return True
+
+        def __init__(self, sim):
+            self.particles = sim.particles
+            self.w2 = ti.field(float, shape=())  # w^2 (1 / time^2)
+            self.w2[None] = 4.0
+            self.centre = ti.Vector(list(centre))
+
+        def describe(self) -> list[str]:
+            return ["harmonic trap"]
+
+        @ti.func
+        def force(self, i):
+            p = self.particles
+            return -p.mass[i] * self.w2[None] * (p.x[i] - self.centre)
+
+    world = {"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.001, "precision": "f64"}
+    world["integrator"] = "velocity_verlet"
+    body = {"material": "jelly", "shape": "box", "lo": [10, 10], "hi": [12, 11], "springs": False}
+    one_by_one, fused = (Simulation(make_scene(scene_dict(world=world, bodies=[body]))) for _ in range(2))
+    one_by_one.fuses_steps = False
+    assert fused.fuses_steps and any(line.endswith(": harmonic trap") for line in fused.pipeline())
+    x0 = fused.positions().copy()
+    assert len(x0) == 2 and not np.allclose(x0, centre)
+    for sim in (one_by_one, fused):
+        sim.step(1000)  # t = 1
+    x = fused.positions()
+    assert np.array_equal(x, one_by_one.positions()) and fused.fused_batches > 0 == one_by_one.fused_batches
+    expected = centre + (x0 - centre) * np.cos(2.0 * 1.0)
+    assert np.abs(x - expected).max() < 1e-5 < np.abs(x0 - expected).min()
+    assert "body_forces.1.w2" in persist.walk(fused)[0]

@@ -146,9 +146,7 @@ def _rates_line(sim) -> str:
         terms.append(f"heat diffusion (kernel support {sim.heat.support:g}, {sim.heat.n_sources} sources)")
     if sim.springs is not None:
         terms.append("spring-damper forces (gathered per particle)")
-    if any(sim.scene.world.gravity):
-        terms.append("gravity")
-    if sim.scene.world.drag:
-        terms.append("drag")
+    for term in sim.body_forces:
+        terms += term.describe()
     pairs = " (each neighbour pair once, applied to both)" if sim.half_pairs else ""
     return f"fused rates kernel{pairs}: " + ", ".join(terms)

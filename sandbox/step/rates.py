@@ -5,8 +5,8 @@ finish_particle(); the fused step and the team call the loops below inside their
 
 Per evaluation: the cheap per-step passes (_prestep: has a particle moved half the skin, the springs' thermoelastic
 update and breaking, power sources' masses), the neighbour lists rebuilt when stale, then one kernel: the half-list
-pair pass (each pair once, into per-chunk buffer rows) and the per-particle gather (gravity, drag, the pair terms,
-the springs, heat sources), optionally with the integrator's update of each particle in the same loop.
+pair pass (each pair once, into per-chunk buffer rows) and the per-particle gather (the body forces, the pair
+terms, the springs, heat sources), optionally with the integrator's update of each particle in the same loop.
 """
 
 import warnings
@@ -19,7 +19,7 @@ from ..physics.neighbours import LIST_ARRAY
 from ..physics.phase import LIQUID
 from ..scene_tables import COUPLINGS
 
-NO_COUPLING, KINEMATIC, DRAG = (COUPLINGS.index(c) for c in ("none", "kinematic", "drag"))
+NO_COUPLING, KINEMATIC = (COUPLINGS.index(c) for c in ("none", "kinematic"))
 
 
 class Rates:
@@ -214,15 +214,14 @@ class Rates:
         stage,
         update_here: ti.template(),
     ):
-        """Particle i's force (p.f) and heat rate (p.dhdt): gravity, drag, its pair terms (summed from the half-list
-        rows, or gathered from its list or the grid), its springs; then, with `update_here`, its update by `dt`
-        (the integrator's `stage`)."""
+        """Particle i's force (p.f) and heat rate (p.dhdt): the body forces (gravity, drag, ...), its pair terms
+        (summed from the half-list rows, or gathered from its list or the grid), its springs; then, with
+        `update_here`, its update by `dt` (the integrator's `stage`)."""
         p = self.particles
         xi = p.x[i]
-        f = p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
-        if ti.static(self.has_field_drag):
-            if self.g_coupling[p.group[i]] == DRAG:
-                f += p.mass[i] * self.g_drag[p.group[i]] * (self.v_field[i] - p.v[i])
+        f = ti.Vector.zero(float, self.dim)
+        for term in ti.static(self.body_forces):  # gravity, drag, ... (physics/body_forces.py)
+            f += term.force(i)
         q = 0.0
         if ti.static(self.has_grid):
             f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
