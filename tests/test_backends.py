@@ -55,6 +55,7 @@ def run_both_workloads(arch: str) -> dict:
     return out
 
 
+@pytest.mark.slow  # the Vulkan backend compiles every kernel again
 def test_the_gpu_path_on_vulkan_computes_what_the_cpu_computes(tmp_path):
     """Vulkan in a fresh process (a runtime holds one backend) against the CPU here: the box's energy drift and
     positions, the melting block's heat, melt and broken bonds, and the picture. Skips where Vulkan is missing."""

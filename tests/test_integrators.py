@@ -24,6 +24,7 @@ def quick(tmp_path_factory):
     return out, study.run_study(out, quick=True, log=lambda line: None)
 
 
+@pytest.mark.slow  # the quick study (session fixture)
 @pytest.mark.parametrize("name", ALL)
 def test_convergence_order_on_the_undamped_spring(quick, name):
     runs = [r for r in quick[1].runs if r.problem == "oscillator" and r.integrator == name]
@@ -31,6 +32,7 @@ def test_convergence_order_on_the_undamped_spring(quick, name):
     assert abs(order - REGISTRY[name].order) <= 0.15, order
 
 
+@pytest.mark.slow  # the quick study (session fixture)
 @pytest.mark.parametrize("name", ALL)
 def test_convergence_order_on_the_damped_lattice(quick, name):
     runs = [r for r in quick[1].runs if r.problem == "lattice" and r.integrator == name]
@@ -39,6 +41,7 @@ def test_convergence_order_on_the_damped_lattice(quick, name):
     assert quick[1].notes["lattice_reference_error (Richardson)"] < 1e-3 * min(r.error for r in runs)
 
 
+@pytest.mark.slow  # the quick study (session fixture)
 @pytest.mark.parametrize(
     "name, theory", [("symplectic_euler", 2.0), ("verlet", 2.0), ("velocity_verlet", 2.0), ("rk4", 2 * math.sqrt(2))]
 )
@@ -48,6 +51,7 @@ def test_largest_stable_step_matches_theory(quick, name, theory):
     assert row["h_omega_limit"] == pytest.approx(theory, abs=4 / 120**2)
 
 
+@pytest.mark.slow  # the quick study (session fixture)
 @pytest.mark.parametrize("name", ["forward_euler", "midpoint"])
 def test_explicit_euler_and_midpoint_grow_at_every_step_as_theory_says(quick, name):
     row = next(r for r in quick[1].stability if r["integrator"] == name)
@@ -95,6 +99,7 @@ def test_forward_euler_energy_grows():
     assert np.all(np.diff(err) > 0) and err[-1] > 1e4  # energy x 1.25 per step at h w = 0.5, 50 steps
 
 
+@pytest.mark.slow  # the quick study (session fixture)
 def test_heat_steppers_are_first_order_in_time_and_the_explicit_limit_matches_theory(quick):
     res = quick[1]
     for stepper in ("explicit", "implicit"):
@@ -106,6 +111,7 @@ def test_heat_steppers_are_first_order_in_time_and_the_explicit_limit_matches_th
     assert measured == pytest.approx(theory, rel=0.02)
 
 
+@pytest.mark.slow  # the quick study (session fixture)
 def test_quick_study_writes_its_report(quick):
     out, res = quick
     for name in ("runs.csv", "stability.csv", "stiff.csv", "report.md"):

@@ -22,6 +22,7 @@ def _outputs(cell) -> tuple[str, str, set[str]]:
     return text, html, kinds
 
 
+@pytest.mark.slow  # a Jupyter kernel in another process, which compiles its own kernels
 def test_the_classroom_notebook_runs_and_shows_its_results(tmp_path):
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")

@@ -39,6 +39,7 @@ def test_the_plan_cuts_integrators_into_contiguous_tasks_after_each_reference():
         plan_tasks(True, ("leapfrog",))
 
 
+@pytest.mark.slow  # a 2-worker Dask cluster and the serial study beside it
 def test_the_study_on_a_local_cluster_equals_the_serial_study(tmp_path):
     pytest.importorskip("distributed")
     problems = ("oscillator", "lattice")

@@ -37,6 +37,7 @@ def test_vary_reads_lists_and_spans_and_plans_products_or_zips():
         plan_runs([a, a])
 
 
+@pytest.mark.slow  # a 2-worker Dask cluster
 @pytest.mark.xdist_group("dask")  # cluster tests one at a time: two clusters at once overload the 2 cores
 def test_a_local_cluster_sweep_equals_the_runs_one_by_one_and_resumes(tmp_path, monkeypatch):
     pytest.importorskip("distributed")
