@@ -13,7 +13,7 @@ from .materials import Material
 from .schema import at_least, between, celsius, non_negative, one_of, positive, spec, unit_interval
 
 # The registry of integrator names, in the order the window cycles through them: every class registered in
-# integrators.py has its name here (a test checks), so validating a scene needs no Taichi import.
+# sandbox/integrators/ has its name here (a test checks), so validating a scene needs no Taichi import.
 INTEGRATORS = ("symplectic_euler", "forward_euler", "velocity_verlet", "midpoint", "verlet", "rk4", "implicit_euler")
 SHAPES = ("box", "disk", "sphere", "mask")
 LATTICES = ("square", "hex", "cubic", "fcc")

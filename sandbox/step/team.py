@@ -7,7 +7,7 @@ most of what the second thread brings, and the step runs many to a launch on one
 each worker runs every step over its share of the particles and waits for the others at a spin barrier between the
 passes that read what another worker wrote.
 
-Each stage of a step (one for symplectic Euler and the Verlet methods: see integrators.py) of a scene with half
+Each stage of a step (one for symplectic Euler and the Verlet methods: see sandbox/integrators/) of a scene with half
 neighbour lists, per worker w of W:
   (springs only) the thermoelastic update and breaking of its share of the springs; barrier;
   (rebuild step only) worker 0 sorts the particles into cells; barrier; each builds the lists of its particles;

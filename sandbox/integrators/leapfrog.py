@@ -16,7 +16,8 @@ textbook steps; walls act at the end of each kick-drift, on the staggered state.
 
 import taichi as ti
 
-from .integrators import SymplecticEuler, register
+from .base import register
+from .explicit import SymplecticEuler
 
 
 class Leapfrog(SymplecticEuler):
