@@ -71,18 +71,14 @@ def walk(sim) -> tuple[dict, dict, dict]:
             if name in SKIPPED or name.startswith("__"):
                 continue
             where = f"{path}.{name}" if path != "sim" else name
-            items = (
-                list(enumerate(value)) if isinstance(value, list | tuple) and value and _is_field(value[0]) else None
-            )
-            parts = isinstance(value, list | tuple) and value and all(_is_part(v) for v in value)
-            if items is not None:
-                for k, item in items:
-                    if _is_field(item) and id(item) not in seen:
+            if isinstance(value, list | tuple) and value and (_is_field(value[0]) or _is_part(value[0])):
+                for k, item in enumerate(value):  # a list of fields, or of components (the body-force terms)
+                    if id(item) in seen:
+                        continue
+                    if _is_field(item):
                         seen.add(id(item))
                         fields[f"{where}.{k}"] = item
-            elif parts:  # a list of components (the body-force terms)
-                for k, item in enumerate(value):
-                    if id(item) not in seen:
+                    elif _is_part(item):
                         seen.add(id(item))
                         queue.append((item, f"{where}.{k}"))
             elif _is_field(value):
