@@ -56,10 +56,16 @@ class Flat2D:
                             if cov > 0.0:  # lines of one colour "over" each other: only the transmittance adds up
                                 self.spring_log[px, py] += ti.log(1.0 - cov)
 
-    @ti.kernel
-    def _splat_2d(self):
+    def _splat_2d(self) -> None:
         """Bin the particles by screen strip, draw the even strips, then the odd ones, with plain adds (see
         strips.py), then the particles that reach beyond their strip, with atomic adds."""
+        self._bin_2d()
+        for splat_pass in (0, 1, 2) if self.strip_splat else (2,):
+            self._splat_pass_2d(splat_pass)
+
+    @ti.kernel
+    def _bin_2d(self):
+        """Sort the particles into the strip bins (the wide bin: those drawn with atomics)."""
         p = self.sim.particles
         n = p.n[None]
         bins = self.strips
@@ -73,14 +79,27 @@ class Flat2D:
                 s = bins.wide
             bins.put(i, s)
         bins.finish(n)
-        for parity in ti.static(range(2)):
-            for u in range(bins.pass_iterations):
-                s = bins.strip_at(u, parity)
+
+    @ti.kernel
+    def _splat_pass_2d(self, splat_pass: ti.i32):
+        """Pass 0 or 1: draw the even or the odd strips' particles with plain adds, a strip per iteration; pass 2:
+        the wide bin's, a particle per iteration, with atomic adds. One kernel for the three passes compiles the
+        drawing code once (three inlined copies were 60% of the renderer's compile time)."""
+        bins = self.strips
+        iterations = bins.pass_iterations
+        if splat_pass == 2:
+            iterations = bins.count[bins.wide]
+        for u in range(iterations):
+            first, end = 0, 0  # the range of bins.ids this iteration draws
+            if splat_pass < 2:
+                s = bins.strip_at(u, splat_pass)
                 if s >= 0:
-                    for k in range(bins.start[s], bins.start[s] + bins.count[s]):
-                        self._splat_one(bins.ids[k], True)
-        for k in range(bins.start[bins.wide], bins.start[bins.wide] + bins.count[bins.wide]):
-            self._splat_one(bins.ids[k], False)
+                    first, end = bins.start[s], bins.start[s] + bins.count[s]
+            else:
+                first = bins.start[bins.wide] + u
+                end = first + 1
+            for k in range(first, end):
+                self._splat_one(bins.ids[k], splat_pass < 2)
 
     @ti.func
     def _splat_shape(self, i):
@@ -105,7 +124,7 @@ class Flat2D:
         return tail, ctrl, head, ti.max(r_true, R_MIN), r_true, blurred
 
     @ti.func
-    def _splat_one(self, i, plain: ti.template()):
+    def _splat_one(self, i, plain):
         """Add particle i's coverage to the layers: by plain load and store when `plain` (no other thread draws
         near it), else by atomic adds."""
         tail, ctrl, head, r, r_true, blurred = self._splat_shape(i)

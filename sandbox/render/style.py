@@ -19,10 +19,10 @@ BRUSH_OPACITY = 0.85
 
 
 @ti.func
-def _add(layer: ti.template(), x, y, value, plain: ti.template()):
+def _add(layer: ti.template(), x, y, value, plain):
     """layer[x, y] += value: by a plain load and store when `plain` (no other thread writes that pixel meanwhile),
     else atomically (on the CPU a float atomic add is a compare-and-swap loop)."""
-    if ti.static(plain):
+    if plain:
         layer[x, y] = layer[x, y] + value
     else:
         layer[x, y] += value
