@@ -53,12 +53,13 @@ class _Copier:
             self.items.append((field, is_int, offsets[is_int], n, cols, comps, zero_d))
             offsets[is_int] += n * max(cols, 1) * max(comps, 1)
         self.n_float, self.n_int = offsets[False], offsets[True]
-        # Items with the same rows and columns share one loop: each loop is a task that LLVM compiles on its own, and
-        # a build's particle fields (all N rows) or table fields (all 1 row) would otherwise compile one task each.
+        # One loop copies everything: each top-level loop is a task that LLVM compiles on its own (about 15 ms each),
+        # so items are grouped by rows and columns, and row k of every group is copied in iteration k.
         by_shape: dict[tuple[int, int], list] = {}
         for item in self.items:
             by_shape.setdefault((item[3], item[4]), []).append(item)
         self.groups = [(n, cols, tuple(items)) for (n, cols), items in by_shape.items()]
+        self.longest = max((n * max(cols, 1) for n, cols, _ in self.groups), default=0)
 
     @ti.func
     def _index(self, k, cols: ti.template()):
@@ -70,41 +71,43 @@ class _Copier:
 
     @ti.kernel
     def _up(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
-        for n, cols, items in ti.static(self.groups):
-            for k in range(n * max(cols, 1)):
-                idx = self._index(k, cols)
-                for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
-                    src = ti.static(ints if is_int else floats)
-                    base = off + k * max(comps, 1)
-                    if ti.static(zero_d and comps == 0):
-                        field[None] = ti.cast(src[base], field.dtype)
-                    elif ti.static(zero_d):
-                        for c in ti.static(range(comps)):
-                            field[None][c] = ti.cast(src[base + c], field.dtype)
-                    elif ti.static(comps == 0):
-                        field[idx] = ti.cast(src[base], field.dtype)
-                    else:
-                        for c in ti.static(range(comps)):
-                            field[idx][c] = ti.cast(src[base + c], field.dtype)
+        for k in range(self.longest):
+            for n, cols, items in ti.static(self.groups):
+                if k < n * max(cols, 1):
+                    idx = self._index(k, cols)
+                    for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
+                        src = ti.static(ints if is_int else floats)
+                        base = off + k * max(comps, 1)
+                        if ti.static(zero_d and comps == 0):
+                            field[None] = ti.cast(src[base], field.dtype)
+                        elif ti.static(zero_d):
+                            for c in ti.static(range(comps)):
+                                field[None][c] = ti.cast(src[base + c], field.dtype)
+                        elif ti.static(comps == 0):
+                            field[idx] = ti.cast(src[base], field.dtype)
+                        else:
+                            for c in ti.static(range(comps)):
+                                field[idx][c] = ti.cast(src[base + c], field.dtype)
 
     @ti.kernel
     def _down(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
-        for n, cols, items in ti.static(self.groups):
-            for k in range(n * max(cols, 1)):
-                idx = self._index(k, cols)
-                for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
-                    dst = ti.static(ints if is_int else floats)
-                    base = off + k * max(comps, 1)
-                    if ti.static(zero_d and comps == 0):
-                        dst[base] = field[None]
-                    elif ti.static(zero_d):
-                        for c in ti.static(range(comps)):
-                            dst[base + c] = field[None][c]
-                    elif ti.static(comps == 0):
-                        dst[base] = field[idx]
-                    else:
-                        for c in ti.static(range(comps)):
-                            dst[base + c] = field[idx][c]
+        for k in range(self.longest):
+            for n, cols, items in ti.static(self.groups):
+                if k < n * max(cols, 1):
+                    idx = self._index(k, cols)
+                    for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
+                        dst = ti.static(ints if is_int else floats)
+                        base = off + k * max(comps, 1)
+                        if ti.static(zero_d and comps == 0):
+                            dst[base] = field[None]
+                        elif ti.static(zero_d):
+                            for c in ti.static(range(comps)):
+                                dst[base + c] = field[None][c]
+                        elif ti.static(comps == 0):
+                            dst[base] = field[idx]
+                        else:
+                            for c in ti.static(range(comps)):
+                                dst[base + c] = field[idx][c]
 
     def shapes(self) -> list[tuple[int, ...]]:
         """The host shape of each item: (rows[, columns][, components])."""
