@@ -51,6 +51,8 @@ SUMS = {"ke": 0, "spring": 1, "pair": 2, "grav": 3, "tsum": 4, "vmax": 5, "phi":
 SUMS.update(tcold=9, thot=10)  # the largest -T and T (degrees; -1e30 without particles): the guard's temperatures
 SUMS.update(pair_virial=11, spring_virial=12)  # sums over pairs and live springs of r_ij . F_ij, r_ij = x_i - x_j
 COUNTS = {"alive": 0, "meltable": 1, "bad": 2}
+# _measure also reads out, after the sums and counts: the walls' momentum gauge, the particle and the spring counts
+IMPULSE_AT, N_AT, CREATED_AT = len(SUMS), len(COUNTS), len(COUNTS) + 1
 
 
 @dataclass
@@ -102,11 +104,12 @@ class Measurements:
         acc = ti.f64 if self.arch in ("cpu", "cuda") else ti.f32
         # Sums (and the largest speed) for stats(), one 0-d field each: Taichi accumulates a 0-d field per thread
         # and adds once per thread at the end of a loop, but turns `field[k] += ...` into one contended atomic per
-        # iteration. _measure copies them into _acc and _count, which the host reads.
+        # iteration. _measure copies them into the host arrays _acc and _count (kernel arguments: reading fields back
+        # would compile a copy kernel each).
         self._sums = [ti.field(acc, shape=()) for _ in SUMS]
         self._counts = [ti.field(ti.i32, shape=()) for _ in COUNTS]
-        self._acc = ti.field(acc, shape=len(SUMS))  # indexed by SUMS
-        self._count = ti.field(ti.i32, shape=len(COUNTS))  # counts for stats(), indexed by COUNTS
+        self._acc = np.zeros(len(SUMS) + 1, np.float64 if acc == ti.f64 else np.float32)  # SUMS, IMPULSE_AT
+        self._count = np.zeros(len(COUNTS) + 2, np.int32)  # counts for stats(): COUNTS, N_AT, CREATED_AT
         lo, hi = self.scene.world.lo, self.scene.world.hi
         self._box_volume = float(np.prod(np.subtract(hi, lo)))  # the pressure's V (area in 2D)
         self._gauge_since = 0.0  # the time the wall gauge restarted
@@ -122,10 +125,10 @@ class Measurements:
         elapsed = self.time - self._gauge_since
         if not self.domain.wall_area or elapsed <= 0.0:
             return float("nan")
-        return float(self.domain.impulse[None]) / (elapsed * self.domain.wall_area)
+        return float(self._acc[IMPULSE_AT]) / (elapsed * self.domain.wall_area)  # as _measure last read it
 
     @ti.kernel
-    def _measure(self, pair_energy: ti.template()):
+    def _measure(self, pair_energy: ti.template(), acc_out: ti.types.ndarray(), count_out: ti.types.ndarray()):
         p = self.particles
         acc, count = ti.static(self._sums, self._counts)
         for k in ti.static(range(len(SUMS))):
@@ -197,9 +200,13 @@ class Measurements:
                 acc[SUMS["pair"]][None] += e
                 acc[SUMS["pair_virial"]][None] += w
         for k in ti.static(range(len(SUMS))):
-            self._acc[k] = acc[k][None]
+            acc_out[k] = acc[k][None]
         for k in ti.static(range(len(COUNTS))):
-            self._count[k] = count[k][None]
+            count_out[k] = count[k][None]
+        acc_out[IMPULSE_AT] = self.domain.impulse[None]
+        count_out[N_AT] = p.n[None]
+        if ti.static(self.has_springs):
+            count_out[CREATED_AT] = self.springs.created[None]
 
     def stats(self, pair_energy: bool = True) -> Stats:
         """Energies, temperatures and counts now. Raises SimulationError if any particle is not finite.
@@ -209,15 +216,15 @@ class Measurements:
         pair_energy = pair_energy or self._last_pair_energy is None or not self.has_pair
         if pair_energy and self.grid is not None:
             self.grid.rebuild()
-        self._measure(pair_energy)
-        acc_values, cnt_values = self._acc.to_numpy(), self._count.to_numpy()
+        self._measure(pair_energy, self._acc, self._count)
+        acc_values, cnt_values = self._acc, self._count
         acc = {k: float(acc_values[i]) for k, i in SUMS.items()}
         if pair_energy:
             self._last_pair_energy = acc["pair"], acc["pair_virial"]
         else:
             acc["pair"], acc["pair_virial"] = self._last_pair_energy
         cnt = {k: int(cnt_values[i]) for k, i in COUNTS.items()}
-        n = int(self.particles.n[None])
+        n = int(cnt_values[N_AT])
         problem = self.guard.problem(acc, cnt["bad"], self.dt, self.heat is not None)
         if problem:
             self._raise_blowup(*problem)
@@ -230,7 +237,7 @@ class Measurements:
             mean_temperature=acc["tsum"] / n if (self.heat is not None and n) else float("nan"),
             molten_fraction=acc["phi"] / cnt["meltable"] if cnt["meltable"] else 0.0,
             heat_content=acc["heat"] if self.heat is not None else float("nan"),
-            broken_springs=int(self.springs.created[None]) - cnt["alive"] if self.springs is not None else 0,
+            broken_springs=int(cnt_values[CREATED_AT]) - cnt["alive"] if self.springs is not None else 0,
             max_speed=acc["vmax"],
             particles=n,
             pressure=(2.0 * acc["ke"] + acc["pair_virial"] + acc["spring_virial"]) / (self.dim * self._box_volume),

@@ -64,9 +64,9 @@ class ParticleFields:
         """Copy the initial particles in (entries past the count are left as they are); `materials` (by material id)
         turn the initial temperatures into enthalpies and liquid flags."""
         n = built.count
-        self.n[None] = n
         self.next_ident = n
         pairs = [
+            (self.n, n),
             (self.x, built.x),
             (self.v, built.v),
             (self.f, np.zeros_like(built.x)),

@@ -12,6 +12,7 @@ import math
 import time
 from collections.abc import Callable
 
+import numpy as np
 import taichi as ti
 
 from . import runtime, taichi_compat, transfer
@@ -105,9 +106,15 @@ class Simulation(Rates, LongWay, FusedStepping, Measurements, StabilityBounds, S
             # per group (every body, every emitter, then the spawn tool's particles):
             self.g_coupling = ti.field(ti.i32, shape=len(groups) + 1)  # index into COUPLINGS
             self.g_drag = ti.field(float, shape=len(groups) + 1)  # field = drag: relaxation rate (1/time)
-            for k, g in enumerate(groups):
-                self.g_coupling[k] = COUPLINGS.index(couplings[k])
-                self.g_drag[k] = g.field_drag
+            transfer.upload(
+                [
+                    (self.g_coupling, np.array([COUPLINGS.index(c) for c in couplings], np.int32)),
+                    (self.g_drag, np.array([g.field_drag for g in groups], float)),
+                ]
+            )
+            self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
+            self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
+            transfer.upload([(self.gravity, np.asarray(world.gravity, float)), (self.drag, world.drag)])
             if self.has_kinematic or self.has_field_drag:
                 self.v_field = ti.Vector.field(self.dim, float, shape=self.capacity)  # v(x, t) at coupled particles
             if self.has_kinematic:
@@ -195,10 +202,6 @@ class Simulation(Rates, LongWay, FusedStepping, Measurements, StabilityBounds, S
         self.implicit_heat = None
         if self.has_heat and not self.has_explicit_heat:
             self.implicit_heat = ImplicitHeat(self)
-        self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
-        self.gravity[None] = world.gravity
-        self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
-        self.drag[None] = world.drag
         self.body_forces = build_body_forces(self)  # summed per particle by the rates pass
         self._build_measurements()
         self.integrator = make_integrator(world.integrator, self)

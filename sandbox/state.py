@@ -16,31 +16,32 @@ class StateAccess:
         """Copies of every state field, particles and springs (for reset, and tests)."""
         self.check_alive()
         p = self.particles
-        snap = {"n": int(p.n[None]), "time": self.time, "step": self.step_count, "next_ident": p.next_ident}
+        snap = {"time": self.time, "step": self.step_count, "next_ident": p.next_ident}
         snap["frames"] = self.frames_done
         if self.emitters is not None:
             snap["emitters"] = (list(self.emitters.serial), list(self.emitters.carry), list(self.emitters.emitted))
         names = self.field_names()
-        fields = [getattr(p, name) for name in names]
+        fields = [p.n] + [getattr(p, name) for name in names]
         if self.springs is not None:
-            fields += [getattr(self.springs, name) for name in SPRING_ARRAYS]
-            snap["spring_created"] = int(self.springs.created[None])
-            snap["spring_span"] = int(self.springs.span[None])
-        arrays = transfer.download(fields)  # one copy kernel for all of them
+            fields += [self.springs.created, self.springs.span] + [getattr(self.springs, n) for n in SPRING_ARRAYS]
+        # one copy kernel for all of them (a host read of a 0-d field compiles a reader kernel of its own)
+        n, *arrays = transfer.download(fields)
+        snap["n"] = int(n)
         snap.update(zip(names, arrays))
-        snap.update((f"spring_{name}", a) for name, a in zip(SPRING_ARRAYS, arrays[len(names) :]))
+        if self.springs is not None:
+            created, span, *spring_arrays = arrays[len(names) :]
+            snap["spring_created"], snap["spring_span"] = int(created), int(span)
+            snap.update((f"spring_{name}", a) for name, a in zip(SPRING_ARRAYS, spring_arrays))
         return snap
 
     def restore(self, snap: dict) -> None:
         """Put the state back exactly as `snapshot()` saw it."""
         p = self.particles
-        p.n[None] = snap["n"]
         p.next_ident = snap["next_ident"]
-        pairs = [(getattr(p, name), snap[name]) for name in self.field_names()]
+        pairs = [(p.n, snap["n"])] + [(getattr(p, name), snap[name]) for name in self.field_names()]
         if self.springs is not None:
             pairs += [(getattr(self.springs, name), snap[f"spring_{name}"]) for name in SPRING_ARRAYS]
-            self.springs.created[None] = snap["spring_created"]
-            self.springs.span[None] = snap["spring_span"]
+            pairs += [(self.springs.created, snap["spring_created"]), (self.springs.span, snap["spring_span"])]
         transfer.upload(pairs)
         self.time = snap["time"]
         self.step_count = snap["step"]

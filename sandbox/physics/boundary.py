@@ -4,6 +4,7 @@ import math
 
 import taichi as ti
 
+from .. import transfer
 from ..oriented import data_oriented
 
 
@@ -20,8 +21,7 @@ class Domain:
         self.inv_box = ti.Vector([1.0 / (h - l) for l, h in zip(lo, hi)])
         self.restitution = ti.field(float, shape=())  # normal speed kept after a wall hit, in [0, 1]
         self.friction = ti.field(float, shape=())  # Coulomb coefficient: tangential impulse <= mu * normal impulse
-        self.restitution[None] = restitution
-        self.friction[None] = friction
+        transfer.upload([(self.restitution, restitution), (self.friction, friction)])  # in the build's one copy
         # momentum the walls have taken (sum of m (1 + e) |v_n| over hits) since the gauge was last zeroed
         self.impulse = ti.field(float, shape=())
         self.wall_area = self._wall_area(lo, hi) if not periodic else 0.0

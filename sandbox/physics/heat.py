@@ -26,6 +26,7 @@ import math
 import numpy as np
 import taichi as ti
 
+from .. import transfer
 from ..oriented import data_oriented
 from ..scene_tables import SOURCE_MODES
 from ..transfer import real_fields
@@ -108,15 +109,20 @@ class Heat:
         self.src_mass = ti.field(float, shape=ns)  # power sources: mass inside the region (summed each step)
         self.ambient = ti.field(float, shape=())  # degrees
         self.ambient_exchange = ti.field(float, shape=())  # heat per time per degree, per particle
-        self.ambient[None] = heat_scene.ambient
-        self.ambient_exchange[None] = heat_scene.ambient_exchange
-        for k, src in enumerate(self.sources):
-            self.src_lo[k] = np.asarray(src.lo) - src.reach
-            self.src_hi[k] = np.asarray(src.hi) + src.reach
-            self.src_mode[k] = modes[k]
-            self.src_conductance[k] = src.conductance
-        self._values: list[float | None] = [None] * self.n_sources  # the values last written to src_value
-        self.set_time(0.0)
+        values = [source_value(src, 0.0) for src in self.sources]
+        # in the build's one copy (a host write of a field element compiles a writer kernel of its own)
+        transfer.upload(
+            [
+                (self.ambient, heat_scene.ambient),
+                (self.ambient_exchange, heat_scene.ambient_exchange),
+                (self.src_lo, np.array([np.asarray(src.lo) - src.reach for src in self.sources]).reshape(-1, dim)),
+                (self.src_hi, np.array([np.asarray(src.hi) + src.reach for src in self.sources]).reshape(-1, dim)),
+                (self.src_mode, np.array(modes, np.int32)),
+                (self.src_conductance, np.array([src.conductance for src in self.sources], float)),
+                (self.src_value, np.array(values, float)),
+            ]
+        )
+        self._values: list[float | None] = values  # the values last written to src_value
 
     def set_time(self, t: float) -> None:
         """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""

@@ -91,10 +91,10 @@ class Springs:
                 (self.factor, np.ones(s)),
                 (self.alive, alive),
                 (self.bonds, table),
+                (self.created, self.built_count),
+                (self.span, self.built_count),
             ]
         )
-        self.created[None] = self.built_count
-        self.span[None] = self.built_count
         self.p = particles
         self.mats = materials
         self.phase = phase

@@ -10,6 +10,7 @@ Tick marks divide the time axis into quarters and mark the middle of the scale.
 import numpy as np
 import taichi as ti
 
+from .. import transfer
 from ..oriented import data_oriented
 from .pixels import draw_text, get_pixel, put_pixel, text_scale, text_width
 
@@ -51,8 +52,7 @@ class Chart:
         self.fits = width >= self.box_w + self.x0 + 10 and height >= self.box_h + 2 * self.y_top
         self.values = ti.field(ti.f32, shape=(len(self.series), SAMPLES))  # normalised to [0, 1]
         self.colors = ti.Vector.field(3, ti.f32, shape=len(self.series))
-        for k in range(len(self.series)):
-            self.colors[k] = COLORS[k % len(COLORS)]
+        transfer.upload([(self.colors, np.array([COLORS[k % len(COLORS)] for k in range(self.n_series)], np.float32))])
         self.history: list[list[float]] = [[] for _ in self.series]
         self.times: list[float] = []  # simulated time of each kept sample
         self.ranges: list[tuple[float, float]] = [(0.0, 1.0)] * len(self.series)  # each series' scale

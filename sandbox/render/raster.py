@@ -40,7 +40,7 @@ import math
 import numpy as np
 import taichi as ti
 
-from .. import runtime
+from .. import runtime, transfer
 from ..oriented import data_oriented
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
@@ -85,88 +85,94 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         self.panel_px = int(round(panel * width))  # pixels on the left under a side panel
         self.cx = self.panel_px + 0.5 * (width - self.panel_px)  # 3D: where the view's axis meets the picture
         self.dim = sim.dim
-        bodies = sim.scene.groups  # every body, then every emitter, then (last) the spawn tool's particles
-        self.n_groups = len(bodies) + 1
-        self.g_draw = ti.field(ti.i32, shape=self.n_groups)
-        self.g_blend = ti.field(ti.i32, shape=self.n_groups)
-        self.g_opacity = ti.field(ti.f32, shape=self.n_groups)
-        self.g_fade = ti.field(ti.i32, shape=self.n_groups)  # colour fades over the lifetime
-        self.g_shrink = ti.field(ti.i32, shape=self.n_groups)  # drawn radius shrinks over the lifetime
-        self.has_lifetimes = sim.has_lifetimes
-        for k, body in enumerate(bodies):
-            self.g_fade[k] = int(getattr(body, "fade", False))
-            self.g_shrink[k] = int(getattr(body, "shrink", False))
-            self.g_draw[k] = DRAW[body.draw]
-            self.g_blend[k] = BLEND[body.blend]
-            self.g_opacity[k] = body.opacity
-        self.g_draw[len(bodies)] = DRAW["splat" if self.dim == 2 else "sphere"]
-        self.g_blend[len(bodies)] = BLEND["opaque"]
-        self.g_opacity[len(bodies)] = 1.0
-        blends = {b.blend for b in bodies} | ({"opaque"} if sim.scene.palette else set())
-        self.has_opaque, self.has_alpha, self.has_additive = (
-            "opaque" in blends,
-            "alpha" in blends,
-            "additive" in blends,
-        )
-        self.image = self._layer(3)  # linear RGB in [0, 1]
-        self.accum = self._layer(3)  # opaque: coverage-weighted colour sum
-        self.weight = self._layer()  # opaque: coverage sum
-        self.motion_blur = bool(render_cfg.motion_blur)
-        # 3D opaque spheres with motion blur leave a translucent streak behind the sphere, composited order-
-        # independently in the same layers as 2D's translucent particles
-        self.ghosts = self.motion_blur and self.dim == 3 and self.has_opaque
-        if self.has_alpha or self.ghosts:
-            self.a_accum = self._layer(3)  # alpha-weighted colour sum (2D; 3D streaks)
-            self.a_weight = self._layer()  # alpha sum
-            self.a_log = self._layer()  # sum of log(1 - alpha): log transmittance
-        if self.has_alpha:
-            self.order = ti.field(ti.i32, shape=sim.capacity)  # 3D: translucent particles, back to front
-            self.n_order = ti.field(ti.i32, shape=())
-        if self.has_additive:
-            self.light = self._layer(3)  # additive light (unbounded)
-        self.depth = self._layer(dtype=ti.i32)  # depth bits of the nearest opaque surface (3D)
-        # The 8-bit picture, (H, W, 3) top row first, or with output "rgba" GGUI's (W, H) packed RGBA, y up. On
-        # the CPU it is a numpy array the kernels write straight into (no copy to the host at all); elsewhere a
-        # device ndarray copied to the host once per picture().
-        if output == "rgba":
-            self.out = np.zeros((width, height), np.uint32)
-        elif self.on_cpu:
-            self.out = np.zeros((height, width, 3), np.uint8)
-        else:
-            self.out = ti.ndarray(ti.u8, (height, width, 3))
-        if self.motion_blur:
-            self.x_prev = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions a frame ago
-            self.shutter = float(render_cfg.shutter)
-        self.spline = self.motion_blur and render_cfg.motion_path == "spline"
-        self.tails = [self.x_prev] if self.motion_blur else []  # per-particle drawing state that moves with particles
-        if self.spline:
-            self.x_mid = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions at the frame's middle
-            self.tails.append(self.x_mid)
-            self.mid_captured = False
-        self.color_mode = COLOR_MODES[render_cfg.color_by]
-        self.t_lo = ti.field(ti.f32, shape=())
-        self.t_hi = ti.field(ti.f32, shape=())
-        self.t_lo[None], self.t_hi[None] = render_cfg.temperature_range
-        self.speed_hi = ti.field(ti.f32, shape=())
-        self.speed_hi[None] = render_cfg.speed_range
-        self.exposure = float(render_cfg.exposure)
-        self.background = ti.Vector(list(render_cfg.background))
-        self.particle_scale = float(render_cfg.particle_scale)
-        self.has_heat = sim.heat is not None
-        self.draw_springs = bool(render_cfg.draw_springs) and sim.springs is not None and self.dim == 2
-        self.brush: tuple[float, float, float] | None = None  # see set_brush
-        self.chart = None
-        self.potential = None  # the window's potential panel (a CurvePlot), when shown
-        if render_cfg.chart:
-            self.chart = Chart(
-                self.image, width, height, tuple(render_cfg.chart), self._scene_in_image(), self.panel_px
+        # The tables go to their fields in one copy kernel when the block ends: a host write of a field element
+        # compiles a writer kernel of its own (about 20 ms each at start-up). Nothing in the block reads them.
+        with transfer.batched():
+            bodies = sim.scene.groups  # every body, then every emitter, then (last) the spawn tool's particles
+            self.n_groups = len(bodies) + 1
+            self.g_draw = ti.field(ti.i32, shape=self.n_groups)
+            self.g_blend = ti.field(ti.i32, shape=self.n_groups)
+            self.g_opacity = ti.field(ti.f32, shape=self.n_groups)
+            self.g_fade = ti.field(ti.i32, shape=self.n_groups)  # colour fades over the lifetime
+            self.g_shrink = ti.field(ti.i32, shape=self.n_groups)  # drawn radius shrinks over the lifetime
+            self.has_lifetimes = sim.has_lifetimes
+            draw = [DRAW[b.draw] for b in bodies] + [DRAW["splat" if self.dim == 2 else "sphere"]]  # + the spawn tool's
+            transfer.upload(
+                [
+                    (self.g_fade, np.array([int(getattr(b, "fade", False)) for b in bodies], np.int32)),
+                    (self.g_shrink, np.array([int(getattr(b, "shrink", False)) for b in bodies], np.int32)),
+                    (self.g_draw, np.array(draw, np.int32)),
+                    (self.g_blend, np.array([BLEND[b.blend] for b in bodies] + [BLEND["opaque"]], np.int32)),
+                    (self.g_opacity, np.array([b.opacity for b in bodies] + [1.0], np.float32)),
+                ]
             )
-        if self.motion_blur and sim.emitters is not None:
-            sim.emitters.listeners.append(self._follow_moves)
-        if self.motion_blur and sim.reorder is not None:
-            self.tail_scratch = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)
-            sim.reorder.listeners.append(self._follow_order)
-        self._setup_view()
+            blends = {b.blend for b in bodies} | ({"opaque"} if sim.scene.palette else set())
+            self.has_opaque, self.has_alpha, self.has_additive = (
+                "opaque" in blends,
+                "alpha" in blends,
+                "additive" in blends,
+            )
+            self.image = self._layer(3)  # linear RGB in [0, 1]
+            self.accum = self._layer(3)  # opaque: coverage-weighted colour sum
+            self.weight = self._layer()  # opaque: coverage sum
+            self.motion_blur = bool(render_cfg.motion_blur)
+            # 3D opaque spheres with motion blur leave a translucent streak behind the sphere, composited order-
+            # independently in the same layers as 2D's translucent particles
+            self.ghosts = self.motion_blur and self.dim == 3 and self.has_opaque
+            if self.has_alpha or self.ghosts:
+                self.a_accum = self._layer(3)  # alpha-weighted colour sum (2D; 3D streaks)
+                self.a_weight = self._layer()  # alpha sum
+                self.a_log = self._layer()  # sum of log(1 - alpha): log transmittance
+            if self.has_alpha:
+                self.order = ti.field(ti.i32, shape=sim.capacity)  # 3D: translucent particles, back to front
+                self.n_order = ti.field(ti.i32, shape=())
+            if self.has_additive:
+                self.light = self._layer(3)  # additive light (unbounded)
+            self.depth = self._layer(dtype=ti.i32)  # depth bits of the nearest opaque surface (3D)
+            # The 8-bit picture, (H, W, 3) top row first, or with output "rgba" GGUI's (W, H) packed RGBA, y up. On
+            # the CPU it is a numpy array the kernels write straight into (no copy to the host at all); elsewhere a
+            # device ndarray copied to the host once per picture().
+            if output == "rgba":
+                self.out = np.zeros((width, height), np.uint32)
+            elif self.on_cpu:
+                self.out = np.zeros((height, width, 3), np.uint8)
+            else:
+                self.out = ti.ndarray(ti.u8, (height, width, 3))
+            if self.motion_blur:
+                self.x_prev = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions a frame ago
+                self.shutter = float(render_cfg.shutter)
+            self.spline = self.motion_blur and render_cfg.motion_path == "spline"
+            self.tails = (
+                [self.x_prev] if self.motion_blur else []
+            )  # per-particle drawing state that moves with particles
+            if self.spline:
+                self.x_mid = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions at the frame's middle
+                self.tails.append(self.x_mid)
+                self.mid_captured = False
+            self.color_mode = COLOR_MODES[render_cfg.color_by]
+            self.t_lo = ti.field(ti.f32, shape=())
+            self.t_hi = ti.field(ti.f32, shape=())
+            self.speed_hi = ti.field(ti.f32, shape=())
+            t_lo, t_hi = render_cfg.temperature_range
+            transfer.upload([(self.t_lo, t_lo), (self.t_hi, t_hi), (self.speed_hi, render_cfg.speed_range)])
+            self.exposure = float(render_cfg.exposure)
+            self.background = ti.Vector(list(render_cfg.background))
+            self.particle_scale = float(render_cfg.particle_scale)
+            self.has_heat = sim.heat is not None
+            self.draw_springs = bool(render_cfg.draw_springs) and sim.springs is not None and self.dim == 2
+            self.brush: tuple[float, float, float] | None = None  # see set_brush
+            self.chart = None
+            self.potential = None  # the window's potential panel (a CurvePlot), when shown
+            if render_cfg.chart:
+                self.chart = Chart(
+                    self.image, width, height, tuple(render_cfg.chart), self._scene_in_image(), self.panel_px
+                )
+            if self.motion_blur and sim.emitters is not None:
+                sim.emitters.listeners.append(self._follow_moves)
+            if self.motion_blur and sim.reorder is not None:
+                self.tail_scratch = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)
+                sim.reorder.listeners.append(self._follow_order)
+            self._setup_view()
         if self.dim == 2:
             # the walls and heat sources do not move: paint them once (refresh_backdrop() after changing a source)
             self.backdrop = self._layer(3)
@@ -245,12 +251,14 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             self.src_lo = ti.Vector.field(2, ti.f32, shape=ns)
             self.src_hi = ti.Vector.field(2, ti.f32, shape=ns)
             self.src_t = ti.field(ti.f32, shape=ns)
-            for k, s in enumerate(src):
-                self.src_lo[k] = centre_px + scale * (np.asarray(s.lo) - (lo + hi) / 2)
-                self.src_hi[k] = centre_px + scale * (np.asarray(s.hi) - (lo + hi) / 2)
-                # a power source has no temperature of its own: drawn hot if it heats, cold if it cools
-                hot, cold = self.cfg.temperature_range[1], self.cfg.temperature_range[0]
-                self.src_t[k] = s.temperature if s.temperature is not None else (hot if s.power >= 0 else cold)
+            corners = [
+                (
+                    centre_px + scale * (np.asarray(s.lo) - (lo + hi) / 2),
+                    centre_px + scale * (np.asarray(s.hi) - (lo + hi) / 2),
+                )
+                for s in src
+            ]
+            self._upload_sources(src, [c[0] for c in corners], [c[1] for c in corners])
         else:
             cfg = self.cfg
             centre = (lo + hi) / 2
@@ -278,11 +286,20 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             self.src_lo = ti.Vector.field(2, ti.f32, shape=ns)
             self.src_hi = ti.Vector.field(2, ti.f32, shape=ns)
             self.src_t = ti.field(ti.f32, shape=ns)
-            for k, s in enumerate(src):
-                self.src_lo[k] = [s.lo[0], s.lo[2]]
-                self.src_hi[k] = [s.hi[0], s.hi[2]]
-                hot, cold = self.cfg.temperature_range[1], self.cfg.temperature_range[0]
-                self.src_t[k] = s.temperature if s.temperature is not None else (hot if s.power >= 0 else cold)
+            self._upload_sources(src, [[s.lo[0], s.lo[2]] for s in src], [[s.hi[0], s.hi[2]] for s in src])
+
+    def _upload_sources(self, sources: list, lows: list, highs: list) -> None:
+        """The drawn heat sources' corners (pixels in 2D; x, z on the floor in 3D) and temperatures (degrees)."""
+        # a power source has no temperature of its own: drawn hot if it heats, cold if it cools
+        cold, hot = self.cfg.temperature_range
+        temps = [s.temperature if s.temperature is not None else (hot if s.power >= 0 else cold) for s in sources]
+        transfer.upload(
+            [
+                (self.src_lo, np.array(lows, np.float32).reshape(-1, 2)),
+                (self.src_hi, np.array(highs, np.float32).reshape(-1, 2)),
+                (self.src_t, np.array(temps, np.float32)),
+            ]
+        )
 
     def set_camera(self, eye, target, fov_degrees: float) -> None:
         """3D: place the camera (world units) looking at target with a vertical field of view in degrees."""
@@ -300,9 +317,8 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             # fields, not compile-time constants, so the window can orbit without recompiling
             self.camera = ti.Vector.field(3, ti.f32, shape=4)  # eye, right, up, forward
             self.focal_field = ti.field(ti.f32, shape=())  # pixels: focal length of the pinhole
-        for k, v in enumerate((eye, right, true_up, fwd)):
-            self.camera[k] = [float(c) for c in v]
-        self.focal_field[None] = 0.5 * self.height / math.tan(math.radians(fov_degrees) / 2)
+        focal = 0.5 * self.height / math.tan(math.radians(fov_degrees) / 2)
+        transfer.upload([(self.camera, np.array([eye, right, true_up, fwd], np.float32)), (self.focal_field, focal)])
         self.fov = float(fov_degrees)
 
     # ------------------------------------------------------------------ frames
