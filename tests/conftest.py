@@ -76,3 +76,48 @@ def compiled_kernels(monkeypatch) -> list[str]:
 
     monkeypatch.setattr(kernel_impl.Kernel, "materialize", materialize_and_note)
     return compiled
+
+
+# The modules in the order their tests start, the longest first (seconds with an empty kernel cache, 2 workers), so
+# that the last to start are short and both workers finish together. A module missing here starts last.
+LONGEST_FIRST = (
+    "test_fast_paths",
+    "test_render",
+    "test_effects",
+    "test_api",
+    "test_integrators",
+    "test_scenes_and_output",
+    "test_notebook",
+    "test_window",
+    "test_study_dask",
+    "test_heat",
+    "test_forces",
+    "test_phase",
+    "test_sweep",
+    "test_backends",
+    "test_guard",
+    "test_bench",
+    "test_tools",
+    "test_install",
+    "test_pressure",
+    "test_fuzz",
+    "test_melting",
+    "test_cli_arguments",
+    "test_motion",
+    "test_taichi_compat",
+    "test_scene_validation",
+    "test_transfer",
+    "test_build",
+)
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's own, which reads the groups
+def pytest_collection_modifyitems(config, items):
+    """Each module's tests run one after another on one worker (an xdist group per module, unless a test names its
+    own): tests of one module mostly build the same scenes, and a kernel compiled by one test is loaded from the
+    offline cache by the next, where two workers running neighbouring tests side by side would both compile it."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    for item in items:
+        if item.get_closest_marker("xdist_group") is None:
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__.rpartition(".")[2]))
+    items.sort(key=lambda item: rank.get(item.module.__name__.rpartition(".")[2], len(rank)))
