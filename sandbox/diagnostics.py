@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
+from . import runtime
 from .errors import SimulationError
 from .guard import ABSOLUTE_ZERO
 
@@ -216,7 +217,8 @@ class Measurements:
         pair_energy = pair_energy or self._last_pair_energy is None or not self.has_pair
         if pair_energy and self.grid is not None:
             self.grid.rebuild()
-        self._measure(pair_energy, self._acc, self._count)
+        with runtime.without_cfg_pass():  # run at most once a frame: see transfer.py's docstring
+            self._measure(pair_energy, self._acc, self._count)
         acc_values, cnt_values = self._acc, self._count
         acc = {k: float(acc_values[i]) for k, i in SUMS.items()}
         if pair_energy:

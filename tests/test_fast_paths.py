@@ -476,6 +476,34 @@ def test_whole_step_launches_compile_without_the_cfg_pass_and_the_setting_comes_
     assert cfg.cfg_optimization
 
 
+def test_copies_measurements_and_refreezing_compile_without_the_cfg_pass_and_the_rest_with_it(monkeypatch):
+    """Kernels that run at most once a frame compile without the CFG pass (faster to compile, transfer.py); the
+    passes of a step and the renderer's kernels keep it."""
+    import taichi as ti
+    from taichi.lang import kernel_impl
+
+    from sandbox.render.raster import Renderer
+
+    with_pass: dict[str, bool] = {}
+    materialize = kernel_impl.Kernel.materialize
+
+    def materialize_and_note(self, key=None, args=None, arg_features=None):
+        if key not in self.compiled_kernels:
+            with_pass.setdefault(self.func.__name__, ti.cfg.cfg_optimization)
+        return materialize(self, key, args, arg_features)
+
+    monkeypatch.setattr(kernel_impl.Kernel, "materialize", materialize_and_note)
+    sim = Simulation(make_scene(_wax_refreezing_data()))
+    sim.fuses_steps = False  # the long way: one launch per pass
+    sim.step(3)
+    sim.refreezer.run()
+    sim.stats()
+    sim.restore(sim.snapshot())
+    Renderer(sim, 64, 48, sim.scene.render).render()
+    assert not any(with_pass[name] for name in ("_up", "_down", "_measure", "_prepare", "_bond")), with_pass
+    assert all(with_pass[name] for name in ("_rates_update", "_sort_and_count", "_splat_pass_2d")), with_pass
+
+
 @pytest.mark.parametrize(
     "make",
     [

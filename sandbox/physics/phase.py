@@ -21,6 +21,7 @@ boundary cannot flicker between phases (hysteresis of the whole mushy band plus 
 import numpy as np
 import taichi as ti
 
+from .. import runtime
 from ..oriented import data_oriented
 
 LIQUID = 1  # flag values of ParticleFields.liquid
@@ -128,8 +129,9 @@ class Refreezer:
     def run(self) -> int:
         """One refreezing pass at the current positions (rebuilds the cell grid); returns the springs made."""
         self.grid.rebuild()
-        self._prepare()
-        self._bond()
+        with runtime.without_cfg_pass():  # run between batches: see transfer.py's docstring
+            self._prepare()
+            self._bond()
         return int(self.made[None])
 
     @ti.func
