@@ -12,13 +12,14 @@ if not os.environ.get("HOME"):  # importing Taichi aborts the process without it
 __version__ = "0.1.0"
 
 # The Python API (sandbox/api.py), imported on first use so that `import sandbox` stays light.
-__all__ = ["FrameTable", "Simulation", "load", "material_names", "resume", "scene_names", "use"]
+__all__ = ["FrameTable", "Simulation", "load", "material_names", "own_process", "resume", "scene_names", "use"]
 _EXPORTS = {
     "load": "api",
     "resume": "api",
     "scene_names": "api",
     "material_names": "api",
     "use": "api",
+    "own_process": "runtime",
     "Simulation": "simulation",
     "FrameTable": "table",
 }

@@ -71,11 +71,12 @@ def test_an_unknown_taichi_gets_the_plain_path_with_one_warning(monkeypatch):
 
 PROBE = """
 import json, sys
-from sandbox import runtime, taichi_compat, threads
+import sandbox
+from sandbox import taichi_compat, threads
 from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
 if sys.argv[1] == "own":
-    runtime.own_process()
+    sandbox.own_process()  # the public spelling, straight after the import
 Simulation(load_scene("scenes/spring_lattice.toml"))
 print(json.dumps({"pinned": len(threads.pinned), "light": taichi_compat.kernel_debug_info_lightened()}))
 """
@@ -84,7 +85,7 @@ print(json.dumps({"pinned": len(threads.pinned), "light": taichi_compat.kernel_d
 @pytest.mark.parametrize("mode", ["embedded", "own"])
 def test_nothing_changes_taichi_for_the_whole_process_unless_asked(mode):
     """Embedded in another program, the sandbox neither pins Taichi's CPU workers nor reformats its compile errors;
-    the CLI (and these tests) opt in with runtime.own_process()."""
+    the CLI, these tests and the classroom notebook opt in with sandbox.own_process()."""
     done = subprocess.run(
         [sys.executable, "-c", PROBE, mode], cwd=ROOT, capture_output=True, text=True, timeout=300, check=True
     )
