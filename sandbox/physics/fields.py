@@ -206,16 +206,21 @@ class VelocityField:
             v = ti.Vector([dpdy, -dpdx])
         else:
             p = ti.Vector([x[0] / s, x[1] / s, x[2] / s]) + drift * ti.Vector([0.37, 0.21, 0.11])
-            e = ti.Matrix.identity(float, 3) * h
-            grad = ti.Matrix.zero(float, 3, 3)  # grad[c, a] = d psi_c / d p_a
-            for c in ti.static(range(3)):
-                for a in ti.static(range(3)):
-                    ea = ti.Vector([e[a, 0], e[a, 1], e[a, 2]])
-                    grad[c, a] = (self._potential(k, p + ea, c) - self._potential(k, p - ea, c)) / (2 * h)
-            v = ti.Vector([grad[2, 1] - grad[1, 2], grad[0, 2] - grad[2, 0], grad[1, 0] - grad[0, 1]])
+            # component j of the curl is d psi_(j+2) / d p_(j+1) - d psi_(j+1) / d p_(j+2) (indices mod 3); a run-time
+            # loop, not unrolled: each derivative inlines two noise evaluations, and compile time adds up
+            for j in range(3):
+                ahead, behind = (j + 1) % 3, (j + 2) % 3
+                along = self._derivative(k, p, behind, ahead, h) - self._derivative(k, p, ahead, behind, h)
+                v += along * ti.Vector([j == 0, j == 1, j == 2], dt=float)
         # the potential has unit amplitude per noise cell: dividing the derivatives by scale would make speed
         # depend on scale; `strength` is the typical speed instead
         return self.strength[k] * v
+
+    @ti.func
+    def _derivative(self, k, p, channel, a, h):
+        """d psi_channel / d p_a at noise point p (a 3-vector) by a central difference of step h."""
+        step = h * ti.Vector([a == 0, a == 1, a == 2], dt=float)
+        return (self._potential(k, p + step, channel) - self._potential(k, p - step, channel)) / (2 * h)
 
     def sample(self, points: np.ndarray, t: float) -> np.ndarray:
         """v(x, t) at points (K, dim) as a (K, dim) NumPy array (for tests, plots and emitters' inspection)."""
