@@ -21,7 +21,7 @@ import taichi as ti
 from . import runtime
 from .oriented import data_oriented
 
-_INTS = (ti.i32, ti.i8, ti.i16, ti.u8, ti.u16)  # through int32 staging; u32 goes through the float staging exactly
+_INTS = (ti.i32, ti.i8, ti.i16, ti.u8, ti.u16, ti.u32)  # through int32 staging (u32 as its bits: exact everywhere)
 _cache: dict = {}  # key -> _Copier; the copier holds its fields, so their ids stay unique while it is cached
 _staged: list | None = None  # inside batched(): the (field, values) pairs waiting for the block's end
 
@@ -167,10 +167,12 @@ def _upload(pairs: list) -> None:
     copier = _copier(fields, [len(a) if f.shape else 1 for f, a in zip(fields, arrays)])
     floats = np.zeros(max(copier.n_float, 1), _float_staging())
     ints = np.zeros(max(copier.n_int, 1), np.int32)
-    for (_, is_int, off, *_), array, shape in zip(copier.items, arrays, copier.shapes()):
+    for (field, is_int, off, *_), array, shape in zip(copier.items, arrays, copier.shapes()):
         if array.shape != shape:
             raise ValueError(f"values of shape {array.shape} for a field expecting {shape}")
         flat = array.reshape(-1)
+        if field.dtype == ti.u32:
+            flat = flat.astype(np.uint32).view(np.int32)  # the same bits: exact, where float32 staging is not
         (ints if is_int else floats)[off : off + flat.size] = flat
     with runtime.without_cfg_pass():  # see the module docstring
         copier._up(floats, ints)

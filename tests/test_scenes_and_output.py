@@ -4,6 +4,8 @@ import csv
 
 import numpy as np
 import pytest
+from taichi.lang.field import ScalarField
+from taichi.lang.matrix import MatrixField
 
 from sandbox.cli import main
 from sandbox.render.video import read_png
@@ -21,8 +23,24 @@ def test_the_four_core_scenes_ship():
 
 
 @pytest.mark.parametrize("name", SHIPPED)
-def test_every_shipped_scene_runs_ten_frames_headless(name, tmp_path):
+def test_every_shipped_scene_runs_ten_frames_headless(name, tmp_path, monkeypatch):
+    # field[i] from Python compiles a reader or writer kernel for that field (about 20 ms each, at every start):
+    # building a scene copies its tables in batches instead
+    element_access = []
+
+    def spy(original):
+        def access(field, *args):
+            element_access.append(field)
+            return original(field, *args)
+
+        return access
+
+    for cls in (ScalarField, MatrixField):
+        for method in ("__getitem__", "__setitem__"):
+            monkeypatch.setattr(cls, method, spy(getattr(cls, method)))
     sim = Simulation(load_scene(SCENES / f"{name}.toml"))
+    assert element_access == []
+    monkeypatch.undo()
     out = tmp_path / "frames"
     result = run_headless(sim, 10, 2, out, tmp_path / "stats.csv", width=160, height=90, progress=False)
     assert result.frames == 10 and not result.interrupted

@@ -32,3 +32,21 @@ def test_one_batch_copies_mixed_fields_exactly_and_leaves_the_rows_past_the_valu
     assert np.array_equal(got[3], vec.to_numpy())  # what Taichi's own copy sees
     with pytest.raises(ValueError, match="expecting"):
         transfer.upload([(vec, np.zeros((8, 2)))])
+
+
+def test_unsigned_32_bit_values_copy_exactly_where_the_float_staging_is_single_precision(monkeypatch):
+    """Seeds are u32: they go through the int32 staging as their bits, so a GPU backend, whose float staging is
+    float32 (exact only to 2^24), copies them exactly too."""
+    runtime.reset()
+    runtime.init("cpu", "f32")
+    monkeypatch.setattr(transfer, "_float_staging", lambda: np.float32)  # as on Vulkan or Metal
+    seeds = ti.field(ti.u32, shape=4)
+    one = ti.field(ti.u32, shape=())
+    pairs = ti.Vector.field(2, ti.u32, shape=2)
+    values = np.array([0, 2**24 + 1, 2**31 + 5, 2**32 - 1], np.uint32)
+    transfer.upload([(seeds, values), (one, np.uint32(4_000_000_007)), (pairs, [[1, 2**32 - 2], [2**31, 2**24 + 3]])])
+    assert np.array_equal(seeds.to_numpy(), values) and one[None] == 4_000_000_007
+    got = transfer.download([seeds, one, pairs])
+    assert [g.dtype for g in got] == [np.uint32] * 3
+    assert np.array_equal(got[0], values) and got[1] == 4_000_000_007
+    assert got[2].tolist() == [[1, 2**32 - 2], [2**31, 2**24 + 3]]

@@ -19,6 +19,7 @@ import warnings
 import numpy as np
 import taichi as ti
 
+from .. import transfer
 from ..errors import SceneError
 from ..oriented import data_oriented
 from .fields import random_uniform
@@ -70,33 +71,11 @@ class Emitters:
         self.mask_start = ti.field(ti.i32, shape=n)  # mask emitters: their pixels' range in mask_pixels
         self.mask_count = ti.field(ti.i32, shape=n)
         self.pixel_size = ti.Vector.field(dim, float, shape=n)
-        self.mask_pixels = self._mask_pixels(emitters)  # (x, y) of inside (or boundary) pixels, all mask emitters
         ambient = sim.scene.heat.ambient if sim.scene.heat else 20.0
-        for k, e in enumerate(self.specs):
-            mat = sim.scene.materials[e.material]
-            self.shape[k] = SHAPES.index(e.shape)
-            self.surface[k] = int(e.surface)
-            if e.shape in ("box", "mask"):
-                self.lo[k], self.hi[k] = list(e.lo), list(e.hi)
-                self.center[k] = list(0.5 * (np.asarray(e.lo) + np.asarray(e.hi)))
-            else:
-                self.center[k] = list(e.center)
-            self.size[k] = e.size
-            self.velocity[k] = list(e.velocity)
-            self.cone[k] = math.radians(e.cone) / 2
-            self.speed_spread[k] = e.speed_spread
-            self.radial_speed[k] = e.radial_speed
-            self.inherit[k] = int(e.inherit_field)
-            self.jitter[k] = e.jitter
-            self.temperature[k] = ambient if e.temperature is None else e.temperature
-            self.radius[k] = e.particle_radius
-            spacing = 2 * e.particle_radius
-            self.mass[k] = mat.particle_mass if mat.particle_mass is not None else mat.density * spacing**dim
-            self.material[k] = sim.material_names.index(e.material)
-            self.lifetime[k] = e.lifetime
-            self.lifetime_spread[k] = e.lifetime_spread
-            self.seed[k] = e.seed * 7919 + k
-            self.color[k] = list(e.color) if e.color else list(mat.color)
+        rows = [self._row(k, e, sim, ambient) for k, e in enumerate(self.specs)]
+        mask_pairs = self._mask_pixels(emitters)
+        if rows:  # one copy kernel for the whole table
+            transfer.upload([(field, np.array([r[name] for r in rows])) for name, field in self._table()] + mask_pairs)
         self.serial = [0] * self.count  # particles emitted so far, per emitter (the random-number index)
         self.carry = [0.0] * self.count  # fractional particles owed by the rate
         self.emitted = [0] * self.count
@@ -113,14 +92,52 @@ class Emitters:
         self.listeners = []  # callables(hole, filler, count): told after particles moved
         self.state_fields = [getattr(self.p, name) for name in self.p.names()]  # what moves with a particle
 
+    def _table(self) -> list:
+        """(name, field) of each per-emitter parameter that _row() fills."""
+        names = ("shape", "surface", "center", "lo", "hi", "size", "velocity", "cone", "speed_spread", "radial_speed")
+        names += ("inherit", "jitter", "temperature", "radius", "mass", "material", "lifetime", "lifetime_spread")
+        return [(name, getattr(self, name)) for name in (*names, "seed", "color")]
+
+    def _row(self, k: int, e, sim, ambient: float) -> dict:
+        """Emitter k's parameters (spec e) as the values of its row in each field of _table()."""
+        mat = sim.scene.materials[e.material]
+        dim = self.dim
+        boxed = e.shape in ("box", "mask")
+        spacing = 2 * e.particle_radius
+        return {
+            "shape": SHAPES.index(e.shape),
+            "surface": int(e.surface),
+            "center": list(0.5 * (np.asarray(e.lo) + np.asarray(e.hi))) if boxed else list(e.center),
+            "lo": list(e.lo) if boxed else [0.0] * dim,
+            "hi": list(e.hi) if boxed else [0.0] * dim,
+            "size": e.size,
+            "velocity": list(e.velocity),
+            "cone": math.radians(e.cone) / 2,
+            "speed_spread": e.speed_spread,
+            "radial_speed": e.radial_speed,
+            "inherit": int(e.inherit_field),
+            "jitter": e.jitter,
+            "temperature": ambient if e.temperature is None else e.temperature,
+            "radius": e.particle_radius,
+            "mass": mat.particle_mass if mat.particle_mass is not None else mat.density * spacing**dim,
+            "material": sim.material_names.index(e.material),
+            "lifetime": e.lifetime,
+            "lifetime_spread": e.lifetime_spread,
+            "seed": e.seed * 7919 + k,
+            "color": list(e.color) if e.color else list(mat.color),
+        }
+
     def _mask_pixels(self, emitters: list):
-        """Upload every mask emitter's pixels (inside ones, or for `surface` the inside ones with an outside
-        4-neighbour) into one (P, 2) int field; each pixel is equally likely, so seeding is uniform by area (by length
-        along the boundary, to within a pixel)."""
+        """Make `mask_pixels`, one (P, 2) int field for every mask emitter's pixels (inside ones, or for `surface` the
+        inside ones with an outside 4-neighbour): each pixel is equally likely, so seeding is uniform by area (by
+        length along the boundary, to within a pixel). Returns the (field, values) pairs to upload: the pixels and
+        each emitter's range of them and pixel size."""
         from ..build import load_mask
 
         chunks = []
         start = 0
+        n = max(len(emitters), 1)
+        starts, counts, sizes = np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros((n, self.dim))
         for k, e in enumerate(emitters):
             if e.shape != "mask":
                 continue
@@ -133,13 +150,15 @@ class Emitters:
             if len(pixels) == 0:
                 raise SceneError(str(e.mask), "", f"emitter {e.name!r}: the mask has no inside pixels")
             chunks.append(pixels)
-            self.mask_start[k], self.mask_count[k] = start, len(pixels)
-            self.pixel_size[k] = list((np.asarray(e.hi) - np.asarray(e.lo)) / np.asarray(image.shape))
+            starts[k], counts[k] = start, len(pixels)
+            sizes[k] = (np.asarray(e.hi) - np.asarray(e.lo)) / np.asarray(image.shape)
             start += len(pixels)
         table = np.concatenate(chunks) if chunks else np.zeros((1, 2), dtype=np.int32)
-        field = ti.Vector.field(2, ti.i32, shape=len(table))
-        field.from_numpy(table)
-        return field
+        self.mask_pixels = ti.Vector.field(2, ti.i32, shape=len(table))
+        if not chunks:
+            return []
+        pixels = [(self.mask_pixels, table)]
+        return [(self.mask_start, starts), (self.mask_count, counts), (self.pixel_size, sizes), *pixels]
 
     # ------------------------------------------------------------------ emission (host decides counts)
     def emit_initial(self) -> None:

@@ -24,6 +24,7 @@ import math
 import numpy as np
 import taichi as ti
 
+from .. import transfer
 from ..oriented import data_oriented
 
 FIELD_KINDS = ("wind", "vortex", "source", "explosion", "noise")
@@ -113,20 +114,23 @@ class VelocityField:
         self.scale = ti.field(float, shape=n)
         self.speed = ti.field(float, shape=n)
         self.seed = ti.field(ti.u32, shape=n)
-        for k, e in enumerate(elements):
-            self.kind[k] = FIELD_KINDS.index(e.kind)
-            self.center[k] = list(e.center) if e.center else [0.0] * dim
-            axis = np.asarray(e.axis if e.axis else (0.0, 0.0, 1.0), dtype=float)
-            self.axis[k] = list(axis / np.linalg.norm(axis))
-            self.vector[k] = list(e.velocity) if e.velocity else [0.0] * dim
-            self.strength[k] = e.strength
-            self.radius[k] = e.radius
-            self.falloff[k] = e.falloff
-            self.time[k] = e.time
-            self.decay[k] = e.decay
-            self.scale[k] = e.scale
-            self.speed[k] = e.speed
-            self.seed[k] = e.seed
+        axes = [np.asarray(e.axis if e.axis else (0.0, 0.0, 1.0), dtype=float) for e in elements]
+        columns = [
+            (self.kind, [FIELD_KINDS.index(e.kind) for e in elements]),
+            (self.center, [list(e.center) if e.center else [0.0] * dim for e in elements]),
+            (self.axis, [axis / np.linalg.norm(axis) for axis in axes]),
+            (self.vector, [list(e.velocity) if e.velocity else [0.0] * dim for e in elements]),
+            (self.strength, [e.strength for e in elements]),
+            (self.radius, [e.radius for e in elements]),
+            (self.falloff, [e.falloff for e in elements]),
+            (self.time, [e.time for e in elements]),
+            (self.decay, [e.decay for e in elements]),
+            (self.scale, [e.scale for e in elements]),
+            (self.speed, [e.speed for e in elements]),
+            (self.seed, [e.seed for e in elements]),
+        ]
+        if elements:  # one copy kernel for the whole table (in the build's batched copy)
+            transfer.upload([(field, np.asarray(values)) for field, values in columns])
         self.query_x = None
 
     @ti.func

@@ -19,6 +19,7 @@ import math
 import numpy as np
 import taichi as ti
 
+from .. import transfer
 from ..oriented import data_oriented
 from ..solvers import CGResult, CGSums, pcg
 
@@ -71,10 +72,15 @@ class SmokeGrid:
         self.src_T = ti.field(float, shape=n_src)
         self.src_v = ti.Vector.field(dim, float, shape=n_src)
         self.n_sources = len(cfg.sources)
-        for k, src in enumerate(cfg.sources):
-            self.src_lo[k], self.src_hi[k] = list(src.lo), list(src.hi)
-            self.src_T[k] = src.temperature
-            self.src_v[k] = list(src.velocity) if src.velocity else [0.0] * dim
+        if cfg.sources:  # one copy kernel for the table (in the build's batched copy)
+            transfer.upload(
+                [
+                    (self.src_lo, np.array([src.lo for src in cfg.sources], float)),
+                    (self.src_hi, np.array([src.hi for src in cfg.sources], float)),
+                    (self.src_T, np.array([src.temperature for src in cfg.sources], float)),
+                    (self.src_v, np.array([src.velocity or [0.0] * dim for src in cfg.sources], float)),
+                ]
+            )
         self._lo = ti.Vector(list(self.lo_np))
         self.T.fill(cfg.ambient)
         self.last = CGResult(0, 0.0)

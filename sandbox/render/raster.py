@@ -223,8 +223,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         for k, (x0, x1, r0, r1) in enumerate(rects[:MAX_OVERLAYS]):
             y0, y1 = self.height - 1 - r1, self.height - 1 - r0  # rows from the top -> y up
             table[k] = (max(x0, 0) // TILE, x1 // TILE, max(y0, 0) // TILE, y1 // TILE)
-        self.overlay.from_numpy(table)
-        self.n_overlay[None] = min(len(rects), MAX_OVERLAYS)
+        transfer.upload([(self.overlay, table), (self.n_overlay, min(len(rects), MAX_OVERLAYS))])  # one copy kernel
 
     @ti.kernel
     def _paint_backdrop(self):
