@@ -30,9 +30,9 @@ def _arch_value(name: str):
 
 def own_process() -> None:
     """The sandbox owns this process (its command line, its tests): from the next Taichi start on, Taichi's CPU
-    workers are pinned one per core (threads.py) and compile-error excerpts are formatted the lighter way
-    (taichi_compat). A program that embeds the sandbox beside its own Taichi code keeps Taichi's behaviour unless it
-    calls this too."""
+    workers are pinned one per core (threads.py), compile-error excerpts are formatted the lighter way and kernel
+    sources are read once (taichi_compat). A program that embeds the sandbox beside its own Taichi code keeps Taichi's
+    behaviour unless it calls this too."""
     global _owns_process
     _owns_process = True
 
@@ -57,6 +57,7 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
         return running_arch()  # what runs is what was asked for (auto: whatever runs); a restart would drop it all
     if _owns_process:
         taichi_compat.lighten_kernel_debug_info()
+        taichi_compat.cache_kernel_sources()
     fp = ti.f32 if precision == "f32" else ti.f64
     kwargs = dict(default_fp=fp, offline_cache=True, kernel_profiler=profile)
     if "TI_LOG_LEVEL" not in os.environ:  # Taichi warns when ti.init overrides the variable

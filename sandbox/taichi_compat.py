@@ -1,6 +1,6 @@
 """Every use of Taichi beyond its public API, in one place, each with a plain fallback.
 
-The sandbox leans on four things Taichi 1.7 has but does not document as API:
+The sandbox leans on five things Taichi 1.7 has but does not document as API:
 
 1. the control-flow-graph pass switch (`ti.cfg.cfg_optimization`), turned off around the first launch of the
    whole-step kernels (it takes most of their compile time and they run no slower without it);
@@ -8,11 +8,14 @@ The sandbox leans on four things Taichi 1.7 has but does not document as API:
    (oriented.py routes only kernel names through Taichi's lookup: a kernel method launches about 2x faster);
 3. the source excerpt Taichi formats for every statement it parses (`ASTTransformerContext.get_pos_info`): a lighter
    formatter saves a quarter of a second of start-up;
-4. the host's launch paths (`Kernel.__call__`, field element accessors), which launch_count.py wraps while it counts.
+4. the source lookups Taichi makes at every compile of every function (`kernel_impl.getsourcelines` and its textwrap
+   calls): read once per function, they save a fifth of Taichi's Python-to-IR time;
+5. the host's launch paths (`Kernel.__call__`, field element accessors), which launch_count.py wraps while it counts.
 
 On a Taichi version not in KNOWN_VERSIONS each falls back to the plain path and says so once (a RuntimeWarning):
-the CFG pass stays on, classes are plain `ti.data_oriented`, Taichi formats its own excerpts, and counting launches
-is refused. `tests/test_taichi_compat.py` checks that each fast path is active on the version the project pins.
+the CFG pass stays on, classes are plain `ti.data_oriented`, Taichi formats its own excerpts and reads sources at
+every compile, and counting launches is refused. `tests/test_taichi_compat.py` checks that each fast path is active
+on the version the project pins.
 
 The running configuration (backend, CPU worker threads, default float) is read through `ti.cfg`, which Taichi
 exports.
@@ -20,6 +23,7 @@ exports.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import os
 import warnings
@@ -141,7 +145,61 @@ def kernel_debug_info_lightened() -> bool:
     return getattr(ASTTransformerContext.get_pos_info, "lightened", False)
 
 
-# ---------------------------------------------------------------------------- 4. launch paths
+# ---------------------------------------------------------------------------- 4. kernel sources
+def cache_kernel_sources() -> bool:
+    """Read each kernel's and ti.func's source once per process: Taichi finds it again with `inspect` and rewraps each
+    of its lines with textwrap at every compile of every function it inlines (a fifth of the time it takes to turn
+    Python into its IR, which it does cached or not). Process-wide, so only where the sandbox owns the process
+    (runtime.own_process). Returns whether it is on."""
+    kernel_impl = importlib.import_module("taichi.lang.kernel_impl")
+    if not SUPPORTED or not all(hasattr(kernel_impl, name) for name in ("getsourcefile", "getsourcelines", "textwrap")):
+        _plain_path("kernel sources are read again at every compile")
+        return False
+    if kernel_sources_cached():
+        return True
+    kernel_impl.getsourcefile = _once_per_function(kernel_impl.getsourcefile)
+    kernel_impl.getsourcelines = _once_per_function(kernel_impl.getsourcelines)
+    kernel_impl.textwrap = _RememberingTextwrap(kernel_impl.textwrap)
+    return True
+
+
+def kernel_sources_cached() -> bool:
+    """Whether cache_kernel_sources() is in effect."""
+    kernel_impl = importlib.import_module("taichi.lang.kernel_impl")
+    return getattr(getattr(kernel_impl, "getsourcelines", None), "cached", False)
+
+
+def _once_per_function(find):
+    """`find(function)`, remembered per code object (a function's source does not change while it runs); lists in
+    the answer are copied, so a caller may change its own."""
+    answers: dict = {}
+
+    def remembered(function):
+        code = getattr(function, "__code__", None)
+        if code is None:
+            return find(function)
+        if code not in answers:
+            answers[code] = find(function)
+        answer = answers[code]
+        return tuple(list(x) if isinstance(x, list) else x for x in answer) if isinstance(answer, tuple) else answer
+
+    remembered.cached = True
+    return remembered
+
+
+class _RememberingTextwrap:
+    """The textwrap module, with fill() and dedent() remembering their answers (they are pure functions of text)."""
+
+    def __init__(self, module):
+        self._module = module
+        self.fill = functools.lru_cache(maxsize=None)(module.fill)
+        self.dedent = functools.lru_cache(maxsize=4096)(module.dedent)
+
+    def __getattr__(self, name: str):
+        return getattr(self._module, name)
+
+
+# ---------------------------------------------------------------------------- 5. launch paths
 def launch_paths() -> list[tuple[object, str, str]]:
     """(owner, attribute, what a call counts as) for every host path that launches a kernel: kernel calls, and
     host reads and writes of one field element (one per component of a vector or matrix element). Raises

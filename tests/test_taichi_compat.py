@@ -1,12 +1,14 @@
 """Taichi's internals are touched in one module: each fast path is active on the pinned Taichi, each falls back to
 the plain path on a Taichi it does not know, and nothing changes Taichi for the whole process unless asked."""
 
+import inspect
 import json
 import subprocess
 import sys
 
 import pytest
 import taichi as ti
+from taichi.lang import kernel_impl
 
 from sandbox import runtime, taichi_compat
 from sandbox.errors import SandboxError
@@ -46,8 +48,13 @@ def test_every_fast_path_is_active_on_the_pinned_taichi():
     # the launch paths launch_count wraps exist
     paths = taichi_compat.launch_paths()
     assert len(paths) == 5 and all(callable(getattr(owner, name)) for owner, name, _ in paths)
-    # the tests own their process (conftest): compile-error excerpts are the light ones
-    assert taichi_compat.kernel_debug_info_lightened()
+    # the tests own their process (conftest): compile-error excerpts are the light ones, and each function's source
+    # is read once: the same lines inspect reads, in a list of the caller's own
+    assert taichi_compat.kernel_debug_info_lightened() and taichi_compat.kernel_sources_cached()
+    lines, first = kernel_impl.getsourcelines(_counter_class)
+    assert (lines, first) == inspect.getsourcelines(_counter_class)
+    lines.append("# changed by a caller")
+    assert kernel_impl.getsourcelines(_counter_class) == inspect.getsourcelines(_counter_class)
 
 
 def test_an_unknown_taichi_gets_the_plain_path_with_one_warning(monkeypatch):
@@ -58,6 +65,7 @@ def test_an_unknown_taichi_gets_the_plain_path_with_one_warning(monkeypatch):
         _counter_class()  # said once only
     messages = [str(w.message) for w in said]
     assert any("attribute lookup" in m for m in messages)
+    assert any("kernel sources are read again" in m for m in messages)
     assert len(messages) == len(set(messages)), messages  # (a Taichi start here also says how it formats errors)
     assert plain.__getattribute__.__module__.startswith("taichi.")  # Taichi's own lookup
     counter = plain()
@@ -78,19 +86,21 @@ from sandbox.simulation import Simulation
 if sys.argv[1] == "own":
     sandbox.own_process()  # the public spelling, straight after the import
 Simulation(load_scene("scenes/spring_lattice.toml"))
-print(json.dumps({"pinned": len(threads.pinned), "light": taichi_compat.kernel_debug_info_lightened()}))
+light, sources = taichi_compat.kernel_debug_info_lightened(), taichi_compat.kernel_sources_cached()
+print(json.dumps({"pinned": len(threads.pinned), "light": light, "sources": sources}))
 """
 
 
 @pytest.mark.parametrize("mode", ["embedded", "own"])
 def test_nothing_changes_taichi_for_the_whole_process_unless_asked(mode):
-    """Embedded in another program, the sandbox neither pins Taichi's CPU workers nor reformats its compile errors;
+    """Embedded in another program, the sandbox neither pins Taichi's CPU workers, reformats its compile errors nor
+    remembers kernel sources;
     the CLI, these tests and the classroom notebook opt in with sandbox.own_process()."""
     done = subprocess.run(
         [sys.executable, "-c", PROBE, mode], cwd=ROOT, capture_output=True, text=True, timeout=300, check=True
     )
     seen = json.loads(done.stdout.strip().splitlines()[-1])
-    assert seen["light"] == (mode == "own")
+    assert seen["light"] == seen["sources"] == (mode == "own")
     if mode == "embedded":
         assert seen["pinned"] == 0
     elif taichi_compat.cpu_threads() >= 2 and hasattr(__import__("os"), "sched_getaffinity"):
