@@ -62,8 +62,10 @@ class _Copier:
         by_shape: dict[tuple[int, int], list] = {}
         for item in self.items:
             by_shape.setdefault((item[3], item[4]), []).append(item)
-        self.groups = [(n, cols, tuple(items)) for (n, cols), items in by_shape.items()]
-        self.longest = max((n * max(cols, 1) for n, cols, _ in self.groups), default=0)
+        # in chunks: Taichi warns about a ti.static loop of more than UNROLL_WARNING iterations
+        groups = [(n, cols, chunk) for (n, cols), items in by_shape.items() for chunk in _chunks(items)]
+        self.groups = _chunks(groups)
+        self.longest = max((n * max(cols, 1) for n, cols, _ in groups), default=0)
 
     @ti.func
     def _index(self, k, cols: ti.template()):
@@ -76,42 +78,44 @@ class _Copier:
     @ti.kernel
     def _up(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
         for k in range(self.longest):
-            for n, cols, items in ti.static(self.groups):
-                if k < n * max(cols, 1):
-                    idx = self._index(k, cols)
-                    for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
-                        src = ti.static(ints if is_int else floats)
-                        base = off + k * max(comps, 1)
-                        if ti.static(zero_d and comps == 0):
-                            field[None] = ti.cast(src[base], field.dtype)
-                        elif ti.static(zero_d):
-                            for c in ti.static(range(comps)):
-                                field[None][c] = ti.cast(src[base + c], field.dtype)
-                        elif ti.static(comps == 0):
-                            field[idx] = ti.cast(src[base], field.dtype)
-                        else:
-                            for c in ti.static(range(comps)):
-                                field[idx][c] = ti.cast(src[base + c], field.dtype)
+            for chunk in ti.static(self.groups):
+                for n, cols, items in ti.static(chunk):
+                    if k < n * max(cols, 1):
+                        idx = self._index(k, cols)
+                        for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
+                            src = ti.static(ints if is_int else floats)
+                            base = off + k * max(comps, 1)
+                            if ti.static(zero_d and comps == 0):
+                                field[None] = ti.cast(src[base], field.dtype)
+                            elif ti.static(zero_d):
+                                for c in ti.static(range(comps)):
+                                    field[None][c] = ti.cast(src[base + c], field.dtype)
+                            elif ti.static(comps == 0):
+                                field[idx] = ti.cast(src[base], field.dtype)
+                            else:
+                                for c in ti.static(range(comps)):
+                                    field[idx][c] = ti.cast(src[base + c], field.dtype)
 
     @ti.kernel
     def _down(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
         for k in range(self.longest):
-            for n, cols, items in ti.static(self.groups):
-                if k < n * max(cols, 1):
-                    idx = self._index(k, cols)
-                    for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
-                        dst = ti.static(ints if is_int else floats)
-                        base = off + k * max(comps, 1)
-                        if ti.static(zero_d and comps == 0):
-                            dst[base] = field[None]
-                        elif ti.static(zero_d):
-                            for c in ti.static(range(comps)):
-                                dst[base + c] = field[None][c]
-                        elif ti.static(comps == 0):
-                            dst[base] = field[idx]
-                        else:
-                            for c in ti.static(range(comps)):
-                                dst[base + c] = field[idx][c]
+            for chunk in ti.static(self.groups):
+                for n, cols, items in ti.static(chunk):
+                    if k < n * max(cols, 1):
+                        idx = self._index(k, cols)
+                        for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
+                            dst = ti.static(ints if is_int else floats)
+                            base = off + k * max(comps, 1)
+                            if ti.static(zero_d and comps == 0):
+                                dst[base] = field[None]
+                            elif ti.static(zero_d):
+                                for c in ti.static(range(comps)):
+                                    dst[base + c] = field[None][c]
+                            elif ti.static(comps == 0):
+                                dst[base] = field[idx]
+                            else:
+                                for c in ti.static(range(comps)):
+                                    dst[base + c] = field[idx][c]
 
     def shapes(self) -> list[tuple[int, ...]]:
         """The host shape of each item: (rows[, columns][, components])."""
@@ -119,6 +123,14 @@ class _Copier:
         for _, _, _, n, cols, comps, zero_d in self.items:
             out.append(((n,) if not zero_d else ()) + ((cols,) if cols else ()) + ((comps,) if comps else ()))
         return out
+
+
+UNROLL_WARNING = 32  # Taichi warns (SyntaxWarning) about a ti.static loop of more iterations than this
+
+
+def _chunks(items: list) -> tuple:
+    """`items` as consecutive tuples of at most UNROLL_WARNING each."""
+    return tuple(tuple(items[i : i + UNROLL_WARNING]) for i in range(0, len(items), UNROLL_WARNING))
 
 
 def _copier(fields: list, rows: list[int]) -> _Copier:

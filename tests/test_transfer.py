@@ -1,5 +1,7 @@
 """Batched host <-> field copies (sandbox/transfer.py): exact round trips, leading rows only, clear shape errors."""
 
+import warnings
+
 import numpy as np
 import pytest
 import taichi as ti
@@ -50,3 +52,17 @@ def test_unsigned_32_bit_values_copy_exactly_where_the_float_staging_is_single_p
     assert [g.dtype for g in got] == [np.uint32] * 3
     assert np.array_equal(got[0], values) and got[1] == 4_000_000_007
     assert got[2].tolist() == [[1, 2**32 - 2], [2**31, 2**24 + 3]]
+
+
+def test_many_fields_of_one_shape_copy_in_one_kernel_without_taichis_unrolling_warning():
+    """A scene's build copies dozens of one-row tables together; Taichi warns (SyntaxWarning) about a static loop
+    of more than 32 iterations, so the copy loops go in chunks."""
+    runtime.reset()
+    runtime.init("cpu", "f32")
+    fields = [ti.field(ti.f32, shape=()) for _ in range(70)] + [ti.field(ti.i32, shape=3) for _ in range(40)]
+    values = [np.float32(k / 7) for k in range(70)] + [np.arange(3, dtype=np.int32) + k for k in range(40)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        transfer.upload(list(zip(fields, values)))
+        got = transfer.download(fields)
+    assert all(np.array_equal(g, v) for g, v in zip(got, values))
