@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import taichi as ti
 
-from . import __version__, taichi_compat, transfer
+from . import __version__, runtime, taichi_compat, transfer
 from .errors import SandboxError
 
 FORMAT = "sandbox-state"
@@ -265,7 +265,7 @@ def _put_back(sim, saved: dict, path: Path) -> None:
         values = saved[f"ndarray:{name}"]
         current = getattr(owner, attribute)
         if tuple(current.shape) != values.shape:  # the lists were widened during the run
-            current = ti.ndarray(current.dtype, shape=values.shape)
+            current = runtime.ndarray(current.dtype, values.shape)
             setattr(owner, attribute, current)
         current.from_numpy(values)
     values = json.loads(str(saved["host"]))

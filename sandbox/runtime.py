@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import weakref
 
 import taichi as ti
 
@@ -22,6 +23,7 @@ _current: tuple[str, str, bool] | None = None  # (arch, precision, kernel profil
 _owns_process = False  # own_process() was called: process-wide tuning of Taichi is allowed
 _reset_hooks: list = []  # called when the runtime is dropped (runtime.on_reset)
 _generation = 0  # counts Taichi starts: what was built under an earlier one is gone
+_ndarrays: weakref.WeakSet = weakref.WeakSet()  # ndarrays made by ndarray(): detached from their runtime at reset()
 
 
 def _arch_value(name: str):
@@ -93,8 +95,20 @@ def reset() -> None:
     global _current
     if _current is not None:
         _forget_copiers()
+        for array in list(_ndarrays):
+            taichi_compat.detach_ndarray(array)
+        _ndarrays.clear()
         ti.reset()
         _current = None
+
+
+def ndarray(dtype, shape: tuple[int, ...]):
+    """A Taichi ndarray of `dtype` and `shape` in the running runtime, which reset() detaches from it: Taichi 1.7
+    frees an ndarray's memory by address when Python collects it, and one collected after a reset could free the
+    array of the next runtime that took the same address."""
+    array = ti.ndarray(dtype, shape=shape)
+    _ndarrays.add(array)
+    return array
 
 
 def on_reset(hook) -> None:

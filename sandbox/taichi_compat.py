@@ -1,6 +1,6 @@
 """Every use of Taichi beyond its public API, in one place, each with a plain fallback.
 
-The sandbox leans on five things Taichi 1.7 has but does not document as API:
+The sandbox leans on six things Taichi 1.7 has but does not document as API:
 
 1. the control-flow-graph pass switch (`ti.cfg.cfg_optimization`), turned off around the first launch of the
    whole-step kernels (it takes most of their compile time and they run no slower without it);
@@ -10,12 +10,14 @@ The sandbox leans on five things Taichi 1.7 has but does not document as API:
    formatter saves a quarter of a second of start-up;
 4. the source lookups Taichi makes at every compile of every function (`kernel_impl.getsourcelines` and its textwrap
    calls): read once per function, they save a fifth of Taichi's Python-to-IR time;
-5. the host's launch paths (`Kernel.__call__`, field element accessors), which launch_count.py wraps while it counts.
+5. the Python ndarray's handle to its C++ array (`Ndarray.arr`), cleared when the runtime is reset, because
+   Taichi 1.7 frees an ndarray by address whenever Python collects it, in whatever runtime then runs;
+6. the host's launch paths (`Kernel.__call__`, field element accessors), which launch_count.py wraps while it counts.
 
 On a Taichi version not in KNOWN_VERSIONS each falls back to the plain path and says so once (a RuntimeWarning):
 the CFG pass stays on, classes are plain `ti.data_oriented`, Taichi formats its own excerpts and reads sources at
-every compile, and counting launches is refused. `tests/test_taichi_compat.py` checks that each fast path is active
-on the version the project pins.
+every compile, ndarrays are left as they are at a reset, and counting launches is refused.
+`tests/test_taichi_compat.py` checks that each fast path is active on the version the project pins.
 
 The running configuration (backend, CPU worker threads, default float) is read through `ti.cfg`, which Taichi
 exports.
@@ -199,7 +201,19 @@ class _RememberingTextwrap:
         return getattr(self._module, name)
 
 
-# ---------------------------------------------------------------------------- 5. launch paths
+# ---------------------------------------------------------------------------- 5. ndarrays across a reset
+def detach_ndarray(array) -> None:
+    """Cut a Python ndarray from the C++ array it names, before ti.reset() frees that array: Taichi's
+    `Ndarray.__del__` frees by address in whatever runtime then runs, and a new array can have the old one's address
+    (an ndarray collected after a reset left the next test's neighbour lists unreadable). Afterwards its deletion
+    does nothing (the reset freed its memory) and any use of it fails."""
+    if not SUPPORTED or not hasattr(array, "arr"):
+        _plain_path("an ndarray collected after a reset may free a newer one")
+        return
+    array.arr = None
+
+
+# ---------------------------------------------------------------------------- 6. launch paths
 def launch_paths() -> list[tuple[object, str, str]]:
     """(owner, attribute, what a call counts as) for every host path that launches a kernel: kernel calls, and
     host reads and writes of one field element (one per component of a vector or matrix element). Raises

@@ -1,6 +1,7 @@
 """Taichi's internals are touched in one module: each fast path is active on the pinned Taichi, each falls back to
 the plain path on a Taichi it does not know, and nothing changes Taichi for the whole process unless asked."""
 
+import gc
 import inspect
 import json
 import subprocess
@@ -55,6 +56,41 @@ def test_every_fast_path_is_active_on_the_pinned_taichi():
     assert (lines, first) == inspect.getsourcelines(_counter_class)
     lines.append("# changed by a caller")
     assert kernel_impl.getsourcelines(_counter_class) == inspect.getsourcelines(_counter_class)
+
+
+class _Holder:
+    """Two ndarrays in a reference cycle: Python frees them only when its cycle collector next runs."""
+
+    def __init__(self):
+        self.me = self
+        self.small = runtime.ndarray(ti.i32, (1, 1))
+        self.lists = runtime.ndarray(ti.i32, (1000, 16))
+
+
+def test_ndarrays_collected_after_a_reset_leave_the_new_runtimes_arrays_whole():
+    """Taichi 1.7 frees an ndarray by address when Python collects it, in whatever runtime then runs; one collected
+    after a reset could free the array of the next runtime that took its address (a test's neighbour lists then read
+    as garbage). reset() detaches the sandbox's ndarrays first: a later collection frees nothing, and using one fails
+    plainly instead of reading freed memory."""
+    gc.disable()  # cycles are collected when the test says so
+    try:
+        for _ in range(6):
+            runtime.init("cpu", "f32")
+            left = [_Holder() for _ in range(3)]
+            survivor = left[0].small
+            del left
+            runtime.reset()
+            runtime.init("cpu", "f32")
+            arrays = [runtime.ndarray(ti.i32, shape) for shape in [(1, 1)] * 3 + [(1000, 16)] * 3]
+            for k, array in enumerate(arrays):
+                array.fill(k)
+            gc.collect()
+            assert [int(array.to_numpy().sum()) for array in arrays] == [0, 1, 2, 3 * 16000, 4 * 16000, 5 * 16000]
+            with pytest.raises(AttributeError):
+                survivor.to_numpy()
+            runtime.reset()
+    finally:
+        gc.enable()
 
 
 def test_an_unknown_taichi_gets_the_plain_path_with_one_warning(monkeypatch):

@@ -20,6 +20,7 @@ import math
 
 import taichi as ti
 
+from .. import runtime
 from ..oriented import data_oriented
 
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
@@ -28,7 +29,7 @@ LIST_ARRAY = ti.types.ndarray(dtype=ti.i32, ndim=2)  # the type of the lists as 
 
 def no_lists():
     """A stand-in for the lists where a kernel takes them but the step does not use them (1 x 1, never read)."""
-    return ti.ndarray(ti.i32, shape=(1, 1))
+    return runtime.ndarray(ti.i32, (1, 1))
 
 
 @data_oriented
@@ -76,7 +77,7 @@ class NeighbourList:
 
     def _allocate(self, width: int) -> None:
         self.width = width
-        self.ids = ti.ndarray(ti.i32, shape=(self.capacity, width))  # neighbour ids, first count[i] of row i valid
+        self.ids = runtime.ndarray(ti.i32, (self.capacity, width))  # neighbour ids, first count[i] of row i valid
 
     def nbytes(self) -> int:
         return self.capacity * (4 * self.width + 4 + 4 * self.dim)

@@ -137,7 +137,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             elif self.on_cpu:
                 self.out = np.zeros((height, width, 3), np.uint8)
             else:
-                self.out = ti.ndarray(ti.u8, (height, width, 3))
+                self.out = runtime.ndarray(ti.u8, (height, width, 3))
             if self.motion_blur:
                 self.x_prev = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions a frame ago
                 self.shutter = float(render_cfg.shutter)
