@@ -76,46 +76,48 @@ class _Copier:
             return ti.Vector([k])
 
     @ti.kernel
-    def _up(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
+    def _copy(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1), up: ti.template()):
+        """Staging to fields (`up`) or fields to staging: row k of every group is copied in iteration k."""
         for k in range(self.longest):
             for chunk in ti.static(self.groups):
                 for n, cols, items in ti.static(chunk):
                     if k < n * max(cols, 1):
                         idx = self._index(k, cols)
                         for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
-                            src = ti.static(ints if is_int else floats)
+                            staging = ti.static(ints if is_int else floats)
                             base = off + k * max(comps, 1)
-                            if ti.static(zero_d and comps == 0):
-                                field[None] = ti.cast(src[base], field.dtype)
-                            elif ti.static(zero_d):
-                                for c in ti.static(range(comps)):
-                                    field[None][c] = ti.cast(src[base + c], field.dtype)
-                            elif ti.static(comps == 0):
-                                field[idx] = ti.cast(src[base], field.dtype)
+                            if ti.static(up):
+                                self._put(field, idx, zero_d, comps, staging, base)
                             else:
-                                for c in ti.static(range(comps)):
-                                    field[idx][c] = ti.cast(src[base + c], field.dtype)
+                                self._get(field, idx, zero_d, comps, staging, base)
 
-    @ti.kernel
-    def _down(self, floats: ti.types.ndarray(ndim=1), ints: ti.types.ndarray(ndim=1)):
-        for k in range(self.longest):
-            for chunk in ti.static(self.groups):
-                for n, cols, items in ti.static(chunk):
-                    if k < n * max(cols, 1):
-                        idx = self._index(k, cols)
-                        for field, is_int, off, _rows, _cols, comps, zero_d in ti.static(items):
-                            dst = ti.static(ints if is_int else floats)
-                            base = off + k * max(comps, 1)
-                            if ti.static(zero_d and comps == 0):
-                                dst[base] = field[None]
-                            elif ti.static(zero_d):
-                                for c in ti.static(range(comps)):
-                                    dst[base + c] = field[None][c]
-                            elif ti.static(comps == 0):
-                                dst[base] = field[idx]
-                            else:
-                                for c in ti.static(range(comps)):
-                                    dst[base + c] = field[idx][c]
+    @ti.func
+    def _put(self, field: ti.template(), idx, zero_d: ti.template(), comps: ti.template(), src: ti.template(), base):
+        """field[idx] (field[None] when 0-d) = src[base:base + comps] (one value for a scalar field)."""
+        if ti.static(zero_d and comps == 0):
+            field[None] = ti.cast(src[base], field.dtype)
+        elif ti.static(zero_d):
+            for c in ti.static(range(comps)):
+                field[None][c] = ti.cast(src[base + c], field.dtype)
+        elif ti.static(comps == 0):
+            field[idx] = ti.cast(src[base], field.dtype)
+        else:
+            for c in ti.static(range(comps)):
+                field[idx][c] = ti.cast(src[base + c], field.dtype)
+
+    @ti.func
+    def _get(self, field: ti.template(), idx, zero_d: ti.template(), comps: ti.template(), dst: ti.template(), base):
+        """dst[base:base + comps] = field[idx] (field[None] when 0-d; one value for a scalar field)."""
+        if ti.static(zero_d and comps == 0):
+            dst[base] = field[None]
+        elif ti.static(zero_d):
+            for c in ti.static(range(comps)):
+                dst[base + c] = field[None][c]
+        elif ti.static(comps == 0):
+            dst[base] = field[idx]
+        else:
+            for c in ti.static(range(comps)):
+                dst[base + c] = field[idx][c]
 
     def shapes(self) -> list[tuple[int, ...]]:
         """The host shape of each item: (rows[, columns][, components])."""
@@ -187,7 +189,7 @@ def _upload(pairs: list) -> None:
             flat = flat.astype(np.uint32).view(np.int32)  # the same bits: exact, where float32 staging is not
         (ints if is_int else floats)[off : off + flat.size] = flat
     with runtime.without_cfg_pass():  # see the module docstring
-        copier._up(floats, ints)
+        copier._copy(floats, ints, True)
 
 
 def download(fields: list, rows: list[int] | None = None) -> list[np.ndarray]:
@@ -200,7 +202,7 @@ def download(fields: list, rows: list[int] | None = None) -> list[np.ndarray]:
     floats = np.empty(max(copier.n_float, 1), _float_staging())
     ints = np.empty(max(copier.n_int, 1), np.int32)
     with runtime.without_cfg_pass():
-        copier._down(floats, ints)
+        copier._copy(floats, ints, False)
     out = []
     for (field, is_int, off, *_), shape in zip(copier.items, copier.shapes()):
         size = int(np.prod(shape))

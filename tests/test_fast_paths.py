@@ -500,7 +500,7 @@ def test_copies_measurements_and_refreezing_compile_without_the_cfg_pass_and_the
     sim.stats()
     sim.restore(sim.snapshot())
     Renderer(sim, 64, 48, sim.scene.render).render()
-    assert not any(with_pass[name] for name in ("_up", "_down", "_measure", "_prepare", "_bond")), with_pass
+    assert not any(with_pass[name] for name in ("_copy", "_measure", "_prepare", "_bond")), with_pass
     assert all(with_pass[name] for name in ("_rates_update", "_sort_and_count", "_splat_pass_2d")), with_pass
 
 
