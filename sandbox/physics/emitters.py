@@ -74,8 +74,8 @@ class Emitters:
         ambient = sim.scene.heat.ambient if sim.scene.heat else 20.0
         rows = [self._row(k, e, sim, ambient) for k, e in enumerate(self.specs)]
         mask_pairs = self._mask_pixels(emitters)
-        if rows:  # one copy kernel for the whole table
-            transfer.upload([(field, np.array([r[name] for r in rows])) for name, field in self._table()] + mask_pairs)
+        if rows:  # one copy kernel for the whole table: each of _row()'s names is a field of this object
+            transfer.upload([(getattr(self, name), np.array([r[name] for r in rows])) for name in rows[0]] + mask_pairs)
         self.serial = [0] * self.count  # particles emitted so far, per emitter (the random-number index)
         self.carry = [0.0] * self.count  # fractional particles owed by the rate
         self.emitted = [0] * self.count
@@ -92,14 +92,8 @@ class Emitters:
         self.listeners = []  # callables(hole, filler, count): told after particles moved
         self.state_fields = [getattr(self.p, name) for name in self.p.names()]  # what moves with a particle
 
-    def _table(self) -> list:
-        """(name, field) of each per-emitter parameter that _row() fills."""
-        names = ("shape", "surface", "center", "lo", "hi", "size", "velocity", "cone", "speed_spread", "radial_speed")
-        names += ("inherit", "jitter", "temperature", "radius", "mass", "material", "lifetime", "lifetime_spread")
-        return [(name, getattr(self, name)) for name in (*names, "seed", "color")]
-
     def _row(self, k: int, e, sim, ambient: float) -> dict:
-        """Emitter k's parameters (spec e) as the values of its row in each field of _table()."""
+        """Emitter k's parameters (spec e), by the name of the field that holds each: the values of its row."""
         mat = sim.scene.materials[e.material]
         dim = self.dim
         boxed = e.shape in ("box", "mask")
