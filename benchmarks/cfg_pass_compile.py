@@ -19,8 +19,8 @@ import tempfile
 CHILD = """
 import json, sys, time
 import taichi as ti
-from sandbox import runtime
-from sandbox.scene import load_scene
+from sandbox.core import runtime
+from sandbox.config.scene import load_scene
 from sandbox.simulation import Simulation
 sim = Simulation(load_scene(sys.argv[1]), arch="cpu")
 off = sys.argv[2] == "off"

@@ -10,10 +10,10 @@ temperature range seen against the range allowed. A healthy scene stays far belo
 import sys
 import time
 
+from sandbox.config.resources import shipped_scenes
+from sandbox.config.scene import load_scene
 from sandbox.diagnostics import SUMS
 from sandbox.guard import RUNAWAY_FACTOR
-from sandbox.resources import shipped_scenes
-from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
 
 

@@ -12,8 +12,8 @@ import time
 
 import taichi as ti
 
-from sandbox.bench import SCENES
-from sandbox.scene import load_scene
+from sandbox.config.scene import load_scene
+from sandbox.research.bench import SCENES
 from sandbox.simulation import Simulation
 
 

@@ -13,9 +13,9 @@ import time
 import taichi as ti
 
 import sandbox.physics.smoke as smoke
-from sandbox import runtime
-from sandbox.bench import SCENES
-from sandbox.scene import load_scene
+from sandbox.config.scene import load_scene
+from sandbox.core import runtime
+from sandbox.research.bench import SCENES
 from sandbox.simulation import Simulation
 
 

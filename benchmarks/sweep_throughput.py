@@ -14,8 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from sandbox.resources import shipped_scene
-from sandbox.sweep import parse_vary, plan_runs, run_sweep
+from sandbox.app.sweep import parse_vary, plan_runs, run_sweep
+from sandbox.config.resources import shipped_scene
 
 
 def main() -> None:
@@ -50,7 +50,7 @@ def main() -> None:
 
     with LocalCluster(n_workers=cores, threads_per_worker=1, dashboard_address=None, silence_logs=40) as cluster:
         with Client(cluster) as client:
-            from sandbox.sweep_run import execute_run
+            from sandbox.app.sweep_run import execute_run
 
             futures = [
                 client.submit(

@@ -16,8 +16,8 @@ import time
 
 import taichi as ti
 
-from sandbox.bench import SCENES, _lj_box, melting_block_of
-from sandbox.scene import load_scene
+from sandbox.config.scene import load_scene
+from sandbox.research.bench import SCENES, lj_box_sim, melting_block_of
 from sandbox.simulation import Simulation
 
 
@@ -31,7 +31,7 @@ def main() -> None:
 
     def build() -> Simulation:
         if args.scene == "lj_box":
-            return _lj_box(args.side, "cpu")
+            return lj_box_sim(args.side, "cpu")
         return Simulation(load_scene(SCENES / "melting_block.toml", melting_block_of(args.side)))
 
     ways = {name: build() for name in ("team", "one thread", "long way")}

@@ -11,7 +11,7 @@ import time
 
 import taichi as ti
 
-from sandbox import threads
+from sandbox.core import threads
 
 ti.init(arch=ti.cpu, log_level=ti.ERROR)
 N = 10_000

@@ -19,9 +19,9 @@ _EXPORTS = {
     "scene_names": "api",
     "material_names": "api",
     "use": "api",
-    "own_process": "runtime",
+    "own_process": "core.runtime",
     "Simulation": "simulation",
-    "FrameTable": "table",
+    "FrameTable": "files.table",
 }
 
 

@@ -19,7 +19,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from . import runtime
+from .core import runtime
 from .errors import SandboxError
 from .simulation import Simulation
 
@@ -29,14 +29,14 @@ _arch = "auto"  # the backend sandbox.use() chose
 
 def scene_names() -> list[str]:
     """Names of the shipped scenes (for sandbox.load)."""
-    from .resources import shipped_scenes
+    from .config.resources import shipped_scenes
 
     return sorted(p.stem for p in shipped_scenes())
 
 
 def material_names() -> list[str]:
     """Names of the materials in the library (a scene's bodies name them; scenes can add their own)."""
-    from .materials import load_library
+    from .config.materials import load_library
 
     return sorted(load_library())
 
@@ -64,7 +64,7 @@ def _check_switch(arch: str, precision: str) -> None:
 
 
 def _overrides(set: Mapping[str, Any] | Sequence[str] | None) -> list[tuple[str, Any]]:
-    from .scene import parse_override
+    from .config.scene import parse_override
 
     if set is None:
         return []
@@ -86,8 +86,8 @@ def load(
     one chosen by sandbox.use, else auto). SceneError names the file, key and expectation when the scene is invalid."""
     import copy
 
-    from .resources import shipped_scene
-    from .scene import apply_override, read_scene_table, scene_from_dict
+    from .config.resources import shipped_scene
+    from .config.scene import apply_override, read_scene_table, scene_from_dict
 
     if isinstance(scene, Mapping):
         data, path = copy.deepcopy(dict(scene)), Path.cwd() / "scene.toml"
@@ -109,7 +109,7 @@ def load(
 def resume(path: str | Path, arch: str | None = None) -> Simulation:
     """The simulation saved in `path` (sim.save, or the CLI's --checkpoint-every), ready to continue bit for bit.
     SandboxError when the file is not a state file, is damaged, or comes from another version of the sandbox."""
-    from .persist import load_state, read_meta
+    from .files.persist import load_state, read_meta
 
     meta = read_meta(path)
     _check_switch(arch or meta["arch"], meta["precision"])

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from . import runtime
+from .core import runtime
 from .errors import SimulationError
 from .guard import ABSOLUTE_ZERO
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .table import FrameTable
+from .files.table import FrameTable
 
 
 class Scripting:
@@ -24,7 +24,7 @@ class Scripting:
         """Run `frames` frames, drawing every `every`-th as a `width` x `height` picture (even sizes, for MP4);
         returns a notebook.Movie (it plays inline in Jupyter; .save(path) writes it; .table holds the run's
         measurements, as run() returns them)."""
-        from .notebook import Movie
+        from .render.notebook import Movie
 
         if width % 2 or height % 2:
             raise ValueError(f"a movie needs an even width and height, got {width}x{height}")
@@ -59,7 +59,7 @@ class Scripting:
 
     def _repr_html_(self) -> str:
         """Jupyter's view of a simulation: its picture now, and where it stands."""
-        from .notebook import png_html
+        from .render.notebook import png_html
 
         n = int(self.particles.n[None])
         caption = f"{self.scene.name}: {n:,} particles, t = {self.time:.3g} s after {self.frames_done} frames"
@@ -114,14 +114,14 @@ class Scripting:
     def save(self, path: str | Path) -> Path:
         """Write the whole state to `path` (.npz) so that sandbox.resume(path) continues bit for bit; atomic (a
         crash while writing leaves any earlier file of that name whole). Returns the path written."""
-        from .persist import save_state
+        from .files.persist import save_state
 
         return save_state(self, path)
 
     def write_extxyz(self, path: str | Path, append: bool = True, bonds: bool = False) -> None:
         """Write the particles as one extended-XYZ frame (ASE, OVITO) to `path`: appended to it (`append`), or
         replacing it. `bonds`: the live springs as a Bonds key of particle-id pairs."""
-        from .extxyz import append_frame, frame_text
+        from .files.extxyz import append_frame, frame_text
 
         world = self.scene.world
         pairs = None

@@ -15,18 +15,19 @@ from collections.abc import Callable
 import numpy as np
 import taichi as ti
 
-from . import runtime, taichi_compat, transfer
-from .arguments import MAX_SUBSTEPS
-from .budget import emitter_population
-from .build import build_particles
+from .config.arguments import MAX_SUBSTEPS
+from .config.budget import emitter_population
+from .config.build import build_particles
+from .config.scene_tables import COUPLINGS, Scene
+from .core import runtime, taichi_compat, transfer
+from .core.loops import LoopPolicy
+from .core.model import MaterialTable, ParticleFields, material_column
+from .core.oriented import data_oriented
 from .description import Description
 from .diagnostics import STAT_COLUMNS, Measurements, Stats  # noqa: F401 - STAT_COLUMNS, Stats re-exported
 from .errors import SandboxError, SimulationError
 from .guard import BlowupGuard, scene_limits
 from .integrators import make_integrator
-from .loops import LoopPolicy
-from .model import MaterialTable, ParticleFields, material_column
-from .oriented import data_oriented
 from .physics.body_forces import build_body_forces
 from .physics.boundary import Domain
 from .physics.emitters import Emitters
@@ -40,7 +41,6 @@ from .physics.phase import Phase, Refreezer
 from .physics.reorder import CellOrder
 from .physics.smoke import SmokeGrid
 from .physics.springs import Springs
-from .scene_tables import COUPLINGS, Scene
 from .scripting import Scripting
 from .stability import StabilityBounds
 from .state import StateAccess

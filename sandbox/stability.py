@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from . import transfer
-from .model import material_column
+from .core import transfer
+from .core.model import material_column
 
 
 def _omega_bound(ks, factor, alive, i, j, mass, n: int) -> float:

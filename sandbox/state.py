@@ -3,8 +3,8 @@ restoring one exactly, reset, and NumPy readouts of the live particles. A mixin 
 
 import numpy as np
 
-from . import transfer
-from .model import ENTHALPY_LAW, material_column
+from .core import transfer
+from .core.model import ENTHALPY_LAW, material_column
 
 SPRING_ARRAYS = ("i", "j", "rest", "ks", "kd", "alive", "factor", "bonds")  # what refreezing changes (and `created`)
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from sandbox import runtime
-from sandbox.scene import Scene, scene_from_dict
+from sandbox.config.scene import Scene, scene_from_dict
+from sandbox.core import runtime
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 import sandbox
-from sandbox import persist, runtime
-from sandbox.cli import main
+from sandbox.app.cli import main
+from sandbox.core import runtime
 from sandbox.errors import SandboxError
+from sandbox.files import persist
 
 SMALL_BLOCK = {"bodies.0.lo": [56.0, 0.0], "bodies.0.hi": [72.0, 12.0]}
 FREEZING = {  # a small molten blob on a cold plate: it refreezes within a few frames

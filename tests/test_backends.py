@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 import taichi as ti
 
-from sandbox import bench, runtime
-from sandbox.launch_count import count_launches
+from sandbox.config.scene import load_scene
+from sandbox.core import runtime
 from sandbox.render.raster import Renderer
-from sandbox.scene import load_scene
+from sandbox.research import bench
+from sandbox.research.launch_count import count_launches
 from sandbox.simulation import Simulation
 
 from .conftest import ROOT
@@ -28,7 +29,7 @@ FRAMES = 20
 def run_both_workloads(arch: str) -> dict:
     """A 256-particle W1 box for LJ_STEPS steps and a 144-particle melting block drawn for FRAMES frames on `arch`:
     energies, positions, the block's readouts, the last picture and the box's launches per step."""
-    sim = bench._lj_box(16, arch)
+    sim = bench.lj_box_sim(16, arch)
     out = {"arch": runtime.running_arch()}
     e0 = sim.stats().total_energy
     sim.step(LJ_STEPS)

@@ -2,13 +2,13 @@
 
 import numpy as np
 
-from sandbox import bench
+from sandbox.research import bench
 
 
 def test_the_w2_lattice_holds_its_shape_under_its_own_weight():
     """A 100-layer gel block on a plate: it sags and rebounds, but stays a block (a jelly one collapsed into a pile
     while it was timed, its neighbour lists widening tenfold), so W2's cost does not drift with the time it runs."""
-    sim = bench._spring_heat_lattice("cpu")
+    sim = bench.spring_heat_lattice_sim("cpu")
     y0 = sim.positions()[:, 1]
     sim.step(1500)  # 3 time units: several sag-and-rebound periods
     y = sim.positions()[:, 1]
@@ -21,7 +21,7 @@ def test_the_w2_lattice_holds_its_shape_under_its_own_weight():
 
 def test_w3_is_timed_over_the_same_run_from_the_start_every_repeat():
     """measure_from_start resets the scene before each timed run: every run ends in the same state."""
-    sim = bench._melting_block("cpu")
+    sim = bench.melting_block_sim("cpu")
     ends = []
     original = sim.reset
 

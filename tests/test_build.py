@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sandbox.build import build_particles
+from sandbox.config.build import build_particles
 from sandbox.physics.springs import bond_table
 
 from .conftest import make_scene, scene_dict

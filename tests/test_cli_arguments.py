@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from sandbox.cli import EXIT_BAD_INPUT, main
+from sandbox.app.cli import EXIT_BAD_INPUT, main
 from tests.conftest import ROOT
 
 RUN = ["run", "spring_lattice", "--headless", "--quiet"]

@@ -286,7 +286,7 @@ def test_both_ways_of_projecting_the_smoke_give_the_same_flow(monkeypatch):
 
 
 def test_candle_melts_at_the_top_drips_and_refreezes_under_a_bounded_flame():
-    from sandbox.scene import load_scene
+    from sandbox.config.scene import load_scene
 
     from .conftest import SCENES
 
@@ -308,7 +308,7 @@ def test_candle_melts_at_the_top_drips_and_refreezes_under_a_bounded_flame():
 
 
 def test_refill_tops_up_each_cell_to_the_target_density_and_no_more():
-    from sandbox.tools import Tools
+    from sandbox.app.tools import Tools
 
     data = emitter_scene(
         emitters=[
@@ -342,7 +342,7 @@ def test_refill_tops_up_each_cell_to_the_target_density_and_no_more():
 
 
 def test_mask_seeding_is_uniform_over_the_masked_area_and_colour_is_the_emitters():
-    from sandbox.build import load_mask
+    from sandbox.config.build import load_mask
 
     from .conftest import ROOT
 

@@ -5,8 +5,8 @@ import os
 import numpy as np
 import pytest
 
-from sandbox.bench import melting_block_of
-from sandbox.scene import load_scene
+from sandbox.config.scene import load_scene
+from sandbox.research.bench import melting_block_of
 from sandbox.simulation import Simulation
 
 from .conftest import SCENES, make_scene, scene_dict
@@ -307,7 +307,7 @@ def test_a_step_the_long_way_runs_the_host_passes_that_the_pipeline_lists_in_its
 
 def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
     assert not Simulation(load_scene(SCENES / "fireworks.toml")).fuses_steps  # emitters act between steps
-    from sandbox.bench import INTERACTIVE_BLOCK
+    from sandbox.research.bench import INTERACTIVE_BLOCK
 
     # 10,000 particles, springs, heat, and a power source (its per-step mass sum is not shared out in a team)
     power = [*INTERACTIVE_BLOCK, 'heat.sources.0.mode="power"', "heat.sources.0.power=500.0"]
@@ -331,7 +331,7 @@ def test_taichi_worker_threads_are_pinned_one_per_core():
     """Linux often woke both CPU workers on one core (a parallel loop then ran at serial speed): each is pinned."""
     import taichi as ti
 
-    from sandbox import runtime, threads
+    from sandbox.core import runtime, threads
 
     runtime.reset()  # a Taichi start of its own (the pinning runs at each start), kernels compiled by now
     sim = lj_box()
@@ -430,7 +430,7 @@ def test_kernel_errors_still_name_the_file_and_line_and_mark_the_expression():
     where, quotes the line and marks the expression."""
     import taichi as ti
 
-    from sandbox import runtime
+    from sandbox.core import runtime
 
     runtime.init("cpu")
     x = ti.field(float, shape=4)
@@ -455,7 +455,7 @@ def test_whole_step_launches_compile_without_the_cfg_pass_and_the_setting_comes_
     kernel (the renderer's, which run slower without it) keeps it, also after an error inside."""
     import taichi as ti
 
-    from sandbox import runtime
+    from sandbox.core import runtime
 
     sim = lj_box()
     cfg = ti.cfg

@@ -268,8 +268,8 @@ def test_a_body_force_added_to_the_registry_acts_in_every_way_of_stepping(monkey
     names it and its field is part of the saved state."""
     import taichi as ti
 
-    from sandbox import persist
-    from sandbox.oriented import data_oriented
+    from sandbox.core.oriented import data_oriented
+    from sandbox.files import persist
     from sandbox.physics import body_forces
 
     monkeypatch.setattr(body_forces, "BODY_FORCES", list(body_forces.BODY_FORCES))

@@ -23,12 +23,12 @@ hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, Phase, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from sandbox import runtime  # noqa: E402
-from sandbox.budget import body_particles  # noqa: E402
-from sandbox.build import build_particles  # noqa: E402
-from sandbox.cli import EXIT_BAD_INPUT, EXIT_STOPPED, main  # noqa: E402
+from sandbox.app.cli import EXIT_BAD_INPUT, EXIT_STOPPED, main  # noqa: E402
+from sandbox.config.budget import body_particles  # noqa: E402
+from sandbox.config.build import build_particles  # noqa: E402
+from sandbox.config.scene import scene_from_dict  # noqa: E402
+from sandbox.core import runtime  # noqa: E402
 from sandbox.errors import SandboxError, SceneError  # noqa: E402
-from sandbox.scene import scene_from_dict  # noqa: E402
 from tests.conftest import SCENES  # noqa: E402
 
 if sys.version_info >= (3, 11):

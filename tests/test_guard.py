@@ -7,12 +7,12 @@ import re
 import numpy as np
 import pytest
 
-from sandbox.cli import EXIT_STOPPED, main
+from sandbox.app.cli import EXIT_STOPPED, main
+from sandbox.app.tools import Tools
+from sandbox.config.scene import load_scene
 from sandbox.errors import SimulationError
 from sandbox.guard import ABSOLUTE_ZERO, RUNAWAY_FACTOR
-from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
-from sandbox.tools import Tools
 from tests.conftest import SCENES, make_scene, scene_dict
 
 SMALL = ["--headless", "--quiet", "--width", "64", "--height", "48"]

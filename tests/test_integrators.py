@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from sandbox import study, study_problems, study_report
 from sandbox.errors import SimulationError
 from sandbox.integrators import REGISTRY
+from sandbox.research import study, study_problems, study_report
 from sandbox.simulation import Simulation
 
 from .conftest import make_scene, scene_dict

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from sandbox.scene import load_scene
+from sandbox.config.scene import load_scene
 from sandbox.simulation import Simulation
 
 from .conftest import SCENES

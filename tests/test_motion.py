@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from sandbox.config.scene_tables import INTEGRATORS
 from sandbox.errors import SimulationError
 from sandbox.integrators import REGISTRY
-from sandbox.scene_tables import INTEGRATORS
 from sandbox.simulation import Simulation
 
 from .conftest import make_scene, scene_dict

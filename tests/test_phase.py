@@ -2,13 +2,13 @@
 
 import numpy as np
 
-from sandbox import runtime
-from sandbox.materials import load_library
-from sandbox.phase_study import heating_curve_run, stefan_lambda, stefan_run
+from sandbox.app.tools import Tools
+from sandbox.config.materials import load_library
+from sandbox.config.scene import load_scene
+from sandbox.core import runtime
 from sandbox.physics.phase import enthalpy_np, melt_fraction_np, temperature_np
-from sandbox.scene import load_scene
+from sandbox.research.phase_study import heating_curve_run, stefan_lambda, stefan_run
 from sandbox.simulation import Simulation
-from sandbox.tools import Tools
 
 from .conftest import SCENES, make_scene
 

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
+from sandbox.config.scene import load_scene
 from sandbox.render.raster import Renderer
 from sandbox.render.video import read_png, write_png
-from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
 
 from .conftest import ROOT, SCENES, make_scene, scene_dict
@@ -547,7 +547,7 @@ def test_a_still_opaque_sphere_is_identical_with_and_without_motion_blur_3d():
 def test_a_chart_or_colour_bar_too_big_for_the_picture_is_left_out(tmp_path):
     """A 48 x 48 picture cannot hold the chart box (64 x 40 and its margins) or the colour bar: they are not drawn
     (drawing them wrote out of bounds and crashed the process), and the picture is the one without them."""
-    from sandbox.cli import main
+    from sandbox.app.cli import main
 
     pictures = []
     for extra in (["render.chart=['mean_temperature']", "render.legend=true"], ["render.chart=[]"]):

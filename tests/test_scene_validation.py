@@ -5,9 +5,9 @@ import sys
 
 import pytest
 
-from sandbox.cli import main
+from sandbox.app.cli import main
+from sandbox.config.scene import apply_override, load_scene, parse_override
 from sandbox.errors import SceneError
-from sandbox.scene import apply_override, load_scene, parse_override
 
 GOOD = """
 [world]

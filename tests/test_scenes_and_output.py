@@ -7,10 +7,10 @@ import pytest
 from taichi.lang.field import ScalarField
 from taichi.lang.matrix import MatrixField
 
-from sandbox.cli import main
+from sandbox.app.cli import main
+from sandbox.app.runner import run_headless
+from sandbox.config.scene import load_scene
 from sandbox.render.video import read_png
-from sandbox.runner import run_headless
-from sandbox.scene import load_scene
 from sandbox.simulation import STAT_COLUMNS, Simulation
 
 from .conftest import SCENES
@@ -148,7 +148,7 @@ def test_list_and_keys_describe_everything(capsys):
 def test_every_shipped_scene_has_a_lesson_that_list_and_the_window_show(capsys):
     """What happens, what to try and the physics, in each shipped scene's file: `sandbox list` prints all three, and
     the window's panel shows them wrapped to its width, every word kept."""
-    from sandbox.render.window_state import LESSON_WIDTH, lesson_text
+    from sandbox.app.window_state import LESSON_WIDTH, lesson_text
 
     for name in SHIPPED:
         lesson = load_scene(SCENES / f"{name}.toml").lesson

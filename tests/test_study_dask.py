@@ -6,7 +6,7 @@ import csv
 import pytest
 
 from sandbox.errors import SandboxError
-from sandbox.study import StudyTask, plan_tasks, run_study
+from sandbox.research.study import StudyTask, plan_tasks, run_study
 
 pytestmark = pytest.mark.xdist_group("dask")  # the two cluster tests do not start their clusters side by side
 
@@ -66,7 +66,7 @@ def test_the_study_on_a_local_cluster_equals_the_serial_study(tmp_path):
 
 
 def test_bad_study_arguments_end_in_one_line(tmp_path, capsys):
-    from sandbox.cli import main
+    from sandbox.app.cli import main
 
     out = str(tmp_path / "s")
     assert main(["study", "--out", out, "--problems", "oscillator,latice"]) == 2

@@ -6,9 +6,9 @@ import json
 
 import pytest
 
+from sandbox.app.sweep import Variation, parse_vary, plan_runs, run_sweep, write_manifest
+from sandbox.app.sweep_run import CRASH_HOOK
 from sandbox.errors import SandboxError
-from sandbox.sweep import Variation, parse_vary, plan_runs, run_sweep, write_manifest
-from sandbox.sweep_run import CRASH_HOOK
 
 from .conftest import SCENES
 
@@ -95,7 +95,7 @@ def test_the_manifest_lists_runs_not_yet_complete_as_pending(tmp_path):
 
 
 def test_bad_sweep_arguments_end_in_one_line(tmp_path, capsys):
-    from sandbox.cli import main
+    from sandbox.app.cli import main
 
     out = str(tmp_path / "s")
     assert main(["sweep", "melting_block", "--vary", "world.dt", "--out", out]) == 2

@@ -11,9 +11,9 @@ import pytest
 import taichi as ti
 from taichi.lang import kernel_impl
 
-from sandbox import runtime, taichi_compat
+from sandbox.core import runtime, taichi_compat
+from sandbox.core.oriented import data_oriented
 from sandbox.errors import SandboxError
-from sandbox.oriented import data_oriented
 from sandbox.simulation import Simulation
 from tests.conftest import ROOT
 
@@ -37,7 +37,7 @@ def _counter_class():
 def test_every_fast_path_is_active_on_the_pinned_taichi():
     assert taichi_compat.SUPPORTED and tuple(ti.__version__[:2]) == (1, 7)
     # data-oriented classes read plain attributes the ordinary way, only kernels through Taichi's lookup
-    assert Simulation.__getattribute__.__module__ == "sandbox.oriented"
+    assert Simulation.__getattribute__.__module__ == "sandbox.core.oriented"
     counter = _counter_class()()
     counter.add(2)
     assert counter.total[None] == 6
@@ -116,8 +116,8 @@ def test_an_unknown_taichi_gets_the_plain_path_with_one_warning(monkeypatch):
 PROBE = """
 import json, sys
 import sandbox
-from sandbox import taichi_compat, threads
-from sandbox.scene import load_scene
+from sandbox.core import taichi_compat, threads
+from sandbox.config.scene import load_scene
 from sandbox.simulation import Simulation
 if sys.argv[1] == "own":
     sandbox.own_process()  # the public spelling, straight after the import

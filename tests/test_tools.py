@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from sandbox.app.tools import Tools
+from sandbox.config.scene import load_scene
 from sandbox.errors import SandboxError
-from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
-from sandbox.tools import Tools
 
 from .conftest import SCENES
 
@@ -98,8 +98,8 @@ def test_reset_restores_the_initial_state_exactly(melt):
 
 
 def test_empty_sandbox_spawns_palette_materials_and_cold_wax_freezes_into_one_solid():
-    from sandbox.cli import _scene_path
-    from sandbox.render.window_state import make_state
+    from sandbox.app.cli import _scene_path
+    from sandbox.app.window_state import make_state
 
     path = _scene_path("sandbox")  # a shipped scene, not the package folder of the same name
     assert path == SCENES / "sandbox.toml"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import taichi as ti
 
-from sandbox import runtime, transfer
+from sandbox.core import runtime, transfer
 
 
 def test_one_batch_copies_mixed_fields_exactly_and_leaves_the_rows_past_the_values():

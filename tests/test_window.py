@@ -6,9 +6,9 @@ import sys
 import numpy as np
 import pytest
 
+from sandbox.app.window_state import WindowState, tools_for
+from sandbox.config.scene import load_scene
 from sandbox.render.video import read_png
-from sandbox.render.window_state import WindowState, tools_for
-from sandbox.scene import load_scene
 from sandbox.simulation import Simulation
 
 from .conftest import ROOT, SCENES
@@ -69,8 +69,8 @@ def _same(a: dict, b: dict) -> bool:
 
 
 def test_undo_puts_back_the_state_before_each_stroke_and_keeps_memory_bounded():
-    from sandbox.history import UndoRing, snapshot_bytes
-    from sandbox.tools import Tools
+    from sandbox.app.history import UndoRing, snapshot_bytes
+    from sandbox.app.tools import Tools
 
     sim = _block()
     tools, ring = Tools(sim), UndoRing(size=3)
@@ -95,8 +95,8 @@ def test_undo_puts_back_the_state_before_each_stroke_and_keeps_memory_bounded():
 
 
 def test_save_and_load_keys_continue_as_the_uninterrupted_run(tmp_path):
-    from sandbox.history import UndoRing
-    from sandbox.render.window_state import apply_requests
+    from sandbox.app.history import UndoRing
+    from sandbox.app.window_state import apply_requests
 
     sim, s, path = _block(), state(), tmp_path / "quick.state.npz"
     s.handle_key("o")
@@ -131,9 +131,9 @@ def test_panel_offers_only_what_the_scene_uses():
 
 SCRIPT = """
 import sys
-from sandbox.scene import load_scene
+from sandbox.config.scene import load_scene
 from sandbox.simulation import Simulation
-from sandbox.render.window import run_window
+from sandbox.app.window import run_window
 sim = Simulation(load_scene(sys.argv[1]))
 record = sys.argv[3] if len(sys.argv) > 3 else None
 ran = run_window(sim, frames=3, screenshot=sys.argv[2], show=False, record=record, steady=False)  # fixed substeps
@@ -159,9 +159,9 @@ def test_window_frame_matches_the_headless_renderer(tmp_path):
     assert img.shape[:2] == (720, 1280)
     # the same three frames drawn headless, right of the panel as the window draws them (with its colour bar): the
     # window shows what the video shows, beside its panel (plus the brush cursor)
+    from sandbox.app.window_panel import PANEL_WIDTH
+    from sandbox.app.window_state import make_state, view_config
     from sandbox.render.raster import Renderer
-    from sandbox.render.window_panel import PANEL_WIDTH
-    from sandbox.render.window_state import make_state, view_config
 
     sim = Simulation(load_scene(SCENES / "spring_lattice.toml"))
     ren = Renderer(sim, 1280, 720, view_config(sim.scene.render, make_state(sim, None)), panel=PANEL_WIDTH)
@@ -186,7 +186,7 @@ def test_window_records_what_it_shows_to_mp4(tmp_path):
 
 
 def test_thermometers_read_each_body():
-    from sandbox.render.window_panel import thermometers
+    from sandbox.app.window_panel import thermometers
 
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"]))
     assert thermometers(sim) == [("block", pytest.approx(20.0))]
@@ -198,7 +198,7 @@ def test_thermometers_read_each_body():
 
 
 def test_view_toggles_cycle_the_colour_maps_the_scene_can_use():
-    from sandbox.render.window_state import make_state, view_config
+    from sandbox.app.window_state import make_state, view_config
 
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"]))
     s = make_state(sim, None)
@@ -212,7 +212,7 @@ def test_view_toggles_cycle_the_colour_maps_the_scene_can_use():
 
 
 def test_the_empty_sandbox_starts_with_the_spawn_tool_and_reads_no_nan():
-    from sandbox.render.window_state import make_state, reading
+    from sandbox.app.window_state import make_state, reading
 
     empty = make_state(Simulation(load_scene(SCENES / "sandbox.toml")), None)
     assert empty.tool == "spawn"  # the heat tool did nothing in an empty box
@@ -222,7 +222,7 @@ def test_the_empty_sandbox_starts_with_the_spawn_tool_and_reads_no_nan():
 
 
 def test_orbit_camera_round_trips_and_keeps_its_target():
-    from sandbox.render.window_parts import OrbitCamera
+    from sandbox.app.window_parts import OrbitCamera
 
     eye, target = np.array([24.0, 22.0, 56.0]), np.array([24.0, 4.0, 24.0])
     cam = OrbitCamera(eye, target)
@@ -258,7 +258,7 @@ def test_3d_brush_acts_at_the_particle_under_the_cursor():
 
 
 def test_the_selected_tool_is_marked_and_every_button_names_its_key():
-    from sandbox.render.window_state import tool_label
+    from sandbox.app.window_state import tool_label
 
     assert tool_label("heat", "heat") == "> 1 heat <"
     assert tool_label("spawn", "heat") == "  8 spawn  "
@@ -268,7 +268,7 @@ def test_the_selected_tool_is_marked_and_every_button_names_its_key():
 
 
 def test_the_probe_reads_the_particle_under_the_cursor():
-    from sandbox.probe import particle_at, probe
+    from sandbox.app.probe import particle_at, probe
 
     sim = _block()
     sim.set_temperatures(np.linspace(20.0, 120.0, sim.built.count))  # solid through melting to liquid
@@ -288,8 +288,8 @@ def test_the_probe_reads_the_particle_under_the_cursor():
 
 
 def test_pacing_runs_fewer_substeps_when_a_frame_of_them_would_not_fit_and_says_so():
-    from sandbox.render.window_parts import FramePacer
-    from sandbox.render.window_state import pace_text
+    from sandbox.app.window_parts import FramePacer
+    from sandbox.app.window_state import pace_text
 
     pacer = FramePacer(target_fps=50.0)  # 20 ms a frame
     assert pacer.choose(20) == 20  # nothing measured yet: what is wanted
@@ -316,7 +316,7 @@ def test_pacing_learns_a_frames_fixed_simulation_cost_and_runs_the_substeps_that
     """A frame's simulation costs 3 ms plus 0.5 ms a substep and its drawing 28 ms, so the 30 fps floor leaves room
     for 4 substeps (28 + 3 + 4 x 0.5 = 33 ms). Taking the whole cost as per substep, a pacer that starts at one
     substep (3.5 ms) would stay there; this one tries more after frames that fit and fits both parts."""
-    from sandbox.render.window_parts import FramePacer
+    from sandbox.app.window_parts import FramePacer
 
     pacer = FramePacer()
     pacer.record(1, simulation_seconds=0.0035, rest_seconds=0.028)
@@ -335,7 +335,7 @@ def test_pacing_learns_a_frames_fixed_simulation_cost_and_runs_the_substeps_that
 
 
 def test_energies_read_in_the_scenes_units():
-    from sandbox.render.window_state import energy_unit
+    from sandbox.app.window_state import energy_unit
 
     assert energy_unit(_block()) == "pJ"
     assert energy_unit(Simulation(load_scene(SCENES / "lj_box.toml", ["bodies.0.hi=[11.18, 11.18]"]))) == "eps"
@@ -345,9 +345,9 @@ def test_the_panel_never_covers_the_scene_or_its_chart():
     """The four scenes a class starts with, in windows of 1280 x 720 and 640 x 360: the renderer draws the domain
     (2D) or every particle (3D) and the chart right of the panel's column and inside the picture; the lesson's lines
     fit the panel."""
+    from sandbox.app.window_panel import PANEL_WIDTH
+    from sandbox.app.window_state import lesson_text, panel_characters
     from sandbox.render.raster import Renderer
-    from sandbox.render.window_panel import PANEL_WIDTH
-    from sandbox.render.window_state import lesson_text, panel_characters
 
     for name in ("sandbox", "melting_block", "melting_block_3d", "ice_cube"):
         sim = Simulation(load_scene(SCENES / f"{name}.toml", ["render.chart=['mean_temperature']"]))
@@ -376,8 +376,8 @@ def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(compi
     the same (a runtime that kept every scene's fields would run out of field trees)."""
     import resource
 
-    from sandbox.render.window import open_scene
-    from sandbox.render.window_state import pick_scene
+    from sandbox.app.window import open_scene
+    from sandbox.app.window_state import pick_scene
 
     s = state()
     s.handle_key("n")
@@ -399,14 +399,14 @@ def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(compi
 def test_the_window_draws_3d_at_half_size_and_2d_at_full_size():
     from types import SimpleNamespace
 
-    from sandbox.render.window import picture_size
+    from sandbox.app.window import picture_size
 
     assert picture_size(SimpleNamespace(dim=3), 1280, 720) == (640, 360)
     assert picture_size(SimpleNamespace(dim=2), 1280, 720) == (1280, 720)
 
 
 def test_every_panel_line_is_wrapped_to_the_panel_width():
-    from sandbox.render.window_panel import say
+    from sandbox.app.window_panel import say
 
     class Gui:
         lines: list[str] = []

@@ -29,7 +29,7 @@ equation with its own stepping: explicit Euler on the rates of the step's last f
 # Verlet), implicit.py (backward Euler on the springs). Importing a module registers its integrators; a new module
 # is imported here, and its names join scene_tables.INTEGRATORS.
 
-from ..scene_tables import INTEGRATORS
+from ..config.scene_tables import INTEGRATORS
 from . import explicit, implicit, leapfrog  # noqa: F401 - registers the integrators
 from .base import REGISTRY, Integrator, StepRates, make_integrator, register
 

@@ -5,7 +5,7 @@ from typing import Protocol
 
 import taichi as ti
 
-from ..oriented import data_oriented
+from ..core.oriented import data_oriented
 
 
 class StepRates(Protocol):

@@ -2,7 +2,7 @@
 
 import taichi as ti
 
-from ..solvers import CGSums, pcg
+from ..core.solvers import CGSums, pcg
 from .base import Integrator, register
 
 

@@ -15,8 +15,8 @@ from typing import Protocol
 
 import taichi as ti
 
-from ..oriented import data_oriented
-from ..scene_tables import COUPLINGS
+from ..config.scene_tables import COUPLINGS
+from ..core.oriented import data_oriented
 
 DRAG = COUPLINGS.index("drag")
 

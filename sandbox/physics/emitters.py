@@ -19,9 +19,9 @@ import warnings
 import numpy as np
 import taichi as ti
 
-from .. import transfer
+from ..core import transfer
+from ..core.oriented import data_oriented
 from ..errors import SceneError
-from ..oriented import data_oriented
 from .fields import random_uniform
 
 NEVER_BONDS = 3  # liquid-flag value of mortal emitted particles: refreezing never bonds them (physics/phase.py)
@@ -126,7 +126,7 @@ class Emitters:
         inside ones with an outside 4-neighbour): each pixel is equally likely, so seeding is uniform by area (by
         length along the boundary, to within a pixel). Returns the (field, values) pairs to upload: the pixels and
         each emitter's range of them and pixel size."""
-        from ..build import load_mask
+        from ..config.build import load_mask
 
         chunks = []
         start = 0

@@ -24,8 +24,8 @@ import math
 import numpy as np
 import taichi as ti
 
-from .. import transfer
-from ..oriented import data_oriented
+from ..core import transfer
+from ..core.oriented import data_oriented
 
 FIELD_KINDS = ("wind", "vortex", "source", "explosion", "noise")
 WIND, VORTEX, SOURCE, EXPLOSION, NOISE = range(5)

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import taichi as ti
 
-from ..oriented import data_oriented
+from ..core.oriented import data_oriented
 
 
 @data_oriented

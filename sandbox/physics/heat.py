@@ -26,10 +26,10 @@ import math
 import numpy as np
 import taichi as ti
 
-from .. import transfer
-from ..oriented import data_oriented
-from ..scene_tables import SOURCE_MODES
-from ..transfer import real_fields
+from ..config.scene_tables import SOURCE_MODES
+from ..core import transfer
+from ..core.oriented import data_oriented
+from ..core.transfer import real_fields
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
 

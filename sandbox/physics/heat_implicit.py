@@ -15,8 +15,8 @@ nonlinear backward Euler step by up to a step.
 
 import taichi as ti
 
-from ..oriented import data_oriented
-from ..solvers import CGResult, CGSums, pcg
+from ..core.oriented import data_oriented
+from ..core.solvers import CGResult, CGSums, pcg
 from .neighbours import LIST_ARRAY
 
 

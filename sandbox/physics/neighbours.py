@@ -20,8 +20,8 @@ import math
 
 import taichi as ti
 
-from .. import runtime
-from ..oriented import data_oriented
+from ..core import runtime
+from ..core.oriented import data_oriented
 
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
 LIST_ARRAY = ti.types.ndarray(dtype=ti.i32, ndim=2)  # the type of the lists as a kernel argument: see the docstring

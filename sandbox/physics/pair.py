@@ -20,9 +20,9 @@ import math
 import numpy as np
 import taichi as ti
 
-from .. import transfer
-from ..oriented import data_oriented
-from ..transfer import real_fields
+from ..core import transfer
+from ..core.oriented import data_oriented
+from ..core.transfer import real_fields
 
 
 def radial_force(r, alpha, beta, eps, a, b):

@@ -21,8 +21,8 @@ boundary cannot flicker between phases (hysteresis of the whole mushy band plus 
 import numpy as np
 import taichi as ti
 
-from .. import runtime
-from ..oriented import data_oriented
+from ..core import runtime
+from ..core.oriented import data_oriented
 
 LIQUID = 1  # flag values of ParticleFields.liquid
 FREEZING = 2  # (during a refreeze pass: liquid and cold enough to bond)

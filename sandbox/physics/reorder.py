@@ -10,7 +10,7 @@ their identity in `ident` (the particle id).
 
 import taichi as ti
 
-from ..oriented import data_oriented
+from ..core.oriented import data_oriented
 
 
 @data_oriented

@@ -19,9 +19,9 @@ import math
 import numpy as np
 import taichi as ti
 
-from .. import transfer
-from ..oriented import data_oriented
-from ..solvers import CGResult, CGSums, pcg
+from ..core import transfer
+from ..core.oriented import data_oriented
+from ..core.solvers import CGResult, CGSums, pcg
 
 # On the CPU backend a grid of up to this many cells is projected in one kernel launch on one thread (assembly, every
 # CG iteration, the gradient), instead of launching three kernels and reading three sums back per CG iteration

@@ -21,8 +21,8 @@ can refreeze has spare spring slots beyond the built ones.
 import numpy as np
 import taichi as ti
 
-from .. import transfer
-from ..oriented import data_oriented
+from ..core import transfer
+from ..core.oriented import data_oriented
 
 
 def bond_table(

@@ -10,8 +10,8 @@ Tick marks divide the time axis into quarters and mark the middle of the scale.
 import numpy as np
 import taichi as ti
 
-from .. import transfer
-from ..oriented import data_oriented
+from ..core import transfer
+from ..core.oriented import data_oriented
 from .pixels import draw_text, get_pixel, put_pixel, text_scale, text_width
 
 FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale

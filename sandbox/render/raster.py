@@ -40,8 +40,8 @@ import math
 import numpy as np
 import taichi as ti
 
-from .. import runtime, transfer
-from ..oriented import data_oriented
+from ..core import runtime, transfer
+from ..core.oriented import data_oriented
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
 from .look import ParticleLook

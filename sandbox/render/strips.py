@@ -11,8 +11,8 @@ streaks, huge discs, additive light) are drawn afterwards by a parallel loop wit
 
 import taichi as ti
 
-from ..loops import SPREAD_STRIDE, spread_item
-from ..oriented import data_oriented
+from ..core.loops import SPREAD_STRIDE, spread_item
+from ..core.oriented import data_oriented
 
 STRIP = 64  # pixels per strip; a particle within STRIP / 2 of its strip is drawn without atomics
 

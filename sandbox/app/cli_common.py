@@ -1,0 +1,38 @@
+"""What the command line's commands share: finding a scene by name or path, the exit codes, and the stability
+warnings printed before a run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..config.resources import shipped_scene
+
+
+def _scene_path(name: str) -> Path:
+    """A scene by path, or by name from the shipped scenes/ folder."""
+    path = Path(name)
+    if path.is_file() or path.suffix == ".toml":
+        return path
+    return shipped_scene(name) or path
+
+
+def _load(args):
+    from ..config.scene import load_scene
+
+    return load_scene(_scene_path(args.scene), args.set)
+
+
+EXIT_BAD_INPUT, EXIT_STOPPED, EXIT_INTERRUPTED = 2, 3, 130
+
+
+def stability_warnings(sim) -> list[str]:
+    """Steps above the stable limits of the chosen integrator (springs as built) and of explicit heat diffusion."""
+    dt, warnings = sim.scene.world.dt, []
+    if dt > sim.stable_dt_initial:
+        warnings.append(
+            f"dt {dt:g} is above the springs' stable limit {sim.stable_dt_initial:.3g} for {sim.integrator.name}"
+        )
+    heat_limit = sim.heat_dt_limit() if sim.heat is not None else float("inf")  # a NumPy probe: computed once
+    if dt > heat_limit:
+        warnings.append(f"dt {dt:g} is above the explicit heat limit {heat_limit:.3g}")
+    return warnings

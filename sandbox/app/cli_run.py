@@ -1,0 +1,194 @@
+"""`sandbox run`: check the numbers and outputs, build (or resume) the simulation, then open the window (and its
+scene picker) or run headless into a video, pictures, a CSV, dumps and checkpoints."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..config.arguments import (
+    MAX_FPS,
+    MAX_FRAMES,
+    MAX_SIDE,
+    MAX_SUBSTEPS,
+    check_count,
+    check_file_output,
+    check_frames_output,
+    check_picture,
+    check_rate,
+    distinct_outputs,
+)
+from ..core import runtime
+from ..errors import SandboxError
+from ..render.video import check_output
+from .cli_common import EXIT_INTERRUPTED, EXIT_STOPPED, _load, stability_warnings
+
+
+def _check_run_numbers(args) -> None:
+    """The run's numeric options, before the scene is read."""
+    check_count("--frames", args.frames, 1, MAX_FRAMES)
+    check_count("--substeps", args.substeps, 1, MAX_SUBSTEPS)
+    check_rate("--fps", args.fps, MAX_FPS)
+    check_count("--width", args.width, 16, MAX_SIDE)
+    check_count("--height", args.height, 16, MAX_SIDE)
+    if args.still_frame is not None:
+        if args.out is None or Path(args.out).suffix.lower() != ".png":
+            raise SandboxError(f"--still-frame {args.still_frame}: expected together with a .png --out")
+        check_count("--still-frame", args.still_frame, 0, MAX_FRAMES - 1)
+    check_count("--checkpoint-every", args.checkpoint_every, 1, MAX_FRAMES)
+    check_count("--dump-every", args.dump_every, 1, MAX_FRAMES)
+    if args.checkpoint is not None and args.checkpoint_every is None:
+        raise SandboxError(f"--checkpoint {args.checkpoint}: expected together with --checkpoint-every N")
+    if args.dump_every is not None and args.dump is None:
+        raise SandboxError(f"--dump-every {args.dump_every}: expected together with --dump PATH.extxyz")
+    if args.resume is not None and args.set:
+        raise SandboxError("--set with --resume: a resumed run continues the saved scene; expected no --set")
+
+
+def _check_run_outputs(args, out: str | None) -> None:
+    """Every file the run will write: a known kind, a writable folder (created if missing), no two the same."""
+    distinct_outputs(
+        {
+            "--out": out,
+            "--stats": args.stats,
+            "--screenshot": args.screenshot,
+            "--record": args.record,
+            "--dump": args.dump,
+            "--checkpoint": args.checkpoint,
+        }
+    )
+    if args.dump is not None:
+        check_file_output("--dump", args.dump, (".extxyz", ".xyz"))
+    if args.checkpoint is not None:
+        check_file_output("--checkpoint", args.checkpoint, (".npz",))
+    if out is not None:
+        check_frames_output("--out", out)
+        check_output(out)  # the packages its kind needs
+    if args.stats is not None:
+        check_file_output("--stats", args.stats)
+    if args.screenshot is not None:
+        check_file_output("--screenshot", args.screenshot, (".png",))
+    if args.record is not None:
+        check_file_output("--record", args.record, (".mp4",))
+        check_output(args.record)
+
+
+def _resumed_scene(args):
+    """The scene a --resume state file holds (SCENE must name it), the frame it was saved at, and the file's meta."""
+    from ..config.scene import scene_from_dict
+    from ..files.persist import read_meta
+
+    meta = read_meta(args.resume)
+    named = Path(args.scene).stem
+    if named not in (meta["scene_name"], Path(meta["scene_path"]).stem):
+        raise SandboxError(
+            f"--resume {args.resume}: saved from scene {meta['scene_name']!r}; expected SCENE to name it"
+        )
+    return scene_from_dict(meta["scene"], Path(meta["scene_path"])), int(meta["frame"]), meta
+
+
+def cmd_run(args) -> int:
+    _check_run_numbers(args)
+    scene, first_frame, saved_meta = _resumed_scene(args) if args.resume else (_load(args), 0, None)
+    frames = args.frames or scene.render.frames
+    if frames <= first_frame:
+        raise SandboxError(f"--frames {frames}: the state was saved at frame {first_frame}; expected more frames")
+    if args.checkpoint_every and args.checkpoint is None:
+        args.checkpoint = f"out/{scene.name}.state.npz"
+    if args.still_frame is not None:
+        check_count("--still-frame", args.still_frame, 0, frames - 1)
+    substeps = args.substeps  # None: the scene's (an integer, or "auto")
+    headless = args.headless
+    if not headless and (args.dump or args.checkpoint_every):
+        print("--dump and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
+        headless = True
+    if not headless:
+        from .window import window_unavailable_reason
+
+        reason = window_unavailable_reason()
+        if reason:
+            headless = True
+            print(f"{reason}: running headless", file=sys.stderr)
+    out = args.out
+    if headless and out is None:
+        out = f"out/{scene.name}.mp4"
+        try:
+            check_output(out)
+        except SandboxError:
+            out = f"out/{scene.name}"
+            print(f"imageio-ffmpeg is not installed: writing PNG frames to {out}/ instead of an MP4", file=sys.stderr)
+    width, height = args.width or scene.render.width, args.height or scene.render.height
+    check_picture(width, height, out)
+    runtime.require(args.arch, scene.world.precision)
+    _check_run_outputs(args, out)
+    from ..simulation import Simulation
+
+    if args.resume:
+        from ..files.persist import load_state
+
+        sim = load_state(args.resume, arch=args.arch, meta=saved_meta, scene=scene)
+    else:
+        sim = Simulation(scene, arch=args.arch)
+    for line in stability_warnings(sim):
+        print(f"warning: {line}; expect the blow-up guard to stop the run", file=sys.stderr)
+    if not headless:
+        from .window import WindowUnavailable, open_scene, run_window
+
+        try:
+            ran = run_window(sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record)
+            while ran.next_scene:  # the panel's scene picker: the same process opens the next scene
+                sim = open_scene(ran.next_scene, args.arch)
+                ran = run_window(sim)
+            return 0
+        except WindowUnavailable as exc:
+            print(f"{exc}: running headless", file=sys.stderr)
+            out = out or f"out/{scene.name}.mp4"
+            check_picture(width, height, out)
+            _check_run_outputs(args, out)
+    from .run_files import RunFiles
+    from .runner import run_headless
+
+    start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
+    print(
+        f"{scene.name}: {sim.built.count} particles, {sim.built.spring_count} springs, {start} x "
+        f"{substeps or scene.world.substeps} steps on {sim.arch} -> {out}",
+        file=sys.stderr,
+    )
+    files = RunFiles(sim, args.dump, args.dump_every or 1, args.checkpoint, args.checkpoint_every)
+    try:
+        result = run_headless(
+            sim,
+            frames - first_frame,
+            substeps,
+            out,
+            args.stats,
+            width=width,
+            height=height,
+            fps=args.fps,
+            still_frame=args.still_frame,
+            progress=not args.quiet,
+            on_frame=files.after_frame,
+            first_frame=first_frame,
+        )
+    finally:
+        files.close()
+    if result.stopped:
+        print(f"error: the blow-up guard stopped the run: {result.stopped}", file=sys.stderr)
+        if result.frames and out:
+            kept = f"kept the {result.frames} frames before it in {out}"
+            kept += f" and their measurements in {args.stats}" if args.stats else ""
+        else:
+            kept = "no frame was drawn, so no picture was written" + (
+                f"; {args.stats} holds the header only" if args.stats else ""
+            )
+        print(kept, file=sys.stderr)
+        return EXIT_STOPPED
+    last = result.last
+    summary = f"wrote {out} ({result.frames} frames, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
+    if last is not None and sim.heat is not None:
+        summary += f"; molten fraction {last.molten_fraction:.2f}, broken springs {last.broken_springs}"
+    print(summary, file=sys.stderr)
+    if result.interrupted:
+        print("interrupted: the files written so far are complete and valid", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return 0

@@ -1,0 +1,217 @@
+"""`sandbox sweep`: one scene run headless for every combination of overrides, spread over Dask workers.
+
+    sandbox sweep melting_block --vary heat.sources.0.temperature=120:240:4 --vary bodies.0.material=wax,chocolate \\
+        --frames 300 --out sweeps/melt
+
+The plan is the cross product of the --vary lists (or, with --zip, their values side by side). Each run gets a
+folder named by its index and overrides (sweep_run.py writes it); the manifest (manifest.csv) lists every run's
+overrides, summary metrics, outcome and files; with matplotlib, sweep.png plots a metric against each varied key.
+
+Where it runs: on a Dask cluster given by address (`--scheduler tcp://host:8786`), else on a local cluster of worker
+processes on this machine (workers x Taichi threads no more than the cores), else, without the `sweep` extra (dask,
+distributed), one run after another in this process. Runs are retried when their worker dies; a run that completed
+(its run.json exists) is skipped by a second invocation, so an interrupted sweep resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SandboxError
+from ..research.dask_pool import choose_scheduler, dask_client, local_shape
+from .sweep_run import RECORD, execute_run
+
+METRICS = (
+    "final_molten_fraction",
+    "time_to_half_molten",
+    "peak_mean_temperature",
+    "final_mean_temperature",
+    "energy_drift",
+    "wall_seconds",
+)
+MAX_RUNS = 10_000
+
+
+@dataclass(frozen=True)
+class Variation:
+    """One --vary: a dotted scene key and the values it takes."""
+
+    key: str
+    values: tuple
+
+
+def parse_vary(text: str) -> Variation:
+    """KEY=V1,V2,... (each value read as TOML: numbers, true/false, bare words as strings) or KEY=START:STOP:COUNT
+    (COUNT evenly spaced numbers from START to STOP)."""
+    from ..config.scene import parse_override
+
+    if "=" not in text:
+        raise SandboxError(f"--vary {text}: expected KEY=V1,V2,... or KEY=START:STOP:COUNT")
+    key, raw = (s.strip() for s in text.split("=", 1))
+    if not key or not raw:
+        raise SandboxError(f"--vary {text}: expected KEY=V1,V2,... or KEY=START:STOP:COUNT")
+    span = re.fullmatch(r"([-+0-9.eE]+):([-+0-9.eE]+):(\d+)", raw)
+    if span:
+        try:
+            start, stop, count = float(span[1]), float(span[2]), int(span[3])
+        except ValueError as exc:
+            raise SandboxError(f"--vary {text}: expected numbers START:STOP and a whole COUNT") from exc
+        if not (1 <= count <= MAX_RUNS and np.isfinite(start) and np.isfinite(stop)):
+            raise SandboxError(f"--vary {text}: expected finite START and STOP and COUNT from 1 to {MAX_RUNS:,}")
+        values = tuple(float(v) for v in np.linspace(start, stop, count))
+    else:
+        values = tuple(parse_override(f"{key}={item}")[1] for item in raw.split(","))
+    return Variation(key, values)
+
+
+def plan_runs(variations: list[Variation], zipped: bool = False) -> list[dict]:
+    """The runs' overrides (dotted key -> value), in order: the cross product of the variations, or with `zipped`
+    their values side by side (all lists the same length)."""
+    if not variations:
+        raise SandboxError("sweep: expected at least one --vary KEY=VALUES")
+    keys = [v.key for v in variations]
+    if len(set(keys)) != len(keys):
+        raise SandboxError(f"sweep: a key is varied twice in {keys}; expected each key once")
+    if zipped:
+        lengths = {len(v.values) for v in variations}
+        if len(lengths) != 1:
+            raise SandboxError(f"--zip: the --vary lists have {sorted(lengths)} values; expected equal lengths")
+        combos = list(zip(*(v.values for v in variations)))
+    else:
+        combos = list(itertools.product(*(v.values for v in variations)))
+    if len(combos) > MAX_RUNS:
+        raise SandboxError(f"sweep: {len(combos):,} runs; expected at most {MAX_RUNS:,}")
+    return [dict(zip(keys, combo)) for combo in combos]
+
+
+def run_folder_name(index: int, overrides: dict) -> str:
+    """`007_temperature=150_material=wax`: the index, then each key's last part and its value, safe as a name."""
+    parts = [f"{index:03d}"]
+    for key, value in overrides.items():
+        short = key.split(".")[-1]
+        text = f"{value:g}" if isinstance(value, float) else str(value)
+        parts.append(re.sub(r"[^A-Za-z0-9.=+-]", "-", f"{short}={text}"))
+    return "_".join(parts)[:120]
+
+
+def run_sweep(
+    scene_path: str | Path,
+    runs: list[dict],
+    out: str | Path,
+    frames: int | None = None,
+    video: bool = False,
+    width: int | None = None,
+    height: int | None = None,
+    scheduler: str = "auto",
+    workers: int | None = None,
+    threads: int | None = None,
+    log=print,
+) -> list[dict]:
+    """Run every override set in `runs` and write the manifest; returns the records in plan order.
+
+    `scheduler`: "auto" (a local Dask cluster where the sweep extra is installed, else "serial"), "local", "serial"
+    (one by one in this process) or a Dask scheduler address. `workers`, `threads`: local worker processes and Taichi
+    threads per run (default: one worker per core, up to the runs, and the cores shared among them)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    scene_path = str(Path(scene_path).resolve())
+    jobs = [(k, o, out / run_folder_name(k, o)) for k, o in enumerate(runs)]
+    todo = [(k, o, f) for k, o, f in jobs if not (f / RECORD).exists()]
+    if len(todo) < len(jobs):
+        log(f"{len(jobs) - len(todo)} of {len(jobs)} runs already complete: skipped")
+    workers, threads = local_shape(len(todo), workers, threads)
+    scheduler = choose_scheduler(scheduler, len(todo), log, "sweep")
+    args = (frames, video, width, height, threads)
+    try:
+        if scheduler == "serial":
+            for k, overrides, folder in todo:
+                record = execute_run(scene_path, overrides, str(folder), *args)
+                log(f"run {k}: {record['outcome']} {record.get('message', '')}".rstrip())
+        else:
+            _run_on_dask(scheduler, workers, threads, scene_path, todo, args, log)
+    finally:
+        records = write_manifest(out, jobs)
+    return records
+
+
+def _run_on_dask(scheduler, workers, threads, scene_path, todo, args, log) -> None:
+    from distributed import as_completed
+
+    with dask_client(scheduler, workers) as client:
+        futures = {
+            client.submit(execute_run, scene_path, o, str(f), *args, pure=False, retries=3, key=f"run-{k}-{f.name}"): k
+            for k, o, f in todo
+        }
+        for future in as_completed(futures):
+            record = future.result()
+            log(f"run {futures[future]}: {record['outcome']} {record.get('message', '')}".rstrip())
+
+
+def write_manifest(out: Path, jobs: list) -> list[dict]:
+    """manifest.csv: one row per planned run (its overrides, outcome, metrics and files; outcome "pending" for a
+    run not complete), written atomically. Returns the records."""
+    records = []
+    for k, overrides, folder in jobs:
+        path = folder / RECORD
+        record = json.loads(path.read_text()) if path.exists() else {"overrides": overrides, "outcome": "pending"}
+        record["run"] = k
+        records.append(record)
+    keys = list(jobs[0][1]) if jobs else []
+    columns = ["run", *keys, "outcome", "message", "frames", *METRICS, "stats", "video", "folder"]
+    partial = out / ".manifest.csv.partial"
+    with open(partial, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
+        writer.writeheader()
+        for record in records:
+            row = {c: record.get(c) for c in columns}
+            for name in ("stats", "video", "folder"):  # paths relative to the sweep's folder
+                if row[name]:
+                    row[name] = os.path.relpath(row[name], out)
+            row.update(record["overrides"])
+            writer.writerow({c: ("" if v is None else v) for c, v in row.items()})
+    os.replace(partial, out / "manifest.csv")
+    return records
+
+
+def plot_sweep(out: Path, records: list[dict], keys: list[str], metric: str) -> Path | None:
+    """sweep.png: `metric` against each varied key (one panel per key), or None without matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    done = [r for r in records if r.get("outcome") == "done" and r.get(metric) is not None]
+    fig, axes = plt.subplots(1, len(keys), figsize=(5 * len(keys), 3.6), squeeze=False)
+    for ax, key in zip(axes[0], keys):
+        others = [k for k in keys if k != key]
+        groups: dict = {}
+        for r in done:
+            groups.setdefault(tuple(str(r["overrides"][k]) for k in others), []).append(r)
+        for label, group in groups.items():
+            values = [r["overrides"][key] for r in group]
+            if all(isinstance(v, int | float) for v in values) or all(isinstance(v, str) for v in values):
+                group.sort(key=lambda r: r["overrides"][key])  # numbers in order, words alphabetically
+            ax.plot(
+                [r["overrides"][key] for r in group],
+                [r[metric] for r in group],
+                "o-",
+                label=", ".join(label) or None,
+            )
+        ax.set(xlabel=key, ylabel=metric)
+        if others:
+            ax.legend(title=", ".join(others), fontsize=8)
+    fig.tight_layout()
+    path = out / "sweep.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

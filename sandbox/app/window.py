@@ -1,0 +1,275 @@
+"""The interactive window (Taichi GGUI), drawing through the same Renderer as headless video.
+
+Keys (also listed by the help overlay, h or F1): space pause/resume, s single step, r reset, 1-8 choose a tool
+(heat, cool, drag, attract, repel, impulse, erase, spawn), [ and ] brush radius, + and - substeps per frame, g
+gravity on/off, i next integrator, m next spawn material, p screenshot, z undo the last tool stroke, w save the
+state, o load it back, q or Esc quit. The left mouse button applies
+the tool at the cursor (2D scenes); in 3D the mouse orbits (left), zooms (right) and pans (middle). The side panel
+shows only the controls the scene uses (no heat tools without heat).
+Everything the keys do goes through WindowState.handle_key, which needs no screen, so it is tested directly.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from ..core import runtime
+from ..errors import SandboxError
+from ..render.raster import Renderer
+from .history import UndoRing
+from .probe import particle_at, probe
+from .tools import Tools
+from .window_panel import PANEL_WIDTH, draw_panel
+from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder
+from .window_state import apply_requests, make_state, quick_save_path, view_config
+
+__all__ = ["FRAME_PARTS", "WindowRun", "WindowUnavailable", "open_scene", "run_window", "window_unavailable_reason"]
+
+
+class WindowUnavailable(SandboxError):
+    """No window can be opened here (no display, no Vulkan driver): the CLI runs headless instead."""
+
+
+def window_unavailable_reason() -> str | None:
+    """Why no window can be opened here (no display), or None when one may be tried."""
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return "no display"
+    return None
+
+
+def window_output(canvas) -> str:
+    """The renderer output a window shows: GGUI's packed RGBA on the CPU backend, where this Taichi's canvas takes
+    it as it is (its set_image would convert a float image over every pixel each frame), else the float image."""
+    try:
+        from taichi.ui.utils import get_field_info  # noqa: F401  (what Renderer.show_on calls)
+    except ImportError:
+        return "image"
+    return "rgba" if runtime.running_arch() == "cpu" and hasattr(canvas, "canvas") else "image"
+
+
+def run_window(
+    sim,
+    frames: int | None = None,
+    screenshot: str | None = None,
+    substeps: int | None = None,
+    show: bool = True,
+    record: str | None = None,
+    timings: dict[str, list[float]] | None = None,
+    steady: bool = True,
+) -> WindowRun:
+    """Show the simulation in a GGUI window until closed (or for `frames` frames); returns the frames shown and the
+    scene the user picked to switch to, if any (the caller opens it: open_scene, then run_window again). `record`:
+    write the frames to this video from the start (the v key starts and stops recordings to out/SCENE_N.mp4).
+    `timings`: append each frame's seconds by part (FRAME_PARTS, and "frame" for the whole loop) to these lists
+    (the benchmark; it waits for each part's kernels to finish). `steady`: pace the substeps to hold the frame rate
+    (FramePacer); False runs the wanted substeps every frame whatever they cost.
+
+    Raises SandboxError with one line when no window can be opened (e.g. no Vulkan driver).
+    """
+    cfg = sim.scene.render
+    try:
+        window = ti.ui.Window(f"sandbox: {sim.scene.name}", (cfg.width, cfg.height), vsync=True, show_window=show)
+    except Exception as exc:  # GGUI raises RuntimeError without Vulkan; keep the message to one line
+        first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise WindowUnavailable(f"cannot open a window: {first_line}") from None
+    canvas = window.get_canvas()
+    output = window_output(canvas)
+    state = make_state(sim, substeps)
+    view = view_config(cfg, state)  # the renderer's configuration; the window's toggles rebuild it when they differ
+    size = picture_size(sim, cfg.width, cfg.height)  # what the renderer draws; GGUI stretches it to the window
+    renderer = Renderer(sim, *size, view, output, panel=PANEL_WIDTH)
+    gui = window.get_gui()
+    tools = Tools(sim)
+    state.recording = record is not None
+    recorder = Recorder(sim.scene.name, *size, cfg.fps, record)
+    chart_series = tuple(cfg.chart)
+    potential_shown = (False, 1.0, 1.0)
+    orbit = OrbitCamera(renderer.eye_np, renderer.target_np) if sim.dim == 3 else None
+    last_cursor = None
+    base_dt = sim.dt
+    gravity = np.asarray(sim.scene.world.gravity, dtype=float)
+    g_norm = float(np.linalg.norm(gravity))
+    if sim.reorder is not None:  # sort the storage now: the sort's kernel loads before the first frame, not as a
+        sim.reorder.apply()  # pause of a tenth of a second or more at its first use mid-interaction
+    history, stroking = UndoRing(), False
+    save_path = quick_save_path(sim)
+    shown, fps, last = 0, 0.0, time.perf_counter()
+    clock = FrameClock(timings)
+    pacer = FramePacer()
+    while window.running:
+        clock.start()
+        frame_start = time.perf_counter()
+        if show:  # a hidden window (show_window=False, for tests) has no events or cursor
+            for event in window.get_events(ti.ui.PRESS):
+                state.handle_key(event.key)
+        if state.quit:
+            break
+        if state.reset:
+            sim.reset()
+            state.reset = False
+        apply_requests(sim, state, history, save_path)
+        if state.integrator != sim.integrator.name:
+            sim.set_integrator(state.integrator)
+        if sim.dim == 2 and g_norm > 0 and state.gravity_angle:  # the panel's slider turns gravity
+            a = np.radians(state.gravity_angle)
+            sim.gravity[None] = g_norm * np.array([np.sin(a), -np.cos(a)]) * state.gravity_on
+        else:
+            sim.gravity[None] = gravity if state.gravity_on else 0 * gravity
+        if view_config(cfg, state) != view:  # a view toggle: a renderer built for it (its kernels are specialised)
+            view = view_config(cfg, state)
+            renderer.detach()
+            renderer = Renderer(sim, *size, view, output, panel=PANEL_WIDTH)
+            if orbit is not None:
+                renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
+            chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below
+            potential_shown = (False, 1.0, 1.0)  # ... and the pair-force panel
+            state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
+        if sim.scene.world.substeps != "auto":
+            sim.dt = base_dt * state.dt_scale
+        if sim.pair is not None:
+            shown_law = (state.potential, state.attraction, state.repulsion)
+            if shown_law != potential_shown:
+                sim.pair.set_scale(state.attraction, state.repulsion)
+                r, force = sim.pair.curve()
+                renderer.set_potential(force if state.potential else None, (float(r[0]), float(r[-1])))
+                potential_shown = shown_law
+        wanted = ENERGY_SERIES if state.energy_plot else tuple(cfg.chart)
+        if wanted != chart_series:
+            renderer.set_chart(wanted)
+            chart_series = wanted
+        u, v = window.get_cursor_pos() if show else (0.5, 0.5)
+        stroke = show and bool(state.tool) and window.is_pressed(ti.ui.LMB)
+        stroke = stroke and (sim.dim == 2 or window.is_pressed(ti.ui.SHIFT))
+        if stroke and not stroking:  # a tool stroke starts: keep the state before it for undo
+            history.push(sim)
+        stroking = stroke
+        if orbit is not None and show:  # left drag orbits, right drag zooms, middle drag pans
+            buttons = [window.is_pressed(b) for b in (ti.ui.LMB, ti.ui.RMB, ti.ui.MMB)]
+            if buttons[0] and window.is_pressed(ti.ui.SHIFT):  # shift: the tool, not the camera
+                buttons[0] = False
+                centre = renderer.pick(u, v)
+                if state.tool and centre is not None:
+                    tools.apply(
+                        state.tool, centre, state.radius, sim.dt * state.substeps, material=state.material or None
+                    )
+            if last_cursor is not None and any(buttons):
+                du, dv = u - last_cursor[0], v - last_cursor[1]
+                if buttons[0]:
+                    orbit.orbit(du, dv)
+                elif buttons[1]:
+                    orbit.zoom(dv)
+                else:
+                    orbit.pan(du, dv)
+                renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
+            last_cursor = (u, v)
+        if show and state.tool and window.is_pressed(ti.ui.LMB) and sim.dim == 2:
+            pos = renderer.world_point(u, v)
+            tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps, material=state.material or None)
+        clock.lap("events")
+        renderer.begin_frame()
+        state.frame_substeps = pacer.choose(state.substeps) if steady else state.substeps
+        if timings is not None:  # what the pacing chose, for `sandbox bench --window`
+            timings.setdefault("substeps", []).append(state.frame_substeps)
+            timings.setdefault("wanted_substeps", []).append(state.substeps)
+        sim_start = time.perf_counter()
+        if not state.paused:
+            sim.advance_frame(state.frame_substeps, renderer.mid_frame)
+        elif state.single_step:
+            sim.step(1)
+        state.single_step = False
+        ti.sync()
+        sim_end = time.perf_counter()
+        clock.lap("simulation")
+        # the guard (a non-finite state stops with a named error instead of drawing garbage) and the readouts; the
+        # pair energy's neighbour scan only every 10th frame unless the energy plot is on
+        stats = sim.stats(pair_energy=state.energy_plot or shown % 10 == 0)
+        renderer.record(stats)
+        if sim.springs is not None and shown % STABLE_DT_EVERY == 0:  # it copies every spring to the host
+            state.stable_dt = sim.stable_dt()
+        state.probe = probe_under(sim, renderer, u, v) if show else ""
+        clock.lap("readouts")
+        if state.tool and sim.dim == 2:  # the brush, outlined at the cursor
+            renderer.set_brush((u * cfg.width, v * cfg.height), state.radius * renderer.px_per_unit)
+        else:
+            renderer.set_brush(None)
+        renderer.render()
+        clock.lap("drawing")
+        renderer.show_on(canvas)
+        message = recorder.update(state.recording, renderer)
+        if message:
+            state.log.append(message)
+        now = time.perf_counter()
+        fps = 0.9 * fps + 0.1 / max(now - last, 1e-6)
+        last = now
+        state.pace = 0.0 if state.paused else fps * state.frame_substeps * sim.dt  # simulated s per wall s
+        draw_panel(gui, sim, state, stats, fps)
+        if not state.paused:
+            rest = (sim_start - frame_start) + (time.perf_counter() - sim_end)  # the frame's work besides stepping
+            pacer.record(state.frame_substeps, sim_end - sim_start, rest)
+        shown += 1
+        done = frames is not None and shown >= frames
+        if state.screenshot or (done and screenshot):
+            window.save_image(screenshot if (done and screenshot) else f"screenshot_{shown:05d}.png")
+            state.screenshot = False
+        if show:  # a hidden window renders on save_image; show() is for real windows only
+            window.show()
+        clock.lap("display")
+        clock.stop()
+        if done:
+            break
+    message = recorder.update(False, renderer)
+    if message:
+        print(message)
+    window.destroy()
+    return WindowRun(shown, state.switch_to or None)
+
+
+WINDOW_3D_SCALE = 0.5  # the window draws 3D scenes at this fraction of its size: shading every pixel of 1280 x 720
+
+
+def picture_size(sim, width: int, height: int) -> tuple[int, int]:
+    """The size the window's renderer draws at for a `width` x `height` window: the full size in 2D; in 3D
+    WINDOW_3D_SCALE of it (spheres are shaded per pixel; at full size the 3D block drew 12-18 fps on two cores)."""
+    if sim.dim == 3:
+        return max(64, int(width * WINDOW_3D_SCALE)), max(36, int(height * WINDOW_3D_SCALE))
+    return width, height
+
+
+@dataclass(frozen=True)
+class WindowRun:
+    """How a window ended: the frames it showed, and the shipped scene picked in its panel to open next (or None)."""
+
+    frames: int
+    next_scene: str | None = None
+
+
+def open_scene(name: str, arch: str = "cpu"):
+    """A fresh Simulation of the shipped scene `name` for the window's scene picker: Taichi is restarted first, so
+    the last scene's fields and compiled kernels are freed (a runtime holds at most ~512 field trees, so switching
+    without it would run out), and started again at the new scene's precision."""
+    from ..config.resources import shipped_scene
+    from ..config.scene import load_scene
+    from ..simulation import Simulation
+
+    path = shipped_scene(name)
+    if path is None:
+        raise SandboxError(f"no shipped scene {name!r}")
+    scene = load_scene(path)
+    runtime.reset()
+    runtime.require(arch, scene.world.precision)
+    return Simulation(scene, arch=arch)
+
+
+ENERGY_SERIES = ("kinetic_energy", "potential_energy", "total_energy")
+STABLE_DT_EVERY = 30  # frames between refreshes of the panel's stable-step readout
+
+
+def probe_under(sim, renderer, u: float, v: float) -> str:
+    """The probe's line for the particle under the window point (u, v), or "" where there is none."""
+    i = particle_at(sim, renderer.world_point(u, v)) if sim.dim == 2 else renderer.pick_index(u, v)
+    return "" if i is None else probe(sim, i).text()

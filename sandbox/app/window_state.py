@@ -1,0 +1,271 @@
+"""What the window's keys and panel control, without a screen: WindowState (handle_key is the single place keys
+change it, so it is tested directly), the tools a scene offers, and the text of readouts, tool buttons and lessons."""
+
+from __future__ import annotations
+
+import functools
+import math
+import textwrap
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..integrators import REGISTRY
+from .tools import TOOLS
+
+TOOL_KEYS = {str(k + 1): name for k, name in enumerate(TOOLS)}
+HELP = [
+    "space  pause / resume",
+    "s      single step (paused)",
+    "r      reset to the start",
+    "1-8    tool: " + ", ".join(f"{k} {v}" for k, v in TOOL_KEYS.items()),
+    "[ ]    brush radius",
+    "+ -    substeps per frame",
+    "g      gravity on / off",
+    "i      next integrator",
+    "z      undo the last tool stroke (Ctrl+Z too)",
+    "w      save the state (out/SCENE.state.npz)",
+    "o      load the saved state back",
+    "n      the scene picker (switch scene) on / off",
+    "p      screenshot",
+    "m      next material for the spawn tool",
+    "v      start / stop recording an MP4 (out/SCENE_N.mp4)",
+    "e      live energy plot on / off",
+    "f      pair-force panel on / off (with attraction and repulsion sliders)",
+    "c      next colour map (temperature, phase, speed, material)",
+    "b      motion blur on / off",
+    "k      springs drawn on / off (2D)",
+    "l      the scene's lesson on / off",
+    "h, F1  this help",
+    "q, Esc quit",
+    "left mouse: apply the tool at the cursor (2D)",
+    "3D: left drag orbit, right drag zoom, middle drag pan",
+]
+
+
+@dataclass
+class WindowState:
+    """What the window's keys control; handle_key is the single place keys change it."""
+
+    tools_available: list[str]
+    integrators: list[str]
+    integrator: str
+    substeps: int
+    tool: str = ""
+    radius: float = 3.0
+    paused: bool = False
+    single_step: bool = False
+    reset: bool = False
+    quit: bool = False
+    show_help: bool = False
+    gravity_on: bool = True
+    screenshot: bool = False
+    materials: list[str] = field(default_factory=list)  # what the spawn tool can make
+    material: str = ""
+    recording: bool = False  # v: writing the window's frames to an MP4
+    energy_plot: bool = False  # e: a live plot of kinetic, potential and total energy
+    gravity_angle: float = 0.0  # degrees from straight down (2D), set by the panel's slider
+    potential: bool = False  # f: show the pair-force law against distance, with attraction/repulsion sliders
+    attraction: float = 1.0  # scale of every pair's alpha (the panel's slider)
+    repulsion: float = 1.0  # scale of every pair's beta
+    dt_scale: float = 1.0  # the time step as a multiple of the scene's (the panel's slider)
+    stable_dt: float = float("inf")  # the springs' stable step, refreshed every STABLE_DT_EVERY frames
+    color_modes: list[str] = field(default_factory=list)  # c cycles the colour map through these
+    color_by: str = ""
+    motion_blur: bool = False  # b
+    draw_springs: bool = False  # k
+    show_lesson: bool = True  # l: the scene's lesson at the top of the panel
+    undo: bool = False  # z: put back the state before the last tool stroke
+    save: bool = False  # w: write the state to the quick-save file
+    load: bool = False  # o: read it back
+    probe: str = ""  # what the particle under the cursor is (the panel shows it)
+    frame_substeps: int = 0  # what this frame ran: substeps, or fewer when pacing holds the frame rate
+    switch_to: str = ""  # a shipped scene picked in the panel: the window closes and opens it
+    picking: bool = False  # the panel lists the shipped scenes to switch to
+    pace: float = 0.0  # simulated seconds per wall second
+    log: list[str] = field(default_factory=list)
+
+    def __post_init__(self):
+        if not self.tool and self.tools_available:
+            self.tool = self.tools_available[0]
+        if not self.material and self.materials:
+            self.material = self.materials[0]
+
+    def handle_key(self, key: str) -> None:
+        """Apply one key press (GGUI key names: single characters, 'Escape', ' ', 'F1')."""
+        if key in ("q", "Escape"):
+            self.quit = True
+        elif key == " ":
+            self.paused = not self.paused
+        elif key == "s":
+            self.single_step = True
+        elif key == "r":
+            self.reset = True
+        elif key in TOOL_KEYS:
+            if TOOL_KEYS[key] in self.tools_available:
+                self.tool = TOOL_KEYS[key]
+            else:
+                self.log.append(f"{TOOL_KEYS[key]} is not available in this scene")
+        elif key == "[":
+            self.radius = max(0.5, self.radius / 1.25)
+        elif key == "]":
+            self.radius = min(100.0, self.radius * 1.25)
+        elif key in ("+", "="):
+            self.substeps = min(1000, self.substeps + 1)
+        elif key == "-":
+            self.substeps = max(1, self.substeps - 1)
+        elif key == "g":
+            self.gravity_on = not self.gravity_on
+        elif key == "i":
+            k = self.integrators.index(self.integrator)
+            self.integrator = self.integrators[(k + 1) % len(self.integrators)]
+        elif key in ("h", "F1"):
+            self.show_help = not self.show_help
+        elif key == "p":
+            self.screenshot = True
+        elif key == "v":
+            self.recording = not self.recording
+        elif key == "e":
+            self.energy_plot = not self.energy_plot
+        elif key == "f":
+            self.potential = not self.potential
+        elif key == "c" and self.color_modes:
+            self.color_by = self.color_modes[(self.color_modes.index(self.color_by) + 1) % len(self.color_modes)]
+        elif key == "b":
+            self.motion_blur = not self.motion_blur
+        elif key == "k":
+            self.draw_springs = not self.draw_springs
+        elif key == "l":
+            self.show_lesson = not self.show_lesson
+        elif key == "z":
+            self.undo = True
+        elif key == "w":
+            self.save = True
+        elif key == "o":
+            self.load = True
+        elif key == "n":
+            self.picking = not self.picking
+        elif key == "m" and self.materials:
+            self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
+
+
+def tools_for(sim) -> list[str]:
+    """The tools that make sense in this scene: no heat tools without heat (in 3D they act with shift held, at the
+    depth of the particle under the cursor)."""
+    return [t for t in TOOLS if sim.heat is not None or t not in ("heat", "cool")]
+
+
+def make_state(sim, substeps: int | None) -> WindowState:
+    world = sim.scene.world
+    fixed = substeps or (world.substeps if world.substeps != "auto" else 8)
+    cfg = sim.scene.render
+    modes = ["temperature", "phase"] if sim.heat is not None else []
+    modes += ["speed", "material"]
+    tools = tools_for(sim)
+    empty = sim.built.count == 0 and not sim.scene.emitters  # nothing to heat or push: start by spawning
+    return WindowState(
+        tools,
+        list(REGISTRY),
+        sim.integrator.name,
+        int(fixed),
+        materials=sim.material_names,
+        color_modes=modes,
+        color_by=cfg.color_by if cfg.color_by in modes else modes[0],
+        motion_blur=cfg.motion_blur,
+        draw_springs=cfg.draw_springs,
+        tool="spawn" if empty and "spawn" in tools else "",
+    )
+
+
+def reading(value: float, unit: str = "", digits: int = 1) -> str:
+    """A readout: the value with its unit, or "-" where there is nothing to measure (the mean temperature of no
+    particles). ASCII: the window's font has no en dash."""
+    return f"{value:.{digits}f}{' ' + unit if unit else ''}" if math.isfinite(value) else "-"
+
+
+def view_config(cfg, state: WindowState):
+    """The scene's [render] table with the window's view toggles applied (colour map, motion blur, springs); the
+    window always shows the colour bar."""
+    import dataclasses
+
+    return dataclasses.replace(
+        cfg, color_by=state.color_by, motion_blur=state.motion_blur, draw_springs=state.draw_springs, legend=True
+    )
+
+
+def tool_label(name: str, selected: str) -> str:
+    """A tool button's label: its key and name, marked when it is the selected tool."""
+    key = TOOLS.index(name) + 1
+    return f"> {key} {name} <" if name == selected else f"  {key} {name}  "
+
+
+LESSON_WIDTH = 46  # characters per line of the lesson in the panel of a 1280-pixel window
+CHARACTER_PX = 7.5  # the width of one of GGUI's panel characters, pixels (its font is 13 px high)
+
+
+@functools.cache  # the panel asks every frame; a lesson (frozen) wraps the same way each time
+def lesson_text(lesson, width: int = LESSON_WIDTH) -> tuple[str, ...]:
+    """The scene's lesson as the panel's lines: each part labelled and wrapped to `width` characters."""
+    lines = []
+    for label, text in lesson.parts():
+        lines += textwrap.wrap(f"{label}: {text}", width)
+    return tuple(lines)
+
+
+def energy_unit(sim) -> str:
+    """The unit the scene's energies come in: epsilon for reduced Lennard-Jones scenes (every material "lj"), else
+    picojoules (a spacing is 1 mm, a particle of density 1 weighs 1 mg, time is in seconds: mg mm^2/s^2 = pJ)."""
+    return "eps" if set(sim.material_names) == {"lj"} else "pJ"
+
+
+def pace_text(state: WindowState) -> str:
+    """The panel's line on substeps and pace (simulated seconds per wall second): "substeps 20, 1.2 sim s/s", and
+    when pacing holds the frame rate with fewer substeps than wanted, "slow motion: 8 of 20 substeps, 0.41 sim s/s"."""
+    pace = f"{state.pace:.3g} sim s/s"
+    if state.frame_substeps and state.frame_substeps < state.substeps:
+        return f"slow motion: {state.frame_substeps} of {state.substeps} substeps, {pace}"
+    return f"substeps {state.substeps}, {pace}"
+
+
+def quick_save_path(sim) -> Path:
+    """Where the window's save key writes the state, and its load key reads it: out/SCENE.state.npz."""
+    return Path("out") / f"{sim.scene.name}.state.npz"
+
+
+def apply_requests(sim, state: WindowState, history, path: Path) -> None:
+    """Carry out the undo, save and load keys pressed this frame on `sim` (history: an UndoRing; path: the
+    quick-save file), each leaving a line in the panel's log."""
+    from ..errors import SandboxError
+    from ..files.persist import load_into, save_state
+
+    if state.undo:
+        state.undo = False
+        state.log.append("undone" if history.undo(sim) else "nothing to undo")
+    if state.save:
+        state.save = False
+        try:
+            state.log.append(f"saved {save_state(sim, path)}")
+        except OSError as exc:
+            state.log.append(f"cannot save {path}: {exc.strerror or exc}")
+    if state.load:
+        state.load = False
+        if not path.exists():
+            state.log.append(f"no saved state yet ({path}): press w first")
+        else:
+            try:
+                load_into(sim, path)
+                state.integrator = sim.integrator.name
+                state.log.append(f"loaded {path} (t = {sim.time:.2f} s)")
+            except SandboxError as exc:
+                state.log.append(str(exc))
+
+
+def panel_characters(window_width: int, panel: float) -> int:
+    """Characters a line of the panel holds in a window `window_width` pixels wide whose panel is `panel` of it
+    (LESSON_WIDTH at 1280 pixels and the window's panel; at least 20)."""
+    return max(20, min(LESSON_WIDTH, int(panel * window_width / CHARACTER_PX) - 1))
+
+
+def pick_scene(state: WindowState, name: str) -> None:
+    """The panel's scene picker chose `name`: close this window and open that scene (run_window returns it)."""
+    state.switch_to = name
+    state.quit = True

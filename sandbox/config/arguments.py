@@ -1,0 +1,129 @@
+"""Checks of command-line values and output paths, made before anything is built or written.
+
+Each problem is a SandboxError with one line naming the option, the value and what was expected; the CLI prints it
+and exits 2.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+
+from ..errors import SandboxError
+
+MAX_FRAMES = 1_000_000
+MAX_SUBSTEPS = 100_000
+MAX_SIDE = 8192  # pixels: an 8K picture
+MAX_FPS = 1000.0
+VIDEO_SUFFIXES = (".mp4", ".gif")
+FRAME_SUFFIXES = (*VIDEO_SUFFIXES, ".png", "")
+
+
+def check_count(option: str, value: int | None, lo: int, hi: int) -> None:
+    """An integer option (None: not given) must lie in lo..hi."""
+    if value is not None and not lo <= value <= hi:
+        raise SandboxError(f"{option} {value}: expected an integer from {lo:,} to {hi:,}")
+
+
+def check_rate(option: str, value: float | None, hi: float) -> None:
+    """A rate option (None: not given) must be finite, above zero and at most hi."""
+    if value is not None and not (math.isfinite(value) and 0 < value <= hi):
+        raise SandboxError(f"{option} {value}: expected a number above 0 and at most {hi:g}")
+
+
+def check_picture(width: int, height: int, out: str | None) -> None:
+    """The picture size of a run: each side in 16..MAX_SIDE pixels, and even for MP4 and GIF (yuv420p video)."""
+    for option, side in (("--width", width), ("--height", height)):
+        check_count(option, side, 16, MAX_SIDE)
+    if out is not None and Path(out).suffix.lower() in VIDEO_SUFFIXES and (width % 2 or height % 2):
+        raise SandboxError(f"--width/--height {width}x{height}: expected even numbers for {Path(out).suffix} video")
+
+
+def _probe_folder(option: str, path: Path, folder: Path) -> None:
+    """Create `folder` (and its parents) if needed and prove a file can be written in it."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".sandbox-probe-"):
+            pass
+    except FileExistsError:
+        problem = f"'{folder}' exists and is not a folder"
+    except OSError as exc:
+        problem = f"cannot write in '{folder}' ({exc.strerror or type(exc).__name__})"
+    else:
+        return
+    raise SandboxError(f"{option} {path}: {problem}; expected a writable folder")
+
+
+def check_file_output(option: str, path: str | Path, suffixes: tuple[str, ...] | None = None) -> Path:
+    """An output file: a known suffix (when `suffixes` is given), not an existing folder, in a writable folder
+    (created if missing). Returns the path."""
+    path = Path(path)
+    if suffixes is not None and path.suffix.lower() not in suffixes:
+        raise SandboxError(f"{option} {path}: expected a file ending in {' or '.join(suffixes)}")
+    if path.is_dir():
+        raise SandboxError(f"{option} {path}: is a folder; expected a file name")
+    _probe_folder(option, path, path.parent if str(path.parent) else Path("."))
+    return path
+
+
+def check_frames_output(option: str, path: str | Path) -> Path:
+    """The run's --out: a .mp4/.gif/.png file or a folder for numbered PNG frames (created if missing)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in FRAME_SUFFIXES:
+        raise SandboxError(f"{option} {path}: unknown output kind {suffix!r}; expected .mp4, .gif, .png or a folder")
+    if suffix:
+        return check_file_output(option, path)
+    return check_folder_output(option, path, "a folder for PNG frames (or a .mp4, .gif or .png)")
+
+
+def check_folder_output(option: str, path: str | Path, what: str = "a folder") -> Path:
+    """An output folder: not an existing file, writable (created if missing). Returns the path."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise SandboxError(f"{option} {path}: is a file; expected {what}")
+    _probe_folder(option, path, path)
+    return path
+
+
+def distinct_outputs(paths: dict[str, str | None]) -> None:
+    """No two options may write the same file."""
+    seen: dict[str, str] = {}
+    for option, path in paths.items():
+        if path is None:
+            continue
+        key = os.path.abspath(path)
+        if key in seen:
+            raise SandboxError(f"{option} {path}: the same file as {seen[key]}; expected different outputs")
+        seen[key] = option
+
+
+def check_pool_arguments(args) -> None:
+    """--scheduler, --workers and --threads of sweep and study."""
+    check_count("--workers", args.workers, 1, 1024)
+    check_count("--threads", args.threads, 1, 1024)
+    if args.scheduler not in ("auto", "local", "serial") and "://" not in args.scheduler:
+        raise SandboxError(f"--scheduler {args.scheduler}: expected auto, local, serial or an address tcp://HOST:PORT")
+
+
+def pool_arguments(parser, job: str) -> None:
+    """Add --scheduler, --workers and --threads to `parser`; `job` names what one task is ("run", "task")."""
+    parser.add_argument(
+        "--scheduler",
+        default="auto",
+        help="auto (a local Dask cluster with the sweep extra, else serial), local, serial, or tcp://HOST:8786",
+    )
+    parser.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
+    parser.add_argument("--threads", type=int, help=f"Taichi CPU threads per {job} (default: the cores / workers)")
+
+
+def check_names(option: str, text: str | None, known: tuple) -> tuple:
+    if text is None:
+        return known
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in known]
+    if unknown or not names:
+        raise SandboxError(f"{option} {text}: expected a comma-separated list of {', '.join(known)}")
+    return names

@@ -1,0 +1,220 @@
+"""A small typed validator: TOML tables → frozen dataclasses; errors name the file, the key and the expectation.
+
+A dataclass field declares its type by annotation (float, int, str, bool, tuple[float, ...] for a vector,
+list[SomeDataclass], SomeDataclass | None) and its constraint and one-line meaning through `spec(...)`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import SceneError
+from ..guard import ABSOLUTE_ZERO
+
+Check = Callable[[Any], "str | None"]
+
+
+def spec(
+    default: Any = dataclasses.MISSING, *, doc: str, check: Check | None = None, factory: Any = None, infinite=False
+):
+    """Declare a scene field: its default (omit for a required key), its one-line meaning, an optional check, and
+    whether a number may be infinite (`inf` in TOML: never, for ever); every other number must be finite."""
+    meta = {"doc": doc, "check": check, "infinite": infinite}
+    if factory is not None:
+        return dataclasses.field(default_factory=factory, metadata=meta)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def positive(x: float) -> str | None:
+    return None if x > 0 else f"expected a number > 0, got {x}"
+
+
+def non_negative(x: float) -> str | None:
+    return None if x >= 0 else f"expected a number >= 0, got {x}"
+
+
+def unit_interval(x: float) -> str | None:
+    return None if 0 <= x <= 1 else f"expected a number in [0, 1], got {x}"
+
+
+def celsius(x: float) -> str | None:
+    return None if x >= ABSOLUTE_ZERO else f"expected a temperature >= {ABSOLUTE_ZERO} (absolute zero), got {x}"
+
+
+def one_of(*choices: str) -> Check:
+    def check(x: str) -> str | None:
+        return None if x in choices else f"expected one of {', '.join(repr(c) for c in choices)}, got {x!r}"
+
+    return check
+
+
+def between(lo: float, hi: float) -> Check:
+    def check(x: float) -> str | None:
+        return None if lo <= x <= hi else f"expected a number from {lo:,} to {hi:,}, got {x}"
+
+    return check
+
+
+def at_least(lo: float) -> Check:
+    def check(x: float) -> str | None:
+        return None if x >= lo else f"expected a number >= {lo}, got {x}"
+
+    return check
+
+
+def _type_name(hint: Any) -> str:
+    if hint is float:
+        return "a number"
+    if hint is int:
+        return "an integer"
+    if hint is str:
+        return "a string"
+    if hint is bool:
+        return "true or false"
+    origin = typing.get_origin(hint)
+    if origin is tuple:
+        return "an array of numbers"
+    if origin is list:
+        return "an array of strings" if typing.get_args(hint) == (str,) else "an array of tables"
+    return "a table"
+
+
+def _convert(hint: Any, raw: Any, file: str, key: str) -> Any:
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if raw is None:
+            return None
+        for arg in args:
+            if _accepts(arg, raw):
+                return _convert(arg, raw, file, key)
+        raise SceneError(file, key, f"expected {' or '.join(_type_name(a) for a in args)}, got {raw!r}")
+    if hint is float:
+        if isinstance(raw, bool) or not isinstance(raw, int | float):
+            raise SceneError(file, key, f"expected a number, got {raw!r}")
+        if math.isnan(raw):
+            raise SceneError(file, key, "expected a number, got nan")
+        return float(raw)
+    if hint is int:
+        if isinstance(raw, bool) or not isinstance(raw, int):
+            raise SceneError(file, key, f"expected an integer, got {raw!r}")
+        return raw
+    if hint is str:
+        if not isinstance(raw, str):
+            raise SceneError(file, key, f"expected a string, got {raw!r}")
+        return raw
+    if hint is bool:
+        if not isinstance(raw, bool):
+            raise SceneError(file, key, f"expected true or false, got {raw!r}")
+        return raw
+    if origin is tuple:
+        if not isinstance(raw, list) or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in raw):
+            raise SceneError(file, key, f"expected an array of numbers, got {raw!r}")
+        if any(math.isnan(v) or math.isinf(v) for v in raw):
+            raise SceneError(file, key, f"expected finite numbers, got {raw!r}")
+        return tuple(float(v) for v in raw)
+    if origin is list and typing.get_args(hint) == (str,):
+        if not isinstance(raw, list) or not all(isinstance(v, str) for v in raw):
+            raise SceneError(file, key, f"expected an array of strings, got {raw!r}")
+        return list(raw)
+    if origin is list:
+        (item,) = typing.get_args(hint)
+        if not isinstance(raw, list):
+            raise SceneError(file, key, f"expected an array of tables ([[{key}]]), got {raw!r}")
+        return [parse_table(item, v, file, f"{key}[{i}]") for i, v in enumerate(raw)]
+    if dataclasses.is_dataclass(hint):
+        return parse_table(hint, raw, file, key)
+    if hint is dict:
+        if not isinstance(raw, dict):
+            raise SceneError(file, key, f"expected a table, got {raw!r}")
+        return raw
+    raise TypeError(f"schema: unsupported annotation {hint!r}")
+
+
+def _accepts(hint: Any, raw: Any) -> bool:
+    if hint is float:
+        return isinstance(raw, int | float) and not isinstance(raw, bool)
+    if hint is int:
+        return isinstance(raw, int) and not isinstance(raw, bool)
+    if hint is str:
+        return isinstance(raw, str)
+    if hint is bool:
+        return isinstance(raw, bool)
+    if typing.get_origin(hint) in (tuple, list):
+        return isinstance(raw, list)
+    return isinstance(raw, dict)
+
+
+def parse_table(cls: type, data: Any, file: str, key: str = "") -> Any:
+    """Validate `data` (a TOML table) into an instance of the dataclass `cls`; raise SceneError on the first problem."""
+    if not isinstance(data, dict):
+        raise SceneError(file, key, f"expected a table, got {data!r}")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    for name in data:
+        if name not in fields:
+            allowed = ", ".join(sorted(fields))
+            raise SceneError(file, _join(key, name), f"unknown key; expected one of: {allowed}")
+    values = {}
+    for name, f in fields.items():
+        sub = _join(key, name)
+        if name in data:
+            value = _convert(hints[name], data[name], file, sub)
+            if isinstance(value, float) and math.isinf(value) and not f.metadata.get("infinite"):
+                raise SceneError(file, sub, f"expected a finite number, got {value}")
+            check = f.metadata.get("check")
+            if check is not None and value is not None:
+                problem = check(value)
+                if problem:
+                    raise SceneError(file, sub, problem)
+            values[name] = value
+        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+            raise SceneError(file, sub, f"missing; expected {_type_name(hints[name])}: {f.metadata.get('doc', '')}")
+    return cls(**values)
+
+
+def _join(key: str, name: str) -> str:
+    return f"{key}.{name}" if key else name
+
+
+def toml_value(value: Any) -> str:
+    """`value` as it is written in a scene file (TOML): true, 2.5, "text", [1.0, 2.0], inf; unset (None) as ''."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, float) and math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
+def describe(cls: type, prefix: str = "") -> list[tuple[str, str, str]]:
+    """(key, default, meaning) for every field of `cls`, recursively: the reference table of scene keys."""
+    rows = []
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        if not f.init:
+            continue
+        key = _join(prefix, f.name)
+        hint = hints[f.name]
+        inner = [a for a in typing.get_args(hint) if dataclasses.is_dataclass(a)]
+        if dataclasses.is_dataclass(hint) or inner:
+            rows.extend(describe(inner[0] if inner else hint, key))
+            continue
+        if f.default is not dataclasses.MISSING:
+            default = toml_value(f.default)
+        elif f.default_factory is not dataclasses.MISSING:
+            default = toml_value(f.default_factory())
+        else:
+            default = ""  # required
+        rows.append((key, default, f.metadata.get("doc", "")))
+    return rows
