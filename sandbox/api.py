@@ -19,8 +19,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from .config.scene import scene_from_dict
 from .core import runtime
 from .errors import SandboxError
+from .files.persist import load_into, read_meta
 from .simulation import Simulation
 
 _alive: weakref.WeakSet = weakref.WeakSet()  # simulations made here, on the running runtime
@@ -109,10 +111,17 @@ def load(
 def resume(path: str | Path, arch: str | None = None) -> Simulation:
     """The simulation saved in `path` (sim.save, or the CLI's --checkpoint-every), ready to continue bit for bit.
     SandboxError when the file is not a state file, is damaged, or comes from another version of the sandbox."""
-    from .files.persist import load_state, read_meta
-
     meta = read_meta(path)
     _check_switch(arch or meta["arch"], meta["precision"])
-    sim = load_state(path, arch, meta)
+    sim = resumed(path, arch, meta)
     _alive.add(sim)
+    return sim
+
+
+def resumed(path: str | Path, arch: str | None, meta: dict, scene=None) -> Simulation:
+    """Build the simulation a state file describes (`meta`: its read_meta(); `scene`: the scene built from it, where
+    the caller has it already) and put its saved state back. `arch`: the backend (default: the one it was saved on)."""
+    scene = scene or scene_from_dict(meta["scene"], Path(meta["scene_path"]))
+    sim = Simulation(scene, arch=arch or meta["arch"])
+    load_into(sim, path, meta)
     return sim

@@ -1,235 +1,85 @@
-"""The Simulation: builds only the passes a scene needs, steps them, measures them and guards against blow-ups.
+"""The Simulation: a facade over a scene's model, state, terms, rates, stepping plan, integrator and measurements.
 
-The facade over its rooms: the passes (physics/), the rates of a step over them (step/rates.py), the three ways of
-running steps (step/long_way.py, step/fused.py, step/team.py, chosen by step/plan.py), the measurements
-(diagnostics.py), the stability bounds (stability.py), state access (state.py) and its self-description
-(description.py). Per step, the integrator calls eval_rates() (neighbour grid rebuild -> spring update -> one fused
-kernel for pair force, heat flow, springs and the body forces) and then its own update kernel, which ends with
-finish_particle() (walls and the heat update) for each particle.
+    assembly.py           scene -> Model (what it fixes), State (what a step changes), terms, neighbourhood
+    step/rates.py         the terms' forces and heat rates; integrators/ step the State through them
+    step/plan.py          the host passes around each step and how steps are launched (long way, fused, team)
+    measure/              the terms' measurements (Stats) and the blow-up guard
+    files/persist.py      the State to and from a file; scripting.py: run, movie, picture, readouts
+
+Per step the plan runs the terms' host passes, then the integrator's stages: each evaluates the rates (per-stage
+passes, neighbour lists refreshed, one fused kernel for every pair, bond and particle term) and updates every
+particle, the last stage ending with each particle's end-of-step work (walls, the heat update).
 """
+
+from __future__ import annotations
 
 import math
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import taichi as ti
 
+from . import scripting
+from .assembly import assemble
 from .config.arguments import MAX_SUBSTEPS
-from .config.budget import emitter_population
-from .config.build import build_particles
-from .config.scene_tables import COUPLINGS, Scene
-from .core import runtime, taichi_compat, transfer
-from .core.loops import LoopPolicy
-from .core.model import MaterialTable, ParticleFields, material_column
-from .core.oriented import data_oriented
-from .description import Description
-from .diagnostics import STAT_COLUMNS, Measurements, Stats  # noqa: F401 - STAT_COLUMNS, Stats re-exported
+from .config.scene_tables import Scene
+from .core import runtime
 from .errors import SandboxError, SimulationError
-from .guard import BlowupGuard, scene_limits
+from .files.persist import save_state
 from .integrators import make_integrator
-from .physics.body_forces import build_body_forces
-from .physics.boundary import Domain
-from .physics.emitters import Emitters
-from .physics.fields import VelocityField
-from .physics.grid import CellGrid
-from .physics.heat import Heat, lattice_correction
-from .physics.heat_implicit import ImplicitHeat
-from .physics.neighbours import NeighbourList, no_lists
-from .physics.pair import PairForce
-from .physics.phase import Phase, Refreezer
-from .physics.reorder import CellOrder
-from .physics.smoke import SmokeGrid
+from .measure.diagnostics import Diagnostics
+from .measure.guard import BlowupGuard, blowup_message, scene_limits
+from .measure.stats import STAT_COLUMNS, Stats  # noqa: F401 - re-exported
+from .physics import TermList
 from .physics.springs import Springs
-from .scripting import Scripting
-from .stability import StabilityBounds
-from .state import StateAccess
-from .step.fused import FusedStepping
-from .step.long_way import LongWay
-from .step.plan import StepPlan, can_step_as_a_team
+from .step.plan import StepPlan
 from .step.rates import Rates
-from .step.team import Team
-
-CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
 
 
-@data_oriented
-class Simulation(Rates, LongWay, FusedStepping, Measurements, StabilityBounds, StateAccess, Description, Scripting):
-    """A running scene: fields, passes, integrator, clock."""
+class Simulation:
+    """A running scene: its model, state and terms, stepped by a plan, measured by its diagnostics."""
 
     def __init__(self, scene: Scene, arch: str = "cpu", half_lists: bool | None = None):
         """Build what `scene` names on Taichi backend `arch`. `half_lists`: apply each neighbour pair once to both
         particles from a half list (None: on the CPU backend, where it halves the pair work; a GPU gathers from
         full lists instead, which needs no write conflicts)."""
-        self.scene = scene
-        self.arch = runtime.init(arch, scene.world.precision)
+        built = assemble(scene, arch, half_lists)
+        self.model, self.state, self.hood = built.model, built.state, built.hood
+        self.terms = TermList(built.terms)
+        self.state.particles.table_of = self.particle_table
         self.runtime_generation = runtime.generation()
-        built = build_particles(scene)
-        self.built = built
-        world = scene.world
-        self.dim = scene.dim
-        self.dt = world.dt
-        # room to spawn particles: half as many again (at least 1,024), plus what the emitters keep alive at once,
-        # unless the scene sets world.capacity
-        self.capacity = world.capacity if world.capacity else built.count + max(1024, built.count // 2)
-        if not world.capacity:
-            self.capacity += sum(emitter_population(e) for e in scene.emitters)
-        self.capacity = max(self.capacity, built.count)
-        pair_only = not (scene.heat or built.spring_count)
-        threads = taichi_compat.cpu_threads() if self.arch == "cpu" else 1
-        self.loops = LoopPolicy(self.arch, self.capacity, pair_only, threads, can_step_as_a_team(scene))
-        self.material_names = scene.used_materials()
-        materials = [scene.materials[name] for name in self.material_names]
-        # The tables and particles built here are copied to their fields in one kernel at the block's end (a copy
-        # kernel each was a tenth of a second of compiling at start-up); nothing here reads them back.
-        with transfer.batched():
-            self.materials = MaterialTable(materials)
-            self.phase = Phase(self.materials) if scene.heat else None
-            heat = scene.heat
-            self.can_refreeze = bool(heat and heat.refreeze and any(m.melts for m in materials))
-            self.has_lifetimes = any(e.lifetime > 0 for e in scene.emitters)
-            self.particles = ParticleFields(
-                self.dim, self.capacity, heat=heat is not None, refreeze=self.can_refreeze, lifetimes=self.has_lifetimes
-            )
-            self.particles.load(built, self.materials.colors, materials)
-            self.particles.table_of = self.particle_table
-            self.smoke = (
-                SmokeGrid(self.dim, world.lo, world.hi, scene.smoke, world.gravity, self.arch == "cpu")
-                if scene.smoke
-                else None
-            )
-            self.fields = VelocityField(self.dim, scene.fields, self.smoke) if (scene.fields or scene.smoke) else None
-            groups = scene.groups
-            couplings = [g.field if self.fields is not None else "none" for g in groups]
-            self.has_kinematic = "kinematic" in couplings
-            self.has_field_drag = "drag" in couplings
-            # per group (every body, every emitter, then the spawn tool's particles):
-            self.g_coupling = ti.field(ti.i32, shape=len(groups) + 1)  # index into COUPLINGS
-            self.g_drag = ti.field(float, shape=len(groups) + 1)  # field = drag: relaxation rate (1/time)
-            transfer.upload(
-                [
-                    (self.g_coupling, np.array([COUPLINGS.index(c) for c in couplings], np.int32)),
-                    (self.g_drag, np.array([g.field_drag for g in groups], float)),
-                ]
-            )
-            self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
-            self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
-            transfer.upload([(self.gravity, np.asarray(world.gravity, float)), (self.drag, world.drag)])
-            if self.has_kinematic or self.has_field_drag:
-                self.v_field = ti.Vector.field(self.dim, float, shape=self.capacity)  # v(x, t) at coupled particles
-            if self.has_kinematic:
-                self.x_start = ti.Vector.field(self.dim, float, shape=self.capacity)  # kinematic: x at the step start
-                self.v_start = ti.Vector.field(self.dim, float, shape=self.capacity)
-            self.domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
-            p = self.particles
-            self.pair = (
-                PairForce(
-                    self.dim,
-                    materials,
-                    scene.pair.a,
-                    scene.pair.b,
-                    scene.pair.cutoff,
-                    scene.pair.core,
-                    p.mass,
-                    p.material,
-                    p.v,
-                    scene.pair.shift,
-                )
-                if scene.pair
-                else None
-            )
-            self.heat = None
-            if scene.heat:
-                density = material_column(materials, built.material, "density")
-                correction = lattice_correction(built.x, built.mass / density, scene.heat_radius)
-                self.heat = Heat(self.dim, scene.heat, scene.heat_radius, p, self.materials, self.phase, correction)
-            self.springs = None
-            if built.spring_count or self.can_refreeze:
-                bonds = (heat.refreeze_max_bonds or (8 if self.dim == 2 else 12)) if self.can_refreeze else 0
-                spare = self.capacity * bonds // 2  # room for every particle to refreeze with its full bond count
-                self.springs = Springs(
-                    built, self.capacity, p, self.materials, self.phase, self.domain.separation, spare, bonds
-                )
-        reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat_radius)
-        skin = world.skin if world.neighbor_list else 0.0
-        self.grid = (
-            CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, self.capacity, self.loops)
-            if reach > 0
-            else None
-        )
-        implicit_heat = bool(scene.heat) and scene.heat.stepper != "explicit"  # its solve reads full lists
-        if half_lists is None:
-            half_lists = self.arch == "cpu"
-        self.half_pairs = bool(half_lists) and world.neighbor_list and reach > 0 and not implicit_heat
-        self.neighbours = (
-            NeighbourList(
-                self.grid,
-                self.domain,
-                p.x,
-                p.n,
-                reach,
-                skin,
-                self.capacity,
-                half=self.half_pairs,
-                springs=self.springs if self.pair is not None else None,
-                loops=self.loops,
-            )
-            if self.grid is not None and world.neighbor_list
-            else None
-        )
-        self.no_lists = no_lists()  # what the step's kernels take for the lists when it does not use them
-        if self.half_pairs:
-            # Each worker thread takes a contiguous block of particles and writes what its pairs give to the other
-            # particle into its own buffer row (no atomics, no write conflicts); the per-particle pass sums the rows.
-            self.n_chunks = CHUNKS_PER_THREAD * max(1, taichi_compat.cpu_threads())
-            self.n_pair_rows = 1 if self.loops.serial_pairs else self.n_chunks  # rows the pair pass writes
-            self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_pair_rows, self.capacity))
-            if scene.heat:
-                self.pair_q = ti.field(float, shape=(self.n_pair_rows, self.capacity))
-        every = world.reorder if world.reorder != "auto" else (20 if built.count >= 5000 else 0)
-        self.reorder = CellOrder(self, every) if every and self.neighbours is not None else None
-        self.refreezer = Refreezer(self, scene.refreeze_radius) if self.can_refreeze else None
-        self.emitters = Emitters(self, scene.emitters, len(scene.bodies)) if scene.emitters else None
-        self._warned_overflow = False
-        self.has_neighbours = self.neighbours is not None
-        self.marks_bonds = self.has_neighbours and self.neighbours.marks_bonds  # the half pass skips bonded pairs
-        self.has_grid, self.has_pair = self.grid is not None, self.pair is not None
-        self.has_heat, self.has_springs = self.heat is not None, self.springs is not None
-        self.has_power = self.has_heat and self.heat.has_power
-        self.has_fixed = self.has_heat and self.heat.has_fixed
-        # With the implicit heat stepper the rates kernel skips heat; the solve runs after each step.
-        self.has_explicit_heat = self.has_heat and scene.heat.stepper == "explicit"
-        self.implicit_heat = None
-        if self.has_heat and not self.has_explicit_heat:
-            self.implicit_heat = ImplicitHeat(self)
-        self.body_forces = build_body_forces(self)  # summed per particle by the rates pass
-        self._build_measurements()
-        self.integrator = make_integrator(world.integrator, self)
-        self.team = Team(self, threads) if self.loops.team and self.half_pairs else None  # it steps half lists
-        self.fuses_steps = self._fusable_scene()
-        self.plan = StepPlan(self)  # the host's passes around each step, in order; pipeline() prints it
-        self.fused_batches = 0  # launches of _fused_steps (or of the team) so far
-        self.stopped_stage = ti.field(ti.i32, shape=())  # where a fused launch stopped inside a step (overflow)
-        self.pending_stage = 0  # the stage the current step goes on from (0: at a step boundary)
-        if self.emitters is not None:
-            self.emitters.emit_initial()
-        self.time = 0.0
-        self.step_count = 0
-        self.frames_done = 0  # frames advanced (advance_frame)
-        self.guard = BlowupGuard(scene_limits(scene, built, self.pair))
-        self._last_pair_energy: tuple[float, float] | None = (
-            None  # pair energy and virial, for stats(pair_energy=False)
-        )
-        self._heat_limit = self.heat_dt_limit() if self.has_explicit_heat else math.inf
-        self._initial = self.snapshot()
-        self._spring_omega0 = self._snapshot_omega_max(self._initial)
+        self.rates = Rates(self.model, self.state, list(self.terms), self.hood)
+        self.integrator = make_integrator(scene.world.integrator, self.rates, self.state)
+        self.plan = StepPlan(self.model, self.state, list(self.terms), self.rates, self.integrator)
+        self.diagnostics = Diagnostics(self.model, self.state, list(self.terms), self.hood)
+        self.guard = BlowupGuard(scene_limits(scene, self.model.built, self.terms.pair))
+        self._gauge_since = 0.0  # the time the walls' gauge restarted
+        for term in self.terms:
+            term.start(self.state)
+        self.mark_initial()
 
-    def set_integrator(self, name: str) -> None:
-        """Switch the time integrator by name, keeping the state (live, e.g. from the window)."""
-        if name != self.integrator.name:
-            self.integrator = make_integrator(name, self)
+    # ------------------------------------------------------------------ what it is
+    scene = property(lambda self: self.model.scene)
+    dim = property(lambda self: self.model.dim)
+    arch = property(lambda self: self.model.arch)
+    capacity = property(lambda self: self.model.capacity)
+    material_names = property(lambda self: self.model.material_names)
+    particles = property(lambda self: self.state.particles, doc="the particle fields; calling it: particle_table()")
+    time = property(lambda self: self.state.time, doc="simulated time")
+    step_count = property(lambda self: self.state.step, doc="steps taken")
+    frames_done = property(lambda self: self.state.frames, doc="frames advanced")
 
-    # ------------------------------------------------------------------ stepping
+    @property
+    def dt(self) -> float:
+        """The step size (world.dt, or the last frame's with substeps = "auto")."""
+        return self.state.dt
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        self.state.dt = float(value)
+
     def check_alive(self) -> None:
         """SandboxError when Taichi was restarted since this simulation was built (another precision or backend
         was asked for, or runtime.reset()): its fields are gone, and using them would crash."""
@@ -239,45 +89,24 @@ class Simulation(Rates, LongWay, FusedStepping, Measurements, StabilityBounds, S
                 f"for another precision or backend, or runtime.reset()); build it again"
             )
 
+    def set_integrator(self, name: str) -> None:
+        """Switch the time integrator by name, keeping the state (live, e.g. from the window)."""
+        if name != self.integrator.name:
+            self.state.forget("integrator")
+            self.integrator = self.plan.integrator = make_integrator(name, self.rates, self.state)
+
+    # ------------------------------------------------------------------ stepping
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""
         self.check_alive()
-        if n <= 0:
-            return
-        self.integrator.begin(self.dt)
-        while n > 0:
-            if self.reorder is not None and self.fuses_steps and self.reorder.due() and not self.pending_stage:
-                self.reorder.apply()  # between fused batches (the long way sorts at the start of its step)
-            batch = self._fused_batch(n)
-            done = self._run_fused(batch) if batch else 0
-            if done < batch and self.neighbours is not None and self.neighbours.forced:
-                pass  # a list build overflowed and the lists were widened: the next batch builds them again
-            elif done < max(batch, 1):  # not fusable now, or the lists cannot be widened: one step the long way
-                self._step_once()
-                done += 1
-            n -= done
-        if self.has_lifetimes:
-            self.emitters.retire()
-        self.integrator.end(self.dt)
-
-    def _count_steps(self, done: int) -> None:
-        """Advance the clock by `done` steps and run what is due at a step boundary (refreezing)."""
-        for _ in range(done):
-            self.time += self.dt  # added one step at a time: the same clock as stepping one by one
-        before = self.step_count
-        self.step_count += done
-        if self.refreezer is not None:
-            interval = self.scene.heat.refreeze_interval
-            if self.step_count // interval > before // interval:  # a fused batch ends at the refreeze step
-                if self.refreezer.run() and self.marks_bonds:
-                    self.neighbours.invalidate()  # the list marks bonded pairs: new springs must be marked
+        self.plan.step(n)
 
     def frame_substeps(self) -> tuple[int, float]:
-        """(steps, step size) for the next frame: the scene's fixed substeps at world.dt, or under "auto" the
-        fewest equal steps of at most auto_step() that span world.frame_time."""
+        """(steps, step size) for the next frame: the scene's fixed substeps at dt, or under "auto" the fewest equal
+        steps of at most auto_step() that span world.frame_time."""
         world = self.scene.world
         if world.substeps != "auto":
-            return int(world.substeps), self.dt
+            return int(world.substeps), self.state.dt
         n = max(1, math.ceil(world.frame_time / self.auto_step() - 1e-9))
         if n > 10 * MAX_SUBSTEPS:
             raise SimulationError(
@@ -289,19 +118,168 @@ class Simulation(Rates, LongWay, FusedStepping, Measurements, StabilityBounds, S
     def advance_frame(self, substeps: int | None = None, midway: Callable[[], None] | None = None) -> int:
         """Advance one frame (the scene's substeps, or `substeps` steps of dt); returns the steps taken. `midway` is
         called after half of them, rounded down (the renderer's mid_frame: the bend of curved motion-blur streaks);
-        not for a single step, which has no middle. The wall gauge (stats().wall_pressure) restarts with the frame."""
+        not for a single step, which has no middle. The walls' gauge (stats().wall_pressure) restarts with it."""
         self.check_alive()
         if substeps is None:
-            substeps, self.dt = self.frame_substeps()
-        self.restart_wall_gauge()  # stats().wall_pressure: this frame's average
+            substeps, self.state.dt = self.frame_substeps()
+        self.restart_wall_gauge()
         if midway is None or substeps < 2:
             self.step(substeps)
         else:
             self.step(substeps // 2)
             midway()
             self.step(substeps - substeps // 2)
-        self.frames_done += 1
+        self.state.frames += 1
         return substeps
+
+    def stable_dt(self) -> float:
+        """The largest stable step now: the least of the terms' bounds (the springs' for this integrator, explicit
+        heat's); inf without any."""
+        return min([term.stable_dt(self.integrator) for term in self.terms], default=math.inf)
+
+    def auto_step(self) -> float:
+        """The step substeps = "auto" takes now: the least of world.dt, the terms' auto steps (the springs' auto h w
+        over omega_max, half the explicit heat limit) and half the time the fastest particle takes to cross the
+        smallest radius."""
+        limits = [self.scene.world.dt] + [term.auto_dt(self.integrator) for term in self.terms]
+        n = self.state.live_count()
+        if n:
+            v = np.linalg.norm(self.velocities(), axis=1).max()
+            r = self.particles.radius.to_numpy()[:n].min()
+            if v > 0:
+                limits.append(0.5 * r / v)
+        return min(limits)
+
+    # ------------------------------------------------------------------ measuring
+    def stats(self, pair_energy: bool = True) -> Stats:
+        """Energies, temperatures and counts now. Raises SimulationError when the blow-up guard finds the state
+        broken. pair_energy=False skips the pair energy's neighbour scan (the costliest part) and reports the last
+        one measured: the window does so on most frames."""
+        self.check_alive()
+        m = self.diagnostics.measure(pair_energy)
+        heat = self.terms.heat is not None
+        problem = self.guard.problem(m, m["bad"], self.state.dt, heat)
+        if problem:
+            raise SimulationError(self._blowup(*problem))
+        world = self.scene.world
+        volume = float(np.prod(np.subtract(world.hi, world.lo)))  # the pressure's V (area in 2D)
+        return Stats.from_sums(
+            m, self.time, self.dim, volume, self._wall_pressure(m), heat, self.state.springs is not None
+        )
+
+    def restart_wall_gauge(self) -> None:
+        """Zero the walls' momentum gauge: stats().wall_pressure averages from now (advance_frame restarts it)."""
+        self.model.domain.impulse[None] = 0.0
+        self._gauge_since = self.time
+
+    def _wall_pressure(self, m: dict) -> float:
+        """Momentum into the walls per unit time and wall area since the gauge restarted (nan without walls or
+        elapsed time)."""
+        elapsed = self.time - self._gauge_since
+        area = self.model.domain.wall_area
+        return m["impulse"] / (elapsed * area) if area and elapsed > 0.0 else float("nan")
+
+    def _blowup(self, kind: str, what: str) -> str:
+        n = self.state.live_count()
+        x, v = (f.to_numpy()[:n] for f in (self.particles.x, self.particles.v))
+        temperatures = self.particles.T.to_numpy()[:n] if self.terms.heat is not None else None
+        springs, heat = self.terms.springs, self.terms.heat
+        spring_limit = springs.stable_dt_initial(self.integrator) if springs is not None else math.inf
+        heat_limit = heat.stable_dt(self.integrator) if heat is not None else math.inf
+        clock = (self.step_count, self.time, self.state.dt)
+        integrator = (self.integrator.name, self.integrator.stable_h_omega)
+        return blowup_message(kind, what, x, v, temperatures, clock, integrator, (spring_limit, heat_limit))
+
+    # ------------------------------------------------------------------ the state
+    def snapshot(self) -> dict:
+        """Copies of the physical state (particles, springs, clock, the terms' own), for restore() and reset()."""
+        self.check_alive()
+        return self.state.snapshot()
+
+    def restore(self, snap: dict) -> None:
+        """Put the state back exactly as snapshot() saw it."""
+        self.state.restore(snap)
+        for part in self.parts():
+            part.after_restore(self.state)
+        self.restart_wall_gauge()
+
+    def parts(self) -> list:
+        """The terms, and the neighbourhood they are evaluated over."""
+        return list(self.terms) + ([self.hood] if self.hood is not None else [])
+
+    def mark_initial(self) -> None:
+        """Make the current state the one reset() returns to."""
+        self._initial = self.snapshot()
+        if self.terms.springs is not None:
+            self.terms.springs.omega0 = Springs.omega_of(self._initial)
+
+    def reset(self) -> None:
+        """Back to the scene's initial state."""
+        self.restore(self._initial)
+
+    def set_temperatures(self, temperatures: np.ndarray) -> None:
+        """Set the live particles' temperatures (degrees, (N,)); enthalpies and liquid flags follow."""
+        n = self.state.live_count()
+        full = self.particles.T.to_numpy()
+        full[:n] = temperatures
+        self.particles.T.from_numpy(full)
+        self.terms.heat.sync_temperatures()
+
+    def save(self, path: str | Path) -> Path:
+        """Write the whole state to `path` (.npz) so that sandbox.resume(path) continues bit for bit; atomic (a
+        crash while writing leaves any earlier file of that name whole). Returns the path written."""
+        return save_state(self, path)
+
+    # ------------------------------------------------------------------ for scripts (scripting.py)
+    def run(self, frames: int, progress: bool = False):
+        """Advance `frames` frames and return their measurements (a FrameTable, one row per frame). Raises
+        SimulationError when the blow-up guard stops the run (the frames before it have been run)."""
+        return scripting.run_frames(self, frames, progress)
+
+    def movie(self, frames: int, width: int = 480, height: int = 270, every: int = 1, progress: bool = False):
+        """Run `frames` frames drawing every `every`-th (a notebook Movie: plays inline, .save(path), .table)."""
+        return scripting.movie(self, frames, width, height, every, progress)
+
+    def picture(self, width: int | None = None, height: int | None = None, **render) -> np.ndarray:
+        """The scene drawn now as a new (height, width, 3) uint8 RGB array (see scripting.picture)."""
+        return scripting.picture(self, width, height, **render)
+
+    def particle_table(self) -> dict[str, np.ndarray]:
+        """What `sim.particles()` returns: the live particles by id (see scripting.particle_table)."""
+        return scripting.particle_table(self)
+
+    def write_extxyz(self, path: str | Path, append: bool = True, bonds: bool = False) -> None:
+        """Write the particles as one extended-XYZ frame (ASE, OVITO) to `path` (see scripting.write_extxyz)."""
+        scripting.write_extxyz(self, path, append, bonds)
+
+    def _repr_html_(self) -> str:
+        return scripting.html(self)
+
+    def positions(self) -> np.ndarray:
+        """Live positions, (N, D) NumPy copy."""
+        return self.particles.x.to_numpy()[: self.state.live_count()]
+
+    def velocities(self) -> np.ndarray:
+        return self.particles.v.to_numpy()[: self.state.live_count()]
+
+    def temperatures(self) -> np.ndarray:
+        return self.particles.T.to_numpy()[: self.state.live_count()]
+
+    def forces(self) -> np.ndarray:
+        """Forces of the last evaluation, (N, D)."""
+        return self.rates.force.to_numpy()[: self.state.live_count()]
+
+    def melt_fractions(self) -> np.ndarray:
+        """Melt fraction in [0, 1] of the live particles, (N,) (0 without heat)."""
+        return scripting.melt_fractions(self)
+
+    def pipeline(self) -> list[str]:
+        """The passes a step runs, in order, in words: the stepping plan's own lists (step/plan.py)."""
+        return self.plan.lines()
+
+    def memory_bytes(self) -> dict[str, int]:
+        """Bytes of field memory by part."""
+        return scripting.memory_bytes(self)
 
 
 def timed_steps(sim: Simulation, n: int) -> float:

@@ -30,12 +30,12 @@ CASES = {
 
 
 def _everything(sim) -> dict:
-    """Every field and host number the state file holds, read from the simulation (the fields in one batched copy,
-    as save() reads them: a to_numpy() per field would compile a copy kernel for each)."""
-    fields, ndarrays, host = persist.walk(sim)
-    out = {f"field:{k}": v for k, v in persist._download(sim, fields).items()}
-    out.update({f"ndarray:{k}": getattr(o, a).to_numpy() for k, (o, a) in ndarrays.items()})
-    out.update({f"host:{k}": getattr(o, a) for k, (o, a) in host.items()})
+    """Every entry of the state, as the state file holds them (the fields in one batched copy, as save() reads them:
+    a to_numpy() per field would compile a copy kernel for each)."""
+    entries = sim.state.entries()
+    out = {f"field:{k}": v for k, v in persist._download([e for e in entries if e.kind == "field"]).items()}
+    out.update({f"{e.kind}:{e.name}": e.get() for e in entries if e.kind == "value"})
+    out.update({f"{e.kind}:{e.name}": e.get().to_numpy() for e in entries if e.kind == "ndarray"})
     return out
 
 
@@ -46,11 +46,11 @@ def test_a_resumed_run_continues_bit_for_bit(name, tmp_path):
     sim.run(before)
     path = sim.save(tmp_path / "state")
     assert path.name == "state.npz" and not list(tmp_path.glob(".*partial*"))
-    made_before = int(sim.springs.created[None]) if name == "freeze_thaw" else 0
+    made_before = int(sim.state.springs.created[None]) if name == "freeze_thaw" else 0
     expected_rows = sim.run(after)
     expected, expected_state = sim.particles(), _everything(sim)
     if name == "freeze_thaw":
-        assert int(sim.springs.created[None]) > made_before > 0  # refreezing went on across the save
+        assert int(sim.state.springs.created[None]) > made_before > 0  # refreezing went on across the save
     runtime.reset()  # as a new process would: the resumed simulation is built afresh
     resumed = sandbox.resume(path)
     assert resumed.frames_done == before and resumed.scene.source == sim.scene.source
@@ -78,7 +78,7 @@ def test_particle_ids_stay_with_their_particles_while_storage_is_reordered():
     sim.run(2)
     later = sim.particles()
     stored = sim.particles.ident.to_numpy()[:n]
-    assert sim.reorder.applied > 0 and not np.array_equal(stored, np.arange(n))  # the storage was reordered ...
+    assert sim.hood.order.applied > 0 and not np.array_equal(stored, np.arange(n))  # the storage was reordered ...
     assert np.array_equal(later["id"], first["id"])  # ... the table is still by id, and each particle moved little
     step = later["position"] - first["position"]
     step -= SIDE * np.round(step / SIDE)  # (periodic)
@@ -87,7 +87,7 @@ def test_particle_ids_stay_with_their_particles_while_storage_is_reordered():
 
 def test_emitted_particles_get_new_ids_that_are_never_reused():
     sim = sandbox.load("candle", set={"bodies.0.hi": [70.0, 8.0]}, arch="cpu")
-    wax = sim.built.count
+    wax = sim.model.built.count
     seen: set[int] = set()
     retired = False
     for _ in range(8):
@@ -98,7 +98,7 @@ def test_emitted_particles_get_new_ids_that_are_never_reused():
         flame = set(ids[ids >= wax].tolist())
         retired |= bool(seen - flame)
         seen |= flame
-    assert retired and sim.particles.next_ident == wax + sum(sim.emitters.emitted)
+    assert retired and sim.particles.next_ident == wax + sum(sim.terms.emitters.emitted)
 
 
 def test_load_run_and_picture_from_python():
@@ -230,5 +230,5 @@ def test_extxyz_frames_read_back_with_ase(tmp_path):
     assert np.allclose(atoms.cell.lengths(), [128.0, 72.0, 1.0]) and not atoms.pbc.any()
     assert atoms.info["Time"] == pytest.approx(sim.time) and atoms.info["Step"] == sim.step_count
     bonds = [tuple(map(int, pair.split("-"))) for pair in atoms.info["Bonds"].split()]
-    assert len(bonds) == int(sim.springs.alive.to_numpy()[: sim.springs.span[None]].sum())
+    assert len(bonds) == int(sim.state.springs.alive.to_numpy()[: sim.state.springs.span[None]].sum())
     assert "Bonds" not in frames[0].info

@@ -40,7 +40,7 @@ def run_both_workloads(arch: str) -> dict:
         ti.sync()
     out["launches_per_step"] = launches.total / 100
     sim = Simulation(load_scene(bench.SCENES / "melting_block.toml", bench.melting_block_of(12)), arch=arch)
-    renderer = Renderer(sim, 320, 180, sim.scene.render)
+    renderer = Renderer(sim.model, sim.state, 320, 180, sim.scene.render)
     for _ in range(FRAMES):
         renderer.begin_frame()
         sim.advance_frame()

@@ -14,7 +14,7 @@ def test_the_w2_lattice_holds_its_shape_under_its_own_weight():
     y = sim.positions()[:, 1]
     assert abs(y.mean() - y0.mean()) < 0.05 * y0.mean()
     assert y.max() > 0.95 * y0.max()
-    assert sim.neighbours.grown == 0  # no particle has gained neighbours beyond the lattice's
+    assert sim.hood.lists.grown == 0  # no particle has gained neighbours beyond the lattice's
     stats = sim.stats()
     assert stats.broken_springs == 0 and stats.mean_temperature > 20.0  # heat flows in from the plate
 

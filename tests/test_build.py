@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sandbox.config.build import build_particles
-from sandbox.physics.springs import bond_table
+from sandbox.core.particles import bond_table
 
 from .conftest import make_scene, scene_dict
 

@@ -83,10 +83,10 @@ def test_emission_follows_the_rate_to_within_one_particle_and_bursts_are_exact()
     sim = Simulation(make_scene(scene))
     for step in range(1, 41):
         sim.step(1)
-        assert abs(sim.emitters.emitted[0] - 250.0 * sim.time) <= 1.0
+        assert abs(sim.terms.emitters.emitted[0] - 250.0 * sim.time) <= 1.0
         if step % 2 == 0:
-            assert sim.emitters.emitted[0] == 5 * step // 2  # 2.5 per step gives 5 every 2 steps
-    assert sim.emitters.emitted[1] == 14 and sim.particles.n[None] == 100 + 14
+            assert sim.terms.emitters.emitted[0] == 5 * step // 2  # 2.5 per step gives 5 every 2 steps
+    assert sim.terms.emitters.emitted[1] == 14 and sim.particles.n[None] == 100 + 14
 
 
 def test_lifetimes_retire_exactly_the_expired_and_memory_stays_bounded():
@@ -130,7 +130,7 @@ def test_lifetimes_retire_exactly_the_expired_and_memory_stays_bounded():
     for _ in range(100):
         sim.step(10)
         most = max(most, int(sim.particles.n[None]))
-    assert sum(sim.emitters.emitted) >= 100_000 - 1  # (the carried fraction may still owe one)
+    assert sum(sim.terms.emitters.emitted) >= 100_000 - 1  # (the carried fraction may still owe one)
     assert most <= 600 and sim.capacity == capacity
 
 
@@ -170,7 +170,7 @@ def test_vortex_speed_profile_matches_its_formula():
     sim = Simulation(make_scene(data))
     r = np.linspace(0.5, 15, 30)
     pts = np.stack([20 + r, np.full_like(r, 20)], axis=1)
-    v = sim.fields.sample(pts, 0.0)
+    v = sim.terms.fields.sample(pts, 0.0)
     expected = gamma / (2 * np.pi * r) * (1 - np.exp(-(r**2) / core**2)) * np.exp(-(r**2) / falloff**2)
     assert np.allclose(v[:, 1], expected, rtol=1e-4, atol=1e-6) and np.allclose(v[:, 0], 0, atol=1e-6)
 
@@ -188,10 +188,10 @@ def test_curl_noise_is_divergence_free(dim):
     for a in range(dim):
         e = np.zeros(dim)
         e[a] = delta
-        dv = (sim.fields.sample(pts + e, 0.3) - sim.fields.sample(pts - e, 0.3)) / (2 * delta)
+        dv = (sim.terms.fields.sample(pts + e, 0.3) - sim.terms.fields.sample(pts - e, 0.3)) / (2 * delta)
         div += dv[:, a]
         grad_scale += np.abs(dv).sum(axis=1)
-    speed = np.linalg.norm(sim.fields.sample(pts, 0.3), axis=1)
+    speed = np.linalg.norm(sim.terms.fields.sample(pts, 0.3), axis=1)
     assert speed.mean() > 0.3  # it does swirl
     assert np.mean(np.abs(div)) < 0.02 * np.mean(grad_scale)  # but neither converges nor diverges
 
@@ -253,17 +253,17 @@ def test_smoke_grid_projects_to_divergence_free_and_hot_air_rises(dim, one_launc
     from the host, a launch per stage (large grids, GPUs)."""
     monkeypatch.setattr(smoke_module, "ONE_LAUNCH_CELLS", 10**9 if one_launch else 0)
     sim = Simulation(make_scene(smoke_scene(dim)))
-    assert sim.smoke.one_launch == one_launch
+    assert sim.terms.smoke.grid.one_launch == one_launch
     y0 = sim.positions()[0, 1]
     for _ in range(25):
         sim.step(1)
-        smoke = sim.smoke
+        smoke = sim.terms.smoke.grid
         assert smoke.last.relative_residual <= 1e-6
         # what is left of the divergence is the solver's residual: a millionth of what the projection removed
         assert smoke.divergence_norm() <= 1.01e-6 * smoke.divergence_before + 1e-12
     above = np.array([[12.0] * dim])
     above[0, 1] = 8.0
-    assert sim.fields.sample(above, sim.time)[0, 1] > 0.5  # the plume rises ...
+    assert sim.terms.fields.sample(above, sim.time)[0, 1] > 0.5  # the plume rises ...
     assert sim.positions()[0, 1] > y0 + 1.0  # ... and carries the particle up with it
 
 
@@ -277,8 +277,8 @@ def test_both_ways_of_projecting_the_smoke_give_the_same_flow(monkeypatch):
         iterations = []
         for _ in range(10):
             sim.step(1)
-            iterations.append(sim.smoke.last.iterations)
-        results.append((iterations, [u.to_numpy() for u in sim.smoke.u]))
+            iterations.append(sim.terms.smoke.grid.last.iterations)
+        results.append((iterations, [u.to_numpy() for u in sim.terms.smoke.grid.u]))
     (its_one, u_one), (its_host, u_host) = results
     assert sum(its_one) > 50 and abs(sum(its_one) - sum(its_host)) <= 2
     for a, b in zip(u_one, u_host):
@@ -291,7 +291,7 @@ def test_candle_melts_at_the_top_drips_and_refreezes_under_a_bounded_flame():
     from .conftest import SCENES
 
     sim = Simulation(load_scene(SCENES / "candle.toml"))
-    wax = sim.built.count
+    wax = sim.model.built.count
     top0 = sim.positions()[:, 1].max()
     most_flame = 0
     for _ in range(200):  # 4 s

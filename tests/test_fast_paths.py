@@ -57,7 +57,7 @@ def _wax_refreezing_data() -> dict:
 
 def listed_pairs(sim) -> set:
     n = int(sim.particles.n[None])
-    count, ids = sim.neighbours.count.to_numpy()[:n], sim.neighbours.ids.to_numpy()
+    count, ids = sim.hood.lists.count.to_numpy()[:n], sim.hood.lists.ids.to_numpy()
     return {(min(i, int(j)), max(i, int(j))) for i in range(n) for j in ids[i, : count[i]]}
 
 
@@ -65,11 +65,11 @@ def listed_pairs(sim) -> set:
 def test_a_half_list_holds_each_pair_of_the_full_list_once(side):
     full, half = lj_box(side, half=False), lj_box(side, half=True)
     for sim in (full, half):
-        sim.eval_rates()
-    n = full.built.count
+        sim.rates.evaluate()
+    n = full.model.built.count
     full_pairs = listed_pairs(full)
-    assert len(full_pairs) * 2 == int(full.neighbours.count.to_numpy()[:n].sum())  # listed from both ends
-    assert int(half.neighbours.count.to_numpy()[:n].sum()) == len(full_pairs)  # once
+    assert len(full_pairs) * 2 == int(full.hood.lists.count.to_numpy()[:n].sum())  # listed from both ends
+    assert int(half.hood.lists.count.to_numpy()[:n].sum()) == len(full_pairs)  # once
     assert listed_pairs(half) == full_pairs
 
 
@@ -80,13 +80,13 @@ def test_half_lists_give_the_forces_and_heat_rates_of_full_lists():
     sims = [Simulation(load_scene(SCENES / "melting_block.toml", over), half_lists=h) for h in (False, True)]
     for sim in sims:
         sim.step(400)
-        sim.eval_rates()
-    assert 0 < sims[0].springs.alive.to_numpy().sum() < sims[0].built.spring_count  # some bonds broke
+        sim.rates.evaluate()
+    assert 0 < sims[0].state.springs.alive.to_numpy().sum() < sims[0].model.built.spring_count  # some bonds broke
     f0, f1 = (s.forces() for s in sims)
-    h0, h1 = (s.particles.dhdt.to_numpy()[: s.built.count] for s in sims)
+    h0, h1 = (s.rates.heat_rate.to_numpy()[: s.model.built.count] for s in sims)
     assert np.abs(f0 - f1).max() <= 1e-9 * np.abs(f0).max()
     assert np.abs(h0 - h1).max() <= 1e-9 * np.abs(h0).max()
-    assert sims[1].half_pairs and not sims[0].half_pairs
+    assert sims[1].rates.half and not sims[0].rates.half
 
 
 def test_a_bond_that_breaks_between_list_builds_brings_back_its_pair_force():
@@ -96,22 +96,22 @@ def test_a_bond_that_breaks_between_list_builds_brings_back_its_pair_force():
     sims = [Simulation(load_scene(SCENES / "melting_block.toml", over), half_lists=h) for h in (False, True)]
     for sim in sims:
         sim.step(150)
-        sim.eval_rates()
+        sim.rates.evaluate()
     half = sims[1]
-    n = half.built.count
-    ids, count = half.neighbours.ids.to_numpy(), half.neighbours.count.to_numpy()
+    n = half.model.built.count
+    ids, count = half.hood.lists.ids.to_numpy(), half.hood.lists.count.to_numpy()
     marked = [int(-e - 1) for i in range(n) for e in ids[i, : count[i]] if e < 0]
-    assert len(marked) > 1000 and half.marks_bonds  # bonded pairs are marked in the list
-    alive = sims[0].springs.alive.to_numpy()
+    assert len(marked) > 1000 and half.rates.marks_bonds  # bonded pairs are marked in the list
+    alive = sims[0].state.springs.alive.to_numpy()
     doomed = [s for s in marked[::3] if alive[s]]
     assert len(doomed) > 300
-    builds = half.neighbours.builds
+    builds = half.hood.lists.builds
     for sim in sims:  # break every third marked spring by hand, without moving anything
-        a = sim.springs.alive.to_numpy()
+        a = sim.state.springs.alive.to_numpy()
         a[doomed] = 0
-        sim.springs.alive.from_numpy(a)
-        sim.eval_rates()
-    assert half.neighbours.builds == builds  # the list was not rebuilt: the marks are stale
+        sim.state.springs.alive.from_numpy(a)
+        sim.rates.evaluate()
+    assert half.hood.lists.builds == builds  # the list was not rebuilt: the marks are stale
     f0, f1 = (s.forces() for s in sims)
     assert np.abs(f0 - f1).max() <= 1e-9 * np.abs(f0).max()
 
@@ -122,8 +122,10 @@ def test_springs_made_by_refreezing_are_marked_before_the_next_step():
     sims = [Simulation(make_scene(data), half_lists=h) for h in (False, True)]
     for sim in sims:
         sim.step(400)
-        sim.eval_rates()
-    assert int(sims[1].springs.created[None]) > sims[1].springs.built_count + 10  # springs made by refreezing
+        sim.rates.evaluate()
+    assert (
+        int(sims[1].state.springs.created[None]) > sims[1].state.springs.built_count + 10
+    )  # springs made by refreezing
     f0, f1 = (s.forces() for s in sims)
     assert np.abs(f0 - f1).max() <= 1e-9 * np.abs(f0).max()
 
@@ -132,20 +134,20 @@ def test_springs_made_by_refreezing_are_marked_before_the_next_step():
 def test_sorting_the_storage_keeps_every_trajectory_and_orders_particles_by_cell(fused):
     plain, sorted_ = lj_box(reorder=0), lj_box(reorder=1)
     for sim in (plain, sorted_):
-        sim.fuses_steps = fused
+        sim.plan.fuses = fused
         sim.step(300)
-    assert sorted_.reorder.applied >= 3
-    assert (sorted_.fused_batches > 0) == fused  # fused: sorted between batches
-    ident = sorted_.particles.ident.to_numpy()[: sorted_.built.count]
-    assert sorted(ident) == list(range(sorted_.built.count))  # a permutation: no particle lost or doubled
+    assert sorted_.hood.order.applied >= 3
+    assert (sorted_.plan.fused_batches > 0) == fused  # fused: sorted between batches
+    ident = sorted_.particles.ident.to_numpy()[: sorted_.model.built.count]
+    assert sorted(ident) == list(range(sorted_.model.built.count))  # a permutation: no particle lost or doubled
     assert not np.array_equal(ident, np.arange(len(ident)))  # the storage did move
     x_plain, x_sorted = plain.positions(), sorted_.positions()
     assert np.abs(x_sorted - x_plain[ident]).max() < 1e-9
     assert np.abs(sorted_.velocities() - plain.velocities()[ident]).max() < 1e-9
-    sorted_.reorder.apply()  # right after a sort the storage runs cell by cell
-    cells = sorted_.grid.particle_cell.to_numpy()[: sorted_.built.count]
-    sorted_.grid.rebuild()
-    cells = sorted_.grid.particle_cell.to_numpy()[: sorted_.built.count]
+    sorted_.hood.order.apply()  # right after a sort the storage runs cell by cell
+    cells = sorted_.hood.grid.particle_cell.to_numpy()[: sorted_.model.built.count]
+    sorted_.hood.grid.rebuild()
+    cells = sorted_.hood.grid.particle_cell.to_numpy()[: sorted_.model.built.count]
     assert np.all(np.diff(cells) >= 0)
 
 
@@ -153,14 +155,14 @@ def test_sorting_keeps_springs_between_the_same_particles():
     over = ["world.reorder=1", "world.precision=f64"]
     sim = Simulation(load_scene(SCENES / "melting_block.toml", over))
     ident0 = sim.particles.ident.to_numpy()
-    i0, j0 = sim.springs.i.to_numpy(), sim.springs.j.to_numpy()
+    i0, j0 = sim.state.springs.i.to_numpy(), sim.state.springs.j.to_numpy()
     before = {frozenset((ident0[a], ident0[b])) for a, b in zip(i0, j0)}
-    sim.reorder.apply()
+    sim.hood.order.apply()
     ident = sim.particles.ident.to_numpy()
-    i, j = sim.springs.i.to_numpy(), sim.springs.j.to_numpy()
+    i, j = sim.state.springs.i.to_numpy(), sim.state.springs.j.to_numpy()
     assert {frozenset((ident[a], ident[b])) for a, b in zip(i, j)} == before
-    bonds = sim.springs.bonds.to_numpy()
-    for p in (0, 17, sim.built.count - 1):  # each particle's bond list names springs that touch it
+    bonds = sim.state.springs.bonds.to_numpy()
+    for p in (0, 17, sim.model.built.count - 1):  # each particle's bond list names springs that touch it
         for s in bonds[p][bonds[p] >= 0]:
             assert p in (i[s], j[s])
 
@@ -196,10 +198,10 @@ def _wax_refreezing_scene():
 
 def _state(sim) -> list[np.ndarray]:
     out = [sim.positions(), sim.velocities()]
-    if sim.heat is not None:
+    if sim.terms.heat is not None:
         out.append(sim.temperatures())
-    if sim.springs is not None:
-        out.append(sim.springs.alive.to_numpy())
+    if sim.state.springs is not None:
+        out.append(sim.state.springs.alive.to_numpy())
     return out
 
 
@@ -226,17 +228,21 @@ def test_many_steps_to_a_launch_give_the_trajectory_of_one_step_at_a_time(make, 
     """A small scene runs a whole batch of steps in one kernel launch (the list rebuild decided on the device):
     bit for bit the states, clock, list builds and refreezing of launching each pass of each step from the host."""
     one_by_one, fused = make(), make()
-    one_by_one.fuses_steps = False
-    assert fused.fuses_steps
+    one_by_one.plan.fuses = False
+    assert fused.plan.fuses
     for n in (1, 7, 64, 228):
         one_by_one.step(n)
         fused.step(n)
-    assert fused.fused_batches >= 4 and one_by_one.fused_batches == 0
+    assert fused.plan.fused_batches >= 4 and one_by_one.plan.fused_batches == 0
     assert_same_states(_state(one_by_one), _state(fused))
     assert (fused.time, fused.step_count) == (one_by_one.time, one_by_one.step_count)
-    assert fused.neighbours.builds == one_by_one.neighbours.builds > 2
+    assert fused.hood.lists.builds == one_by_one.hood.lists.builds > 2
     if refreezes:
-        assert int(fused.springs.created[None]) == int(one_by_one.springs.created[None]) > fused.springs.built_count
+        assert (
+            int(fused.state.springs.created[None])
+            == int(one_by_one.state.springs.created[None])
+            > fused.state.springs.built_count
+        )
 
 
 @pytest.mark.parametrize("make", [lambda: lj_box(), lambda: team_box()], ids=["one_thread", "team"])
@@ -246,14 +252,14 @@ def test_a_list_build_that_overflows_inside_a_batch_grows_the_list_and_goes_on(m
     kernels would have to be compiled: a stall of seconds with a cold cache); the trajectory is that of the long
     way."""
     one_by_one, fused = make(), make()
-    one_by_one.fuses_steps = False
+    one_by_one.plan.fuses = False
     for sim in (one_by_one, fused):
-        sim.neighbours._allocate(4)
-        sim.neighbours.invalidate()
+        sim.hood.lists._allocate(4)
+        sim.hood.lists.invalidate()
         sim.step(50)
-    assert fused.neighbours.grown == one_by_one.neighbours.grown == 1
-    assert fused.fused_batches == 2  # the batch that stopped at its first build, then the rest
-    assert fused.neighbours.host_builds == 0 and one_by_one.neighbours.host_builds > 0
+    assert fused.hood.lists.grown == one_by_one.hood.lists.grown == 1
+    assert fused.plan.fused_batches == 2  # the batch that stopped at its first build, then the rest
+    assert fused.hood.lists.host_builds == 0 and one_by_one.hood.lists.host_builds > 0
     assert_same_states(_state(one_by_one), _state(fused))
 
 
@@ -280,45 +286,40 @@ def test_each_pass_says_why_a_scene_steps_the_long_way():
 def test_a_step_the_long_way_runs_the_host_passes_that_the_pipeline_lists_in_its_order():
     """pipeline() is printed from the plan that the long way runs: the smoke scene's host passes (emitters, smoke,
     kinematic start; then advection, ageing) each run once a step, in the printed order."""
-    from sandbox.step.plan import HostPass
-
     sim = Simulation(load_scene(SCENES / "smoke_vortex.toml"))
-    ran = []
-
-    def noting(k, part):
-        def run():
-            ran.append(k)
-            part.run()
-
-        return HostPass(part.text, run)
-
-    plan = sim.plan
-    parts = plan.before + plan.after
-    plan.before = [noting(k, p) for k, p in enumerate(plan.before)]
-    plan.after = [noting(len(plan.before) + k, p) for k, p in enumerate(plan.after)]
+    plan, ran = sim.plan, []
+    for when, terms in (("before_step", plan.before), ("after_step", plan.after)):
+        for term in terms:
+            hook = getattr(term, when)
+            setattr(term, when, lambda state, hook=hook, key=(when, term.key): (ran.append(key), hook(state)))
     sim.step(2)
-    assert ran == list(range(len(parts))) * 2 and len(parts) == 5
+    order = [("before_step", t.key) for t in plan.before] + [("after_step", t.key) for t in plan.after]
+    assert ran == order * 2 and len(order) == 5
     lines = sim.pipeline()
-    described = [lines.index(p.text) for p in parts if p.text]
+    before = [line for t in plan.before for line in t.words("before")]
+    after = [line for t in plan.after for line in t.words("after")]
+    described = [lines.index(line) for line in before + after]
     assert described == sorted(described) and len(described) == 4  # the kinematic start is told with its advection
     integrator = lines.index("integrator symplectic_euler, then walls (restitution, friction)")
-    assert lines.index(plan.before[-1].text or plan.before[-2].text) < integrator < lines.index(plan.after[0].text)
+    assert lines.index(before[-1]) < integrator < lines.index(after[0])
 
 
 def test_scenes_with_work_between_steps_or_parallel_loops_step_the_long_way():
-    assert not Simulation(load_scene(SCENES / "fireworks.toml")).fuses_steps  # emitters act between steps
+    assert not Simulation(load_scene(SCENES / "fireworks.toml")).plan.fuses  # emitters act between steps
     from sandbox.research.bench import INTERACTIVE_BLOCK
 
     # 10,000 particles, springs, heat, and a power source (its per-step mass sum is not shared out in a team)
     power = [*INTERACTIVE_BLOCK, 'heat.sources.0.mode="power"', "heat.sources.0.power=500.0"]
     big = Simulation(load_scene(SCENES / "melting_block.toml", power))
-    assert not big.loops.serial_pairs and not big.fuses_steps and big.team is None  # each pass on both threads
+    assert (
+        not big.model.loops.serial_pairs and not big.plan.fuses and big.plan.team is None
+    )  # each pass on both threads
     big.step(2)
-    assert big.fused_batches == 0 and big.step_count == 2
+    assert big.plan.fused_batches == 0 and big.step_count == 2
     implicit = lj_box()
     implicit.set_integrator("implicit_euler")  # conjugate-gradient iterations between evaluation and update
     implicit.step(3)
-    assert implicit.fused_batches == 0 and implicit.step_count == 3
+    assert implicit.plan.fused_batches == 0 and implicit.step_count == 3
 
 
 @pytest.mark.skipif(
@@ -350,7 +351,7 @@ TEAM_SIDE = 65.0  # about 3,400 particles in 5,046 slots: a size that steps as a
 
 def team_box(**kwargs) -> Simulation:
     sim = lj_box(TEAM_SIDE, **kwargs)
-    if sim.team is None:
+    if sim.plan.team is None:
         pytest.skip("team stepping needs two or more CPU threads")
     return sim
 
@@ -360,15 +361,15 @@ def test_a_team_of_threads_gives_the_trajectory_of_the_parallel_long_way(reorder
     """Every thread runs every step of a batch over its share of the particles, meeting the others at barriers:
     bit for bit the states, clock and list builds of launching each pass of each step in parallel from the host."""
     team, long_way = team_box(reorder=reorder), team_box(reorder=reorder)
-    long_way.fuses_steps = False
+    long_way.plan.fuses = False
     for n in (1, 30, 100):
         team.step(n)
         long_way.step(n)
-    assert team.team is not None and team.fused_batches >= 3 and long_way.fused_batches == 0
+    assert team.plan.team is not None and team.plan.fused_batches >= 3 and long_way.plan.fused_batches == 0
     assert_same_states(_state(long_way), _state(team))
     assert (team.time, team.step_count) == (long_way.time, long_way.step_count)
-    assert team.neighbours.builds == long_way.neighbours.builds > 2
-    assert team.neighbours.host_builds == 0  # every build ran inside the team's launches
+    assert team.hood.lists.builds == long_way.hood.lists.builds > 2
+    assert team.hood.lists.host_builds == 0  # every build ran inside the team's launches
 
 
 def _hot_melting_block(**world) -> Simulation:
@@ -390,22 +391,24 @@ def test_a_team_steps_springs_and_heat_as_the_parallel_long_way_does(make, refre
     launches: bit for bit the states, springs and clock of launching each pass in parallel from the host. The room
     for spawning (world.capacity) puts the small scenes in the team's size range."""
     team, long_way = make(capacity=5100), make(capacity=5100)
-    if team.team is None:
+    if team.plan.team is None:
         pytest.skip("team stepping needs two or more CPU threads")
-    long_way.fuses_steps = False
-    alive_at_start = int(team.springs.alive.to_numpy().sum())
+    long_way.plan.fuses = False
+    alive_at_start = int(team.state.springs.alive.to_numpy().sum())
     for n in (1, 60, 240):
         team.step(n)
         long_way.step(n)
-    assert team.fused_batches >= 3 and long_way.fused_batches == 0
+    assert team.plan.fused_batches >= 3 and long_way.plan.fused_batches == 0
     assert_same_states(_state(long_way), _state(team))
-    assert np.array_equal(team.springs.factor.to_numpy(), long_way.springs.factor.to_numpy())
+    assert np.array_equal(team.state.springs.factor.to_numpy(), long_way.state.springs.factor.to_numpy())
     assert (team.time, team.step_count) == (long_way.time, long_way.step_count)
-    assert team.neighbours.host_builds == 0
+    assert team.hood.lists.host_builds == 0
     if refreezes:
-        assert int(team.springs.created[None]) > team.springs.built_count + 10  # springs made between batches
+        assert (
+            int(team.state.springs.created[None]) > team.state.springs.built_count + 10
+        )  # springs made between batches
     else:
-        assert 0 < int(team.springs.alive.to_numpy().sum()) < alive_at_start  # springs broke inside the launches
+        assert 0 < int(team.state.springs.alive.to_numpy().sum()) < alive_at_start  # springs broke inside the launches
 
 
 def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_way():
@@ -414,14 +417,14 @@ def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_w
     from sandbox.step.team import Team
 
     sim, long_way = team_box(), team_box()
-    long_way.fuses_steps = False
-    sim.team = Team(sim, 2 * sim.team.workers)
+    long_way.plan.fuses = False
+    sim.plan.use_team(Team(sim.rates, 2 * sim.plan.team.workers))
     before = _state(sim)
-    assert sim.team.run(5, 1, 0, sim.integrator, sim.neighbours.ids, sim.dt) == -1
+    assert sim.plan.team.run(5, 1, 0, sim.integrator, sim.hood.lists.ids, sim.dt, sim.plan.fused.stopped_stage) == -1
     assert_same_states(before, _state(sim))
     sim.step(30)
     long_way.step(30)
-    assert sim.team is None and not sim.fuses_steps and sim.step_count == 30
+    assert sim.plan.team is None and not sim.plan.fuses and sim.step_count == 30
     assert_same_states(_state(long_way), _state(sim))
 
 
@@ -467,10 +470,10 @@ def test_whole_step_launches_compile_without_the_cfg_pass_and_the_setting_comes_
             return -1
 
     assert cfg.cfg_optimization
-    sim.team = Spy()
+    sim.plan.use_team(Spy())
     sim.step(1)
     assert seen == [False] and cfg.cfg_optimization
-    assert sim.team is None and sim.step_count == 1
+    assert sim.plan.team is None and sim.step_count == 1
     with pytest.raises(RuntimeError), runtime.without_cfg_pass():
         raise RuntimeError("inside")
     assert cfg.cfg_optimization
@@ -494,12 +497,12 @@ def test_copies_measurements_and_refreezing_compile_without_the_cfg_pass_and_the
 
     monkeypatch.setattr(kernel_impl.Kernel, "materialize", materialize_and_note)
     sim = Simulation(make_scene(_wax_refreezing_data()))
-    sim.fuses_steps = False  # the long way: one launch per pass
+    sim.plan.fuses = False  # the long way: one launch per pass
     sim.step(3)
-    sim.refreezer.run()
+    sim.terms.refreeze.run()
     sim.stats()
     sim.restore(sim.snapshot())
-    Renderer(sim, 64, 48, sim.scene.render).render()
+    Renderer(sim.model, sim.state, 64, 48, sim.scene.render).render()
     assert not any(with_pass[name] for name in ("_copy", "_measure", "_prepare", "_bond")), with_pass
     assert all(with_pass[name] for name in ("_rates_update", "_sort_and_count", "_splat_pass_2d")), with_pass
 
@@ -520,13 +523,13 @@ def test_widening_the_lists_recompiles_nothing_and_keeps_the_trajectory(make, re
     wide.step(30)
     narrow.step(30)
     compiled = request.getfixturevalue("compiled_kernels")  # from here on
-    width = wide.neighbours.width
-    wide.neighbours._allocate(2 * width)  # what grow() does, here without an overflow first
+    width = wide.hood.lists.width
+    wide.hood.lists._allocate(2 * width)  # what grow() does, here without an overflow first
     for sim in (wide, narrow):
-        sim.neighbours.invalidate()  # both rebuild now (a rebuild at another step sums the forces in another order)
+        sim.hood.lists.invalidate()  # both rebuild now (a rebuild at another step sums the forces in another order)
     wide.step(60)
     narrow.step(60)
-    assert wide.neighbours.width == 2 * width and narrow.neighbours.width == width
+    assert wide.hood.lists.width == 2 * width and narrow.hood.lists.width == width
     assert compiled == []
     assert_same_states(_state(wide), _state(narrow))
 
@@ -565,12 +568,12 @@ def test_staged_integrators_fused_or_teamed_step_as_the_long_way_does(make, inte
     run many steps to a launch (and as a team) like symplectic Euler: over 1,000 steps in calls of several sizes,
     bit for bit the long way's states."""
     fast, long_way = make(), make()
-    long_way.fuses_steps = False
+    long_way.plan.fuses = False
     for sim in (fast, long_way):
         sim.set_integrator(integrator)
         for n in (1, 7, 64, 928):
             sim.step(n)
-    assert fast.fused_batches >= 4 and long_way.fused_batches == 0
+    assert fast.plan.fused_batches >= 4 and long_way.plan.fused_batches == 0
     assert_same_states(_state(long_way), _state(fast))
     assert (fast.time, fast.step_count) == (long_way.time, long_way.step_count) == (long_way.time, 1000)
 
@@ -581,27 +584,27 @@ def test_a_list_that_overflows_between_the_stages_of_a_step_is_widened_and_the_s
     first (its positions are the trial ones). The launch stops before that stage's forces, the host widens the lists
     and the next launch goes on from that stage: bit for bit the long way, which widens them inside the stage."""
     fast, long_way = make(), make()
-    long_way.fuses_steps = False
+    long_way.plan.fuses = False
     stopped_at = []
-    run_fused = fast._run_fused
+    run_fused = fast.plan._run_fused
 
     def run_and_note(batch):
         done = run_fused(batch)
-        stopped_at.append(fast.pending_stage)
+        stopped_at.append(fast.plan.pending_stage)
         return done
 
-    monkeypatch.setattr(fast, "_run_fused", run_and_note)
+    monkeypatch.setattr(fast.plan, "_run_fused", run_and_note)
     for sim in (fast, long_way):
         sim.set_integrator("rk4")
         sim.step(1)
-        nb, n = sim.neighbours, int(sim.particles.n[None])
+        nb, n = sim.hood.lists, int(sim.particles.n[None])
         nb.invalidate()
         nb.ensure_fresh()  # a build at the current positions
         nb._allocate(int(nb.count.to_numpy()[:n].max()))  # no room for one more neighbour
         nb._sort_and_fill(nb.ids)  # the same build again, into the narrow lists
         assert int(nb.overflow[None]) == 0
         sim.step(300)
-    assert fast.neighbours.grown == long_way.neighbours.grown == 1
+    assert fast.hood.lists.grown == long_way.hood.lists.grown == 1
     assert any(stage > 0 for stage in stopped_at), stopped_at  # the overflow came between stages
-    assert fast.pending_stage == 0 and fast.step_count == long_way.step_count == 301
+    assert fast.plan.pending_stage == 0 and fast.step_count == long_way.step_count == 301
     assert_same_states(_state(long_way), _state(fast))

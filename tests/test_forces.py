@@ -41,13 +41,13 @@ def place(sim, x, v=None):
     vel = sim.particles.v.to_numpy()
     vel[: len(x)] = 0 if v is None else np.asarray(v, dtype=np.float32)
     sim.particles.v.from_numpy(vel)
-    sim.eval_rates()
+    sim.rates.evaluate()
     return sim.forces()
 
 
 def test_spring_force_law_and_equal_opposite():
     sim = two_particles()
-    assert sim.springs.count == 1
+    assert sim.state.springs.count == 1
     k, c = sim.scene.materials["jelly"].stiffness, sim.scene.materials["jelly"].damping
     d = np.array([1.3, 0.4])
     f = place(sim, [[10.0, 10.0], [10.0 + d[0], 10.0 + d[1]]])
@@ -138,7 +138,7 @@ def test_total_force_vanishes_without_gravity():
     )
     data["heat"] = {"ambient": 20.0}
     sim = Simulation(make_scene(data))
-    sim.eval_rates()
+    sim.rates.evaluate()
     f = sim.forces().astype(np.float64)
     scale = np.abs(f).sum()
     assert scale > 0
@@ -169,16 +169,16 @@ def small_lj_box(**world):
 
 def test_neighbour_lists_give_the_same_forces_as_a_cell_scan():
     sim = small_lj_box()
-    assert sim.neighbours is not None
+    assert sim.hood.lists is not None
     sim.step(200)  # particles cross the periodic boundary and the lists are rebuilt several times
-    assert sim.neighbours.builds > 2
-    sim.eval_rates()
+    assert sim.hood.lists.builds > 2
+    sim.rates.evaluate()
     with_lists = sim.forces().copy()
-    sim.grid.rebuild()
-    sim._rates(False, sim.no_lists)
+    sim.hood.grid.rebuild()
+    sim.rates._rates(False, sim.rates.no_lists)
     assert np.allclose(with_lists, sim.forces(), rtol=1e-4, atol=1e-4)
     plain = small_lj_box(neighbor_list=False)
-    assert plain.neighbours is None
+    assert plain.hood.lists is None
     plain.step(200)
     # same trajectory either way (up to float summation order over a chaotic 200 steps: compare energies)
     assert plain.stats().total_energy == pytest.approx(sim.stats().total_energy, rel=1e-3)
@@ -189,7 +189,7 @@ def test_half_lists_have_room_for_every_neighbour_of_the_starting_packing():
     neighbour ahead of it), so half lists are sized from the full rows: shifting the packing across the cells never
     makes them grow (growing recompiles every kernel that reads them: a stall in a running demo)."""
     sim = small_lj_box()
-    nb = sim.neighbours
+    nb = sim.hood.lists
     assert nb.half
     x = sim.positions()
     box = 22.36
@@ -205,19 +205,19 @@ def test_half_lists_have_room_for_every_neighbour_of_the_starting_packing():
 
 
 def crowd(sim):
-    n = sim.built.count
+    n = sim.model.built.count
     rng = np.random.default_rng(0)
     return np.full((n, 2), 11.0) + rng.uniform(-0.5, 0.5, (n, 2))  # every particle within one cell
 
 
 def test_crowding_widens_the_neighbour_lists():
     sim = small_lj_box(periodic=False)
-    width = sim.neighbours.width
+    width = sim.hood.lists.width
     place(sim, crowd(sim))
-    assert sim.neighbours.grown == 1 and sim.neighbours.width >= sim.built.count - 1 > width
+    assert sim.hood.lists.grown == 1 and sim.hood.lists.width >= sim.model.built.count - 1 > width
     reference = sim.forces().copy()
-    sim.grid.rebuild()
-    sim._rates(False, sim.no_lists)
+    sim.hood.grid.rebuild()
+    sim.rates._rates(False, sim.rates.no_lists)
     # the crowd's forces nearly cancel on some particles: compare against the largest (f32, other summation order)
     assert np.allclose(reference, sim.forces(), rtol=0, atol=1e-5 * np.abs(reference).max())
 
@@ -237,18 +237,18 @@ def test_a_crowd_past_the_list_memory_cap_falls_back_to_the_grid_and_stays_finit
 
 def test_live_pair_scaling_moves_the_equilibrium_and_the_curve_shows_it():
     sim = two_particles(pair={"a": 8.0, "b": 14.0, "cutoff": 2.5}, springs=False, material="lj", precision="f64")
-    sim.pair.set_scale(2.0, 2.0)  # both doubled: the same law, twice as strong
+    sim.terms.pair.set_scale(2.0, 2.0)  # both doubled: the same law, twice as strong
     r = 1.3
     f = place(sim, [[10.0, 10.0], [10.0 + r, 10.0]])
     assert f[0][0] == pytest.approx(-2 * 24 * (2 * r**-13 - r**-7), rel=1e-5)  # (place() rounds to f32)
-    sim.pair.set_scale(2.0, 1.0)  # attraction doubled: r_eq = (beta / alpha)^(1/6) shrinks by 2^(-1/6)
+    sim.terms.pair.set_scale(2.0, 1.0)  # attraction doubled: r_eq = (beta / alpha)^(1/6) shrinks by 2^(-1/6)
     r_eq = 2 ** (1 / 6) * 2 ** (-1 / 6)
-    assert sim.pair.r_eq_np[0, 0] == pytest.approx(r_eq, rel=1e-9)
+    assert sim.terms.pair.r_eq_np[0, 0] == pytest.approx(r_eq, rel=1e-9)
     assert abs(place(sim, [[10.0, 10.0], [10.0 + r_eq, 10.0]])[0][0]) < 1e-4
-    r_curve, force = sim.pair.curve()
+    r_curve, force = sim.terms.pair.curve()
     crossing = r_curve[np.argmax(force > 0)]  # repulsive (negative) inside, attractive outside
     assert abs(crossing - r_eq) < (r_curve[1] - r_curve[0]) * 1.01
-    assert np.all(np.diff(force[r_curve < sim.pair.r_core_np[0, 0]]) == 0)  # held below the core
+    assert np.all(np.diff(force[r_curve < sim.terms.pair.r_core_np[0, 0]]) == 0)  # held below the core
 
 
 def test_light_stats_reuse_the_last_pair_energy_and_measure_the_rest():
@@ -262,52 +262,90 @@ def test_light_stats_reuse_the_last_pair_energy_and_measure_the_rest():
     assert sim.stats().pair_energy != full.pair_energy  # a full call measures it again
 
 
-def test_a_body_force_added_to_the_registry_acts_in_every_way_of_stepping(monkeypatch):
-    """A new force term is one class and the registry: a harmonic trap F = -m w^2 (x - c) moves free particles on
-    x(t) = c + (x0 - c) cos(w t), the same bits stepped one launch per pass or many steps to a launch; pipeline()
-    names it and its field is part of the saved state."""
+def _harmonic_trap(centre):
+    """A new term in one class (tests/test_forces.py alone): a harmonic trap F = -m w^2 (x - c) on every particle,
+    its strength a field of its own that the state carries."""
     import taichi as ti
 
     from sandbox.core.oriented import data_oriented
-    from sandbox.files import persist
-    from sandbox.physics import body_forces
+    from sandbox.physics.term import Term
 
-    monkeypatch.setattr(body_forces, "BODY_FORCES", list(body_forces.BODY_FORCES))
-    centre = np.array([11.0, 10.0])
-
-    @body_forces.body_force
     @data_oriented
-    class Trap:
+    class Trap(Term):
+        key = "trap"
+        order = 12.0  # summed after gravity and field drag
+        particle_force = True
+
         @staticmethod
-        def wanted(sim) -> bool:
+        def wanted(parts) -> bool:
             return True
 
-        def __init__(self, sim):
-            self.particles = sim.particles
+        def __init__(self, parts):
+            self.particles = parts.state.particles
             self.w2 = ti.field(float, shape=())  # w^2 (1 / time^2)
             self.w2[None] = 4.0
             self.centre = ti.Vector(list(centre))
 
-        def describe(self) -> list[str]:
-            return ["harmonic trap"]
+        def words(self, where: str) -> list[str]:
+            return ["harmonic trap"] if where == "rates" else []
+
+        def declare(self, state) -> None:
+            state.declare("trap", self, ("w2",))
 
         @ti.func
         def force(self, i):
             p = self.particles
             return -p.mass[i] * self.w2[None] * (p.x[i] - self.centre)
 
+    return Trap
+
+
+@pytest.fixture
+def trap_registered():
+    """The trap in the term registry for one test (registering is all a new term's module does)."""
+    from sandbox.physics.term import TERMS, register
+
+    centre = np.array([11.0, 10.0])
+    trap = register(_harmonic_trap(centre))
+    yield centre
+    TERMS.remove(trap)
+
+
+def test_a_term_added_in_one_class_acts_in_every_way_of_stepping(trap_registered, tmp_path):
+    """A new term is one class, registered: a harmonic trap moves free particles on x(t) = c + (x0 - c) cos(w t),
+    the same bits stepped the long way (a launch per pass), many steps to a launch on one thread, and by a team of
+    threads; pipeline() names it in the rates line, and its field is state (saved with it)."""
+    from sandbox.files import persist
+
+    from .test_fast_paths import team_box
+
+    centre = trap_registered
     world = {"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.001, "precision": "f64"}
     world["integrator"] = "velocity_verlet"
     body = {"material": "jelly", "shape": "box", "lo": [10, 10], "hi": [12, 11], "springs": False}
     one_by_one, fused = (Simulation(make_scene(scene_dict(world=world, bodies=[body]))) for _ in range(2))
-    one_by_one.fuses_steps = False
-    assert fused.fuses_steps and any(line.endswith(": harmonic trap") for line in fused.pipeline())
+    one_by_one.plan.fuses = False
+    assert fused.plan.fuses and any(
+        line.startswith("fused rates kernel") and line.endswith("harmonic trap") for line in fused.pipeline()
+    )
     x0 = fused.positions().copy()
     assert len(x0) == 2 and not np.allclose(x0, centre)
     for sim in (one_by_one, fused):
         sim.step(1000)  # t = 1
     x = fused.positions()
-    assert np.array_equal(x, one_by_one.positions()) and fused.fused_batches > 0 == one_by_one.fused_batches
+    assert np.array_equal(x, one_by_one.positions()) and fused.plan.fused_batches > 0 == one_by_one.plan.fused_batches
     expected = centre + (x0 - centre) * np.cos(2.0 * 1.0)
     assert np.abs(x - expected).max() < 1e-5 < np.abs(x0 - expected).min()
-    assert "body_forces.1.w2" in persist.walk(fused)[0]
+    assert "trap.w2" in {e.name for e in fused.state.entries()}
+    fused.terms.trap.w2[None] = 9.0
+    fused.save(tmp_path / "trapped")
+    one_by_one.terms.trap.w2[None] = 1.0
+    persist.load_into(one_by_one, tmp_path / "trapped.npz")
+    assert one_by_one.terms.trap.w2[None] == 9.0  # put back with the state
+    team, long_way = team_box(), team_box()  # an LJ liquid in the trap, 2,900 particles
+    long_way.plan.fuses = False
+    for sim in (team, long_way):
+        sim.step(40)
+    assert team.plan.team is not None and team.plan.fused_batches > 0 == long_way.plan.fused_batches
+    assert np.array_equal(team.positions(), long_way.positions())
+    assert team.terms.trap is not None

@@ -10,8 +10,9 @@ import pytest
 from sandbox.app.cli import EXIT_STOPPED, main
 from sandbox.app.tools import Tools
 from sandbox.config.scene import load_scene
+from sandbox.config.schema import ABSOLUTE_ZERO
 from sandbox.errors import SimulationError
-from sandbox.guard import ABSOLUTE_ZERO, RUNAWAY_FACTOR
+from sandbox.measure.guard import RUNAWAY_FACTOR
 from sandbox.simulation import Simulation
 from tests.conftest import SCENES, make_scene, scene_dict
 
@@ -38,7 +39,7 @@ def test_a_blow_up_in_the_first_frames_stops_with_the_cause_and_keeps_only_the_f
     pictures = sorted(frames.glob("*.png"))
     assert len(rows) == len(pictures) == 1  # exactly the frames before the stop, each with its row
     sim = Simulation(load_scene(SCENES / "spring_lattice.toml", ["world.dt=0.05"]))
-    limit = RUNAWAY_FACTOR * sim.guard.limits.energy_scale(float(np.sum(sim.built.mass)))
+    limit = RUNAWAY_FACTOR * sim.guard.limits.energy_scale(float(np.sum(sim.model.built.mass)))
     for row in rows:
         assert row["mean_temperature"] == row["heat_content"] == ""  # no heat in this scene: not measured
         values = [float(v) for v in row.values() if v != ""]
@@ -71,7 +72,7 @@ def test_a_heat_blow_up_is_named_before_any_row_goes_below_absolute_zero(tmp_pat
 
 def test_the_limits_come_from_the_scene_not_from_a_measured_frame():
     sim = Simulation(load_scene(SCENES / "spring_lattice.toml"))
-    b = sim.built
+    b = sim.model.built
     kinetic = 0.5 * np.sum(b.mass * np.sum(b.v**2, axis=1))
     springs = 0.5 * np.sum(b.stiffness * b.rest_length**2)
     assert sim.guard.limits.fixed_energy == pytest.approx(kinetic + springs, rel=1e-12)
@@ -89,8 +90,8 @@ def test_tools_put_energy_in_without_tripping_the_guard_and_cooling_stops_at_abs
     tools = Tools(sim)
     centre = [6.5, 6.5]
     tools.apply("cool", centre, 5.0, dt=10.0)  # 4,000 degrees of cooling asked for
-    assert sim.particles.T.to_numpy()[: sim.built.count].min() == pytest.approx(ABSOLUTE_ZERO, abs=1e-3)
-    mass = float(np.sum(sim.built.mass))
+    assert sim.particles.T.to_numpy()[: sim.model.built.count].min() == pytest.approx(ABSOLUTE_ZERO, abs=1e-3)
+    mass = float(np.sum(sim.model.built.mass))
     allowed = RUNAWAY_FACTOR * sim.guard.limits.energy_scale(mass)
     sim.stats()
     for _ in range(3):  # a hard push: far more kinetic energy than the scene allowed

@@ -40,7 +40,7 @@ def test_heat_pulse_spreads_like_the_analytic_gaussian():
         err = np.linalg.norm(sim.temperatures() - exact) / np.linalg.norm(exact)
         assert err < 0.025, err
     # without the lattice correction the same run is 3.4% too slow in diffusivity, which this bound catches
-    assert 1.03 < 1 / sim.heat.correction < 1.04
+    assert 1.03 < 1 / sim.terms.heat.correction < 1.04
 
 
 def pulse_error(spacing: float, heat: dict, side: float = 16.0) -> float:
@@ -75,7 +75,7 @@ def test_heat_pulse_refinement_converges_at_order_two_with_the_default_radius():
 def test_heat_is_conserved_to_round_off_with_insulated_walls():
     sim = lattice_scene(precision="f64", dt=0.05)
     rng = np.random.default_rng(1)
-    sim.set_temperatures(rng.uniform(0, 500, sim.built.count))
+    sim.set_temperatures(rng.uniform(0, 500, sim.model.built.count))
     before = sim.temperatures().sum()
     sim.step(200)
     after = sim.temperatures()
@@ -94,10 +94,10 @@ def test_heat_conserved_in_a_moving_liquid_f32():
     )
     sim = Simulation(make_scene(data))
     rng = np.random.default_rng(2)
-    sim.set_temperatures(rng.uniform(20, 200, sim.built.count))  # some solid, some melting, some liquid
+    sim.set_temperatures(rng.uniform(20, 200, sim.model.built.count))  # some solid, some melting, some liquid
     before = sim.stats().heat_content  # sum of m h, latent heat included
     assert 0.5 < sim.stats().molten_fraction < 1
-    assert np.isclose(before, float(sim.built.mass @ (2.5 * sim.temperatures() + 200.0 * sim.melt_fractions())))
+    assert np.isclose(before, float(sim.model.built.mass @ (2.5 * sim.temperatures() + 200.0 * sim.melt_fractions())))
     sim.step(300)
     after = sim.stats().heat_content
     assert abs(after - before) < 2e-6 * before
@@ -110,7 +110,7 @@ def test_plate_heats_only_what_touches_it_and_ambient_pulls_back():
         "sources": [{"lo": [0, 0], "hi": [L, 0.5], "temperature": 100.0, "conductance": 5.0, "reach": 0.0}],
     }
     sim = lattice_scene(heat=heat, dt=0.01)
-    sim.set_temperatures(np.full(sim.built.count, 20.0))
+    sim.set_temperatures(np.full(sim.model.built.count, 20.0))
     sim.step(10)
     T, y = sim.temperatures(), sim.positions()[:, 1]
     assert T[y < 0.6].min() > 20.5  # the bottom row touches the plate
@@ -118,17 +118,27 @@ def test_plate_heats_only_what_touches_it_and_ambient_pulls_back():
     sim.step(2000)
     assert np.isclose(sim.temperatures().max(), 100.0, atol=5.0)
     cool = lattice_scene(heat={"ambient": 20.0, "ambient_exchange": 2.0}, dt=0.01)
-    cool.set_temperatures(np.full(cool.built.count, 80.0))
+    cool.set_temperatures(np.full(cool.model.built.count, 80.0))
     cool.step(100)  # dT/dt = -2 (T - 20) / (m c): after t = 1, 60 e^-2 above ambient
     assert np.allclose(cool.temperatures(), 20 + 60 * np.exp(-2.0), rtol=0.01)
 
 
 def test_only_what_the_scene_uses_is_built():
     sim = lattice_scene()
-    assert sim.heat is not None and sim.pair is None and sim.springs is None and sim.grid is not None
+    assert (
+        sim.terms.heat is not None
+        and sim.terms.pair is None
+        and sim.state.springs is None
+        and sim.hood.grid is not None
+    )
     assert hasattr(sim.particles, "T")
     no_heat = Simulation(make_scene(scene_dict()))
-    assert no_heat.heat is None and no_heat.grid is None and no_heat.pair is None and no_heat.springs is not None
+    assert (
+        no_heat.terms.heat is None
+        and no_heat.hood is None
+        and no_heat.terms.pair is None
+        and no_heat.state.springs is not None
+    )
     assert not hasattr(no_heat.particles, "T")
     with pytest.raises(AttributeError):
         no_heat.temperatures()
@@ -152,21 +162,21 @@ def test_heat_rates_between_two_materials_follow_the_harmonic_mean_conductance(h
         ],
     )
     sim = Simulation(make_scene(data), half_lists=half)
-    assert sim.half_pairs == half and not sim.heat.single_material
-    n = sim.built.count
+    assert sim.rates.half == half and not sim.terms.heat.single_material
+    n = sim.model.built.count
     rng = np.random.default_rng(3)
     sim.set_temperatures(rng.uniform(0.0, 100.0, n))
-    sim.eval_rates()
+    sim.rates.evaluate()
     x, t = sim.positions(), sim.temperatures()
     mass, mat = sim.particles.mass.to_numpy()[:n], sim.particles.material.to_numpy()[:n]
-    k = sim.materials.host["conductivity"][mat]
-    volume = mass / sim.materials.host["density"][mat]
-    h = sim.heat.support
+    k = sim.model.materials.host["conductivity"][mat]
+    volume = mass / sim.model.materials.host["density"][mat]
+    h = sim.terms.heat.support
     r = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=2)
     w = np.where((r > 0) & (r < h), (1 - r / h) ** 3, 0.0)
-    g = 2 * k[:, None] * k[None, :] / (k[:, None] + k[None, :]) * sim.heat.norm * 40.0 / h**2 * w
+    g = 2 * k[:, None] * k[None, :] / (k[:, None] + k[None, :]) * sim.terms.heat.norm * 40.0 / h**2 * w
     expected = (g * volume[:, None] * volume[None, :] * (t[None, :] - t[:, None])).sum(axis=1) / mass
-    rates = sim.particles.dhdt.to_numpy()[:n]
+    rates = sim.rates.heat_rate.to_numpy()[:n]
     assert np.abs(rates - expected).max() <= 1e-9 * np.abs(expected).max()
     assert abs((mass * rates).sum()) <= 1e-12 * (mass * np.abs(rates)).sum()
     assert len(set(mat)) == 2

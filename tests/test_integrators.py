@@ -175,8 +175,8 @@ def test_guard_names_the_limit_for_each_integrator():
 def test_auto_substeps_keep_a_stiff_lattice_stable():
     sim = stiff_lattice(substeps="auto")
     n, h = sim.frame_substeps()
-    assert h * sim.omega_max() <= 1.0 + 1e-9  # half the symplectic Euler limit
-    assert n == math.ceil((1 / 60) * sim.omega_max() / 1.0)
+    assert h * sim.terms.springs.omega_max() <= 1.0 + 1e-9  # half the symplectic Euler limit
+    assert n == math.ceil((1 / 60) * sim.terms.springs.omega_max() / 1.0)
     x0 = sim.positions()
     for _ in range(20):
         sim.advance_frame()
@@ -213,7 +213,7 @@ def test_a_spring_stretched_a_thousandfold_breaks_instead_of_exploding():
     x[1, 0] = x[0, 0] + 1000.0
     sim.particles.x.from_numpy(x)
     sim.step(1)
-    assert sim.springs.alive.to_numpy()[0] == 0
+    assert sim.state.springs.alive.to_numpy()[0] == 0
     assert np.all(np.isfinite(sim.velocities())) and np.abs(sim.velocities()).max() < 1e-6
 
 

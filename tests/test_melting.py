@@ -29,7 +29,7 @@ def test_melting_block_melts_and_spreads():
     molten = [s.molten_fraction for s in history]
     assert molten[-1] > 0.9
     assert molten[10] < 0.5  # it takes time: the heat has to diffuse up from the plate
-    assert history[-1].broken_springs == sim.springs.built_count  # all of them, and none refroze on the plate
+    assert history[-1].broken_springs == sim.state.springs.built_count  # all of them, and none refroze on the plate
     x = sim.positions()
     # it slumps: wider and lower (this small block stays a cohesive blob; the full-size one spreads out)
     assert np.ptp(x[:, 0]) > width0 + 1.5

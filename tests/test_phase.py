@@ -103,7 +103,7 @@ def test_enthalpy_is_conserved_through_melting_and_refreezing():
         now = sim.stats()
         assert abs(now.heat_content - before.heat_content) < 1e-10 * abs(before.heat_content)
     assert now.molten_fraction < 0.5 * before.molten_fraction  # the melt froze onto the cold block ...
-    assert int(sim.springs.created[None]) > sim.springs.built_count + 30  # ... by making new bonds
+    assert int(sim.state.springs.created[None]) > sim.state.springs.built_count + 30  # ... by making new bonds
 
 
 def _components(n, i, j):
@@ -121,8 +121,8 @@ def _components(n, i, j):
 
 
 def _spring_graph(sim):
-    alive = sim.springs.alive.to_numpy().astype(bool)
-    return sim.springs.i.to_numpy()[alive], sim.springs.j.to_numpy()[alive]
+    alive = sim.state.springs.alive.to_numpy().astype(bool)
+    return sim.state.springs.i.to_numpy()[alive], sim.state.springs.j.to_numpy()[alive]
 
 
 def test_freeze_thaw_cycles_make_one_solid_each_time_and_lose_nothing():
@@ -146,7 +146,7 @@ def test_freeze_thaw_cycles_make_one_solid_each_time_and_lose_nothing():
         {"material": "wax", "shape": "box", "lo": [9, 0], "hi": [21, 4], "springs": False, "temperature": 90}
     ]
     sim = Simulation(make_scene(data))
-    n = sim.built.count
+    n = sim.model.built.count
     liquid_before = sim.particles.liquid.to_numpy()[:n].copy()
     assert liquid_before.all()  # a puddle at 90 C
     toggles = np.zeros(n, dtype=int)

@@ -95,7 +95,7 @@ def test_an_ideal_gas_pushes_its_walls_with_the_virial_pressure():
     }
     sim = Simulation(make_scene(data))
     pressure = sim.stats().pressure
-    m = sim.particles.mass.to_numpy()[: sim.built.count]
+    m = sim.particles.mass.to_numpy()[: sim.model.built.count]
     radius = float(sim.particles.radius.to_numpy()[0])
     v = sim.velocities()
     assert pressure == pytest.approx((m[:, None] * v**2).sum() / (2 * side**2), rel=1e-9)  # only the kinetic term
@@ -133,7 +133,7 @@ def test_the_wall_gauge_counts_each_bounce_as_its_momentum_over_time_and_wall_ar
         ],
     }
     sim = Simulation(make_scene(data))
-    assert sim.built.count == 1 and sim.domain.wall_area == 60.0
+    assert sim.model.built.count == 1 and sim.model.domain.wall_area == 60.0
     assert np.isnan(sim.stats().wall_pressure)  # no time has passed
     m = float(sim.particles.mass.to_numpy()[0])
     sim.step(1800)  # from x = 10: bounces at x = 19.5 (t = 3.17), 0.5 (t = 9.5) and 19.5 (t = 15.83); at 13 by t = 18
@@ -143,4 +143,4 @@ def test_the_wall_gauge_counts_each_bounce_as_its_momentum_over_time_and_wall_ar
     assert sim.stats().wall_pressure == pytest.approx(bounces * 2 * m * 3.0 / (sim.time * 60.0), rel=1e-9)
     sim.advance_frame(substeps=100)  # 1 time unit, no bounce (the particle crosses the middle)
     assert sim.stats().wall_pressure == 0.0
-    assert np.isnan(lj_fluid().stats().wall_pressure) and lj_fluid().domain.wall_area == 0.0
+    assert np.isnan(lj_fluid().stats().wall_pressure) and lj_fluid().model.domain.wall_area == 0.0

@@ -49,9 +49,9 @@ def one(at, material="red", spacing=1.0, **style):
 
 def test_additive_light_adds_up():
     single = dot_scene([one([50.0, 50.0], blend="additive")])
-    light1, img1 = splat_light(Renderer(single, 100, 100, single.scene.render))
+    light1, img1 = splat_light(Renderer(single.model, single.state, 100, 100, single.scene.render))
     double = dot_scene([one([50.0, 50.0], blend="additive"), one([50.0, 50.0], blend="additive")])
-    light2, img2 = splat_light(Renderer(double, 100, 100, double.scene.render))
+    light2, img2 = splat_light(Renderer(double.model, double.state, 100, 100, double.scene.render))
     assert np.allclose(light2, 2 * light1, rtol=1e-6)
     assert light1.sum() > 0
     # tone mapping saturates gracefully: brighter, never past white, never clipped flat at the centre
@@ -62,7 +62,7 @@ def test_additive_light_adds_up():
 def test_sub_pixel_additive_particle_deposits_its_full_intensity(x):
     # radius 0.05 units = 0.049 px: far below a pixel; the energy opacity * pi r^2 lands whole wherever it falls
     sim = dot_scene([one([x, 50.3], spacing=0.1, blend="additive", opacity=5.0)])
-    ren = Renderer(sim, 100, 100, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 100, 100, sim.scene.render)
     light, _ = splat_light(ren)
     r_px = 0.05 * ren.px_per_unit
     assert light[..., 0].sum() == pytest.approx(5.0 * math.pi * r_px**2, rel=1e-5)
@@ -70,7 +70,7 @@ def test_sub_pixel_additive_particle_deposits_its_full_intensity(x):
 
 def test_small_opaque_particles_fade_rather_than_vanish():
     sim = dot_scene([one([50.4, 50.6], spacing=0.2)])
-    ren = Renderer(sim, 100, 100, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 100, 100, sim.scene.render)
     ren.render()
     red = ren.image.to_numpy()[5:-5, 5:-5, 0]  # away from the wall frame
     assert red.max() > 0.2 and (red > 0).sum() >= 1  # a 0.1 px particle still shows at a quarter strength
@@ -78,7 +78,7 @@ def test_small_opaque_particles_fade_rather_than_vanish():
 
 def blurred_pair(motion_blur, move_by):
     sim = dot_scene([one([30.0, 50.0], spacing=2.0, blend="additive")], render={"motion_blur": motion_blur})
-    ren = Renderer(sim, 100, 100, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 100, 100, sim.scene.render)
     ren.begin_frame()
     x = sim.particles.x.to_numpy()
     x[0, 0] += move_by
@@ -112,7 +112,7 @@ def arc_streak(motion_path):
     sim = dot_scene(
         [one([30.0, 50.0], spacing=2.0, blend="additive")], render={"motion_blur": True, "motion_path": motion_path}
     )
-    ren = Renderer(sim, 100, 100, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 100, 100, sim.scene.render)
 
     def move_to(p):
         x = sim.particles.x.to_numpy()
@@ -163,7 +163,7 @@ def alpha_pair_3d(red_in_front: bool):
         render=render,
         hi=50.0,
     )
-    ren = Renderer(sim, 64, 64, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 64, 64, sim.scene.render)
     ren.render()
     return ren.image.to_numpy()[32, 32]
 
@@ -187,9 +187,9 @@ def test_the_colour_bar_samples_each_map_as_the_particles_colour_ramp_does():
 
 def test_legend_draws_a_colour_bar_with_labels(tmp_path):
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true"]))
-    ren = Renderer(sim, 320, 180, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render)
     img = ren.frame()
-    plain = Renderer(sim, 320, 180, load_scene(SCENES / "melting_block.toml").render).frame()
+    plain = Renderer(sim.model, sim.state, 320, 180, load_scene(SCENES / "melting_block.toml").render).frame()
     changed = np.abs(img.astype(int) - plain.astype(int)).sum(axis=2) > 0
     ys, xs = np.nonzero(changed)
     assert xs.min() > 320 * 0.6 and ys.min() > 180 * 0.7  # only the bottom-right corner
@@ -220,7 +220,7 @@ def test_the_font_has_letters_digits_the_degree_sign_and_units():
 def test_the_legend_labels_its_range_with_the_unit_and_the_clock_prints_the_time():
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true", "render.clock=true"]))
     sim.step(30)
-    ren = Renderer(sim, 320, 180, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render)
     img = ren.frame()
     x0, y0, bar_w, bar_h, scale = ren._legend_geometry()
     lo, hi = sim.scene.render.temperature_range
@@ -234,7 +234,7 @@ def test_the_window_picture_carries_the_colour_bar_and_the_chart_labels():
     """The window shows GGUI's packed output without picture()'s host copy: the labels are drawn on it in place."""
     over = ["render.legend=true", "render.chart=['mean_temperature']"]
     sim = Simulation(load_scene(SCENES / "melting_block.toml", over))
-    ren = Renderer(sim, 320, 180, sim.scene.render, "rgba")
+    ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render, "rgba")
     ren.record(sim.stats())
     ren.render()
     before = ren.out.copy()
@@ -251,7 +251,7 @@ def test_chart_series_of_one_unit_share_a_scale_and_are_labelled():
     from sandbox.render.chart import Chart
 
     sim = Simulation(load_scene(SCENES / "melting_block.toml"))
-    ren = Renderer(sim, 320, 180, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render)
     energies = Chart(ren.image, 320, 180, ("kinetic_energy", "potential_energy", "total_energy"))
     mixed = Chart(ren.image, 320, 180, ("mean_temperature", "molten_fraction"))
     for _ in range(3):
@@ -293,7 +293,7 @@ def golden(request, name, img):
 @pytest.mark.parametrize("scene", ["melting_block", "melting_block_3d", "fireworks"])
 def test_golden_images(request, scene):
     sim = Simulation(load_scene(SCENES / f"{scene}.toml"))
-    ren = Renderer(sim, 192, 108, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 192, 108, sim.scene.render)
     for _ in range(30 if scene == "fireworks" else 3):  # the first shells go off at 0.1 and 0.6 s
         ren.begin_frame()
         sim.advance_frame(midway=ren.mid_frame)
@@ -308,7 +308,10 @@ def test_every_output_gives_the_same_picture_and_rgba_is_ggui_packed_layout(scen
 
     sim = Simulation(load_scene(SCENES / f"{scene}.toml", ["render.chart=['mean_temperature']", "render.legend=false"]))
     w, h = 160, 90
-    renderers = {output: Renderer(sim, w, h, sim.scene.render, output) for output in ("image", "picture", "rgba")}
+    renderers = {
+        output: Renderer(sim.model, sim.state, w, h, sim.scene.render, output)
+        for output in ("image", "picture", "rgba")
+    }
     for k in range(3):
         for ren in renderers.values():
             ren.begin_frame()
@@ -335,7 +338,7 @@ def test_the_brush_outline_is_a_ring_of_its_radius_and_leaves_no_trace(output):
     """The window's tool cursor: a ring of the brush radius about the cursor, drawn into the picture, and gone
     from the next picture once moved away or removed (its tiles are composited again)."""
     sim = dot_scene([one([50.0, 50.0])])
-    ren = Renderer(sim, 200, 200, sim.scene.render, output)
+    ren = Renderer(sim.model, sim.state, 200, 200, sim.scene.render, output)
     plain = ren.frame().copy()
     ren.set_brush((100.0, 60.0), 30.0)
     ringed = ren.frame().copy()
@@ -359,7 +362,7 @@ def test_chart_plots_each_series_across_its_box(dim, output):
 
     data = scene_dict(dim=dim, render={"chart": ["mean_temperature", "molten_fraction"], "background": [0.5] * 3})
     sim = Simulation(make_scene(data))
-    ren = Renderer(sim, 320, 180, sim.scene.render, output)
+    ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render, output)
     for k in range(11):  # temperature rises 0 -> 100 (auto range); melt fraction 0 -> 0.5 (fixed [0, 1] scale)
         ren.record(SimpleNamespace(mean_temperature=10.0 * k, molten_fraction=0.05 * k, time=0.1 * k))
     img = ren.frame().astype(int)
@@ -393,7 +396,7 @@ def test_the_chart_can_be_switched_and_removed_live():
     from types import SimpleNamespace
 
     sim = Simulation(make_scene(scene_dict()))
-    ren = Renderer(sim, 320, 180, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render)
     plain = ren.frame().copy()
     ren.set_chart(("kinetic_energy", "total_energy"))  # the window's energy plot (key e)
     for k in range(5):
@@ -416,9 +419,9 @@ def test_potential_panel_draws_the_force_curve_top_right():
             )
         )
     )
-    ren = Renderer(sim, 320, 180, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render)
     plain = ren.frame().copy()
-    r, force = sim.pair.curve()
+    r, force = sim.terms.pair.curve()
     ren.set_potential(force, (float(r[0]), float(r[-1])))
     shown = ren.frame()
     changed = np.abs(shown.astype(int) - plain.astype(int)).sum(axis=2) > 0
@@ -457,14 +460,17 @@ def test_compositing_only_the_dirty_tiles_gives_the_full_picture(output):
         render={"legend": True, "color_by": "speed", "chart": ["kinetic_energy", "max_speed"], "clock": True},
     )
     cfg = sim.scene.render
-    tiled, full = Renderer(sim, 480, 120, cfg, output), Renderer(sim, 480, 120, cfg, output)
+    tiled, full = (
+        Renderer(sim.model, sim.state, 480, 120, cfg, output),
+        Renderer(sim.model, sim.state, 480, 120, cfg, output),
+    )
     for ren in (tiled, full):
         ren.set_potential(np.linspace(-1.0, 1.0, 50), (0.5, 2.5))
     for k in range(6):
         x = sim.particles.x.to_numpy()
         x[0] += (9.0, 4.0 * (-1) ** k)  # crosses tiles, back and forth
         sim.particles.x.from_numpy(x)
-        sim.time = 10.0 ** (k - 2)  # the clock's text changes length
+        sim.state.time = 10.0 ** (k - 2)  # the clock's text changes length
         for ren in (tiled, full):
             ren.record(SimpleNamespace(kinetic_energy=7.0 ** (k * k % 7), max_speed=1.0 / (k + 3), time=0.1 * k))
             ren.set_potential(np.linspace(-1.0, 1.0 + 10.0**k, 50), (0.5, 2.5 + k))
@@ -492,7 +498,10 @@ def test_splatting_strip_by_strip_without_atomics_gives_the_picture_of_atomic_sp
     ]
     sim = dot_scene(bodies, render={"motion_blur": True})
     cfg = sim.scene.render
-    strips, atomic = Renderer(sim, 320, 240, cfg), Renderer(sim, 320, 240, cfg, strip_splat=False)
+    strips, atomic = (
+        Renderer(sim.model, sim.state, 320, 240, cfg),
+        Renderer(sim.model, sim.state, 320, 240, cfg, strip_splat=False),
+    )
     for ren in (strips, atomic):
         ren.begin_frame()
     v = np.zeros_like(sim.particles.v.to_numpy())
@@ -513,7 +522,7 @@ def moved_sphere_3d(motion_blur, move_by):
     """A shaded opaque sphere of radius 3 seen head-on from z = 200 that moved `move_by` along x over the frame."""
     camera = {"camera_position": [50.0, 50.0, 200.0], "camera_target": [50.0, 50.0, 50.0], "ground": False}
     sim = dot_scene([one([48.0, 48.0, 48.0], spacing=6.0)], dim=3, render={"motion_blur": motion_blur, **camera})
-    ren = Renderer(sim, 200, 150, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 200, 150, sim.scene.render)
     ren.begin_frame()
     x = sim.particles.x.to_numpy()
     x[0, 0] += move_by
@@ -563,5 +572,5 @@ def test_a_chart_or_colour_bar_too_big_for_the_picture_is_left_out(tmp_path):
 @pytest.mark.parametrize("size", [(1280, 720), (640, 360), (320, 180)])
 def test_the_colour_bar_fits_at_every_common_size(size):
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true"]))
-    ren = Renderer(sim, *size, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, *size, sim.scene.render)
     assert ren._legend_shown()  # the bar and its labels inside the picture

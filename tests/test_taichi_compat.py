@@ -14,7 +14,7 @@ from taichi.lang import kernel_impl
 from sandbox.core import runtime, taichi_compat
 from sandbox.core.oriented import data_oriented
 from sandbox.errors import SandboxError
-from sandbox.simulation import Simulation
+from sandbox.step.rates import Rates
 from tests.conftest import ROOT
 
 
@@ -37,7 +37,7 @@ def _counter_class():
 def test_every_fast_path_is_active_on_the_pinned_taichi():
     assert taichi_compat.SUPPORTED and tuple(ti.__version__[:2]) == (1, 7)
     # data-oriented classes read plain attributes the ordinary way, only kernels through Taichi's lookup
-    assert Simulation.__getattribute__.__module__ == "sandbox.core.oriented"
+    assert Rates.__getattribute__.__module__ == "sandbox.core.oriented"
     counter = _counter_class()()
     counter.add(2)
     assert counter.total[None] == 6
@@ -119,6 +119,7 @@ import sandbox
 from sandbox.core import taichi_compat, threads
 from sandbox.config.scene import load_scene
 from sandbox.simulation import Simulation
+from sandbox.step.rates import Rates
 if sys.argv[1] == "own":
     sandbox.own_process()  # the public spelling, straight after the import
 Simulation(load_scene("scenes/spring_lattice.toml"))

@@ -44,7 +44,7 @@ def test_erase_removes_exactly_the_particles_in_the_brush_and_their_springs(melt
     assert sim.particles.n[None] == len(x) - removed
     assert np.allclose(np.sort(sim.positions(), axis=0), np.sort(survivors, axis=0))
     # every live spring joins two surviving particles at about its rest length; the bond table matches
-    s = sim.springs
+    s = sim.state.springs
     alive = s.alive.to_numpy().astype(bool)
     i, j = s.i.to_numpy()[alive], s.j.to_numpy()[alive]
     n = sim.particles.n[None]
@@ -114,8 +114,8 @@ def test_empty_sandbox_spawns_palette_materials_and_cold_wax_freezes_into_one_so
     assert made > 40 and sim.particles.n[None] == made
     assert set(sim.particles.group.to_numpy()[:made]) == {len(sim.scene.groups)}  # the spawn tool's own group
     sim.step(20)  # two refreezing passes: cold (20 C) wax bonds into a solid
-    alive = sim.springs.alive.to_numpy().astype(bool)
-    i, j = sim.springs.i.to_numpy()[alive], sim.springs.j.to_numpy()[alive]
+    alive = sim.state.springs.alive.to_numpy().astype(bool)
+    i, j = sim.state.springs.i.to_numpy()[alive], sim.state.springs.j.to_numpy()[alive]
     assert len(i) > 2 * made  # about four bonds per particle
     assert np.all(np.bincount(np.concatenate([i, j]), minlength=made)[:made] > 0)
     with pytest.raises(SandboxError, match="not in this scene"):

@@ -83,7 +83,7 @@ def test_undo_puts_back_the_state_before_each_stroke_and_keeps_memory_bounded():
             tools.apply(tool, centre + [3.0 * k, 2.0], 4.0, 0.01, material="wax")
             sim.step(5)
     assert len(ring) == 3 and ring.nbytes == sum(snapshot_bytes(s) for s in before[2:])
-    assert sim.built.count != int(sim.particles.n[None])  # spawned and erased
+    assert sim.model.built.count != int(sim.particles.n[None])  # spawned and erased
     for k in (4, 3, 2):
         assert ring.undo(sim)
         assert _same(sim.snapshot(), before[k])  # exactly the state before stroke k, clock included
@@ -164,7 +164,9 @@ def test_window_frame_matches_the_headless_renderer(tmp_path):
     from sandbox.render.raster import Renderer
 
     sim = Simulation(load_scene(SCENES / "spring_lattice.toml"))
-    ren = Renderer(sim, 1280, 720, view_config(sim.scene.render, make_state(sim, None)), panel=PANEL_WIDTH)
+    ren = Renderer(
+        sim.model, sim.state, 1280, 720, view_config(sim.scene.render, make_state(sim, None)), panel=PANEL_WIDTH
+    )
     for _ in range(3):
         ren.begin_frame()
         sim.advance_frame()
@@ -248,7 +250,7 @@ def test_3d_brush_acts_at_the_particle_under_the_cursor():
         load_scene(SCENES / "melting_block_3d.toml", ["bodies.0.lo=[20.0, 0.0, 20.0]", "bodies.0.hi=[28.0, 6.0, 28.0]"])
     )
     assert "heat" in tools_for(sim)  # tools work in 3D too (shift + left mouse)
-    ren = Renderer(sim, 320, 180, sim.scene.render)
+    ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render)
     x = sim.positions()
     top_centre = x[np.argmax(x[:, 1] - 0.01 * np.abs(x[:, 0] - 24.5) - 0.01 * np.abs(x[:, 2] - 27.5))]
     ren.set_camera(top_centre + [0.0, 10.0, 10.0], top_centre, 40.0)  # looking at that particle
@@ -271,9 +273,9 @@ def test_the_probe_reads_the_particle_under_the_cursor():
     from sandbox.app.probe import particle_at, probe
 
     sim = _block()
-    sim.set_temperatures(np.linspace(20.0, 120.0, sim.built.count))  # solid through melting to liquid
+    sim.set_temperatures(np.linspace(20.0, 120.0, sim.model.built.count))  # solid through melting to liquid
     x, v, phi = sim.positions(), sim.velocities(), sim.melt_fractions()
-    readings = [probe(sim, i) for i in range(sim.built.count)]
+    readings = [probe(sim, i) for i in range(sim.model.built.count)]
     assert [r.melt_fraction for r in readings] == pytest.approx(phi, abs=1e-12)
     assert [r.temperature for r in readings] == pytest.approx(sim.temperatures())
     assert [r.speed for r in readings] == pytest.approx(np.linalg.norm(v, axis=1))
@@ -352,7 +354,7 @@ def test_the_panel_never_covers_the_scene_or_its_chart():
     for name in ("sandbox", "melting_block", "melting_block_3d", "ice_cube"):
         sim = Simulation(load_scene(SCENES / f"{name}.toml", ["render.chart=['mean_temperature']"]))
         for width, height in ((1280, 720), (640, 360)):
-            ren = Renderer(sim, width, height, sim.scene.render, panel=PANEL_WIDTH)
+            ren = Renderer(sim.model, sim.state, width, height, sim.scene.render, panel=PANEL_WIDTH)
             left = ren.panel_px
             assert left == round(PANEL_WIDTH * width)
             if sim.dim == 2:
@@ -367,7 +369,7 @@ def test_the_panel_never_covers_the_scene_or_its_chart():
             assert ren.chart.x0 >= left and ren.chart.fits
             chars = panel_characters(width, PANEL_WIDTH)
             assert all(len(line) <= chars for line in lesson_text(sim.scene.lesson, chars))
-            ren.detach()
+            sim.state.drop(ren.tails)
 
 
 def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(compiled_kernels):

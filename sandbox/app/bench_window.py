@@ -34,7 +34,7 @@ def interactive_frame(arch: str, repeats: int) -> dict:
     except SandboxError as exc:
         window = f"no window ({exc}): the window's parts in a plain loop"
         timings = {part: [] for part in (*FRAME_PARTS, "frame")}
-        renderer = Renderer(sim, 1280, 720, sim.scene.render)
+        renderer = Renderer(sim.model, sim.state, 1280, 720, sim.scene.render)
         for k in range(frames):
             ti.sync()
             t0 = time.perf_counter()
@@ -53,7 +53,7 @@ def interactive_frame(arch: str, repeats: int) -> dict:
     ms = {part: statistics.median(timings[part]) * 1e3 for part in FRAME_PARTS}
     frame_ms = statistics.median(timings["frame"]) * 1e3
     return {
-        "particles": sim.built.count,
+        "particles": sim.model.built.count,
         "substeps": sim.scene.world.substeps,
         "window": window,
         "ms": ms,

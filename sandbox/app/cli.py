@@ -41,19 +41,19 @@ def cmd_check(args) -> int:
         f"backend {sim.arch}, precision {w.precision}"
     )
     print(
-        f"  particles {sim.built.count} (capacity {sim.capacity}), springs {sim.built.spring_count}, "
+        f"  particles {sim.model.built.count} (capacity {sim.capacity}), springs {sim.model.built.spring_count}, "
         f"materials {', '.join(sim.material_names)}"
     )
     print(f"  dt {w.dt:g} x {w.substeps} substeps per frame, integrator {w.integrator}")
-    if sim.springs is not None:
+    if sim.state.springs is not None:
         print(f"  stable dt for the springs with {w.integrator} ((its stable h w) / omega_max): {sim.stable_dt():.4g}")
-    if sim.heat is not None:
-        print(f"  stable dt for explicit heat diffusion: {sim.heat_dt_limit():.4g}")
+    if sim.terms.heat is not None:
+        print(f"  stable dt for explicit heat diffusion: {sim.terms.heat.dt_limit:.4g}")
     print(
-        f"  particle fields: {', '.join(sim.field_names())}"
+        f"  particle fields: {', '.join(sim.particles.names())}"
         + (
-            f"; spring fields: i, j, rest, ks, kd, factor, alive, bonds ({sim.springs.max_bonds} per particle)"
-            if sim.springs is not None
+            f"; spring fields: i, j, rest, ks, kd, factor, alive, bonds ({sim.state.springs.max_bonds} per particle)"
+            if sim.state.springs is not None
             else ""
         )
     )

@@ -82,7 +82,7 @@ def run_bench(args) -> int:
     runtime.reset()
     sim = melting_block_sim(args.arch)
     memory = sim.memory_bytes()
-    results["memory_melting_block"] = dict(memory, spring_slots=sim.springs.count, capacity=sim.capacity)
+    results["memory_melting_block"] = dict(memory, spring_slots=sim.state.springs.count, capacity=sim.capacity)
     results["render"] = render_cost(args.arch, repeats)
     runtime.reset()
     results["interactive"] = interactive_frame(args.arch, repeats)

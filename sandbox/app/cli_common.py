@@ -28,11 +28,11 @@ EXIT_BAD_INPUT, EXIT_STOPPED, EXIT_INTERRUPTED = 2, 3, 130
 def stability_warnings(sim) -> list[str]:
     """Steps above the stable limits of the chosen integrator (springs as built) and of explicit heat diffusion."""
     dt, warnings = sim.scene.world.dt, []
-    if dt > sim.stable_dt_initial:
-        warnings.append(
-            f"dt {dt:g} is above the springs' stable limit {sim.stable_dt_initial:.3g} for {sim.integrator.name}"
-        )
-    heat_limit = sim.heat_dt_limit() if sim.heat is not None else float("inf")  # a NumPy probe: computed once
+    springs = sim.terms.springs
+    spring_limit = springs.stable_dt_initial(sim.integrator) if springs is not None else float("inf")
+    if dt > spring_limit:
+        warnings.append(f"dt {dt:g} is above the springs' stable limit {spring_limit:.3g} for {sim.integrator.name}")
+    heat_limit = sim.terms.heat.dt_limit if sim.terms.heat is not None else float("inf")  # a NumPy probe: computed once
     if dt > heat_limit:
         warnings.append(f"dt {dt:g} is above the explicit heat limit {heat_limit:.3g}")
     return warnings

@@ -124,9 +124,9 @@ def cmd_run(args) -> int:
     from ..simulation import Simulation
 
     if args.resume:
-        from ..files.persist import load_state
+        from ..api import resumed
 
-        sim = load_state(args.resume, arch=args.arch, meta=saved_meta, scene=scene)
+        sim = resumed(args.resume, args.arch, saved_meta, scene)
     else:
         sim = Simulation(scene, arch=args.arch)
     for line in stability_warnings(sim):
@@ -150,7 +150,7 @@ def cmd_run(args) -> int:
 
     start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
     print(
-        f"{scene.name}: {sim.built.count} particles, {sim.built.spring_count} springs, {start} x "
+        f"{scene.name}: {sim.model.built.count} particles, {sim.model.built.spring_count} springs, {start} x "
         f"{substeps or scene.world.substeps} steps on {sim.arch} -> {out}",
         file=sys.stderr,
     )
@@ -185,7 +185,7 @@ def cmd_run(args) -> int:
         return EXIT_STOPPED
     last = result.last
     summary = f"wrote {out} ({result.frames} frames, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
-    if last is not None and sim.heat is not None:
+    if last is not None and sim.terms.heat is not None:
         summary += f"; molten fraction {last.molten_fraction:.2f}, broken springs {last.broken_springs}"
     print(summary, file=sys.stderr)
     if result.interrupted:

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.model import ENTHALPY_LAW
+from ..physics.phase import ENTHALPY_LAW
 
 
 @dataclass(frozen=True)
@@ -52,8 +52,8 @@ def probe(sim, i: int) -> ProbeReading:
     material_id = int(p.material[i])
     name = sim.material_names[material_id]
     speed = float(np.linalg.norm(p.v[i].to_numpy()))
-    if sim.heat is None:
-        springs = sim.springs
+    if sim.terms.heat is None:
+        springs = sim.state.springs
         bonds = [int(springs.bonds[i, k]) for k in range(springs.max_bonds)] if springs is not None else []
         bonded = any(s >= 0 and springs.alive[s] for s in bonds)
         return ProbeReading(i, name, "solid" if bonded else "fluid", None, None, speed)

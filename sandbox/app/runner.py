@@ -12,8 +12,8 @@ from pathlib import Path
 
 import taichi as ti
 
-from ..diagnostics import stat_values
 from ..errors import SimulationError
+from ..measure.stats import stat_values
 from ..render.raster import Renderer
 from ..render.video import open_writer, partial_path, publish
 from ..simulation import STAT_COLUMNS, Simulation, Stats
@@ -70,7 +70,9 @@ def run_headless(
     """
     cfg = sim.scene.render
     width, height, fps = width or cfg.width, height or cfg.height, fps or cfg.fps
-    renderer = Renderer(sim, width, height, cfg, output="picture") if out is not None else None
+    renderer = Renderer(sim.model, sim.state, width, height, cfg, output="picture") if out is not None else None
+    if renderer is not None:
+        sim.state.carry(renderer.tails)  # its motion-blur tails move with the particles
     writer = open_writer(out, width, height, fps, still_frame) if out is not None else None
     csv_file = None
     if stats_path is not None:

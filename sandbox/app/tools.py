@@ -9,17 +9,16 @@ erase           remove every particle within the brush (and the springs that hel
 spawn           add particles of a material on a lattice within the brush, where they do not overlap others
 
 Brush kernels act on every active particle (only those inside the brush change); erase and spawn change the
-particle count and run on the host (they are interactive, not per step), then invalidate the neighbour lists.
+particle count and run on the host (they are interactive, not per step), then tell the state its layout changed.
 """
 
 import numpy as np
 import taichi as ti
 
-from ..core.model import initial_enthalpy
+from ..config.schema import ABSOLUTE_ZERO
 from ..core.oriented import data_oriented
 from ..errors import SandboxError
-from ..guard import ABSOLUTE_ZERO
-from ..physics.phase import LIQUID
+from ..physics.phase import LIQUID, initial_enthalpy
 
 TOOLS = ("heat", "cool", "drag", "attract", "repel", "impulse", "erase", "spawn")  # keys 1-8 in the window
 
@@ -41,7 +40,7 @@ class Tools:
     def heat(self, centre, radius: float, rate: float, dt: float) -> None:
         """Raise temperatures by up to rate * dt degrees (negative: cool, never below absolute zero) within `radius`
         of `centre`."""
-        if self.sim.heat is None:
+        if self.sim.terms.heat is None:
             raise SandboxError("this scene has no heat: the heat and cool tools are not available")
         self._at(centre)
         self._heat(float(radius), float(rate * dt))
@@ -53,9 +52,9 @@ class Tools:
             w = 1.0 - (self.p.x[i] - c).norm() / radius
             if w > 0.0:  # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
                 m = self.p.material[i]
-                cap = self.sim.materials.specific_heat[m]
-                coldest = self.sim.phase.enthalpy(ABSOLUTE_ZERO, m)
-                self.sim.set_enthalpy(i, ti.max(self.p.h[i] + cap * amount * w, coldest))
+                cap = self.sim.model.materials.specific_heat[m]
+                coldest = self.sim.model.phase.enthalpy(ABSOLUTE_ZERO, m)
+                self.sim.terms.heat.set_enthalpy(i, ti.max(self.p.h[i] + cap * amount * w, coldest))
 
     def push(self, centre, radius: float, strength: float, dt: float) -> None:
         """Change velocities by strength * dt (towards the centre when positive) within the brush."""
@@ -110,7 +109,7 @@ class Tools:
             data[: len(kept)] = kept
             field.from_numpy(data)
         p.n[None] = int(keep.sum())
-        springs = self.sim.springs
+        springs = self.sim.state.springs
         if springs is not None:
             i, j = springs.i.to_numpy(), springs.j.to_numpy()
             alive = springs.alive.to_numpy()
@@ -159,11 +158,10 @@ class Tools:
         values = {
             "x": sites,
             "v": np.zeros_like(sites),
-            "f": np.zeros_like(sites),
             "mass": np.full(m, mass),
             "radius": np.full(m, 0.5 * spacing),
             "material": np.full(m, mat_id),
-            "color": np.tile(sim.materials.colors[mat_id], (m, 1)),
+            "color": np.tile(sim.model.materials.colors[mat_id], (m, 1)),
             "group": np.full(m, len(sim.scene.groups)),  # the spawn tool's own group, after bodies and emitters
             "ident": np.arange(self.p.next_ident, self.p.next_ident + m),
         }
@@ -171,7 +169,6 @@ class Tools:
             t = np.full(m, ambient if temperature is None else temperature)
             values["h"], _ = initial_enthalpy(t, np.full(m, 0), [mat])
             values["T"] = t
-            values["dhdt"] = np.zeros(m)
         if self.p.refreeze:
             values["liquid"] = np.full(m, LIQUID)  # spawned as a melt: it freezes into a solid where it is cold
         for name, vals in values.items():
@@ -185,8 +182,7 @@ class Tools:
         return m
 
     def _changed(self) -> None:
-        if self.sim.neighbours is not None:
-            self.sim.neighbours.invalidate()
+        self.sim.state.particles_moved()  # what was built over the old layout (neighbour lists) rebuilds
 
     def apply(
         self, tool: str, centre, radius: float, dt: float, strength: float = 1.0, material: str | None = None

@@ -82,7 +82,8 @@ def run_window(
     state = make_state(sim, substeps)
     view = view_config(cfg, state)  # the renderer's configuration; the window's toggles rebuild it when they differ
     size = picture_size(sim, cfg.width, cfg.height)  # what the renderer draws; GGUI stretches it to the window
-    renderer = Renderer(sim, *size, view, output, panel=PANEL_WIDTH)
+    renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH)
+    sim.state.carry(renderer.tails)  # its motion-blur tails move with the particles
     gui = window.get_gui()
     tools = Tools(sim)
     state.recording = record is not None
@@ -94,8 +95,10 @@ def run_window(
     base_dt = sim.dt
     gravity = np.asarray(sim.scene.world.gravity, dtype=float)
     g_norm = float(np.linalg.norm(gravity))
-    if sim.reorder is not None:  # sort the storage now: the sort's kernel loads before the first frame, not as a
-        sim.reorder.apply()  # pause of a tenth of a second or more at its first use mid-interaction
+    if (
+        sim.hood is not None and sim.hood.order is not None
+    ):  # sort the storage now: the sort's kernel loads before the first frame, not as a
+        sim.hood.order.apply()  # pause of a tenth of a second or more at its first use mid-interaction
     history, stroking = UndoRing(), False
     save_path = quick_save_path(sim)
     shown, fps, last = 0, 0.0, time.perf_counter()
@@ -117,13 +120,14 @@ def run_window(
             sim.set_integrator(state.integrator)
         if sim.dim == 2 and g_norm > 0 and state.gravity_angle:  # the panel's slider turns gravity
             a = np.radians(state.gravity_angle)
-            sim.gravity[None] = g_norm * np.array([np.sin(a), -np.cos(a)]) * state.gravity_on
+            sim.model.gravity[None] = g_norm * np.array([np.sin(a), -np.cos(a)]) * state.gravity_on
         else:
-            sim.gravity[None] = gravity if state.gravity_on else 0 * gravity
+            sim.model.gravity[None] = gravity if state.gravity_on else 0 * gravity
         if view_config(cfg, state) != view:  # a view toggle: a renderer built for it (its kernels are specialised)
             view = view_config(cfg, state)
-            renderer.detach()
-            renderer = Renderer(sim, *size, view, output, panel=PANEL_WIDTH)
+            sim.state.drop(renderer.tails)
+            renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH)
+            sim.state.carry(renderer.tails)
             if orbit is not None:
                 renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
             chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below
@@ -131,11 +135,11 @@ def run_window(
             state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
         if sim.scene.world.substeps != "auto":
             sim.dt = base_dt * state.dt_scale
-        if sim.pair is not None:
+        if sim.terms.pair is not None:
             shown_law = (state.potential, state.attraction, state.repulsion)
             if shown_law != potential_shown:
-                sim.pair.set_scale(state.attraction, state.repulsion)
-                r, force = sim.pair.curve()
+                sim.terms.pair.set_scale(state.attraction, state.repulsion)
+                r, force = sim.terms.pair.curve()
                 renderer.set_potential(force if state.potential else None, (float(r[0]), float(r[-1])))
                 potential_shown = shown_law
         wanted = ENERGY_SERIES if state.energy_plot else tuple(cfg.chart)
@@ -189,7 +193,7 @@ def run_window(
         # pair energy's neighbour scan only every 10th frame unless the energy plot is on
         stats = sim.stats(pair_energy=state.energy_plot or shown % 10 == 0)
         renderer.record(stats)
-        if sim.springs is not None and shown % STABLE_DT_EVERY == 0:  # it copies every spring to the host
+        if sim.state.springs is not None and shown % STABLE_DT_EVERY == 0:  # it copies every spring to the host
             state.stable_dt = sim.stable_dt()
         state.probe = probe_under(sim, renderer, u, v) if show else ""
         clock.lap("readouts")

@@ -24,7 +24,7 @@ PANEL_WIDTH = 0.28  # of the window's width: the panel's column, full height; th
 
 def thermometers(sim) -> list[tuple[str, float]]:
     """(name, mean temperature) of each body and emitter that has particles now, for the panel's readout."""
-    if sim.heat is None:
+    if sim.terms.heat is None:
         return []
     n = int(sim.particles.n[None])
     groups = sim.particles.group.to_numpy()[:n]
@@ -56,18 +56,20 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
             gui,
             chars,
             f"particles {stats.particles}"
-            + (f"   broken springs {stats.broken_springs}" if sim.springs is not None else ""),
+            + (f"   broken springs {stats.broken_springs}" if sim.state.springs is not None else ""),
         )
-        if sim.heat is not None:
+        if sim.terms.heat is not None:
             molten = f"molten {100 * stats.molten_fraction:.0f}%"
             say(gui, chars, f"mean T {reading(stats.mean_temperature, 'C')}   {molten}")
             for name, temperature in thermometers(sim)[:6]:
                 say(gui, chars, f"  {name}: {temperature:.1f} C")
-            sim.heat.ambient[None] = gui.slider_float("ambient C", float(sim.heat.ambient[None]), -50.0, 300.0)
+            sim.terms.heat.ambient[None] = gui.slider_float(
+                "ambient C", float(sim.terms.heat.ambient[None]), -50.0, 300.0
+            )
         unit = energy_unit(sim)
         say(gui, chars, f"energy ({unit}): kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")
         say(gui, chars, f"  per particle {reading(stats.total_energy_per_particle, digits=3)}")
-        walls = f"  on walls {reading(stats.wall_pressure, digits=3)}" if sim.domain.wall_area else ""
+        walls = f"  on walls {reading(stats.wall_pressure, digits=3)}" if sim.model.domain.wall_area else ""
         say(gui, chars, f"pressure {reading(stats.pressure, digits=3)}{walls}")
         say(gui, chars, f"under cursor: {state.probe or '-'}")
         say(gui, chars, f"integrator {state.integrator}")
@@ -95,14 +97,18 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
         state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
         if sim.scene.world.substeps != "auto":
             state.dt_scale = gui.slider_float("dt x", state.dt_scale, 0.1, 2.0)
-            say(gui, chars, f"dt {sim.dt:.4g}  (stable for springs below {state.stable_dt:.3g})" if sim.springs else "")
+            say(
+                gui,
+                chars,
+                f"dt {sim.dt:.4g}  (stable for springs below {state.stable_dt:.3g})" if sim.state.springs else "",
+            )
         state.recording = gui.checkbox("record MP4 (v)", state.recording)
-        if sim.pair is not None:
+        if sim.terms.pair is not None:
             state.potential = gui.checkbox("pair force (f)", state.potential)
             if state.potential:
                 state.attraction = gui.slider_float("attraction x", state.attraction, 0.0, 4.0)
                 state.repulsion = gui.slider_float("repulsion x", state.repulsion, 0.25, 4.0)
-                r_eq = sim.pair.r_eq_np[0, 0]
+                r_eq = sim.terms.pair.r_eq_np[0, 0]
                 say(gui, chars, f"equilibrium distance {r_eq:.3f} (curve crosses zero)")
         if sim.dim == 2 and any(sim.scene.world.gravity):
             state.gravity_angle = gui.slider_float("gravity angle", state.gravity_angle, -180.0, 180.0)

@@ -151,17 +151,17 @@ class WindowState:
 def tools_for(sim) -> list[str]:
     """The tools that make sense in this scene: no heat tools without heat (in 3D they act with shift held, at the
     depth of the particle under the cursor)."""
-    return [t for t in TOOLS if sim.heat is not None or t not in ("heat", "cool")]
+    return [t for t in TOOLS if sim.terms.heat is not None or t not in ("heat", "cool")]
 
 
 def make_state(sim, substeps: int | None) -> WindowState:
     world = sim.scene.world
     fixed = substeps or (world.substeps if world.substeps != "auto" else 8)
     cfg = sim.scene.render
-    modes = ["temperature", "phase"] if sim.heat is not None else []
+    modes = ["temperature", "phase"] if sim.terms.heat is not None else []
     modes += ["speed", "material"]
     tools = tools_for(sim)
-    empty = sim.built.count == 0 and not sim.scene.emitters  # nothing to heat or push: start by spawning
+    empty = sim.model.built.count == 0 and not sim.scene.emitters  # nothing to heat or push: start by spawning
     return WindowState(
         tools,
         list(REGISTRY),

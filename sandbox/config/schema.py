@@ -14,9 +14,10 @@ from collections.abc import Callable
 from typing import Any
 
 from ..errors import SceneError
-from ..guard import ABSOLUTE_ZERO
 
 Check = Callable[[Any], "str | None"]
+
+ABSOLUTE_ZERO = -273.15  # degrees Celsius: the lowest temperature a scene may name
 
 
 def spec(

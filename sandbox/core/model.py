@@ -1,115 +1,20 @@
-"""Taichi fields for particles and materials, allocated by capacity and only for what the scene uses."""
+"""The Model: what a scene fixes (its settings, materials, box, loop policy, the particles as built) and the few
+values the user may change while it runs (gravity, drag), as opposed to the State (core/state.py): what a step
+changes."""
 
 import numpy as np
 import taichi as ti
 
-from ..config.build import Particles
 from ..config.materials import Material
-from . import taichi_compat, transfer
+from . import transfer
 from .oriented import data_oriented
 from .transfer import real_fields
-
-
-@data_oriented
-class ParticleFields:
-    """Struct-of-arrays particle state. Capacity C, the first n[None] entries active; D = dim."""
-
-    def __init__(self, dim: int, capacity: int, heat: bool, refreeze: bool = False, lifetimes: bool = False):
-        self.dim = dim
-        self.capacity = capacity
-        self.heat = heat
-        self.refreeze = refreeze
-        self.lifetimes = lifetimes
-        self.n = ti.field(ti.i32, shape=())  # active particle count
-        self.x = ti.Vector.field(dim, float, shape=capacity)  # position (length), (C, D)
-        self.v = ti.Vector.field(dim, float, shape=capacity)  # velocity (length / time), (C, D)
-        self.f = ti.Vector.field(dim, float, shape=capacity)  # total force of the last evaluation, (C, D)
-        self.mass = ti.field(float, shape=capacity)  # mass, (C,)
-        self.radius = ti.field(float, shape=capacity)  # radius (length): walls and drawing, (C,)
-        self.material = ti.field(ti.i32, shape=capacity)  # index into the scene's used materials, (C,)
-        self.color = ti.Vector.field(3, ti.f32, shape=capacity)  # base colour, RGB in [0, 1], (C, 3)
-        self.group = ti.field(ti.i32, shape=capacity)  # the body a particle came from: its drawing style, (C,)
-        # the particle's id: its index in the built scene, then numbered on as emitters and tools add particles
-        # (stable when storage is reordered or compacted; never reused)
-        self.ident = ti.field(ti.i32, shape=capacity)
-        self.next_ident = 0  # the id the next added particle gets
-        self.table_of = None  # what calling this object returns: set by the Simulation (Scripting.particle_table)
-        if heat:
-            self.h = ti.field(float, shape=capacity)  # specific enthalpy (heat / mass): the heat state, (C,)
-            self.T = ti.field(float, shape=capacity)  # temperature (degrees), derived from h (physics/phase.py), (C,)
-            self.dhdt = ti.field(float, shape=capacity)  # enthalpy rate of the last evaluation (heat/mass/time), (C,)
-        if refreeze:
-            self.liquid = ti.field(ti.i32, shape=capacity)  # 1 once molten, until it refreezes (physics/phase.py)
-        if lifetimes:
-            self.age = ti.field(float, shape=capacity)  # time since birth, (C,)
-            self.lifetime = ti.field(float, shape=capacity)  # retired when age reaches it; 0: for ever, (C,)
-
-    def __call__(self) -> dict:
-        """`sim.particles()`: the live particles as NumPy arrays keyed by name, sorted by id (see
-        Scripting.particle_table for the keys, units and shapes)."""
-        return self.table_of()
-
-    def names(self) -> list[str]:
-        """Names of the per-particle fields allocated (the state a snapshot copies)."""
-        names = ["x", "v", "f", "mass", "radius", "material", "color", "group", "ident"]
-        if self.heat:
-            names += ["h", "T", "dhdt"]
-        if self.refreeze:
-            names.append("liquid")
-        if self.lifetimes:
-            names += ["age", "lifetime"]
-        return names
-
-    def load(self, built: Particles, colors: np.ndarray, materials: list[Material] | None = None) -> None:
-        """Copy the initial particles in (entries past the count are left as they are); `materials` (by material id)
-        turn the initial temperatures into enthalpies and liquid flags."""
-        n = built.count
-        self.next_ident = n
-        pairs = [
-            (self.n, n),
-            (self.x, built.x),
-            (self.v, built.v),
-            (self.f, np.zeros_like(built.x)),
-            (self.mass, built.mass),
-            (self.radius, built.radius),
-            (self.material, built.material),
-            (self.color, colors[built.material]),
-            (self.group, built.body),
-            (self.ident, np.arange(n, dtype=np.int32)),
-        ]
-        if self.heat:
-            h, phi = initial_enthalpy(built.temperature, built.material, materials)
-            pairs += [(self.h, h), (self.T, built.temperature), (self.dhdt, np.zeros(n))]
-            if self.refreeze:
-                breaks = material_column(materials, built.material, "break_melt_fraction")
-                pairs.append((self.liquid, ((phi >= breaks) | ~built.solid).astype(np.int32)))
-        transfer.upload(pairs)
-
-    def nbytes(self) -> int:
-        """Bytes held by these fields."""
-        floats = 3 * self.dim + 2 + (3 if self.heat else 0)  # x, v, f, mass, radius, (h, T, dhdt)
-        floats += 2 if self.lifetimes else 0  # (age, lifetime)
-        ints = 3 + (1 if self.refreeze else 0)  # material, group, ident, (liquid)
-        return self.capacity * (floats * (8 if _is_f64() else 4) + 4 * ints + 12)  # + f32 colour
 
 
 def material_column(materials: list[Material], material: np.ndarray, name: str) -> np.ndarray:
     """Property `name` of each particle's material, (N,), from material ids (N,); infinities held at 1e30 as in
     the MaterialTable fields, so NumPy and the kernels see the same numbers."""
     return np.array([min(getattr(m, name), 1e30) for m in materials])[material]
-
-
-ENTHALPY_LAW = ("specific_heat", "melt_temperature", "liquidus_temperature", "latent_heat")  # phase.py's arguments
-
-
-def initial_enthalpy(
-    temperature: np.ndarray, material: np.ndarray, materials: list[Material]
-) -> tuple[np.ndarray, np.ndarray]:
-    """(specific enthalpy, melt fraction) of particles at `temperature` (degrees) of `material` ids."""
-    from ..physics.phase import enthalpy_np, melt_fraction_np
-
-    c, ts, tl, latent = (material_column(materials, material, name) for name in ENTHALPY_LAW)
-    return enthalpy_np(temperature, c, ts, tl, latent), melt_fraction_np(temperature, ts, tl)
 
 
 @data_oriented
@@ -143,5 +48,40 @@ class MaterialTable:
         self.colors = np.array([m.color for m in materials], dtype=np.float32)  # (n_mat, 3)
 
 
-def _is_f64() -> bool:
-    return taichi_compat.default_fp_is_f64()
+@data_oriented
+class Model:
+    """What a scene fixes. Built once per simulation (sandbox/assembly.py); the terms, the rates and the renderer
+    read it, nothing steps it. Live controls (gravity, linear drag) are 0-d fields, so changing one recompiles no
+    kernel; `controls()` and `apply_controls()` carry them through state files."""
+
+    def __init__(self, scene, arch: str, built, capacity: int, materials: list, table, phase, loops, domain, threads):
+        """`materials`: the scene's used Material records (config), by material id; `table`: their MaterialTable;
+        `phase`: the enthalpy law over it (physics/phase.py), None without heat."""
+        self.scene = scene
+        self.arch = arch
+        self.dim = scene.dim
+        self.built = built  # the particles and springs as built from the scene (config/build.py), NumPy
+        self.capacity = capacity  # particle slots
+        self.threads = threads  # the CPU backend's worker threads (1 elsewhere)
+        self.material_names = scene.used_materials()
+        self.material_list = materials  # config Material records, by material id
+        self.materials = table
+        self.phase = phase
+        self.loops = loops  # LoopPolicy: which loops run in parallel
+        self.domain = domain  # the box: separations, walls or periodic wrap
+        self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
+        self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
+        transfer.upload([(self.gravity, np.asarray(scene.world.gravity, float)), (self.drag, scene.world.drag)])
+
+    def controls(self) -> dict:
+        """The live controls as plain numbers (for state files)."""
+        gravity, drag = transfer.download([self.gravity, self.drag])
+        return {"gravity": [float(g) for g in gravity], "drag": float(drag)}
+
+    def apply_controls(self, values: dict) -> None:
+        """Set the live controls from `controls()`'s numbers."""
+        transfer.upload([(self.gravity, np.asarray(values["gravity"], float)), (self.drag, values["drag"])])
+
+    def column(self, name: str, material_ids: np.ndarray) -> np.ndarray:
+        """Material property `name` of particles with `material_ids` (NumPy, infinities held at 1e30)."""
+        return material_column(self.material_list, material_ids, name)

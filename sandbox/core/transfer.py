@@ -229,6 +229,21 @@ def batchable(field) -> bool:
     return len(field.shape) <= 2 and field.dtype in (ti.f32, ti.f64, ti.u32, *_INTS)
 
 
+def download_all(fields: list) -> list[np.ndarray]:
+    """Copies of `fields`: one copy kernel for those it can take (batchable), to_numpy for the rest (3D grids)."""
+    batch = [f for f in fields if batchable(f)]
+    copies = dict(zip(map(id, batch), download(batch)))
+    return [copies[id(f)] if id(f) in copies else f.to_numpy() for f in fields]
+
+
+def upload_all(pairs: list) -> None:
+    """upload() of (field, values) pairs in one copy kernel where it can take them, from_numpy for the rest."""
+    upload([(f, v) for f, v in pairs if batchable(f)])
+    for f, values in pairs:
+        if not batchable(f):
+            f.from_numpy(values)
+
+
 def forget() -> None:
     """Drop the cached copy kernels (with the runtime they were compiled for: runtime.reset())."""
     _cache.clear()

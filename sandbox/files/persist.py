@@ -1,15 +1,15 @@
-"""Save a simulation's whole state to one file and resume it bit for bit.
+"""Save a simulation's state to one file and put it back bit for bit.
 
 The file is a NumPy `.npz` archive (no extra dependency, readable from any NumPy): a `meta` entry holds JSON (the
-format, the sandbox and Taichi versions, the scene as its raw table and path, backend, precision, threads, the frame
-count), then one array per Taichi field and ndarray the simulation owns, named by where it lives
-(`particles.x`, `springs.alive`, `neighbours.ids`, ...), and `host` holds JSON of the plain numbers the Python side
-keeps (clock, step count, emitter counters, when the neighbour lists were built, ...).
+format, the sandbox and Taichi versions, the scene as its raw table and path, backend, precision, threads, the
+integrator, the frame count, the live controls such as gravity), then one array per declared field and ndarray of the
+State (core/state.py: `particles.x`, `springs.alive`, `neighbours.ids`, ...), and `host` holds JSON of its declared
+host values (the clock, emitter counters, when the neighbour lists were built, ...).
 
-Everything is saved rather than a chosen list: the neighbour lists, cell order and half-list buffers decide the order
-in which forces are summed, so a state without them would continue correctly but not bit for bit. Resuming builds
-the simulation from the saved scene, then overwrites every field and number with the saved ones; a field whose shape
-differs (another scene, another thread count) is an error, not a guess.
+What is saved is exactly the State's list of entries, the neighbour lists and a leapfrog integrator's synchronised
+values included: they fix the order in which forces are summed, so a state without them would continue correctly
+but not bit for bit. Putting a state back overwrites every entry of a simulation built from the same scene; a field
+whose shape differs (another scene, another thread count) is an error, not a guess.
 """
 
 from __future__ import annotations
@@ -26,77 +26,11 @@ import taichi as ti
 
 from .. import __version__
 from ..core import runtime, taichi_compat, transfer
+from ..core.state import FIELD, NDARRAY, VALUE
 from ..errors import SandboxError
 
 FORMAT = "sandbox-state"
-FORMAT_VERSION = 1
-# configuration, or of this process
-SKIPPED = {"scene", "built", "_initial", "loops", "arch", "runtime_generation", "plan"}
-_HOST_TYPES = (bool, int, float, str, type(None))
-
-
-def _is_field(value) -> bool:
-    return isinstance(value, ti.Field)
-
-
-def _is_ndarray(value) -> bool:
-    return isinstance(value, ti.lang._ndarray.Ndarray)
-
-
-def _is_part(value) -> bool:
-    """An object whose attributes are walked (a component of the simulation): the sandbox's own, or a Taichi
-    data-oriented object from elsewhere (a body-force term registered by a user)."""
-    module = type(value).__module__
-    if module.startswith("sandbox."):
-        return not module.startswith(("sandbox.config.",))
-    return getattr(type(value), "_data_oriented", False) is True
-
-
-def _host_value(value) -> bool:
-    if isinstance(value, _HOST_TYPES):
-        return True
-    return isinstance(value, list | tuple) and all(isinstance(v, bool | int | float) for v in value)
-
-
-def walk(sim) -> tuple[dict, dict, dict]:
-    """Everything a simulation holds, by dotted path: (fields, ndarrays as (owner, attribute), host values as
-    (owner, attribute)). Each field is listed once, under the first path that reaches it."""
-    fields: dict = {}
-    ndarrays: dict = {}
-    host: dict = {}
-    seen = {id(sim)}
-    queue = [(sim, "sim")]
-    while queue:
-        obj, path = queue.pop(0)
-        for name, value in vars(obj).items():
-            if name in SKIPPED or name.startswith("__"):
-                continue
-            where = f"{path}.{name}" if path != "sim" else name
-            if isinstance(value, list | tuple) and value and (_is_field(value[0]) or _is_part(value[0])):
-                for k, item in enumerate(value):  # a list of fields, or of components (the body-force terms)
-                    if id(item) in seen:
-                        continue
-                    if _is_field(item):
-                        seen.add(id(item))
-                        fields[f"{where}.{k}"] = item
-                    elif _is_part(item):
-                        seen.add(id(item))
-                        queue.append((item, f"{where}.{k}"))
-            elif _is_field(value):
-                if id(value) not in seen:
-                    seen.add(id(value))
-                    fields[where] = value
-            elif _is_ndarray(value):
-                if id(value) not in seen:
-                    seen.add(id(value))
-                    ndarrays[where] = (obj, name)
-            elif _is_part(value):
-                if id(value) not in seen:
-                    seen.add(id(value))
-                    queue.append((value, where))
-            elif _host_value(value):
-                host[where] = (obj, name)
-    return fields, ndarrays, host
+FORMAT_VERSION = 2
 
 
 @contextmanager
@@ -107,26 +41,18 @@ def _quiet_unrolling():
         yield
 
 
-def _download(sim, fields: dict) -> dict[str, np.ndarray]:
-    """Every field's values. The particle and spring fields go through the copy kernel snapshot() compiled when the
-    simulation was built (the same list, so no compile), the rest through one more (and per-field for the few a copy
-    kernel cannot take: 3D grids)."""
-    from ..state import SPRING_ARRAYS
-
-    snapped = [getattr(sim.particles, name) for name in sim.field_names()]
-    if sim.springs is not None:
-        snapped += [getattr(sim.springs, name) for name in SPRING_ARRAYS]
-    by_id = {id(f): name for name, f in fields.items()}
-    first = [by_id[id(f)] for f in snapped if id(f) in by_id]
-    rest = [name for name, f in fields.items() if transfer.batchable(f) and name not in set(first)]
-    out = {}
+def _download(entries: list) -> dict[str, np.ndarray]:
+    """The values of the field entries (one copy kernel for all that it can take)."""
     with _quiet_unrolling():
-        for names in (first, rest):
-            out.update(zip(names, transfer.download([fields[name] for name in names])))
-    for name, f in fields.items():
-        if name not in out:
-            out[name] = f.to_numpy()
-    return out
+        return dict(zip((e.name for e in entries), transfer.download_all([e.get() for e in entries])))
+
+
+def controls(sim) -> dict:
+    """The live controls of the model and the terms (gravity, pair scale, ambient ...), as plain numbers."""
+    values = dict(sim.model.controls())
+    for term in sim.terms:
+        values.update(term.controls())
+    return values
 
 
 def save_state(sim, path: str | Path, frame: int | None = None) -> Path:
@@ -136,10 +62,11 @@ def save_state(sim, path: str | Path, frame: int | None = None) -> Path:
     path = Path(path)
     if path.suffix != ".npz":
         path = path.with_name(path.name + ".npz")
-    fields, ndarrays, host = walk(sim)
-    arrays = {f"field:{k}": v for k, v in _download(sim, fields).items()}
-    arrays.update({f"ndarray:{k}": getattr(owner, name).to_numpy() for k, (owner, name) in ndarrays.items()})
-    scene = sim.scene
+    entries = sim.state.entries()
+    arrays = {f"field:{k}": v for k, v in _download([e for e in entries if e.kind == FIELD]).items()}
+    arrays.update({f"ndarray:{e.name}": e.get().to_numpy() for e in entries if e.kind == NDARRAY})
+    host = {e.name: e.get() for e in entries if e.kind == VALUE}
+    scene, state = sim.scene, sim.state
     meta = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -150,25 +77,29 @@ def save_state(sim, path: str | Path, frame: int | None = None) -> Path:
         "scene_name": scene.name,
         "arch": sim.arch,
         "precision": scene.world.precision,
-        "threads": taichi_compat.cpu_threads() if sim.arch == "cpu" else 1,
+        "threads": _threads(sim.arch),
         "integrator": sim.integrator.name,
-        "frame": sim.frames_done if frame is None else frame,
-        "time": sim.time,
-        "step": sim.step_count,
-        "particles": int(sim.particles.n[None]),
+        "frame": state.frames if frame is None else frame,
+        "time": state.time,
+        "step": state.step,
+        "particles": state.live_count(),
+        "controls": controls(sim),
     }
-    host_values = {k: getattr(owner, name) for k, (owner, name) in host.items()}
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(f".{path.stem}.partial.npz")
     try:
         with open(partial, "wb") as out:
-            np.savez(out, meta=np.array(json.dumps(meta)), host=np.array(json.dumps(host_values)), **arrays)
+            np.savez(out, meta=np.array(json.dumps(meta)), host=np.array(json.dumps(host)), **arrays)
             out.flush()
             os.fsync(out.fileno())
         os.replace(partial, path)
     finally:
         partial.unlink(missing_ok=True)
     return path
+
+
+def _threads(arch: str) -> int:
+    return taichi_compat.cpu_threads() if arch == "cpu" else 1
 
 
 def read_meta(path: str | Path) -> dict:
@@ -196,38 +127,18 @@ def read_meta(path: str | Path) -> dict:
     return meta
 
 
-def load_state(path: str | Path, arch: str | None = None, meta: dict | None = None, scene=None):
-    """Build the simulation a state file describes and put its saved state back; returns the Simulation.
-    `arch`: the backend (default: the one it was saved on); `meta`, `scene`: the file's read_meta() and the scene
-    built from it, where the caller has them already. SandboxError when the file cannot be resumed here."""
-    from ..config.scene import scene_from_dict
-    from ..simulation import Simulation
-
+def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
+    """Put a state file saved from `sim`'s own scene back into `sim` (the window's load key, and resume): the state,
+    clock, controls and integrator as saved. SandboxError when the file is of another scene, backend or thread count
+    (checked before anything in `sim` changes) or does not fit it."""
     path = Path(path)
     meta = meta or read_meta(path)
-    scene = scene or scene_from_dict(meta["scene"], Path(meta["scene_path"]))
-    sim = Simulation(scene, arch=arch or meta["arch"])
-    _restore_from(sim, path, meta)
-    return sim
-
-
-def load_into(sim, path: str | Path) -> None:
-    """Put a state file saved from `sim`'s own scene back into `sim` (the window's load key): the state, clock and
-    integrator as saved. SandboxError when the file is of another scene, backend or thread count (checked before
-    anything in `sim` changes) or does not fit it."""
-    path = Path(path)
-    meta = read_meta(path)
     if meta["scene"] != sim.scene.source:
         raise SandboxError(
             f"{path}: saved from the scene {meta.get('scene_name')!r} as it was then; expected one saved from this "
             f"{sim.scene.name!r}"
         )
-    _restore_from(sim, path, meta)
-
-
-def _restore_from(sim, path: Path, meta: dict) -> None:
-    """Check that `sim` runs where the file was saved, read it and put its state back."""
-    threads = taichi_compat.cpu_threads() if sim.arch == "cpu" else 1
+    threads = _threads(sim.arch)
     if sim.arch != meta["arch"] or threads != meta["threads"]:
         raise SandboxError(
             f"{path}: saved on {meta['arch']} with {meta['threads']} thread(s), resumed on {sim.arch} with {threads}: "
@@ -239,40 +150,43 @@ def _restore_from(sim, path: Path, meta: dict) -> None:
             saved = {key: data[key] for key in data.files}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise SandboxError(f"{path}: the state file is damaged ({type(exc).__name__})") from exc
-    sim.set_integrator(meta["integrator"])
-    _put_back(sim, saved, path)
+    sim.set_integrator(meta["integrator"])  # before reading: its own entries are part of the state
+    _put_back(sim.state, saved, path)
+    sim.model.apply_controls(meta["controls"])
+    for term in sim.terms:
+        term.apply_controls(meta["controls"])
+    for part in sim.parts():
+        part.after_restore(sim.state)
+    sim.restart_wall_gauge()
 
 
-def _put_back(sim, saved: dict, path: Path) -> None:
-    fields, ndarrays, host = walk(sim)
-    expected = {f"field:{k}" for k in fields} | {f"ndarray:{k}" for k in ndarrays}
-    present = {k for k in saved if k.startswith(("field:", "ndarray:"))}
+def _put_back(state, saved: dict, path: Path) -> None:
+    entries = state.entries()
+    expected = {f"{e.kind}:{e.name}" for e in entries if e.kind != VALUE}
+    present = {k for k in saved if k.startswith((f"{FIELD}:", f"{NDARRAY}:"))}
     if expected != present:
         missing = sorted(expected - present)[:3]
         extra = sorted(present - expected)[:3]
         raise SandboxError(f"{path}: the state does not fit its scene (missing {missing}, unexpected {extra})")
-    batch, single = [], []
-    for name, f in fields.items():
-        values = saved[f"field:{name}"]
+    pairs = []
+    for e in entries:
+        if e.kind != FIELD:
+            continue
+        f, values = e.get(), saved[f"{FIELD}:{e.name}"]
         want = tuple(f.shape) + ((f.n,) if isinstance(f, ti.MatrixField) else ())
         if values.shape != want:
-            raise SandboxError(f"{path}: field {name} has shape {values.shape}; expected {want}")
-        (batch if transfer.batchable(f) else single).append((f, values))
+            raise SandboxError(f"{path}: field {e.name} has shape {values.shape}; expected {want}")
+        pairs.append((f, values))
     with _quiet_unrolling():
-        transfer.upload(batch)
-    for f, values in single:
-        f.from_numpy(values)
-    for name, (owner, attribute) in ndarrays.items():
-        values = saved[f"ndarray:{name}"]
-        current = getattr(owner, attribute)
-        if tuple(current.shape) != values.shape:  # the lists were widened during the run
-            current = runtime.ndarray(current.dtype, values.shape)
-            setattr(owner, attribute, current)
-        current.from_numpy(values)
-    values = json.loads(str(saved["host"]))
-    for name, (owner, attribute) in host.items():
-        if name in values:
-            value = values[name]
-            setattr(owner, attribute, tuple(value) if isinstance(getattr(owner, attribute), tuple) else value)
-    if sim.heat is not None:
-        sim.heat.set_time(sim.time)
+        transfer.upload_all(pairs)
+    host = json.loads(str(saved["host"]))
+    for e in entries:
+        if e.kind == NDARRAY:
+            values, current = saved[f"{NDARRAY}:{e.name}"], e.get()
+            if tuple(current.shape) != values.shape:  # the lists were widened during the run
+                current = runtime.ndarray(current.dtype, values.shape)
+                e.set(current)
+            current.from_numpy(values)
+        elif e.kind == VALUE and e.name in host:
+            value = host[e.name]
+            e.set(tuple(value) if isinstance(e.get(), tuple) else value)

@@ -10,7 +10,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from ..diagnostics import STAT_COLUMNS, Stats, stat_values
+from ..measure.stats import STAT_COLUMNS, Stats, stat_values
 
 
 class FrameTable:

@@ -1,13 +1,15 @@
-"""Time integrators: a registry of name -> class, one signature for all: `step(dt)` advances the simulation by dt.
+"""Time integrators: a registry of name -> class, one signature for all: an integrator is built from the rates and
+the state it steps (`make_integrator(name, rates, state)`), never the simulation, and `step(dt)` advances the state
+by dt.
 
 Most integrators are a sequence of stages, each one force evaluation followed by a per-particle update:
-  sim.eval_rates(then_update=dt, stage=k)
-                          forces into p.f (and heat rates into p.dhdt) at the current positions and velocities,
-                          then the integrator's ti.func update_particle(i, dt, k) on every particle, in one launch
-  sim.finish_particle()   (ti.func) walls / periodic wrap and the explicit heat update for one particle, called by
-                          the last stage's update
+  rates.evaluate(dt, k, integrator)
+                          forces into rates.force (and heat rates) at the current positions and velocities, then
+                          the integrator's ti.func update_particle(i, dt, k) on every particle, in one launch
+  rates.finish_particle() (ti.func) each particle's end-of-step work (walls or the periodic wrap, the explicit heat
+                          update), called by the last stage's update
 A staged integrator (`stages` > 0) runs on every path symplectic Euler runs on: the long way (a launch per
-evaluation), many steps to a launch (Simulation._fused_steps) and a team of threads (team.py); each path runs the
+evaluation), many steps to a launch (step/fused.py) and a team of threads (team.py); each path runs the
 stages in order with the same per-evaluation passes, so all three give the same trajectory bit for bit.
 Particle updates write `x[i] = x[i] + ...`, never `x[i] += ...`: Taichi turns `+=` on a field into an atomic
 (a compare-and-swap loop for floats) unless the index is the loop's own, and update_particle runs where i is read
@@ -31,9 +33,9 @@ equation with its own stepping: explicit Euler on the rates of the step's last f
 
 from ..config.scene_tables import INTEGRATORS
 from . import explicit, implicit, leapfrog  # noqa: F401 - registers the integrators
-from .base import REGISTRY, Integrator, StepRates, make_integrator, register
+from .base import REGISTRY, Integrator, make_integrator, register
 
-__all__ = ["REGISTRY", "Integrator", "StepRates", "make_integrator", "register"]
+__all__ = ["REGISTRY", "Integrator", "make_integrator", "register"]
 
 # The order the window's i key cycles through and reports list: the registry of names (scene_tables.INTEGRATORS).
 for _name in INTEGRATORS:

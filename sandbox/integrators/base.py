@@ -1,34 +1,9 @@
-"""The integrator registry, the base class and the interface an integrator steps through (see the package
+"""The integrator registry and the base class: an integrator steps a State through the Rates (see the package
 docstring for the stages)."""
-
-from typing import Protocol
 
 import taichi as ti
 
 from ..core.oriented import data_oriented
-
-
-class StepRates(Protocol):
-    """What an integrator may use of the simulation it steps (Simulation provides it): the particles, the rates and
-    each particle's end-of-step work (step/rates.py), the loop policy, and the few parts implicit Euler assembles
-    its matrix from."""
-
-    dim: int  # 2 or 3
-    capacity: int  # particle slots (field rows)
-    particles: object  # model.ParticleFields: x, v, f (force), mass, ... (rows 0..n-1 live)
-    loops: object  # loops.LoopPolicy: how each particle loop runs (parallel or serial)
-    domain: object  # physics/boundary.Domain: separation() between two positions
-    springs: object  # physics/springs.Springs or None
-    heat: object  # physics/heat.Heat or None
-    scene: object  # the Scene (world settings: implicit tolerance and iterations)
-
-    def eval_rates(self, then_update: float | None = None, stage: int = 0) -> None:
-        """Forces into particles.f (and heat rates) at the current state; with `then_update`, the integrator's
-        update_particle(i, then_update, stage) on every particle in the same launch."""
-
-    def finish_particle(self, i, dt) -> None:
-        """(ti.func) Walls and the explicit heat update of particle i at a step's end, after its last stage."""
-
 
 REGISTRY: dict[str, type] = {}
 
@@ -42,11 +17,11 @@ def register(name: str):
     return deco
 
 
-def make_integrator(name: str, sim) -> "Integrator":
-    """The integrator registered under `name`, bound to `sim`."""
+def make_integrator(name: str, rates, state) -> "Integrator":
+    """The integrator registered under `name`, stepping `state` through `rates` (step/rates.py)."""
     if name not in REGISTRY:
         raise ValueError(f"unknown integrator {name!r}; expected one of {', '.join(REGISTRY)}")
-    return REGISTRY[name](sim)
+    return REGISTRY[name](rates, state)
 
 
 @data_oriented
@@ -65,14 +40,19 @@ class Integrator:
     # the module docstring). 0: the integrator steps its own way (step() launches its own kernels).
     stages = 1
 
-    def __init__(self, sim: StepRates):
-        self.sim = sim
-        self.p = sim.particles
+    def __init__(self, rates, state):
+        """`rates`: what it steps through (step/rates.py): evaluate() fills rates.force (and the heat rate), and its
+        ti.func finish_particle(i, dt) is each particle's end-of-step work; `state`: the particles it moves."""
+        self.rates = rates
+        self.state = state
+        self.p = state.particles
+        self.f = rates.force
+        self.loops = rates.loops
 
     def step(self, dt: float, first_stage: int = 0) -> None:
         """One step of dt from stage `first_stage` on (a step that a fused launch left after its first stages)."""
         for stage in range(first_stage, self.stages):
-            self.sim.eval_rates(then_update=dt, stage=stage)
+            self.rates.evaluate(dt, stage, self)
 
     def begin(self, dt: float) -> None:
         """Called before a run of steps of `dt` (Simulation.step): a leapfrog method staggers its state here."""
@@ -83,4 +63,4 @@ class Integrator:
     def _stage_fields(self, *names: str) -> None:
         """Allocate per-particle vector buffers (x0, v0, ...) that only this integrator needs."""
         for name in names:
-            setattr(self, name, ti.Vector.field(self.sim.dim, float, shape=self.sim.capacity))
+            setattr(self, name, ti.Vector.field(self.p.dim, float, shape=self.p.capacity))

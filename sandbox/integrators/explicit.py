@@ -16,9 +16,9 @@ class SymplecticEuler(Integrator):
 
     @ti.func
     def update_particle(self, i, dt, stage):
-        self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
+        self.p.v[i] = self.p.v[i] + dt * self.f[i] / self.p.mass[i]
         self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
-        self.sim.finish_particle(i, dt)
+        self.rates.finish_particle(i, dt)
 
 
 @register("forward_euler")
@@ -28,8 +28,8 @@ class ForwardEuler(Integrator):
     @ti.func
     def update_particle(self, i, dt, stage):
         self.p.x[i] = self.p.x[i] + dt * self.p.v[i]
-        self.p.v[i] = self.p.v[i] + dt * self.p.f[i] / self.p.mass[i]
-        self.sim.finish_particle(i, dt)
+        self.p.v[i] = self.p.v[i] + dt * self.f[i] / self.p.mass[i]
+        self.rates.finish_particle(i, dt)
 
 
 @register("midpoint")
@@ -41,8 +41,8 @@ class Midpoint(Integrator):
     stages = 2
     auto_h_omega = 0.05
 
-    def __init__(self, sim):
-        super().__init__(sim)
+    def __init__(self, rates, state):
+        super().__init__(rates, state)
         self._stage_fields("x0", "v0")
 
     @ti.func
@@ -51,12 +51,12 @@ class Midpoint(Integrator):
         if stage == 0:  # rates at the step's start: keep it, and go half a step along them
             self.x0[i], self.v0[i] = p.x[i], p.v[i]
             p.x[i] = p.x[i] + 0.5 * dt * p.v[i]
-            p.v[i] = p.v[i] + 0.5 * dt * p.f[i] / p.mass[i]
+            p.v[i] = p.v[i] + 0.5 * dt * self.f[i] / p.mass[i]
         else:  # rates at the midpoint: the whole step along them
             v_mid = p.v[i]
             p.x[i] = self.x0[i] + dt * v_mid
-            p.v[i] = self.v0[i] + dt * p.f[i] / p.mass[i]
-            self.sim.finish_particle(i, dt)
+            p.v[i] = self.v0[i] + dt * self.f[i] / p.mass[i]
+            self.rates.finish_particle(i, dt)
 
 
 @register("rk4")
@@ -68,8 +68,8 @@ class RungeKutta4(Integrator):
     stable_h_omega = 2 * 2**0.5
     auto_h_omega = 1.4
 
-    def __init__(self, sim):
-        super().__init__(sim)
+    def __init__(self, rates, state):
+        super().__init__(rates, state)
         self._stage_fields("x0", "v0", "dx", "dv")
 
     @ti.func
@@ -77,7 +77,7 @@ class RungeKutta4(Integrator):
         """Stage k's rates (at the current trial state) k1..k4: accumulate dx, dv = k1 + 2 k2 + 2 k3 and set the next
         trial state x0 + (dt/2, dt/2, dt) k; after k4 the step is x0 + dt/6 (k1 + 2 k2 + 2 k3 + k4)."""
         p = self.p
-        kx, kv = p.v[i], p.f[i] / p.mass[i]
+        kx, kv = p.v[i], self.f[i] / p.mass[i]
         if stage == 0:
             self.x0[i], self.v0[i] = p.x[i], p.v[i]
             self.dx[i], self.dv[i] = kx, kv
@@ -92,4 +92,4 @@ class RungeKutta4(Integrator):
         else:
             p.x[i] = self.x0[i] + dt / 6.0 * (self.dx[i] + kx)
             p.v[i] = self.v0[i] + dt / 6.0 * (self.dv[i] + kv)
-            self.sim.finish_particle(i, dt)
+            self.rates.finish_particle(i, dt)

@@ -21,25 +21,27 @@ class ImplicitEuler(Integrator):
     auto_h_omega = float("inf")
     stages = 0  # a step of its own: the CG iterations between the evaluation and the update
 
-    def __init__(self, sim):
-        super().__init__(sim)
-        self.tolerance = sim.scene.world.implicit_tolerance
-        self.max_iterations = sim.scene.world.implicit_max_iterations
+    def __init__(self, rates, state):
+        super().__init__(rates, state)
+        world = rates.model.scene.world
+        self.tolerance = world.implicit_tolerance
+        self.max_iterations = world.implicit_max_iterations
         self.last_iterations = 0
         self.total_iterations = 0
         self.last_residual = 0.0
         self._stage_fields("dv", "r", "z", "d", "Ap", "b")
-        self.diag = ti.field(float, shape=sim.capacity)  # Jacobi preconditioner: m_i + trace of its blocks / dim
-        self.springs = sim.springs
-        self.has_springs = sim.springs is not None
-        s = max(sim.springs.count, 1) if self.has_springs else 1
-        dim = sim.dim
+        self.diag = ti.field(float, shape=self.p.capacity)  # Jacobi preconditioner: m_i + trace of its blocks / dim
+        self.springs = state.springs
+        self.has_springs = state.springs is not None
+        self.domain = rates.domain
+        self.dim = dim = self.p.dim
+        s = max(state.springs.count, 1) if self.has_springs else 1
         self.block = ti.Matrix.field(dim, dim, float, shape=s)  # h D_s + h^2 K_s per spring
         self.kmat = ti.Matrix.field(dim, dim, float, shape=s)  # K_s per spring
         self.sums = CGSums()
 
     def step(self, dt: float, first_stage: int = 0) -> None:
-        self.sim.eval_rates()
+        self.rates.evaluate()
         self._assemble(dt)
         result = pcg(self.sums, self._matvec, self._update, self._direction, self.tolerance, self.max_iterations)
         self.last_iterations = result.iterations
@@ -50,11 +52,11 @@ class ImplicitEuler(Integrator):
     @ti.func
     def _spring_blocks(self, s, h):
         a, b = self.springs.i[s], self.springs.j[s]
-        d = self.sim.domain.separation(self.p.x[a], self.p.x[b])
+        d = self.domain.separation(self.p.x[a], self.p.x[b])
         length = ti.max(d.norm(), 1e-12)
         n = d / length
         nn = n.outer_product(n)
-        eye = ti.Matrix.identity(float, self.sim.dim)
+        eye = ti.Matrix.identity(float, self.dim)
         k = self.springs.factor[s] * self.springs.ks[s]
         c = self.springs.factor[s] * self.springs.kd[s]
         kmat = k * (nn + ti.max(0.0, 1.0 - self.springs.rest[s] / length) * (eye - nn))
@@ -64,13 +66,13 @@ class ImplicitEuler(Integrator):
     def _assemble(self, h: float):
         self.sums.clear_for_assembly()
         if ti.static(self.has_springs):
-            self.sim.loops.light()
+            self.loops.light()
             for s in range(self.springs.span[None]):
                 if self.springs.alive[s]:
                     self.kmat[s], self.block[s] = self._spring_blocks(s, h)
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
-            b = h * self.p.f[i]
+            b = h * self.f[i]
             diag = self.p.mass[i]
             if ti.static(self.has_springs):
                 for k in range(self.springs.max_bonds):
@@ -80,10 +82,10 @@ class ImplicitEuler(Integrator):
                     if self.springs.alive[s]:
                         j = self.springs.other_end(i, s)
                         b += h * h * (self.kmat[s] @ (self.p.v[j] - self.p.v[i]))
-                        diag += self.block[s].trace() / self.sim.dim
+                        diag += self.block[s].trace() / self.dim
             self.b[i] = b
             self.diag[i] = diag
-            self.dv[i] = ti.Vector.zero(float, self.sim.dim)
+            self.dv[i] = ti.Vector.zero(float, self.dim)
             self.r[i] = b
             self.z[i] = b / diag
             self.d[i] = self.z[i]
@@ -94,7 +96,7 @@ class ImplicitEuler(Integrator):
     @ti.kernel
     def _matvec(self):
         self.sums.p_ap[None] = 0.0
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             ap = self.p.mass[i] * self.d[i]
             if ti.static(self.has_springs):
@@ -111,7 +113,7 @@ class ImplicitEuler(Integrator):
     @ti.kernel
     def _update(self, alpha: ti.f64):
         self.sums.clear_for_update()
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             self.dv[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.Ap[i]
@@ -121,14 +123,14 @@ class ImplicitEuler(Integrator):
 
     @ti.kernel
     def _direction(self, beta: ti.f64):
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             self.d[i] = self.z[i] + beta * self.d[i]
 
     @ti.kernel
     def _finish(self, h: float):
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             self.p.v[i] = self.p.v[i] + self.dv[i]
             self.p.x[i] = self.p.x[i] + h * self.p.v[i]
-            self.sim.finish_particle(i, h)
+            self.rates.finish_particle(i, h)

@@ -27,16 +27,21 @@ class Leapfrog(SymplecticEuler):
     order = 2
     staggered = ""  # which state the method keeps at half steps: "v" (velocity Verlet) or "x" (position Verlet)
 
-    def __init__(self, sim):
-        super().__init__(sim)
+    def __init__(self, rates, state):
+        super().__init__(rates, state)
         self._stage_fields("held", "x_synced", "v_synced")  # held: the staggered value left at the last sync
-        self.ident_synced = ti.field(ti.i32, shape=sim.capacity)
-        self.has_heat = sim.heat is not None
-        self.periodic = sim.scene.world.periodic
-        self.t_synced = ti.field(float, shape=sim.capacity if self.has_heat else 1)
+        capacity = self.p.capacity
+        self.ident_synced = ti.field(ti.i32, shape=capacity)
+        self.has_heat = self.p.heat
+        self.domain = rates.domain
+        self.periodic = rates.domain.periodic
+        self.t_synced = ti.field(float, shape=capacity if self.has_heat else 1)
         self.moving = getattr(self.p, self.staggered)  # the field that holds the staggered state
         self.synced_count = -1  # particles when last synchronised; -1: never
         self.synced_dt = 0.0
+        # What the last synchronisation left, saved with a state: a resumed run restores the staggered values exactly
+        state.declare("integrator", self, ("held", "x_synced", "v_synced", "ident_synced", "t_synced"), physical=False)
+        state.declare("integrator", self, ("synced_count", "synced_dt"), kind="value", physical=False)
 
     def begin(self, dt: float) -> None:
         """Stagger the synchronised state before a run of steps of `dt`: restore what the last sync held when
@@ -61,13 +66,13 @@ class Leapfrog(SymplecticEuler):
     @ti.kernel
     def _restore(self):
         """Put back the staggered values the last synchronisation held."""
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             self.moving[i] = self.held[i]
 
     @ti.kernel
     def _record(self):
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             self.v_synced[i] = self.p.v[i]
             self.x_synced[i] = self.p.x[i]
@@ -79,12 +84,12 @@ class Leapfrog(SymplecticEuler):
     def _changed(self) -> ti.i32:
         """Particles whose position, velocity, temperature or id is not what the last synchronisation left."""
         changed = 0
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             same = self.p.ident[i] == self.ident_synced[i]
             if ti.static(self.has_heat):
                 same = same and self.p.T[i] == self.t_synced[i]
-            for a in ti.static(range(self.sim.dim)):
+            for a in ti.static(range(self.p.dim)):
                 same = same and self.p.x[i][a] == self.x_synced[i][a] and self.p.v[i][a] == self.v_synced[i][a]
             if not same:
                 changed += 1
@@ -100,21 +105,21 @@ class VelocityVerlet(Leapfrog):
     staggered = "v"
 
     def _stagger(self, dt: float) -> None:
-        self.sim.eval_rates()
+        self.rates.evaluate()
         self._kick(-0.5 * dt, False)
 
     def _synchronise(self, dt: float) -> None:
-        self.sim.eval_rates()
+        self.rates.evaluate()
         self._kick(0.5 * dt, True)
 
     @ti.kernel
     def _kick(self, h: float, hold: ti.template()):
         """v += h a, keeping the velocity before the kick in `held` when `hold`."""
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             if ti.static(hold):
                 self.held[i] = self.p.v[i]
-            self.p.v[i] = self.p.v[i] + h * self.p.f[i] / self.p.mass[i]
+            self.p.v[i] = self.p.v[i] + h * self.f[i] / self.p.mass[i]
 
 
 @register("verlet")
@@ -134,12 +139,12 @@ class PositionVerlet(Leapfrog):
     @ti.func
     def _wrap(self, i):
         if ti.static(self.periodic):  # a half drift back may leave a periodic box: wrap (walls stay as they act)
-            self.p.x[i], self.p.v[i] = self.sim.domain.enforce(self.p.x[i], self.p.v[i], self.p.radius[i], 0.0)
+            self.p.x[i], self.p.v[i] = self.domain.enforce(self.p.x[i], self.p.v[i], self.p.radius[i], 0.0)
 
     @ti.kernel
     def _drift(self, h: float, hold: ti.template()):
         """x += h v, keeping the position before the drift in `held` when `hold`."""
-        self.sim.loops.light()
+        self.loops.light()
         for i in range(self.p.n[None]):
             if ti.static(hold):
                 self.held[i] = self.p.x[i]

@@ -1,2 +1,21 @@
-"""Physics passes. Each module owns its fields and offers per-particle `ti.func` contributions; simulation.py fuses
-the contributions a scene needs into as few kernels per step as possible (a kernel launch costs about 20 us)."""
+"""The physics terms a scene can name, one per module (physics/term.py says what a term is), and what the pair terms
+are evaluated over (grid.py, neighbours.py, reorder.py). Importing this package registers every term; a new term's
+module is imported here."""
+
+from . import (  # noqa: F401 - each registers its terms
+    body_forces,
+    emitters,
+    fields,
+    heat,
+    heat_implicit,
+    kinematic,
+    lifetimes,
+    pair,
+    phase,
+    smoke,
+    springs,
+    walls,
+)
+from .term import TERMS, Measure, Parts, Term, TermList, register
+
+__all__ = ["TERMS", "Measure", "Parts", "Term", "TermList", "register"]

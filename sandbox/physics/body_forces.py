@@ -1,71 +1,41 @@
-"""Body forces: per-particle forces that read no other particle (gravity, drag, the drag toward a velocity field).
-
-Each term is a class in BODY_FORCES. A simulation builds, in registry order, every term whose `wanted(sim)` is true;
-the rates pass (step/rates.py) sums `force(i)` of each for every particle, in every way of stepping (pass by pass,
-fused, team), and pipeline() lists what `describe()` returns. Adding a force term is a class that follows the
-`BodyForce` shape below, registered with `@body_force`, in this file or in a module the registry imports.
-
-A term keeps its settings in Taichi fields of its own (0-d fields for values the user may change while it runs);
-they are saved and resumed with the rest of the state (persist.walk finds them under `body_forces.<k>`).
+"""Body forces: per-particle forces that read no other particle (gravity and linear drag, the drag toward a velocity
+field). Each is a term (physics/term.py) with `particle_force`: the rates sum `force(i)` of each for every particle, in
+every way of stepping (pass by pass, fused, team), in the terms' order.
 """
-
-from __future__ import annotations
-
-from typing import Protocol
 
 import taichi as ti
 
 from ..config.scene_tables import COUPLINGS
 from ..core.oriented import data_oriented
+from .term import Measure, Term, register
 
 DRAG = COUPLINGS.index("drag")
 
 
-class BodyForce(Protocol):
-    """The shape of a body-force term (see the module docstring)."""
-
-    @staticmethod
-    def wanted(sim) -> bool:
-        """Whether the simulation `sim` (built up to its rates) has this term."""
-
-    def describe(self) -> list[str]:
-        """The words pipeline() lists for the term (none: it adds nothing in this scene)."""
-
-    def force(self, i):  # a @ti.func in each term
-        """The force on particle i (mass x length / time^2), a dim-vector."""
-
-
-BODY_FORCES: list[type] = []  # in the order their forces are summed (the order decides the rounding)
-
-
-def body_force(cls: type) -> type:
-    """Class decorator: add a term to the registry (after those already there)."""
-    BODY_FORCES.append(cls)
-    return cls
-
-
-def build_body_forces(sim) -> tuple:
-    """The terms `sim` has, built in registry order."""
-    return tuple(term(sim) for term in BODY_FORCES if term.wanted(sim))
-
-
-@body_force
+@register
 @data_oriented
-class GravityAndDrag:
-    """Uniform gravity g and linear drag at rate c: F = m (g - c v). The fields are the simulation's own
-    (sim.gravity, sim.drag), which the window changes while it runs."""
+class GravityAndDrag(Term):
+    """Uniform gravity g and linear drag at rate c: F = m (g - c v). The fields are the model's live controls
+    (model.gravity, model.drag), which the window changes while it runs. Measures the gravitational energy -m g.x."""
+
+    key = "gravity"
+    order = 10.0
+    particle_force = True
+    measures = (Measure("grav", "sum", "particles"),)
 
     @staticmethod
-    def wanted(sim) -> bool:
+    def wanted(parts) -> bool:
         return True  # always built: the window may switch gravity on in a scene that starts without it
 
-    def __init__(self, sim):
-        self.particles = sim.particles
-        self.gravity = sim.gravity  # acceleration (length / time^2), 0-d vector field
-        self.drag = sim.drag  # rate (1 / time), 0-d field
-        self.world = sim.scene.world
+    def __init__(self, parts):
+        self.particles = parts.state.particles
+        self.gravity = parts.model.gravity  # acceleration (length / time^2), 0-d vector field
+        self.drag = parts.model.drag  # rate (1 / time), 0-d field
+        self.world = parts.scene.world
 
-    def describe(self) -> list[str]:
+    def words(self, where: str) -> list[str]:
+        if where != "rates":
+            return []
         return (["gravity"] if any(self.world.gravity) else []) + (["drag"] if self.world.drag else [])
 
     @ti.func
@@ -73,26 +43,49 @@ class GravityAndDrag:
         p = self.particles
         return p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
 
+    @ti.func
+    def measure_particle(self, i):
+        p = self.particles
+        return (-p.mass[i] * self.gravity[None].dot(p.x[i]),)
 
-@body_force
+
+@register
 @data_oriented
-class FieldDrag:
+class FieldDrag(Term):
     """Groups coupled to the velocity field by `field = "drag"` relax toward it at their rate k:
-    F = m k (v_field(x) - v), with v_field sampled at the step's start (step/plan.py)."""
+    F = m k (v_field(x) - v), with v_field sampled at the step's start (before_step)."""
+
+    key = "field_drag"
+    order = 48.0  # built after the velocity field
+    particle_force_order = 11.0  # summed right after gravity
+    before_order = 50.0  # sampled after the smoke grid has stepped
+    particle_force = True
 
     @staticmethod
-    def wanted(sim) -> bool:
-        return sim.has_field_drag
+    def wanted(parts) -> bool:
+        fields = parts.terms.get("fields")
+        return fields is not None and fields.has_drag
 
-    def __init__(self, sim):
-        self.particles = sim.particles
-        self.dim = sim.dim
-        self.coupling = sim.g_coupling  # per group: index into COUPLINGS
-        self.rate = sim.g_drag  # per group: relaxation rate (1 / time)
-        self.target = sim.v_field  # per particle: the field's velocity there
+    @staticmethod
+    def host_work(scene) -> str | None:
+        return None  # the velocity field says so (physics/fields.py)
 
-    def describe(self) -> list[str]:
-        return ["drag toward the velocity field"]
+    def __init__(self, parts):
+        self.particles = parts.state.particles
+        self.dim = parts.model.dim
+        self.fields = parts.terms["fields"]
+        self.coupling = self.fields.coupling  # per group: index into COUPLINGS
+        self.rate = self.fields.drag_rate  # per group: relaxation rate (1 / time)
+        self.target = self.fields.v_field  # per particle: the field's velocity there
+
+    def words(self, where: str) -> list[str]:
+        return {
+            "rates": ["drag toward the velocity field"],
+            "before": ["velocity field sampled at field-coupled particles (their drag target)"],
+        }.get(where, [])
+
+    def before_step(self, state) -> None:
+        self.fields.sample_at_particles(state.time)
 
     @ti.func
     def force(self, i):

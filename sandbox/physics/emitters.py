@@ -1,4 +1,4 @@
-"""Emitters (particles seeded where and when a scene says) and lifetimes (particles retired when they age).
+"""Emitters: particles seeded where and when a scene says.
 
 Seeding: at a point, uniformly by area/volume inside a box, disk or sphere, or uniformly by length/area on its
 boundary (`surface = true`). Timing: `count` at the start, `rate` per second from `start` to `stop` (the fraction
@@ -6,11 +6,7 @@ left over each step carries to the next, so 2.5 per step gives 5 every 2 steps),
 `bursts`. Every attribute is set at birth: velocity (base, random within a cone, speed spread, outward from the
 centre, plus the velocity field), temperature, mass and radius, material and colour, lifetime with a spread.
 Random numbers are hashes of (emitter seed, particle serial number, attribute): the same whatever the thread order.
-
-Lifetimes: a particle with lifetime L > 0 is dead once its age reaches L. After each call of Simulation.step the dead
-are retired by compaction: live particles from the tail of the array fill the holes (their spring ends and bond
-lists, if they have any, are renumbered), so the active count stays the number alive and memory stays bounded however
-many particles were ever emitted. Listeners (the renderer's motion-blur tails) are told which slots moved.
+A particle given a lifetime is retired when it has aged (physics/lifetimes.py).
 """
 
 import math
@@ -23,29 +19,45 @@ from ..core import transfer
 from ..core.oriented import data_oriented
 from ..errors import SceneError
 from .fields import random_uniform
+from .phase import NEVER_BONDS
+from .term import Term, register
 
-NEVER_BONDS = 3  # liquid-flag value of mortal emitted particles: refreezing never bonds them (physics/phase.py)
 SHAPES = ("point", "box", "disk", "sphere", "mask")
 MASK = SHAPES.index("mask")
 
 
+@register
 @data_oriented
-class Emitters:
-    """The scene's emitters: parameter fields, the emit kernel, and retirement of the dead by compaction."""
+class Emitters(Term):
+    """The scene's emitters as a term: parameter fields, the emit kernel, and the seeding due before each step."""
+
+    key = "emitters"
+    order = 47.0  # built after the velocity field, which an emitter's particles may inherit
+    before_order = 40.0  # seeded before the smoke grid steps
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        return bool(parts.scene.emitters)
 
     @staticmethod
     def host_work(scene) -> str | None:
-        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None."""
+        """Why this pass needs the host between `scene`'s steps (see the stepping plan), or None."""
         return "emitters seed particles between steps" if scene.emitters else None
 
-    def __init__(self, sim, emitters: list, first_group: int):
-        self.sim = sim
-        self.p = sim.particles
-        self.dim = sim.dim
-        self.specs = list(emitters)
+    def __init__(self, parts):
+        model, state, scene = parts.model, parts.state, parts.scene
+        self.state = state
+        self.p = state.particles
+        self.dim = model.dim
+        self.capacity = model.capacity
+        self.specs = list(scene.emitters)
         self.count = len(self.specs)
-        self.first_group = first_group
-        self.has_fields = sim.fields is not None
+        self.first_group = len(scene.bodies)
+        self.fields = parts.terms.get("fields")
+        self.has_fields = self.fields is not None
+        self.has_heat, self.lifetimes, self.refreezes = self.p.heat, self.p.lifetimes, self.p.refreeze
+        self.phase = model.phase
+        emitters = self.specs
         n = max(self.count, 1)
         dim = self.dim
         self.shape = ti.field(ti.i32, shape=n)
@@ -71,8 +83,8 @@ class Emitters:
         self.mask_start = ti.field(ti.i32, shape=n)  # mask emitters: their pixels' range in mask_pixels
         self.mask_count = ti.field(ti.i32, shape=n)
         self.pixel_size = ti.Vector.field(dim, float, shape=n)
-        ambient = sim.scene.heat.ambient if sim.scene.heat else 20.0
-        rows = [self._row(k, e, sim, ambient) for k, e in enumerate(self.specs)]
+        ambient = scene.heat.ambient if scene.heat else 20.0
+        rows = [self._row(k, e, scene, model.material_names, ambient) for k, e in enumerate(self.specs)]
         mask_pairs = self._mask_pixels(emitters)
         if rows:  # one copy kernel for the whole table: each of _row()'s names is a field of this object
             transfer.upload([(getattr(self, name), np.array([r[name] for r in rows])) for name in rows[0]] + mask_pairs)
@@ -80,21 +92,31 @@ class Emitters:
         self.carry = [0.0] * self.count  # fractional particles owed by the rate
         self.emitted = [0] * self.count
         self._warned_full = False
-        cap = sim.capacity
-        self.hole = ti.field(ti.i32, shape=cap)  # compaction: slots of the dead below the new count
-        self.filler = ti.field(ti.i32, shape=cap)  # ... and the live particles above it that move into them
-        self.moves = ti.field(ti.i32, shape=2)  # [holes found, fillers found]
         self.refills = [k for k, e in enumerate(self.specs) if e.refill_density > 0]
         self.refill_grids = {}
         for k in self.refills:
             self.refill_grids[k] = self._refill_grid(self.specs[k])
         self.reserved = ti.field(ti.i32, shape=())  # refill: slots taken by the last pass
-        self.listeners = []  # callables(hole, filler, count): told after particles moved
-        self.state_fields = [getattr(self.p, name) for name in self.p.names()]  # what moves with a particle
 
-    def _row(self, k: int, e, sim, ambient: float) -> dict:
+    def words(self, where: str) -> list[str]:
+        return [f"emitters: {', '.join(e.name for e in self.specs)} (rate, bursts)"] if where == "before" else []
+
+    def declare(self, state) -> None:
+        """Particles emitted so far (the random-number index), the rate's carried fraction, the counts."""
+        state.declare("emitters", self, ("serial", "carry", "emitted"), kind="value")
+
+    def start(self, state) -> None:
+        self.emit_initial()
+
+    def before_step(self, state) -> None:
+        """Emit what is due in the step [t, t + dt), then top up the refill regions."""
+        self.emit_due(state.time, state.dt)
+        if self.refills:
+            self.refill(state.time)
+
+    def _row(self, k: int, e, scene, material_names: list, ambient: float) -> dict:
         """Emitter k's parameters (spec e), by the name of the field that holds each: the values of its row."""
-        mat = sim.scene.materials[e.material]
+        mat = scene.materials[e.material]
         dim = self.dim
         boxed = e.shape in ("box", "mask")
         spacing = 2 * e.particle_radius
@@ -114,7 +136,7 @@ class Emitters:
             "temperature": ambient if e.temperature is None else e.temperature,
             "radius": e.particle_radius,
             "mass": mat.particle_mass if mat.particle_mass is not None else mat.density * spacing**dim,
-            "material": sim.material_names.index(e.material),
+            "material": material_names.index(e.material),
             "lifetime": e.lifetime,
             "lifetime_spread": e.lifetime_spread,
             "seed": e.seed * 7919 + k,
@@ -160,12 +182,6 @@ class Emitters:
             if e.count:
                 self._emit(k, e.count, 0.0)
 
-    def before_step(self, t: float, dt: float) -> None:
-        """The emitters' work before the step [t, t + dt): emit what is due, then top up the refill regions."""
-        self.emit_due(t, dt)
-        if self.refills:
-            self.refill(t)
-
     def emit_due(self, t: float, dt: float) -> None:
         """Emit what is due in the step [t, t + dt): the rate's share (with carry) and bursts falling in it."""
         for k, e in enumerate(self.specs):
@@ -208,13 +224,13 @@ class Emitters:
             self._count_cells(g["count"], g["lo"], g["cell"])
             self.reserved[None] = 0
             self._top_up(k, g["count"], g["lo"], g["cell"], g["target"], n, self.serial[k], t)
-            made = min(int(self.reserved[None]), self.sim.capacity - n)
+            made = min(int(self.reserved[None]), self.capacity - n)
             self.p.n[None] = n + made
             self.serial[k] += int(self.reserved[None])
             self.emitted[k] += made
             added += made
-        if added and self.sim.neighbours is not None:
-            self.sim.neighbours.invalidate()
+        if added:
+            self.state.particles_moved()
         return added
 
     @ti.func
@@ -260,19 +276,19 @@ class Emitters:
                 for m in range(deficit):
                     slot = start + m
                     i = first + slot
-                    if i < self.sim.capacity:
+                    if i < self.capacity:
                         serial = serial0 + slot
                         u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
                         self._init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t)
 
     def _emit(self, k: int, count: int, t: float) -> None:
         n = int(self.p.n[None])
-        room = self.sim.capacity - n
+        room = self.capacity - n
         if count > room:
             if not self._warned_full:
                 self._warned_full = True
                 warnings.warn(
-                    f"emitter {self.specs[k].name!r}: particle capacity {self.sim.capacity} reached; "
+                    f"emitter {self.specs[k].name!r}: particle capacity {self.capacity} reached; "
                     "set world.capacity higher (or shorten lifetimes)",
                     stacklevel=3,
                 )
@@ -284,8 +300,7 @@ class Emitters:
         self.serial[k] += count
         self.emitted[k] += count
         self.p.n[None] = n + count
-        if self.sim.neighbours is not None:
-            self.sim.neighbours.invalidate()
+        self.state.particles_moved()
 
     @ti.func
     def _u(self, k, serial, j):
@@ -386,7 +401,7 @@ class Emitters:
             v += factor * self.radial_speed[k] * self._unit_vector(k, serial, 33)
         if ti.static(self.has_fields):
             if self.inherit[k]:
-                v += self.sim.fields.velocity(pos, t)
+                v += self.fields.velocity(pos, t)
         return v
 
     @ti.kernel
@@ -402,7 +417,6 @@ class Emitters:
         p = self.p
         p.x[i] = pos
         p.v[i] = self.sample_velocity(k, serial, pos, t)
-        p.f[i] = ti.Vector.zero(float, self.dim)
         p.mass[i] = self.mass[k]
         p.radius[i] = self.radius[k]
         mat = self.material[k]
@@ -410,69 +424,13 @@ class Emitters:
         p.color[i] = self.color[k]
         p.group[i] = self.first_group + k
         mortal = 0
-        if ti.static(self.sim.has_lifetimes):
+        if ti.static(self.lifetimes):
             p.age[i] = 0.0
             spread = 1.0 + self.lifetime_spread[k] * (2.0 * self._u(k, serial, 40) - 1.0)
             p.lifetime[i] = self.lifetime[k] * spread
             mortal = 1 if p.lifetime[i] > 0 else 0
-        if ti.static(self.sim.has_heat):
-            p.h[i] = self.sim.phase.enthalpy(self.temperature[k], mat)
+        if ti.static(self.has_heat):
+            p.h[i] = self.phase.enthalpy(self.temperature[k], mat)
             p.T[i] = self.temperature[k]
-            p.dhdt[i] = 0.0
-            if ti.static(self.sim.can_refreeze):
+            if ti.static(self.refreezes):
                 p.liquid[i] = NEVER_BONDS if mortal else 1
-
-    # ------------------------------------------------------------------ retirement
-    def retire(self) -> int:
-        """Remove the dead (age >= lifetime > 0) by compaction; returns how many were removed."""
-        dead = int(self._count_dead())
-        if dead == 0:
-            return 0
-        n_new = int(self.p.n[None]) - dead
-        self._compact(n_new)
-        moved = int(self.moves[0])
-        for listener in self.listeners:
-            listener(self.hole, self.filler, moved)
-        if self.sim.neighbours is not None:
-            self.sim.neighbours.invalidate()
-        return dead
-
-    @ti.func
-    def dead(self, i):
-        return self.p.lifetime[i] > 0.0 and self.p.age[i] >= self.p.lifetime[i]
-
-    @ti.kernel
-    def _count_dead(self) -> ti.i32:
-        total = 0
-        for i in range(self.p.n[None]):
-            if self.dead(i):
-                total += 1
-        return total
-
-    @ti.kernel
-    def _compact(self, n_new: ti.i32):
-        p = self.p
-        self.moves[0] = 0
-        self.moves[1] = 0
-        for i in range(n_new):
-            if self.dead(i):
-                self.hole[ti.atomic_add(self.moves[0], 1)] = i
-        for i in range(n_new, p.n[None]):
-            if not self.dead(i):
-                self.filler[ti.atomic_add(self.moves[1], 1)] = i
-        for m in range(self.moves[0]):
-            dst, src = self.hole[m], self.filler[m]
-            for field in ti.static(self.state_fields):
-                field[dst] = field[src]
-            if ti.static(self.sim.has_springs):
-                s = self.sim.springs
-                for b in range(s.max_bonds):
-                    spring = s.bonds[src, b]
-                    s.bonds[dst, b] = spring
-                    s.bonds[src, b] = -1
-                    if spring >= 0:
-                        if s.i[spring] == src:
-                            s.i[spring] = dst
-                        if s.j[spring] == src:
-                            s.j[spring] = dst
-        p.n[None] = n_new

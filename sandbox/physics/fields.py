@@ -24,11 +24,14 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..config.scene_tables import COUPLINGS
 from ..core import transfer
 from ..core.oriented import data_oriented
+from .term import Term, register
 
 FIELD_KINDS = ("wind", "vortex", "source", "explosion", "noise")
 WIND, VORTEX, SOURCE, EXPLOSION, NOISE = range(5)
+NO_COUPLING, KINEMATIC = (COUPLINGS.index(c) for c in ("none", "kinematic"))
 
 
 @ti.func
@@ -84,19 +87,56 @@ def gradient_noise(p, seed: ti.u32):
     return total
 
 
+@register
 @data_oriented
-class VelocityField:
-    """The scene's field elements as small parameter fields, and velocity(x, t) as a Taichi func."""
+class VelocityField(Term):
+    """The scene's field elements as small parameter fields, velocity(x, t) as a Taichi func, and which groups
+    follow it (kinematic) or are dragged toward it (drag): their velocity there, sampled at each step's start."""
+
+    key = "fields"
+    order = 46.0  # built after the smoke grid, whose velocity it adds
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        return bool(parts.scene.fields or parts.scene.smoke)
 
     @staticmethod
     def host_work(scene) -> str | None:
-        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None: particles
-        coupled to the field (kinematic or drag) sample it at each step's start."""
+        """Why this pass needs the host between `scene`'s steps (see the stepping plan), or None: particles coupled
+        to the field (kinematic or drag) sample it at each step's start."""
         coupled = bool(scene.fields or scene.smoke) and any(g.field != "none" for g in scene.groups)
         return "particles follow a velocity field sampled at each step" if coupled else None
 
-    def __init__(self, dim: int, elements: list, grid=None):
-        """`grid`: a SmokeGrid whose velocity is added to the elements' (None: elements only)."""
+    def __init__(self, parts):
+        smoke = parts.terms.get("smoke")
+        self._build(parts.model.dim, parts.scene.fields, smoke.grid if smoke is not None else None)
+        groups = parts.scene.groups
+        couplings = [g.field for g in groups]
+        self.has_kinematic = "kinematic" in couplings
+        self.has_drag = "drag" in couplings
+        self.p = parts.state.particles
+        # per group (every body, every emitter, then the spawn tool's particles):
+        self.coupling = ti.field(ti.i32, shape=len(groups) + 1)  # index into COUPLINGS
+        self.drag_rate = ti.field(float, shape=len(groups) + 1)  # field = drag: relaxation rate (1/time)
+        transfer.upload(
+            [
+                (self.coupling, np.array([COUPLINGS.index(c) for c in couplings], np.int32)),
+                (self.drag_rate, np.array([g.field_drag for g in groups], float)),
+            ]
+        )
+        if self.has_kinematic or self.has_drag:
+            self.v_field = ti.Vector.field(self.dim, float, shape=parts.model.capacity)  # v(x, t) at coupled particles
+
+    @ti.kernel
+    def sample_at_particles(self, t: float):
+        """v_field[i] = v(x_i, t) at every particle coupled to the field (kinematic or drag)."""
+        p = self.p
+        for i in range(p.n[None]):
+            if self.coupling[p.group[i]] != NO_COUPLING:
+                self.v_field[i] = self.velocity(p.x[i], t)
+
+    def _build(self, dim: int, elements: list, grid=None):
+        """The element tables; `grid`: a SmokeGrid whose velocity is added to the elements' (None: elements only)."""
         self.dim = dim
         self.grid = grid
         self.has_grid = grid is not None

@@ -30,6 +30,8 @@ from ..config.scene_tables import SOURCE_MODES
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.transfer import real_fields
+from .phase import LIQUID, NEVER_BONDS
+from .term import Measure, Term, register
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
 
@@ -61,13 +63,33 @@ def lattice_correction(x: np.ndarray, volume: np.ndarray, h: float, samples: int
     return s if 0.8 <= s <= 1.2 else 1.0
 
 
+@register
 @data_oriented
-class Heat:
-    """Heat-diffusion parameters and sources, with the per-pair flow and per-particle source funcs."""
+class Heat(Term):
+    """Heat diffusion between particles and from sources, as a term: the flow of each neighbour pair and of the
+    sources into each particle (with the explicit stepper: the implicit one is physics/heat_implicit.py), the power
+    sources' per-step mass sums, the enthalpy update at a step's end (temperature and melt fraction follow from it),
+    the temperatures and heat content it measures, and its explicit stability limit."""
+
+    key = "heat"
+    order = 35.0
+    finish_order = 70.0  # after the walls and kinematic particles have moved: fixed sources hold by position
+    measures = (
+        Measure("tsum", "sum", "particles"),
+        Measure("tcold", "max", "particles", -1e30),  # the largest -T: the coldest
+        Measure("thot", "max", "particles", -1e30),
+        Measure("heat", "sum", "particles"),
+        Measure("phi", "sum", "particles"),
+        Measure("meltable", "count", "particles"),
+    )
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        return parts.scene.heat is not None
 
     @staticmethod
     def host_work(scene) -> str | None:
-        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None."""
+        """Why this pass needs the host between `scene`'s steps (see the stepping plan), or None."""
         scheduled = scene.heat is not None and any(src.schedule_times for src in scene.heat.sources)
         return "scheduled heat sources change between steps" if scheduled else None
 
@@ -78,7 +100,20 @@ class Heat:
         power = scene.heat is not None and any(src.mode == "power" for src in scene.heat.sources)
         return "power sources sum their mass each step" if power else None
 
-    def __init__(self, dim: int, heat_scene, support: float, particles, materials, phase, correction: float = 1.0):
+    def __init__(self, parts):
+        model, state = parts.model, parts.state
+        heat_scene, built = parts.scene.heat, model.built
+        dim, particles, materials, phase = model.dim, state.particles, model.materials, model.phase
+        density = model.column("density", built.material)
+        correction = lattice_correction(built.x, built.mass / density, parts.scene.heat_radius)
+        support = parts.scene.heat_radius
+        self.model = model
+        self.explicit = heat_scene.stepper == "explicit"  # the rates evaluate its flows; else the implicit solve
+        self.pair_channel = "heat" if self.explicit else ""
+        self.particle_heat = self.finishes = self.explicit
+        self.refreezes = particles.refreeze
+        self.reach = float(support)
+        self._dt_limit = None  # dt_limit, computed when first asked for
         self.dim = dim
         self.phase = phase
         self.support = float(support)  # the kernel's support radius (length)
@@ -101,6 +136,7 @@ class Heat:
         modes = [SOURCE_MODES.index(src.mode) for src in self.sources]
         self.has_fixed = FIXED in modes  # static flags: scenes without such sources compile none of their code
         self.has_power = POWER in modes
+        self.prestep = self.has_power
         self.src_lo = ti.Vector.field(dim, float, shape=ns)  # source region lower corner, widened by its reach
         self.src_hi = ti.Vector.field(dim, float, shape=ns)  # source region upper corner, widened by its reach
         self.src_mode = ti.field(ti.i32, shape=ns)  # index into SOURCE_MODES
@@ -123,6 +159,29 @@ class Heat:
             ]
         )
         self._values: list[float | None] = values  # the values last written to src_value
+
+    def words(self, where: str) -> list[str]:
+        if where == "before":
+            return ["scheduled heat sources set to the step's start time"] if self.scheduled else []
+        if where == "rates" and self.explicit:
+            return [f"heat diffusion (kernel support {self.support:g}, {self.n_sources} sources)"]
+        if where == "finish" and self.explicit:
+            return ["enthalpy update (temperature and melt fraction from it)"]
+        return []
+
+    def before_step(self, state) -> None:
+        if self.scheduled:
+            self.set_time(state.time)
+
+    def after_restore(self, state) -> None:
+        self.set_time(state.time)
+
+    def controls(self) -> dict:
+        return {"ambient": float(self.ambient[None])}
+
+    def apply_controls(self, values: dict) -> None:
+        if "ambient" in values:
+            self.ambient[None] = values["ambient"]
 
     def set_time(self, t: float) -> None:
         """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""
@@ -220,6 +279,81 @@ class Heat:
                     gt += self.src_value[k] * self.p.mass[i] / ti.max(self.src_mass[k], 1e-30)
         return g, gt
 
+    # ------------------------------------------------------------------ its part of the rates
+    @ti.func
+    def prestep_loops(self):
+        """The mass inside each power source, summed each stage before the rates (they share the power by mass)."""
+        for k in range(self.n_sources):
+            self.src_mass[k] = 0.0
+        self.model.loops.light()
+        for i in range(self.p.n[None]):
+            self.add_source_mass(i)
+
+    @ti.func
+    def row(self, i):
+        return self.own_terms(i)
+
+    @ti.func
+    def pair(self, ctx, i, j, d, r2, bonded):
+        """Heat flow into i from j, masked beyond the kernel's support (finite for any listed pair)."""
+        t_i, c_i, mat_i = ctx
+        return ti.select(r2 < self.support**2, 1.0, 0.0) * self.flow_with(t_i, c_i, mat_i, j, r2)
+
+    @ti.func
+    def heat(self, i):
+        return self.source_flow(i)
+
+    @ti.func
+    def finish(self, i, dt, rates: ti.template()):
+        """Explicit Euler on the enthalpy with the step's last heat rate; temperature and melt fraction follow."""
+        self.set_enthalpy(i, self.p.h[i] + dt * rates.heat_rate[i])
+
+    @ti.func
+    def set_enthalpy(self, i, h):
+        """Give particle i specific enthalpy h (held by fixed sources), and its temperature and liquid flag."""
+        p = self.p
+        if ti.static(self.has_fixed):
+            h = self.held(i, h)
+        p.h[i] = h
+        t, phi = self.phase.state(h, p.material[i])
+        p.T[i] = t
+        if ti.static(self.refreezes):
+            if phi >= self.mats.break_fraction[p.material[i]] and p.liquid[i] != NEVER_BONDS:
+                p.liquid[i] = LIQUID
+
+    @ti.kernel
+    def sync_temperatures(self):
+        """Recompute every particle's enthalpy from its temperature (after temperatures were set directly)."""
+        for i in range(self.p.n[None]):
+            self.p.h[i] = self.phase.enthalpy(self.p.T[i], self.p.material[i])
+            self.set_enthalpy(i, self.p.h[i])
+
+    # ------------------------------------------------------------------ its measurements
+    @ti.func
+    def measure_particle(self, i):
+        """(T, -T, T, m h, melt fraction where the material melts, 1 where it melts)."""
+        p = self.p
+        t = p.T[i]
+        phi, meltable = 0.0, 0
+        if self.mats.melt[p.material[i]] < 1e29:
+            meltable = 1
+            phi = self.phase.fraction(p.h[i], p.material[i])
+        return t, -t, t, p.mass[i] * p.h[i], phi, meltable
+
+    # ------------------------------------------------------------------ its stability
+    def stable_dt(self, integrator) -> float:
+        return self.dt_limit if self.explicit else math.inf
+
+    def auto_dt(self, integrator) -> float:
+        return 0.5 * self.dt_limit if self.explicit else math.inf
+
+    @property
+    def dt_limit(self) -> float:
+        """Largest stable explicit heat step on the initial particles (Gershgorin bound), inf without a pair."""
+        if self._dt_limit is None:
+            self._dt_limit = _explicit_limit(self.model, self.support, self.correction)
+        return self._dt_limit
+
 
 def source_value(src, t: float) -> float:
     """A source's temperature (or power) at time t: its schedule's value in force at t, else its fixed value."""
@@ -231,3 +365,24 @@ def source_value(src, t: float) -> float:
         t = t % src.schedule_period
     k = int(np.searchsorted(times, t, side="right")) - 1
     return float(src.schedule_values[k]) if k >= 0 else float(base)
+
+
+def _explicit_limit(model, support: float, correction: float) -> float:
+    """Gershgorin bound on the explicit heat step of the built particles: 1 / max_i (row sum of the heat matrix),
+    probed at up to 64 particles."""
+    b = model.built
+    if b.count < 2:
+        return math.inf
+    rho = model.column("density", b.material)
+    cap = model.column("specific_heat", b.material) * b.mass
+    k = model.column("conductivity", b.material)
+    probe = np.linspace(0, b.count - 1, num=min(b.count, 64)).astype(int)
+    worst = 0.0
+    vol = b.mass / rho
+    for i in probe:
+        r = np.linalg.norm(b.x - b.x[i], axis=1)
+        near = (r > 0) & (r < support)
+        kij = 2 * k[i] * k[near] / np.maximum(k[i] + k[near], 1e-30)
+        grad = np.array([wendland_grad_factor(rr, support, model.dim) for rr in r[near]]) / correction
+        worst = max(worst, np.sum(vol[i] * vol[near] * 2 * kij * grad) / cap[i])
+    return 2.0 / (2.0 * worst) if worst > 0 else math.inf

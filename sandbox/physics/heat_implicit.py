@@ -18,24 +18,37 @@ import taichi as ti
 from ..core.oriented import data_oriented
 from ..core.solvers import CGResult, CGSums, pcg
 from .neighbours import LIST_ARRAY
+from .term import Term, register
 
 
+@register
 @data_oriented
-class ImplicitHeat:
-    """Backward-Euler heat stepper over the simulation's neighbours (lists or grid)."""
+class ImplicitHeat(Term):
+    """Backward-Euler heat stepper over the neighbourhood (lists or grid), after each step."""
+
+    key = "implicit_heat"
+    order = 80.0
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        heat = parts.scene.heat
+        return heat is not None and heat.stepper != "explicit"
 
     @staticmethod
     def host_work(scene) -> str | None:
-        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None."""
+        """Why this pass needs the host between `scene`'s steps (see the stepping plan), or None."""
         implicit = scene.heat is not None and scene.heat.stepper != "explicit"
         return "the implicit heat solve iterates from the host" if implicit else None
 
-    def __init__(self, sim, tolerance: float = 1e-10, max_iterations: int = 500):
-        self.sim = sim
-        self.p = sim.particles
-        self.heat = sim.heat
+    def __init__(self, parts, tolerance: float = 1e-10, max_iterations: int = 500):
+        self.parts = parts  # the neighbourhood it sums over is built after the terms
+        self.p = parts.state.particles
+        self.heat = parts.terms["heat"]
+        self.materials = parts.model.materials
+        self.domain = parts.model.domain
         self.tolerance, self.max_iterations = tolerance, max_iterations
-        cap = sim.capacity
+        cap = parts.model.capacity
+        self.dT = ti.field(float, shape=cap)  # the step's temperature change, accumulated by the solve
         self.r = ti.field(float, shape=cap)
         self.z = ti.field(float, shape=cap)
         self.d = ti.field(float, shape=cap)
@@ -43,6 +56,20 @@ class ImplicitHeat:
         self.diag = ti.field(float, shape=cap)  # C_i + h G_i + h sum_j G_ij
         self.sums = CGSums()
         self.last = CGResult(0, 0.0)
+
+    def words(self, where: str) -> list[str]:
+        return (
+            ["implicit heat: backward Euler by preconditioned CG, then the enthalpy update"] if where == "after" else []
+        )
+
+    def after_step(self, state) -> None:
+        """The implicit heat solve over the step just taken, then its enthalpy update."""
+        hood = self.parts.neighbours
+        use_list = hood.lists is not None and hood.lists.ensure_fresh()
+        if not use_list:
+            hood.grid.rebuild()
+        self.step(state.dt, use_list, hood.ids(use_list))
+        self.apply()
 
     def step(self, h: float, use_list: bool, ids) -> CGResult:
         """Advance every particle's temperature by h (positions as they are now)."""
@@ -60,41 +87,32 @@ class ImplicitHeat:
     @ti.func
     def _laplacian(self, i, y: ti.template(), use_list: ti.template(), ids: ti.template()):
         """(sum_j G_ij, sum_j G_ij (y_i - y_j)) over the neighbours of i within the kernel support."""
-        gsum = 0.0
-        lap = 0.0
-        h2 = self.heat.support**2
+        acc = ti.Vector([0.0, 0.0])
         xi = self.p.x[i]
         if ti.static(use_list):
-            for k in range(self.sim.neighbours.count[i]):
+            for k in range(self.parts.neighbours.lists.count[i]):
                 j = ids[i, k]
-                d = self.sim.domain.separation(xi, self.p.x[j])
-                r2 = d.dot(d)
-                if r2 < h2:
-                    g = self.heat.conductance(i, j, r2)
-                    gsum += g
-                    lap += g * (y[i] - y[j])
+                acc = self._add_neighbour(acc, j, self.domain.separation(xi, self.p.x[j]), k, (i, y))
         else:
-            grid = self.sim.grid
-            c = grid.cell_of(xi)
-            for o in range(grid.n_offsets):
-                nc, shift = grid.neighbour_cell(c, grid.offset(o))
-                if nc >= 0:
-                    for k in range(grid.cell_start[nc], grid.cell_start[nc] + grid.cell_count[nc]):
-                        j = grid.sorted_ids[k]
-                        if j != i:
-                            d = grid.x_sorted[k] - (xi - shift)
-                            r2 = d.dot(d)
-                            if r2 < h2:
-                                g = self.heat.conductance(i, j, r2)
-                                gsum += g
-                                lap += g * (y[i] - y[j])
-        return gsum, lap
+            acc = self.parts.neighbours.grid.fold(xi, acc, self._add_neighbour, (i, y), False, 0)
+        return acc[0], acc[1]
+
+    @ti.func
+    def _add_neighbour(self, acc, j, d, k, extra: ti.template()):
+        """acc + (G_ij, G_ij (y_i - y_j)) for neighbour j of i = extra[0] at separation d (y = extra[1])."""
+        i = extra[0]
+        y = ti.static(extra[1])
+        r2 = d.dot(d)
+        if j != i and r2 < self.heat.support**2:
+            g = self.heat.conductance(i, j, r2)
+            acc += ti.Vector([g, g * (y[i] - y[j])])
+        return acc
 
     @ti.kernel
     def _assemble(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
         self.sums.clear_for_assembly()
         for i in range(self.p.n[None]):
-            cap = self.p.mass[i] * self.sim.materials.specific_heat[self.p.material[i]]
+            cap = self.p.mass[i] * self.materials.specific_heat[self.p.material[i]]
             g, gt = self.heat.source_terms(i)
             gsum, lap = self._laplacian(i, self.p.T, use_list, ids)
             # Solve for the change dT = T' - T: A dT = h (G T_s - G T - sum_j G_ij (T_i - T_j)), starting at 0.
@@ -103,7 +121,7 @@ class ImplicitHeat:
             self.r[i] = b
             self.z[i] = b / self.diag[i]
             self.d[i] = self.z[i]
-            self.p.dhdt[i] = 0.0  # holds the accumulating dT during the solve
+            self.dT[i] = 0.0
             self.sums.rz[None] += b * self.z[i]
             self.sums.rr[None] += b * b
             self.sums.bb[None] += b * b
@@ -112,7 +130,7 @@ class ImplicitHeat:
     def _matvec(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
         self.sums.p_ap[None] = 0.0
         for i in range(self.p.n[None]):
-            cap = self.p.mass[i] * self.sim.materials.specific_heat[self.p.material[i]]
+            cap = self.p.mass[i] * self.materials.specific_heat[self.p.material[i]]
             g, _ = self.heat.source_terms(i)
             _, lap = self._laplacian(i, self.d, use_list, ids)
             self.ad[i] = (cap + h * g) * self.d[i] + h * lap
@@ -122,7 +140,7 @@ class ImplicitHeat:
     def _update(self, alpha: ti.f64):
         self.sums.clear_for_update()
         for i in range(self.p.n[None]):
-            self.p.dhdt[i] += alpha * self.d[i]
+            self.dT[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.ad[i]
             self.z[i] = self.r[i] / self.diag[i]
             self.sums.rz[None] += self.r[i] * self.z[i]
@@ -135,7 +153,7 @@ class ImplicitHeat:
 
     @ti.kernel
     def apply(self):
-        """h += c dT (dT was accumulated in p.dhdt by the solve); T follows from h."""
+        """h += c dT (dT accumulated by the solve); T follows from h."""
         for i in range(self.p.n[None]):
-            c = self.sim.materials.specific_heat[self.p.material[i]]
-            self.sim.set_enthalpy(i, self.p.h[i] + c * self.p.dhdt[i])
+            c = self.materials.specific_heat[self.p.material[i]]
+            self.heat.set_enthalpy(i, self.p.h[i] + c * self.dT[i])

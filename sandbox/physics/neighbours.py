@@ -17,6 +17,7 @@ code that makes springs invalidates the list, so an entry never names a slot tha
 """
 
 import math
+import warnings
 
 import taichi as ti
 
@@ -37,13 +38,23 @@ class NeighbourList:
     """Per-particle lists of neighbour ids within reach + skin, over the cell grid `grid`."""
 
     def __init__(
-        self, grid, domain, x, n, reach: float, skin: float, capacity: int, half: bool = False, springs=None, loops=None
+        self,
+        grid,
+        domain,
+        state,
+        reach: float,
+        skin: float,
+        capacity: int,
+        half: bool = False,
+        springs=None,
+        loops=None,
     ):
-        """Lists for the first n[None] particles of x; `half`: each pair listed once, under one of the two (the
-        caller applies the pair to both particles); `springs` (with `half`): mark bonded pairs (see above); `loops`:
-        the LoopPolicy (default: the grid's)."""
+        """Lists for the live particles of `state`; `half`: each pair listed once, under one of the two (the caller
+        applies the pair to both particles); `springs` (with `half`): mark bonded pairs (see above); `loops`: the
+        LoopPolicy (default: the grid's)."""
         self.loops = loops if loops is not None else grid.loops
-        self.grid, self.domain, self.x, self.n = grid, domain, x, n
+        self.grid, self.domain, self.state = grid, domain, state
+        self.x, self.n = state.particles.x, state.particles.n
         self.half = half
         self.springs = springs
         self.marks_bonds = half and springs is not None
@@ -51,12 +62,13 @@ class NeighbourList:
         self.reach, self.skin = reach, skin
         self.capacity = capacity
         self.count = ti.field(ti.i32, shape=capacity)  # neighbours of each particle (may exceed the width)
-        self.x_ref = ti.Vector.field(self.dim, x.dtype, shape=capacity)  # positions at the last build
+        self.x_ref = ti.Vector.field(self.dim, self.x.dtype, shape=capacity)  # positions at the last build
         self.stale = ti.field(ti.i32, shape=())  # 1 when the list must be rebuilt
         self.overflow = ti.field(ti.i32, shape=())  # 1 when some particle has more neighbours than fit
         self.n_listed = ti.field(ti.i32, shape=())  # the particle count at the last build
         self.widest = ti.field(ti.i32, shape=())  # the widest full row when the lists were sized
         self.forced = True  # rebuild at the next check (invalidate())
+        self.built_layout = -1  # the state's layout counter when the lists were last built
         self.usable = False  # the last build fitted every list (no overflow)
         self.host_builds = 0  # builds run by ensure_fresh
         self.fused_builds = ti.field(ti.i32, shape=())  # builds run inside the fused step (Simulation._fused_steps)
@@ -67,6 +79,25 @@ class NeighbourList:
         widest = int(self._sort_and_count())
         self._allocate(max(16, int(math.ceil(1.5 * widest)) + 8))
         self.grown = 0
+
+    def declare(self, state) -> None:
+        """The lists and when they were built: saved with a state, so a resumed run sums its forces in the same
+        order (not part of a snapshot: restoring one moves the layout on, which rebuilds them)."""
+        state.declare("neighbours", self, ("ids",), kind="ndarray", physical=False, rows="particles")
+        state.declare("neighbours", self, ("count", "x_ref"), physical=False, rows="particles")
+        state.declare("neighbours", self, ("n_listed", "fused_builds"), physical=False)
+        values = ("forced", "usable", "host_builds", "fused", "grown", "width", "built_layout")
+        state.declare("neighbours", self, values, kind="value", physical=False)
+
+    def must_rebuild(self) -> bool:
+        """Whether the next check rebuilds whatever the particles' displacements: invalidated, or the particles were
+        added, removed or moved in storage since the build."""
+        return self.forced or self.built_layout != self.state.layout
+
+    def mark_built(self) -> None:
+        """The lists are (or a launch will have them) built for the current layout."""
+        self.forced = False
+        self.built_layout = self.state.layout
 
     def describe(self, grid) -> str:
         """The lists in words, for Simulation.pipeline(); `grid` is the cell grid they are built from."""
@@ -87,12 +118,12 @@ class NeighbourList:
         of the displacement check when the caller ran it already (fused into its own kernel)."""
         if moved is None:
             moved = self._moved_too_far()
-        if self.forced or moved:  # no host read of the count or the overflow flag on steps without a rebuild
+        if self.must_rebuild() or moved:  # no host read of the count or the overflow flag on steps without a rebuild
             self._sort_and_fill(self.ids)
             if self.overflow[None] and self.grow():
                 self._fill(self.ids)
             self.usable = self.overflow[None] == 0
-            self.forced = False
+            self.mark_built()
             self.host_builds += 1
         return self.usable
 
@@ -209,33 +240,87 @@ class NeighbourList:
 
     @ti.func
     def _visit(self, i, r2max, store: ti.template(), ids: ti.template(), half: ti.template()):
-        """Count (and with `store`, write into the 2D field `ids`) the neighbours of i within sqrt(r2max); `half`:
-        only those of a half row."""
-        xi = self.x[i]
+        """Count (and with `store`, write into row i of `ids`) the neighbours of i within sqrt(r2max); `half`: only
+        those of a half row (the grid's half scan: each pair of cells visited from one side only)."""
         width = 0
         if ti.static(store):
             width = ids.shape[1]  # read once: an ndarray's shape is reloaded at every use after a store
-        cell = self.grid.cell_of(xi)
-        centre = self.grid.n_offsets // 2  # the offset (0, .., 0)
-        first_offset = centre if ti.static(half) else 0
-        c = 0
-        # A half list scans the own cell after i's place in it and the forward half of the stencil (offset index
-        # above the centre's): each pair of cells is visited from one side only, so each pair is listed once.
-        for o in range(first_offset, self.grid.n_offsets):
-            nc, shift = self.grid.neighbour_cell(cell, self.grid.offset(o))
-            if nc >= 0:
-                start = self.grid.cell_start[nc]
-                if ti.static(half):
-                    if o == centre:
-                        start += self.grid.slot[i] + 1
-                xs = xi - shift
-                # Branch-free: every candidate is written at the list's end and counted only when it is within
-                # reach (a third are; a branch on that mispredicted so often that the build cost 1.4x more).
-                for k in range(start, self.grid.cell_start[nc] + self.grid.cell_count[nc]):
-                    j = self.grid.sorted_ids[k]
-                    d = self.grid.x_sorted[k] - xs
-                    if ti.static(store):
-                        if c < width:
-                            ids[i, c] = j
-                    c += ti.cast((d.dot(d) < r2max) and j != i, ti.i32)
-        return c
+        visit = ti.static(self._store_one if store else self._count_one)
+        return self.grid.fold(self.x[i], 0, visit, (i, r2max, width, ids), half, self.grid.slot[i])
+
+    @ti.func
+    def _count_one(self, c, j, d, k, extra: ti.template()):
+        """c + 1 when j is within reach of particle extra[0] (a pair within sqrt(extra[1]))."""
+        i, r2max = extra[0], extra[1]
+        return c + ti.cast((d.dot(d) < r2max) and j != i, ti.i32)
+
+    @ti.func
+    def _store_one(self, c, j, d, k, extra: ti.template()):
+        """_count_one, writing j at the end of the row first. Branch-free: every candidate is written and counted only
+        when within reach (a third are; a branch on that mispredicted so often that the build cost 1.4x more)."""
+        i, width = extra[0], extra[2]
+        ids = ti.static(extra[3])
+        if c < width:
+            ids[i, c] = j
+        return self._count_one(c, j, d, k, extra)
+
+
+class Neighbourhood:
+    """What the pair terms are evaluated over: the cell grid, the Verlet lists on it (None: the grid is scanned
+    each step), and the sort of the storage into cell order (None: never). `half`: the lists hold each pair once
+    (the CPU's layout; a GPU gathers from full lists). Built from the reach of the scene's pair terms."""
+
+    def __init__(self, grid, lists, order, half: bool):
+        self.grid, self.lists, self.order = grid, lists, order
+        self.half = half
+        self.marks_bonds = lists is not None and lists.marks_bonds  # half rows flag bonded pairs
+        self.no_lists = no_lists()  # what kernels take for the lists when a step does not use them
+        self._warned_overflow = False
+
+    def ids(self, use_lists: bool):
+        """The lists to hand a kernel: the lists when the step uses them, else the 1 x 1 stand-in."""
+        return self.lists.ids if use_lists else self.no_lists
+
+    def refresh(self, moved: bool) -> bool:
+        """Before an evaluation: rebuild the lists if stale (`moved`: a particle has moved half the skin), else sort
+        the grid for a scan; returns whether the lists are usable (False: scan the grid)."""
+        if self.lists is None:
+            self.grid.rebuild()
+            return False
+        usable = self.lists.ensure_fresh(moved)
+        if not usable:
+            self.grid.rebuild()  # the fallback scans the grid, which must match the current positions
+            if not self._warned_overflow:
+                self._warned_overflow = True
+                warnings.warn(
+                    f"neighbour list overflow: some particle has more than {self.lists.width} neighbours; scanning "
+                    "the cell grid instead (slower)",
+                    stacklevel=3,
+                )
+        return usable
+
+    def declare(self, state) -> None:
+        for part in (self.lists, self.order):
+            if part is not None:
+                part.declare(state)
+
+    def after_restore(self, state) -> None:
+        """A state was put back: sort the grid over its particles (the per-particle pass visits them in the grid's
+        order, so every live particle must be in it; the lists, when restored from a file, stay as saved)."""
+        self.grid.rebuild()
+
+    def describe(self) -> list[str]:
+        if self.lists is None:
+            return [f"neighbour grid: counting sort into a {self.grid.describe()}, every step"]
+        lines = [self.lists.describe(self.grid)]
+        if self.order is not None:
+            lines.append(self.order.describe())
+        return lines
+
+    def nbytes(self, capacity: int, dim: int) -> dict:
+        out = {"grid": self.grid.footprint_bytes(capacity, self.grid.n_cells, dim)}
+        if self.lists is not None:
+            out["neighbour lists"] = self.lists.nbytes()
+        if self.order is not None:
+            out["reorder scratch"] = self.order.nbytes()
+        return out

@@ -22,7 +22,9 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
+from ..core.particles import fold_bonds
 from ..core.transfer import real_fields
+from .term import Measure, Term, register
 
 
 def radial_force(r, alpha, beta, eps, a, b):
@@ -68,35 +70,44 @@ def pair_energy(r: float, alpha: float, beta: float, eps: float, a: float, b: fl
     return raw(r) - raw(cutoff)
 
 
+@register
 @data_oriented
-class PairForce:
-    """Pair-force parameters per material pair (n_mat x n_mat tables) and the per-pair force and energy funcs."""
+class PairForce(Term):
+    """The pair force as a term: per material pair n_mat x n_mat tables, the force and energy funcs, its part of the
+    rates (each neighbour pair's force, excluding pairs joined by a live spring) and its pair energy and virial."""
 
-    def __init__(
-        self,
-        dim: int,
-        materials: list,
-        a: float,
-        b: float,
-        cutoff: float,
-        core: float,
-        mass,
-        material,
-        v,
-        shift: bool = True,
-    ):
+    key = "pair"
+    order = 20.0
+    pair_channel = "force"
+    excludes_bonded = True
+    measures = (Measure("pair", "sum", "pairs"), Measure("pair_virial", "sum", "pairs"))
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        return parts.scene.pair is not None
+
+    def __init__(self, parts):
+        scene, model, particles = parts.scene, parts.model, parts.state.particles
+        pair = scene.pair
+        materials = model.material_list
+        self.parts = parts  # its neighbourhood (the grid the pair energy scans) is built after the terms
+        self.springs = parts.state.springs
+        self.has_springs = self.springs is not None
+        self.domain = model.domain
+        self.loops = model.loops
         n = len(materials)
-        self.shifted = bool(shift)  # the energy shifted to zero at the cutoff (forces are the same either way)
-        self.dim = dim
-        self.a, self.b = float(a), float(b)
+        self.shifted = bool(pair.shift)  # the energy shifted to zero at the cutoff (forces are the same either way)
+        self.dim = model.dim
+        self.a, self.b = float(pair.a), float(pair.b)
         self.int_exponents = self.a.is_integer() and self.b.is_integer()
-        self.cutoff = float(cutoff)
+        self.cutoff = float(pair.cutoff)
+        self.reach = self.cutoff
         alpha = np.array([m.pair_alpha for m in materials])
         beta = np.array([m.pair_beta for m in materials])
         eps = np.array([m.pair_soft for m in materials])
         visc = np.array([m.viscosity for m in materials])
         self.n_materials = n
-        self.core = float(core)
+        self.core = float(pair.core)
         self.base_alpha_np = np.sqrt(np.outer(alpha, alpha))
         self.base_beta_np = np.sqrt(np.outer(beta, beta))
         self.eps_np = 0.5 * (eps[:, None] + eps[None, :])
@@ -108,7 +119,17 @@ class PairForce:
         self.single_material = n == 1
         self.has_viscosity = bool(np.any(self.visc_np > 0))
         self.even_fast_path = bool(np.all(self.eps_np == 0)) and self.a % 2 == 0 and self.b % 2 == 0
-        self.mass, self.material, self.v = mass, material, v
+        self.mass, self.material, self.v, self.x = particles.mass, particles.material, particles.v, particles.x
+
+    def words(self, where: str) -> list[str]:
+        return [f"pair force (a={self.a:g}, b={self.b:g}, cutoff {self.cutoff:g})"] if where == "rates" else []
+
+    def controls(self) -> dict:
+        return {"pair_scale": list(self.scale)}
+
+    def apply_controls(self, values: dict) -> None:
+        if "pair_scale" in values:
+            self.set_scale(*values["pair_scale"])
 
     def set_scale(self, attraction: float, repulsion: float) -> None:
         """Scale every pair's alpha (attraction) and beta (repulsion) from the materials' values, live (the window's
@@ -295,3 +316,49 @@ class PairForce:
         else:
             rep = beta * self._powneg(r, self.b - 2.0) / (self.b - 2.0)
         return alpha * att + rep
+
+    # ------------------------------------------------------------------ its part of the rates
+    @ti.func
+    def row(self, i):
+        """What the pairs of particle i read of i, loaded once per row: the coefficients when every pair has the same
+        law (the compiler cannot keep them in registers across the row's field stores), and m_i."""
+        return self.shared_coefficients(), self.mass[i]
+
+    @ti.func
+    def pair(self, ctx, i, j, d, r2, bonded):
+        """Force on i from j (d = x_j - x_i, r2 = |d|^2): evaluated for any listed pair and masked beyond the cutoff
+        and for bonded pairs rather than branched around (a listed pair lies within reach + skin, where the law is
+        finite, and a branch taken for 80% of pairs mispredicts often)."""
+        shared, m_i = ctx
+        fij = self.force_with(self.pair_coefficients(shared, i, j), m_i, i, j, d, r2)
+        fij *= ti.select((r2 < self.cutoff**2) and not bonded, 1.0, 0.0)
+        return fij
+
+    # ------------------------------------------------------------------ its measurements
+    @ti.func
+    def measure_pairs(self, i):
+        """(pair energy, pair virial -d . F_i) of particle i with every j > i within the cutoff, less the pairs
+        joined by a live spring (they feel the spring instead)."""
+        xi = self.x[i]
+        grid = self.parts.neighbours.grid
+        acc = grid.fold(xi, ti.Vector([0.0, 0.0]), self._measure_one, (i,), False, 0)
+        if ti.static(self.has_springs):
+            acc = fold_bonds(self.springs, i, acc, self._unmeasure_bond, (xi,))
+        return acc[0], acc[1]
+
+    @ti.func
+    def _measure_one(self, acc, j, d, k, extra: ti.template()):
+        i = extra[0]
+        r2 = d.dot(d)
+        if j > i and r2 < self.cutoff**2:
+            acc += ti.Vector([self.energy(i, j, r2), -d.dot(self.force(i, j, d, r2))])
+        return acc
+
+    @ti.func
+    def _unmeasure_bond(self, acc, i, j, s, extra: ti.template()):
+        if j > i:
+            d = self.domain.separation(extra[0], self.x[j])
+            r2 = d.dot(d)
+            if r2 < self.cutoff**2:
+                acc -= ti.Vector([self.energy(i, j, r2), -d.dot(self.force(i, j, d, r2))])
+        return acc

@@ -22,10 +22,13 @@ import numpy as np
 import taichi as ti
 
 from ..core import runtime
+from ..core.model import material_column
 from ..core.oriented import data_oriented
+from .term import Term, register
 
-LIQUID = 1  # flag values of ParticleFields.liquid
+LIQUID = 1  # flag values of Particles.liquid: molten since it last froze
 FREEZING = 2  # (during a refreeze pass: liquid and cold enough to bond)
+NEVER_BONDS = 3  # mortal emitted particles (physics/emitters.py): refreezing never bonds them
 
 
 def melt_fraction_np(T: np.ndarray, solidus: np.ndarray, liquidus: np.ndarray) -> np.ndarray:
@@ -62,6 +65,16 @@ def temperature_np(h, c, solidus, liquidus, latent) -> tuple[np.ndarray, np.ndar
         T = np.where(narrow, ts, T)
         phi = np.where(narrow, (h - hs) / np.where(lat > 0, lat, 1.0), phi)
     return T, phi
+
+
+ENTHALPY_LAW = ("specific_heat", "melt_temperature", "liquidus_temperature", "latent_heat")  # the law's arguments
+
+
+def initial_enthalpy(temperature: np.ndarray, material: np.ndarray, materials: list) -> tuple[np.ndarray, np.ndarray]:
+    """(specific enthalpy, melt fraction) of particles at `temperature` (degrees) of `material` ids (into the
+    `materials` records)."""
+    c, ts, tl, latent = (material_column(materials, material, name) for name in ENTHALPY_LAW)
+    return enthalpy_np(temperature, c, ts, tl, latent), melt_fraction_np(temperature, ts, tl)
 
 
 @data_oriented
@@ -111,24 +124,49 @@ class Phase:
         return phi
 
 
+@register
 @data_oriented
-class Refreezer:
-    """The refreezing pass: new springs between cold particles where at least one end was liquid."""
+class Refreeze(Term):
+    """The refreezing pass, every heat.refreeze_interval steps at a step boundary: new springs between cold
+    particles where at least one end was liquid."""
 
-    def __init__(self, sim, radius: float):
-        self.sim = sim
-        self.p = sim.particles
-        self.springs = sim.springs
-        self.grid = sim.grid
-        self.mats = sim.materials
-        self.phase = sim.phase
-        self.radius = radius
+    key = "refreeze"
+    order = 90.0
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        heat = parts.scene.heat
+        return bool(heat and heat.refreeze and any(m.melts for m in parts.model.material_list))
+
+    def __init__(self, parts):
+        self.parts = parts  # the grid it scans is built after the terms
+        self.p = parts.state.particles
+        self.springs = parts.state.springs
+        self.mats = parts.model.materials
+        self.phase = parts.model.phase
+        self.radius = parts.scene.refreeze_radius
+        self.interval = parts.scene.heat.refreeze_interval
         self.made = ti.field(ti.i32, shape=())  # springs made by the last pass
         self.full = ti.field(ti.i32, shape=())  # 1 when the last pass found no free spring slot
 
+    def words(self, where: str) -> list[str]:
+        if where != "boundary":
+            return []
+        return [
+            f"every {self.interval} steps: refreezing (new bonds within {self.radius:g} between frozen particles where "
+            "one was molten)"
+        ]
+
+    def next_due(self, state) -> int:
+        return self.interval - state.step % self.interval
+
+    def at_step(self, state, done: int) -> bool:
+        """Refreeze when the `done` steps just taken passed a multiple of the interval; True when springs were made."""
+        return state.step // self.interval > (state.step - done) // self.interval and self.run() > 0
+
     def run(self) -> int:
         """One refreezing pass at the current positions (rebuilds the cell grid); returns the springs made."""
-        self.grid.rebuild()
+        self.parts.neighbours.grid.rebuild()
         with runtime.without_cfg_pass():  # run between batches: see transfer.py's docstring
             self._prepare()
             self._bond()
@@ -166,7 +204,7 @@ class Refreezer:
         return n
 
     @ti.func
-    def bonded(self, i, j):
+    def already_bonded(self, i, j):
         found = False
         for k in range(self.springs.max_bonds):
             s = self.springs.bonds[i, k]
@@ -177,47 +215,47 @@ class Refreezer:
     @ti.kernel
     def _bond(self):
         """Serial: bond each freezing particle to its cold same-material neighbours in reach, reusing dead slots."""
-        s, g, p = self.springs, self.grid, self.p
+        p = self.p
+        grid = self.parts.neighbours.grid
         self.made[None] = 0
         self.full[None] = 0
         cursor = 0
-        r2max = self.radius**2
         ti.loop_config(serialize=True)
         for i in range(p.n[None]):
             if p.liquid[i] == FREEZING:
-                xi = p.x[i]
-                mat = p.material[i]
-                c = g.cell_of(xi)
-                for o in range(g.n_offsets):
-                    nc, shift = g.neighbour_cell(c, g.offset(o))
-                    if nc >= 0:
-                        for k in range(g.cell_start[nc], g.cell_start[nc] + g.cell_count[nc]):
-                            j = g.sorted_ids[k]
-                            d = g.x_sorted[k] - (xi - shift)
-                            r2 = d.dot(d)
-                            candidate = p.liquid[j] == 0 or p.liquid[j] == FREEZING  # not molten, not mortal
-                            if j != i and r2 <= r2max and p.material[j] == mat and candidate:
-                                ni, nj = self.bond_count(i), self.bond_count(j)
-                                if ni < s.max_bonds and nj < s.max_bonds and self.cold(j) and not self.bonded(i, j):
-                                    while cursor < s.count and s.alive[cursor]:
-                                        cursor += 1
-                                    if cursor < s.count:
-                                        s.i[cursor] = i
-                                        s.j[cursor] = j
-                                        s.rest[cursor] = ti.sqrt(r2)
-                                        s.ks[cursor] = self.mats.stiffness[mat]
-                                        s.kd[cursor] = self.mats.damping[mat]
-                                        s.factor[cursor] = 1.0
-                                        s.alive[cursor] = 1
-                                        s.bonds[i, ni] = cursor
-                                        s.bonds[j, nj] = cursor
-                                        s.created[None] += 1
-                                        s.span[None] = ti.max(s.span[None], cursor + 1)
-                                        self.made[None] += 1
-                                    else:
-                                        self.full[None] = 1
+                cursor = grid.fold(p.x[i], cursor, self._bond_to, (i, p.material[i]), False, 0)
         for i in range(p.n[None]):
             if p.liquid[i] == FREEZING:
                 p.liquid[i] = LIQUID
                 if self.bond_count(i) > 0:
                     p.liquid[i] = 0
+
+    @ti.func
+    def _bond_to(self, cursor, j, d, k, extra: ti.template()):
+        """Bond freezing particle i = extra[0] (of material extra[1]) to j if j qualifies, in the first free spring
+        slot at or after `cursor`; returns where the next search starts."""
+        s, p = self.springs, self.p
+        i, mat = extra[0], extra[1]
+        r2 = d.dot(d)
+        candidate = p.liquid[j] == 0 or p.liquid[j] == FREEZING  # not molten, not mortal
+        if j != i and r2 <= self.radius**2 and p.material[j] == mat and candidate:
+            ni, nj = self.bond_count(i), self.bond_count(j)
+            if ni < s.max_bonds and nj < s.max_bonds and self.cold(j) and not self.already_bonded(i, j):
+                while cursor < s.count and s.alive[cursor]:
+                    cursor += 1
+                if cursor < s.count:
+                    s.i[cursor] = i
+                    s.j[cursor] = j
+                    s.rest[cursor] = ti.sqrt(r2)
+                    s.ks[cursor] = self.mats.stiffness[mat]
+                    s.kd[cursor] = self.mats.damping[mat]
+                    s.factor[cursor] = 1.0
+                    s.alive[cursor] = 1
+                    s.bonds[i, ni] = cursor
+                    s.bonds[j, nj] = cursor
+                    s.created[None] += 1
+                    s.span[None] = ti.max(s.span[None], cursor + 1)
+                    self.made[None] += 1
+                else:
+                    self.full[None] = 1
+        return cursor

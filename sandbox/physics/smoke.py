@@ -21,7 +21,9 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
-from ..core.solvers import CGResult, CGSums, pcg
+from ..core.solvers import CGResult
+from .smoke_projection import PressureProjection
+from .term import Term, register
 
 # On the CPU backend a grid of up to this many cells is projected in one kernel launch on one thread (assembly, every
 # CG iteration, the gradient), instead of launching three kernels and reading three sums back per CG iteration
@@ -33,11 +35,6 @@ ONE_LAUNCH_CELLS = 50_000
 @data_oriented
 class SmokeGrid:
     """MAC-grid smoke: face velocities, cell temperature, and a CG pressure projection."""
-
-    @staticmethod
-    def host_work(scene) -> str | None:
-        """Why this pass needs the host between `scene`'s steps (see Simulation's stepping plan), or None."""
-        return "the smoke grid steps between particle steps" if scene.smoke else None
 
     def __init__(self, dim: int, lo, hi, cfg, gravity, on_cpu: bool = True):
         """`on_cpu`: Taichi runs on the CPU backend (a small grid is then projected in one launch: ONE_LAUNCH_CELLS)."""
@@ -57,15 +54,10 @@ class SmokeGrid:
             shape = tuple(r + (1 if b == a else 0) for b, r in enumerate(self.res))
             self.u.append(ti.field(float, shape=shape))  # velocity normal to faces across axis a
             self.u_new.append(ti.field(float, shape=shape))
+            setattr(self, f"u{a}", self.u[a])  # by name too: the state declares them
         self.T = ti.field(float, shape=self.res)  # cell temperature (degrees)
         self.T_new = ti.field(float, shape=self.res)
-        self.p = ti.field(float, shape=self.res)  # pressure (times dt / density)
-        self.div = ti.field(float, shape=self.res)
-        self.r = ti.field(float, shape=self.res)
-        self.z = ti.field(float, shape=self.res)
-        self.d = ti.field(float, shape=self.res)
-        self.ad = ti.field(float, shape=self.res)
-        self.sums = CGSums()
+        self.projection = PressureProjection(self)
         n_src = max(len(cfg.sources), 1)
         self.src_lo = ti.Vector.field(dim, float, shape=n_src)
         self.src_hi = ti.Vector.field(dim, float, shape=n_src)
@@ -199,50 +191,12 @@ class SmokeGrid:
             back = x - dt * self.sample(mid)
             self.T_new[I] = self.temperature_at(back)
 
-    # ------------------------------------------------------------------ projection
+    # ------------------------------------------------------------------ projection (physics/smoke_projection.py)
     def project(self) -> CGResult:
         """Make the face velocities discretely divergence-free (to the CG tolerance)."""
-        if self.one_launch:
-            iterations = int(self._project_in_one_launch())
-            bb = float(self.sums.bb[None])
-            self.divergence_before = bb**0.5 / self.h**2
-            self.last = CGResult(iterations, float(self.sums.rr[None]) ** 0.5 / max(bb**0.5, 1e-300))
-            return self.last
-        self._assemble()
-        self.divergence_before = float(self.sums.bb[None]) ** 0.5 / self.h**2
-        self.last = pcg(
-            self.sums,
-            self._matvec,
-            self._update,
-            self._direction,
-            self.cfg.tolerance,
-            self.cfg.max_iterations,
-        )
-        self._subtract_gradient()
+        self.last = self.projection.project()
+        self.divergence_before = self.projection.divergence_before
         return self.last
-
-    @ti.func
-    def _neighbours(self, I):
-        """Number of neighbour cells inside the domain (the Neumann walls drop the others)."""
-        n = 0
-        for a in ti.static(range(self.dim)):
-            if I[a] > 0:
-                n += 1
-            if I[a] < self.res[a] - 1:
-                n += 1
-        return n
-
-    @ti.func
-    def _laplace(self, y: ti.template(), I):
-        """sum over inside neighbours n of (y_I - y_n)."""
-        s = 0.0
-        for a in ti.static(range(self.dim)):
-            e = ti.Vector.unit(self.dim, a, ti.i32)
-            if I[a] > 0:
-                s += y[I] - y[I - e]
-            if I[a] < self.res[a] - 1:
-                s += y[I] - y[I + e]
-        return s
 
     @ti.func
     def divergence(self, I):
@@ -251,120 +205,6 @@ class SmokeGrid:
             e = ti.Vector.unit(self.dim, a, ti.i32)
             s += self.u[a][I + e] - self.u[a][I]
         return s / self.h
-
-    # Each CG stage per cell, shared by the host-driven kernels and the one-launch projection; each returns its
-    # cell's terms of the stage's sums.
-    @ti.func
-    def _assemble_cell(self, I):
-        """r = b - A p (warm start from the last step's pressure: the flow changes little between steps), z = M^-1 r,
-        d = z; returns (r.z, r.r, b.b) terms."""
-        b = -self.h * self.h * self.divergence(I)
-        r = b - self._laplace(self.p, I)
-        z = r / self._neighbours(I)
-        self.r[I] = r
-        self.z[I] = z
-        self.d[I] = z
-        return r * z, r * r, b * b
-
-    @ti.func
-    def _matvec_cell(self, I):
-        """ad = A d; returns the d.Ad term."""
-        ad = self._laplace(self.d, I)
-        self.ad[I] = ad
-        return self.d[I] * ad
-
-    @ti.func
-    def _update_cell(self, I, alpha):
-        """p += alpha d, r -= alpha Ad, z = M^-1 r; returns (r.z, r.r) terms."""
-        self.p[I] += alpha * self.d[I]
-        r = self.r[I] - alpha * self.ad[I]
-        z = r / self._neighbours(I)
-        self.r[I] = r
-        self.z[I] = z
-        return r * z, r * r
-
-    @ti.func
-    def _direction_cell(self, I, beta):
-        """d = z + beta d."""
-        self.d[I] = self.z[I] + beta * self.d[I]
-
-    @ti.func
-    def _subtract_gradient_face(self, a: ti.template(), I):
-        if 0 < I[a] < self.res[a]:
-            below = I - ti.Vector.unit(self.dim, a, ti.i32)
-            self.u[a][I] -= (self.p[I] - self.p[below]) / self.h
-
-    @ti.kernel
-    def _assemble(self):
-        self.sums.clear_for_assembly()
-        for I in ti.grouped(self.p):
-            rz, rr, bb = self._assemble_cell(I)
-            self.sums.rz[None] += rz
-            self.sums.rr[None] += rr
-            self.sums.bb[None] += bb
-
-    @ti.kernel
-    def _matvec(self):
-        self.sums.p_ap[None] = 0.0
-        for I in ti.grouped(self.d):
-            self.sums.p_ap[None] += self._matvec_cell(I)
-
-    @ti.kernel
-    def _update(self, alpha: ti.f64):
-        self.sums.clear_for_update()
-        for I in ti.grouped(self.p):
-            rz, rr = self._update_cell(I, alpha)
-            self.sums.rz[None] += rz
-            self.sums.rr[None] += rr
-
-    @ti.kernel
-    def _direction(self, beta: ti.f64):
-        for I in ti.grouped(self.d):
-            self._direction_cell(I, beta)
-
-    @ti.kernel
-    def _subtract_gradient(self):
-        for a in ti.static(range(self.dim)):
-            for I in ti.grouped(self.u[a]):
-                self._subtract_gradient_face(a, I)
-
-    @ti.kernel
-    def _project_in_one_launch(self) -> ti.i32:
-        """The whole projection on one thread (solvers.pcg's iteration, with the sums kept in registers): leaves
-        r.r and b.b in the sums; returns the CG iterations."""
-        iterations = 0
-        for _ in range(1):  # one task: the loops below are nested in it, so they run in order on its thread
-            rz, rr, bb = ti.f64(0.0), ti.f64(0.0), ti.f64(0.0)
-            for I in ti.grouped(ti.ndrange(*self.res)):
-                c_rz, c_rr, c_bb = self._assemble_cell(I)
-                rz += c_rz
-                rr += c_rr
-                bb += c_bb
-            bnorm = ti.max(ti.sqrt(bb), 1e-300)
-            while iterations < self.cfg.max_iterations and ti.sqrt(rr) > self.cfg.tolerance * bnorm:
-                p_ap = ti.f64(0.0)
-                for I in ti.grouped(ti.ndrange(*self.res)):
-                    p_ap += self._matvec_cell(I)
-                if p_ap <= 0.0:  # the search direction vanished (converged to round-off)
-                    break
-                alpha = rz / p_ap
-                rz_new = ti.f64(0.0)
-                rr = 0.0
-                for I in ti.grouped(ti.ndrange(*self.res)):
-                    c_rz, c_rr = self._update_cell(I, alpha)
-                    rz_new += c_rz
-                    rr += c_rr
-                beta = rz_new / rz if rz > 0.0 else 0.0
-                for I in ti.grouped(ti.ndrange(*self.res)):
-                    self._direction_cell(I, beta)
-                rz = rz_new
-                iterations += 1
-            for a in ti.static(range(self.dim)):
-                for I in ti.grouped(ti.ndrange(*self.u[a].shape)):
-                    self._subtract_gradient_face(a, I)
-            self.sums.rr[None] = rr
-            self.sums.bb[None] = bb
-        return iterations
 
     def divergence_norm(self) -> float:
         """L2 norm of the discrete divergence now (after a projection: the solver's residual / h^2)."""
@@ -377,3 +217,39 @@ class SmokeGrid:
             d = self.divergence(I)
             total += d * d
         return total
+
+
+@register
+class Smoke(Term):
+    """The smoke grid as a term: it steps every smoke.interval particle steps, before the particles' step."""
+
+    key = "smoke"
+    order = 45.0
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        return parts.scene.smoke is not None
+
+    @staticmethod
+    def host_work(scene) -> str | None:
+        return "the smoke grid steps between particle steps" if scene.smoke else None
+
+    def __init__(self, parts):
+        world, cfg = parts.scene.world, parts.scene.smoke
+        self.grid = SmokeGrid(parts.model.dim, world.lo, world.hi, cfg, world.gravity, parts.model.arch == "cpu")
+        self.every = cfg.interval
+
+    def words(self, where: str) -> list[str]:
+        if where != "before":
+            return []
+        return [f"smoke: stable fluids on a {self.grid.describe()} (buoyancy, advection, CG projection)"]
+
+    def before_step(self, state) -> None:
+        if state.step % self.every == 0:
+            self.grid.step(state.dt * self.every)
+
+    def declare(self, state) -> None:
+        """The grid's velocities, temperatures and pressure (the warm start of the next projection)."""
+        grid = self.grid
+        state.declare("smoke", grid, tuple(f"u{a}" for a in range(grid.dim)) + ("T",))
+        state.declare("smoke", grid.projection, ("p",))

@@ -15,123 +15,105 @@ melt fraction phi of the two ends (physics/phase.py): k = k_s * f, c = k_d * f w
 
 A spring breaks for good when both ends are at least break_melt_fraction molten, or when stretched beyond
 `BREAK_STRETCH` times its rest length. Refreezing (physics/phase.py) makes new springs in free slots: a scene that
-can refreeze has spare spring slots beyond the built ones.
+can refreeze has spare spring slots beyond the built ones. The springs' fields are state (core/particles.py's
+SpringState); this term is their physics.
 """
+
+import math
 
 import numpy as np
 import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
+from .term import Measure, Term, register
 
 
-def bond_table(
-    spring_i: np.ndarray, spring_j: np.ndarray, n_particles: int, max_bonds: int, spring_ids: np.ndarray | None = None
-) -> np.ndarray:
-    """(n_particles, max_bonds) int32 table of spring ids at each particle, padded with -1. `spring_ids`: the ids of
-    the given springs (default 0..S-1)."""
-    table = np.full((max(n_particles, 1), max(max_bonds, 1)), -1, dtype=np.int32)
-    ends = np.concatenate([spring_i, spring_j])
-    ids = np.concatenate([np.arange(len(spring_i)) if spring_ids is None else spring_ids] * 2)
-    order = np.argsort(ends, kind="stable")
-    ends, ids = ends[order], ids[order]
-    first = np.searchsorted(ends, ends, side="left")
-    slot = np.arange(len(ends)) - first
-    table[ends, slot] = ids
-    return table
+def omega_bound(ks, factor, alive, i, j, mass, n: int) -> float:
+    """Gershgorin bound on the fastest spring frequency (1/time): sqrt(max_p 2 sum_s k_s / m_p) over live springs
+    s at stiffness ks * factor, for the first n particles (host arrays, one entry per spring or particle)."""
+    k = ks * factor * alive
+    ksum = np.bincount(i, weights=k, minlength=n)[:n] + np.bincount(j, weights=k, minlength=n)[:n]
+    return float(math.sqrt(np.max(2 * ksum / mass[:n]))) if n else 0.0
 
 
+@register
 @data_oriented
-class Springs:
-    """Spring fields (S springs; bond table per particle) and their force, energy and update funcs."""
+class Springs(Term):
+    """The springs as a term: their per-step update (softening, breaking), their force on each particle through its
+    bond list, their energy, virial and count, and the stable step they allow each integrator."""
 
+    key = "springs"
+    order = 30.0
+    prestep = True
+    bonded = True
     BREAK_STRETCH = 100.0  # a spring stretched beyond 100x its rest length breaks (documented clamp)
+    measures = (
+        Measure("spring", "sum", "springs"),
+        Measure("alive", "count", "springs"),
+        Measure("spring_virial", "sum", "springs"),
+        Measure("created", "count", "value"),
+    )
 
-    def __init__(
-        self,
-        built,
-        capacity: int,
-        particles,
-        materials,
-        phase,
-        periodic_sep,
-        spare: int = 0,
-        max_bonds: int = 0,
-    ):
-        """`capacity`: particle slots; `phase`: the Phase law (None without heat); `spare`: extra spring slots for
-        refreezing; `max_bonds`: bond-list width (at least the built one)."""
-        self.built_count = built.spring_count
-        self.count = built.spring_count + spare  # spring slots; the kernels loop over all of them
-        self.max_bonds = max(built.max_bonds(), max_bonds, 1)
-        s = max(self.count, 1)
-        self.i = ti.field(ti.i32, shape=s)  # first end
-        self.j = ti.field(ti.i32, shape=s)  # second end
-        self.rest = ti.field(float, shape=s)  # rest length l (length)
-        self.ks = ti.field(float, shape=s)  # base stiffness k_s (force / length)
-        self.kd = ti.field(float, shape=s)  # base damping k_d (force / speed)
-        self.factor = ti.field(float, shape=s)  # thermoelastic factor s(T) in [0, 1]
-        self.alive = ti.field(ti.i32, shape=s)  # 1 while the spring holds, 0 once broken (for good)
-        self.bonds = ti.field(ti.i32, shape=(capacity, self.max_bonds))  # spring ids at each particle, -1 padded
-        self.created = ti.field(ti.i32, shape=())  # springs ever made (built + refrozen): broken = created - alive
-        # Slots [0, span) hold every spring that was ever alive: per-spring loops stop there, not at `count` (a scene
-        # that can refreeze has 1.5x its built springs again as spare slots, mostly never used)
-        self.span = ti.field(ti.i32, shape=())
-        pad = np.zeros(s - self.built_count)
-        table = np.full((capacity, self.max_bonds), -1, dtype=np.int32)
-        table[: built.count] = bond_table(built.spring_i, built.spring_j, built.count, self.max_bonds)[: built.count]
-        alive = np.zeros(s, dtype=np.int32)
-        alive[: self.built_count] = 1
-        transfer.upload(  # one copy kernel for all of them
-            [
-                (self.i, np.concatenate([built.spring_i, pad]).astype(np.int32)),
-                (self.j, np.concatenate([built.spring_j, pad]).astype(np.int32)),
-                (self.rest, np.concatenate([built.rest_length, pad])),
-                (self.ks, np.concatenate([built.stiffness, pad])),
-                (self.kd, np.concatenate([built.damping, pad])),
-                (self.factor, np.ones(s)),
-                (self.alive, alive),
-                (self.bonds, table),
-                (self.created, self.built_count),
-                (self.span, self.built_count),
-            ]
-        )
-        self.p = particles
-        self.mats = materials
-        self.phase = phase
-        self.heat_enabled = phase is not None
-        self.separation = periodic_sep
+    @staticmethod
+    def wanted(parts) -> bool:
+        return parts.state.springs is not None
 
-    def describe(self, thermal: bool, refreezing: bool) -> str:
-        """The springs' per-step update in words, for Simulation.pipeline(): `thermal` with heat (softening and
-        breaking by melt fraction), `refreezing` when spare slots wait for new bonds."""
-        what = "thermoelastic softening and breaking by melt fraction" if thermal else "overstretch breaking"
-        slots = f" ({self.count} slots, room to refreeze)" if refreezing else ""
-        return f"spring update ({what}) over {self.built_count} springs{slots}"
+    def __init__(self, parts):
+        model = parts.model
+        self.s = parts.state.springs
+        self.p = parts.state.particles
+        self.mats = model.materials
+        self.phase = model.phase
+        self.heat_enabled = model.phase is not None
+        self.separation = model.domain.separation
+        self.loops = model.loops
+        self.refreezing = parts.scene.heat is not None and bool(parts.scene.heat.refreeze)
+        self.omega0 = 0.0  # omega_max() as built (set by the Simulation from its initial snapshot)
 
-    def rebuild_bonds(self) -> None:
-        """Rebuild every particle's bond list from the live springs (after particles were removed or renumbered)."""
-        alive, i, j = transfer.download([self.alive, self.i, self.j], [self.count] * 3)
-        alive = np.flatnonzero(alive)
-        n = self.bonds.shape[0]
-        transfer.upload([(self.bonds, bond_table(i[alive], j[alive], n, self.max_bonds, alive)[:n])])
+    def words(self, where: str) -> list[str]:
+        if where == "rates":
+            return ["spring-damper forces (gathered per particle)"]
+        if where != "prestep":
+            return []
+        what = "thermoelastic softening and breaking by melt fraction" if self.heat_enabled else "overstretch breaking"
+        slots = f" ({self.s.count} slots, room to refreeze)" if self.s.count > self.s.built_count else ""
+        return [f"spring update ({what}) over {self.s.built_count} springs{slots}"]
+
+    # ------------------------------------------------------------------ its part of the rates
+    @ti.func
+    def prestep_loops(self):
+        """Each spring's thermoelastic update and breaking, before the forces: heavier than a light loop (it reads
+        two phase states), so parallel with the pair loops."""
+        self.loops.pairs()
+        for s in range(self.s.span[None]):
+            self.update_one(s)
+
+    @ti.func
+    def prestep_count(self):
+        """The items of the per-stage pass (a team of threads shares them out: step/team.py)."""
+        return self.s.span[None]
+
+    @ti.func
+    def prestep_one(self, s):
+        self.update_one(s)
 
     @ti.func
     def update_one(self, s):
-        """Thermoelastic softening and breaking (by temperature and by overstretch) of spring s, once per step
-        before forces; the simulation runs it for every spring in its fused pre-step kernel."""
-        if self.alive[s]:
-            a, b = self.i[s], self.j[s]
+        """Thermoelastic softening and breaking (by temperature and by overstretch) of spring s."""
+        if self.s.alive[s]:
+            a, b = self.s.i[s], self.s.j[s]
             factor = 1.0
             if ti.static(self.heat_enabled):
                 factor = self.thermal_factor(a, b)
             length = self.separation(self.p.x[a], self.p.x[b]).norm()
-            if length > self.BREAK_STRETCH * self.rest[s]:
+            if length > self.BREAK_STRETCH * self.s.rest[s]:
                 factor = -1.0
             if factor < 0.0:
-                self.alive[s] = 0
-                self.factor[s] = 0.0
+                self.s.alive[s] = 0
+                self.s.factor[s] = 0.0
             else:
-                self.factor[s] = factor
+                self.s.factor[s] = factor
 
     @ti.func
     def thermal_factor(self, a, b):
@@ -153,23 +135,69 @@ class Springs:
         return factor
 
     @ti.func
-    def other_end(self, i, s):
-        return self.i[s] + self.j[s] - i
+    def bond(self, i, j, s, d):
+        """Force on particle i from live spring s joining it to j, with d = x_j - x_i."""
+        return self.force(i, j, s, d)
 
     @ti.func
     def force(self, i, j, s, d):
-        """Force on particle i from live spring s joining it to j, with d = x_j - x_i."""
         r = d.norm()
         n = d * (1.0 / ti.max(r, 1e-12))
         vrel = (self.p.v[j] - self.p.v[i]).dot(n)
-        return self.factor[s] * (self.ks[s] * (r - self.rest[s]) + self.kd[s] * vrel) * n
+        return self.s.factor[s] * (self.s.ks[s] * (r - self.s.rest[s]) + self.s.kd[s] * vrel) * n
 
     @ti.func
     def energy(self, s):
         """Elastic energy 1/2 k (|d| - l)^2 of spring s at its current stiffness (0 once broken)."""
         e = 0.0
-        if self.alive[s]:
-            a, b = self.i[s], self.j[s]
+        if self.s.alive[s]:
+            a, b = self.s.i[s], self.s.j[s]
             r = self.separation(self.p.x[a], self.p.x[b]).norm()
-            e = 0.5 * self.factor[s] * self.ks[s] * (r - self.rest[s]) ** 2
+            e = 0.5 * self.s.factor[s] * self.s.ks[s] * (r - self.s.rest[s]) ** 2
         return e
+
+    # ------------------------------------------------------------------ its measurements
+    @ti.func
+    def measure_spring(self, s):
+        """(elastic energy, 1 if alive, virial -d . F_a of the spring) of slot s."""
+        alive, virial = 0, 0.0
+        if self.s.alive[s]:
+            alive = 1
+            a, b = self.s.i[s], self.s.j[s]
+            d = self.separation(self.p.x[a], self.p.x[b])
+            virial = -d.dot(self.force(a, b, s, d))
+        return self.energy(s), alive, virial
+
+    @ti.func
+    def measure_value(self):
+        return (self.s.created[None],)
+
+    # ------------------------------------------------------------------ its stability
+    def omega_max(self) -> float:
+        """Upper bound on the fastest spring frequency now: omega_max^2 <= max_i 2 sum_s k_s / m_i over live
+        springs at their current (softened) stiffness (Gershgorin bound on M^-1 K)."""
+        s = self.s
+        ks, factor, alive, i, j, mass = transfer.download([s.ks, s.factor, s.alive, s.i, s.j, self.p.mass])
+        return omega_bound(ks, factor, alive, i, j, mass, int(self.p.n[None]))
+
+    @staticmethod
+    def omega_of(snapshot: dict) -> float:
+        """omega_max() of a state snapshot (from its host copies: no copy kernel)."""
+        springs = (snapshot[f"springs.{name}"] for name in ("ks", "factor", "alive", "i", "j"))
+        return omega_bound(*springs, snapshot["particles.mass"], int(snapshot["particles.n"]))
+
+    def stable_dt(self, integrator) -> float:
+        """Largest stable step with `integrator`: its stable h w over omega_max (0 for methods unstable on undamped
+        springs at any step, inf without live springs)."""
+        omega = self.omega_max()
+        return math.inf if omega == 0.0 else integrator.stable_h_omega / omega
+
+    def auto_dt(self, integrator) -> float:
+        omega = self.omega_max()
+        if omega > 0 and math.isfinite(integrator.auto_h_omega):
+            return integrator.auto_h_omega / omega
+        return math.inf
+
+    def stable_dt_initial(self, integrator) -> float:
+        """stable_dt() for the springs as built (before softening and breaking)."""
+        return math.inf if self.omega0 == 0.0 else integrator.stable_h_omega / self.omega0

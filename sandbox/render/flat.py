@@ -40,8 +40,8 @@ class Flat2D:
 
     @ti.kernel
     def _springs_2d(self):
-        s = self.sim.springs
-        p = self.sim.particles
+        s = self.state.springs
+        p = self.p
         for k in range(s.span[None]):
             if s.alive[k]:
                 a = ti.cast(p.x[s.i[k]], ti.f32) * self.px_per_unit + self.offset
@@ -66,11 +66,11 @@ class Flat2D:
     @ti.kernel
     def _bin_2d(self):
         """Sort the particles into the strip bins (the wide bin: those drawn with atomics)."""
-        p = self.sim.particles
+        p = self.p
         n = p.n[None]
         bins = self.strips
         bins.clear()
-        self.sim.loops.light()
+        self.model.loops.light()
         for i in range(n):
             tail, ctrl, head, r, _, _ = self._splat_shape(i)
             x0, x1, _, _ = self._box(tail, head, r, ctrl)
@@ -105,7 +105,7 @@ class Flat2D:
     def _splat_shape(self, i):
         """(tail, control point, head) of particle i's streak in pixels (all at the head when it is not blurred),
         its drawn radius r >= R_MIN and true radius in pixels, and whether it is blurred."""
-        head = ti.cast(self.sim.particles.x[i], ti.f32) * self.px_per_unit + self.offset
+        head = ti.cast(self.p.x[i], ti.f32) * self.px_per_unit + self.offset
         tail, ctrl = head, head
         blurred = False
         if ti.static(self.motion_blur):
@@ -119,7 +119,7 @@ class Flat2D:
             if not blurred:
                 tail, ctrl = head, head
         r_true = self.drawn_radius(i) * self.px_per_unit
-        if self.g_draw[self.sim.particles.group[i]] == 0:  # a dot: one pixel
+        if self.g_draw[self.p.group[i]] == 0:  # a dot: one pixel
             r_true = 0.5
         return tail, ctrl, head, ti.max(r_true, R_MIN), r_true, blurred
 
@@ -128,7 +128,7 @@ class Flat2D:
         """Add particle i's coverage to the layers: by plain load and store when `plain` (no other thread draws
         near it), else by atomic adds."""
         tail, ctrl, head, r, r_true, blurred = self._splat_shape(i)
-        g = self.sim.particles.group[i]
+        g = self.p.group[i]
         blend, opacity = self.g_blend[g], self.group_opacity(i)
         fade = ti.max((r_true / r) ** 2, MIN_FADE)
         col = self.particle_color(i)

@@ -17,17 +17,17 @@ class ParticleLook:
         """1 at birth falling to 0 at death for particles with a lifetime, else 1."""
         left = 1.0
         if ti.static(self.has_lifetimes):
-            life = self.sim.particles.lifetime[i]
+            life = self.p.lifetime[i]
             if life > 0.0:
-                left = ti.max(1.0 - self.sim.particles.age[i] / life, 0.0)
+                left = ti.max(1.0 - self.p.age[i] / life, 0.0)
         return left
 
     @ti.func
     def drawn_radius(self, i):
         """Drawn radius (length): the particle's radius times render.particle_scale, shrinking with age if asked."""
-        r = self.sim.particles.radius[i] * self.particle_scale
+        r = self.p.radius[i] * self.particle_scale
         if ti.static(self.has_lifetimes):
-            if self.g_shrink[self.sim.particles.group[i]]:
+            if self.g_shrink[self.p.group[i]]:
                 r *= self.life_left(i)
         return r
 
@@ -36,7 +36,7 @@ class ParticleLook:
         """Drawing colour: the colour map's, darkened over the lifetime when fading (not for alpha: see below)."""
         c = self._base_color(i)
         if ti.static(self.has_lifetimes):
-            g = self.sim.particles.group[i]
+            g = self.p.group[i]
             if self.g_fade[g] and self.g_blend[g] != BLEND["alpha"]:
                 c *= self.life_left(i)
         return c
@@ -44,7 +44,7 @@ class ParticleLook:
     @ti.func
     def group_opacity(self, i):
         """Opacity of particle i's group; a fading translucent particle grows fainter rather than darker."""
-        g = self.sim.particles.group[i]
+        g = self.p.group[i]
         a = self.g_opacity[g]
         if ti.static(self.has_lifetimes):
             if self.g_fade[g] and self.g_blend[g] == BLEND["alpha"]:
@@ -53,7 +53,7 @@ class ParticleLook:
 
     @ti.func
     def _base_color(self, i):
-        p = self.sim.particles
+        p = self.p
         base = p.color[i]
         c = base
         if ti.static(self.color_mode == 0 and self.has_heat):
@@ -62,8 +62,8 @@ class ParticleLook:
         elif ti.static(self.color_mode == 2):
             c = speed_map(p.v[i].norm() / self.speed_hi[None])
         elif ti.static(self.color_mode == 3 and self.has_heat):
-            phi = self.sim.phase.fraction(p.h[i], p.material[i])
-            c = (1.0 - phi) * base + phi * self.sim.materials.liquid_color[p.material[i]]
+            phi = self.model.phase.fraction(p.h[i], p.material[i])
+            c = (1.0 - phi) * base + phi * self.model.materials.liquid_color[p.material[i]]
         return c
 
     @ti.func

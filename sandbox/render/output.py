@@ -68,7 +68,7 @@ class Output:
     def draw_clock(self, img: np.ndarray) -> None:
         """The simulated time, "t = 2.40 s", in the bottom-left corner of an (H, W, 3) uint8 frame."""
         x0, _, row0, _ = self._clock_rect()
-        draw_text(img, f"t = {self.sim.time:.2f} s", x0, row0, text_scale(self.height))
+        draw_text(img, f"t = {self.state.time:.2f} s", x0, row0, text_scale(self.height))
 
     def _clock_rect(self) -> tuple[int, int, int, int]:
         """(x0, x1, row0, row1): the pixels the clock may draw on (room for "t = 100000.00 s")."""

@@ -54,11 +54,12 @@ from .style import BLEND, BRUSH_COLOR, BRUSH_OPACITY, COLOR_MODES, DRAW, MAX_OVE
 
 @data_oriented
 class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
-    """Draws a Simulation's particles into `self.image` (W x H RGB floats)."""
+    """Draws the particles of a State (with its Model) into `self.image` (W x H RGB floats)."""
 
     def __init__(
         self,
-        sim,
+        model,
+        state,
         width: int,
         height: int,
         render_cfg,
@@ -76,7 +77,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         self.on_cpu = runtime.running_arch() == "cpu"
         if output == "rgba" and not self.on_cpu:
             raise ValueError("the packed 'rgba' output is a host array: CPU backend only")
-        self.sim = sim
+        self.model, self.state, self.p = model, state, state.particles
         self.strip_splat = strip_splat
         self.output = output
         self.keep_image = output == "image"
@@ -84,18 +85,18 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         self.width, self.height = width, height
         self.panel_px = int(round(panel * width))  # pixels on the left under a side panel
         self.cx = self.panel_px + 0.5 * (width - self.panel_px)  # 3D: where the view's axis meets the picture
-        self.dim = sim.dim
+        self.dim = model.dim
         # The tables go to their fields in one copy kernel when the block ends: a host write of a field element
         # compiles a writer kernel of its own (about 20 ms each at start-up). Nothing in the block reads them.
         with transfer.batched():
-            bodies = sim.scene.groups  # every body, then every emitter, then (last) the spawn tool's particles
+            bodies = model.scene.groups  # every body, then every emitter, then (last) the spawn tool's particles
             self.n_groups = len(bodies) + 1
             self.g_draw = ti.field(ti.i32, shape=self.n_groups)
             self.g_blend = ti.field(ti.i32, shape=self.n_groups)
             self.g_opacity = ti.field(ti.f32, shape=self.n_groups)
             self.g_fade = ti.field(ti.i32, shape=self.n_groups)  # colour fades over the lifetime
             self.g_shrink = ti.field(ti.i32, shape=self.n_groups)  # drawn radius shrinks over the lifetime
-            self.has_lifetimes = sim.has_lifetimes
+            self.has_lifetimes = state.particles.lifetimes
             draw = [DRAW[b.draw] for b in bodies] + [DRAW["splat" if self.dim == 2 else "sphere"]]  # + the spawn tool's
             transfer.upload(
                 [
@@ -106,7 +107,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
                     (self.g_opacity, np.array([b.opacity for b in bodies] + [1.0], np.float32)),
                 ]
             )
-            blends = {b.blend for b in bodies} | ({"opaque"} if sim.scene.palette else set())
+            blends = {b.blend for b in bodies} | ({"opaque"} if model.scene.palette else set())
             self.has_opaque, self.has_alpha, self.has_additive = (
                 "opaque" in blends,
                 "alpha" in blends,
@@ -124,7 +125,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
                 self.a_weight = self._layer()  # alpha sum
                 self.a_log = self._layer()  # sum of log(1 - alpha): log transmittance
             if self.has_alpha:
-                self.order = ti.field(ti.i32, shape=sim.capacity)  # 3D: translucent particles, back to front
+                self.order = ti.field(ti.i32, shape=model.capacity)  # 3D: translucent particles, back to front
                 self.n_order = ti.field(ti.i32, shape=())
             if self.has_additive:
                 self.light = self._layer(3)  # additive light (unbounded)
@@ -139,14 +140,14 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             else:
                 self.out = runtime.ndarray(ti.u8, (height, width, 3))
             if self.motion_blur:
-                self.x_prev = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions a frame ago
+                self.x_prev = ti.Vector.field(self.dim, ti.f32, shape=model.capacity)  # positions a frame ago
                 self.shutter = float(render_cfg.shutter)
             self.spline = self.motion_blur and render_cfg.motion_path == "spline"
-            self.tails = (
-                [self.x_prev] if self.motion_blur else []
-            )  # per-particle drawing state that moves with particles
+            # per-particle drawing state that must move with the particles when the state sorts or compacts them: the
+            # window and the runner attach them to the state (state.carry(renderer.tails))
+            self.tails = [self.x_prev] if self.motion_blur else []
             if self.spline:
-                self.x_mid = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)  # positions at the frame's middle
+                self.x_mid = ti.Vector.field(self.dim, ti.f32, shape=model.capacity)  # positions at the frame's middle
                 self.tails.append(self.x_mid)
                 self.mid_captured = False
             self.color_mode = COLOR_MODES[render_cfg.color_by]
@@ -158,8 +159,8 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             self.exposure = float(render_cfg.exposure)
             self.background = ti.Vector(list(render_cfg.background))
             self.particle_scale = float(render_cfg.particle_scale)
-            self.has_heat = sim.heat is not None
-            self.draw_springs = bool(render_cfg.draw_springs) and sim.springs is not None and self.dim == 2
+            self.has_heat = state.particles.heat
+            self.draw_springs = bool(render_cfg.draw_springs) and state.springs is not None and self.dim == 2
             self.brush: tuple[float, float, float] | None = None  # see set_brush
             self.chart = None
             self.potential = None  # the window's potential panel (a CurvePlot), when shown
@@ -167,11 +168,6 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
                 self.chart = Chart(
                     self.image, width, height, tuple(render_cfg.chart), self._scene_in_image(), self.panel_px
                 )
-            if self.motion_blur and sim.emitters is not None:
-                sim.emitters.listeners.append(self._follow_moves)
-            if self.motion_blur and sim.reorder is not None:
-                self.tail_scratch = ti.Vector.field(self.dim, ti.f32, shape=sim.capacity)
-                sim.reorder.listeners.append(self._follow_order)
             self._setup_view()
         if self.dim == 2:
             # the walls and heat sources do not move: paint them once (refresh_backdrop() after changing a source)
@@ -184,7 +180,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             self.tiles_x, self.tiles_y = -(-width // TILE), -(-height // TILE)
             self.tile_stamp = ti.field(ti.i32, shape=(self.tiles_x, self.tiles_y))
             self.tile_stamp.fill(-2)
-            self.strips = StripBins(width, sim.capacity)
+            self.strips = StripBins(width, model.capacity)
             self.stamp = ti.field(ti.i32, shape=())
             self.dirty = ti.field(ti.i32, shape=self.tiles_x * self.tiles_y)
             self.n_dirty = ti.field(ti.i32, shape=())
@@ -232,7 +228,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
 
     # ------------------------------------------------------------------ view
     def _setup_view(self):
-        lo, hi = np.asarray(self.sim.scene.world.lo), np.asarray(self.sim.scene.world.hi)
+        lo, hi = np.asarray(self.model.scene.world.lo), np.asarray(self.model.scene.world.hi)
         self.lo_np, self.hi_np = lo, hi
         if self.dim == 2:
             extent = hi - lo
@@ -243,7 +239,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             self.offset = ti.Vector(list(centre_px - scale * (lo + hi) / 2))
             self.px_lo = ti.Vector(list(centre_px - scale * extent / 2))
             self.px_hi = ti.Vector(list(centre_px + scale * extent / 2))
-            heat = self.sim.scene.heat
+            heat = self.model.scene.heat
             src = [s for s in heat.sources if s.visible] if heat else []
             self.n_src = len(src)
             ns = max(self.n_src, 1)
@@ -278,7 +274,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
             self.floor_hi = ti.Vector([float(hi[0]), float(hi[2])])
             self.grid_step = float(max(1.0, round(max(hi[0] - lo[0], hi[2] - lo[2]) / 12)))
             # heat sources lying on the floor are drawn on it in their glow colour
-            heat = self.sim.scene.heat
+            heat = self.model.scene.heat
             src = [s for s in (heat.sources if heat else []) if s.lo[1] <= lo[1] + 1 and s.visible]
             self.n_src = len(src)
             ns = max(self.n_src, 1)
@@ -337,7 +333,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
     def pick(self, u: float, v: float, reach_px: float = 12.0) -> np.ndarray | None:
         """3D: the position of the nearest particle drawn within reach_px pixels of the window point (u, v) (fractions
         of width and height, from the bottom left, as GGUI's cursor), or None: where a 3D brush acts."""
-        x = self.sim.positions().astype(float) if self.dim == 3 else np.zeros((0, 3))
+        x = self._positions().astype(float) if self.dim == 3 else np.zeros((0, 3))
         i = self._drawn_under(x, u, v, reach_px)
         return None if i is None else x[i]
 
@@ -349,7 +345,7 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
 
     def pick_index(self, u: float, v: float, reach_px: float = 12.0) -> int | None:
         """3D: the index of the nearest particle drawn within reach_px pixels of the window point (u, v), or None."""
-        return self._drawn_under(self.sim.positions().astype(float), u, v, reach_px) if self.dim == 3 else None
+        return self._drawn_under(self._positions().astype(float), u, v, reach_px) if self.dim == 3 else None
 
     def _drawn_under(self, x: np.ndarray, u: float, v: float, reach_px: float) -> int | None:
         """Of the 3D positions x (N, 3), the index of the nearest drawn within reach_px pixels of (u, v), or None."""
@@ -367,42 +363,19 @@ class Renderer(ParticleLook, Flat2D, Spheres3D, Output):
         candidates = np.flatnonzero(near)
         return int(candidates[np.argmin(z[candidates])])
 
-    def detach(self) -> None:
-        """Stop following the simulation's particle moves (before this renderer is replaced)."""
-        if self.sim.emitters is not None and self._follow_moves in self.sim.emitters.listeners:
-            self.sim.emitters.listeners.remove(self._follow_moves)
-        if self.sim.reorder is not None and self._follow_order in self.sim.reorder.listeners:
-            self.sim.reorder.listeners.remove(self._follow_order)
-
-    def _follow_moves(self, hole, filler, count: int) -> None:
-        """Particles moved slots (retirement): move their motion-blur tails with them."""
-        if count:
-            self._move_tails(hole, filler, count)
-
-    @ti.kernel
-    def _follow_order(self, order: ti.template(), inverse: ti.template(), n: ti.i32):
-        """The particle storage was sorted (sim.reorder): sort the motion-blur tails the same way."""
-        for tail in ti.static(self.tails):
-            for k in range(n):
-                self.tail_scratch[k] = tail[order[k]]
-            for k in range(n):
-                tail[k] = self.tail_scratch[k]
-
-    @ti.kernel
-    def _move_tails(self, hole: ti.template(), filler: ti.template(), count: ti.i32):
-        for m in range(count):
-            for tail in ti.static(self.tails):
-                tail[hole[m]] = tail[filler[m]]
+    def _positions(self) -> np.ndarray:
+        """The live particles' positions, (N, D) NumPy."""
+        return self.p.x.to_numpy()[: int(self.p.n[None])]
 
     @ti.kernel
     def _remember(self, into: ti.template()):
-        for i in range(self.sim.particles.n[None]):
-            into[i] = ti.cast(self.sim.particles.x[i], ti.f32)
+        for i in range(self.p.n[None]):
+            into[i] = ti.cast(self.p.x[i], ti.f32)
 
     @ti.kernel
     def _straight_mids(self):
-        for i in range(self.sim.particles.n[None]):
-            self.x_mid[i] = 0.5 * (self.x_prev[i] + ti.cast(self.sim.particles.x[i], ti.f32))
+        for i in range(self.p.n[None]):
+            self.x_mid[i] = 0.5 * (self.x_prev[i] + ti.cast(self.p.x[i], ti.f32))
 
     def render(self) -> None:
         """Draw the current state into self.image."""

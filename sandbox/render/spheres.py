@@ -74,7 +74,7 @@ class Spheres3D:
 
     @ti.kernel
     def _depth_3d(self):
-        p = self.sim.particles
+        p = self.p
         for i in range(p.n[None]):
             if self.g_blend[p.group[i]] == 0:
                 centre, z = self._project(p.x[i])
@@ -89,7 +89,7 @@ class Spheres3D:
 
     @ti.kernel
     def _shade_3d(self):
-        p = self.sim.particles
+        p = self.p
         for i in range(p.n[None]):
             g = p.group[i]
             if self.g_blend[g] == 0:
@@ -119,7 +119,7 @@ class Spheres3D:
         """(tail, control point, head) in pixels of particle i's motion-blur streak, the depths of its tail and
         head, and whether it is drawn as a streak: motion blur on, all three points in front of the camera, moved
         over 1e-3 px and not across a periodic wrap. Otherwise tail and control point are the head."""
-        head, z = self._project(self.sim.particles.x[i])
+        head, z = self._project(self.p.x[i])
         tail, ctrl, z_tail = head, head, z
         blurred = False
         if ti.static(self.motion_blur):
@@ -140,7 +140,7 @@ class Spheres3D:
         """Motion blur of opaque spheres: a streak from where each was a shutter ago to where it is, its opacity
         falling towards the tail, depth-tested at its depth along the way (so the sphere itself, in front of the
         streak's head, stays solid, and nearer spheres hide it)."""
-        p = self.sim.particles
+        p = self.p
         for i in range(p.n[None]):
             g = p.group[i]
             if self.g_blend[g] == 0:
@@ -182,21 +182,21 @@ class Spheres3D:
 
     def _sort_translucent(self) -> None:
         """Order the translucent particles back to front (by distance along the view direction), on the host."""
-        n = int(self.sim.particles.n[None])
-        x = self.sim.particles.x.to_numpy()[:n]
-        group = self.sim.particles.group.to_numpy()[:n]
+        n = int(self.p.n[None])
+        x = self.p.x.to_numpy()[:n]
+        group = self.p.group.to_numpy()[:n]
         blend = self.g_blend.to_numpy()
         ids = np.flatnonzero(blend[group] == BLEND["alpha"])
         depth = (x[ids] - self.eye_np) @ self.fwd_np
         order = ids[np.argsort(-depth, kind="stable")].astype(np.int32)
-        full = np.zeros(self.sim.capacity, dtype=np.int32)
+        full = np.zeros(self.model.capacity, dtype=np.int32)
         full[: len(order)] = order
         self.order.from_numpy(full)
         self.n_order[None] = len(order)
 
     @ti.kernel
     def _composite_translucent(self):
-        p = self.sim.particles
+        p = self.p
         ti.loop_config(serialize=True)  # "over" compositing must follow the back-to-front order
         for k in range(self.n_order[None]):
             i = self.order[k]
@@ -216,7 +216,7 @@ class Spheres3D:
 
     @ti.kernel
     def _light_3d(self):
-        p = self.sim.particles
+        p = self.p
         for i in range(p.n[None]):
             g = p.group[i]
             if self.g_blend[g] == 2:

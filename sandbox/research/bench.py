@@ -96,7 +96,7 @@ def _rates_of(sim, times: list[float], steps: int) -> dict:
     n = int(sim.particles.n[None])
     return {
         "particles": n,
-        "springs": sim.built.spring_count,
+        "springs": sim.model.built.spring_count,
         "steps_per_batch": steps,
         "seconds_per_step": per_step,
         "particle_steps_per_second": n / per_step,
@@ -238,7 +238,7 @@ def render_cost(arch: str, repeats: int) -> dict:
     from ..render.raster import Renderer
 
     sim = melting_block_sim(arch)
-    renderer = Renderer(sim, 1280, 720, sim.scene.render, output="picture")
+    renderer = Renderer(sim.model, sim.state, 1280, 720, sim.scene.render, output="picture")
     renderer.frame()
     sim.step(sim.scene.world.substeps)
     draw, step = [], []
@@ -288,16 +288,16 @@ def launches_per_step(factory, arch: str, steps: int = 200) -> dict:
     sim = factory(arch)
     sim.step(20)
     ti.sync()
-    builds = sim.neighbours.builds if sim.neighbours is not None else 0
+    builds = sim.hood.lists.builds if sim.hood.lists is not None else 0
     with count_launches() as launches:
         sim.step(steps)
         ti.sync()
-    rebuilt = (sim.neighbours.builds - builds) if sim.neighbours is not None else 0
+    rebuilt = (sim.hood.lists.builds - builds) if sim.hood.lists is not None else 0
     return {
         "launches_per_step": launches.total / steps,
         "per_step_by_kernel": {name: count / steps for name, count in launches.by_name.most_common()},
         "rebuild_fraction": rebuilt / steps,
-        "particles": sim.built.count,
+        "particles": sim.model.built.count,
     }
 
 

@@ -44,7 +44,7 @@ def theory_explicit_limit(sim: Simulation) -> float:
     """2 / lambda_max of the explicit heat operator C^-1 L on these particles (dense NumPy eigenvalues)."""
     x = sim.positions()
     n = len(x)
-    h = sim.heat.support
+    h = sim.terms.heat.support
     vol = np.ones(n)  # unit density and mass: V = 1
     r = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=2)
     g = np.zeros_like(r)
@@ -59,7 +59,7 @@ def theory_explicit_limit(sim: Simulation) -> float:
 def measured_explicit_limit(sim: Simulation, steps: int = 200) -> float:
     """Largest dt at which a random temperature field does not grow under the explicit stepper (bisection)."""
     rng = np.random.default_rng(0)
-    noise = rng.uniform(-1, 1, sim.built.count)
+    noise = rng.uniform(-1, 1, sim.model.built.count)
     lo, hi = 0.0, 1.0
     for _ in range(16):
         mid = 0.5 * (lo + hi)
@@ -78,7 +78,7 @@ def heat_runs(quick: bool) -> tuple[list[Run], dict]:
     runs, notes = [], {}
     for stepper in ("explicit", "implicit"):
         sim = pulse_sim(stepper, dts[0])
-        n = sim.built.count
+        n = sim.model.built.count
         ref_dt = min(dts) / 64
         sim.dt = ref_dt
         sim.step(round(end / ref_dt))

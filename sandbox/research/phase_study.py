@@ -137,7 +137,7 @@ def stefan_run(spacing: float, t_end: float = 60.0, superheat: float = 10.0) -> 
     # measured from the outermost held particle: the first free particle's slab starts half a spacing out
     front_a = np.array(melted) + 0.5 * spacing
     exact = 2 * lam * np.sqrt(times_a)
-    return StefanResult(spacing, sim.built.count, times_a, front_a, exact, lam)
+    return StefanResult(spacing, sim.model.built.count, times_a, front_a, exact, lam)
 
 
 @dataclass
@@ -193,7 +193,7 @@ def heating_curve_run(
         np.array(temps),
         np.array(melt),
         power,
-        float(sim.built.mass.sum()),
+        float(sim.model.built.mass.sum()),
         mat.specific_heat,
         mat.latent_heat,
         mat.melt_temperature,

@@ -70,7 +70,7 @@ def spring_bank(
 def set_bank_stiffness(sim: Simulation, h_omegas: np.ndarray, dt: float) -> np.ndarray:
     """Give spring m the stiffness k = (h_omegas[m] / dt)^2 / 2 (unit masses); returns k."""
     k = (np.asarray(h_omegas, dtype=float) / dt) ** 2 / 2
-    sim.springs.ks.from_numpy(k)
+    sim.state.springs.ks.from_numpy(k)
     sim.dt = dt
     return k
 
@@ -178,7 +178,7 @@ def growth_per_period(integrator: str, h_omega: float, periods: int = 1, sim: Si
     sim = sim or spring_bank([h_omega], 0.01, integrator, amplitude=LINEAR_AMPLITUDE)
     sim.set_integrator(integrator)
     steps = round(periods * 2 * math.pi / h_omega)
-    bank = np.full(len(sim.springs.ks.to_numpy()), h_omega)
+    bank = np.full(len(sim.state.springs.ks.to_numpy()), h_omega)
     ratio = float(bank_growth(sim, bank, steps)[0])
     return ratio ** (0.5 / (steps * h_omega / (2 * math.pi)))
 
@@ -314,7 +314,7 @@ def lattice_runs(integrators, dts, end_time: float, ref: np.ndarray) -> list[Run
     """Problem 2 for each of `integrators` at each of `dts`: RMS position error at `end_time` against `ref`."""
     sim = lattice_sim(integrators[0], max(dts))
     runs = []
-    n = sim.built.count
+    n = sim.model.built.count
     for name in integrators:
         warmed(sim, name)
         for dt in dts:
@@ -361,7 +361,7 @@ def lj_cluster_runs(integrators, dts, end_time: float) -> list[Run]:
         ],
     }
     sim = Simulation(scene_from_dict(data, STUDY_PATH))
-    n = sim.built.count
+    n = sim.model.built.count
     runs = []
     for name in integrators:
         warmed(sim, name)
@@ -460,7 +460,7 @@ def melting_runs(integrators, dts, end_time: float, ref: tuple[float, np.ndarray
                     err,
                     molten,
                     wall,
-                    sim.built.count * steps / wall,
+                    sim.model.built.count * steps / wall,
                     stable,
                     "error: centre of mass distance; energy_error column: molten fraction difference",
                 )
@@ -482,14 +482,14 @@ def stiff_sweep(integrators, stiffnesses, substeps_list, frame_time: float = 1 /
         ],
     }
     sim = Simulation(scene_from_dict(data, STUDY_PATH))
-    per_body = sim.built.count // m
-    springs_per_body = sim.springs.count // m
+    per_body = sim.model.built.count // m
+    springs_per_body = sim.state.springs.count // m
     ks = np.repeat(np.asarray(stiffnesses, float), springs_per_body)
     x0 = sim.positions()
     v = sim.particles.v.to_numpy()
     v[: len(x0)] = np.random.default_rng(3).normal(0, 0.05, x0.shape)  # a small kick into every mode
     sim.particles.v.from_numpy(v)
-    sim.springs.ks.from_numpy(ks)
+    sim.state.springs.ks.from_numpy(ks)
     sim.mark_initial()
     rows = []
     for name in integrators:

@@ -1,152 +1,172 @@
-"""The stepping plan's choices, from what each pass declares about itself: whether a scene's steps need the host
-between them (then each step runs the long way, one launch per pass) and whether a team of threads may step it.
+"""The stepping plan, derived from the term list: which host passes run around each step and in what order, whether
+steps may run many to a launch (fused, or as a team of threads), and the driver that runs steps the chosen way.
 
-A pass with work between steps (seeding particles, a grid of its own, a solve iterated from the host, values that
-change on a schedule) says so in a `host_work(scene)` static method that returns the reason or None; a pass that
-rules out team stepping says so in `team_blocker(scene)`. A new pass declares the same way and joins the tuples
-below: nothing else needs to know about it.
+Every way of stepping runs the same per-stage device work (the rates: step/rates.py) in the same order; they differ
+only in how it is launched:
+  the long way (host.py)   each pass launched from the host, one step at a time: any scene, any integrator;
+  fused (fused.py)         many whole steps in one launch on one thread (a small scene on the CPU);
+  team (team.py)           many whole steps in one launch on every CPU thread, meeting at barriers.
+A term with host work between steps (seeding particles, a grid of its own, a solve iterated from the host, values
+that change on a schedule) says so in `host_work(scene)`; such a scene always steps the long way. A term that rules
+out team stepping says so in `team_blocker(scene)`. pipeline() prints this plan (`sandbox check`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-
-from ..config.scene_tables import Scene
-from ..physics.emitters import Emitters
-from ..physics.fields import VelocityField
-from ..physics.heat import Heat
-from ..physics.heat_implicit import ImplicitHeat
-from ..physics.smoke import SmokeGrid
-
-HOST_WORK_PASSES = (Emitters, SmokeGrid, VelocityField, Heat, ImplicitHeat)
-TEAM_BLOCKING_PASSES = (Heat,)
+from ..integrators import REGISTRY
+from ..physics import TERMS
+from ..physics.term import Term, hook_order
+from .fused import REORDER_BATCH, FusedSteps
+from .host import LongWay
+from .team import Team
 
 
-def host_work_reasons(scene: Scene) -> list[str]:
-    """Why `scene`'s steps need the host between them (empty: they can run many to a launch), as each pass says."""
-    return [reason for part in HOST_WORK_PASSES if (reason := part.host_work(scene))]
+def host_work_reasons(scene) -> list[str]:
+    """Why `scene`'s steps need the host between them (empty: they can run many to a launch), as each term says, in
+    the order of their host passes."""
+    terms = sorted(TERMS, key=lambda cls: hook_order(cls, "before"))
+    return [reason for cls in terms if (reason := cls.host_work(scene))]
 
 
-def host_work_between_steps(scene: Scene) -> bool:
-    """Whether `scene`'s steps need the host between them, so that they cannot run many to a launch."""
-    return bool(host_work_reasons(scene))
+def can_step_as_a_team(scene) -> bool:
+    """Whether team stepping can run `scene`'s steps, given half neighbour lists (the CPU's): the scene keeps
+    neighbour lists, needs no host work between steps, and no term rules a team out."""
+    blocked = any(cls.team_blocker(scene) for cls in TERMS)
+    return scene.world.neighbor_list and not (blocked or host_work_reasons(scene))
 
 
-def can_step_as_a_team(scene: Scene) -> bool:
-    """Whether team stepping (step/team.py) can run `scene`'s steps, given half neighbour lists (the CPU's): the
-    scene keeps neighbour lists, needs no host work between steps, and no pass rules a team out."""
-    blocked = any(part.team_blocker(scene) for part in TEAM_BLOCKING_PASSES)
-    return scene.world.neighbor_list and not (blocked or host_work_between_steps(scene))
+HOOK_ORDERS = {"before_step": "before", "after_step": "after", "after_steps": "after_steps", "at_step": "at_step"}
 
 
-@dataclass(frozen=True)
-class HostPass:
-    """A pass the host launches around the integrator's step (the long way), with what it does in words."""
-
-    text: str  # for pipeline(); "" where another line already says it
-    run: Callable[[], None]
+def _hooks(terms: list, hook: str) -> list:
+    """The terms whose class overrides `hook` (a host method of physics/term.py's Term), in that hook's order."""
+    having = [t for t in terms if getattr(type(t), hook) is not getattr(Term, hook)]
+    return sorted(having, key=lambda t: hook_order(t, HOOK_ORDERS[hook]))
 
 
 class StepPlan:
-    """What one step of `sim` runs, in order, and how it is launched. The long way runs `before`, the integrator
-    (whose rates evaluation is described by the rates lines) and `after`; pipeline() prints these same lists, so the
-    description cannot drift from what runs. Built once the simulation's passes exist."""
+    """What one step of a simulation runs, in order, and how its steps are launched."""
 
-    def __init__(self, sim):
-        self.sim = sim
-        self.before = _passes_before(sim)
-        self.after = _passes_after(sim)
+    def __init__(self, model, state, terms: list, rates, integrator):
+        self.model, self.state, self.terms, self.rates = model, state, terms, rates
+        self.hood = rates.hood
+        self.lists = rates.hood.lists if rates.hood is not None else None
+        self.order = rates.hood.order if rates.hood is not None else None  # the cell-order sort
+        self.before = _hooks(terms, "before_step")
+        self.after = _hooks(terms, "after_step")
+        self.after_calls = _hooks(terms, "after_steps")
+        self.boundary = _hooks(terms, "at_step")
+        self.reasons = host_work_reasons(model.scene)
+        loops = model.loops
+        self.team = Team(rates, model.threads) if loops.team and rates.half else None  # it steps half lists
+        one_launch = loops.serial_pairs and loops.serial_light or self.team is not None
+        self.fuses = one_launch and not self.reasons
+        self.fused = FusedSteps(rates, state, self.team)
+        self.long_way = LongWay(self)
+        self.integrator = integrator
+        self.pending_stage = 0  # the stage the current step goes on from (0: at a step boundary)
+
+    def use_team(self, team) -> None:
+        """Run the fused batches by `team` (None: on one thread)."""
+        self.team = self.fused.team = team
+
+    @property
+    def fused_batches(self) -> int:
+        """Launches of many steps (fused or team) so far."""
+        return self.fused.batches
+
+    def step(self, n: int) -> None:
+        """Advance n steps of state.dt: many to a launch where the plan allows, else one at a time the long way."""
+        if n <= 0:
+            return
+        state, integrator = self.state, self.integrator
+        integrator.begin(state.dt)
+        while n > 0:
+            if self.order is not None and self.fuses and self.order.due() and not self.pending_stage:
+                self.order.apply()  # between fused batches (the long way sorts at the start of its step)
+            batch = self._fused_batch(n)
+            done = self._run_fused(batch) if batch else 0
+            if done < batch and self.lists is not None and self.lists.forced:
+                pass  # a list build overflowed and the lists were widened: the next batch builds them again
+            elif done < max(batch, 1):  # not fusable now, or the lists cannot be widened: one step the long way
+                self.long_way.step_once()
+                done += 1
+            n -= done
+        for term in self.after_calls:
+            term.after_steps(state)
+        integrator.end(state.dt)
+
+    def count_steps(self, done: int) -> None:
+        """Advance the clock by `done` steps and run what is due at a step boundary (refreezing)."""
+        state = self.state
+        for _ in range(done):
+            state.time += state.dt  # added one step at a time: the same clock as stepping one by one
+        state.step += done
+        for term in self.boundary:
+            if term.at_step(state, done) and self.rates.marks_bonds:
+                self.lists.invalidate()  # the lists mark bonded pairs: new springs must be marked
+
+    def _fused_batch(self, n: int) -> int:
+        """How many of the next n steps to run in one fused launch (0: step the long way)."""
+        if not (self.fuses and self.integrator.stages):
+            return 0
+        if self.lists is not None and not (self.lists.usable or self.lists.must_rebuild()):
+            return 0  # lists too wide to allocate: the long way scans the grid
+        for term in self.boundary:  # end the batch where a boundary pass is due
+            n = min(n, term.next_due(self.state))
+        if self.order is not None:
+            n = min(n, REORDER_BATCH)
+        return n
+
+    def _run_fused(self, batch: int) -> int:
+        """Up to `batch` steps in one launch (the first from pending_stage on); returns the steps done: fewer when a
+        list build overflowed, which leaves pending_stage at the stage it stopped before."""
+        lists = self.lists
+        forced = 0
+        if lists is not None:
+            forced = int(lists.must_rebuild())
+            lists.mark_built()
+            lists.fused = True
+        done = self.fused.run(batch, forced, self.pending_stage, self.integrator, self.state.dt)
+        if done < 0:  # the team's thread pool did not start every worker: nothing ran; step the long way from now on
+            if forced:
+                lists.invalidate()
+            self.use_team(None)
+            self.fuses = False
+            return 0
+        self.pending_stage = self.fused.stopped_at() if done < batch else 0
+        if lists is not None:
+            if done < batch:  # the build of step `done` overflowed: widen the lists (the next batch rebuilds them)
+                if lists.grow():
+                    lists.invalidate()
+                else:
+                    lists.usable = False  # too wide to allocate: the long way scans the grid
+            else:
+                lists.usable = True  # every build in the batch fitted (an overflow stops the batch)
+        self.count_steps(done)
+        return done
 
     def lines(self) -> list[str]:
-        """The passes a step runs, in order, in words (Simulation.pipeline)."""
-        sim = self.sim
-        texts = [p.text for p in self.before if p.text]
-        if sim.neighbours is not None:
-            texts.append(sim.neighbours.describe(sim.grid))
-            if sim.reorder is not None:
-                texts.append(f"particle storage sorted into cell order every {sim.reorder.every} list rebuilds")
-        elif sim.grid is not None:
-            texts.append(f"neighbour grid: counting sort into a {sim.grid.describe()}, every step")
-        if sim.springs is not None:
-            texts.append(sim.springs.describe(sim.heat is not None, sim.refreezer is not None))
-        texts.append(_rates_line(sim))
-        walls = "periodic wrap" if sim.scene.world.periodic else "walls (restitution, friction)"
-        heat = ", enthalpy update (temperature and melt fraction from it)" if sim.has_explicit_heat else ""
-        texts.append(f"integrator {sim.integrator.name}, then {walls}{heat}")
-        texts += [p.text for p in self.after if p.text]
-        reasons = host_work_reasons(sim.scene)
-        if reasons:
-            texts.append("launch: one launch per pass, one step at a time: " + "; ".join(reasons))
-        if sim.fuses_steps:
-            from ..integrators import REGISTRY
-
+        """The passes a step runs, in order, in words (`sandbox check`): the same lists the stepping runs."""
+        texts = _words(self.before, "before")
+        if self.hood is not None:
+            texts += self.hood.describe()
+        texts += _words(self.rates.prestep_terms, "prestep")
+        texts.append(self.rates.describe())
+        texts.append(f"integrator {self.integrator.name}, then {', '.join(_words(self.rates.finish_terms, 'finish'))}")
+        texts += _words(self.after, "after")
+        if self.reasons:
+            texts.append("launch: one launch per pass, one step at a time: " + "; ".join(self.reasons))
+        if self.fuses:
             fused = "/".join(name for name, cls in REGISTRY.items() if cls.stages)
-            team = f", run by a team of {sim.team.workers} threads meeting at barriers" if sim.team else ""
+            team = f", run by a team of {self.team.workers} threads meeting at barriers" if self.team else ""
             texts.append(
                 "launch: every pass of a step, and many steps, in one kernel launch (the list rebuild decided on the "
                 f"device{team}) with {fused}; other integrators one launch per pass"
             )
-        if sim.refreezer is not None:
-            texts.append(
-                f"every {sim.scene.heat.refreeze_interval} steps: refreezing (new bonds within "
-                f"{sim.refreezer.radius:g} between frozen particles where one was molten)"
-            )
+        texts += _words(self.boundary, "boundary")
         return texts
 
 
-def _passes_before(sim) -> list[HostPass]:
-    """The host's passes before the integrator's step, in order."""
-    out = []
-    if sim.reorder is not None:  # described with the neighbour lists
-        out.append(HostPass("", lambda: sim.reorder.apply() if sim.reorder.due() else None))
-    if sim.heat is not None and sim.heat.scheduled:
-        out.append(HostPass("scheduled heat sources set to the step's start time", lambda: sim.heat.set_time(sim.time)))
-    if sim.emitters is not None:
-        names = ", ".join(e.name for e in sim.scene.emitters)
-        out.append(HostPass(f"emitters: {names} (rate, bursts)", lambda: sim.emitters.before_step(sim.time, sim.dt)))
-    if sim.smoke is not None:
-        every = sim.scene.smoke.interval
-        text = f"smoke: stable fluids on a {sim.smoke.describe()} (buoyancy, advection, CG projection)"
-
-        def smoke_step():
-            if sim.step_count % every == 0:
-                sim.smoke.step(sim.dt * every)
-
-        out.append(HostPass(text, smoke_step))
-    if sim.has_kinematic:  # described with its advection below
-        out.append(HostPass("", sim._kinematic_begin))
-    if sim.has_field_drag:  # the drag force's target, held through the step
-        text = "velocity field sampled at field-coupled particles (their drag target)"
-        out.append(HostPass(text, lambda: sim._sample_field(sim.time)))
-    return out
-
-
-def _passes_after(sim) -> list[HostPass]:
-    """The host's passes after the integrator's step, in order."""
-    out = []
-    if sim.implicit_heat is not None:
-        text = "implicit heat: backward Euler by preconditioned CG, then the enthalpy update"
-        out.append(HostPass(text, sim._implicit_heat_step))
-    if sim.has_kinematic:
-        text = f"kinematic advection through the velocity field ({sim.scene.world.advection})"
-        out.append(HostPass(text, lambda: sim._advect_kinematic(sim.dt, sim.time)))
-    if sim.has_lifetimes:
-        text = "ageing; the dead retired by compaction after each step() call"
-        out.append(HostPass(text, lambda: sim._age(sim.dt)))
-    return out
-
-
-def _rates_line(sim) -> str:
-    """The rates launch and the terms it sums."""
-    terms = []
-    if sim.pair is not None:
-        terms.append(f"pair force (a={sim.pair.a:g}, b={sim.pair.b:g}, cutoff {sim.pair.cutoff:g})")
-    if sim.heat is not None:
-        terms.append(f"heat diffusion (kernel support {sim.heat.support:g}, {sim.heat.n_sources} sources)")
-    if sim.springs is not None:
-        terms.append("spring-damper forces (gathered per particle)")
-    for term in sim.body_forces:
-        terms += term.describe()
-    pairs = " (each neighbour pair once, applied to both)" if sim.half_pairs else ""
-    return f"fused rates kernel{pairs}: " + ", ".join(terms)
+def _words(terms: list, where: str) -> list[str]:
+    return [line for term in terms for line in term.words(where)]

@@ -1,103 +1,113 @@
-"""The rates of a step: forces (p.f) and heat rates (p.dhdt) of every term the scene has, over its neighbour
-structure (half lists, full lists or the cell grid), and each particle's end-of-step work (walls, the enthalpy
-update). A mixin of Simulation: the integrators call eval_rates() and, inside their update kernels,
-finish_particle(); the fused step and the team call the loops below inside their own launches.
+"""The rates of a step, built from the term list: each particle's force (`force`) and heat rate (`heat_rate`), and
+its end-of-step work (`finish_particle`).
 
-Per evaluation: the cheap per-step passes (_prestep: has a particle moved half the skin, the springs' thermoelastic
-update and breaking, power sources' masses), the neighbour lists rebuilt when stale, then one kernel: the half-list
-pair pass (each pair once, into per-chunk buffer rows) and the per-particle gather (the body forces, the pair
-terms, the springs, heat sources), optionally with the integrator's update of each particle in the same loop.
+Per evaluation: one launch for the terms' per-stage passes (`prestep_loops`: spring updates, power-source masses)
+and the neighbour lists' staleness check; the lists rebuilt when stale; then one launch for the rates: the half-list
+pair pass (each pair once, every pair term's contribution applied to both particles through per-chunk buffer rows)
+and the per-particle gather (body forces, the pair rows, the bonds, heat sources, then any force adjustment),
+optionally with the integrator's update of each particle in the same loop. The fused step and the team
+(step/fused.py, step/team.py) run these same funcs inside their own launches, so all three ways of stepping sum
+the same terms in the same order.
 """
-
-import warnings
 
 import taichi as ti
 
-from ..config.scene_tables import COUPLINGS
 from ..core.loops import SPREAD_STRIDE, spread_item
-from ..physics.emitters import NEVER_BONDS
-from ..physics.neighbours import LIST_ARRAY
-from ..physics.phase import LIQUID
+from ..core.oriented import data_oriented
+from ..core.particles import fold_bonds
+from ..physics.neighbours import LIST_ARRAY, no_lists
+from ..physics.term import hook_order
 
-NO_COUPLING, KINEMATIC = (COUPLINGS.index(c) for c in ("none", "kinematic"))
+CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
 
 
+def _having(terms: list, flag: str, hook: str | None = None) -> list:
+    """The terms with `flag` set, in the order of their `hook` (default: the flag's name)."""
+    return sorted((t for t in terms if getattr(t, flag)), key=lambda t: hook_order(t, hook or flag))
+
+
+@data_oriented
 class Rates:
-    """Simulation's rate evaluation (see the module docstring)."""
+    """Forces and heat rates of `terms` over the particles of `state` and the neighbourhood `hood` (None: no pair
+    terms). Integrators call `evaluate()` and, inside their update kernels, `finish_particle()`; they read `force`
+    (and the heat term reads `heat_rate`)."""
 
-    def _lists(self, use: bool):
-        """The neighbour lists to hand a kernel: the lists when the step uses them, else the 1 x 1 stand-in."""
-        return self.neighbours.ids if use else self.no_lists
+    def __init__(self, model, state, terms: list, hood):
+        self.model, self.state, self.hood = model, state, hood
+        self.dim = model.dim
+        self.loops = model.loops
+        self.domain = model.domain
+        self.springs = state.springs
+        capacity = model.capacity
+        self.pair_terms = _having(terms, "pair_channel", "pair")
+        self.force_pair_terms = [t for t in self.pair_terms if t.pair_channel == "force"]
+        self.heat_pair_terms = [t for t in self.pair_terms if t.pair_channel == "heat"]
+        self.bond_terms = _having(terms, "bonded", "bond")
+        self.force_terms = _having(terms, "particle_force")
+        self.heat_terms = _having(terms, "particle_heat")
+        self.adjust_terms = _having(terms, "adjusts_force")
+        self.prestep_terms = _having(terms, "prestep")
+        self.finish_terms = _having(terms, "finishes", "finish")
+        self.excluded = [t for t in self.force_pair_terms if t.excludes_bonded]  # not between bonded particles
+        if any(t.excludes_bonded for t in self.heat_pair_terms):
+            raise ValueError("a heat pair term cannot exclude bonded pairs")
+        self.has_heat_rate = bool(self.heat_pair_terms or self.heat_terms)
+        self.force = ti.Vector.field(self.dim, float, shape=capacity)  # force of the last evaluation, (C, D)
+        if self.has_heat_rate:
+            self.heat_rate = ti.field(float, shape=capacity)  # enthalpy rate of the last evaluation, (C,)
+        self.has_grid = hood is not None
+        self.has_lists = hood is not None and hood.lists is not None
+        self.half = self.has_lists and hood.half
+        self.marks_bonds = self.has_lists and hood.marks_bonds
+        self.no_lists = hood.no_lists if hood is not None else no_lists()
+        if self.half:
+            # Each worker thread takes a contiguous block of particles and writes what its pairs give to the other
+            # particle into its own buffer row (no atomics, no write conflicts); the per-particle pass sums the rows.
+            self.n_chunks = CHUNKS_PER_THREAD * max(1, model.threads)
+            self.n_pair_rows = 1 if self.loops.serial_pairs else self.n_chunks  # rows the pair pass writes
+            self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_pair_rows, capacity))
+            if self.heat_pair_terms:
+                self.pair_q = ti.field(float, shape=(self.n_pair_rows, capacity))
 
-    def eval_rates(self, then_update: float | None = None, stage: int = 0) -> None:
-        """Forces (p.f) and heat rates (p.dhdt) at the current state. `then_update`: a step dt for the integrator's
-        per-particle update of `stage` (`update_particle`), run in the same kernel launch as the forces (one launch
-        less per step: a launch costs about 30 us on the CPU backend)."""
-        use_list = False
-        moved = bool(self._prestep()) if (self.has_neighbours or self.has_springs or self.has_power) else False
-        if self.neighbours is not None:
-            use_list = self.neighbours.ensure_fresh(moved)
-            if not use_list:
-                self.grid.rebuild()  # the fallback scans the grid, which must match the current positions
-            if not use_list and not self._warned_overflow:
-                self._warned_overflow = True
-                warnings.warn(
-                    "neighbour list overflow: some particle has more than "
-                    f"{self.neighbours.width} neighbours; scanning the cell grid instead (slower)",
-                    stacklevel=2,
-                )
-        elif self.grid is not None:
-            self.grid.rebuild()
-        ids = self._lists(use_list)
-        if then_update is None:
+    def ids(self, use_lists: bool):
+        """The neighbour lists to hand a kernel: the lists when used, else the 1 x 1 stand-in."""
+        return self.hood.ids(use_lists) if self.hood is not None else self.no_lists
+
+    def evaluate(self, dt: float | None = None, stage: int = 0, integrator=None) -> None:
+        """Forces and heat rates at the current state. With `integrator`: its update_particle(i, dt, stage) on every
+        particle in the same launch (one launch less per step: a launch costs about 30 us on the CPU backend)."""
+        moved = bool(self._prestep()) if (self.has_lists or self.prestep_terms) else False
+        use_list = self.hood.refresh(moved) if self.hood is not None else False
+        ids = self.ids(use_list)
+        if integrator is None:
             self._rates(use_list, ids)
         else:
-            self._rates_update(use_list, ids, self.integrator, then_update, stage)
+            self._rates_update(use_list, ids, integrator, dt, stage)
 
     @ti.kernel
     def _prestep(self) -> ti.i32:
-        """One launch for the cheap per-step passes (see _prestep_loops); returns 1 when some particle has moved half
-        the neighbour skin."""
-        self._prestep_loops()
+        """One launch for the per-stage passes (see prestep_loops); returns 1 when some particle has moved half the
+        neighbour skin."""
+        self.prestep_loops()
         moved = 0
-        if ti.static(self.has_neighbours):
-            moved = self.neighbours.stale[None]
+        if ti.static(self.has_lists):
+            moved = self.hood.lists.stale[None]
         return moved
 
     @ti.func
-    def _prestep_loops(self):
-        """Has any particle moved half the neighbour skin (sets neighbours.stale), the springs' thermoelastic update
-        and breaking, and the mass inside each power source."""
-        if ti.static(self.has_power):
-            for k in range(self.heat.n_sources):
-                self.heat.src_mass[k] = 0.0
+    def prestep_loops(self):
+        """The terms' per-stage device work, and whether some particle has moved half the skin (lists.stale)."""
+        for term in ti.static(self.prestep_terms):
+            term.prestep_loops()
+        if ti.static(self.has_lists):
+            lists = self.hood.lists
+            lists.stale[None] = 0
+            lists.check_count()
             self.loops.light()
-            for i in range(self.particles.n[None]):
-                self.heat.add_source_mass(i)
-        if ti.static(self.has_neighbours):
-            self.neighbours.stale[None] = 0
-            self.neighbours.check_count()
-            self.loops.light()
-            for i in range(self.particles.n[None]):
-                self.neighbours.check_one(i)
-        if ti.static(self.has_springs):
-            # each spring's update reads two phase states: heavier than a light loop, so parallel with the pair loops
-            self.loops.pairs()
-            for s in range(self.springs.span[None]):
-                self.springs.update_one(s)
+            for i in range(self.state.particles.n[None]):
+                lists.check_one(i)
 
-    @ti.func
-    def _pair_terms(self, i, j, d, r2, f_scaled, f_visc, q):
-        """Add the pair force (scaled by 1/m_i), the viscous force and the heat flow of neighbour j to i."""
-        if ti.static(self.has_pair):
-            if r2 < self.pair.cutoff**2:
-                f_scaled += self.pair.scaled_force(i, j, d, r2)
-                f_visc += self.pair.viscous_force(i, j, d, r2)
-        if ti.static(self.has_explicit_heat):
-            if r2 < self.heat.support**2:
-                q += self.heat.flow(i, j, r2)
-        return f_scaled, f_visc, q
-
+    # ------------------------------------------------------------------ the pair pass over half lists
     @ti.func
     def half_rows_of_chunk(self, t, n, ids: ti.template()):
         """The half-list rows of chunk t of the n particles (a contiguous block of ids), into buffer row t."""
@@ -108,21 +118,13 @@ class Rates:
     def _half_row(self, t, i, ids: ti.template()):
         """The pairs (i, j) of i's half list: i's share kept, j's (equal and opposite) written to chunk t's buffer
         row. Row t belongs to this chunk alone, so it is updated by a plain load and store: `+=` on a field would be
-        an atomic compare-and-swap loop on the CPU (1.4x slower pass). Forces and heat flows are evaluated for every
-        listed pair and masked beyond their range rather than branched around: a listed pair lies within reach +
-        skin, where both laws are finite, and a branch taken for 80% of pairs mispredicts often."""
-        p = self.particles
+        an atomic compare-and-swap loop on the CPU (1.4x slower pass)."""
+        p = self.state.particles
         xi = p.x[i]
-        m_i = p.mass[i]
+        rows = [term.row(i) for term in ti.static(self.pair_terms)]
         fi = ti.Vector.zero(float, self.dim)
         qi = 0.0
-        shared = ti.Vector.zero(float, 5)
-        if ti.static(self.has_pair):
-            shared = self.pair.shared_coefficients()
-        t_i, c_i, mat_i = 0.0, 0.0, 0
-        if ti.static(self.has_explicit_heat):
-            t_i, c_i, mat_i = self.heat.own_terms(i)
-        for k in range(self.neighbours.count[i]):
+        for k in range(self.hood.lists.count[i]):
             j = ids[i, k]
             bonded = False  # joined by a live spring: no pair force (heat still flows)
             if ti.static(self.marks_bonds):
@@ -132,44 +134,52 @@ class Rates:
                     bonded = self.springs.alive[s] != 0
             d = self.domain.separation(xi, p.x[j])
             r2 = d.dot(d)
-            if ti.static(self.has_pair):
-                fij = self.pair.force_with(self.pair.pair_coefficients(shared, i, j), m_i, i, j, d, r2)
-                fij *= ti.select((r2 < self.pair.cutoff**2) and not bonded, 1.0, 0.0)
+            if ti.static(self.force_pair_terms):
+                fij = self._pair_sum("force", ti.Vector.zero(float, self.dim), rows, i, j, d, r2, bonded)
                 fi += fij
                 self.pair_f[t, j] = self.pair_f[t, j] - fij
-            if ti.static(self.has_explicit_heat):
-                qij = ti.select(r2 < self.heat.support**2, 1.0, 0.0) * self.heat.flow_with(t_i, c_i, mat_i, j, r2)
+            if ti.static(self.heat_pair_terms):
+                qij = self._pair_sum("heat", 0.0, rows, i, j, d, r2, bonded)
                 qi += qij
                 self.pair_q[t, j] = self.pair_q[t, j] - qij
         self.pair_f[t, i] = self.pair_f[t, i] + fi
-        if ti.static(self.has_explicit_heat):
+        if ti.static(self.heat_pair_terms):
             self.pair_q[t, i] = self.pair_q[t, i] + qi
 
+    @ti.func
+    def _pair_sum(self, channel: ti.template(), total, rows: ti.template(), i, j, d, r2, bonded):
+        """total plus the `channel` pair terms' contributions on i from j (rows: each pair term's row(i))."""
+        for n in ti.static(range(len(self.pair_terms))):
+            if ti.static(self.pair_terms[n].pair_channel == channel):
+                total += self.pair_terms[n].pair(rows[n], i, j, d, r2, bonded)
+        return total
+
+    # ------------------------------------------------------------------ the rates launch
     @ti.kernel
     def _rates(self, use_list: ti.template(), ids: LIST_ARRAY):
-        self._rate_loops(use_list, ids, None, 0.0, 0, False)
+        self.rate_loops(use_list, ids, None, 0.0, 0, False)
 
     @ti.kernel
     def _rates_update(
         self, use_list: ti.template(), ids: LIST_ARRAY, integrator: ti.template(), dt: float, stage: ti.i32
     ):
-        merged = ti.static(self._updates_in_gather(use_list))
-        self._rate_loops(use_list, ids, integrator, dt, stage, merged)
+        merged = ti.static(self.updates_in_gather(use_list))
+        self.rate_loops(use_list, ids, integrator, dt, stage, merged)
         if ti.static(not merged):
             self.loops.light()
-            for i in range(self.particles.n[None]):
+            for i in range(self.state.particles.n[None]):
                 integrator.update_particle(i, dt, stage)
 
-    def _updates_in_gather(self, use_list: bool) -> bool:
-        """Whether the per-particle pass of _rate_loops may update each particle as soon as its force is summed (one
-        pass over the particles less): when that pass reads nothing of other particles, i.e. the pair terms come
-        from the half-list rows or there are none, and there are no springs (their force reads the other end) and
-        no kinematic particles."""
-        pairs_precomputed = not self.has_grid or (use_list and self.half_pairs)
-        return pairs_precomputed and not self.has_springs and not self.has_kinematic
+    def updates_in_gather(self, use_list: bool) -> bool:
+        """Whether the per-particle pass may update each particle as soon as its force is summed (one pass over the
+        particles less): when that pass reads nothing of other particles, i.e. the pair terms come from the
+        half-list rows or there are none, and there are no bonds (their force reads the other end) and no force
+        adjustments (kinematic particles)."""
+        pairs_precomputed = not self.has_grid or (use_list and self.half)
+        return pairs_precomputed and not self.bond_terms and not self.adjust_terms
 
     @ti.func
-    def _rate_loops(
+    def rate_loops(
         self,
         use_list: ti.template(),
         ids: ti.template(),
@@ -178,11 +188,11 @@ class Rates:
         stage,
         update_here: ti.template(),
     ):
-        """The loops of a force and heat-rate evaluation (see eval_rates); each runs in parallel unless self.loops
-        serializes it. `update_here` (allowed when _updates_in_gather): the per-particle pass also updates each
-        particle by `dt` with `integrator`'s `stage` once its rates are in."""
-        p = self.particles
-        if ti.static(use_list and self.half_pairs):
+        """The loops of an evaluation (see evaluate); each runs in parallel unless self.loops serializes it.
+        `update_here` (allowed when updates_in_gather): the per-particle pass also updates each particle by `dt` with
+        `integrator`'s `stage` once its rates are in."""
+        p = self.state.particles
+        if ti.static(use_list and self.half):
             n = p.n[None]
             if ti.static(self.loops.serial_pairs):
                 ti.loop_config(serialize=True)
@@ -193,18 +203,18 @@ class Rates:
                     t = spread_item(u)
                     if t >= 0:
                         self.half_rows_of_chunk(t, n, ids)
-        if ti.static(self.has_springs):
+        if ti.static(self.bond_terms):
             self.loops.pairs()  # each particle visits its bonds too: as much work per item as a pair loop
         else:
             self.loops.light()
         for ks in range(p.n[None]):
             i = ks
             if ti.static(self.has_grid):
-                i = self.grid.sorted_ids[ks]  # visit particles cell by cell: neighbours stay in cache
-            self._gather_particle(i, use_list, ids, integrator, dt, stage, update_here)
+                i = self.hood.grid.sorted_ids[ks]  # visit particles cell by cell: neighbours stay in cache
+            self.gather_particle(i, use_list, ids, integrator, dt, stage, update_here)
 
     @ti.func
-    def _gather_particle(
+    def gather_particle(
         self,
         i,
         use_list: ti.template(),
@@ -214,93 +224,93 @@ class Rates:
         stage,
         update_here: ti.template(),
     ):
-        """Particle i's force (p.f) and heat rate (p.dhdt): the body forces (gravity, drag, ...), its pair terms
-        (summed from the half-list rows, or gathered from its list or the grid), its springs; then, with
-        `update_here`, its update by `dt` (the integrator's `stage`)."""
-        p = self.particles
+        """Particle i's force and heat rate: the body forces, its pair terms (summed from the half-list rows, or
+        gathered from its list or the grid), its bonds, its heat sources, any adjustment; then, with `update_here`,
+        its update by `dt` (the integrator's `stage`)."""
+        p = self.state.particles
         xi = p.x[i]
         f = ti.Vector.zero(float, self.dim)
-        for term in ti.static(self.body_forces):  # gravity, drag, ... (physics/body_forces.py)
+        for term in ti.static(self.force_terms):  # gravity, drag, ...
             f += term.force(i)
         q = 0.0
+        gathers = ti.static(self.has_grid and not (use_list and self.half))  # pairs visited from i's side here
+        rows = [term.row(i) for term in ti.static(self.pair_terms if gathers else [])]
         if ti.static(self.has_grid):
-            f_scaled = ti.Vector.zero(float, self.dim)  # pair-law forces / m_i
-            f_visc = ti.Vector.zero(float, self.dim)
-            if ti.static(use_list and self.half_pairs):
+            pairs = ti.Vector.zero(float, self.dim + 1)  # the pair terms' force on i, then their heat flow into it
+            if ti.static(use_list and self.half):
                 for t in range(self.n_pair_rows):  # what the pair pass left for i, read and cleared
-                    f_visc += self.pair_f[t, i]
+                    for a in ti.static(range(self.dim)):
+                        pairs[a] += self.pair_f[t, i][a]
                     self.pair_f[t, i] = ti.Vector.zero(float, self.dim)
-                    if ti.static(self.has_explicit_heat):
-                        q += self.pair_q[t, i]
+                    if ti.static(self.heat_pair_terms):
+                        pairs[self.dim] += self.pair_q[t, i]
                         self.pair_q[t, i] = 0.0
             elif ti.static(use_list):
-                for k in range(self.neighbours.count[i]):
+                for k in range(self.hood.lists.count[i]):
                     j = ids[i, k]
-                    d = self.domain.separation(xi, p.x[j])
-                    f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
+                    pairs = self._add_pair(pairs, j, self.domain.separation(xi, p.x[j]), k, (i, rows))
             else:
-                c = self.grid.cell_of(xi)
-                for o in range(self.grid.n_offsets):
-                    nc, shift = self.grid.neighbour_cell(c, self.grid.offset(o))
-                    if nc >= 0:
-                        start = self.grid.cell_start[nc]
-                        xs = xi - shift
-                        for k in range(start, start + self.grid.cell_count[nc]):
-                            j = self.grid.sorted_ids[k]
-                            if j != i:
-                                d = self.grid.x_sorted[k] - xs
-                                f_scaled, f_visc, q = self._pair_terms(i, j, d, d.dot(d), f_scaled, f_visc, q)
-            f += p.mass[i] * f_scaled + f_visc
-        if ti.static(self.has_springs):
-            for k in range(self.springs.max_bonds):
-                s = self.springs.bonds[i, k]
-                if s < 0:
-                    break
-                if self.springs.alive[s]:
-                    j = self.springs.other_end(i, s)
-                    d = self.domain.separation(xi, p.x[j])
-                    f += self.springs.force(i, j, s, d)
-                    if ti.static(self.has_pair and not (use_list and self.half_pairs and self.marks_bonds)):
-                        r2 = d.dot(d)
-                        if r2 < self.pair.cutoff**2:  # bonded pairs feel the spring, not the pair force
-                            f -= self.pair.force(i, j, d, r2)
-        if ti.static(self.has_kinematic):
-            if self.g_coupling[p.group[i]] == KINEMATIC:
-                f = ti.Vector.zero(float, self.dim)  # moved by the field alone (_advect_kinematic)
-        p.f[i] = f
-        if ti.static(self.has_explicit_heat):
-            q += self.heat.source_flow(i)
-            p.dhdt[i] = q / p.mass[i]
+                pairs = self.hood.grid.fold(xi, pairs, self._add_pair, (i, rows), False, 0)
+            for a in ti.static(range(self.dim)):
+                f[a] += pairs[a]
+            q += pairs[self.dim]
+        if ti.static(self.bond_terms):
+            excluding = ti.static(gathers and len(self.excluded) > 0)  # half rows skip bonded pairs themselves
+            f = fold_bonds(self.springs, i, f, self._add_bond, (xi, rows, excluding))
+        for term in ti.static(self.adjust_terms):  # kinematic particles: no force
+            f = term.adjust_force(i, f)
+        self.force[i] = f
+        if ti.static(self.has_heat_rate):
+            for term in ti.static(self.heat_terms):
+                q += term.heat(i)
+            self.heat_rate[i] = q / p.mass[i]
         if ti.static(update_here):
             integrator.update_particle(i, dt, stage)
 
     @ti.func
-    def finish_particle(self, i, dt):
-        """Walls (or periodic wrap) and the explicit heat update for particle i, at the end of a step."""
-        p = self.particles
-        p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i], p.mass[i])
-        if ti.static(self.has_kinematic):
-            if self.g_coupling[p.group[i]] == KINEMATIC:  # the integrator does not move them: _advect_kinematic does
-                p.x[i], p.v[i] = self.x_start[i], self.v_start[i]
-        if ti.static(self.has_explicit_heat):
-            self.set_enthalpy(i, p.h[i] + dt * p.dhdt[i])
+    def _add_pair(self, acc, j, d, k, extra: ti.template()):
+        """acc (force on i = extra[0], then heat flow into it) plus neighbour j's pair terms (extra[1]: their rows)."""
+        i = extra[0]
+        rows = ti.static(extra[1])
+        if j != i:
+            r2 = d.dot(d)
+            if ti.static(self.force_pair_terms):
+                fij = self._pair_sum("force", ti.Vector.zero(float, self.dim), rows, i, j, d, r2, False)
+                for a in ti.static(range(self.dim)):
+                    acc[a] += fij[a]
+            if ti.static(self.heat_pair_terms):
+                acc[self.dim] += self._pair_sum("heat", 0.0, rows, i, j, d, r2, False)
+        return acc
 
     @ti.func
-    def set_enthalpy(self, i, h):
-        """Give particle i specific enthalpy h (held by fixed sources), and its temperature and liquid flag."""
-        p = self.particles
-        if ti.static(self.has_fixed):
-            h = self.heat.held(i, h)
-        p.h[i] = h
-        t, phi = self.phase.state(h, p.material[i])
-        p.T[i] = t
-        if ti.static(self.can_refreeze):
-            if phi >= self.materials.break_fraction[p.material[i]] and p.liquid[i] != NEVER_BONDS:
-                p.liquid[i] = LIQUID
+    def _add_bond(self, f, i, j, s, extra: ti.template()):
+        """f plus the bond terms' force on i from live spring s to j; where the pairs were gathered from i's side,
+        less the pair terms that exclude bonded pairs (extra: x_i, the pair rows of i, whether to exclude)."""
+        xi = extra[0]
+        rows = ti.static(extra[1])
+        d = self.domain.separation(xi, self.state.particles.x[j])
+        for term in ti.static(self.bond_terms):
+            f += term.bond(i, j, s, d)
+        if ti.static(extra[2]):
+            r2 = d.dot(d)
+            for n in ti.static(range(len(self.pair_terms))):
+                if ti.static(self.pair_terms[n].excludes_bonded):
+                    f -= self.pair_terms[n].pair(rows[n], i, j, d, r2, False)
+        return f
 
-    @ti.kernel
-    def sync_temperatures(self):
-        """Recompute every particle's enthalpy from its temperature (after the temperature was set directly)."""
-        for i in range(self.particles.n[None]):
-            self.particles.h[i] = self.phase.enthalpy(self.particles.T[i], self.particles.material[i])
-            self.set_enthalpy(i, self.particles.h[i])
+    @ti.func
+    def finish_particle(self, i, dt):
+        """Particle i's end-of-step work: each finishing term in order (walls or the periodic wrap, kinematic
+        particles put back, the explicit heat update)."""
+        for term in ti.static(self.finish_terms):
+            term.finish(i, dt, self)
+
+    def describe(self) -> str:
+        """The rates launch and the terms it sums, in words: the pair terms, the bonds, then the particle terms."""
+        words, seen = [], []
+        for term in self.pair_terms + self.bond_terms + self.force_terms + self.heat_terms:
+            if term not in seen:
+                seen.append(term)
+                words += term.words("rates")
+        pairs = " (each neighbour pair once, applied to both)" if self.half else ""
+        return f"fused rates kernel{pairs}: " + ", ".join(words)

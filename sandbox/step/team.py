@@ -3,13 +3,13 @@
 Taichi runs only a kernel's top-level loops in parallel, so a step in parallel costs a launch of each pass and a
 wake-up of the thread pool per pass: at 10,000 particles (about 0.7 ms a step on one thread) that round trip eats
 most of what the second thread brings, and the step runs many to a launch on one thread instead
-(Simulation._fused_steps). A team does both: one launch whose single top-level loop starts one worker per thread;
+(step/fused.py). A team does both: one launch whose single top-level loop starts one worker per thread;
 each worker runs every step over its share of the particles and waits for the others at a spin barrier between the
 passes that read what another worker wrote.
 
 Each stage of a step (one for symplectic Euler and the Verlet methods: see sandbox/integrators/) of a scene with half
 neighbour lists, per worker w of W:
-  (springs only) the thermoelastic update and breaking of its share of the springs; barrier;
+  (with per-stage passes, such as the springs' update and breaking) its share of each pass's items; barrier;
   (rebuild step only) worker 0 sorts the particles into cells; barrier; each builds the lists of its particles;
   barrier (all stop if some list overflowed);
   the half-list pairs (forces and heat flows) of its chunks of particles, into its chunks' buffer rows; barrier;
@@ -34,25 +34,27 @@ START_SPINS = 20_000_000  # reads of the barrier at the launch's first wait befo
 
 @data_oriented
 class Team:
-    """Team stepping for `sim` (a Simulation whose steps qualify: see plan.can_step_as_a_team) on `workers`
-    threads."""
+    """Team stepping over `rates` (a scene whose steps qualify: see plan.can_step_as_a_team) on `workers` threads."""
 
-    def __init__(self, sim, workers: int):
-        self.sim = sim
+    def __init__(self, rates, workers: int):
+        self.rates = rates
         self.workers = workers
-        self.chunks_per_worker = sim.n_chunks // workers
+        self.chunks_per_worker = rates.n_chunks // workers
+        for term in rates.prestep_terms:
+            if not hasattr(term, "prestep_one"):
+                raise ValueError(f"the {term.key} term's per-stage pass cannot be shared out among a team's workers")
         self.arrived = ti.field(ti.i32, shape=())  # workers at the current barrier
         self.generation = ti.field(ti.i32, shape=())  # barriers passed (workers spin until it moves on)
         self.gave_up = ti.field(ti.i32, shape=())  # 1: a worker did not start (see the module docstring)
         self.moved = ti.field(ti.i32, shape=2)  # rebuild flags, by step parity (set by one step, read by the next)
         self.done = ti.field(ti.i32, shape=())  # steps completed in the last launch
 
-    def run(self, steps: int, forced: int, first_stage: int, integrator, ids, dt: float) -> int:
+    def run(self, steps: int, forced: int, first_stage: int, integrator, ids, dt: float, stopped_stage) -> int:
         """Up to `steps` steps of `integrator` (a staged one: see Integrator.stages), the first from `first_stage`
         on, in one launch over the neighbour lists `ids`, built first if `forced`; returns the steps done: fewer
-        when a list build overflowed (the caller widens the lists; sim.stopped_stage says which stage stopped), -1
+        when a list build overflowed (the caller widens the lists; `stopped_stage` says which stage stopped), -1
         when the team could not start (nothing changed)."""
-        return int(self._steps(steps, forced, first_stage, integrator, ids, dt))
+        return int(self._steps(steps, forced, first_stage, integrator, ids, dt, stopped_stage))
 
     @ti.func
     def barrier(self, gen, patient: ti.template()):
@@ -77,12 +79,19 @@ class Team:
 
     @ti.kernel
     def _steps(
-        self, steps: ti.i32, forced: ti.i32, first_stage: ti.i32, integrator: ti.template(), ids: LIST_ARRAY, dt: float
+        self,
+        steps: ti.i32,
+        forced: ti.i32,
+        first_stage: ti.i32,
+        integrator: ti.template(),
+        ids: LIST_ARRAY,
+        dt: float,
+        stopped_stage: ti.template(),
     ) -> ti.i32:
         for u in range(self.workers * SPREAD_STRIDE):  # one item per thread (see spread_item)
             w = spread_item(u)
             if w >= 0:
-                self._work(w, steps, forced, first_stage, integrator, ids, dt)
+                self._work(w, steps, forced, first_stage, integrator, ids, dt, stopped_stage)
         done = self.done[None]
         if self.gave_up[None]:  # set the barrier up for a later launch (after all workers have left it)
             done = -1
@@ -92,9 +101,9 @@ class Team:
         return done
 
     @ti.func
-    def _work(self, w, steps, forced, first_stage, integrator: ti.template(), ids: ti.template(), dt):
-        sim = self.sim
-        p, nb, grid = sim.particles, sim.neighbours, sim.grid
+    def _work(self, w, steps, forced, first_stage, integrator: ti.template(), ids: ti.template(), dt, stopped_stage):
+        rates = self.rates
+        p, nb, grid = rates.state.particles, rates.hood.lists, rates.hood.grid
         n = p.n[None]
         lo, hi = w * n // self.workers, (w + 1) * n // self.workers  # this worker's particle ids / cell-order slots
         gen = 0
@@ -121,10 +130,10 @@ class Team:
             while done < steps and self.gave_up[None] == 0 and not stopped:
                 while stage < ti.static(integrator.stages) and not stopped:
                     parity = evaluation % 2
-                    if ti.static(sim.has_springs):
-                        span = sim.springs.span[None]
-                        for s in range(w * span // self.workers, (w + 1) * span // self.workers):
-                            sim.springs.update_one(s)  # the pair pass reads which springs live
+                    for term in ti.static(rates.prestep_terms):
+                        items = term.prestep_count()
+                        for s in range(w * items // self.workers, (w + 1) * items // self.workers):
+                            term.prestep_one(s)  # the pair pass reads which springs live
                         gen = self.barrier(gen, True)
                     if self.moved[parity]:
                         if w == 0:
@@ -138,24 +147,24 @@ class Team:
                         if nb.overflow[None]:
                             stopped = 1
                             if w == 0:
-                                sim.stopped_stage[None] = stage
+                                stopped_stage[None] = stage
                     if not stopped:
                         for t in range(w * self.chunks_per_worker, (w + 1) * self.chunks_per_worker):
-                            sim.half_rows_of_chunk(t, n, ids)
+                            rates.half_rows_of_chunk(t, n, ids)
                         if w == 0:
                             self.moved[1 - parity] = 0  # every worker has read moved[parity]; next evaluation's flag
                         gen = self.barrier(gen, True)
                         # not with springs: a spring force reads the other end
-                        merged = ti.static(sim._updates_in_gather(True))
+                        merged = ti.static(rates.updates_in_gather(True))
                         if ti.static(not merged):  # every force before any particle moves
                             for ks in range(lo, hi):
-                                sim._gather_particle(grid.sorted_ids[ks], True, ids, integrator, dt, stage, False)
+                                rates.gather_particle(grid.sorted_ids[ks], True, ids, integrator, dt, stage, False)
                             gen = self.barrier(gen, True)
                         moved = 0
                         for ks in range(lo, hi):
                             i = grid.sorted_ids[ks]
                             if ti.static(merged):
-                                sim._gather_particle(i, True, ids, integrator, dt, stage, True)
+                                rates.gather_particle(i, True, ids, integrator, dt, stage, True)
                             else:
                                 integrator.update_particle(i, dt, stage)
                             if nb.moved_far(i):

@@ -4,8 +4,8 @@ import math
 
 import taichi as ti
 
-from ..core import transfer
-from ..core.oriented import data_oriented
+from . import transfer
+from .oriented import data_oriented
 
 
 @data_oriented

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-ABSOLUTE_ZERO = -273.15  # degrees Celsius
+from ..config.schema import ABSOLUTE_ZERO
+
 RUNAWAY_FACTOR = 100.0  # kinetic energy above this many times the scene's energy scale stops the run
 TEMPERATURE_FACTOR = 1000.0  # temperatures this many spreads beyond the scene's own stop the run (no power sources)
 SHELL = {2: 6, 3: 12}  # neighbours of a particle in a close-packed shell
@@ -151,7 +152,7 @@ class BlowupGuard:
         if bad_particles or not all(math.isfinite(v) for v in acc.values()):
             return "state", "non-finite state"
         lim = self.limits
-        coldest, hottest = -acc["tcold"], acc["thot"]
+        coldest, hottest = -acc.get("tcold", -1e30), acc.get("thot", -1e30)
         if self._accept_next:
             self._accept_next = False
             lim.fixed_energy = max(lim.fixed_energy, acc["ke"])
@@ -179,3 +180,47 @@ class BlowupGuard:
                 f"{scale:.3g})"
             )
         return None
+
+
+def blowup_message(kind: str, what: str, x, v, temperatures, clock: tuple, integrator, limits: tuple) -> str:
+    """The one line a blow-up stops with: what (`what`, of `kind` state, temperature or motion) at which step in
+    which particle, and the likeliest cause. x, v: the live particles' positions and velocities (N, D);
+    temperatures: theirs (N,), or None without heat; clock: (step, time, dt); integrator: its name and stable h w
+    (for the cause); limits: (the springs' stable step as built, the explicit heat step limit, inf without)."""
+    step, time, dt = clock
+    name, _ = integrator
+    spring_limit, heat_limit = limits
+    bad = np.flatnonzero(
+        ~(
+            np.isfinite(x).all(axis=1)
+            & np.isfinite(v).all(axis=1)
+            & (np.abs(x) < 1e30).all(axis=1)
+            & (np.abs(v) < 1e30).all(axis=1)
+        )
+    )
+    heat_limit_passed = dt > heat_limit
+    if len(bad):
+        who = f"particle {int(bad[0])}"
+    elif kind == "temperature":
+        below = temperatures.min() < ABSOLUTE_ZERO
+        worst = (
+            int(np.argmin(temperatures)) if below else int(np.argmax(np.abs(temperatures - np.median(temperatures))))
+        )
+        who = f"particle {worst} (at {temperatures[worst]:.4g} C)"
+    else:
+        who = f"particle {int(np.argmax(np.linalg.norm(v, axis=1)))} (the fastest)"
+    if kind == "temperature":
+        cause = (
+            f"dt {dt:g} is above the explicit heat limit {heat_limit:.3g}"
+            if heat_limit_passed
+            else "heat flowed without bound (check the sources' power, conductivities and specific heats)"
+        )
+    elif spring_limit == 0.0:
+        cause = f"{name} is unstable on undamped springs at any step; use symplectic_euler or implicit_euler"
+    elif spring_limit < dt:
+        cause = f"dt {dt:g} is above the stable limit {spring_limit:.3g} for the stiffest spring with {name}"
+    elif heat_limit_passed:
+        cause = f"dt {dt:g} is above the explicit heat limit {heat_limit:.3g}"
+    else:
+        cause = "a force grew without bound (check stiffness, masses and the pair-force core)"
+    return f"{what} at step {step} (t = {time:.4g}) in {who}: {cause}"

@@ -1,0 +1,127 @@
+"""Build what a scene names: its Model (what it fixes), its State (what a step changes), the neighbourhood its pair
+terms are evaluated over, and its term list (only the terms the scene has: physics/term.py's registry).
+
+Everything is allocated by capacity, and the tables and initial particles built here are copied to their fields in
+one kernel when the batched block ends (a copy kernel each was a tenth of a second of compiling at start-up).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config.budget import emitter_population
+from .config.build import build_particles
+from .config.scene_tables import Scene
+from .core import runtime, taichi_compat, transfer
+from .core.domain import Domain
+from .core.loops import LoopPolicy
+from .core.model import MaterialTable, Model
+from .core.particles import Particles, SpringState
+from .core.state import State
+from .physics import TERMS, Parts
+from .physics.grid import CellGrid
+from .physics.neighbours import Neighbourhood, NeighbourList
+from .physics.phase import Phase, initial_enthalpy
+from .physics.reorder import CellOrder
+from .step.plan import can_step_as_a_team
+
+
+@dataclass
+class Assembly:
+    """A scene built: its model, state, neighbourhood (None without pair terms) and terms (in their order)."""
+
+    model: Model
+    state: State
+    hood: Neighbourhood | None
+    terms: list
+
+
+def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None) -> Assembly:
+    """Build `scene` on Taichi backend `arch` (see Simulation for `half_lists`)."""
+    running = runtime.init(arch, scene.world.precision)
+    built = build_particles(scene)
+    world = scene.world
+    # room to spawn particles: half as many again (at least 1,024), plus what the emitters keep alive at once,
+    # unless the scene sets world.capacity
+    capacity = world.capacity if world.capacity else built.count + max(1024, built.count // 2)
+    if not world.capacity:
+        capacity += sum(emitter_population(e) for e in scene.emitters)
+    capacity = max(capacity, built.count)
+    threads = taichi_compat.cpu_threads() if running == "cpu" else 1
+    loops = LoopPolicy(running, capacity, not (scene.heat or built.spring_count), threads, can_step_as_a_team(scene))
+    materials = [scene.materials[name] for name in scene.used_materials()]
+    heat = scene.heat
+    can_refreeze = bool(heat and heat.refreeze and any(m.melts for m in materials))
+    with transfer.batched():
+        table = MaterialTable(materials)
+        domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
+        phase = Phase(table) if heat else None
+        model = Model(scene, running, built, capacity, materials, table, phase, loops, domain, threads)
+        lifetimes = any(e.lifetime > 0 for e in scene.emitters)
+        particles = Particles(scene.dim, capacity, heat=heat is not None, refreeze=can_refreeze, lifetimes=lifetimes)
+        _load_particles(particles, built, table.colors, materials)
+        springs = None
+        if built.spring_count or can_refreeze:
+            bonds = (heat.refreeze_max_bonds or (8 if scene.dim == 2 else 12)) if can_refreeze else 0
+            spare = capacity * bonds // 2  # room for every particle to refreeze with its full bond count
+            springs = SpringState(built, capacity, spare, bonds)
+        state = State(particles, springs, world.dt)
+        parts = Parts(model, state, None)
+        for cls in sorted(TERMS, key=lambda c: c.order):
+            if cls.wanted(parts):
+                parts.terms[cls.key] = cls(parts)
+    terms = list(parts.terms.values())
+    parts.neighbours = hood = _neighbourhood(scene, model, state, half_lists, any(t.key == "pair" for t in terms))
+    for part in ([hood] if hood is not None else []) + terms:
+        part.declare(state)
+    return Assembly(model, state, hood, terms)
+
+
+def _load_particles(particles: Particles, built, colors: np.ndarray, materials: list) -> None:
+    """Copy the built particles in: positions, velocities, ..., and with heat the enthalpy of their temperature."""
+    n = built.count
+    particles.next_ident = n
+    p = particles
+    pairs = [
+        (p.n, n),
+        (p.x, built.x),
+        (p.v, built.v),
+        (p.mass, built.mass),
+        (p.radius, built.radius),
+        (p.material, built.material),
+        (p.color, colors[built.material]),
+        (p.group, built.body),
+        (p.ident, np.arange(n, dtype=np.int32)),
+    ]
+    if p.heat:
+        h, phi = initial_enthalpy(built.temperature, built.material, materials)
+        pairs += [(p.h, h), (p.T, built.temperature)]
+        if p.refreeze:
+            breaks = np.array([min(m.break_melt_fraction, 1e30) for m in materials])[built.material]
+            pairs.append((p.liquid, ((phi >= breaks) | ~built.solid).astype(np.int32)))
+    transfer.upload(pairs)
+
+
+def _neighbourhood(scene: Scene, model: Model, state: State, half_lists: bool | None, has_pair: bool):
+    """The cell grid within the reach of the pair terms (pair force, heat), its lists and the cell-order sort."""
+    world = scene.world
+    reach = max(scene.pair.cutoff if scene.pair else 0.0, scene.heat_radius)
+    if reach <= 0:
+        return None
+    skin = world.skin if world.neighbor_list else 0.0
+    capacity = model.capacity
+    p = state.particles
+    grid = CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, capacity, model.loops)
+    implicit_heat = bool(scene.heat) and scene.heat.stepper != "explicit"  # its solve reads full lists
+    if half_lists is None:
+        half_lists = model.arch == "cpu"
+    half = bool(half_lists) and world.neighbor_list and not implicit_heat
+    lists = None
+    if world.neighbor_list:
+        springs = state.springs if has_pair else None  # half rows mark bonded pairs, which the pair force skips
+        lists = NeighbourList(grid, model.domain, state, reach, skin, capacity, half, springs, model.loops)
+    every = world.reorder if world.reorder != "auto" else (20 if model.built.count >= 5000 else 0)
+    order = CellOrder(state, grid, lists, every) if every and lists is not None else None
+    return Neighbourhood(grid, lists, order, half)

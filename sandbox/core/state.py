@@ -1,0 +1,159 @@
+"""The State: what a step changes, declared entry by entry.
+
+A state is the particles (core/particles.py), the springs, the clock (time, step count, frames, step size) and
+whatever else a part of the simulation carries from one step to the next and declares here when it is built: an
+emitter's counters, the smoke grid, the neighbour lists, a leapfrog integrator's synchronised values. Each entry is a
+Taichi field, an ndarray held by an attribute (replaced when it is widened) or a host value, under a dotted name
+(`particles.x`, `springs.alive`, `neighbours.ids`, `clock.time`).
+
+Entries are physical (the scene's state: what reset and undo put back) or kept only so that a resumed run continues
+bit for bit (the neighbour lists fix the order in which forces are summed; a restored snapshot invalidates them
+instead). Saving and loading a state file (files/persist.py), snapshots, undo, reset and resume all go through
+`entries()`: there is no other list of what the state is.
+
+The `layout` counter moves on whenever particles are added, removed or moved in storage (`particles_moved()`): what
+was built over the old layout (neighbour lists) rebuilds. Passengers are per-particle fields that others keep (a
+renderer's motion-blur tails) and attach with `carry()`: they move with the particles but are not state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import transfer
+from .particles import Mover, Particles, SpringState
+
+FIELD, NDARRAY, VALUE = "field", "ndarray", "value"
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One declared piece of the state."""
+
+    name: str  # dotted: "particles.x", "springs.alive", "neighbours.ids", "clock.time"
+    owner: object  # the object holding it
+    attribute: str  # its attribute on the owner
+    kind: str  # FIELD, NDARRAY or VALUE
+    physical: bool  # in snapshots (reset, undo); else kept only for a bit-for-bit resume
+    rows: str = ""  # what its first axis counts ("particles", "springs"), or "": checked when a state file is read
+
+    def get(self):
+        return getattr(self.owner, self.attribute)
+
+    def set(self, value) -> None:
+        setattr(self.owner, self.attribute, value)
+
+
+class State:
+    """The particles, springs and clock of a simulation, and what its parts declare (see the module docstring)."""
+
+    def __init__(self, particles: Particles, springs: SpringState | None, dt: float):
+        self.particles = particles
+        self.springs = springs
+        self.time = 0.0  # simulated time (scene units)
+        self.step = 0  # steps taken
+        self.frames = 0  # frames advanced
+        self.dt = dt  # the step size (changes with substeps = "auto" and the window's slider)
+        self.layout = 0  # moves on whenever particles are added, removed or moved in storage
+        self.passengers: tuple = ()  # per-particle fields others keep, moved with the particles
+        self.mover = Mover(particles, springs)
+        self._entries: list[Entry] = []
+        self.declare("clock", self, ("time", "step", "frames", "dt"), kind=VALUE)
+        self.declare("state", self, ("layout",), kind=VALUE, physical=False)  # the lists compare theirs with it
+        self.declare("particles", particles, ("n",), kind=FIELD)
+        self.declare("particles", particles, tuple(particles.names()), kind=FIELD, rows="particles")
+        self.declare("particles", particles, ("next_ident",), kind=VALUE)
+        if springs is not None:
+            per_spring = tuple(n for n in SpringState.NAMES if n not in ("bonds", "created", "span"))
+            self.declare("springs", springs, per_spring, kind=FIELD, rows="springs")
+            self.declare("springs", springs, ("bonds",), kind=FIELD, rows="particles")
+            self.declare("springs", springs, ("created", "span"), kind=FIELD)
+
+    # ------------------------------------------------------------------ the declarations
+    def declare(self, prefix: str, owner, names, kind: str = FIELD, physical: bool = True, rows: str = "") -> None:
+        """Add `owner`'s attributes `names` to the state under `prefix.name`: Taichi fields (FIELD), ndarrays
+        (NDARRAY: the attribute may be replaced by a wider one) or host numbers and lists (VALUE). `physical`: part
+        of a snapshot (else only saved to state files, for a bit-for-bit resume); `rows`: what the first axis of a
+        field counts."""
+        taken = {e.name for e in self._entries}
+        for name in names:
+            entry = Entry(f"{prefix}.{name}", owner, name, kind, physical, rows)
+            if entry.name in taken:
+                raise ValueError(f"state entry {entry.name} declared twice")
+            self._entries.append(entry)
+
+    def forget(self, prefix: str) -> None:
+        """Drop the entries declared under `prefix` (a part that is replaced: the integrator)."""
+        self._entries = [e for e in self._entries if not e.name.startswith(prefix + ".")]
+
+    def entries(self, physical_only: bool = False) -> list[Entry]:
+        """Every declared entry in declaration order (only the physical ones with `physical_only`)."""
+        return [e for e in self._entries if e.physical or not physical_only]
+
+    @property
+    def movable(self) -> tuple:
+        """The per-particle fields that move with a particle: the particles' own, then the passengers."""
+        return tuple(self.particles.fields()) + self.passengers
+
+    # ------------------------------------------------------------------ snapshots
+    def snapshot(self) -> dict:
+        """Copies of every physical entry by name (numbers as they are, fields as NumPy arrays; one copy kernel)."""
+        entries = self.entries(physical_only=True)
+        fields = [e for e in entries if e.kind == FIELD]
+        snap = {e.name: _copy_value(e.get()) for e in entries if e.kind == VALUE}
+        snap.update(zip((e.name for e in fields), transfer.download_all([e.get() for e in fields])))
+        for e in entries:
+            if e.kind == NDARRAY:
+                snap[e.name] = e.get().to_numpy()
+        return snap
+
+    def restore(self, snap: dict) -> None:
+        """Put every physical entry back as `snapshot()` saw it (one copy kernel), and move the layout on."""
+        entries = self.entries(physical_only=True)
+        transfer.upload_all([(e.get(), snap[e.name]) for e in entries if e.kind == FIELD])
+        for e in entries:
+            if e.kind == VALUE:
+                e.set(_copy_value(snap[e.name]))
+            elif e.kind == NDARRAY:
+                e.get().from_numpy(snap[e.name])
+        self.particles_moved()
+
+    # ------------------------------------------------------------------ moving particles
+    def particles_moved(self) -> None:
+        """Particles were added, removed or moved in storage (or the springs changed): rebuild what was built over
+        the old layout (the neighbour lists compare this counter with the one they were built at)."""
+        self.layout += 1
+
+    def carry(self, fields) -> None:
+        """Attach per-particle fields (capacity rows) that move with the particles from now on."""
+        self.passengers = self.passengers + tuple(f for f in fields if f not in self.passengers)
+
+    def drop(self, fields) -> None:
+        """Detach passengers attached with carry()."""
+        self.passengers = tuple(f for f in self.passengers if all(f is not g for g in fields))
+
+    def permute(self, order, n: int) -> None:
+        """Sort the storage: slot k gets the particle at order[k] (a field of n ids), everything that moves with it."""
+        self.mover.permute(order, n, self.movable)
+        self.particles_moved()
+
+    def fill_holes(self, hole, filler, count: int) -> None:
+        """Move the particle at filler[m] into slot hole[m], m < count (the caller then lowers the count)."""
+        if count:
+            self.mover.fill_holes(hole, filler, count, self.movable)
+        self.particles_moved()
+
+    def live_count(self) -> int:
+        """The number of live particles (a host read)."""
+        return int(self.particles.n[None])
+
+
+def _copy_value(value):
+    """A host value's copy (lists are copied, so a snapshot does not change with the state)."""
+    if isinstance(value, list):
+        return [_copy_value(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    return value

@@ -1,0 +1,83 @@
+"""Lifetimes: a particle with lifetime L > 0 (emitted with one: physics/emitters.py) is dead once its age reaches L.
+
+Every step ages the particles; after each call of Simulation.step the dead are retired by compaction: live particles
+from the tail of the storage fill the holes (the State moves everything that rides with them: core/particles.py), so
+the live count stays the number alive and memory stays bounded however many particles were ever emitted.
+"""
+
+import taichi as ti
+
+from ..core.oriented import data_oriented
+from .term import Term, register
+
+
+@register
+@data_oriented
+class Lifetimes(Term):
+    """Ageing after each step and retirement of the dead after each Simulation.step call."""
+
+    key = "lifetimes"
+    order = 95.0
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        return parts.state.particles.lifetimes
+
+    def __init__(self, parts):
+        self.state = parts.state
+        self.p = parts.state.particles
+        self.loops = parts.model.loops
+        capacity = parts.model.capacity
+        self.hole = ti.field(ti.i32, shape=capacity)  # compaction: slots of the dead below the new count
+        self.filler = ti.field(ti.i32, shape=capacity)  # ... and the live particles above it that move into them
+        self.moves = ti.field(ti.i32, shape=2)  # [holes found, fillers found]
+
+    def words(self, where: str) -> list[str]:
+        return ["ageing; the dead retired by compaction after each step() call"] if where == "after" else []
+
+    def after_step(self, state) -> None:
+        self._age(state.dt)
+
+    def after_steps(self, state) -> None:
+        self.retire()
+
+    @ti.kernel
+    def _age(self, dt: float):
+        self.loops.light()
+        for i in range(self.p.n[None]):
+            self.p.age[i] += dt
+
+    def retire(self) -> int:
+        """Remove the dead (age >= lifetime > 0) by compaction; returns how many were removed."""
+        dead = int(self._count_dead())
+        if dead == 0:
+            return 0
+        self._find_moves(int(self.p.n[None]) - dead)
+        self.state.fill_holes(self.hole, self.filler, int(self.moves[0]))
+        return dead
+
+    @ti.func
+    def dead(self, i):
+        return self.p.lifetime[i] > 0.0 and self.p.age[i] >= self.p.lifetime[i]
+
+    @ti.kernel
+    def _count_dead(self) -> ti.i32:
+        total = 0
+        for i in range(self.p.n[None]):
+            if self.dead(i):
+                total += 1
+        return total
+
+    @ti.kernel
+    def _find_moves(self, n_new: ti.i32):
+        """The dead below the new count (holes) and the live above it (fillers), as many of each; the count drops."""
+        p = self.p
+        self.moves[0] = 0
+        self.moves[1] = 0
+        for i in range(n_new):
+            if self.dead(i):
+                self.hole[ti.atomic_add(self.moves[0], 1)] = i
+        for i in range(n_new, p.n[None]):
+            if not self.dead(i):
+                self.filler[ti.atomic_add(self.moves[1], 1)] = i
+        p.n[None] = n_new

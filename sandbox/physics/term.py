@@ -1,0 +1,174 @@
+"""The shape of a physics term, and the registry a scene's term list is built from.
+
+A term is one piece of physics a scene can name (the pair force, springs, heat, walls, gravity, emitters, smoke, ...).
+It is one class, registered with `@register`, that says when a scene has it (`wanted`), is built from the scene's
+`Parts`, and declares what it provides by the flags and methods below. The rates (step/rates.py), the stepping plan
+(step/plan.py), the measurements (measure/diagnostics.py), the stability bounds and the state file are all derived
+from the list: a new term is a new class in a new module imported by physics/__init__.py, and every way of stepping
+picks it up.
+
+Its part of the rates, each a Taichi func inlined into the kernels of every way of stepping (long, fused, team):
+    pair_channel = "force" | "heat"    row(i) -> ctx, loaded once per particle i;
+                                       pair(ctx, i, j, d, r2, bonded) -> its force on i from j (a D-vector) or
+                                       heat flow into i from j; finite for any pair within the neighbour reach,
+                                       zero beyond its own range (j gets the opposite: the pairs are antisymmetric)
+    excludes_bonded                    its pair() gives nothing for a pair joined by a live spring
+    bonded                             bond(i, j, s, d) -> force on i from live spring s joining it to j
+    particle_force                     force(i) -> force on particle i from it alone (gravity, drag)
+    particle_heat                      heat(i) -> heat rate into i from outside the particles (sources, ambient)
+    adjusts_force                      adjust_force(i, f) -> the force i feels, after every contribution
+    prestep                            prestep_loops(): per-stage device work before the forces (spring updates)
+    finishes                           finish(i, dt, rates): particle i's end-of-step work (walls, heat update)
+Its host work (the long way runs it around each step; a scene with any never runs steps many to a launch):
+    before_step(state), after_step(state), after_steps(state) (after each Simulation.step call),
+    at_step(state, done) (at a step boundary, after fused batches too: refreezing)
+and `host_work(scene)` says why in words. The order of each kind of hook is the terms' `order`, or `<hook>_order`
+where a term's hook must run elsewhere among the others (the heat update after the walls have moved a particle).
+
+Its other parts: `start(state)` (once the simulation is built), `stable_dt(integrator)`, `auto_dt(integrator)` (its
+bounds on the step), `measures` with `measure_particle(i)`, `measure_spring(s)`, `measure_pairs(i)`,
+`measure_value()` (its readouts), `declare(state)` (what it carries from step to step), `controls()` and
+`apply_controls()` (values a user may change while it runs), `after_restore(state)`, `words(where)` (what it does
+where in a step, for `sandbox check`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+TERMS: list[type] = []  # every term class, in registration order
+
+
+def register(cls: type) -> type:
+    """Class decorator: make `cls` a term a scene can have (see the module docstring)."""
+    if cls not in TERMS:
+        TERMS.append(cls)
+    return cls
+
+
+def hook_order(term, hook: str) -> float:
+    """Where `term`'s hook of kind `hook` runs among the others: its `<hook>_order`, else its `order`."""
+    return getattr(term, f"{hook}_order", term.order)
+
+
+@dataclass(frozen=True)
+class Measure:
+    """One readout a term adds: a sum ("sum"), a maximum ("max") or an integer count ("count") over particles
+    ("particles": measure_particle(i)), live or dead springs ("springs": measure_spring(s)) or each particle's pairs
+    ("pairs": measure_pairs(i)). The term's measure_* func returns one value per measure of that kind, in order."""
+
+    name: str
+    kind: str  # "sum", "max", "count"
+    over: str  # "particles", "springs", "pairs", or "value" (measure_value(): read as it is)
+    start: float = 0.0  # where a sum or maximum starts (a maximum of temperatures: below any)
+
+
+@dataclass
+class Parts:
+    """What a term is built from: the model, the state, the neighbour structure (None without pair terms), and the
+    terms built before it (by key)."""
+
+    model: object
+    state: object
+    neighbours: object
+    terms: dict = field(default_factory=dict)
+
+    @property
+    def scene(self):
+        return self.model.scene
+
+
+class Term:
+    """A term with nothing to add: every hook off. Subclasses set the flags of what they provide."""
+
+    key = ""  # its name in the term list (sim.terms.<key>)
+    order = 50.0  # where its hooks run among the others' (and the order terms are built in)
+
+    pair_channel = ""
+    excludes_bonded = False
+    bonded = False
+    particle_force = False
+    particle_heat = False
+    adjusts_force = False
+    prestep = False
+    finishes = False
+    measures: tuple = ()
+
+    @staticmethod
+    def wanted(scene) -> bool:
+        """Whether `scene` has this term."""
+        return False
+
+    @staticmethod
+    def host_work(scene) -> str | None:
+        """Why this term needs the host between `scene`'s steps (then each step runs the long way), or None."""
+        return None
+
+    @staticmethod
+    def team_blocker(scene) -> str | None:
+        """Why a team of threads cannot step `scene` with this term (step/team.py), or None."""
+        return None
+
+    def start(self, state) -> None:
+        """Work once the whole simulation is built (emitters seed their initial particles)."""
+
+    def before_step(self, state) -> None:
+        """Host work before each step (the long way)."""
+
+    def after_step(self, state) -> None:
+        """Host work after each step (the long way)."""
+
+    def after_steps(self, state) -> None:
+        """Host work after each Simulation.step call, however many steps it took."""
+
+    def at_step(self, state, done: int) -> bool:
+        """Host work at a step boundary, after the `done` steps just taken (one, or a fused batch, which ends where
+        next_due says); returns True when it changed the springs."""
+        return False
+
+    def next_due(self, state) -> int:
+        """Steps from now until at_step has work (a fused batch ends there); a large number when never."""
+        return 1 << 30
+
+    def stable_dt(self, integrator) -> float:
+        """The largest stable step this term allows with `integrator` (inf: no bound)."""
+        return math.inf
+
+    def auto_dt(self, integrator) -> float:
+        """The step substeps = "auto" may take for this term now (inf: no bound)."""
+        return math.inf
+
+    def declare(self, state) -> None:
+        """Declare what this term carries from step to step (state.declare)."""
+
+    def controls(self) -> dict:
+        """Values a user may change while it runs, as plain numbers (saved with the state)."""
+        return {}
+
+    def apply_controls(self, values: dict) -> None:
+        """Set what controls() returned."""
+
+    def after_restore(self, state) -> None:
+        """The state was put back (reset, undo, load): refresh what follows from it."""
+
+    def words(self, where: str) -> list[str]:
+        """What this term does at `where` in a step, in words (`sandbox check` prints the plan with them): "before"
+        and "after" (its host passes), "prestep", "rates" and "finish" (its part of the rates), "boundary"."""
+        return []
+
+    def nbytes(self) -> int:
+        """Bytes of field memory this term holds of its own."""
+        return 0
+
+
+class TermList(tuple):
+    """A scene's terms in their order; each also by its key (`terms.springs`), None where the scene has none."""
+
+    def __getattr__(self, key: str):
+        for term in self:
+            if term.key == key:
+                return term
+        if any(cls.key == key for cls in TERMS):
+            return None
+        raise AttributeError(f"no term {key!r}; the registered ones are {', '.join(cls.key for cls in TERMS)}")

@@ -1,0 +1,42 @@
+"""The walls of the domain (or its periodic wrap) as a term: each particle's end-of-step position and velocity, and
+the walls' momentum gauge (the pressure they feel)."""
+
+import taichi as ti
+
+from ..core.oriented import data_oriented
+from .term import Measure, Term, register
+
+
+@register
+@data_oriented
+class Walls(Term):
+    """Walls with restitution and Coulomb friction, or periodic wrapping (core/domain.py), once per step at its end
+    (multi-stage methods do not see them between stages). Measures the momentum the walls took since the gauge
+    restarted (`impulse`)."""
+
+    key = "walls"
+    order = 52.0
+    finishes = True
+    measures = (Measure("impulse", "sum", "value"),)
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        return True
+
+    def __init__(self, parts):
+        self.p = parts.state.particles
+        self.domain = parts.model.domain
+
+    def words(self, where: str) -> list[str]:
+        return (
+            ["periodic wrap" if self.domain.periodic else "walls (restitution, friction)"] if where == "finish" else []
+        )
+
+    @ti.func
+    def finish(self, i, dt, rates: ti.template()):
+        p = self.p
+        p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i], p.mass[i])
+
+    @ti.func
+    def measure_value(self):
+        return (self.domain.impulse[None],)
