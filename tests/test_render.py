@@ -34,9 +34,9 @@ def dot_scene(bodies, dim=2, render=None, hi=100.0):
 
 def splat_light(ren):
     """Splat a 2D frame and return (the additive light before tone mapping, the finished image)."""
-    ren._splat_2d()
-    light = ren.light.to_numpy().copy()
-    ren._composite()  # composites, writes the 8-bit picture and zeroes the accumulators
+    ren.painter.draw()
+    light = ren.canvas.light.to_numpy().copy()
+    ren.painter.composite(1, ren.out)  # composites, writes the 8-bit picture and zeroes the accumulators
     return light, ren.image.to_numpy()
 
 
@@ -64,7 +64,7 @@ def test_sub_pixel_additive_particle_deposits_its_full_intensity(x):
     sim = dot_scene([one([x, 50.3], spacing=0.1, blend="additive", opacity=5.0)])
     ren = Renderer(sim.model, sim.state, 100, 100, sim.scene.render)
     light, _ = splat_light(ren)
-    r_px = 0.05 * ren.px_per_unit
+    r_px = 0.05 * ren.painter.px_per_unit
     assert light[..., 0].sum() == pytest.approx(5.0 * math.pi * r_px**2, rel=1e-5)
 
 
@@ -91,8 +91,8 @@ def test_motion_blur_streak_has_the_length_of_the_displacement():
     ren = blurred_pair(True, 30.0)
     light = ren.light_before_tone_map[..., 0]
     cols = np.flatnonzero(light.sum(axis=1) > 1e-6)
-    length_px = 30.0 * ren.px_per_unit
-    radius_px = 1.0 * ren.px_per_unit
+    length_px = 30.0 * ren.painter.px_per_unit
+    radius_px = 1.0 * ren.painter.px_per_unit
     assert cols.max() - cols.min() + 1 == pytest.approx(length_px + 2 * radius_px, abs=2.0)
     # the same energy as the still particle, brightest at the head
     still = blurred_pair(False, 30.0)
@@ -132,7 +132,7 @@ def test_a_spline_streak_bends_through_the_middle_position_with_the_energy_of_a_
     line, straight = arc_streak("line")
 
     def pixel(p):  # (column, row) of a domain point in the [x, y] image
-        q = np.asarray(p) * spline.px_per_unit + spline.offset.to_numpy()
+        q = np.asarray(p) * spline.painter.px_per_unit + spline.painter.offset.to_numpy()
         return int(q[0]), int(q[1])
 
     top = pixel([50.0, 70.0])
@@ -141,8 +141,8 @@ def test_a_spline_streak_bends_through_the_middle_position_with_the_energy_of_a_
     assert curve.sum() == pytest.approx(straight.sum(), rel=1e-5)  # the same light, spread along a longer path
     # a symmetric bounce: the middle position is the curve's apex, so nothing is drawn above it (plus the radius)
     rows = np.flatnonzero(curve.sum(axis=0) > 1e-6)
-    apex = 70.0 * spline.px_per_unit + spline.offset.to_numpy()[1]
-    assert rows.max() == pytest.approx(apex + 1.0 * spline.px_per_unit, abs=2.0)
+    apex = 70.0 * spline.painter.px_per_unit + spline.painter.offset.to_numpy()[1]
+    assert rows.max() == pytest.approx(apex + 1.0 * spline.painter.px_per_unit, abs=2.0)
 
 
 def alpha_pair_3d(red_in_front: bool):
@@ -222,7 +222,7 @@ def test_the_legend_labels_its_range_with_the_unit_and_the_clock_prints_the_time
     sim.step(30)
     ren = Renderer(sim.model, sim.state, 320, 180, sim.scene.render)
     img = ren.frame()
-    x0, y0, bar_w, bar_h, scale = ren._legend_geometry()
+    x0, y0, bar_w, bar_h, scale = ren.overlays.legend_geometry()
     lo, hi = sim.scene.render.temperature_range
     label = f"{hi:g} °C"
     assert lit_where_text_is(img, label, x0 + bar_w - 4 * scale * len(label), y0 + bar_h + 3, scale)
@@ -241,7 +241,7 @@ def test_the_window_picture_carries_the_colour_bar_and_the_chart_labels():
     ren.label_window_output()
     rgba = ren.out.view(np.uint8).reshape(320, 180, 4)
     shown = np.ascontiguousarray(rgba[:, ::-1, :3].transpose(1, 0, 2))
-    x0, y0, bar_w, bar_h, scale = ren._legend_geometry()
+    x0, y0, bar_w, bar_h, scale = ren.overlays.legend_geometry()
     label = f"{sim.scene.render.temperature_range[1]:g} °C"
     assert lit_where_text_is(shown, label, x0 + bar_w - 4 * scale * len(label), y0 + bar_h + 3, scale)
     assert (ren.out != before).sum() > 200 and np.array_equal(shown, ren.picture())
@@ -481,7 +481,9 @@ def test_compositing_only_the_dirty_tiles_gives_the_full_picture(output):
             ren.label_window_output()  # the window's text, drawn on its packed picture in place (rgba only)
         if output == "image":
             assert np.array_equal(tiled.image.to_numpy(), full.image.to_numpy())
-    assert tiled.stamp[None] == 6 and np.count_nonzero(tiled.tile_stamp.to_numpy() >= 4) < 40  # few tiles drawn
+    assert (
+        tiled.canvas.stamp[None] == 6 and np.count_nonzero(tiled.canvas.tile_stamp.to_numpy() >= 4) < 40
+    )  # few tiles drawn
 
 
 def test_splatting_strip_by_strip_without_atomics_gives_the_picture_of_atomic_splatting():
@@ -512,10 +514,10 @@ def test_splatting_strip_by_strip_without_atomics_gives_the_picture_of_atomic_sp
     a, b = strips.frame().copy(), atomic.frame()
     assert np.abs(strips.image.to_numpy() - atomic.image.to_numpy()).max() < 1e-5
     assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
-    count = strips.strips.count.to_numpy()
-    wide = count[strips.strips.wide]
+    count = strips.painter.strips.count.to_numpy()
+    wide = count[strips.painter.strips.wide]
     assert count.sum() == n and 0 < wide < n // 5 + 3  # most particles drawn strip by strip
-    assert strips.strips.n_strips == 320 // STRIP and atomic.strips.count.to_numpy()[-1] == n
+    assert strips.painter.strips.n_strips == 320 // STRIP and atomic.painter.strips.count.to_numpy()[-1] == n
 
 
 def moved_sphere_3d(motion_blur, move_by):
@@ -538,7 +540,7 @@ def test_a_blurred_opaque_sphere_stays_solid_and_leaves_a_fading_streak_of_its_d
     streak = (np.abs(blurred - background).sum(axis=2) > 0) & ~sphere
     assert np.array_equal(blurred[sphere], sharp[sphere])  # the sphere itself is drawn as without motion blur
     rows, cols = np.nonzero(sphere | streak)
-    ppu = ren.focal_field[None] / (200.0 - 48.0)  # pixels per unit of length at the sphere's depth
+    ppu = ren.painter.focal_field[None] / (200.0 - 48.0)  # pixels per unit of length at the sphere's depth
     assert cols.max() - cols.min() + 1 == pytest.approx((20.0 + 2 * 3.0) * ppu, abs=2.5)  # displacement + diameter
     row = int(np.median(rows))
     red = (blurred - background)[row, :, 0]
@@ -573,4 +575,4 @@ def test_a_chart_or_colour_bar_too_big_for_the_picture_is_left_out(tmp_path):
 def test_the_colour_bar_fits_at_every_common_size(size):
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true"]))
     ren = Renderer(sim.model, sim.state, *size, sim.scene.render)
-    assert ren._legend_shown()  # the bar and its labels inside the picture
+    assert ren.overlays.legend_shown()  # the bar and its labels inside the picture

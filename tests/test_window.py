@@ -358,13 +358,13 @@ def test_the_panel_never_covers_the_scene_or_its_chart():
             left = ren.panel_px
             assert left == round(PANEL_WIDTH * width)
             if sim.dim == 2:
-                lo, hi = ren.px_lo.to_numpy(), ren.px_hi.to_numpy()
+                lo, hi = ren.painter.px_lo.to_numpy(), ren.painter.px_hi.to_numpy()
                 assert lo[0] >= left and hi[0] <= width and lo[1] >= 0 and hi[1] <= height, (name, lo, hi)
             else:
-                rel = sim.positions() - ren.eye_np
-                z = rel @ ren.fwd_np
-                focal = 0.5 * height / np.tan(np.radians(ren.fov) / 2)
-                sx = ren.cx + focal * (rel @ ren.right_np) / z
+                rel = sim.positions() - ren.painter.eye_np
+                z = rel @ ren.painter.fwd_np
+                focal = 0.5 * height / np.tan(np.radians(ren.painter.fov) / 2)
+                sx = ren.painter.cx + focal * (rel @ ren.painter.right_np) / z
                 assert sx.min() >= left and sx.max() <= width, (name, sx.min(), sx.max())
             assert ren.chart.x0 >= left and ren.chart.fits
             chars = panel_characters(width, PANEL_WIDTH)

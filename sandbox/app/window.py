@@ -90,7 +90,7 @@ def run_window(
     recorder = Recorder(sim.scene.name, *size, cfg.fps, record)
     chart_series = tuple(cfg.chart)
     potential_shown = (False, 1.0, 1.0)
-    orbit = OrbitCamera(renderer.eye_np, renderer.target_np) if sim.dim == 3 else None
+    orbit = OrbitCamera(renderer.painter.eye_np, renderer.painter.target_np) if sim.dim == 3 else None
     last_cursor = None
     base_dt = sim.dt
     gravity = np.asarray(sim.scene.world.gravity, dtype=float)
@@ -129,7 +129,7 @@ def run_window(
             renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH)
             sim.state.carry(renderer.tails)
             if orbit is not None:
-                renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
+                renderer.set_camera(orbit.eye(), orbit.target, renderer.painter.fov)
             chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below
             potential_shown = (False, 1.0, 1.0)  # ... and the pair-force panel
             state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
@@ -169,7 +169,7 @@ def run_window(
                     orbit.zoom(dv)
                 else:
                     orbit.pan(du, dv)
-                renderer.set_camera(orbit.eye(), orbit.target, renderer.fov)
+                renderer.set_camera(orbit.eye(), orbit.target, renderer.painter.fov)
             last_cursor = (u, v)
         if show and state.tool and window.is_pressed(ti.ui.LMB) and sim.dim == 2:
             pos = renderer.world_point(u, v)
@@ -198,7 +198,7 @@ def run_window(
         state.probe = probe_under(sim, renderer, u, v) if show else ""
         clock.lap("readouts")
         if state.tool and sim.dim == 2:  # the brush, outlined at the cursor
-            renderer.set_brush((u * cfg.width, v * cfg.height), state.radius * renderer.px_per_unit)
+            renderer.set_brush((u * cfg.width, v * cfg.height), state.radius * renderer.painter.px_per_unit)
         else:
             renderer.set_brush(None)
         renderer.render()

@@ -230,3 +230,11 @@ def launch_paths() -> list[tuple[object, str, str]]:
         (matrix, "_read_host_access", "field read"),
         (matrix, "_write_host_access", "field write"),
     ]
+
+
+def field_info(array):
+    """GGUI's description of a field or array for the canvas's lower-level set_image (what canvas.set_image passes
+    after its conversion kernel): taichi.ui.utils.get_field_info."""
+    from taichi.ui.utils import get_field_info  # noqa: PLC0415 - GGUI's module: imported only by a window
+
+    return get_field_info(array)

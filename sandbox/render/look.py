@@ -1,17 +1,56 @@
-"""How a particle looks and what it covers: colour by temperature, speed or phase, fading and shrinking over a
-lifetime, the motion-blur streak's geometry, pixel coverage and the light an additive particle deposits. A mixin of
-Renderer (raster.py), shared by the 2D and 3D passes."""
+"""How a particle looks: its colour (by temperature, material, speed or phase), its drawn radius and opacity, fading
+and shrinking over a lifetime, and each body's drawing style.
 
+Every body (particle group) has a drawing style: `draw` (dot: one pixel; splat: a disc of the particle's radius;
+sphere: a shaded sphere in 3D) and `blend` (opaque; alpha: translucent; additive: emits light, absorbs none). The
+spawn tool's particles, the last group, are splats (spheres in 3D), opaque.
+"""
+
+import numpy as np
 import taichi as ti
 
+from ..core import transfer
+from ..core.oriented import data_oriented
 from .colormaps import glow_over_base, speed_map
-from .style import BLEND, SPLINE_SEGMENTS, TILE
+from .style import BLEND, COLOR_MODES, DRAW
 
 
-class ParticleLook:
-    """Renderer's per-particle colour, size and coverage functions (Taichi funcs)."""
+@data_oriented
+class Look:
+    """Colours, sizes and opacities of the particles of `state` (its `model` for materials and the phase law), with
+    the [render] settings `cfg`."""
 
-    # ------------------------------------------------------------------ shared funcs
+    def __init__(self, model, state, cfg):
+        self.model, self.p = model, state.particles
+        bodies = model.scene.groups  # every body, then every emitter, then (last) the spawn tool's particles
+        self.n_groups = len(bodies) + 1
+        self.g_draw = ti.field(ti.i32, shape=self.n_groups)
+        self.g_blend = ti.field(ti.i32, shape=self.n_groups)
+        self.g_opacity = ti.field(ti.f32, shape=self.n_groups)
+        self.g_fade = ti.field(ti.i32, shape=self.n_groups)  # colour fades over the lifetime
+        self.g_shrink = ti.field(ti.i32, shape=self.n_groups)  # drawn radius shrinks over the lifetime
+        draw = [DRAW[b.draw] for b in bodies] + [DRAW["splat" if model.dim == 2 else "sphere"]]  # + the spawn tool's
+        self.blend_table = np.array([BLEND[b.blend] for b in bodies] + [BLEND["opaque"]], np.int32)
+        transfer.upload(
+            [
+                (self.g_fade, np.array([int(getattr(b, "fade", False)) for b in bodies], np.int32)),
+                (self.g_shrink, np.array([int(getattr(b, "shrink", False)) for b in bodies], np.int32)),
+                (self.g_draw, np.array(draw, np.int32)),
+                (self.g_blend, self.blend_table),
+                (self.g_opacity, np.array([b.opacity for b in bodies] + [1.0], np.float32)),
+            ]
+        )
+        self.blends = {b.blend for b in bodies} | ({"opaque"} if model.scene.palette else set())
+        self.has_lifetimes = self.p.lifetimes
+        self.has_heat = self.p.heat
+        self.color_mode = COLOR_MODES[cfg.color_by]
+        self.t_lo = ti.field(ti.f32, shape=())
+        self.t_hi = ti.field(ti.f32, shape=())
+        self.speed_hi = ti.field(ti.f32, shape=())
+        t_lo, t_hi = cfg.temperature_range
+        transfer.upload([(self.t_lo, t_lo), (self.t_hi, t_hi), (self.speed_hi, cfg.speed_range)])
+        self.particle_scale = float(cfg.particle_scale)
+
     @ti.func
     def life_left(self, i):
         """1 at birth falling to 0 at death for particles with a lifetime, else 1."""
@@ -32,8 +71,8 @@ class ParticleLook:
         return r
 
     @ti.func
-    def particle_color(self, i):
-        """Drawing colour: the colour map's, darkened over the lifetime when fading (not for alpha: see below)."""
+    def color(self, i):
+        """Drawing colour: the colour map's, darkened over the lifetime when fading (not for alpha: see opacity)."""
         c = self._base_color(i)
         if ti.static(self.has_lifetimes):
             g = self.p.group[i]
@@ -42,7 +81,7 @@ class ParticleLook:
         return c
 
     @ti.func
-    def group_opacity(self, i):
+    def opacity(self, i):
         """Opacity of particle i's group; a fading translucent particle grows fainter rather than darker."""
         g = self.p.group[i]
         a = self.g_opacity[g]
@@ -65,111 +104,3 @@ class ParticleLook:
             phi = self.model.phase.fraction(p.h[i], p.material[i])
             c = (1.0 - phi) * base + phi * self.model.materials.liquid_color[p.material[i]]
         return c
-
-    @ti.func
-    def _segment(self, pix, a, b):
-        """(distance from pixel centre pix to segment a-b, parameter t in [0, 1] of the nearest point; t = 1 at b)."""
-        ab = b - a
-        l2 = ab.dot(ab)
-        t = 1.0
-        if l2 > 1e-12:
-            t = ti.math.clamp((pix - a).dot(ab) / l2, 0.0, 1.0)
-        return (pix - (a + t * ab)).norm(), t
-
-    @ti.func
-    def _curve(self, pix, a, c, b):
-        """(distance from pix to the quadratic Bezier a-c-b, its parameter there), on SPLINE_SEGMENTS chords."""
-        best = 1e30
-        t_best = 1.0
-        start = a
-        for k in ti.static(range(1, SPLINE_SEGMENTS + 1)):
-            t = k / SPLINE_SEGMENTS
-            end = (1.0 - t) ** 2 * a + 2.0 * (1.0 - t) * t * c + t * t * b
-            d, s = self._segment(pix, start, end)
-            if d < best:
-                best = d
-                t_best = (k - 1 + s) / SPLINE_SEGMENTS
-            start = end
-        return best, t_best
-
-    @ti.func
-    def _streak(self, prev, mid, head):
-        """(tail, control point, head) in pixels of the streak of a particle that went prev -> mid -> head over the
-        frame: the last `shutter` of the straight segment, or of the quadratic through the three (spline)."""
-        tail = head + self.shutter * (prev - head)
-        ctrl = 0.5 * (tail + head)
-        if ti.static(self.spline):
-            t0 = 1.0 - self.shutter
-            c = 2.0 * mid - 0.5 * (prev + head)  # the quadratic's control point: it passes through mid at t = 1/2
-            tail = (1.0 - t0) ** 2 * prev + 2.0 * (1.0 - t0) * t0 * c + t0 * t0 * head
-            ctrl = (1.0 - t0) * c + t0 * head  # de Casteljau: the control point of the piece from t0 to 1
-        return tail, ctrl, head
-
-    @ti.func
-    def _weight(self, pix, a, c, b, r, blurred):
-        """Coverage of pixel pix by the capsule of radius r (pixels) around the streak a-b (curved through control
-        point c with spline motion blur), times the fall-off along a streak."""
-        w, _ = self._coverage(pix, a, c, b, r, blurred)
-        return w
-
-    @ti.func
-    def _coverage(self, pix, a, c, b, r, blurred):
-        """(_weight, the parameter along the streak of the nearest point: 0 at the tail a, 1 at the head b)."""
-        d, t = 0.0, 0.0
-        if ti.static(self.spline):
-            if blurred:
-                d, t = self._curve(pix, a, c, b)
-            else:
-                d, t = self._segment(pix, a, b)
-        else:
-            d, t = self._segment(pix, a, b)
-        w = ti.math.clamp(r + 0.5 - d, 0.0, 1.0)
-        if blurred:
-            w *= 0.25 + 0.75 * t
-        return w, t
-
-    @ti.func
-    def _box(self, a, b, r, c):
-        """Pixel bounds of the capsule around a-b (and control point c, which bounds a curve with the ends): every
-        pixel whose centre lies within r + 0.5 of it (where the coverage clamp(r + 0.5 - d, 0, 1) is not zero), as
-        pixel px's centre is px + 0.5."""
-        lo = ti.min(ti.min(a, b), c)
-        hi = ti.max(ti.max(a, b), c)
-        x0 = ti.max(ti.cast(ti.ceil(lo[0] - r - 1), ti.i32), 0)
-        x1 = ti.min(ti.cast(ti.floor(hi[0] + r), ti.i32), self.width - 1)
-        y0 = ti.max(ti.cast(ti.ceil(lo[1] - r - 1), ti.i32), 0)
-        y1 = ti.min(ti.cast(ti.floor(hi[1] + r), ti.i32), self.height - 1)
-        return x0, x1, y0, y1
-
-    @ti.func
-    def _stamp_tiles(self, x0, x1, y0, y1):
-        """2D: mark the tiles of pixel box [x0, x1] x [y0, y1] as drawn in this frame."""
-        self._stamp_tiles_as(x0, x1, y0, y1, self.stamp[None])
-
-    @ti.func
-    def _stamp_tiles_as(self, x0, x1, y0, y1, stamp):
-        """2D: mark the tiles of pixel box [x0, x1] x [y0, y1] as drawn in frame number `stamp`."""
-        if ti.static(self.dim == 2):
-            for tx in range(x0 // TILE, x1 // TILE + 1):
-                for ty in range(y0 // TILE, y1 // TILE + 1):
-                    self.tile_stamp[tx, ty] = stamp
-
-    @ti.func
-    def _deposit_light(self, a, c, b, r, energy, col, blurred, use_depth, z):
-        """Spread `energy` of colour col over the capsule's footprint with normalised weights (depth-tested in 3D)."""
-        x0, x1, y0, y1 = self._box(a, b, r, c)
-        self._stamp_tiles(x0, x1, y0, y1)
-        total = 0.0
-        for px in range(x0, x1 + 1):
-            for py in range(y0, y1 + 1):
-                total += self._weight(ti.Vector([px + 0.5, py + 0.5]), a, c, b, r, blurred)
-        if total > 0.0:
-            zbits = ti.bit_cast(ti.cast(ti.max(z, 0.0), ti.f32), ti.i32)
-            for px in range(x0, x1 + 1):
-                for py in range(y0, y1 + 1):
-                    w = self._weight(ti.Vector([px + 0.5, py + 0.5]), a, c, b, r, blurred)
-                    visible = True
-                    if use_depth:
-                        visible = zbits <= self.depth[px, py]
-                    if w > 0.0 and visible:
-                        self.light[px, py] += energy * w / total * col

@@ -1,38 +1,135 @@
-"""3D drawing: projection, shaded opaque spheres with a depth buffer, translucent particles sorted and composited
-back to front, motion-blur ghosts of opaque spheres, and depth-tested additive light. A mixin of Renderer."""
+"""3D drawing: the camera (a pinhole the window can orbit without recompiling), shaded opaque spheres with a depth
+buffer (an integer atomic min of the depth bits), translucent particles sorted back to front on the host and
+composited "over" in that order by a serial kernel with the depth test, motion-blur ghosts of opaque spheres, and
+depth-tested additive light.
+
+With motion blur, additive particles become streaks of light, and opaque spheres stay solid where they are and leave
+a translucent streak back to where they were, depth-tested along its length and composited like 2D's translucent
+particles (translucent 3D particles are drawn unblurred).
+"""
 
 import math
 
 import numpy as np
 import taichi as ti
 
+from ..core import transfer
+from ..core.oriented import data_oriented
 from .colormaps import glow
+from .flat import source_table
 from .style import BLEND, R_MIN
 
 
+@data_oriented
 class Spheres3D:
-    """Renderer's 3D passes."""
+    """Draws the particles of a 3D scene onto `canvas` through a camera; `cx` is where the view's axis meets the
+    picture (right of a side panel)."""
 
-    # ------------------------------------------------------------------ 3D
+    def __init__(self, canvas, footprint, look, model, state, cfg, cx: float):
+        self.canvas, self.footprint, self.look = canvas, footprint, look
+        self.model, self.p = model, state.particles
+        self.cx = cx
+        self.background = ti.Vector(list(cfg.background))
+        lo, hi = np.asarray(model.scene.world.lo), np.asarray(model.scene.world.hi)
+        centre = (lo + hi) / 2
+        size = float(np.linalg.norm(hi - lo))
+        target = np.asarray(cfg.camera_target) if cfg.camera_target else centre
+        default_eye = centre + np.array([0.35, 0.45, 1.0]) * size * 0.9
+        eye = np.asarray(cfg.camera_position) if cfg.camera_position else default_eye
+        # fields, not compile-time constants, so the window can orbit without recompiling
+        self.camera = ti.Vector.field(3, ti.f32, shape=4)  # eye, right, up, forward
+        self.focal_field = ti.field(ti.f32, shape=())  # pixels: focal length of the pinhole
+        self.set_camera(eye, target, cfg.fov)
+        light = np.asarray(cfg.light_direction, dtype=float)
+        self.light_dir = ti.Vector(list(light / np.linalg.norm(light)))
+        self.specular = float(cfg.specular)
+        self.ground = bool(cfg.ground)
+        self.floor_y = float(lo[1])
+        self.floor_lo = ti.Vector([float(lo[0]), float(lo[2])])
+        self.floor_hi = ti.Vector([float(hi[0]), float(hi[2])])
+        self.grid_step = float(max(1.0, round(max(hi[0] - lo[0], hi[2] - lo[2]) / 12)))
+        # heat sources lying on the floor are drawn on it in their glow colour
+        heat = model.scene.heat
+        sources = [s for s in (heat.sources if heat else []) if s.lo[1] <= lo[1] + 1 and s.visible]
+        self.n_src = len(sources)
+        table = source_table(cfg, sources, [[s.lo[0], s.lo[2]] for s in sources], [[s.hi[0], s.hi[2]] for s in sources])
+        (self.src_lo, _), (self.src_hi, _), (self.src_t, _) = table
+        transfer.upload(table)
+        if canvas.has_alpha:
+            self.order = ti.field(ti.i32, shape=model.capacity)  # translucent particles, back to front
+            self.n_order = ti.field(ti.i32, shape=())
+
+    def set_camera(self, eye, target, fov_degrees: float) -> None:
+        """Place the camera (world units) looking at target with a vertical field of view in degrees."""
+        eye, target = np.asarray(eye, dtype=float), np.asarray(target, dtype=float)
+        fwd = target - eye
+        fwd /= np.linalg.norm(fwd)
+        right = np.cross(fwd, np.array([0.0, 1.0, 0.0]))
+        if np.linalg.norm(right) < 1e-6:
+            right = np.array([1.0, 0.0, 0.0])
+        right /= np.linalg.norm(right)
+        true_up = np.cross(right, fwd)
+        self.eye_np, self.fwd_np, self.target_np = eye, fwd, target
+        self.right_np, self.up_np = right, true_up
+        focal = 0.5 * self.canvas.height / math.tan(math.radians(fov_degrees) / 2)
+        transfer.upload([(self.camera, np.array([eye, right, true_up, fwd], np.float32)), (self.focal_field, focal)])
+        self.fov = float(fov_degrees)
+
+    def draw(self) -> None:
+        """Every 3D pass, into the image."""
+        canvas = self.canvas
+        self._clear_3d()
+        if canvas.has_opaque:
+            self._depth_3d()
+            self._shade_3d()
+            if self.footprint.motion_blur:
+                self._ghosts_3d()
+                self._resolve_ghosts_3d()
+        if canvas.has_alpha:
+            self._sort_translucent()
+            self._composite_translucent()
+        if canvas.has_additive:
+            self._light_3d()
+            canvas.tone_map()
+
+    def pick_index(self, x: np.ndarray, u: float, v: float, reach_px: float = 12.0) -> int | None:
+        """Of the 3D positions x (N, 3), the index of the nearest drawn within reach_px pixels of the picture point
+        (u, v) (fractions of width and height from the bottom left, as GGUI's cursor), or None."""
+        if len(x) == 0:
+            return None
+        width, height = self.canvas.width, self.canvas.height
+        rel = x - self.eye_np
+        z = rel @ self.fwd_np
+        focal = 0.5 * height / math.tan(math.radians(self.fov) / 2)
+        front = z > 1e-6
+        sx = self.cx + focal * (rel @ self.right_np) / np.where(front, z, 1.0)
+        sy = height * 0.5 + focal * (rel @ self.up_np) / np.where(front, z, 1.0)
+        near = front & ((sx - u * width) ** 2 + (sy - v * height) ** 2 <= reach_px**2)
+        if not near.any():
+            return None
+        candidates = np.flatnonzero(near)
+        return int(candidates[np.argmin(z[candidates])])
+
     @ti.func
     def _project(self, pos):
         rel = ti.cast(pos, ti.f32) - self.camera[0]
         z = rel.dot(self.camera[3])
         sx = self.cx + self.focal_field[None] * rel.dot(self.camera[1]) / ti.max(z, 1e-6)
-        sy = self.height * 0.5 + self.focal_field[None] * rel.dot(self.camera[2]) / ti.max(z, 1e-6)
+        sy = self.canvas.height * 0.5 + self.focal_field[None] * rel.dot(self.camera[2]) / ti.max(z, 1e-6)
         return ti.Vector([sx, sy]), z
 
     @ti.kernel
     def _clear_3d(self):
-        for x, y in self.image:
-            shade = 0.75 + 0.25 * y / self.height
+        canvas = self.canvas
+        for x, y in canvas.image:
+            shade = 0.75 + 0.25 * y / canvas.height
             c = self.background * shade
             if ti.static(self.ground):
                 # the floor plane y = floor_y, with a faint grid so depth reads
                 ray = (
                     self.camera[3] * self.focal_field[None]
                     + self.camera[1] * (x + 0.5 - self.cx)
-                    + self.camera[2] * (y + 0.5 - 0.5 * self.height)
+                    + self.camera[2] * (y + 0.5 - 0.5 * canvas.height)
                 ).normalized()
                 if ray[1] < -1e-6:
                     s = (self.floor_y - self.camera[0][1]) / ray[1]
@@ -46,17 +143,19 @@ class Spheres3D:
                         c += 0.05 * ti.min(line, 1.0)
                         for k in range(self.n_src):
                             if (u >= self.src_lo[k]).all() and (u <= self.src_hi[k]).all():
-                                t = (self.src_t[k] - self.t_lo[None]) / (self.t_hi[None] - self.t_lo[None])
+                                t = (self.src_t[k] - self.look.t_lo[None]) / (
+                                    self.look.t_hi[None] - self.look.t_lo[None]
+                                )
                                 c = c * 0.6 + 0.3 * (glow(ti.max(t, 0.35)) if t > 0.05 else ti.Vector([0.3, 0.55, 1.0]))
-            self.image[x, y] = c
-            self.depth[x, y] = 2147483647
-            if ti.static(self.has_additive):
-                self.light[x, y] = ti.Vector([0.0, 0.0, 0.0])
+            canvas.image[x, y] = c
+            canvas.depth[x, y] = 2147483647
+            if ti.static(canvas.has_additive):
+                canvas.light[x, y] = ti.Vector([0.0, 0.0, 0.0])
 
     @ti.func
     def _sphere_disc(self, i, z):
         """Particle i at camera depth z: its drawn radius (world) and the radius of its disc on screen (px)."""
-        rad = self.drawn_radius(i)
+        rad = self.look.drawn_radius(i)
         return rad, ti.max(rad * self.focal_field[None] / z, R_MIN)
 
     @ti.func
@@ -76,34 +175,34 @@ class Spheres3D:
     def _depth_3d(self):
         p = self.p
         for i in range(p.n[None]):
-            if self.g_blend[p.group[i]] == 0:
+            if self.look.g_blend[p.group[i]] == 0:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
                     rad, r = self._sphere_disc(i, z)
-                    x0, x1, y0, y1 = self._box(centre, centre, r, centre)
+                    x0, x1, y0, y1 = self.canvas.box(centre, centre, r, centre)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
                             _, q = self._on_disc(centre, r, px, py)
                             if q <= 1.0:
-                                ti.atomic_min(self.depth[px, py], self._surface_depth_key(z, rad, q))
+                                ti.atomic_min(self.canvas.depth[px, py], self._surface_depth_key(z, rad, q))
 
     @ti.kernel
     def _shade_3d(self):
         p = self.p
         for i in range(p.n[None]):
             g = p.group[i]
-            if self.g_blend[g] == 0:
+            if self.look.g_blend[g] == 0:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
                     rad, r = self._sphere_disc(i, z)
-                    col = self.particle_color(i)
-                    shaded = self.g_draw[g] == 2
-                    x0, x1, y0, y1 = self._box(centre, centre, r, centre)
+                    col = self.look.color(i)
+                    shaded = self.look.g_draw[g] == 2
+                    x0, x1, y0, y1 = self.canvas.box(centre, centre, r, centre)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
                             u, q = self._on_disc(centre, r, px, py)
                             if q <= 1.0:
-                                if self._surface_depth_key(z, rad, q) == self.depth[px, py]:
+                                if self._surface_depth_key(z, rad, q) == self.canvas.depth[px, py]:
                                     c = col
                                     if shaded:
                                         nz = ti.sqrt(1.0 - q)
@@ -112,7 +211,7 @@ class Spheres3D:
                                         half = (self.light_dir - self.camera[3]).normalized()
                                         spec = ti.max(normal.dot(half), 0.0) ** 32
                                         c = col * (0.3 + 0.7 * diffuse) + self.specular * spec
-                                    self.image[px, py] = c
+                                    self.canvas.image[px, py] = c
 
     @ti.func
     def _streak_3d(self, i):
@@ -122,16 +221,16 @@ class Spheres3D:
         head, z = self._project(self.p.x[i])
         tail, ctrl, z_tail = head, head, z
         blurred = False
-        if ti.static(self.motion_blur):
-            prev, zp = self._project(self.x_prev[i])
+        if ti.static(self.footprint.motion_blur):
+            prev, zp = self._project(self.footprint.x_prev[i])
             mid, zm = 0.5 * (prev + head), zp
-            if ti.static(self.spline):
-                mid, zm = self._project(self.x_mid[i])
+            if ti.static(self.footprint.spline):
+                mid, zm = self._project(self.footprint.x_mid[i])
             if z > 1e-3 and zp > 1e-3 and zm > 1e-3:
-                t, c, _ = self._streak(prev, mid, head)
+                t, c, _ = self.footprint.streak(prev, mid, head)
                 span = ti.max((t - head).norm(), (mid - head).norm())
-                if (t - head).norm() > 1e-3 and span < 0.5 * self.width:
-                    tail, ctrl, z_tail = t, c, z + self.shutter * (zp - z)
+                if (t - head).norm() > 1e-3 and span < 0.5 * self.canvas.width:
+                    tail, ctrl, z_tail = t, c, z + self.footprint.shutter * (zp - z)
                     blurred = True
         return tail, ctrl, head, z_tail, z, blurred
 
@@ -143,50 +242,37 @@ class Spheres3D:
         p = self.p
         for i in range(p.n[None]):
             g = p.group[i]
-            if self.g_blend[g] == 0:
+            if self.look.g_blend[g] == 0:
                 tail, ctrl, head, z_tail, z, blurred = self._streak_3d(i)
                 if blurred and (tail - head).norm() > 0.5:  # moved half a pixel or more
                     _, r = self._sphere_disc(i, z)
-                    col = self.particle_color(i)
-                    if self.g_draw[g] == 2:  # the shade of the sphere's centre, facing the camera
+                    col = self.look.color(i)
+                    if self.look.g_draw[g] == 2:  # the shade of the sphere's centre, facing the camera
                         col = col * (0.3 + 0.7 * ti.max(-self.camera[3].dot(self.light_dir), 0.0))
-                    opacity = self.g_opacity[g]
-                    x0, x1, y0, y1 = self._box(tail, head, r, ctrl)
+                    opacity = self.look.g_opacity[g]
+                    x0, x1, y0, y1 = self.canvas.box(tail, head, r, ctrl)
                     for px in range(x0, x1 + 1):
                         for py in range(y0, y1 + 1):
-                            w, t = self._coverage(ti.Vector([px + 0.5, py + 0.5]), tail, ctrl, head, r, True)
+                            w, t = self.footprint.coverage(ti.Vector([px + 0.5, py + 0.5]), tail, ctrl, head, r, True)
                             zbits = ti.bit_cast(ti.cast(z_tail + t * (z - z_tail), ti.f32), ti.i32)
-                            if w > 0.0 and zbits <= self.depth[px, py]:
+                            if w > 0.0 and zbits <= self.canvas.depth[px, py]:
                                 a = ti.min(w * opacity, 0.999)
-                                self.a_accum[px, py] += a * col
-                                self.a_weight[px, py] += a
-                                self.a_log[px, py] += ti.log(1.0 - a)
+                                self.canvas.a_accum[px, py] += a * col
+                                self.canvas.a_weight[px, py] += a
+                                self.canvas.a_log[px, py] += ti.log(1.0 - a)
 
     @ti.kernel
     def _resolve_ghosts_3d(self):
-        for x, y in self.image:
-            self.image[x, y] = self._over_translucent(x, y, self.image[x, y])
-
-    @ti.func
-    def _over_translucent(self, x, y, c):
-        """Colour c with pixel (x, y)'s translucent layer composited over it (weighted-average colour, total alpha
-        1 - prod(1 - a)); the layer is zeroed for the next frame."""
-        aw = self.a_weight[x, y]
-        if aw > 0.0:
-            a = 1.0 - ti.exp(self.a_log[x, y])
-            c = c * (1.0 - a) + self.a_accum[x, y] / aw * a
-            self.a_accum[x, y] = ti.Vector([0.0, 0.0, 0.0])
-            self.a_weight[x, y] = 0.0
-            self.a_log[x, y] = 0.0
-        return c
+        canvas = self.canvas
+        for x, y in canvas.image:
+            canvas.image[x, y] = canvas.over_translucent(x, y, canvas.image[x, y])
 
     def _sort_translucent(self) -> None:
         """Order the translucent particles back to front (by distance along the view direction), on the host."""
         n = int(self.p.n[None])
         x = self.p.x.to_numpy()[:n]
         group = self.p.group.to_numpy()[:n]
-        blend = self.g_blend.to_numpy()
-        ids = np.flatnonzero(blend[group] == BLEND["alpha"])
+        ids = np.flatnonzero(self.look.blend_table[group] == BLEND["alpha"])
         depth = (x[ids] - self.eye_np) @ self.fwd_np
         order = ids[np.argsort(-depth, kind="stable")].astype(np.int32)
         full = np.zeros(self.model.capacity, dtype=np.int32)
@@ -203,28 +289,28 @@ class Spheres3D:
             centre, z = self._project(p.x[i])
             if z > 1e-3:
                 _, r = self._sphere_disc(i, z)
-                col = self.particle_color(i)
-                opacity = self.group_opacity(i)
+                col = self.look.color(i)
+                opacity = self.look.opacity(i)
                 zbits = ti.bit_cast(ti.cast(z, ti.f32), ti.i32)
-                x0, x1, y0, y1 = self._box(centre, centre, r, centre)
+                x0, x1, y0, y1 = self.canvas.box(centre, centre, r, centre)
                 for px in range(x0, x1 + 1):
                     for py in range(y0, y1 + 1):
-                        w = self._weight(ti.Vector([px + 0.5, py + 0.5]), centre, centre, centre, r, False)
-                        if w > 0.0 and zbits <= self.depth[px, py]:
+                        w = self.footprint.weight(ti.Vector([px + 0.5, py + 0.5]), centre, centre, centre, r, False)
+                        if w > 0.0 and zbits <= self.canvas.depth[px, py]:
                             a = ti.min(w * opacity, 1.0)
-                            self.image[px, py] = self.image[px, py] * (1.0 - a) + col * a
+                            self.canvas.image[px, py] = self.canvas.image[px, py] * (1.0 - a) + col * a
 
     @ti.kernel
     def _light_3d(self):
         p = self.p
         for i in range(p.n[None]):
             g = p.group[i]
-            if self.g_blend[g] == 2:
+            if self.look.g_blend[g] == 2:
                 tail, ctrl, head, _, z, blurred = self._streak_3d(i)
                 if z > 1e-3:
-                    r_true = self.drawn_radius(i) * self.focal_field[None] / z
-                    if self.g_draw[g] == 0:
+                    r_true = self.look.drawn_radius(i) * self.focal_field[None] / z
+                    if self.look.g_draw[g] == 0:
                         r_true = 0.5
                     r = ti.max(r_true, R_MIN)
-                    energy = self.g_opacity[g] * math.pi * r_true * r_true
-                    self._deposit_light(tail, ctrl, head, r, energy, self.particle_color(i), blurred, True, z)
+                    energy = self.look.g_opacity[g] * math.pi * r_true * r_true
+                    self.footprint.deposit_light(tail, ctrl, head, r, energy, self.look.color(i), blurred, True, z)
