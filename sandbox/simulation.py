@@ -30,7 +30,7 @@ from .errors import SandboxError, SimulationError
 from .files.persist import save_state
 from .integrators import make_integrator
 from .measure.diagnostics import Diagnostics
-from .measure.guard import BlowupGuard, blowup_message, scene_limits
+from .measure.guard import BlowupGuard, explain_blowup, scene_limits
 from .measure.stats import STAT_COLUMNS, Stats  # noqa: F401 - re-exported
 from .physics import TermList
 from .physics.springs import Springs
@@ -55,7 +55,7 @@ class Simulation:
         self.plan = StepPlan(self.model, self.state, list(self.terms), self.rates, self.integrator)
         self.diagnostics = Diagnostics(self.model, self.state, list(self.terms), self.hood)
         self.guard = BlowupGuard(scene_limits(scene, self.model.built, self.terms.pair))
-        self._gauge_since = 0.0  # the time the walls' gauge restarted
+        self.parts = list(self.terms) + ([self.hood] if self.hood is not None else [])  # what a restore refreshes
         for term in self.terms:
             term.start(self.state)
         self.mark_initial()
@@ -71,14 +71,11 @@ class Simulation:
     step_count = property(lambda self: self.state.step, doc="steps taken")
     frames_done = property(lambda self: self.state.frames, doc="frames advanced")
 
-    @property
-    def dt(self) -> float:
-        """The step size (world.dt, or the last frame's with substeps = "auto")."""
-        return self.state.dt
-
-    @dt.setter
-    def dt(self, value: float) -> None:
-        self.state.dt = float(value)
+    dt = property(
+        lambda self: self.state.dt,
+        lambda self, value: setattr(self.state, "dt", float(value)),
+        doc='the step size (world.dt, or the last frame\'s with substeps = "auto")',
+    )
 
     def check_alive(self) -> None:
         """SandboxError when Taichi was restarted since this simulation was built (another precision or backend
@@ -122,7 +119,7 @@ class Simulation:
         self.check_alive()
         if substeps is None:
             substeps, self.state.dt = self.frame_substeps()
-        self.restart_wall_gauge()
+        self.terms.walls.restart_gauge(self.time)
         if midway is None or substeps < 2:
             self.step(substeps)
         else:
@@ -160,35 +157,11 @@ class Simulation:
         heat = self.terms.heat is not None
         problem = self.guard.problem(m, m["bad"], self.state.dt, heat)
         if problem:
-            raise SimulationError(self._blowup(*problem))
+            raise SimulationError(explain_blowup(self, *problem))
         world = self.scene.world
         volume = float(np.prod(np.subtract(world.hi, world.lo)))  # the pressure's V (area in 2D)
-        return Stats.from_sums(
-            m, self.time, self.dim, volume, self._wall_pressure(m), heat, self.state.springs is not None
-        )
-
-    def restart_wall_gauge(self) -> None:
-        """Zero the walls' momentum gauge: stats().wall_pressure averages from now (advance_frame restarts it)."""
-        self.model.domain.impulse[None] = 0.0
-        self._gauge_since = self.time
-
-    def _wall_pressure(self, m: dict) -> float:
-        """Momentum into the walls per unit time and wall area since the gauge restarted (nan without walls or
-        elapsed time)."""
-        elapsed = self.time - self._gauge_since
-        area = self.model.domain.wall_area
-        return m["impulse"] / (elapsed * area) if area and elapsed > 0.0 else float("nan")
-
-    def _blowup(self, kind: str, what: str) -> str:
-        n = self.state.live_count()
-        x, v = (f.to_numpy()[:n] for f in (self.particles.x, self.particles.v))
-        temperatures = self.particles.T.to_numpy()[:n] if self.terms.heat is not None else None
-        springs, heat = self.terms.springs, self.terms.heat
-        spring_limit = springs.stable_dt_initial(self.integrator) if springs is not None else math.inf
-        heat_limit = heat.stable_dt(self.integrator) if heat is not None else math.inf
-        clock = (self.step_count, self.time, self.state.dt)
-        integrator = (self.integrator.name, self.integrator.stable_h_omega)
-        return blowup_message(kind, what, x, v, temperatures, clock, integrator, (spring_limit, heat_limit))
+        walls = self.terms.walls.pressure(m["impulse"], self.time)
+        return Stats.from_sums(m, self.time, self.dim, volume, walls, heat, self.state.springs is not None)
 
     # ------------------------------------------------------------------ the state
     def snapshot(self) -> dict:
@@ -199,13 +172,8 @@ class Simulation:
     def restore(self, snap: dict) -> None:
         """Put the state back exactly as snapshot() saw it."""
         self.state.restore(snap)
-        for part in self.parts():
+        for part in self.parts:
             part.after_restore(self.state)
-        self.restart_wall_gauge()
-
-    def parts(self) -> list:
-        """The terms, and the neighbourhood they are evaluated over."""
-        return list(self.terms) + ([self.hood] if self.hood is not None else [])
 
     def mark_initial(self) -> None:
         """Make the current state the one reset() returns to."""

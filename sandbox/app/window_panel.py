@@ -63,8 +63,8 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float) -> None:
             say(gui, chars, f"mean T {reading(stats.mean_temperature, 'C')}   {molten}")
             for name, temperature in thermometers(sim)[:6]:
                 say(gui, chars, f"  {name}: {temperature:.1f} C")
-            sim.terms.heat.ambient[None] = gui.slider_float(
-                "ambient C", float(sim.terms.heat.ambient[None]), -50.0, 300.0
+            sim.terms.heat.sources.ambient[None] = gui.slider_float(
+                "ambient C", float(sim.terms.heat.sources.ambient[None]), -50.0, 300.0
             )
         unit = energy_unit(sim)
         say(gui, chars, f"energy ({unit}): kinetic {stats.kinetic_energy:.4g}  total {stats.total_energy:.4g}")

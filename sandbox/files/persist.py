@@ -155,9 +155,8 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
     sim.model.apply_controls(meta["controls"])
     for term in sim.terms:
         term.apply_controls(meta["controls"])
-    for part in sim.parts():
+    for part in sim.parts:
         part.after_restore(sim.state)
-    sim.restart_wall_gauge()
 
 
 def _put_back(state, saved: dict, path: Path) -> None:

@@ -13,12 +13,9 @@ H = 2.5 spacings), which would show as a diffusivity 3.4% too low. `lattice_corr
 S_i = (1/D) sum_j V_j r_ij^2 (-W'(r_ij)/r_ij) on the initial particles (1 for a perfect continuum) and the flow is
 divided by its 90th percentile (the interior value); the factor is the same for every pair, so conservation holds.
 
-Sources act on the particles within `reach` of their region, in one of three modes: "exchange" (each receives
-G (T_source - T_i)), "fixed" (held at T_source after every step: a Dirichlet boundary) or "power" (a total heat
-rate P shared in proportion to mass among the particles inside). A source's temperature or power may follow a
-schedule (piecewise constant in time, optionally repeating). Every particle also exchanges G_amb (T_ambient - T_i)
-with the ambient. The flows change the specific enthalpy h (physics/phase.py); time stepping is explicit Euler,
-stable for dt below about 0.1 (rho c / k) h^2 for spacing h (see Simulation.heat_dt_limit).
+Heat also flows from sources and the ambient (physics/heat_sources.py). The flows change the specific enthalpy h
+(physics/phase.py); time stepping is explicit Euler, stable for dt below about 0.1 (rho c / k) h^2 for spacing h
+(Heat.dt_limit; physics/heat_implicit.py is the unconditionally stable stepper).
 """
 
 import math
@@ -26,14 +23,11 @@ import math
 import numpy as np
 import taichi as ti
 
-from ..config.scene_tables import SOURCE_MODES
-from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.transfer import real_fields
+from .heat_sources import HeatSources
 from .phase import LIQUID, NEVER_BONDS
 from .term import Measure, Term, register
-
-EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
 
 
 def wendland_grad_factor(r: float, h: float, dim: int) -> float:
@@ -130,39 +124,13 @@ class Heat(Term):
             2.0 * k_pair * self.norm * 20.0 / self.support**2, 1.0 / materials.host["density"]
         )
         self.inv_support = 1.0 / self.support
-        self.sources = list(heat_scene.sources)
-        self.n_sources = len(self.sources)
-        ns = max(self.n_sources, 1)
-        modes = [SOURCE_MODES.index(src.mode) for src in self.sources]
-        self.has_fixed = FIXED in modes  # static flags: scenes without such sources compile none of their code
-        self.has_power = POWER in modes
-        self.prestep = self.has_power
-        self.src_lo = ti.Vector.field(dim, float, shape=ns)  # source region lower corner, widened by its reach
-        self.src_hi = ti.Vector.field(dim, float, shape=ns)  # source region upper corner, widened by its reach
-        self.src_mode = ti.field(ti.i32, shape=ns)  # index into SOURCE_MODES
-        self.src_value = ti.field(float, shape=ns)  # temperature (degrees) or, for power sources, heat / time
-        self.src_conductance = ti.field(float, shape=ns)  # heat per time per degree, per particle
-        self.src_mass = ti.field(float, shape=ns)  # power sources: mass inside the region (summed each step)
-        self.ambient = ti.field(float, shape=())  # degrees
-        self.ambient_exchange = ti.field(float, shape=())  # heat per time per degree, per particle
-        values = [source_value(src, 0.0) for src in self.sources]
-        # in the build's one copy (a host write of a field element compiles a writer kernel of its own)
-        transfer.upload(
-            [
-                (self.ambient, heat_scene.ambient),
-                (self.ambient_exchange, heat_scene.ambient_exchange),
-                (self.src_lo, np.array([np.asarray(src.lo) - src.reach for src in self.sources]).reshape(-1, dim)),
-                (self.src_hi, np.array([np.asarray(src.hi) + src.reach for src in self.sources]).reshape(-1, dim)),
-                (self.src_mode, np.array(modes, np.int32)),
-                (self.src_conductance, np.array([src.conductance for src in self.sources], float)),
-                (self.src_value, np.array(values, float)),
-            ]
-        )
-        self._values: list[float | None] = values  # the values last written to src_value
+        self.sources = HeatSources(heat_scene, dim, particles, phase, model.loops)
+        self.n_sources = self.sources.n_sources
+        self.prestep = self.sources.has_power
 
     def words(self, where: str) -> list[str]:
         if where == "before":
-            return ["scheduled heat sources set to the step's start time"] if self.scheduled else []
+            return ["scheduled heat sources set to the step's start time"] if self.sources.scheduled else []
         if where == "rates" and self.explicit:
             return [f"heat diffusion (kernel support {self.support:g}, {self.n_sources} sources)"]
         if where == "finish" and self.explicit:
@@ -170,54 +138,18 @@ class Heat(Term):
         return []
 
     def before_step(self, state) -> None:
-        if self.scheduled:
-            self.set_time(state.time)
+        if self.sources.scheduled:
+            self.sources.set_time(state.time)
 
     def after_restore(self, state) -> None:
-        self.set_time(state.time)
+        self.sources.set_time(state.time)
 
     def controls(self) -> dict:
-        return {"ambient": float(self.ambient[None])}
+        return {"ambient": float(self.sources.ambient[None])}
 
     def apply_controls(self, values: dict) -> None:
         if "ambient" in values:
-            self.ambient[None] = values["ambient"]
-
-    def set_time(self, t: float) -> None:
-        """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""
-        for k, src in enumerate(self.sources):
-            value = source_value(src, t)
-            if value != self._values[k]:
-                self.src_value[k] = value
-                self._values[k] = value
-
-    @property
-    def scheduled(self) -> bool:
-        return any(src.schedule_times for src in self.sources)
-
-    @ti.func
-    def inside(self, k, xi):
-        """Is position xi within the (reach-widened) region of source k?"""
-        result = True
-        for a in ti.static(range(self.dim)):
-            if xi[a] < self.src_lo[k][a] or xi[a] > self.src_hi[k][a]:
-                result = False
-        return result
-
-    @ti.func
-    def add_source_mass(self, i):
-        """Power sources: add particle i's mass to the sources it is inside (src_mass must be zeroed first)."""
-        for k in range(self.n_sources):
-            if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
-                self.src_mass[k] += self.p.mass[i]
-
-    @ti.func
-    def held(self, i, h):
-        """Specific enthalpy of particle i after fixed sources: their temperature's enthalpy inside them, else h."""
-        for k in range(self.n_sources):
-            if self.src_mode[k] == FIXED and self.inside(k, self.p.x[i]):
-                h = self.phase.enthalpy(self.src_value[k], self.p.material[i])
-        return h
+            self.sources.ambient[None] = values["ambient"]
 
     @ti.func
     def flow(self, i, j, r2):
@@ -257,37 +189,11 @@ class Heat(Term):
             g *= self.g_pair[mat_i, mat_j] * self.inv_density[mat_j]
         return g * w * w * w
 
-    @ti.func
-    def source_flow(self, i):
-        """Heat flow rate into i from the sources it touches and from the ambient."""
-        g, gt = self.source_terms(i)
-        return gt - g * self.p.T[i]
-
-    @ti.func
-    def source_terms(self, i):
-        """(G, G T_s summed) over the ambient and the sources particle i touches: their flow is G T_s - G T_i
-        (a power source adds its share of power to the second term)."""
-        xi = self.p.x[i]
-        g = self.ambient_exchange[None]
-        gt = g * self.ambient[None]
-        for k in range(self.n_sources):
-            if self.inside(k, xi):
-                if self.src_mode[k] == EXCHANGE:
-                    g += self.src_conductance[k]
-                    gt += self.src_conductance[k] * self.src_value[k]
-                elif self.src_mode[k] == POWER:
-                    gt += self.src_value[k] * self.p.mass[i] / ti.max(self.src_mass[k], 1e-30)
-        return g, gt
-
     # ------------------------------------------------------------------ its part of the rates
     @ti.func
     def prestep_loops(self):
         """The mass inside each power source, summed each stage before the rates (they share the power by mass)."""
-        for k in range(self.n_sources):
-            self.src_mass[k] = 0.0
-        self.model.loops.light()
-        for i in range(self.p.n[None]):
-            self.add_source_mass(i)
+        self.sources.sum_masses()
 
     @ti.func
     def row(self, i):
@@ -301,7 +207,7 @@ class Heat(Term):
 
     @ti.func
     def heat(self, i):
-        return self.source_flow(i)
+        return self.sources.flow(i)
 
     @ti.func
     def finish(self, i, dt, rates: ti.template()):
@@ -312,8 +218,8 @@ class Heat(Term):
     def set_enthalpy(self, i, h):
         """Give particle i specific enthalpy h (held by fixed sources), and its temperature and liquid flag."""
         p = self.p
-        if ti.static(self.has_fixed):
-            h = self.held(i, h)
+        if ti.static(self.sources.has_fixed):
+            h = self.sources.held(i, h)
         p.h[i] = h
         t, phi = self.phase.state(h, p.material[i])
         p.T[i] = t
@@ -353,18 +259,6 @@ class Heat(Term):
         if self._dt_limit is None:
             self._dt_limit = _explicit_limit(self.model, self.support, self.correction)
         return self._dt_limit
-
-
-def source_value(src, t: float) -> float:
-    """A source's temperature (or power) at time t: its schedule's value in force at t, else its fixed value."""
-    base = src.power if src.mode == "power" else src.temperature
-    if not src.schedule_times:
-        return float(base)
-    times = src.schedule_times
-    if src.schedule_period > 0:
-        t = t % src.schedule_period
-    k = int(np.searchsorted(times, t, side="right")) - 1
-    return float(src.schedule_values[k]) if k >= 0 else float(base)
 
 
 def _explicit_limit(model, support: float, correction: float) -> float:

@@ -113,7 +113,7 @@ class ImplicitHeat(Term):
         self.sums.clear_for_assembly()
         for i in range(self.p.n[None]):
             cap = self.p.mass[i] * self.materials.specific_heat[self.p.material[i]]
-            g, gt = self.heat.source_terms(i)
+            g, gt = self.heat.sources.terms(i)
             gsum, lap = self._laplacian(i, self.p.T, use_list, ids)
             # Solve for the change dT = T' - T: A dT = h (G T_s - G T - sum_j G_ij (T_i - T_j)), starting at 0.
             b = h * (gt - g * self.p.T[i] - lap)
@@ -131,7 +131,7 @@ class ImplicitHeat(Term):
         self.sums.p_ap[None] = 0.0
         for i in range(self.p.n[None]):
             cap = self.p.mass[i] * self.materials.specific_heat[self.p.material[i]]
-            g, _ = self.heat.source_terms(i)
+            g, _ = self.heat.sources.terms(i)
             _, lap = self._laplacian(i, self.d, use_list, ids)
             self.ad[i] = (cap + h * g) * self.d[i] + h * lap
             self.sums.p_ap[None] += self.d[i] * self.ad[i]

@@ -26,6 +26,22 @@ class Walls(Term):
     def __init__(self, parts):
         self.p = parts.state.particles
         self.domain = parts.model.domain
+        self.gauge_since = 0.0  # the time the momentum gauge restarted
+
+    def restart_gauge(self, time: float) -> None:
+        """Zero the momentum gauge: pressure() averages from `time` on (advance_frame restarts it every frame)."""
+        self.domain.impulse[None] = 0.0
+        self.gauge_since = time
+
+    def pressure(self, impulse: float, time: float) -> float:
+        """Momentum into the walls (`impulse`, as measured) per unit time and wall area since the gauge restarted,
+        at `time`; nan without walls (a periodic box) or before any time has passed."""
+        elapsed = time - self.gauge_since
+        area = self.domain.wall_area
+        return impulse / (elapsed * area) if area and elapsed > 0.0 else float("nan")
+
+    def after_restore(self, state) -> None:
+        self.restart_gauge(state.time)
 
     def words(self, where: str) -> list[str]:
         return (

@@ -1,0 +1,125 @@
+"""Heat sources and the ambient, acting on the particles within `reach` of a source's region in one of three modes:
+"exchange" (each receives G (T_source - T_i)), "fixed" (held at T_source after every step: a Dirichlet boundary) or
+"power" (a total heat rate P shared in proportion to mass among the particles inside). A source's temperature or
+power may follow a schedule (piecewise constant in time, optionally repeating). Every particle also exchanges
+G_amb (T_ambient - T_i) with the ambient, a live control (the window's slider).
+"""
+
+import numpy as np
+import taichi as ti
+
+from ..config.scene_tables import SOURCE_MODES
+from ..core import transfer
+from ..core.oriented import data_oriented
+
+EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
+
+
+@data_oriented
+class HeatSources:
+    """The [heat] table's sources and ambient as small fields, and their flows into a particle as Taichi funcs."""
+
+    def __init__(self, heat_scene, dim: int, particles, phase, loops):
+        self.dim, self.p, self.phase, self.loops = dim, particles, phase, loops
+        self.specs = list(heat_scene.sources)
+        self.n_sources = len(self.specs)
+        ns = max(self.n_sources, 1)
+        modes = [SOURCE_MODES.index(src.mode) for src in self.specs]
+        self.has_fixed = FIXED in modes  # static flags: scenes without such sources compile none of their code
+        self.has_power = POWER in modes
+        self.src_lo = ti.Vector.field(dim, float, shape=ns)  # source region lower corner, widened by its reach
+        self.src_hi = ti.Vector.field(dim, float, shape=ns)  # source region upper corner, widened by its reach
+        self.src_mode = ti.field(ti.i32, shape=ns)  # index into SOURCE_MODES
+        self.src_value = ti.field(float, shape=ns)  # temperature (degrees) or, for power sources, heat / time
+        self.src_conductance = ti.field(float, shape=ns)  # heat per time per degree, per particle
+        self.src_mass = ti.field(float, shape=ns)  # power sources: mass inside the region (summed each step)
+        self.ambient = ti.field(float, shape=())  # degrees
+        self.ambient_exchange = ti.field(float, shape=())  # heat per time per degree, per particle
+        values = [source_value(src, 0.0) for src in self.specs]
+        # in the build's one copy (a host write of a field element compiles a writer kernel of its own)
+        transfer.upload(
+            [
+                (self.ambient, heat_scene.ambient),
+                (self.ambient_exchange, heat_scene.ambient_exchange),
+                (self.src_lo, np.array([np.asarray(src.lo) - src.reach for src in self.specs]).reshape(-1, dim)),
+                (self.src_hi, np.array([np.asarray(src.hi) + src.reach for src in self.specs]).reshape(-1, dim)),
+                (self.src_mode, np.array(modes, np.int32)),
+                (self.src_conductance, np.array([src.conductance for src in self.specs], float)),
+                (self.src_value, np.array(values, float)),
+            ]
+        )
+        self._values: list[float | None] = values  # the values last written to src_value
+
+    @property
+    def scheduled(self) -> bool:
+        return any(src.schedule_times for src in self.specs)
+
+    def set_time(self, t: float) -> None:
+        """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""
+        for k, src in enumerate(self.specs):
+            value = source_value(src, t)
+            if value != self._values[k]:
+                self.src_value[k] = value
+                self._values[k] = value
+
+    @ti.func
+    def inside(self, k, xi):
+        """Is position xi within the (reach-widened) region of source k?"""
+        result = True
+        for a in ti.static(range(self.dim)):
+            if xi[a] < self.src_lo[k][a] or xi[a] > self.src_hi[k][a]:
+                result = False
+        return result
+
+    @ti.func
+    def sum_masses(self):
+        """The mass inside each power source (they share their power by mass)."""
+        for k in range(self.n_sources):
+            self.src_mass[k] = 0.0
+        self.loops.light()
+        for i in range(self.p.n[None]):
+            for k in range(self.n_sources):
+                if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
+                    self.src_mass[k] += self.p.mass[i]
+
+    @ti.func
+    def held(self, i, h):
+        """Specific enthalpy of particle i after fixed sources: their temperature's enthalpy inside them, else h."""
+        for k in range(self.n_sources):
+            if self.src_mode[k] == FIXED and self.inside(k, self.p.x[i]):
+                h = self.phase.enthalpy(self.src_value[k], self.p.material[i])
+        return h
+
+    @ti.func
+    def flow(self, i):
+        """Heat flow rate into i from the sources it touches and from the ambient."""
+        g, gt = self.terms(i)
+        return gt - g * self.p.T[i]
+
+    @ti.func
+    def terms(self, i):
+        """(G, G T_s summed) over the ambient and the sources particle i touches: their flow is G T_s - G T_i
+        (a power source adds its share of power to the second term)."""
+        xi = self.p.x[i]
+        g = self.ambient_exchange[None]
+        gt = g * self.ambient[None]
+        for k in range(self.n_sources):
+            if self.inside(k, xi):
+                if self.src_mode[k] == EXCHANGE:
+                    g += self.src_conductance[k]
+                    gt += self.src_conductance[k] * self.src_value[k]
+                elif self.src_mode[k] == POWER:
+                    gt += self.src_value[k] * self.p.mass[i] / ti.max(self.src_mass[k], 1e-30)
+        return g, gt
+
+
+def source_value(src, t: float) -> float:
+    """A source's temperature (or power) at time t: its schedule's value in force at t, else its fixed value."""
+    base = src.power if src.mode == "power" else src.temperature
+    if not src.schedule_times:
+        return float(base)
+    times = src.schedule_times
+    if src.schedule_period > 0:
+        t = t % src.schedule_period
+    k = int(np.searchsorted(times, t, side="right")) - 1
+    return float(src.schedule_values[k]) if k >= 0 else float(base)
