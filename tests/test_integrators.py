@@ -7,7 +7,7 @@ import pytest
 
 from sandbox.errors import SimulationError
 from sandbox.integrators import REGISTRY
-from sandbox.research import study, study_problems, study_report
+from sandbox.research import study, study_problems, study_report, study_stability
 from sandbox.simulation import Simulation
 
 from .conftest import make_scene, scene_dict
@@ -59,11 +59,11 @@ def test_explicit_euler_and_midpoint_grow_at_every_step_as_theory_says(quick, na
     for hw in (0.1, 0.5):
         measured = row[f"growth_per_period_at_{hw}"]
         assert measured > 1.0
-        assert measured == pytest.approx(study_problems.theory_growth_per_period(name, hw), rel=1e-6)
+        assert measured == pytest.approx(study_stability.theory_growth_per_period(name, hw), rel=1e-6)
 
 
 def test_implicit_euler_is_stable_at_any_step_with_the_theoretical_damping():
-    row = study_problems.unconditional_check("implicit_euler", h_omegas=(0.5, 10.0, 1000.0), steps=10)
+    row = study_stability.unconditional_check("implicit_euler", h_omegas=(0.5, 10.0, 1000.0), steps=10)
     for hw in (0.5, 10.0, 1000.0):
         ratio = row[f"energy_ratio_after_10_steps_at_{hw:g}"]
         # backward Euler multiplies the oscillator's energy by 1 / (1 + (h w)^2) each step: excess damping
@@ -73,14 +73,14 @@ def test_implicit_euler_is_stable_at_any_step_with_the_theoretical_damping():
 def long_run_energy(name, periods, hw=1.9, amplitude=0.01):
     """Relative energy error of one undamped spring over `periods` periods, sampled 50 times. h w = 1.9 (near the
     limit 2, about 3.3 steps per period) keeps 10^4 periods to 33,000 steps."""
-    sim = study_problems.spring_bank([hw], 0.01, name, amplitude=amplitude)
-    k = study_problems.set_bank_stiffness(sim, [hw], 0.01)
-    e0 = study_problems.bank_energy(sim, k)[0]
+    sim = study_stability.spring_bank([hw], 0.01, name, amplitude=amplitude)
+    k = study_stability.set_bank_stiffness(sim, [hw], 0.01)
+    e0 = study_stability.bank_energy(sim, k)[0]
     steps = round(periods * 2 * math.pi / hw)
     worst = []
     for _ in range(50):
         sim.step(steps // 50)
-        worst.append(abs(study_problems.bank_energy(sim, k)[0] - e0) / e0)
+        worst.append(abs(study_stability.bank_energy(sim, k)[0] - e0) / e0)
     return np.array(worst)
 
 
@@ -129,7 +129,7 @@ def test_quick_study_writes_its_report(quick):
 
 
 def test_integrators_switch_live_and_keep_the_state():
-    sim = study_problems.spring_bank([0.1, 0.2], 0.01)
+    sim = study_stability.spring_bank([0.1, 0.2], 0.01)
     x0 = sim.positions().copy()
     for name in ALL:
         sim.set_integrator(name)
@@ -256,15 +256,15 @@ def test_velocity_verlet_as_leapfrog_is_the_textbook_method_and_its_velocities_a
     """One force evaluation a step (leapfrog), yet the positions and the velocities read after any step() are those
     of the textbook velocity Verlet (to round-off); how the steps are split into calls changes nothing, bit for bit;
     a velocity written between calls is taken as the velocity at that instant."""
-    sim = study_problems.spring_bank([0.3], 0.01, "velocity_verlet", amplitude=0.1)
-    k = study_problems.set_bank_stiffness(sim, [0.3], 0.01)[0]
+    sim = study_stability.spring_bank([0.3], 0.01, "velocity_verlet", amplitude=0.1)
+    k = study_stability.set_bank_stiffness(sim, [0.3], 0.01)[0]
     x0, v0 = sim.positions().copy(), sim.velocities().copy()
     sim.step(500)
     x, v = _textbook_velocity_verlet(x0, v0, k, 0.01, 500)
     assert np.abs(sim.positions() - x).max() < 1e-12 and np.abs(sim.velocities() - v).max() < 1e-12
     at_once = sim.positions().copy(), sim.velocities().copy()
     sim.reset()
-    study_problems.set_bank_stiffness(sim, [0.3], 0.01)
+    study_stability.set_bank_stiffness(sim, [0.3], 0.01)
     for _ in range(50):
         sim.step(10)
     assert np.array_equal(sim.positions(), at_once[0]) and np.array_equal(sim.velocities(), at_once[1])
@@ -280,8 +280,8 @@ def test_velocity_verlet_as_leapfrog_is_the_textbook_method_and_its_velocities_a
 def test_position_verlet_as_leapfrog_is_the_textbook_method():
     """Drift-kick-drift with the half drifts of neighbouring steps merged: the positions and velocities read after
     any step() are the textbook method's (to round-off), however the steps are split into calls."""
-    sim = study_problems.spring_bank([0.3], 0.01, "verlet", amplitude=0.1)
-    k = study_problems.set_bank_stiffness(sim, [0.3], 0.01)[0]
+    sim = study_stability.spring_bank([0.3], 0.01, "verlet", amplitude=0.1)
+    k = study_stability.set_bank_stiffness(sim, [0.3], 0.01)[0]
     x, v = sim.positions().copy(), sim.velocities().copy()
     for _ in range(500):
         x = x + 0.005 * v
@@ -293,7 +293,7 @@ def test_position_verlet_as_leapfrog_is_the_textbook_method():
     assert np.abs(sim.positions() - x).max() < 1e-12 and np.abs(sim.velocities() - v).max() < 1e-11
     at_once = sim.positions().copy(), sim.velocities().copy()
     sim.reset()
-    study_problems.set_bank_stiffness(sim, [0.3], 0.01)
+    study_stability.set_bank_stiffness(sim, [0.3], 0.01)
     for _ in range(25):
         sim.step(20)
     assert np.array_equal(sim.positions(), at_once[0]) and np.array_equal(sim.velocities(), at_once[1])

@@ -18,6 +18,7 @@ from ..config.scene_tables import INTEGRATORS as ALL_INTEGRATORS
 from ..core import runtime
 from ..errors import SandboxError
 from . import study_problems as problems
+from . import study_stability
 from .dask_pool import choose_scheduler, cpu_threads, dask_client, local_shape
 from .study_report import write_outputs
 from .study_runs import StudyResult
@@ -129,7 +130,7 @@ def _run_task(task: StudyTask, reference) -> dict:
         runs, notes = heat_runs(task.quick)
         return {"runs": runs, "notes": notes}
     if task.problem == "stability":
-        return {"stability": problems.stability_rows(names, task.quick)}
+        return {"stability": study_stability.stability_rows(names, task.quick)}
     rows = problems.stiff_sweep(names, lad["stiffnesses"], lad["substeps"], frames=lad["stiff_frames"])
     return {"stiff": rows}
 
