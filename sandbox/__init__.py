@@ -1,5 +1,6 @@
 """Taichi particle sandbox: spring-bonded solids that heat, soften, melt and flow as a Lennard-Jones-style liquid."""
 
+import importlib
 import os
 import tempfile
 
@@ -27,8 +28,6 @@ _EXPORTS = {
 
 def __getattr__(name: str):
     if name in _EXPORTS:
-        import importlib
-
         return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
     raise AttributeError(f"module 'sandbox' has no attribute {name!r}")
 

@@ -14,12 +14,15 @@ silently invalidating them.
 
 from __future__ import annotations
 
+import copy
 import weakref
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .config.scene import scene_from_dict
+from .config.materials import load_library
+from .config.resources import shipped_scene, shipped_scenes
+from .config.scene import apply_override, parse_override, read_scene_table, scene_from_dict
 from .core import runtime
 from .errors import SandboxError
 from .files.persist import load_into, read_meta
@@ -31,14 +34,12 @@ _arch = "auto"  # the backend sandbox.use() chose
 
 def scene_names() -> list[str]:
     """Names of the shipped scenes (for sandbox.load)."""
-    from .config.resources import shipped_scenes
 
     return sorted(p.stem for p in shipped_scenes())
 
 
 def material_names() -> list[str]:
     """Names of the materials in the library (a scene's bodies name them; scenes can add their own)."""
-    from .config.materials import load_library
 
     return sorted(load_library())
 
@@ -66,7 +67,6 @@ def _check_switch(arch: str, precision: str) -> None:
 
 
 def _overrides(set: Mapping[str, Any] | Sequence[str] | None) -> list[tuple[str, Any]]:
-    from .config.scene import parse_override
 
     if set is None:
         return []
@@ -86,10 +86,6 @@ def load(
     table as a dict (the TOML's structure). `set`: overrides by dotted key ({"world.dt": 0.001,
     "bodies.0.temperature": 80}) or as 'key=value' strings like the CLI's --set. `arch`: the backend (default: the
     one chosen by sandbox.use, else auto). SceneError names the file, key and expectation when the scene is invalid."""
-    import copy
-
-    from .config.resources import shipped_scene
-    from .config.scene import apply_override, read_scene_table, scene_from_dict
 
     if isinstance(scene, Mapping):
         data, path = copy.deepcopy(dict(scene)), Path.cwd() / "scene.toml"

@@ -7,9 +7,15 @@ from __future__ import annotations
 import statistics
 import time
 
+import taichi as ti
+
 from ..config.scene import load_scene
+from ..core import runtime
+from ..errors import SandboxError
+from ..render.raster import Renderer
 from ..research.bench import INTERACTIVE_BLOCK, SCENES
 from ..simulation import Simulation
+from .window import FRAME_PARTS, run_window
 
 
 def interactive_frame(arch: str, repeats: int) -> dict:
@@ -18,11 +24,6 @@ def interactive_frame(arch: str, repeats: int) -> dict:
     simulation to handing the picture to GGUI and drawing the panel. GGUI presenting the frame on a screen is not
     included (a hidden window does not present; on a display that is the GPU's work). Without Vulkan the same parts
     are timed in a loop that stands in for the window (no GGUI: "display" is 0), and `window` says so."""
-    import taichi as ti
-
-    from ..errors import SandboxError
-    from ..render.raster import Renderer
-    from .window import FRAME_PARTS, run_window
 
     sim = Simulation(load_scene(SCENES / "melting_block.toml", INTERACTIVE_BLOCK), arch=arch)
     frames, warm = max(repeats, 5) * 8, 10  # the first frames compile (or load) what the window runs: not timed
@@ -67,8 +68,6 @@ def interactive_frame(arch: str, repeats: int) -> dict:
 def window_rates(arch: str, frames: int = 120, warm: int = 20) -> list[dict]:
     """Every shipped scene in a hidden window with pacing on: the median frame rate over `frames` frames after
     `warm` (compiling), the median substeps run and the wanted ones, and the simulated seconds per wall second."""
-    from ..core import runtime
-    from .window import run_window
 
     rows = []
     for path in sorted(SCENES.glob("*.toml")):

@@ -18,18 +18,39 @@ from ..config.arguments import (
     check_pool_arguments,
     pool_arguments,
 )
+from ..config.materials import Material, load_library
 from ..config.resources import shipped_scenes
+from ..config.scene import load_scene
+from ..config.scene_tables import (
+    Body,
+    Emitter,
+    FieldElement,
+    Heat,
+    HeatSource,
+    Lesson,
+    PairForce,
+    Render,
+    SceneInfo,
+    Smoke,
+    SmokeSource,
+    World,
+)
+from ..config.schema import describe
 from ..core import runtime
 from ..errors import SandboxError, SimulationError
 from ..render.video import check_output
+from ..research.phase_study import run_phase_study
+from ..research.study import INTEGRATORS, PROBLEMS, run_study
+from ..simulation import Simulation
+from .cli_bench import run_bench
 from .cli_common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_STOPPED, _load, _scene_path, stability_warnings
 from .cli_run import cmd_run
+from .sweep import METRICS, parse_vary, plan_runs, plot_sweep, run_sweep
 
 
 def cmd_check(args) -> int:
     scene = _load(args)
     runtime.require(args.arch, scene.world.precision)
-    from ..simulation import Simulation
 
     sim = Simulation(scene, arch=args.arch)
     w = scene.world
@@ -72,8 +93,6 @@ def cmd_check(args) -> int:
 
 
 def cmd_list(args) -> int:
-    from ..config.materials import load_library
-    from ..config.scene import load_scene
 
     print("scenes:")
     for path in shipped_scenes():
@@ -88,22 +107,6 @@ def cmd_list(args) -> int:
 
 
 def cmd_keys(args) -> int:
-    from ..config.materials import Material
-    from ..config.scene_tables import (
-        Body,
-        Emitter,
-        FieldElement,
-        Heat,
-        HeatSource,
-        Lesson,
-        PairForce,
-        Render,
-        SceneInfo,
-        Smoke,
-        SmokeSource,
-        World,
-    )
-    from ..config.schema import describe
 
     sections = [
         ("scene", SceneInfo),
@@ -130,15 +133,12 @@ def cmd_keys(args) -> int:
 
 
 def cmd_study(args) -> int:
-    from ..research.study import INTEGRATORS, PROBLEMS, run_study
 
     check_pool_arguments(args)
     integrators = check_names("--integrators", args.integrators, INTEGRATORS)
     problems = check_names("--problems", args.problems, PROBLEMS)
     out = check_folder_output("--out", args.out)
     if args.phase:
-        from ..research.phase_study import run_phase_study
-
         run_phase_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
         print(
             f"wrote {out}/phase.md, stefan.csv, heating_curve.csv"
@@ -167,7 +167,6 @@ def cmd_study(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-    from .sweep import METRICS, parse_vary, plan_runs, plot_sweep, run_sweep
 
     check_count("--frames", args.frames, 1, MAX_FRAMES)
     check_pool_arguments(args)
@@ -215,7 +214,6 @@ def cmd_bench(args) -> int:
     if args.scaling:
         check_folder_output("--out", args.out)
     runtime.require(args.arch, "f32")
-    from .cli_bench import run_bench
 
     return run_bench(args)
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..config.resources import shipped_scene
+from ..config.scene import load_scene
 
 
 def _scene_path(name: str) -> Path:
@@ -17,7 +18,6 @@ def _scene_path(name: str) -> Path:
 
 
 def _load(args):
-    from ..config.scene import load_scene
 
     return load_scene(_scene_path(args.scene), args.set)
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..api import resumed
 from ..config.arguments import (
     MAX_FPS,
     MAX_FRAMES,
@@ -18,10 +19,16 @@ from ..config.arguments import (
     check_rate,
     distinct_outputs,
 )
+from ..config.scene import scene_from_dict
 from ..core import runtime
 from ..errors import SandboxError
+from ..files.persist import read_meta
 from ..render.video import check_output
+from ..simulation import Simulation
 from .cli_common import EXIT_INTERRUPTED, EXIT_STOPPED, _load, stability_warnings
+from .run_files import RunFiles
+from .runner import run_headless
+from .window import WindowUnavailable, open_scene, run_window, window_unavailable_reason
 
 
 def _check_run_numbers(args) -> None:
@@ -75,8 +82,6 @@ def _check_run_outputs(args, out: str | None) -> None:
 
 def _resumed_scene(args):
     """The scene a --resume state file holds (SCENE must name it), the frame it was saved at, and the file's meta."""
-    from ..config.scene import scene_from_dict
-    from ..files.persist import read_meta
 
     meta = read_meta(args.resume)
     named = Path(args.scene).stem
@@ -103,8 +108,6 @@ def cmd_run(args) -> int:
         print("--dump and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
         headless = True
     if not headless:
-        from .window import window_unavailable_reason
-
         reason = window_unavailable_reason()
         if reason:
             headless = True
@@ -121,19 +124,14 @@ def cmd_run(args) -> int:
     check_picture(width, height, out)
     runtime.require(args.arch, scene.world.precision)
     _check_run_outputs(args, out)
-    from ..simulation import Simulation
 
     if args.resume:
-        from ..api import resumed
-
         sim = resumed(args.resume, args.arch, saved_meta, scene)
     else:
         sim = Simulation(scene, arch=args.arch)
     for line in stability_warnings(sim):
         print(f"warning: {line}; expect the blow-up guard to stop the run", file=sys.stderr)
     if not headless:
-        from .window import WindowUnavailable, open_scene, run_window
-
         try:
             ran = run_window(sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record)
             while ran.next_scene:  # the panel's scene picker: the same process opens the next scene
@@ -145,8 +143,6 @@ def cmd_run(args) -> int:
             out = out or f"out/{scene.name}.mp4"
             check_picture(width, height, out)
             _check_run_outputs(args, out)
-    from .run_files import RunFiles
-    from .runner import run_headless
 
     start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
     print(

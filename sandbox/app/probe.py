@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics.phase import ENTHALPY_LAW
+from ..physics.phase import ENTHALPY_LAW, temperature_np
 
 
 @dataclass(frozen=True)
@@ -57,7 +57,6 @@ def probe(sim, i: int) -> ProbeReading:
         bonds = [int(springs.bonds[i, k]) for k in range(springs.max_bonds)] if springs is not None else []
         bonded = any(s >= 0 and springs.alive[s] for s in bonds)
         return ProbeReading(i, name, "solid" if bonded else "fluid", None, None, speed)
-    from ..physics.phase import temperature_np
 
     material = sim.scene.materials[name]
     law = (getattr(material, key) for key in ENTHALPY_LAW)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..files.persist import save_state
 from ..render.video import partial_path, publish
 
 
@@ -32,8 +33,6 @@ class RunFiles:
             self.sim.write_extxyz(partial_path(self.dump), append=True)
             self.dumped += 1
         if self.checkpoint is not None and self.checkpoint_every and done % self.checkpoint_every == 0:
-            from ..files.persist import save_state
-
             save_state(self.sim, self.checkpoint, frame=done)
             self.checkpoints += 1
 

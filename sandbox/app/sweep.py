@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.scene import parse_override
 from ..errors import SandboxError
 from ..research.dask_pool import choose_scheduler, dask_client, local_shape
 from .sweep_run import RECORD, execute_run
@@ -51,7 +52,6 @@ class Variation:
 def parse_vary(text: str) -> Variation:
     """KEY=V1,V2,... (each value read as TOML: numbers, true/false, bare words as strings) or KEY=START:STOP:COUNT
     (COUNT evenly spaced numbers from START to STOP)."""
-    from ..config.scene import parse_override
 
     if "=" not in text:
         raise SandboxError(f"--vary {text}: expected KEY=V1,V2,... or KEY=START:STOP:COUNT")

@@ -15,8 +15,13 @@ import os
 import time
 from pathlib import Path
 
+from ..config.scene import load_scene
+from ..config.schema import toml_value
+from ..core import runtime
 from ..errors import SandboxError
 from ..research.dask_pool import cpu_threads
+from ..simulation import Simulation
+from .runner import run_headless
 
 RECORD = "run.json"
 CRASH_HOOK = "SANDBOX_SWEEP_CRASH_ONCE"  # tests: a marker path; the first run to see it missing kills its process
@@ -24,7 +29,6 @@ CRASH_HOOK = "SANDBOX_SWEEP_CRASH_ONCE"  # tests: a marker path; the first run t
 
 def override_text(key: str, value) -> str:
     """key=value as --set takes it (the value in TOML syntax)."""
-    from ..config.schema import toml_value
 
     return f"{key}={toml_value(value)}"
 
@@ -80,10 +84,6 @@ def execute_run(
     """Run the scene at `scene_path` with `overrides` (dotted key -> value) headless into `folder` for `frames`
     frames (None: the scene's render.frames); `video`: also out.mp4 (width x height, default the scene's); `threads`:
     Taichi CPU threads for this run. Returns the run's record (also written to folder/run.json)."""
-    from ..config.scene import load_scene
-    from ..core import runtime
-    from ..simulation import Simulation
-    from .runner import run_headless
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

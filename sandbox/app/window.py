@@ -18,9 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from ..core import runtime
+from ..config.resources import shipped_scene
+from ..config.scene import load_scene
+from ..core import runtime, taichi_compat
 from ..errors import SandboxError
 from ..render.raster import Renderer
+from ..simulation import Simulation
 from .history import UndoRing
 from .probe import particle_at, probe
 from .tools import Tools
@@ -45,9 +48,7 @@ def window_unavailable_reason() -> str | None:
 def window_output(canvas) -> str:
     """The renderer output a window shows: GGUI's packed RGBA on the CPU backend, where this Taichi's canvas takes
     it as it is (its set_image would convert a float image over every pixel each frame), else the float image."""
-    try:
-        from taichi.ui.utils import get_field_info  # noqa: F401  (what Renderer.show_on calls)
-    except ImportError:
+    if not taichi_compat.has_field_info():  # what Renderer.show_on calls
         return "image"
     return "rgba" if runtime.running_arch() == "cpu" and hasattr(canvas, "canvas") else "image"
 
@@ -256,9 +257,6 @@ def open_scene(name: str, arch: str = "cpu"):
     """A fresh Simulation of the shipped scene `name` for the window's scene picker: Taichi is restarted first, so
     the last scene's fields and compiled kernels are freed (a runtime holds at most ~512 field trees, so switching
     without it would run out), and started again at the new scene's precision."""
-    from ..config.resources import shipped_scene
-    from ..config.scene import load_scene
-    from ..simulation import Simulation
 
     path = shipped_scene(name)
     if path is None:

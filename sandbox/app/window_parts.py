@@ -8,6 +8,8 @@ import time
 import numpy as np
 import taichi as ti
 
+from ..render.video import open_writer
+
 FRAME_PARTS = ("events", "simulation", "readouts", "drawing", "display")  # the window loop's parts, in order
 TARGET_FPS = 60.0  # the frame rate the window's pacing aims for
 FLOOR_FPS = 30.0  # ... and where the frame's other work leaves too little room for that, this one
@@ -159,7 +161,6 @@ class Recorder:
 
     def update(self, recording: bool, renderer) -> str:
         """Called once per frame after rendering; returns a message when a recording starts or stops."""
-        from ..render.video import open_writer
 
         message = ""
         if recording and self.writer is None:

@@ -3,12 +3,15 @@ change it, so it is tested directly), the tools a scene offers, and the text of 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..errors import SandboxError
+from ..files.persist import load_into, save_state
 from ..integrators import REGISTRY
 from .tools import TOOLS
 
@@ -185,7 +188,6 @@ def reading(value: float, unit: str = "", digits: int = 1) -> str:
 def view_config(cfg, state: WindowState):
     """The scene's [render] table with the window's view toggles applied (colour map, motion blur, springs); the
     window always shows the colour bar."""
-    import dataclasses
 
     return dataclasses.replace(
         cfg, color_by=state.color_by, motion_blur=state.motion_blur, draw_springs=state.draw_springs, legend=True
@@ -234,8 +236,6 @@ def quick_save_path(sim) -> Path:
 def apply_requests(sim, state: WindowState, history, path: Path) -> None:
     """Carry out the undo, save and load keys pressed this frame on `sim` (history: an UndoRing; path: the
     quick-save file), each leaving a line in the panel's log."""
-    from ..errors import SandboxError
-    from ..files.persist import load_into, save_state
 
     if state.undo:
         state.undo = False

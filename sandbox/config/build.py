@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from PIL import Image
 
 from ..errors import SandboxError, SceneError
 from .scene_tables import Body, Scene
@@ -103,19 +104,16 @@ def _inside_mask(body: Body, pos: np.ndarray) -> np.ndarray:
 def load_mask(path: str) -> np.ndarray:
     """A PNG as a boolean (width, height) array, [0, 0] at the bottom-left: alpha > 50% if it has alpha, else
     luminance > 50%."""
-    import taichi as ti
-
     try:
-        img = ti.tools.imread(path)  # (W, H, C) uint8, Taichi's convention: x first, y up
-    except Exception as exc:  # a damaged PNG: Taichi raises whatever its decoder met
+        with Image.open(path) as img:
+            if min(img.size) == 0:
+                raise SandboxError(f"{path}: cannot read the mask image; expected a valid PNG")
+            alpha = "A" in img.mode or "transparency" in img.info
+            pixels = np.asarray(img.convert("RGBA" if alpha else "RGB"))  # (H, W, C), top row first
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:  # a damaged PNG, or not an image at all
         raise SandboxError(f"{path}: cannot read the mask image ({type(exc).__name__}); expected a valid PNG") from None
-    if img is None or img.ndim not in (2, 3) or min(img.shape[:2]) == 0:
-        raise SandboxError(f"{path}: cannot read the mask image; expected a valid PNG")
-    if img.ndim == 2:
-        return img > 127
-    if img.shape[2] == 4:
-        return img[:, :, 3] > 127
-    return img[:, :, :3].mean(axis=2) > 127
+    inside = pixels[:, :, 3] > 127 if alpha else pixels.mean(axis=2) > 127
+    return np.ascontiguousarray(inside[::-1].T)  # (W, H): x first, y up
 
 
 def _lattice_springs(idx: np.ndarray, basis: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:

@@ -8,6 +8,7 @@ A scene is data: [scene], [world], optional [pair] and [heat] (a scene without t
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -192,7 +193,6 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
 
 
 def _replace(obj, **changes):
-    import dataclasses
 
     return dataclasses.replace(obj, **changes)
 

@@ -15,6 +15,7 @@ import taichi as ti
 
 from ..errors import SandboxError
 from . import taichi_compat
+from .threads import pin_workers
 
 ARCHES = ("auto", "cpu", "cuda", "vulkan", "metal")
 PRECISIONS = ("f32", "f64")
@@ -76,8 +77,6 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
     global _generation
     _generation += 1
     if _owns_process and running_arch() == "cpu":
-        from .threads import pin_workers
-
         pin_workers(taichi_compat.cpu_threads())
     return running_arch()
 

@@ -232,6 +232,15 @@ def launch_paths() -> list[tuple[object, str, str]]:
     ]
 
 
+def has_field_info() -> bool:
+    """Whether this Taichi's GGUI offers get_field_info (field_info below)."""
+    try:
+        from taichi.ui.utils import get_field_info  # noqa: F401, PLC0415 - GGUI's module: imported only by a window
+    except ImportError:
+        return False
+    return True
+
+
 def field_info(array):
     """GGUI's description of a field or array for the canvas's lower-level set_image (what canvas.set_image passes
     after its conversion kernel): taichi.ui.utils.get_field_info."""

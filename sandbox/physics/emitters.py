@@ -15,6 +15,7 @@ import warnings
 import numpy as np
 import taichi as ti
 
+from ..config.build import load_mask
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..errors import SceneError
@@ -148,7 +149,6 @@ class Emitters(Term):
         inside ones with an outside 4-neighbour): each pixel is equally likely, so seeding is uniform by area (by
         length along the boundary, to within a pixel). Returns the (field, values) pairs to upload: the pixels and
         each emitter's range of them and pixel size."""
-        from ..config.build import load_mask
 
         chunks = []
         start = 0

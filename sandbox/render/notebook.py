@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from ..files.table import FrameTable
+from .video import open_writer, write_png
 
 
 def png_bytes(picture: np.ndarray) -> bytes:
     """A (H, W, 3) uint8 picture as PNG file bytes."""
-    from .video import write_png
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "picture.png"
@@ -46,7 +46,6 @@ class Movie:
 
     def save(self, path: str | Path) -> Path:
         """Write the frames to `path` by its extension (.mp4, .gif, .png still, or a folder of PNGs)."""
-        from .video import open_writer
 
         if not self.frames:
             raise ValueError("the movie has no frames")

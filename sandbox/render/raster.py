@@ -15,6 +15,7 @@ that whoever pairs it with a state attaches there (`state.carry(renderer.tails)`
 import numpy as np
 
 from ..core import transfer
+from ..core.taichi_compat import field_info
 from .canvas import Canvas
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
@@ -190,8 +191,6 @@ class Renderer:
     def show_on(self, canvas) -> None:
         """Hand the last rendered picture to a GGUI canvas: the packed output as it is, else the float image."""
         if self.canvas.output == "rgba":
-            from ..core.taichi_compat import field_info
-
             self.label_window_output()
             canvas.canvas.set_image(field_info(self.canvas.out))  # what canvas.set_image does after its conversion
         else:

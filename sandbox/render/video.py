@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from ..errors import SandboxError
 
@@ -19,18 +20,14 @@ VIDEO_HINT = "install the video extra: python3 -m pip install -e '.[video]'"
 
 
 def write_png(path: str | Path, frame: np.ndarray) -> None:
-    """Write one (H, W, 3) uint8 frame as a PNG (through Taichi's bundled image writer)."""
-    import taichi as ti
-
-    ti.tools.imwrite(np.ascontiguousarray(frame.transpose(1, 0, 2)[:, ::-1]), str(path))
+    """Write one (H, W, 3) uint8 frame as a PNG."""
+    Image.fromarray(np.ascontiguousarray(frame)).save(str(path), format="PNG")
 
 
 def read_png(path: str | Path) -> np.ndarray:
-    """Read a PNG as an (H, W, C) uint8 array, top row first."""
-    import taichi as ti
-
-    img = ti.tools.imread(str(path))
-    return np.ascontiguousarray(img.transpose(1, 0, 2)[::-1])
+    """Read a PNG as an (H, W, C) uint8 array, top row first (RGB, or RGBA where it has alpha)."""
+    with Image.open(path) as img:
+        return np.array(img.convert("RGBA" if "A" in img.mode else "RGB"))
 
 
 class FrameWriter:

@@ -22,7 +22,15 @@ import tempfile
 import time
 from pathlib import Path
 
+import taichi as ti
+
 from ..config.resources import SCENES_DIR
+from ..config.scene import load_scene, scene_from_dict
+from ..core import runtime
+from ..integrators import REGISTRY
+from ..render.raster import Renderer
+from ..simulation import Simulation, timed_steps
+from .launch_count import count_launches
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = SCENES_DIR
@@ -31,8 +39,6 @@ LAMMPS_INPUT_3D = ROOT / "benchmarks" / "lammps" / "in.lj3d"
 
 
 def lj_box_sim(n_side: int, arch: str):
-    from ..config.scene import load_scene
-    from ..simulation import Simulation
 
     side = n_side / math.sqrt(0.8)
     scene = load_scene(SCENES / "lj_box.toml", [f"world.hi=[{side}, {side}]", f"bodies.0.hi=[{side}, {side}]"])
@@ -41,8 +47,6 @@ def lj_box_sim(n_side: int, arch: str):
 
 def lj_box_3d_sim(n_side: int, arch: str):
     """W1-3D: n^3 particles on a simple cubic lattice at density 0.8442, kT 1.44 (LAMMPS's in.lj liquid)."""
-    from ..config.scene import scene_from_dict
-    from ..simulation import Simulation
 
     spacing = 0.8442 ** (-1 / 3)
     side = n_side * spacing
@@ -71,8 +75,6 @@ def spring_heat_lattice_sim(arch: str):
     sagging and rebounding a little) on a 100 C plate, under gravity. Jelly itself is too soft for 100 layers: the
     block collapsed into a pile while it was being measured, its neighbour lists widening tenfold, so its cost grew
     with the time it had run (before 2026-11-23 afternoon)."""
-    from ..config.scene import scene_from_dict
-    from ..simulation import Simulation
 
     data = {
         "world": {"dim": 2, "lo": [0, 0], "hi": [140, 110], "dt": 0.002, "gravity": [0, -9.8]},
@@ -84,8 +86,6 @@ def spring_heat_lattice_sim(arch: str):
 
 
 def melting_block_sim(arch: str):
-    from ..config.scene import load_scene
-    from ..simulation import Simulation
 
     return Simulation(load_scene(SCENES / "melting_block.toml"), arch=arch)
 
@@ -109,7 +109,6 @@ def measure_from_start(sim, repeats: int) -> dict:
     initial state: the melting block's 2,400 steps, solid to puddle), median of `repeats` runs, each from
     `sim.reset()`, after one untimed run that compiles. A scene whose cost changes as it evolves is timed over the
     run a user sees, the same steps every repeat."""
-    from ..simulation import timed_steps
 
     steps = sim.scene.render.frames * sim.scene.world.substeps
     sim.step(steps)
@@ -122,7 +121,6 @@ def measure_from_start(sim, repeats: int) -> dict:
 
 def measure(sim, repeats: int, target_seconds: float = 0.4) -> dict:
     """Median particle-steps per second over `repeats` timed batches (after a warm-up that compiles)."""
-    from ..simulation import timed_steps
 
     sim.step(2)
     sim.step(2)  # compiles what only a second call runs (velocity Verlet's restore of its half-step velocities)
@@ -137,7 +135,6 @@ LIKE_LAMMPS = "velocity_verlet"  # LAMMPS's fix nve
 
 def integrator_rates(sim, repeats: int) -> dict:
     """`measure(sim)` with each registered integrator in turn, each from the scene's initial state."""
-    from ..integrators import REGISTRY
 
     rates = {}
     for name in REGISTRY:
@@ -233,9 +230,6 @@ def startup_seconds(cache_dir: str) -> float:
 def render_cost(arch: str, repeats: int) -> dict:
     """Seconds to draw one 1280x720 frame of the melting block (with the copy to the host) against one
     simulation frame (its substeps) of the same state."""
-    import taichi as ti
-
-    from ..render.raster import Renderer
 
     sim = melting_block_sim(arch)
     renderer = Renderer(sim.model, sim.state, 1280, 720, sim.scene.render, output="picture")
@@ -279,10 +273,6 @@ def launches_per_step(factory, arch: str, steps: int = 200) -> dict:
     """Kernel launches per step (host reads and writes of field elements included) of the simulation
     `factory(arch)` builds, counted from the host (sandbox.launch_count: Taichi's profiler crashes on Vulkan) over
     `steps` steps after a warm-up, the kernels that made them, and how many steps rebuilt the neighbour list."""
-    import taichi as ti
-
-    from ..core import runtime
-    from .launch_count import count_launches
 
     runtime.reset()
     sim = factory(arch)
@@ -314,7 +304,6 @@ def scaling(arch: str, repeats: int, out_dir: Path, sides=SCALING_SIDES, rounds:
     machine's load falls on all sizes alike rather than on the one measured at that moment (one pass, size after
     size, gave cost ratios of 1.73 and 1.61 on a noisy hour, the 316k point at 71-75 ns one time, 46 another; 3
     rounds 1.57, 5 rounds 1.31 on that hour)."""
-    from ..core import runtime
 
     runtime.reset()
     sims = [lj_box_sim(n_side, arch) for n_side in sides]  # about 0.7 GB at 1M: all alive at once

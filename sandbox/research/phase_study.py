@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.scene import scene_from_dict
+from ..core import runtime
 from ..simulation import Simulation
 from .study_runs import STUDY_PATH
 
@@ -203,7 +204,6 @@ def heating_curve_run(
 def run_phase_study(out: Path, quick: bool = False, log=print) -> list[StefanResult]:
     """Write the phase-change validation to `out`: phase.md, stefan.csv (at most 1,200 of each run's steps),
     heating_curve.csv and (with matplotlib) stefan.png and heating_curve.png."""
-    from ..core import runtime
 
     out.mkdir(parents=True, exist_ok=True)
     spacings = (1.0, 0.5) if quick else (1.0, 0.5, 0.25)

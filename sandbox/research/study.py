@@ -20,6 +20,7 @@ from ..errors import SandboxError
 from . import study_problems as problems
 from . import study_stability
 from .dask_pool import choose_scheduler, cpu_threads, dask_client, local_shape
+from .heat_study import heat_runs
 from .study_report import write_outputs
 from .study_runs import StudyResult
 
@@ -125,8 +126,6 @@ def _run_task(task: StudyTask, reference) -> dict:
     if task.problem == "lj_cluster":
         return {"runs": problems.lj_cluster_runs(names, lad["lj_dts"], lad["lj_end"])}
     if task.problem == "heat_pulse":
-        from .heat_study import heat_runs
-
         runs, notes = heat_runs(task.quick)
         return {"runs": runs, "notes": notes}
     if task.problem == "stability":

@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from ..config.resources import SCENES_DIR
-from ..config.scene import scene_from_dict
+from ..config.scene import load_scene, scene_from_dict
 from ..simulation import Simulation, timed_steps
 from .study_runs import STUDY_PATH, Run
 from .study_stability import bank_energy, set_bank_stiffness, spring_bank
@@ -224,7 +224,6 @@ def lj_cluster_runs(integrators, dts, end_time: float) -> list[Run]:
 # ---------------------------------------------------------------------------- problem 5: melting block
 def melting_sim(integrator: str, dt: float) -> Simulation:
     """The melting block cut to 16 x 12 particles, in double precision."""
-    from ..config.scene import load_scene
 
     over = ["bodies.0.lo=[56.0, 0.0]", "bodies.0.hi=[72.0, 12.0]", "world.precision='f64'"]
     over += [f"world.integrator='{integrator}'", f"world.dt={dt}"]
