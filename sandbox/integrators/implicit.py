@@ -2,6 +2,7 @@
 
 import taichi as ti
 
+from ..core.particles import fold_bonds
 from ..core.solvers import CGSums, pcg
 from .base import Integrator, register
 
@@ -75,14 +76,9 @@ class ImplicitEuler(Integrator):
             b = h * self.f[i]
             diag = self.p.mass[i]
             if ti.static(self.has_springs):
-                for k in range(self.springs.max_bonds):
-                    s = self.springs.bonds[i, k]
-                    if s < 0:
-                        break
-                    if self.springs.alive[s]:
-                        j = self.springs.other_end(i, s)
-                        b += h * h * (self.kmat[s] @ (self.p.v[j] - self.p.v[i]))
-                        diag += self.block[s].trace() / self.dim
+                row = fold_bonds(self.springs, i, self._row(b, diag), self._add_bond_row, (h,))
+                b = ti.Vector([row[a] for a in ti.static(range(self.dim))])
+                diag = row[self.dim]
             self.b[i] = b
             self.diag[i] = diag
             self.dv[i] = ti.Vector.zero(float, self.dim)
@@ -93,6 +89,27 @@ class ImplicitEuler(Integrator):
             self.sums.rr[None] += b.dot(b)
             self.sums.bb[None] += b.dot(b)
 
+    @ti.func
+    def _row(self, b, diag):
+        """b and the diagonal entry packed in one vector, as the bond loop accumulates them."""
+        return ti.Vector([b[a] for a in ti.static(range(self.dim))] + [diag])
+
+    @ti.func
+    def _add_bond_row(self, row, i, j, s, extra: ti.template()):
+        """Live spring s to j's terms in particle i's right-hand side, h^2 K_s (v_j - v_i), and in its diagonal
+        (the Jacobi preconditioner), trace(h D_s + h^2 K_s) / dim; extra: (h,)."""
+        h = extra[0]
+        b = h * h * (self.kmat[s] @ (self.p.v[j] - self.p.v[i]))
+        for a in ti.static(range(self.dim)):
+            row[a] += b[a]
+        row[self.dim] += self.block[s].trace() / self.dim
+        return row
+
+    @ti.func
+    def _add_bond_product(self, ap, i, j, s, extra: ti.template()):
+        """Live spring s to j's block of the product A d for particle i."""
+        return ap + self.block[s] @ (self.d[i] - self.d[j])
+
     @ti.kernel
     def _matvec(self):
         self.sums.p_ap[None] = 0.0
@@ -100,13 +117,7 @@ class ImplicitEuler(Integrator):
         for i in range(self.p.n[None]):
             ap = self.p.mass[i] * self.d[i]
             if ti.static(self.has_springs):
-                for k in range(self.springs.max_bonds):
-                    s = self.springs.bonds[i, k]
-                    if s < 0:
-                        break
-                    if self.springs.alive[s]:
-                        j = self.springs.other_end(i, s)
-                        ap += self.block[s] @ (self.d[i] - self.d[j])
+                ap = fold_bonds(self.springs, i, ap, self._add_bond_product, ())
             self.Ap[i] = ap
             self.sums.p_ap[None] += self.d[i].dot(ap)
 

@@ -23,6 +23,7 @@ import taichi as ti
 
 from ..core import runtime
 from ..core.oriented import data_oriented
+from ..core.particles import fold_bonds
 
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
 LIST_ARRAY = ti.types.ndarray(dtype=ti.i32, ndim=2)  # the type of the lists as a kernel argument: see the docstring
@@ -225,18 +226,19 @@ class NeighbourList:
         self.x_ref[i] = self.x[i]
         if c > ids.shape[1]:
             self.overflow[None] = 1
-        if ti.static(self.marks_bonds):
-            s = self.springs
-            listed = ti.min(c, ids.shape[1])
-            for b in range(s.max_bonds):  # each live bond of i: if the pair is in i's list (not j's), mark it
-                spring = s.bonds[i, b]
-                if spring < 0:
-                    break
-                if s.alive[spring]:
-                    j = s.other_end(i, spring)
-                    for k in range(listed):
-                        if ids[i, k] == j:
-                            ids[i, k] = -(spring + 1)
+        if ti.static(self.marks_bonds):  # each live bond of i: if the pair is in i's list (not j's), mark it
+            fold_bonds(self.springs, i, 0, self._mark_bond, (ti.min(c, ids.shape[1]), ids))
+
+    @ti.func
+    def _mark_bond(self, acc, i, j, spring, extra: ti.template()):
+        """Mark the pair (i, j) of live `spring` as bonded where it is among the first extra[0] entries of i's row of
+        the lists extra[1] (it is listed under i or under j, once)."""
+        listed = extra[0]
+        ids = ti.static(extra[1])
+        for k in range(listed):
+            if ids[i, k] == j:
+                ids[i, k] = -(spring + 1)
+        return acc
 
     @ti.func
     def _visit(self, i, r2max, store: ti.template(), ids: ti.template(), half: ti.template()):

@@ -24,6 +24,7 @@ import taichi as ti
 from ..core import runtime
 from ..core.model import material_column
 from ..core.oriented import data_oriented
+from ..core.particles import fold_bonds
 from .term import Term, register
 
 LIQUID = 1  # flag values of Particles.liquid: molten since it last froze
@@ -197,20 +198,21 @@ class Refreeze(Term):
 
     @ti.func
     def bond_count(self, i):
-        n = 0
-        for k in range(self.springs.max_bonds):
-            if self.springs.bonds[i, k] >= 0:
-                n += 1
-        return n
+        """Particle i's bonds (after _prepare every listed spring is alive, the lists packed)."""
+        return fold_bonds(self.springs, i, 0, self._count_bond, ())
 
     @ti.func
     def already_bonded(self, i, j):
-        found = False
-        for k in range(self.springs.max_bonds):
-            s = self.springs.bonds[i, k]
-            if s >= 0 and self.springs.other_end(i, s) == j:
-                found = True
-        return found
+        """Whether i and j are joined by a spring (of i's list, all alive after _prepare)."""
+        return fold_bonds(self.springs, i, 0, self._count_bond_to, (j,)) > 0
+
+    @ti.func
+    def _count_bond(self, n, i, j, s, extra: ti.template()):
+        return n + 1
+
+    @ti.func
+    def _count_bond_to(self, n, i, j, s, extra: ti.template()):
+        return n + ti.cast(j == extra[0], ti.i32)
 
     @ti.kernel
     def _bond(self):
