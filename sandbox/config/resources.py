@@ -15,7 +15,7 @@ def _shipped_folder(name: str) -> Path:
     try:
         return Path(str(resources.files(f"sandbox.{name}")))
     except ModuleNotFoundError:
-        return Path(__file__).resolve().parent.parent / name
+        return Path(__file__).resolve().parents[2] / name  # the repository root: sandbox/config/ is two below
 
 
 SCENES_DIR = _shipped_folder("scenes")

@@ -243,28 +243,37 @@ class NeighbourList:
     @ti.func
     def _visit(self, i, r2max, store: ti.template(), ids: ti.template(), half: ti.template()):
         """Count (and with `store`, write into row i of `ids`) the neighbours of i within sqrt(r2max); `half`: only
-        those of a half row (the grid's half scan: each pair of cells visited from one side only)."""
+        those of a half row (the forward half of the stencil, and in i's cell the places after its own).
+
+        The list build is the hottest scan of a step, so it walks the cells itself rather than through the grid's
+        fold (the scan every other part uses): the build through a visitor took 4-7% longer (100k-particle LJ box,
+        3.9 against 3.7 ms, alternating runs). Branch-free: every candidate is written at the list's end and
+        counted only when within reach (a third are; a branch on that mispredicted so often that the build cost 1.4x
+        more)."""
+        xi = self.x[i]
         width = 0
         if ti.static(store):
             width = ids.shape[1]  # read once: an ndarray's shape is reloaded at every use after a store
-        visit = ti.static(self._store_one if store else self._count_one)
-        return self.grid.fold(self.x[i], 0, visit, (i, r2max, width, ids), half, self.grid.slot[i])
-
-    @ti.func
-    def _count_one(self, c, j, d, k, extra: ti.template()):
-        """c + 1 when j is within reach of particle extra[0] (a pair within sqrt(extra[1]))."""
-        i, r2max = extra[0], extra[1]
-        return c + ti.cast((d.dot(d) < r2max) and j != i, ti.i32)
-
-    @ti.func
-    def _store_one(self, c, j, d, k, extra: ti.template()):
-        """_count_one, writing j at the end of the row first. Branch-free: every candidate is written and counted only
-        when within reach (a third are; a branch on that mispredicted so often that the build cost 1.4x more)."""
-        i, width = extra[0], extra[2]
-        ids = ti.static(extra[3])
-        if c < width:
-            ids[i, c] = j
-        return self._count_one(c, j, d, k, extra)
+        cell = self.grid.cell_of(xi)
+        centre = self.grid.n_offsets // 2  # the offset (0, .., 0)
+        first_offset = centre if ti.static(half) else 0
+        c = 0
+        for o in range(first_offset, self.grid.n_offsets):
+            nc, shift = self.grid.neighbour_cell(cell, self.grid.offset(o))
+            if nc >= 0:
+                start = self.grid.cell_start[nc]
+                if ti.static(half):
+                    if o == centre:
+                        start += self.grid.slot[i] + 1
+                xs = xi - shift
+                for k in range(start, self.grid.cell_start[nc] + self.grid.cell_count[nc]):
+                    j = self.grid.sorted_ids[k]
+                    d = self.grid.x_sorted[k] - xs
+                    if ti.static(store):
+                        if c < width:
+                            ids[i, c] = j
+                    c += ti.cast((d.dot(d) < r2max) and j != i, ti.i32)
+        return c
 
 
 class Neighbourhood:

@@ -32,7 +32,7 @@ from ..render.raster import Renderer
 from ..simulation import Simulation, timed_steps
 from .launch_count import count_launches
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]  # the repository root (sandbox/research/ is two below)
 SCENES = SCENES_DIR
 LAMMPS_INPUT = ROOT / "benchmarks" / "lammps" / "in.lj2d"
 LAMMPS_INPUT_3D = ROOT / "benchmarks" / "lammps" / "in.lj3d"

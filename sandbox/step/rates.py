@@ -135,11 +135,11 @@ class Rates:
             d = self.domain.separation(xi, p.x[j])
             r2 = d.dot(d)
             if ti.static(self.force_pair_terms):
-                fij = self._pair_sum("force", ti.Vector.zero(float, self.dim), rows, i, j, d, r2, bonded)
+                fij = self._pair_sum("force", rows, i, j, d, r2, bonded)
                 fi += fij
                 self.pair_f[t, j] = self.pair_f[t, j] - fij
             if ti.static(self.heat_pair_terms):
-                qij = self._pair_sum("heat", 0.0, rows, i, j, d, r2, bonded)
+                qij = self._pair_sum("heat", rows, i, j, d, r2, bonded)
                 qi += qij
                 self.pair_q[t, j] = self.pair_q[t, j] - qij
         self.pair_f[t, i] = self.pair_f[t, i] + fi
@@ -147,11 +147,13 @@ class Rates:
             self.pair_q[t, i] = self.pair_q[t, i] + qi
 
     @ti.func
-    def _pair_sum(self, channel: ti.template(), total, rows: ti.template(), i, j, d, r2, bonded):
-        """total plus the `channel` pair terms' contributions on i from j (rows: each pair term's row(i))."""
-        for n in ti.static(range(len(self.pair_terms))):
-            if ti.static(self.pair_terms[n].pair_channel == channel):
-                total += self.pair_terms[n].pair(rows[n], i, j, d, r2, bonded)
+    def _pair_sum(self, channel: ti.template(), rows: ti.template(), i, j, d, r2, bonded):
+        """The `channel` pair terms' contributions on i from j, summed (rows: each pair term's row(i)). The sum starts
+        at the first term's, not at zero: 0 + x is not folded (it is not x for x = -0), an add per pair and axis."""
+        which = ti.static([n for n, term in enumerate(self.pair_terms) if term.pair_channel == channel])
+        total = self.pair_terms[which[0]].pair(rows[which[0]], i, j, d, r2, bonded)
+        for n in ti.static(which[1:]):
+            total += self.pair_terms[n].pair(rows[n], i, j, d, r2, bonded)
         return total
 
     # ------------------------------------------------------------------ the rates launch
@@ -275,11 +277,11 @@ class Rates:
         if j != i:
             r2 = d.dot(d)
             if ti.static(self.force_pair_terms):
-                fij = self._pair_sum("force", ti.Vector.zero(float, self.dim), rows, i, j, d, r2, False)
+                fij = self._pair_sum("force", rows, i, j, d, r2, False)
                 for a in ti.static(range(self.dim)):
                     acc[a] += fij[a]
             if ti.static(self.heat_pair_terms):
-                acc[self.dim] += self._pair_sum("heat", 0.0, rows, i, j, d, r2, False)
+                acc[self.dim] += self._pair_sum("heat", rows, i, j, d, r2, False)
         return acc
 
     @ti.func
