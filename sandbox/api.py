@@ -67,7 +67,6 @@ def _check_switch(arch: str, precision: str) -> None:
 
 
 def _overrides(set: Mapping[str, Any] | Sequence[str] | None) -> list[tuple[str, Any]]:
-
     if set is None:
         return []
     if isinstance(set, Mapping):

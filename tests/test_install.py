@@ -66,3 +66,20 @@ def test_wheel_runs_shipped_scenes_from_an_empty_folder(installed_wheel, tmp_pat
     )
     checked = _run([sandbox, "check", str(scene)], tmp_path, env=env)
     assert checked.returncode == 0 and "valid" in checked.stdout, checked.stderr
+
+
+def test_a_source_tree_finds_its_scenes_and_the_benchmarks_find_their_inputs(monkeypatch):
+    """A checkout that was never installed finds scenes/ and assets/ beside the package (config/resources.py's
+    fallback); the LAMMPS inputs the benchmark runs are where it looks."""
+    from importlib import resources as importlib_resources
+
+    from sandbox.config import resources
+    from sandbox.research import bench
+
+    def not_installed(name):
+        raise ModuleNotFoundError(name)
+
+    monkeypatch.setattr(importlib_resources, "files", not_installed)
+    assert resources._shipped_folder("scenes") == ROOT / "scenes"
+    assert (resources._shipped_folder("assets") / "materials.toml").is_file()
+    assert bench.LAMMPS_INPUT.is_file() and bench.LAMMPS_INPUT_3D.is_file()

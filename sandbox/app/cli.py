@@ -93,7 +93,6 @@ def cmd_check(args) -> int:
 
 
 def cmd_list(args) -> int:
-
     print("scenes:")
     for path in shipped_scenes():
         scene = load_scene(path)
@@ -107,7 +106,6 @@ def cmd_list(args) -> int:
 
 
 def cmd_keys(args) -> int:
-
     sections = [
         ("scene", SceneInfo),
         ("scene.lesson", Lesson),
@@ -133,7 +131,6 @@ def cmd_keys(args) -> int:
 
 
 def cmd_study(args) -> int:
-
     check_pool_arguments(args)
     integrators = check_names("--integrators", args.integrators, INTEGRATORS)
     problems = check_names("--problems", args.problems, PROBLEMS)
@@ -167,7 +164,6 @@ def cmd_study(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-
     check_count("--frames", args.frames, 1, MAX_FRAMES)
     check_pool_arguments(args)
     check_count("--width", args.width, 16, MAX_SIDE)

@@ -18,7 +18,6 @@ def _scene_path(name: str) -> Path:
 
 
 def _load(args):
-
     return load_scene(_scene_path(args.scene), args.set)
 
 

@@ -193,7 +193,6 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
 
 
 def _replace(obj, **changes):
-
     return dataclasses.replace(obj, **changes)
 
 

@@ -39,7 +39,6 @@ LAMMPS_INPUT_3D = ROOT / "benchmarks" / "lammps" / "in.lj3d"
 
 
 def lj_box_sim(n_side: int, arch: str):
-
     side = n_side / math.sqrt(0.8)
     scene = load_scene(SCENES / "lj_box.toml", [f"world.hi=[{side}, {side}]", f"bodies.0.hi=[{side}, {side}]"])
     return Simulation(scene, arch=arch)
@@ -86,7 +85,6 @@ def spring_heat_lattice_sim(arch: str):
 
 
 def melting_block_sim(arch: str):
-
     return Simulation(load_scene(SCENES / "melting_block.toml"), arch=arch)
 
 
