@@ -25,7 +25,7 @@ from .config.resources import shipped_scene, shipped_scenes
 from .config.scene import apply_override, parse_override, read_scene_table, scene_from_dict
 from .core import runtime
 from .errors import SandboxError
-from .files.persist import load_into, read_meta
+from .files.persist import load_into, read_meta, saved_scene
 from .simulation import Simulation
 
 _alive: weakref.WeakSet = weakref.WeakSet()  # simulations made here, on the running runtime
@@ -116,7 +116,7 @@ def resume(path: str | Path, arch: str | None = None) -> Simulation:
 def resumed(path: str | Path, arch: str | None, meta: dict, scene=None) -> Simulation:
     """Build the simulation a state file describes (`meta`: its read_meta(); `scene`: the scene built from it, where
     the caller has it already) and put its saved state back. `arch`: the backend (default: the one it was saved on)."""
-    scene = scene or scene_from_dict(meta["scene"], Path(meta["scene_path"]))
+    scene = scene or saved_scene(meta, path)
     sim = Simulation(scene, arch=arch or meta["arch"])
     load_into(sim, path, meta)
     return sim

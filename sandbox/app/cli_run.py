@@ -19,10 +19,9 @@ from ..config.arguments import (
     check_rate,
     distinct_outputs,
 )
-from ..config.scene import scene_from_dict
 from ..core import runtime
 from ..errors import SandboxError
-from ..files.persist import read_meta
+from ..files.persist import read_meta, saved_scene
 from ..render.video import check_output
 from ..simulation import Simulation
 from .cli_common import EXIT_INTERRUPTED, EXIT_STOPPED, _load, stability_warnings
@@ -89,7 +88,7 @@ def _resumed_scene(args):
         raise SandboxError(
             f"--resume {args.resume}: saved from scene {meta['scene_name']!r}; expected SCENE to name it"
         )
-    return scene_from_dict(meta["scene"], Path(meta["scene_path"])), int(meta["frame"]), meta
+    return saved_scene(meta, args.resume), int(meta["frame"]), meta
 
 
 def cmd_run(args) -> int:

@@ -29,6 +29,24 @@ FIELD, NDARRAY, VALUE = "field", "ndarray", "value"
 
 
 @dataclass(frozen=True)
+class Range:
+    """The values an entry may hold, checked when a state file is read (files/state_check.py): between `lo` and
+    `hi` (numbers, inclusive), below `below` and at most `atmost` (names of counts known at the check: "capacity",
+    "n" live particles, "materials", "groups", "springs" slots, "next_ident"), and finite (reals)."""
+
+    lo: float | None = None
+    hi: float | None = None
+    below: str | None = None
+    atmost: str | None = None
+    finite: bool = True
+
+
+ANY = Range()  # any finite value
+COUNT = Range(lo=0)  # a count or a counter
+POSITIVE = Range(lo=1e-300)  # masses, radii, step sizes: above zero
+
+
+@dataclass(frozen=True)
 class Entry:
     """One declared piece of the state."""
 
@@ -38,6 +56,7 @@ class Entry:
     kind: str  # FIELD, NDARRAY or VALUE
     physical: bool  # in snapshots (reset, undo); else kept only for a bit-for-bit resume
     rows: str = ""  # what its first axis counts ("particles", "springs"), or "": checked when a state file is read
+    valid: Range = ANY  # the values it may hold there
 
     def get(self):
         return getattr(self.owner, self.attribute)
@@ -60,26 +79,55 @@ class State:
         self.passengers: tuple = ()  # per-particle fields others keep, moved with the particles
         self.mover = Mover(particles, springs)
         self._entries: list[Entry] = []
-        self.declare("clock", self, ("time", "step", "frames", "dt"), kind=VALUE)
+        self.declare("clock", self, ("time", "step", "frames"), kind=VALUE, valid=COUNT)
+        self.declare("clock", self, ("dt",), kind=VALUE, valid=POSITIVE)
         self.declare("state", self, ("layout",), kind=VALUE, physical=False)  # the lists compare theirs with it
-        self.declare("particles", particles, ("n",), kind=FIELD)
-        self.declare("particles", particles, tuple(particles.names()), kind=FIELD, rows="particles")
-        self.declare("particles", particles, ("next_ident",), kind=VALUE)
+        self.declare("particles", particles, ("n",), valid=Range(lo=0, atmost="capacity"))
+        self._declare_particles(particles)
+        self.declare("particles", particles, ("next_ident",), kind=VALUE, valid=COUNT)
         if springs is not None:
-            per_spring = tuple(n for n in SpringState.NAMES if n not in ("bonds", "created", "span"))
-            self.declare("springs", springs, per_spring, kind=FIELD, rows="springs")
-            self.declare("springs", springs, ("bonds",), kind=FIELD, rows="particles")
-            self.declare("springs", springs, ("created", "span"), kind=FIELD)
+            each = "springs"
+            self.declare(each, springs, ("i", "j"), rows=each, valid=Range(lo=0, below="capacity"))
+            self.declare(each, springs, ("rest", "ks", "kd", "factor"), rows=each, valid=COUNT)
+            self.declare(each, springs, ("alive",), rows=each, valid=Range(lo=0, hi=1))
+            self.declare(each, springs, ("bonds",), rows="particles", valid=Range(lo=-1, below="springs"))
+            self.declare(each, springs, ("created", "span"), valid=Range(lo=0, atmost="springs"))
+
+    def _declare_particles(self, p: Particles) -> None:
+        """The per-particle fields, each with the values it may hold."""
+        ranges = {
+            "mass": POSITIVE,
+            "radius": POSITIVE,
+            "material": Range(lo=0, below="materials"),
+            "color": Range(lo=0.0, hi=1.0),
+            "group": Range(lo=0, below="groups"),
+            "ident": Range(lo=0, below="next_ident"),
+            "liquid": Range(lo=0, hi=3),
+            "age": COUNT,
+            "lifetime": COUNT,
+        }
+        for name in p.names():
+            self.declare("particles", p, (name,), rows="particles", valid=ranges.get(name, ANY))
 
     # ------------------------------------------------------------------ the declarations
-    def declare(self, prefix: str, owner, names, kind: str = FIELD, physical: bool = True, rows: str = "") -> None:
+    def declare(
+        self,
+        prefix: str,
+        owner,
+        names,
+        kind: str = FIELD,
+        physical: bool = True,
+        rows: str = "",
+        valid: Range = ANY,
+    ) -> None:
         """Add `owner`'s attributes `names` to the state under `prefix.name`: Taichi fields (FIELD), ndarrays
         (NDARRAY: the attribute may be replaced by a wider one) or host numbers and lists (VALUE). `physical`: part
         of a snapshot (else only saved to state files, for a bit-for-bit resume); `rows`: what the first axis of a
-        field counts."""
+        field counts ("particles": the live ones are checked, "springs": those ever used); `valid`: the values it
+        may hold (checked when a state file is read)."""
         taken = {e.name for e in self._entries}
         for name in names:
-            entry = Entry(f"{prefix}.{name}", owner, name, kind, physical, rows)
+            entry = Entry(f"{prefix}.{name}", owner, name, kind, physical, rows, valid)
             if entry.name in taken:
                 raise ValueError(f"state entry {entry.name} declared twice")
             self._entries.append(entry)

@@ -25,9 +25,12 @@ import numpy as np
 import taichi as ti
 
 from .. import __version__
+from ..config.scene import scene_from_dict
 from ..core import runtime, taichi_compat, transfer
 from ..core.state import FIELD, NDARRAY, VALUE
 from ..errors import SandboxError
+from ..integrators import REGISTRY
+from .state_check import check_meta, check_state
 
 FORMAT = "sandbox-state"
 FORMAT_VERSION = 2
@@ -124,7 +127,16 @@ def read_meta(path: str | Path) -> dict:
             f"sandbox {__version__} (format {FORMAT_VERSION}): a state resumes bit for bit only in the version that "
             "wrote it"
         )
+    check_meta(meta, path)
     return meta
+
+
+def saved_scene(meta: dict, path: str | Path):
+    """The scene a state file's meta table holds, validated as a scene file is; a fault names the state file."""
+    try:
+        return scene_from_dict(meta["scene"], Path(meta["scene_path"]))
+    except SandboxError as exc:
+        raise SandboxError(f"{path}: the saved scene does not load: {exc}") from exc
 
 
 def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
@@ -148,10 +160,21 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
     try:
         with np.load(path, allow_pickle=False) as data:
             saved = {key: data[key] for key in data.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        host = json.loads(str(saved["host"]))
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError, json.JSONDecodeError) as exc:
         raise SandboxError(f"{path}: the state file is damaged ({type(exc).__name__})") from exc
-    sim.set_integrator(meta["integrator"])  # before reading: its own entries are part of the state
-    _put_back(sim.state, saved, path)
+    if not isinstance(host, dict):
+        raise SandboxError(f"{path}: the state file's host values are not a table; expected one written by save()")
+    if meta["integrator"] not in REGISTRY:
+        raise SandboxError(f"{path}: integrator {meta['integrator']!r}; expected one of {', '.join(REGISTRY)}")
+    before = sim.integrator.name
+    sim.set_integrator(meta["integrator"])  # before checking: its own entries are part of the state
+    try:
+        check_state(sim, saved, host, path)
+    except SandboxError:
+        sim.set_integrator(before)  # nothing of the file reached the simulation
+        raise
+    _put_back(sim.state, saved, host)
     sim.model.apply_controls(meta["controls"])
     for term in sim.terms:
         term.apply_controls(meta["controls"])
@@ -159,26 +182,12 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
         part.after_restore(sim.state)
 
 
-def _put_back(state, saved: dict, path: Path) -> None:
+def _put_back(state, saved: dict, host: dict) -> None:
+    """Every entry of `state` from the file's (checked) arrays and host values."""
     entries = state.entries()
-    expected = {f"{e.kind}:{e.name}" for e in entries if e.kind != VALUE}
-    present = {k for k in saved if k.startswith((f"{FIELD}:", f"{NDARRAY}:"))}
-    if expected != present:
-        missing = sorted(expected - present)[:3]
-        extra = sorted(present - expected)[:3]
-        raise SandboxError(f"{path}: the state does not fit its scene (missing {missing}, unexpected {extra})")
-    pairs = []
-    for e in entries:
-        if e.kind != FIELD:
-            continue
-        f, values = e.get(), saved[f"{FIELD}:{e.name}"]
-        want = tuple(f.shape) + ((f.n,) if isinstance(f, ti.MatrixField) else ())
-        if values.shape != want:
-            raise SandboxError(f"{path}: field {e.name} has shape {values.shape}; expected {want}")
-        pairs.append((f, values))
+    pairs = [(e.get(), saved[f"{FIELD}:{e.name}"]) for e in entries if e.kind == FIELD]
     with _quiet_unrolling():
         transfer.upload_all(pairs)
-    host = json.loads(str(saved["host"]))
     for e in entries:
         if e.kind == NDARRAY:
             values, current = saved[f"{NDARRAY}:{e.name}"], e.get()
@@ -186,6 +195,6 @@ def _put_back(state, saved: dict, path: Path) -> None:
                 current = runtime.ndarray(current.dtype, values.shape)
                 e.set(current)
             current.from_numpy(values)
-        elif e.kind == VALUE and e.name in host:
+        elif e.kind == VALUE:
             value = host[e.name]
             e.set(tuple(value) if isinstance(e.get(), tuple) else value)

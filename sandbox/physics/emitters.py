@@ -18,6 +18,7 @@ import taichi as ti
 from ..config.build import load_mask
 from ..core import transfer
 from ..core.oriented import data_oriented
+from ..core.state import COUNT
 from ..errors import SceneError
 from .fields import random_uniform
 from .phase import NEVER_BONDS
@@ -104,7 +105,7 @@ class Emitters(Term):
 
     def declare(self, state) -> None:
         """Particles emitted so far (the random-number index), the rate's carried fraction, the counts."""
-        state.declare("emitters", self, ("serial", "carry", "emitted"), kind="value")
+        state.declare("emitters", self, ("serial", "carry", "emitted"), kind="value", valid=COUNT)
 
     def start(self, state) -> None:
         self.emit_initial()

@@ -24,6 +24,7 @@ import taichi as ti
 from ..core import runtime
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
+from ..core.state import COUNT, Range
 
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
 LIST_ARRAY = ti.types.ndarray(dtype=ti.i32, ndim=2)  # the type of the lists as a kernel argument: see the docstring
@@ -84,11 +85,16 @@ class NeighbourList:
     def declare(self, state) -> None:
         """The lists and when they were built: saved with a state, so a resumed run sums its forces in the same
         order (not part of a snapshot: restoring one moves the layout on, which rebuilds them)."""
-        state.declare("neighbours", self, ("ids",), kind="ndarray", physical=False, rows="particles")
-        state.declare("neighbours", self, ("count", "x_ref"), physical=False, rows="particles")
-        state.declare("neighbours", self, ("n_listed", "fused_builds"), physical=False)
-        values = ("forced", "usable", "host_builds", "fused", "grown", "width", "built_layout")
-        state.declare("neighbours", self, values, kind="value", physical=False)
+        listed = Range(below="capacity")  # a particle, or -(s + 1) for a bonded pair's spring s: checked below
+        state.declare("neighbours", self, ("ids",), kind="ndarray", physical=False, rows="particles", valid=listed)
+        state.declare("neighbours", self, ("count",), physical=False, rows="particles", valid=COUNT)
+        state.declare("neighbours", self, ("x_ref",), physical=False, rows="particles")
+        state.declare("neighbours", self, ("n_listed",), physical=False, valid=Range(lo=0, atmost="capacity"))
+        state.declare("neighbours", self, ("fused_builds",), physical=False, valid=COUNT)
+        flags = ("forced", "usable", "fused", "built_layout")
+        state.declare("neighbours", self, flags, kind="value", physical=False)
+        counters = ("host_builds", "grown", "width")
+        state.declare("neighbours", self, counters, kind="value", physical=False, valid=COUNT)
 
     def must_rebuild(self) -> bool:
         """Whether the next check rebuilds whatever the particles' displacements: invalidated, or the particles were

@@ -7,6 +7,8 @@ grid's counting sort gives the order, and the State moves every particle into it
 passengers: core/particles.py's Mover). Particles keep their identity in `ident` (the particle id).
 """
 
+from ..core.state import COUNT
+
 
 class CellOrder:
     """Sorts the particle storage of `state` into the cell order of `grid`, every `every` builds of `lists`."""
@@ -19,7 +21,7 @@ class CellOrder:
 
     def declare(self, state) -> None:
         """When it sorted and sorts next: saved with a state so a resumed run sorts on the same steps."""
-        state.declare("reorder", self, ("applied", "next_at"), kind="value", physical=False)
+        state.declare("reorder", self, ("applied", "next_at"), kind="value", physical=False, valid=COUNT)
 
     def due(self) -> bool:
         """True when the neighbour list has been rebuilt `every` times since the last sort."""
