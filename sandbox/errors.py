@@ -16,3 +16,14 @@ class SceneError(SandboxError):
 
 class SimulationError(SandboxError):
     """The simulation reached a state it cannot continue from (non-finite values, runaway energy)."""
+
+
+class OutputError(SandboxError):
+    """An output could not be written (a full disk, a quota, a failed encoder): `path` and the system's reason."""
+
+    def __init__(self, path, reason: str, kept: list | None = None):
+        self.path, self.reason, self.kept = path, reason, kept or []
+        message = f"could not write {path}: {reason}"
+        if self.kept:
+            message += f"; the outputs so far are kept under partial names: {', '.join(str(p) for p in self.kept)}"
+        super().__init__(message)

@@ -128,18 +128,22 @@ def spring_pairs(sim) -> np.ndarray:
     return np.stack([ids[i[live]], ids[j[live]]], axis=1)
 
 
-def write_extxyz(sim, path: str | Path, append: bool = True, bonds: bool = False) -> None:
-    """Write the particles as one extended-XYZ frame (ASE, OVITO) to `path`: appended to it (`append`), or replacing
-    it. `bonds`: the live springs as a Bonds key of particle-id pairs."""
+def extxyz_text(sim, bonds: bool = False) -> str:
+    """The particles as one extended-XYZ frame (ASE, OVITO); `bonds`: the live springs as a Bonds key of particle-id
+    pairs."""
     world = sim.scene.world
     pairs = spring_pairs(sim) if bonds and sim.state.springs is not None else None
-    text = frame_text(
+    return frame_text(
         particle_table(sim), sim.material_names, world.lo, world.hi, world.periodic, sim.time, sim.step_count, pairs
     )
+
+
+def write_extxyz(sim, path: str | Path, append: bool = True, bonds: bool = False) -> None:
+    """Write the particles as one extended-XYZ frame to `path`: appended to it (`append`), or replacing it."""
     path = Path(path)
     if not append:
         path.unlink(missing_ok=True)
-    append_frame(path, text)
+    append_frame(path, extxyz_text(sim, bonds))
 
 
 def memory_bytes(sim) -> dict[str, int]:

@@ -194,8 +194,9 @@ def test_cli_checkpoints_resume_and_dump(tmp_path):
     )
     assert code == 0 and persist.read_meta(ckpt)["frame"] == 3
     assert dump.read_text().count("Lattice=") == 1  # frame 2 (frame 4 is past the run)
-    code = main([*base, "--frames", "6", "--resume", str(ckpt), "--out", str(tmp_path / "c"), "--stats", str(rest)])
-    assert code == 0
+    resume = [*base, "--frames", "6", "--resume", str(ckpt), "--out", str(tmp_path / "c"), "--stats", str(rest)]
+    assert main(resume) == 2  # other files than the checkpoint's: nothing to continue (tests/test_run_files.py)
+    assert main([*resume, "--restart-outputs"]) == 0  # new files, from the checkpoint's frame on
     whole_rows, rest_rows = whole.read_text().splitlines(), rest.read_text().splitlines()
 
     def measured(row):  # every column but the wall time of the steps

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import textwrap
 
@@ -37,14 +38,23 @@ from ..config.scene_tables import (
 )
 from ..config.schema import describe
 from ..core import runtime
-from ..errors import SandboxError, SimulationError
+from ..errors import OutputError, SandboxError, SimulationError
 from ..render.video import check_output
 from ..research.phase_study import run_phase_study
 from ..research.study import INTEGRATORS, PROBLEMS, run_study
 from ..simulation import Simulation
 from .cli_bench import run_bench
-from .cli_common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_STOPPED, _load, _scene_path, stability_warnings
+from .cli_common import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_STOPPED,
+    EXIT_WRITE_FAILED,
+    _load,
+    _scene_path,
+    stability_warnings,
+)
 from .cli_run import cmd_run
+from .signals import exit_code
 from .sweep import METRICS, parse_vary, plan_runs, plot_sweep, run_sweep
 
 
@@ -253,6 +263,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--checkpoint-every", type=int, metavar="N", help="save the state every N frames (headless)")
     run.add_argument("--checkpoint", metavar="PATH", help="the checkpoint file (default: out/SCENE.state.npz)")
     run.add_argument("--dump", metavar="PATH", help="write particles as extended XYZ frames (.extxyz) for ASE/OVITO")
+    run.add_argument(
+        "--restart-outputs",
+        action="store_true",
+        help="with --resume: start --out, --stats and --dump over from the state's frame instead of continuing them",
+    )
     run.add_argument("--dump-every", type=int, metavar="N", help="with --dump: every N frames (default 1)")
     run.set_defaults(func=cmd_run)
 
@@ -317,17 +332,22 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     os.environ.setdefault("TI_LOG_LEVEL", "error")
     runtime.own_process()
+    if hasattr(signal, "SIGXFSZ"):  # past a file-size limit (ulimit -f) a write fails and is reported, not a kill
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     try:
         return args.func(args)
     except SimulationError as exc:  # the blow-up guard, outside a headless run (the window, a check)
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_STOPPED
+    except OutputError as exc:  # a full disk, a failed encoder: what was written is kept under partial names
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_WRITE_FAILED
     except SandboxError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("interrupted", file=sys.stderr)
-        return 130
+        return exit_code(exc)
     except BrokenPipeError:  # `sandbox list | head`: the reader left; nothing more to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0

@@ -21,7 +21,7 @@ def _load(args):
     return load_scene(_scene_path(args.scene), args.set)
 
 
-EXIT_BAD_INPUT, EXIT_STOPPED, EXIT_INTERRUPTED = 2, 3, 130
+EXIT_BAD_INPUT, EXIT_STOPPED, EXIT_WRITE_FAILED, EXIT_INTERRUPTED = 2, 3, 4, 130
 
 
 def stability_warnings(sim) -> list[str]:

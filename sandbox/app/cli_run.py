@@ -3,6 +3,7 @@ scene picker) or run headless into a video, pictures, a CSV, dumps and checkpoin
 
 from __future__ import annotations
 
+import signal
 import sys
 from pathlib import Path
 
@@ -18,14 +19,15 @@ from ..config.arguments import (
     check_picture,
     check_rate,
     distinct_outputs,
+    outputs_not_inputs,
 )
 from ..core import runtime
 from ..errors import SandboxError
 from ..files.persist import read_meta, saved_scene
 from ..render.video import check_output
 from ..simulation import Simulation
-from .cli_common import EXIT_INTERRUPTED, EXIT_STOPPED, _load, stability_warnings
-from .run_files import RunFiles
+from .cli_common import EXIT_STOPPED, _load, stability_warnings
+from .run_outputs import RunOutputs
 from .runner import run_headless
 from .window import WindowUnavailable, open_scene, run_window, window_unavailable_reason
 
@@ -51,18 +53,22 @@ def _check_run_numbers(args) -> None:
         raise SandboxError("--set with --resume: a resumed run continues the saved scene; expected no --set")
 
 
-def _check_run_outputs(args, out: str | None) -> None:
-    """Every file the run will write: a known kind, a writable folder (created if missing), no two the same."""
-    distinct_outputs(
-        {
-            "--out": out,
-            "--stats": args.stats,
-            "--screenshot": args.screenshot,
-            "--record": args.record,
-            "--dump": args.dump,
-            "--checkpoint": args.checkpoint,
-        }
-    )
+def _check_run_outputs(args, out: str | None, scene) -> None:
+    """Every file the run will write: a known kind, a writable folder (created if missing), no two the same, none a
+    file the run reads."""
+    outputs = {
+        "--out": out,
+        "--stats": args.stats,
+        "--screenshot": args.screenshot,
+        "--record": args.record,
+        "--dump": args.dump,
+        "--checkpoint": args.checkpoint,
+    }
+    distinct_outputs(outputs)
+    inputs = {"--resume": args.resume, "scene": scene.path}
+    masks = [thing.mask for thing in (*scene.bodies, *scene.emitters) if thing.mask]
+    inputs.update({f"mask {Path(m).name}": m for m in masks})
+    outputs_not_inputs(outputs, inputs)
     if args.dump is not None:
         check_file_output("--dump", args.dump, (".extxyz", ".xyz"))
     if args.checkpoint is not None:
@@ -122,7 +128,7 @@ def cmd_run(args) -> int:
     width, height = args.width or scene.render.width, args.height or scene.render.height
     check_picture(width, height, out)
     runtime.require(args.arch, scene.world.precision)
-    _check_run_outputs(args, out)
+    _check_run_outputs(args, out, scene)
 
     if args.resume:
         sim = resumed(args.resume, args.arch, saved_meta, scene)
@@ -141,32 +147,39 @@ def cmd_run(args) -> int:
             print(f"{exc}: running headless", file=sys.stderr)
             out = out or f"out/{scene.name}.mp4"
             check_picture(width, height, out)
-            _check_run_outputs(args, out)
+            _check_run_outputs(args, out, scene)
 
+    outputs = RunOutputs(
+        sim,
+        out,
+        args.stats,
+        size=(width, height, args.fps or scene.render.fps),
+        still_frame=args.still_frame,
+        dump=args.dump,
+        dump_every=args.dump_every or 1,
+        checkpoint=args.checkpoint,
+        checkpoint_every=args.checkpoint_every,
+        resume=(Path(args.resume), saved_meta) if args.resume else None,
+        restart=args.restart_outputs,
+    )
     start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
     print(
         f"{scene.name}: {sim.model.built.count} particles, {sim.model.built.spring_count} springs, {start} x "
         f"{substeps or scene.world.substeps} steps on {sim.arch} -> {out}",
         file=sys.stderr,
     )
-    files = RunFiles(sim, args.dump, args.dump_every or 1, args.checkpoint, args.checkpoint_every)
-    try:
-        result = run_headless(
-            sim,
-            frames - first_frame,
-            substeps,
-            out,
-            args.stats,
-            width=width,
-            height=height,
-            fps=args.fps,
-            still_frame=args.still_frame,
-            progress=not args.quiet,
-            on_frame=files.after_frame,
-            first_frame=first_frame,
-        )
-    finally:
-        files.close()
+    result = run_headless(
+        sim,
+        frames - first_frame,
+        substeps,
+        out,
+        width=width,
+        height=height,
+        fps=args.fps,
+        progress=not args.quiet,
+        first_frame=first_frame,
+        outputs=outputs,
+    )
     if result.stopped:
         print(f"error: the blow-up guard stopped the run: {result.stopped}", file=sys.stderr)
         if result.frames and out:
@@ -179,11 +192,17 @@ def cmd_run(args) -> int:
         print(kept, file=sys.stderr)
         return EXIT_STOPPED
     last = result.last
-    summary = f"wrote {out} ({result.frames} frames, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
+    count = (
+        f"{first_frame + result.frames} frames, {result.frames} of them now"
+        if first_frame
+        else f"{result.frames} frames"
+    )
+    summary = f"wrote {out} ({count}, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
     if last is not None and sim.terms.heat is not None:
         summary += f"; molten fraction {last.molten_fraction:.2f}, broken springs {last.broken_springs}"
     print(summary, file=sys.stderr)
     if result.interrupted:
-        print("interrupted: the files written so far are complete and valid", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        name = signal.Signals(result.signal).name if result.signal else "SIGINT"
+        print(f"stopped by {name}: the files written so far are complete and valid", file=sys.stderr)
+        return 128 + (result.signal or 2)
     return 0

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import csv
-import math
 import sys
 import time
 from collections.abc import Callable
@@ -12,11 +10,11 @@ from pathlib import Path
 
 import taichi as ti
 
-from ..errors import SimulationError
-from ..measure.stats import stat_values
+from ..errors import OutputError, SimulationError
 from ..render.raster import Renderer
-from ..render.video import open_writer, partial_path, publish
-from ..simulation import STAT_COLUMNS, Simulation, Stats
+from ..simulation import Simulation, Stats
+from .run_outputs import RunOutputs
+from .signals import Stopper, exit_code
 
 
 @dataclass
@@ -27,13 +25,7 @@ class RunResult:
     last: Stats | None
     interrupted: bool = False
     stopped: str | None = None  # the blow-up guard's message when it stopped the run
-
-
-def stats_row(frame: int, s: Stats, step_seconds: float) -> dict:
-    """One CSV row (the STAT_COLUMNS) for frame `frame`; a measurement the scene does not have (the temperature of a
-    scene without heat) is left empty."""
-    row = stat_values(frame, s, step_seconds)
-    return {k: (("" if math.isnan(v) else f"{v:.9g}") if isinstance(v, float) else v) for k, v in row.items()}
+    signal: int | None = None  # the signal that interrupted it (2: Ctrl-C, 15: SIGTERM, 1: SIGHUP)
 
 
 def _progress(total: int, enabled: bool, label: str):
@@ -59,65 +51,69 @@ def run_headless(
     progress: bool = True,
     on_frame: Callable[[int, Stats], None] | None = None,
     first_frame: int = 0,
+    outputs: RunOutputs | None = None,
 ) -> RunResult:
     """Run `frames` frames of `substeps` steps each (None: the scene's, possibly "auto"); write frames to `out` (by
-    extension) and stats to a CSV. `first_frame`: the frames run before (a resumed run numbers its rows on from it).
+    extension) and stats to a CSV, or everything `outputs` holds (the command line's run: dump and checkpoints
+    too). `first_frame`: the frames run before (a resumed run numbers its rows on from it).
 
-    Every frame is measured, and so checked by the blow-up guard, before its row and picture are written. Ctrl-C
-    stops the run between steps (the result says `interrupted`); the guard stops it with a SimulationError (the
-    result's `stopped` holds its message). Either way the video and CSV hold exactly the frames before, closed into
-    valid files under the names asked for (a video with no frame is not written).
+    Every frame is measured, and so checked by the blow-up guard, before its row and picture are written. Ctrl-C,
+    SIGTERM or SIGHUP stop the run between steps (the result says `interrupted`, and `signal`); the guard stops it
+    with a SimulationError (the result's `stopped` holds its message). Either way the outputs hold exactly the
+    frames before, closed into valid files under the names asked for (a video with no frame is not written). A write
+    that fails (a full disk) leaves them under partial names and raises an OutputError that lists them.
     """
     cfg = sim.scene.render
     width, height, fps = width or cfg.width, height or cfg.height, fps or cfg.fps
-    renderer = Renderer(sim.model, sim.state, width, height, cfg, output="picture") if out is not None else None
+    if outputs is None:
+        outputs = RunOutputs(sim, out, stats_path, size=(width, height, fps), still_frame=still_frame)
+    renderer = Renderer(sim.model, sim.state, width, height, cfg, output="picture") if outputs.pictures else None
     if renderer is not None:
         sim.state.carry(renderer.tails)  # its motion-blur tails move with the particles
-    writer = open_writer(out, width, height, fps, still_frame) if out is not None else None
-    csv_file = None
-    if stats_path is not None:
-        stats_path = Path(stats_path)
-        stats_path.parent.mkdir(parents=True, exist_ok=True)
-        csv_file = open(partial_path(stats_path), "w", newline="")  # noqa: SIM115 - closed in finally
-        table = csv.DictWriter(csv_file, fieldnames=STAT_COLUMNS)
-        table.writeheader()
+
+    def picture():
+        renderer.record(last)
+        return renderer.frame()
+
     bar = _progress(frames, progress, sim.scene.name)
     start = time.perf_counter()
     last = None
     done = 0
-    interrupted = False
-    stopped = None
+    interrupted, signum, stopped = False, None, None
+    complete = True
     try:
-        for frame in range(first_frame, first_frame + frames):
-            ti.sync()
-            t0 = time.perf_counter()
-            if renderer is not None:
-                renderer.begin_frame()
-            taken = sim.advance_frame(substeps, renderer.mid_frame if renderer is not None else None)
-            ti.sync()
-            step_seconds = (time.perf_counter() - t0) / taken
-            last = sim.stats()
-            if csv_file is not None:
-                table.writerow(stats_row(frame, last, step_seconds))
-            if writer is not None:
-                renderer.record(last)
-                writer.write(renderer.frame())
-            if on_frame is not None:
-                on_frame(frame, last)
-            done += 1
-            if bar is not None:
-                bar.update(1)
-    except KeyboardInterrupt:
-        interrupted = True
+        with Stopper() as stopper:
+            for frame in range(first_frame, first_frame + frames):
+                ti.sync()
+                t0 = time.perf_counter()
+                if renderer is not None:
+                    renderer.begin_frame()
+                taken = sim.advance_frame(substeps, renderer.mid_frame if renderer is not None else None)
+                ti.sync()
+                step_seconds = (time.perf_counter() - t0) / taken
+                last = sim.stats()
+                with stopper.held():
+                    outputs.frame(frame, last, step_seconds, picture if renderer is not None else None)
+                    done += 1  # its row and picture are written
+                    if on_frame is not None:
+                        on_frame(frame, last)
+                if bar is not None:
+                    bar.update(1)
+    except KeyboardInterrupt as exc:
+        interrupted, signum = True, exit_code(exc) - 128
     except SimulationError as exc:
         stopped = str(exc)
+    except OutputError as exc:
+        complete = False
+        kept = outputs.close(complete=False)
+        raise OutputError(exc.path, exc.reason, kept) from None
+    except BaseException:
+        complete = False
+        outputs.close(complete=False)
+        raise
     finally:
         if bar is not None:
             bar.close()
-        if writer is not None:
-            writer.close()
-        if csv_file is not None:
-            csv_file.close()
-            publish(partial_path(stats_path), stats_path, keep=True)
-    written = writer.frames_written if writer is not None else done
-    return RunResult(written, sim.time, time.perf_counter() - start, last, interrupted, stopped)
+        if complete:
+            outputs.close(complete=True)
+    return RunResult(done, sim.time, time.perf_counter() - start, last, interrupted, stopped, signum)

@@ -100,6 +100,28 @@ def distinct_outputs(paths: dict[str, str | None]) -> None:
         seen[key] = option
 
 
+def outputs_not_inputs(outputs: dict[str, str | None], inputs: dict[str, str | None]) -> None:
+    """No output may be a file the run reads (the scene, a mask, the state resumed), except that the checkpoint may
+    be the state resumed (a checkpoint replaces its file whole, after the state was read)."""
+    for option, path in outputs.items():
+        for source, read in inputs.items():
+            if path is None or read is None or (option == "--checkpoint" and source == "--resume"):
+                continue
+            if same_file(path, read):
+                raise SandboxError(f"{option} {path}: is the {source} file this run reads; expected another path")
+
+
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether two paths name one file (through links too, or by their resolved paths before either exists)."""
+    a, b = Path(a), Path(b)
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return a.resolve() == b.resolve()
+
+
 def check_pool_arguments(args) -> None:
     """--scheduler, --workers and --threads of sweep and study."""
     check_count("--workers", args.workers, 1, 1024)

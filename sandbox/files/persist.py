@@ -30,6 +30,7 @@ from ..core import runtime, taichi_compat, transfer
 from ..core.state import FIELD, NDARRAY, VALUE
 from ..errors import SandboxError
 from ..integrators import REGISTRY
+from .claim import partial_name
 from .state_check import check_meta, check_state
 
 FORMAT = "sandbox-state"
@@ -58,10 +59,11 @@ def controls(sim) -> dict:
     return values
 
 
-def save_state(sim, path: str | Path, frame: int | None = None) -> Path:
+def save_state(sim, path: str | Path, frame: int | None = None, outputs: dict | None = None) -> Path:
     """Write `sim`'s whole state to `path` (.npz added when missing) atomically: written under a temporary name in
     the same folder and renamed, so a crash while writing never leaves a broken file under `path`. `frame`: the
-    frame count to record (default: the frames the simulation has advanced). Returns the path written."""
+    frame count to record (default: the frames the simulation has advanced); `outputs`: what a headless run's files
+    held at this checkpoint (app/run_outputs.py), for its resume to continue them. Returns the path written."""
     path = Path(path)
     if path.suffix != ".npz":
         path = path.with_name(path.name + ".npz")
@@ -88,8 +90,10 @@ def save_state(sim, path: str | Path, frame: int | None = None) -> Path:
         "particles": state.live_count(),
         "controls": controls(sim),
     }
+    if outputs is not None:
+        meta["outputs"] = outputs
     path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(f".{path.stem}.partial.npz")
+    partial = partial_name(path)
     try:
         with open(partial, "wb") as out:
             np.savez(out, meta=np.array(json.dumps(meta)), host=np.array(json.dumps(host)), **arrays)

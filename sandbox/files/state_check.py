@@ -51,6 +51,8 @@ def check_meta(meta: dict, path: Path) -> None:
             f"{path}: meta arch {meta['arch']!r}, precision {meta['precision']!r}, threads {meta['threads']}; expected "
             f"one of {', '.join(ARCHES)}, one of {', '.join(PRECISIONS)} and at least one thread"
         )
+    if not isinstance(meta.get("outputs", {}), dict):
+        raise SandboxError(f"{path}: meta outputs is {meta['outputs']!r}; expected the table of a run's outputs")
     for key, value in meta["controls"].items():
         flat = np.asarray(value, dtype=object).ravel()
         if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in flat):

@@ -15,6 +15,8 @@ import numpy as np
 from PIL import Image
 
 from ..errors import SandboxError
+from ..files.claim import partial_name
+from .encoder import Encoder, ffmpeg_exe
 
 VIDEO_HINT = "install the video extra: python3 -m pip install -e '.[video]'"
 
@@ -67,8 +69,8 @@ class PngSequenceWriter(FrameWriter):
 
 
 def partial_path(path: Path) -> Path:
-    """The hidden name a file is written under until it is complete (the suffix kept, for ffmpeg)."""
-    return path.with_name(f".{path.stem}.partial{path.suffix}")
+    """The hidden name a file is written under until it is complete: this run's own (files/claim.py)."""
+    return partial_name(path)
 
 
 def publish(partial: Path, path: Path, keep: bool) -> None:
@@ -100,44 +102,27 @@ class StillWriter(FrameWriter):
 
 
 class FfmpegWriter(FrameWriter):
-    """MP4 (libx264, yuv420p) or GIF (one palette for the clip, from ffmpeg's palettegen) through imageio-ffmpeg."""
+    """MP4 (H.264, yuv420p) or GIF (one palette for the clip) through ffmpeg (render/encoder.py)."""
 
     def __init__(self, path: Path, width: int, height: int, fps: float):
         super().__init__(path, width, height, fps)
-        import imageio_ffmpeg  # noqa: F401 - fail here, before the run, when it is missing
-
-        self._gen = None  # ffmpeg starts with the first frame, so a run that draws none writes nothing
-
-    def _start(self):
-        import imageio_ffmpeg
-
-        path, width, height, fps = self.path, self.width, self.height, self.fps
-        if path.suffix.lower() == ".gif":
-            kwargs = dict(
-                codec="gif",
-                pix_fmt_out="rgb24",
-                output_params=[
-                    "-filter_complex",
-                    "split[a][b];[a]palettegen=stats_mode=diff[p];[b][p]paletteuse=dither=none:diff_mode=rectangle",
-                ],
-            )
-        else:
-            kwargs = dict(codec="libx264", pix_fmt_out="yuv420p", quality=7, output_params=["-movflags", "+faststart"])
-        self._gen = imageio_ffmpeg.write_frames(
-            str(partial_path(path)), (width, height), fps=fps, macro_block_size=2, ffmpeg_log_level="error", **kwargs
-        )
-        self._gen.send(None)
+        ffmpeg_exe()  # fail here, before the run, when imageio-ffmpeg is missing
+        self._encoder: Encoder | None = None  # ffmpeg starts with the first frame: a run that draws none writes nothing
 
     def _write(self, frame):
-        if self._gen is None:
-            self._start()
-        self._gen.send(np.ascontiguousarray(frame))
+        if self._encoder is None:
+            self._encoder = Encoder(partial_path(self.path), self.width, self.height, self.fps)
+        self._encoder.write(frame)
 
     def close(self):
-        if self._gen is not None:
-            self._gen.close()
-            self._gen = None
-            publish(partial_path(self.path), self.path, keep=self.frames_written > 0)
+        if self._encoder is not None:
+            encoder, self._encoder = self._encoder, None
+            try:
+                encoder.close()
+            except Exception:
+                encoder.path.unlink(missing_ok=True)
+                raise
+            publish(encoder.path, self.path, keep=self.frames_written > 0)
 
 
 def check_output(path: str | Path) -> None:

@@ -1,0 +1,212 @@
+"""Everything a headless run writes, held together: the pictures (a video in pieces, a PNG folder or a still), the
+stats CSV, the extended-XYZ dump and the checkpoint.
+
+- Each output is claimed (files/claim.py): a second live run writing it is refused, partial names are the run's own,
+  and partial files a killed run left are adopted by a resume or removed, and named either way.
+- A checkpoint flushes every output and records what each held (bytes and SHA-256, frames and a digest of them) in
+  the state file, so `--resume` continues the very files the checkpoint belongs to, or says they do not match.
+- close(complete=True) gives every output its name (Ctrl-C, SIGTERM, the blow-up guard: the files hold the frames
+  done); close(complete=False) (a write that failed: a full disk) leaves them under partial names and lists them.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from ..errors import OutputError, SandboxError
+from ..files.appending import AppendFile
+from ..files.claim import Claim
+from ..files.persist import save_state
+from ..measure.stats import stat_values
+from ..render.segments import PngFolder, SegmentedVideo
+from ..render.video import StillWriter
+from ..scripting import extxyz_text
+from ..simulation import STAT_COLUMNS, Stats
+
+RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
+
+
+def stats_row(frame: int, s: Stats, step_seconds: float) -> dict:
+    """One CSV row (the STAT_COLUMNS) for frame `frame`; a measurement the scene does not have (the temperature of a
+    scene without heat) is left empty."""
+    row = stat_values(frame, s, step_seconds)
+    return {k: (("" if math.isnan(v) else f"{v:.9g}") if isinstance(v, float) else v) for k, v in row.items()}
+
+
+def _csv_text(row: dict | None) -> str:
+    """The CSV header (row None) or one row, as text."""
+    buffer = io.StringIO()
+    table = csv.DictWriter(buffer, fieldnames=STAT_COLUMNS)
+    table.writeheader() if row is None else table.writerow(row)
+    return buffer.getvalue()
+
+
+class RunOutputs:
+    """The outputs of one headless run of `sim`. `out`: the pictures (.mp4, .gif, .png or a folder; None: none),
+    `stats`: the CSV, `dump`: extended XYZ every `dump_every` frames, `checkpoint`: the state every
+    `checkpoint_every` frames; `resume`: (state path, its meta) when
+    continuing; `restart`: start the outputs over instead of continuing."""
+
+    def __init__(
+        self,
+        sim,
+        out: str | Path | None = None,
+        stats: str | Path | None = None,
+        *,
+        size: tuple[int, int, float] = (0, 0, 0.0),
+        still_frame: int | None = None,
+        dump: str | Path | None = None,
+        dump_every: int = 1,
+        checkpoint: str | Path | None = None,
+        checkpoint_every: int | None = None,
+        resume: tuple[Path, dict] | None = None,
+        restart: bool = False,
+    ) -> None:
+        self.sim = sim
+        self.dump_every = dump_every
+        self.checkpoint = Path(checkpoint) if checkpoint else None
+        self.checkpoint_every = checkpoint_every if self.checkpoint is not None else None
+        named = {"--out": out, "--stats": stats, "--dump": dump, "--checkpoint": self.checkpoint}
+        self.named = {option: Path(p) for option, p in named.items() if p is not None}
+        self.claims = [Claim(option, path) for option, path in self.named.items()]
+        self.writers: dict[str, object] = {}
+        self.removed: list[Path] = []
+        try:
+            for claim in self.claims:
+                claim.acquire()
+            self._open(size, still_frame, resume, restart)
+        except BaseException:
+            self._abandon_all()
+            self._release()
+            raise
+
+    @property
+    def pictures(self) -> bool:
+        return "--out" in self.writers
+
+    # ------------------------------------------------------------------ opening
+    def _open(self, size, still_frame, resume, restart) -> None:
+        claims = {c.option: c for c in self.claims}
+        width, height, fps = size
+        if "--out" in claims:
+            claim = claims["--out"]
+            suffix = claim.path.suffix.lower()
+            if suffix in (".mp4", ".gif"):
+                self.writers["--out"] = SegmentedVideo(claim, width, height, fps)
+            elif suffix == ".png":
+                self.writers["--out"] = StillWriter(claim.path, width, height, fps, still_frame)
+            else:
+                self.writers["--out"] = PngFolder(claim)
+        for option in ("--stats", "--dump"):
+            if option in claims:
+                self.writers[option] = AppendFile(claims[option])
+        records = _records(resume, restart)
+        found = {}  # every output checked before any is touched
+        for option, writer in self.writers.items():
+            if records is None or isinstance(writer, StillWriter):
+                continue
+            record = records.get(option)
+            if record is None:
+                raise SandboxError(
+                    f"{option} {claims[option].path}: the checkpoint {resume[0]} was written by a run without it, so "
+                    f"there is nothing to continue; {RESTART_HINT}"
+                )
+            _check_record(record, resume[0], option, writer.RECORD)
+            found[option] = writer.find(record, resume[0])
+        for option, writer in self.writers.items():
+            if option in found:
+                writer.adopt(found[option])
+            elif isinstance(writer, AppendFile):
+                writer.start(_csv_text(None) if option == "--stats" else "")
+        in_use = {p for w in self.writers.values() if not isinstance(w, StillWriter) for p in w.in_use()}
+        for claim in self.claims:
+            for leftover in claim.leftovers():
+                if leftover not in in_use:
+                    _remove(leftover)
+                    self.removed.append(leftover)
+        if self.removed:
+            names = ", ".join(p.name for p in self.removed)
+            print(f"removed {len(self.removed)} partial file(s) a killed run left: {names}", file=sys.stderr)
+
+    # ------------------------------------------------------------------ each frame
+    def frame(self, frame: int, stats: Stats, step_seconds: float, picture: Callable[[], object] | None) -> None:
+        """After frame index `frame` (0-based; `frame + 1` frames are done): its row, picture, dump and
+        checkpoint."""
+        done = frame + 1
+        if "--stats" in self.writers:
+            self.writers["--stats"].write(_csv_text(stats_row(frame, stats, step_seconds)))
+        if "--out" in self.writers and picture is not None:
+            self.writers["--out"].write(picture())
+        if "--dump" in self.writers and done % self.dump_every == 0:
+            self.writers["--dump"].write(extxyz_text(self.sim))
+        if self.checkpoint_every and done % self.checkpoint_every == 0:
+            records = {option: w.mark() for option, w in self.writers.items() if not isinstance(w, StillWriter)}
+            try:
+                save_state(self.sim, self.checkpoint, frame=done, outputs=records)
+            except OSError as exc:
+                raise OutputError(self.checkpoint, exc.strerror or type(exc).__name__) from exc
+
+    # ------------------------------------------------------------------ ending
+    def close(self, complete: bool) -> list[Path]:
+        """complete: every output takes its name; else (a failed write) each is left under its partial name.
+        Returns the partial files kept (empty when complete)."""
+        try:
+            if complete:
+                for writer in self.writers.values():
+                    writer.close() if isinstance(writer, StillWriter) else writer.publish()
+                return []
+            return self._abandon_all()
+        except OutputError:
+            self._abandon_all()
+            raise
+        finally:
+            self._release()
+
+    def _abandon_all(self) -> list[Path]:
+        kept = []
+        for writer in self.writers.values():
+            if not isinstance(writer, StillWriter):
+                kept += writer.abandon()
+        return kept
+
+    def _release(self) -> None:
+        for claim in self.claims:
+            claim.release()
+
+
+def _records(resume, restart: bool) -> dict | None:
+    """The output records of the checkpoint resumed (None: start every output afresh)."""
+    if resume is None or restart:
+        return None
+    records = resume[1].get("outputs")
+    return records if isinstance(records, dict) else None
+
+
+def _check_record(record, checkpoint: Path, option: str, needs: dict) -> None:
+    """A record of a crafted or damaged state file is refused before any of it names a file: the keys `needs`
+    (name: type) present, counts not negative, file names plain names in the output's folder."""
+    ok = isinstance(record, dict) and all(isinstance(record.get(k), t) for k, t in needs.items())
+    if ok:
+        counts = [record[k] for k in ("frames", "bytes") if k in needs]
+        names = [record["partial"]] if "partial" in needs else list(record.get("pieces", []))
+        ok = all(not isinstance(c, bool) and c >= 0 for c in counts)
+        ok = ok and all(isinstance(n, str) and n and "/" not in n and n not in (".", "..") for n in names)
+    if not ok:
+        raise SandboxError(f"{checkpoint}: its record of {option} is damaged; {RESTART_HINT}")
+
+
+def _remove(path: Path) -> None:
+    try:
+        if path.is_dir():
+            for child in path.iterdir():
+                child.unlink()
+            path.rmdir()
+        else:
+            path.unlink(missing_ok=True)
+    except OSError:
+        pass

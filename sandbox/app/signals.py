@@ -1,0 +1,61 @@
+"""SIGINT, SIGTERM and SIGHUP as one way of stopping a run: each raises Signalled (a KeyboardInterrupt) between
+steps, so a headless run closes its files in order whichever one a person, `timeout`, a job scheduler or a closing
+terminal sends. While a frame's outputs are written (`held()`), a signal waits until they are whole."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from contextlib import contextmanager
+
+HANDLED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+class Signalled(KeyboardInterrupt):
+    """The run was asked to stop by signal `signum`; a process that stops for it exits 128 + signum."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class Stopper:
+    """Installs the handlers for its `with` block (only in the main thread: elsewhere it does nothing)."""
+
+    def __init__(self) -> None:
+        self._previous: dict[int, object] = {}
+        self._holding = False
+        self._pending: int | None = None
+
+    def __enter__(self) -> Stopper:
+        if threading.current_thread() is threading.main_thread():
+            for signum in HANDLED:
+                self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
+
+    def _handle(self, signum, _frame) -> None:
+        if self._holding:
+            self._pending = signum
+        else:
+            raise Signalled(signum)
+
+    @contextmanager
+    def held(self):
+        """Defer signals until the block is done, then stop."""
+        self._holding = True
+        try:
+            yield
+        finally:
+            self._holding = False
+        if self._pending is not None:
+            raise Signalled(self._pending)
+
+
+def exit_code(exc: KeyboardInterrupt) -> int:
+    """128 + the signal's number (130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP)."""
+    return 128 + getattr(exc, "signum", signal.SIGINT)

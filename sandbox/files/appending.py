@@ -1,0 +1,142 @@
+"""A text output that grows by appending (the stats CSV, the extended-XYZ dump), written under the run's partial
+name and renamed when complete. A checkpoint marks it: flushed to disk, and its length and SHA-256 recorded, so that
+a resume can continue the very file the checkpoint belongs to (the partial left by a killed run, or the finished
+file of a run that ended) after proving its first bytes are the ones recorded."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+from ..errors import OutputError, SandboxError
+from .claim import Claim
+
+CHUNK = 1 << 20
+
+
+class AppendFile:
+    """The output `claim.path`, opened by start() (fresh) or resume(record) (continuing a marked file)."""
+
+    RECORD = {"partial": str, "bytes": int, "sha256": str}  # what mark() records
+
+    def __init__(self, claim: Claim) -> None:
+        self.claim = claim
+        self.partial = claim.partial()
+        self._file = None
+        self._hash = hashlib.sha256()
+        self._bytes = 0
+
+    # ------------------------------------------------------------------ opening
+    def start(self, header: str = "") -> None:
+        self._file = self._open(self.partial, "wb")
+        if header:
+            self.write(header)
+
+    def find(self, record: dict, checkpoint: Path):
+        """The file the checkpoint marked (the partial a killed run left, or the finished file), proven to begin
+        with the `record["bytes"]` bytes recorded; else a SandboxError saying it does not match. Changes nothing."""
+        path, size, digest = self.claim.path, record["bytes"], record["sha256"]
+        for source in (path.with_name(record["partial"]), path):
+            prefix = _prefix_hash(source, size)
+            if prefix is not None and prefix.hexdigest() == digest:
+                return source, prefix, size
+        raise SandboxError(
+            f"{self.claim.option} {path}: does not begin with the {size:,} bytes the checkpoint {checkpoint} was "
+            "written with; expected the file that run wrote, or --restart-outputs to start the outputs over"
+        )
+
+    def adopt(self, found) -> None:
+        """Continue the file find() returned: a killed run's partial is cut back to the checkpoint and written on;
+        a finished file's first bytes are copied (the file keeps its name and content until this run publishes)."""
+        source, prefix, size = found
+        try:
+            if source == self.claim.path:
+                with open(source, "rb") as src, open(self.partial, "wb") as dst:
+                    _copy(src, dst, size)
+            else:
+                self.partial = source
+                os.truncate(source, size)
+        except OSError as exc:
+            raise OutputError(self.partial, exc.strerror or type(exc).__name__) from exc
+        self._hash, self._bytes = prefix, size
+        self._file = self._open(self.partial, "ab")
+
+    def in_use(self) -> list[Path]:
+        return [self.partial]
+
+    def _open(self, path: Path, mode: str):
+        try:
+            return open(path, mode)  # noqa: SIM115 - closed in publish()/abandon()
+        except OSError as exc:
+            raise OutputError(path, exc.strerror or type(exc).__name__) from exc
+
+    # ------------------------------------------------------------------ writing
+    def write(self, text: str) -> None:
+        data = text.encode()
+        try:
+            self._file.write(data)
+        except OSError as exc:
+            raise OutputError(self.claim.path, exc.strerror or type(exc).__name__) from exc
+        self._hash.update(data)
+        self._bytes += len(data)
+
+    def mark(self) -> dict:
+        """Flush to disk; the record a checkpoint keeps."""
+        try:
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as exc:
+            raise OutputError(self.claim.path, exc.strerror or type(exc).__name__) from exc
+        return {
+            "path": str(self.claim.path),
+            "partial": self.partial.name,
+            "bytes": self._bytes,
+            "sha256": self._hash.hexdigest(),
+        }
+
+    # ------------------------------------------------------------------ ending
+    def publish(self) -> None:
+        """Close and give the file its name."""
+        self._file.close()
+        try:
+            os.replace(self.partial, self.claim.path)
+        except OSError as exc:
+            raise OutputError(self.claim.path, exc.strerror or type(exc).__name__) from exc
+
+    def abandon(self) -> list[Path]:
+        """Close, leaving the partial file in place (a failed run); the files kept."""
+        if self._file is None:
+            return []
+        try:
+            self._file.close()
+        except OSError:
+            pass
+        return [self.partial] if self.partial.exists() else []
+
+
+def _prefix_hash(path: Path, size: int):
+    """The SHA-256 state of the first `size` bytes of `path`, or None when it is missing or shorter."""
+    try:
+        if not path.is_file() or path.stat().st_size < size:
+            return None
+        digest = hashlib.sha256()
+        with open(path, "rb") as src:
+            left = size
+            while left:
+                chunk = src.read(min(CHUNK, left))
+                if not chunk:
+                    return None
+                digest.update(chunk)
+                left -= len(chunk)
+        return digest
+    except OSError:
+        return None
+
+
+def _copy(src, dst, size: int) -> None:
+    left = size
+    while left:
+        chunk = src.read(min(CHUNK, left))
+        dst.write(chunk)
+        left -= len(chunk)

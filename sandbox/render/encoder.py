@@ -1,0 +1,121 @@
+"""ffmpeg as a child process (the binary imageio-ffmpeg ships): encode raw RGB frames into one MP4 or GIF, join
+pieces, cut a video after its first frames, and list the MD5 of each decoded frame (how a resume proves that a video
+holds the frames its checkpoint recorded).
+
+ffmpeg runs in its own session, so a Ctrl-C or SIGTERM sent to the terminal's process group reaches only the
+sandbox, which then closes the file in order; every exit status is checked, so a full disk is an OutputError rather
+than a silently truncated file.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import tempfile
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import OutputError
+
+GIF_PALETTE = "split[a][b];[a]palettegen=stats_mode=diff[p];[b][p]paletteuse=dither=none:diff_mode=rectangle"
+
+
+def ffmpeg_exe() -> str:
+    import imageio_ffmpeg
+
+    return imageio_ffmpeg.get_ffmpeg_exe()
+
+
+def _codec(path: Path) -> list[str]:
+    if path.suffix.lower() == ".gif":
+        return ["-vcodec", "gif", "-pix_fmt", "rgb24", "-qscale:v", "16", "-filter_complex", GIF_PALETTE]
+    return ["-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", "15", "-movflags", "+faststart"]
+
+
+def _run(args: list[str], what: Path) -> str:
+    """Run ffmpeg with `args`; its stdout, or an OutputError naming `what` and ffmpeg's last line."""
+    done = subprocess.run(
+        [ffmpeg_exe(), "-nostdin", "-v", "error", *args], capture_output=True, text=True, start_new_session=True
+    )
+    if done.returncode != 0:
+        raise OutputError(what, _last_line(done.stderr))
+    return done.stdout
+
+
+def _last_line(text: str) -> str:
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[-1] if lines else "ffmpeg failed"
+
+
+class Encoder:
+    """One ffmpeg process writing `path` (.mp4: H.264 yuv420p; .gif: one palette for the clip) from (H, W, 3) uint8
+    frames, top row first. close() waits for it and raises OutputError when it failed; kill() abandons the file."""
+
+    def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
+        self.path = path
+        rate = str(Fraction(fps).limit_denominator())
+        args = ["-y", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}", "-pix_fmt", "rgb24"]
+        args += ["-r", rate, "-i", "-", "-an", *_codec(path), str(path)]
+        self._log = tempfile.TemporaryFile()  # noqa: SIM115 - closed in close()/kill()
+        self._proc = subprocess.Popen(
+            [ffmpeg_exe(), "-nostdin", "-v", "error", *args],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            stderr=self._log,
+            start_new_session=True,
+        )
+
+    def write(self, frame: np.ndarray) -> None:
+        try:
+            self._proc.stdin.write(np.ascontiguousarray(frame, dtype=np.uint8).tobytes())
+        except (BrokenPipeError, OSError):
+            self._proc.wait()
+            raise OutputError(self.path, self._reason()) from None
+
+    def close(self) -> None:
+        try:
+            self._proc.stdin.close()
+        except OSError:
+            pass
+        code = self._proc.wait()
+        reason = self._reason()
+        if code != 0:
+            raise OutputError(self.path, reason)
+
+    def kill(self) -> None:
+        if self._proc.poll() is None:
+            self._proc.kill()
+        self._proc.wait()
+        self._log.close()
+
+    def _reason(self) -> str:
+        self._log.seek(0)
+        text = self._log.read().decode(errors="replace")
+        self._log.close()
+        return _last_line(text)
+
+
+def frame_digests(path: Path, frames: int | None = None) -> list[str]:
+    """The MD5 of each decoded frame of a video (the first `frames`, or all)."""
+    limit = ["-frames:v", str(frames)] if frames is not None else []
+    out = _run(["-i", str(path), "-map", "0:v", *limit, "-f", "framemd5", "-"], path)
+    return [line.rsplit(",", 1)[-1].strip() for line in out.splitlines() if line and not line.startswith("#")]
+
+
+def join(pieces: list[Path], path: Path) -> None:
+    """Write the videos `pieces` one after another into `path`: MP4 pieces are copied packet for packet (every piece
+    starts on a key frame), GIF pieces are decoded and given one palette again."""
+    listing = path.with_name(path.name + ".pieces.txt")
+    listing.write_text("".join(f"file '{p.resolve()}'\n" for p in pieces))
+    try:
+        codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() == ".mp4" else _codec(path)
+        _run(["-y", "-f", "concat", "-safe", "0", "-i", str(listing), *codec, str(path)], path)
+    finally:
+        listing.unlink(missing_ok=True)
+
+
+def cut(source: Path, frames: int, path: Path) -> None:
+    """Write the first `frames` frames of `source` to `path` (MP4: copied, and exact where a piece began there)."""
+    codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() == ".mp4" else _codec(path)
+    _run(["-y", "-i", str(source), "-map", "0:v", "-frames:v", str(frames), *codec, str(path)], path)

@@ -1,0 +1,194 @@
+"""The pictures of a headless run that a resume can continue: a video written in pieces (a new piece at every
+checkpoint, each a whole MP4 or GIF under the run's partial names, joined into the final file at the end), or a
+folder of numbered PNGs. A checkpoint marks them: the pieces closed, the count of frames, and a digest of the
+decoded frames (of the PNG files' bytes), which a resume checks before it continues them."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from ..errors import OutputError, SandboxError
+from ..files.claim import Claim, partial_name
+from .encoder import Encoder, cut, frame_digests, join
+
+RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
+
+
+def _digest(items: list[str]) -> str:
+    return hashlib.sha256("\n".join(items).encode()).hexdigest()
+
+
+class SegmentedVideo:
+    """`claim.path` (.mp4 or .gif) written piece by piece."""
+
+    RECORD = {"pieces": list, "frames": int, "digest": str}  # what mark() records
+
+    def __init__(self, claim: Claim, width: int, height: int, fps: float) -> None:
+        self.claim, self.width, self.height, self.fps = claim, width, height, fps
+        self.pieces: list[Path] = []
+        self.digests: list[str] = []  # of the frames in closed pieces
+        self.frames = 0  # written, in all pieces
+        self._encoder: Encoder | None = None
+        self._cut: Path | None = None  # a piece cut from a finished video by find()
+
+    def find(self, record: dict, checkpoint: Path):
+        """The video the checkpoint marked, as pieces holding its `record["frames"]` frames: those a killed run left,
+        else the first frames of the finished video cut into a piece of this run's own (for a GIF, whose finished
+        frames were given one palette again, only their count is checked). A SandboxError when neither matches."""
+        path, frames = self.claim.path, record["frames"]
+        if frames == 0:
+            return [], []
+        left = [path.with_name(name) for name in record["pieces"]]
+        if all(p.is_file() for p in left):
+            pieces, exact = left, True
+        elif path.is_file():
+            first = partial_name(path, "seg0000")
+            self._cut = first
+            try:
+                cut(path, frames, first)
+            except OutputError:
+                raise SandboxError(
+                    f"{self.claim.option} {path}: is not a video this run can continue; {RESTART_HINT}"
+                ) from None
+            pieces, exact = [first], path.suffix.lower() == ".mp4"
+        else:
+            raise SandboxError(
+                f"{self.claim.option} {path}: missing, and so are the pieces the checkpoint {checkpoint} names; "
+                f"{RESTART_HINT}"
+            )
+        digests = [d for piece in pieces for d in frame_digests(piece)]
+        if len(digests) != frames or (exact and _digest(digests) != record["digest"]):
+            raise SandboxError(
+                f"{self.claim.option} {path}: does not hold the {frames} frames the checkpoint {checkpoint} was "
+                f"written with; {RESTART_HINT}"
+            )
+        return pieces, digests
+
+    def adopt(self, found) -> None:
+        """Continue after the pieces find() returned (new pieces are numbered on, under this run's names)."""
+        self.pieces, self.digests = list(found[0]), list(found[1])
+        self.frames = len(self.digests)
+
+    def in_use(self) -> list[Path]:
+        return list(self.pieces)
+
+    def write(self, frame: np.ndarray) -> None:
+        if self._encoder is None:
+            piece = partial_name(self.claim.path, f"seg{len(self.pieces):04d}")
+            piece = piece if piece not in self.pieces else partial_name(self.claim.path, f"seg{len(self.pieces)}b")
+            self._encoder = Encoder(piece, self.width, self.height, self.fps)
+            self.pieces.append(piece)
+        self._encoder.write(frame)
+        self.frames += 1
+
+    def _close_piece(self) -> None:
+        if self._encoder is not None:
+            encoder, self._encoder = self._encoder, None
+            encoder.close()
+            self.digests += frame_digests(encoder.path)
+
+    def mark(self) -> dict:
+        """Close the piece being written; the record a checkpoint keeps."""
+        self._close_piece()
+        return {
+            "path": str(self.claim.path),
+            "pieces": [p.name for p in self.pieces],
+            "frames": self.frames,
+            "digest": _digest(self.digests),
+        }
+
+    def publish(self) -> None:
+        """Join the pieces into the file asked for (none written: no file)."""
+        if self._encoder is not None:
+            encoder, self._encoder = self._encoder, None
+            encoder.close()
+        if not self.pieces:
+            return
+        if len(self.pieces) == 1:
+            os.replace(self.pieces[0], self.claim.path)
+        else:
+            joined = self.claim.partial()
+            join(self.pieces, joined)
+            os.replace(joined, self.claim.path)
+            for piece in self.pieces:
+                piece.unlink(missing_ok=True)
+        self.pieces = []
+
+    def abandon(self) -> list[Path]:
+        """Stop writing, leaving the pieces (all but an unfinished one, which no player opens) in place."""
+        if self._cut is not None and self._cut not in self.pieces:
+            self._cut.unlink(missing_ok=True)
+        if self._encoder is not None:
+            self._encoder.kill()
+            self._encoder.path.unlink(missing_ok=True)
+            self.pieces.remove(self._encoder.path)
+            self._encoder = None
+        return [p for p in self.pieces if p.exists()]
+
+
+class PngFolder:
+    """`claim.path` a folder of frame_00000.png, frame_00001.png, ... numbered from the run's first frame; each file
+    written under a partial name and renamed."""
+
+    RECORD = {"frames": int, "digest": str}
+
+    def __init__(self, claim: Claim) -> None:
+        self.claim = claim
+        self.frames = 0
+        self.hashes: list[str] = []
+
+    def find(self, record: dict, checkpoint: Path):
+        """The hashes of the `record["frames"]` frame files the checkpoint marked, or a SandboxError."""
+        frames = record["frames"]
+        hashes = []
+        for k in range(frames):
+            try:
+                hashes.append(hashlib.sha256(self._file(k).read_bytes()).hexdigest())
+            except OSError:
+                break
+        if len(hashes) != frames or _digest(hashes) != record["digest"]:
+            raise SandboxError(
+                f"{self.claim.option} {self.claim.path}: does not hold the {frames} frames the checkpoint {checkpoint} "
+                f"was written with; {RESTART_HINT}"
+            )
+        return hashes
+
+    def adopt(self, hashes) -> None:
+        self.frames, self.hashes = len(hashes), list(hashes)
+
+    def in_use(self) -> list[Path]:
+        return []
+
+    def _file(self, k: int) -> Path:
+        return self.claim.path / f"frame_{k:05d}.png"
+
+    def write(self, frame: np.ndarray) -> None:
+        buffer = io.BytesIO()
+        Image.fromarray(np.ascontiguousarray(frame)).save(buffer, format="PNG")
+        data = buffer.getvalue()
+        target = self._file(self.frames)
+        partial = partial_name(target)
+        try:
+            self.claim.path.mkdir(parents=True, exist_ok=True)
+            partial.write_bytes(data)
+            os.replace(partial, target)
+        except OSError as exc:
+            partial.unlink(missing_ok=True)
+            raise OutputError(target, exc.strerror or type(exc).__name__) from exc
+        self.hashes.append(hashlib.sha256(data).hexdigest())
+        self.frames += 1
+
+    def mark(self) -> dict:
+        return {"path": str(self.claim.path), "frames": self.frames, "digest": _digest(self.hashes)}
+
+    def publish(self) -> None:
+        pass
+
+    def abandon(self) -> list[Path]:
+        return []
