@@ -105,3 +105,66 @@ def test_bad_sweep_arguments_end_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "expected KEY=V1,V2" in err and "expected auto, local, serial" in err and "no such scene" in err
     assert not (tmp_path / "s").exists()  # nothing written
+
+
+def test_a_sweep_reruns_nothing_of_the_same_settings_and_refuses_other_settings_unless_redo(tmp_path):
+    """run.json holds the run's identity (the scene with its overrides, frames, video, size, version): the same
+    sweep skips its runs; a changed one into the same folder stops before running anything and says what differs;
+    --redo runs it again."""
+    scene, runs = SCENES / "melting_block.toml", [{**SMALL, "bodies.0.material": "wax"}]
+    said = []
+    first = run_sweep(scene, runs, tmp_path, frames=2, scheduler="serial", log=said.append)
+    assert first[0]["outcome"] == "done" and first[0]["settings"]["frames"] == 2
+    record = next(tmp_path.glob("*/run.json"))
+    stamp = record.stat().st_mtime_ns
+    said.clear()
+    run_sweep(scene, runs, tmp_path, frames=2, scheduler="serial", log=said.append)
+    assert said == ["1 of 1 runs already complete: skipped"] and record.stat().st_mtime_ns == stamp
+    with pytest.raises(SandboxError, match=r"holds a run of other settings \(frames 2 -> 3\).*--redo"):
+        run_sweep(scene, runs, tmp_path, frames=3, scheduler="serial", log=said.append)
+    assert record.stat().st_mtime_ns == stamp  # nothing ran
+    again = run_sweep(scene, runs, tmp_path, frames=3, scheduler="serial", log=said.append, redo=True)
+    assert again[0]["frames"] == 3 and json.loads(record.read_text())["settings"]["frames"] == 3
+
+
+def test_an_unknown_key_is_refused_before_anything_runs(tmp_path, capsys):
+    from sandbox.app.cli import main
+
+    out = tmp_path / "s"
+    for vary, says in (("NOPE=1,2", "unknown key"), ("bodies.0.materal=wax", "did you mean 'material'?")):
+        assert main(["sweep", "melting_block", "--vary", vary, "--out", str(out), "--scheduler", "serial"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"error: --vary {vary.split('=')[0]}:") and says in err[0], err
+    assert main(["sweep", "melting_block", "--vary", "bodies.3.material=wax", "--out", str(out)]) == 2
+    assert "not an index" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.slow  # a Dask cluster in another process
+@pytest.mark.xdist_group("dask")
+def test_ctrl_c_stops_a_cluster_sweep_in_one_line_with_exit_130(tmp_path):
+    """Ctrl-C at a terminal signals the whole process group: the sweep, its nannies and workers."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    pytest.importorskip("distributed")
+    args = ["sweep", "melting_block", "--vary", "bodies.0.material=wax,chocolate,butter", "--frames", "500000"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sandbox", *args, "--out", str(tmp_path), "--scheduler", "local", "--workers", "2"],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    end = time.monotonic() + 120
+    while not list(tmp_path.glob("*/.stats.csv.*.partial.csv")) and time.monotonic() < end:
+        time.sleep(0.1)
+    time.sleep(1.0)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert proc.returncode == 130, err
+    assert lines[-1].startswith("interrupted: the completed runs are kept in") and "Traceback" not in err, err
+    assert (tmp_path / "manifest.csv").exists()

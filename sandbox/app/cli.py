@@ -55,7 +55,7 @@ from .cli_common import (
 )
 from .cli_run import cmd_run
 from .signals import exit_code
-from .sweep import METRICS, parse_vary, plan_runs, plot_sweep, run_sweep
+from .sweep import METRICS, check_keys, parse_vary, plan_runs, plot_sweep, run_sweep
 
 
 def cmd_check(args) -> int:
@@ -182,7 +182,8 @@ def cmd_sweep(args) -> int:
         raise SandboxError(f"--metric {args.metric}: expected one of {', '.join(METRICS)}")
     variations = [parse_vary(text) for text in args.vary]
     runs = plan_runs(variations, args.zip)
-    scene = _load(args)  # the scene itself must be valid; each run's overrides are checked by its run
+    scene = _load(args)  # the scene itself must be valid; each run's values are checked by its run
+    check_keys(_scene_path(args.scene), variations)
     out = check_folder_output("--out", args.out)
     if args.video:
         check_output(out / "out.mp4")
@@ -200,12 +201,13 @@ def cmd_sweep(args) -> int:
             workers=args.workers,
             threads=args.threads,
             log=lambda line: print(line, file=sys.stderr),
+            redo=args.redo,
         )
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print(
             f"interrupted: the completed runs are kept in {out}; run the same command again to resume", file=sys.stderr
         )
-        return EXIT_INTERRUPTED
+        return exit_code(exc)
     counts = {o: sum(r["outcome"] == o for r in records) for o in ("done", "stopped", "error", "pending")}
     plot = plot_sweep(out, records, [v.key for v in variations], args.metric)
     summary = ", ".join(f"{n} {o}" for o, n in counts.items() if n)
@@ -300,6 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="KEY=V1,V2,... or KEY=START:STOP:COUNT; several --vary give their cross product",
     )
     sweep.add_argument("--zip", action="store_true", help="pair the --vary lists value by value instead")
+    sweep.add_argument(
+        "--redo", action="store_true", help="run again the runs whose folders hold a run of other settings"
+    )
     sweep.add_argument("--out", required=True, help="folder: a folder per run, manifest.csv, sweep.png")
     sweep.add_argument("--frames", type=int, help="frames per run (default: render.frames)")
     sweep.add_argument("--video", action="store_true", help="also an MP4 per run")

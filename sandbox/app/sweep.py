@@ -15,6 +15,7 @@ distributed), one run after another in this process. Runs are retried when their
 
 from __future__ import annotations
 
+import copy
 import csv
 import itertools
 import json
@@ -25,10 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config.scene import parse_override
-from ..errors import SandboxError
+from .. import __version__
+from ..config.scene import apply_override, parse_override, read_scene_table, scene_from_dict
+from ..errors import SandboxError, SceneError
 from ..research.dask_pool import choose_scheduler, dask_client, local_shape
-from .sweep_run import RECORD, execute_run
+from .sweep_run import RECORD, execute_run, identity
 
 METRICS = (
     "final_molten_fraction",
@@ -92,6 +94,47 @@ def plan_runs(variations: list[Variation], zipped: bool = False) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in combos]
 
 
+def check_keys(scene_path: str | Path, variations: list[Variation]) -> None:
+    """Every varied key names a setting of the scene (a SandboxError naming the nearest key otherwise), before any
+    run starts; a value a key cannot take is left to its run, which records the error."""
+    path = Path(scene_path)
+    data = read_scene_table(path)
+    for v in variations:
+        trial = copy.deepcopy(data)
+        try:
+            apply_override(trial, v.key, v.values[0])
+            scene_from_dict(trial, path)
+        except SceneError as exc:
+            if exc.key in (v.key, v.key.replace(".", "[", 1)) or "unknown key" in exc.expected or exc.file == "--set":
+                raise SandboxError(f"--vary {v.key}: {exc.expected}") from None
+        except SandboxError as exc:
+            raise SandboxError(f"--vary {v.key}: {exc}") from None
+
+
+def run_settings(scene_path: str | Path, overrides: dict, frames, video: bool, width, height) -> dict:
+    """What makes a run what it is: the scene table with its overrides applied, and the run's settings."""
+    data = read_scene_table(Path(scene_path))
+    for key, value in overrides.items():
+        try:
+            apply_override(data, key, value)
+        except SandboxError:
+            pass  # the run itself records the error
+    return {"scene": data, "frames": frames, "video": video, "width": width, "height": height, "sandbox": __version__}
+
+
+def differences(old: dict, new: dict) -> str:
+    """What changed between two runs' settings, in words (the first few)."""
+    if not isinstance(old, dict):
+        return "it has no record of its settings"
+    said = []
+    for key in ("frames", "video", "width", "height", "sandbox"):
+        if old.get(key) != new.get(key):
+            said.append(f"{key} {old.get(key)} -> {new.get(key)}")
+    if old.get("scene") != new.get("scene"):
+        said.append("the scene or its overrides differ")
+    return ", ".join(said) or "its settings differ"
+
+
 def run_folder_name(index: int, overrides: dict) -> str:
     """`007_temperature=150_material=wax`: the index, then each key's last part and its value, safe as a name."""
     parts = [f"{index:03d}"]
@@ -114,17 +157,30 @@ def run_sweep(
     workers: int | None = None,
     threads: int | None = None,
     log=print,
+    redo: bool = False,
 ) -> list[dict]:
     """Run every override set in `runs` and write the manifest; returns the records in plan order.
 
     `scheduler`: "auto" (a local Dask cluster where the sweep extra is installed, else "serial"), "local", "serial"
     (one by one in this process) or a Dask scheduler address. `workers`, `threads`: local worker processes and Taichi
-    threads per run (default: one worker per core, up to the runs, and the cores shared among them)."""
+    threads per run (default: one worker per core, up to the runs, and the cores shared among them). A run whose
+    folder holds a record of the same settings is skipped; one of other settings stops the sweep before anything
+    runs (a SandboxError saying what differs), unless `redo`, which runs it again."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scene_path = str(Path(scene_path).resolve())
     jobs = [(k, o, out / run_folder_name(k, o)) for k, o in enumerate(runs)]
-    todo = [(k, o, f) for k, o, f in jobs if not (f / RECORD).exists()]
+    settings = [run_settings(scene_path, o, frames, video, width, height) for o in runs]
+    todo = []
+    for (k, o, f), wanted in zip(jobs, settings):
+        record = _read_record(f / RECORD)
+        if record is not None and record.get("identity") != identity(wanted) and not redo:
+            raise SandboxError(
+                f"{f}: holds a run of other settings ({differences(record.get('settings'), wanted)}); expected the "
+                "same sweep in this folder, or --redo to run such runs again"
+            )
+        if record is None or record.get("identity") != identity(wanted):
+            todo.append((k, o, f, wanted))
     if len(todo) < len(jobs):
         log(f"{len(jobs) - len(todo)} of {len(jobs)} runs already complete: skipped")
     workers, threads = local_shape(len(todo), workers, threads)
@@ -132,8 +188,8 @@ def run_sweep(
     args = (frames, video, width, height, threads)
     try:
         if scheduler == "serial":
-            for k, overrides, folder in todo:
-                record = execute_run(scene_path, overrides, str(folder), *args)
+            for k, overrides, folder, wanted in todo:
+                record = execute_run(scene_path, overrides, str(folder), *args, settings=wanted)
                 log(f"run {k}: {record['outcome']} {record.get('message', '')}".rstrip())
         else:
             _run_on_dask(scheduler, workers, threads, scene_path, todo, args, log)
@@ -147,12 +203,25 @@ def _run_on_dask(scheduler, workers, threads, scene_path, todo, args, log) -> No
 
     with dask_client(scheduler, workers) as client:
         futures = {
-            client.submit(execute_run, scene_path, o, str(f), *args, pure=False, retries=3, key=f"run-{k}-{f.name}"): k
-            for k, o, f in todo
+            client.submit(
+                execute_run, scene_path, o, str(f), *args, settings=s, pure=False, retries=3, key=f"run-{k}-{f.name}"
+            ): k
+            for k, o, f, s in todo
         }
         for future in as_completed(futures):
             record = future.result()
             log(f"run {futures[future]}: {record['outcome']} {record.get('message', '')}".rstrip())
+
+
+def _read_record(path: Path) -> dict | None:
+    """A run folder's run.json, or None when there is none (a damaged one reads as a run of unknown settings)."""
+    if not path.exists():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return record if isinstance(record, dict) else {}
 
 
 def write_manifest(out: Path, jobs: list) -> list[dict]:
@@ -160,8 +229,9 @@ def write_manifest(out: Path, jobs: list) -> list[dict]:
     run not complete), written atomically. Returns the records."""
     records = []
     for k, overrides, folder in jobs:
-        path = folder / RECORD
-        record = json.loads(path.read_text()) if path.exists() else {"overrides": overrides, "outcome": "pending"}
+        record = _read_record(folder / RECORD)
+        if not record or record.get("overrides") != overrides:
+            record = {"overrides": overrides, "outcome": "pending"}
         record["run"] = k
         records.append(record)
     keys = list(jobs[0][1]) if jobs else []

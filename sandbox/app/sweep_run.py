@@ -9,6 +9,7 @@ dies mid-run leaves no file under a final name, and the retried run starts its f
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import math
 import os
@@ -31,6 +32,12 @@ def override_text(key: str, value) -> str:
     """key=value as --set takes it (the value in TOML syntax)."""
 
     return f"{key}={toml_value(value)}"
+
+
+def identity(settings: dict) -> str:
+    """A hash of a run's settings (sweep.run_settings): equal exactly when the runs are the same."""
+    text = json.dumps(settings, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def summarise(rows: list[dict], conserves_energy: bool) -> dict:
@@ -80,14 +87,18 @@ def execute_run(
     width: int | None,
     height: int | None,
     threads: int,
+    settings: dict | None = None,
 ) -> dict:
     """Run the scene at `scene_path` with `overrides` (dotted key -> value) headless into `folder` for `frames`
     frames (None: the scene's render.frames); `video`: also out.mp4 (width x height, default the scene's); `threads`:
-    Taichi CPU threads for this run. Returns the run's record (also written to folder/run.json)."""
+    Taichi CPU threads for this run; `settings`: what identifies the run (sweep.run_settings), kept in the record with
+    its hash so that a later sweep knows what ran. Returns the run's record (also written to folder/run.json)."""
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     record = {"overrides": overrides, "folder": str(folder), "stats": None, "video": None}
+    if settings is not None:
+        record.update(identity=identity(settings), settings=settings)
     start = time.perf_counter()
     with cpu_threads(threads):
         try:

@@ -7,6 +7,7 @@ list[SomeDataclass], SomeDataclass | None) and its constraint and one-line meani
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import types
 import typing
@@ -160,7 +161,9 @@ def parse_table(cls: type, data: Any, file: str, key: str = "") -> Any:
     for name in data:
         if name not in fields:
             allowed = ", ".join(sorted(fields))
-            raise SceneError(file, _join(key, name), f"unknown key; expected one of: {allowed}")
+            near = difflib.get_close_matches(str(name), list(fields), n=1)
+            hint = f"did you mean '{near[0]}'? " if near else ""
+            raise SceneError(file, _join(key, name), f"unknown key; {hint}expected one of: {allowed}")
     values = {}
     for name, f in fields.items():
         sub = _join(key, name)
