@@ -6,10 +6,14 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
+from .config.arguments import MAX_SIDE
+from .config.schema import parse_table
+from .errors import SandboxError
 from .files.extxyz import append_frame, frame_text
 from .files.table import FrameTable
 from .physics.phase import ENTHALPY_LAW, temperature_np
@@ -60,11 +64,13 @@ def picture(sim, width: int | None = None, height: int | None = None, **render) 
     (default: the scene's render size); `render`: [render] settings to change for this picture (color_by="temperature",
     legend=False, ...). The renderer is kept between calls of the same settings."""
     cfg = sim.scene.render
-    if render:
-        unknown = sorted(set(render) - {f.name for f in dataclasses.fields(cfg)})
-        if unknown:
-            raise ValueError(f"unknown render setting(s) {unknown}; expected fields of [render]")
-        cfg = dataclasses.replace(cfg, **render)
+    if render:  # checked as the scene's [render] table is: a SceneError naming the setting
+        given = {k: list(v) if isinstance(v, tuple) else v for k, v in render.items()}
+        checked = parse_table(type(cfg), given, "picture()", "render")
+        cfg = dataclasses.replace(cfg, **{k: getattr(checked, k) for k in render})
+    for name, side in (("width", width), ("height", height)):
+        if side is not None and (isinstance(side, bool) or not isinstance(side, int) or not 16 <= side <= MAX_SIDE):
+            raise SandboxError(f"picture(): {name} {side!r}; expected a whole number of pixels from 16 to {MAX_SIDE}")
     size = (width or cfg.width, height or cfg.height)
     key = (size, cfg)
     cached = getattr(sim, "_picture_renderer", None)
@@ -90,8 +96,10 @@ def particle_table(sim) -> dict[str, np.ndarray]:
     or spawned particles get new ones). Keys and shapes, N particles, D = scene.dim: `id` (N,) int; `position` (N, D)
     length; `velocity` (N, D) length/time; `temperature` (N,) degrees (NaN without heat); `melt_fraction` (N,) in
     [0, 1]; `material` (N,) index into `material_names`; `body` (N,) index into scene.groups (bodies, then emitters,
-    then the spawn tool). Each call returns new arrays."""
+    then the spawn tool). Each call returns new arrays; a RuntimeWarning says when the state is past a blow-up."""
     sim.check_alive()
+    if sim.broken:
+        warnings.warn(f"the state is past a blow-up ({sim.broken}); its values are not physical", stacklevel=3)
     p = sim.particles
     n = sim.state.live_count()
     ids = p.ident.to_numpy()[:n]

@@ -55,6 +55,7 @@ class Simulation:
         self.plan = StepPlan(self.model, self.state, list(self.terms), self.rates, self.integrator)
         self.diagnostics = Diagnostics(self.model, self.state, list(self.terms), self.hood)
         self.guard = BlowupGuard(scene_limits(scene, self.model.built, self.terms.pair))
+        self.broken: str | None = None  # the guard's message once it stopped the run, until a restore
         self.parts = list(self.terms) + ([self.hood] if self.hood is not None else [])  # what a restore refreshes
         for term in self.terms:
             term.start(self.state)
@@ -157,7 +158,8 @@ class Simulation:
         heat = self.terms.heat is not None
         problem = self.guard.problem(m, m["bad"], self.state.dt, heat)
         if problem:
-            raise SimulationError(explain_blowup(self, *problem))
+            self.broken = explain_blowup(self, *problem)
+            raise SimulationError(self.broken)
         world = self.scene.world
         volume = float(np.prod(np.subtract(world.hi, world.lo)))  # the pressure's V (area in 2D)
         walls = self.terms.walls.pressure(m["impulse"], self.time)
@@ -172,6 +174,7 @@ class Simulation:
     def restore(self, snap: dict) -> None:
         """Put the state back exactly as snapshot() saw it."""
         self.state.restore(snap)
+        self.broken = None
         for part in self.parts:
             part.after_restore(self.state)
 
@@ -195,7 +198,10 @@ class Simulation:
 
     def save(self, path: str | Path) -> Path:
         """Write the whole state to `path` (.npz) so that sandbox.resume(path) continues bit for bit; atomic (a
-        crash while writing leaves any earlier file of that name whole). Returns the path written."""
+        crash while writing leaves any earlier file of that name whole). Returns the path written. A state the
+        blow-up guard stopped, or one that would not load back, is not saved (SimulationError)."""
+        if self.broken:
+            raise SimulationError(f"{path}: not saved: the state is past a blow-up ({self.broken})")
         return save_state(self, path)
 
     # ------------------------------------------------------------------ for scripts (scripting.py)

@@ -9,7 +9,7 @@ import pytest
 import sandbox
 from sandbox.app.cli import main
 from sandbox.core import runtime
-from sandbox.errors import SandboxError
+from sandbox.errors import OutputError, SandboxError
 from sandbox.files import persist
 
 SMALL_BLOCK = {"bodies.0.lo": [56.0, 0.0], "bodies.0.hi": [72.0, 12.0]}
@@ -118,8 +118,14 @@ def test_load_run_and_picture_from_python():
     assert not np.array_equal(sim.picture(160, 90), a)  # it heated: the colours by temperature changed
     by_material = sim.picture(160, 90, color_by="material")  # the scene colours by temperature
     assert not np.array_equal(by_material, sim.picture(160, 90))
-    with pytest.raises(ValueError, match="unknown render setting"):
+    with pytest.raises(SandboxError, match="render.colour': unknown key; did you mean 'color_by'"):
         sim.picture(colour="red")
+    bad = [((0, 90), "width 0"), ((100000, 90), "width 100000"), ((-5, 10), "width -5"), ((160.5, 90), "width 160.5")]
+    for size, says in bad:  # no silent scene size for 0, no huge allocation, no raw error
+        with pytest.raises(SandboxError, match=f"picture\\(\\): {says}.*expected a whole number of pixels"):
+            sim.picture(*size)
+    with pytest.raises(SandboxError, match="render.color_by': expected one of"):
+        sim.picture(160, 90, color_by="rainbow")
     scene = {
         "world": {"dim": 2, "lo": [0.0, 0.0], "hi": [20.0, 20.0], "dt": 0.001},
         "bodies": [{"material": "jelly", "shape": "box", "lo": [5.0, 5.0], "hi": [8.0, 8.0]}],
@@ -172,10 +178,10 @@ def test_a_crash_while_saving_leaves_the_last_checkpoint_whole(tmp_path, monkeyp
     sim.run(1)
 
     def crash(*args, **kwargs):
-        raise OSError("disk full")
+        raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(np, "savez", crash)
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(OutputError, match="No space left on device"):
         sim.save(path)
     assert path.read_bytes() == saved and sorted(p.name for p in tmp_path.iterdir()) == ["ckpt.npz"]
 

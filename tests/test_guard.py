@@ -108,3 +108,33 @@ def test_a_non_finite_state_is_named_at_once():
     sim.particles.v.from_numpy(v)
     with pytest.raises(SimulationError, match="non-finite state at step 0 .* in particle 3"):
         sim.stats()
+
+
+def test_after_a_blow_up_particles_warn_and_save_refuses_until_a_restore(tmp_path):
+    """particles() after the guard stopped the run says the values are not physical; save() writes nothing (a state
+    file of NaN would be refused on load anyway); reset() brings back a state that saves."""
+    sim = Simulation(make_scene(scene_dict()))
+    v = sim.particles.v.to_numpy()
+    v[3] = [np.inf, 0.0]
+    sim.particles.v.from_numpy(v)
+    with pytest.raises(SimulationError):
+        sim.stats()
+    with pytest.warns(UserWarning, match="past a blow-up"):
+        assert not np.isfinite(sim.particles()["velocity"]).all()
+    with pytest.raises(SimulationError, match="not saved: the state is past a blow-up"):
+        sim.save(tmp_path / "broken.npz")
+    assert not list(tmp_path.iterdir())
+    sim.broken = None  # even unmeasured, a non-finite state is not written
+    with pytest.raises(SimulationError, match="not saved: .*particles.v holds a value that is not finite"):
+        sim.save(tmp_path / "broken.npz")
+    assert not list(tmp_path.iterdir())
+    sim.reset()
+    assert sim.save(tmp_path / "good.npz").exists()
+
+
+def test_save_into_an_unwritable_place_is_one_clear_error(tmp_path):
+    from sandbox.errors import OutputError
+
+    sim = Simulation(make_scene(scene_dict()))
+    with pytest.raises(OutputError, match=r"could not write /proc/x.npz: .*expected a writable folder"):
+        sim.save("/proc/x.npz")

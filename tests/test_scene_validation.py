@@ -160,6 +160,33 @@ def test_mask_in_scene_folder_is_accepted(scene_file, tmp_path):
     assert scene.bodies[0].mask.endswith("square.png")
 
 
+def test_a_huge_mask_is_refused_from_its_header_before_decoding(scene_file, tmp_path):
+    """A 20000 x 20000 PNG (a few hundred bytes: its pixels need never be decoded) is refused by its header."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    header = struct.pack(">IIBBBBB", 20000, 20000, 8, 0, 0, 0, 0)
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b"")
+    (tmp_path / "big.png").write_bytes(png)
+    text = GOOD.replace('material = "jelly"', 'material = "jelly"\nshape = "mask"\nmask = "big.png"')
+    with pytest.raises(SceneError, match=r"'big.png' is 20000 x 20000 pixels; expected at most 16,777,216 pixels"):
+        load_scene(scene_file(text))
+
+
+def test_deep_nesting_is_one_error_not_a_recursion(scene_file):
+    """Tables or arrays nested thousands deep (in a file or a --set) end in a SceneError, not a RecursionError."""
+    with pytest.raises(SceneError, match="nested too deeply"):
+        load_scene(scene_file(GOOD + "\n[extra]\nx = " + "[" * 3000 + "]" * 3000 + "\n"))
+    with pytest.raises(SceneError, match="nested more than 16 deep"):
+        load_scene(scene_file(GOOD + "\n[extra]\nx = " + "[" * 20 + "]" * 20 + "\n"))
+    for depth in (20, 3000):
+        with pytest.raises(SceneError, match="--set: key 'world.lo': nested"):
+            load_scene(scene_file(GOOD), ["world.lo=" + "[" * depth + "]" * depth])
+
+
 def test_overrides_set_nested_values(scene_file):
     scene = load_scene(scene_file(GOOD), ["world.dt=0.0005", "bodies.0.temperature=35", "render.color_by=speed"])
     assert scene.world.dt == 0.0005 and scene.bodies[0].temperature == 35.0 and scene.render.color_by == "speed"

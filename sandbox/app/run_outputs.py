@@ -146,10 +146,7 @@ class RunOutputs:
             self.writers["--dump"].write(extxyz_text(self.sim))
         if self.checkpoint_every and done % self.checkpoint_every == 0:
             records = {option: w.mark() for option, w in self.writers.items() if not isinstance(w, StillWriter)}
-            try:
-                save_state(self.sim, self.checkpoint, frame=done, outputs=records)
-            except OSError as exc:
-                raise OutputError(self.checkpoint, exc.strerror or type(exc).__name__) from exc
+            save_state(self.sim, self.checkpoint, frame=done, outputs=records)  # an OutputError when it fails
 
     # ------------------------------------------------------------------ ending
     def close(self, complete: bool) -> list[Path]:

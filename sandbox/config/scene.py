@@ -47,7 +47,27 @@ def parse_override(text: str) -> tuple[str, Any]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
+    except RecursionError:
+        value = None
+    check_depth(value, "--set", key)
     return key, value
+
+
+MAX_DEPTH = 16  # tables and arrays inside one another; a scene needs about five
+
+
+def check_depth(data: Any, file: str, key: str = "", limit: int = MAX_DEPTH) -> None:
+    """SceneError when `data` nests tables or arrays deeper than `limit` (checked without recursion, so a crafted
+    file cannot exhaust the stack), or could not even be read for its depth (`data` None from a RecursionError)."""
+    if data is None:
+        raise SceneError(file, key, f"nested too deeply; expected tables and arrays at most {limit} deep")
+    stack = [(data, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, dict | list):
+            if depth >= limit:
+                raise SceneError(file, key, f"nested more than {limit} deep; expected a flatter table")
+            stack.extend((child, depth + 1) for child in (node.values() if isinstance(node, dict) else node))
 
 
 def apply_override(data: dict, key: str, value: Any) -> None:
@@ -77,13 +97,17 @@ def read_scene_table(path: Path, missing: str = "no such scene file") -> dict:
     expected), a folder, or not TOML."""
     file = str(path)
     try:
-        return tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text())
+    except RecursionError:
+        data = None
     except FileNotFoundError as exc:
         raise SceneError(file, "", missing) from exc
     except IsADirectoryError as exc:
         raise SceneError(file, "", "is a folder; expected a scene file (.toml)") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SceneError(file, "", f"not valid TOML: {exc}") from exc
+    check_depth(data, file)
+    return data
 
 
 def load_scene(path: str | Path, overrides: list[str] | None = None) -> Scene:
@@ -99,6 +123,7 @@ def load_scene(path: str | Path, overrides: list[str] | None = None) -> Scene:
 def scene_from_dict(data: dict, path: Path) -> Scene:
     """Validate a raw scene table (as read from TOML) into a Scene; `path` names it in errors and anchors files."""
     file = str(path)
+    check_depth(data, file)
     raw = parse_table(_SceneFile, data, file)
     materials = resolve_materials(raw.materials or {}, file)
     world: World = raw.world
@@ -360,14 +385,21 @@ def resolve_data_file(file: str, key: str, name: str, scene_path: Path) -> Path:
 
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+MAX_MASK_PIXELS = 4096 * 4096  # a mask is sampled at particle spacing: a few hundred pixels a side is plenty
 
 
 def resolve_png(file: str, key: str, name: str, scene_path: Path) -> Path:
-    """resolve_data_file for a PNG image: the file must start with the PNG signature."""
+    """resolve_data_file for a PNG image: the file must start with the PNG signature, and its header (read before
+    any pixel is decoded) give at most MAX_MASK_PIXELS pixels."""
     path = resolve_data_file(file, key, name, scene_path)
     with open(path, "rb") as image:
-        if image.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
-            raise SceneError(file, key, f"{name!r} is not a PNG image; expected a .png file")
+        head = image.read(24)  # the signature, then the IHDR chunk: length, type, width, height
+    if head[: len(PNG_SIGNATURE)] != PNG_SIGNATURE or head[12:16] != b"IHDR":
+        raise SceneError(file, key, f"{name!r} is not a PNG image; expected a .png file")
+    width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    if width * height > MAX_MASK_PIXELS:
+        limit = f"at most {MAX_MASK_PIXELS:,} pixels (4096 x 4096)"
+        raise SceneError(file, key, f"{name!r} is {width} x {height} pixels; expected {limit}")
     return path
 
 

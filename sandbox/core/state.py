@@ -42,7 +42,7 @@ class Range:
 
 
 ANY = Range()  # any finite value
-COUNT = Range(lo=0)  # a count or a counter
+COUNT = Range(lo=0, hi=2**31 - 1)  # a count or a counter (kernels and id fields hold them as i32)
 POSITIVE = Range(lo=1e-300)  # masses, radii, step sizes: above zero
 
 

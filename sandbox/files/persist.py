@@ -28,7 +28,7 @@ from .. import __version__
 from ..config.scene import scene_from_dict
 from ..core import runtime, taichi_compat, transfer
 from ..core.state import FIELD, NDARRAY, VALUE
-from ..errors import SandboxError
+from ..errors import OutputError, SandboxError, SimulationError
 from ..integrators import REGISTRY
 from .claim import partial_name
 from .state_check import check_meta, check_state
@@ -92,14 +92,20 @@ def save_state(sim, path: str | Path, frame: int | None = None, outputs: dict | 
     }
     if outputs is not None:
         meta["outputs"] = outputs
-    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        check_state(sim, arrays, host, path)  # what would not load back is not written
+    except SandboxError as exc:
+        raise SimulationError(f"not saved: {exc}") from None
     partial = partial_name(path)
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
         with open(partial, "wb") as out:
             np.savez(out, meta=np.array(json.dumps(meta)), host=np.array(json.dumps(host)), **arrays)
             out.flush()
             os.fsync(out.fileno())
         os.replace(partial, path)
+    except OSError as exc:
+        raise OutputError(path, f"{exc.strerror or type(exc).__name__}; expected a writable folder") from None
     finally:
         partial.unlink(missing_ok=True)
     return path
@@ -118,7 +124,7 @@ def read_meta(path: str | Path) -> dict:
             meta = json.loads(str(data["meta"]))
     except FileNotFoundError as exc:
         raise SandboxError(f"{path}: no such state file") from exc
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError, RecursionError) as exc:
         raise SandboxError(
             f"{path}: not a readable sandbox state file ({type(exc).__name__}); expected an .npz "
             "written by sim.save() or --checkpoint-every"
@@ -165,7 +171,7 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
         with np.load(path, allow_pickle=False) as data:
             saved = {key: data[key] for key in data.files}
         host = json.loads(str(saved["host"]))
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError, RecursionError) as exc:
         raise SandboxError(f"{path}: the state file is damaged ({type(exc).__name__})") from exc
     if not isinstance(host, dict):
         raise SandboxError(f"{path}: the state file's host values are not a table; expected one written by save()")

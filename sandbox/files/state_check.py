@@ -101,15 +101,22 @@ def _check_value(e, host: dict, path: Path) -> None:
     if isinstance(current, bool):
         ok = isinstance(value, bool)
     elif isinstance(current, int | float):
-        ok = isinstance(value, int | float) and not isinstance(value, bool)
-        ok = ok and (isinstance(value, int) or not isinstance(current, int))
+        ok = _same_kind(value, current)
     elif isinstance(current, list | tuple):
         ok = isinstance(value, list) and len(value) == len(current)
-        ok = ok and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+        ok = ok and all(_same_kind(v, c) for v, c in zip(value, current))
     else:
         ok = False
     if not ok:
         raise SandboxError(f"{path}: {e.name} is {value!r}; expected a value like {current!r}")
+
+
+def _same_kind(value, current) -> bool:
+    """A number of the kind `current` is: an integer where it holds one, a finite-or-not real where it holds a
+    real."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    return isinstance(value, int) or not isinstance(current, int)
 
 
 def _check_array(e, saved: dict, path: Path) -> None:
