@@ -23,6 +23,7 @@ from typing import Any
 from .config.materials import load_library
 from .config.resources import shipped_scene, shipped_scenes
 from .config.scene import apply_override, parse_override, read_scene_table, scene_from_dict
+from .config.schema import unknown
 from .core import runtime
 from .errors import SandboxError
 from .files.persist import load_into, read_meta, saved_scene
@@ -92,7 +93,7 @@ def load(
         path = Path(scene)
         if not path.exists() and isinstance(scene, str) and shipped_scene(scene) is not None:
             path = shipped_scene(scene)
-        data = read_scene_table(path, f"no such scene file or shipped scene; expected one of {scene_names()}")
+        data = read_scene_table(path, unknown("scene", str(scene), scene_names()) + " (or a path to a .toml file)")
     for key, value in _overrides(set):
         apply_override(data, key, value)
     built = scene_from_dict(data, path)

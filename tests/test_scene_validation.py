@@ -7,7 +7,7 @@ import pytest
 
 from sandbox.app.cli import main
 from sandbox.config.scene import apply_override, load_scene, parse_override
-from sandbox.errors import SceneError
+from sandbox.errors import SandboxError, SceneError
 
 GOOD = """
 [world]
@@ -214,3 +214,20 @@ def test_cli_subprocess_exit_code(scene_file):
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "unknown material 'unobtainium'" in lines[0]
     assert "Traceback" not in proc.stderr
+
+
+def test_typos_get_the_nearest_valid_name(capsys):
+    """A misspelt scene name, --set key or material: one line with the nearest valid name (issue 43)."""
+    import sandbox
+
+    cases = [
+        (["check", "melting_blok"], "unknown scene 'melting_blok'; did you mean 'melting_block'?"),
+        (["check", "candle", "--set", "bodies.0.materal=wax"], "unknown key; did you mean 'material'?"),
+        (["check", "candle", "--set", "bodies.0.material=wox"], "unknown material 'wox'; did you mean 'wax'?"),
+    ]
+    for argv, says in cases:
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and says in err[0], err
+    with pytest.raises(SandboxError, match="did you mean 'ice_cube'"):
+        sandbox.load("ice_cub")

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..config.resources import shipped_scene
+from ..config.resources import shipped_scene, shipped_scenes
 from ..config.scene import load_scene
+from ..config.schema import unknown
+from ..errors import SandboxError
 
 
 def _scene_path(name: str) -> Path:
@@ -14,7 +16,11 @@ def _scene_path(name: str) -> Path:
     path = Path(name)
     if path.is_file() or path.suffix == ".toml":
         return path
-    return shipped_scene(name) or path
+    shipped = shipped_scene(name)
+    if shipped is None and not path.exists():
+        names = [p.stem for p in shipped_scenes()]
+        raise SandboxError(unknown("scene", name, names) + " (or a path to a .toml file)")
+    return shipped or path
 
 
 def _load(args):

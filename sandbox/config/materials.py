@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import SceneError
-from .schema import celsius, non_negative, parse_table, positive, spec, unit_interval
+from .schema import celsius, non_negative, parse_table, positive, spec, unit_interval, unknown
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -144,7 +144,7 @@ def resolve_materials(scene_tables: dict, file: str) -> dict[str, Material]:
                 raise SceneError(
                     file,
                     f"{key}.based_on",
-                    f"unknown material {base_name!r}; expected one of: " + ", ".join(sorted(result)),
+                    unknown("material", base_name, result),
                 )
             merged = {f.name: getattr(result[base_name], f.name) for f in dataclasses.fields(Material)}
             merged["based_on"] = ""

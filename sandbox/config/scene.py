@@ -30,7 +30,7 @@ from .scene_tables import (
     heat_support,
     particle_spacing,
 )
-from .schema import celsius, parse_table
+from .schema import celsius, parse_table, unknown
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -150,7 +150,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
             raise SceneError(
                 file,
                 f"scene.palette[{i}]",
-                f"unknown material {name!r}; expected one of: {', '.join(sorted(materials))}",
+                unknown("material", name, materials),
             )
     if not raw.bodies and not raw.emitters and not raw.scene.palette:
         raise SceneError(
@@ -279,9 +279,7 @@ def _check_field(file: str, key: str, element: FieldElement, dim: int) -> None:
 
 def _check_emitter(file: str, key: str, e: Emitter, index: int, dim: int, materials: dict, path: Path) -> Emitter:
     if e.material not in materials:
-        raise SceneError(
-            file, f"{key}.material", f"unknown material {e.material!r}; expected one of: {', '.join(sorted(materials))}"
-        )
+        raise SceneError(file, f"{key}.material", unknown("material", e.material, materials))
     changes: dict[str, Any] = {"name": e.name or f"emitter{index}"}
     if e.color and (len(e.color) != 3 or not all(0 <= c <= 1 for c in e.color)):
         raise SceneError(file, f"{key}.color", f"expected [r, g, b] with each in [0, 1], got {list(e.color)}")
@@ -323,7 +321,7 @@ def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials
         raise SceneError(
             file,
             f"{key}.material",
-            f"unknown material {body.material!r}; expected one of: {', '.join(sorted(materials))}",
+            unknown("material", body.material, materials),
         )
     changes: dict[str, Any] = {}
     if not body.name:

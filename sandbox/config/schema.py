@@ -21,6 +21,16 @@ Check = Callable[[Any], "str | None"]
 ABSOLUTE_ZERO = -273.15  # degrees Celsius: the lowest temperature a scene may name
 
 
+def unknown(what: str, word, choices) -> str:
+    """The words of an error for a name that is not one of `choices`: the nearest one when there is one close
+    ("unknown material 'wox'; did you mean 'wax'? expected one of: ..."); a key is named by the error already."""
+    names = sorted(str(c) for c in choices)
+    near = difflib.get_close_matches(str(word), names, n=1)
+    hint = f"did you mean '{near[0]}'? " if near else ""
+    named = "" if what == "key" else f" {word!r}"
+    return f"unknown {what}{named}; {hint}expected one of: {', '.join(names)}"
+
+
 def spec(
     default: Any = dataclasses.MISSING, *, doc: str, check: Check | None = None, factory: Any = None, infinite=False
 ):
@@ -160,10 +170,7 @@ def parse_table(cls: type, data: Any, file: str, key: str = "") -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     for name in data:
         if name not in fields:
-            allowed = ", ".join(sorted(fields))
-            near = difflib.get_close_matches(str(name), list(fields), n=1)
-            hint = f"did you mean '{near[0]}'? " if near else ""
-            raise SceneError(file, _join(key, name), f"unknown key; {hint}expected one of: {allowed}")
+            raise SceneError(file, _join(key, name), unknown("key", name, fields))
     values = {}
     for name, f in fields.items():
         sub = _join(key, name)
