@@ -100,7 +100,7 @@ def test_gif_and_still_outputs(tmp_path):
     gif, still = tmp_path / "clip.gif", tmp_path / "still.png"
     assert three_small_frames(gif) == 0
     assert gif.read_bytes()[:6] == b"GIF89a"
-    assert imageio_ffmpeg.count_frames_and_secs(str(gif))[0] == 3
+    assert imageio_ffmpeg.count_frames_and_secs(str(gif))[0] == 2  # frames 0 and 2: a GIF plays at most 15 fps
     assert three_small_frames(still) == 0
     assert read_png(still).shape == (54, 96, 3)
 
@@ -170,3 +170,27 @@ def test_a_lesson_of_the_wrong_type_is_one_clear_error(scene_file):
     path = scene_file((SCENES / "spring_lattice.toml").read_text().replace('happens = "', 'happens = 3\nx = "', 1))
     with pytest.raises(SceneError, match="scene.lesson"):
         load_scene(path)
+
+
+def test_a_default_gif_is_small_enough_to_share(tmp_path):
+    """Issue 43: without --width/--height a GIF is 400 pixels wide, at most 15 frames a second, with fewer frames
+    where its estimate would pass 8 MB; every shipped scene's default GIF is estimated under 10 MB
+    (benchmarks/gif_sizes.py writes them all). A GIF estimated over 50 MB is warned about before the run."""
+    from sandbox.config.arguments import GIF_BUDGET, GIF_WARN, gif_plan, gif_warning
+    from sandbox.config.resources import shipped_scenes
+    from sandbox.config.scene import load_scene
+    from sandbox.render.encoder import frame_digests
+
+    for path in shipped_scenes():
+        r = load_scene(path).render
+        width, height, every, size = gif_plan(r.width, r.height, r.fps, r.frames, sized=False)
+        assert width == 400 and r.fps / every <= 15 and size < GIF_BUDGET * 1.25, (path.stem, every, size)
+    assert gif_plan(1280, 720, 30.0, 300, sized=True)[:3] == (1280, 720, 2)  # a size asked for is kept
+    gif = tmp_path / "small.gif"
+    argv = ["run", "lj_box", "--headless", "--quiet", "--frames", "12", "--out", str(gif)]
+    assert main(argv) == 0
+    assert len(frame_digests(gif)) == 6  # 30 frames a second: every other frame
+    width, height, every, size = gif_plan(1920, 1080, 30.0, 2000, sized=True)
+    assert size > GIF_WARN and "big.gif will be about 746 MB (1920 x 1080, 15 frames a second)" in gif_warning(
+        "big.gif", width, height, 30.0 / every, size
+    )

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..api import resumed
 from ..config.arguments import (
+    GIF_WARN,
     MAX_FPS,
     MAX_FRAMES,
     MAX_SIDE,
@@ -19,6 +20,8 @@ from ..config.arguments import (
     check_picture,
     check_rate,
     distinct_outputs,
+    gif_plan,
+    gif_warning,
     outputs_not_inputs,
 )
 from ..core import runtime
@@ -126,6 +129,12 @@ def cmd_run(args) -> int:
             out = f"out/{scene.name}"
             print(f"imageio-ffmpeg is not installed: writing PNG frames to {out}/ instead of an MP4", file=sys.stderr)
     width, height = args.width or scene.render.width, args.height or scene.render.height
+    fps, every = args.fps or scene.render.fps, 1
+    if out is not None and Path(out).suffix.lower() == ".gif":
+        sized = args.width is not None or args.height is not None
+        width, height, every, size = gif_plan(width, height, fps, frames - first_frame, sized)
+        if size > GIF_WARN:
+            print(f"warning: {gif_warning(out, width, height, fps / every, size)}", file=sys.stderr)
     check_picture(width, height, out)
     runtime.require(args.arch, scene.world.precision)
     _check_run_outputs(args, out, scene)
@@ -153,7 +162,8 @@ def cmd_run(args) -> int:
         sim,
         out,
         args.stats,
-        size=(width, height, args.fps or scene.render.fps),
+        size=(width, height, fps),
+        every=every,
         still_frame=args.still_frame,
         dump=args.dump,
         dump_every=args.dump_every or 1,

@@ -49,8 +49,8 @@ def _csv_text(row: dict | None) -> str:
 class RunOutputs:
     """The outputs of one headless run of `sim`. `out`: the pictures (.mp4, .gif, .png or a folder; None: none),
     `stats`: the CSV, `dump`: extended XYZ every `dump_every` frames, `checkpoint`: the state every
-    `checkpoint_every` frames; `resume`: (state path, its meta) when
-    continuing; `restart`: start the outputs over instead of continuing."""
+    `checkpoint_every` frames; `every`: a video keeps every `every`-th frame (a GIF's frame rate); `resume`:
+    (state path, its meta) when continuing; `restart`: start the outputs over instead of continuing."""
 
     def __init__(
         self,
@@ -59,6 +59,7 @@ class RunOutputs:
         stats: str | Path | None = None,
         *,
         size: tuple[int, int, float] = (0, 0, 0.0),
+        every: int = 1,
         still_frame: int | None = None,
         dump: str | Path | None = None,
         dump_every: int = 1,
@@ -79,7 +80,7 @@ class RunOutputs:
         try:
             for claim in self.claims:
                 claim.acquire()
-            self._open(size, still_frame, resume, restart)
+            self._open(size, every, still_frame, resume, restart)
         except BaseException:
             self._abandon_all()
             self._release()
@@ -90,14 +91,14 @@ class RunOutputs:
         return "--out" in self.writers
 
     # ------------------------------------------------------------------ opening
-    def _open(self, size, still_frame, resume, restart) -> None:
+    def _open(self, size, every, still_frame, resume, restart) -> None:
         claims = {c.option: c for c in self.claims}
         width, height, fps = size
         if "--out" in claims:
             claim = claims["--out"]
             suffix = claim.path.suffix.lower()
             if suffix in (".mp4", ".gif"):
-                self.writers["--out"] = SegmentedVideo(claim, width, height, fps)
+                self.writers["--out"] = SegmentedVideo(claim, width, height, fps, every)
             elif suffix == ".png":
                 self.writers["--out"] = StillWriter(claim.path, width, height, fps, still_frame)
             else:
@@ -189,7 +190,7 @@ def _check_record(record, checkpoint: Path, option: str, needs: dict) -> None:
     (name: type) present, counts not negative, file names plain names in the output's folder."""
     ok = isinstance(record, dict) and all(isinstance(record.get(k), t) for k, t in needs.items())
     if ok:
-        counts = [record[k] for k in ("frames", "bytes") if k in needs]
+        counts = [record[k] for k in ("frames", "bytes", "offered") if k in needs]
         names = [record["partial"]] if "partial" in needs else list(record.get("pieces", []))
         ok = all(not isinstance(c, bool) and c >= 0 for c in counts)
         ok = ok and all(isinstance(n, str) and n and "/" not in n and n not in (".", "..") for n in names)

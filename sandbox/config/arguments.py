@@ -21,6 +21,37 @@ VIDEO_SUFFIXES = (".mp4", ".gif")
 FRAME_SUFFIXES = (*VIDEO_SUFFIXES, ".png", "")
 
 
+GIF_WIDTH = 400  # pixels: a default GIF's width when no --width or --height is given
+GIF_FPS = 15.0  # a default GIF's highest frame rate
+GIF_BUDGET = 8e6  # bytes a default GIF aims below
+GIF_WARN = 50e6  # bytes: a GIF estimated larger is warned about before the run
+GIF_BYTES_PER_PIXEL = 0.36  # per pixel per frame, measured on melting_block (480 x 270, 300 frames: 13.8 MB)
+
+
+def gif_plan(width: int, height: int, fps: float, frames: int, sized: bool) -> tuple[int, int, int, float]:
+    """A GIF a teacher can share: (width, height, every, estimated bytes). Unless `sized` (the size was asked
+    for), the picture is scaled to GIF_WIDTH wide; every `every`-th frame is kept, enough to stay at most GIF_FPS
+    and, where the size was not asked for, under GIF_BUDGET (but at least 5 frames a second)."""
+    if not sized and width > GIF_WIDTH:
+        width, height = GIF_WIDTH, max(16, 2 * round(height * GIF_WIDTH / width / 2))
+    every = max(1, math.ceil(fps / GIF_FPS - 1e-9))
+
+    def estimate(k: int) -> float:
+        return math.ceil(frames / k) * width * height * GIF_BYTES_PER_PIXEL
+
+    while not sized and estimate(every) > GIF_BUDGET and fps / (every + 1) >= 5:
+        every += 1
+    return width, height, every, estimate(every)
+
+
+def gif_warning(out, width: int, height: int, fps: float, size: float) -> str:
+    """What a run says before writing a GIF of an estimated `size` bytes over GIF_WARN."""
+    return (
+        f"{out} will be about {size / 1e6:.0f} MB ({width} x {height}, {fps:g} frames a second); a smaller --width "
+        "and --height, a lower --fps or an .mp4 makes it smaller"
+    )
+
+
 def check_count(option: str, value: int | None, lo: int, hi: int) -> None:
     """An integer option (None: not given) must lie in lo..hi."""
     if value is not None and not lo <= value <= hi:

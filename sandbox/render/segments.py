@@ -27,13 +27,15 @@ def _digest(items: list[str]) -> str:
 class SegmentedVideo:
     """`claim.path` (.mp4 or .gif) written piece by piece."""
 
-    RECORD = {"pieces": list, "frames": int, "digest": str}  # what mark() records
+    RECORD = {"pieces": list, "frames": int, "offered": int, "digest": str}  # what mark() records
 
-    def __init__(self, claim: Claim, width: int, height: int, fps: float) -> None:
-        self.claim, self.width, self.height, self.fps = claim, width, height, fps
+    def __init__(self, claim: Claim, width: int, height: int, fps: float, every: int = 1) -> None:
+        """`every`: keep every `every`-th frame offered (a GIF's lower frame rate; the video plays at fps / every)."""
+        self.claim, self.width, self.height, self.fps, self.every = claim, width, height, fps / every, every
         self.pieces: list[Path] = []
         self.digests: list[str] = []  # of the frames in closed pieces
         self.frames = 0  # written, in all pieces
+        self.offered = 0  # given to write()
         self._encoder: Encoder | None = None
         self._cut: Path | None = None  # a piece cut from a finished video by find()
 
@@ -43,7 +45,7 @@ class SegmentedVideo:
         frames were given one palette again, only their count is checked). A SandboxError when neither matches."""
         path, frames = self.claim.path, record["frames"]
         if frames == 0:
-            return [], []
+            return [], [], record["offered"]
         left = [path.with_name(name) for name in record["pieces"]]
         if all(p.is_file() for p in left):
             pieces, exact = left, True
@@ -68,17 +70,20 @@ class SegmentedVideo:
                 f"{self.claim.option} {path}: does not hold the {frames} frames the checkpoint {checkpoint} was "
                 f"written with; {RESTART_HINT}"
             )
-        return pieces, digests
+        return pieces, digests, record["offered"]
 
     def adopt(self, found) -> None:
         """Continue after the pieces find() returned (new pieces are numbered on, under this run's names)."""
-        self.pieces, self.digests = list(found[0]), list(found[1])
+        self.pieces, self.digests, self.offered = list(found[0]), list(found[1]), found[2]
         self.frames = len(self.digests)
 
     def in_use(self) -> list[Path]:
         return list(self.pieces)
 
     def write(self, frame: np.ndarray) -> None:
+        self.offered += 1
+        if (self.offered - 1) % self.every:
+            return
         if self._encoder is None:
             piece = partial_name(self.claim.path, f"seg{len(self.pieces):04d}")
             piece = piece if piece not in self.pieces else partial_name(self.claim.path, f"seg{len(self.pieces)}b")
@@ -100,6 +105,7 @@ class SegmentedVideo:
             "path": str(self.claim.path),
             "pieces": [p.name for p in self.pieces],
             "frames": self.frames,
+            "offered": self.offered,
             "digest": _digest(self.digests),
         }
 
