@@ -178,10 +178,10 @@ def test_alpha_compositing_blends_in_depth_order():
 
 def test_the_colour_bar_samples_each_map_as_the_particles_colour_ramp_does():
     """The bar's colours (three NumPy calls a frame) are those of the per-point ramp, exactly."""
-    from sandbox.render.colormaps import GLOW_STOPS, SPEED_STOPS, ramp_np, ramp_np_many
+    from sandbox.render.colormaps import GLOW_STOPS, SPEED_STOPS, TEMPERATURE_STOPS, ramp_np, ramp_np_many
 
     ts = np.r_[-0.5, np.linspace(0.0, 1.0, 213), 1.5]
-    for stops in (GLOW_STOPS, SPEED_STOPS):
+    for stops in (GLOW_STOPS, TEMPERATURE_STOPS, SPEED_STOPS):
         assert np.array_equal(ramp_np_many(stops, ts), np.array([ramp_np(stops, t) for t in ts]))
 
 
@@ -576,3 +576,32 @@ def test_the_colour_bar_fits_at_every_common_size(size):
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true"]))
     ren = Renderer(sim.model, sim.state, *size, sim.scene.render)
     assert ren.overlays.legend_shown()  # the bar and its labels inside the picture
+
+
+def test_a_particles_colour_read_against_the_bar_gives_its_temperature():
+    """Issue 43: cream wax at 20 °C used to read as about 200 °C on the bar. Now every particle drawn by temperature
+    takes the bar's colour for its temperature, whatever its material: the bar's nearest colour to the pixel under
+    a particle's centre gives back its temperature within one bar step."""
+    sim = Simulation(load_scene(SCENES / "melting_block.toml", ["render.legend=true", "render.motion_blur=false"]))
+    sim.run(40)  # the bottom has heated: a spread of temperatures
+    ren = Renderer(sim.model, sim.state, 640, 360, sim.scene.render)
+    img = ren.frame().astype(float)
+    lo, hi = sim.scene.render.temperature_range
+    steps = 64
+    bar = ren.overlays.legend_colors(steps) * 255  # the bar as drawn, one colour a step
+    table = sim.particles()
+    view = ren.painter  # the 2D view: pixels from the bottom left
+    centres = table["position"] * view.px_per_unit + np.asarray(view.offset.to_list())
+    pixels = np.stack([centres[:, 0], 360 - centres[:, 1]], axis=1)  # rows from the top
+    temps = table["temperature"]
+    rng = np.random.default_rng(0)
+    checked = 0
+    for k in rng.permutation(len(temps))[:200]:
+        x, y = int(pixels[k, 0]), int(pixels[k, 1])
+        if not (0 <= x < 640 and 0 <= y < 360):
+            continue
+        nearest = np.argmin(((bar - img[y, x]) ** 2).sum(axis=1))
+        read = lo + (hi - lo) * nearest / (steps - 1)
+        assert abs(read - np.clip(temps[k], lo, hi)) <= (hi - lo) / (steps - 1) * 1.5, (k, read, temps[k])
+        checked += 1
+    assert checked > 100 and temps.max() - temps.min() > 0.3 * (hi - lo)

@@ -14,6 +14,20 @@ GLOW_STOPS = np.array(
     ],
     dtype=np.float32,
 )
+# Temperature: cold blue -> pale yellow -> hot red (ColorBrewer's RdYlBu, reversed): every colour appears once, so a
+# particle's colour read against the colour bar gives its temperature.
+TEMPERATURE_STOPS = np.array(
+    [
+        [0.0, 0.192, 0.212, 0.584],
+        [0.2, 0.271, 0.459, 0.706],
+        [0.35, 0.671, 0.851, 0.914],
+        [0.5, 1.0, 1.0, 0.749],
+        [0.65, 0.992, 0.682, 0.380],
+        [0.8, 0.843, 0.188, 0.153],
+        [1.0, 0.647, 0.0, 0.149],
+    ],
+    dtype=np.float32,
+)
 # Speed: dark blue -> teal -> yellow (viridis-like).
 SPEED_STOPS = np.array(
     [[0.0, 0.12, 0.1, 0.35], [0.35, 0.13, 0.45, 0.56], [0.7, 0.35, 0.78, 0.4], [1.0, 0.99, 0.9, 0.15]], dtype=np.float32
@@ -50,18 +64,6 @@ def _ramp_func(stops: np.ndarray):
     return ramp
 
 
-glow = _ramp_func(GLOW_STOPS)
+glow = _ramp_func(GLOW_STOPS)  # heat-source plates
+temperature_map = _ramp_func(TEMPERATURE_STOPS)
 speed_map = _ramp_func(SPEED_STOPS)
-
-
-def glow_over_base_np(base: np.ndarray, t: float) -> np.ndarray:
-    """Cold material keeps its base colour; the glow takes over from t = 0.12 to 0.37 (twin of glow_over_base)."""
-    w = float(np.clip((t - 0.12) / 0.25, 0.0, 1.0))
-    return (1 - w) * np.asarray(base, dtype=np.float32) + w * ramp_np(GLOW_STOPS, t)
-
-
-@ti.func
-def glow_over_base(base, t):
-    """Temperature colour: the material's own colour when cold, a blackbody-like glow when hot."""
-    w = ti.math.clamp((t - 0.12) / 0.25, 0.0, 1.0)
-    return (1.0 - w) * base + w * glow(t)

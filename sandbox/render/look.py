@@ -1,4 +1,5 @@
-"""How a particle looks: its colour (by temperature, material, speed or phase), its drawn radius and opacity, fading
+"""How a particle looks: its colour (by temperature or speed: the colour bar's map, so that the bar reads a
+particle's value back; by material or phase: the materials' colours), its drawn radius and opacity, fading
 and shrinking over a lifetime, and each body's drawing style.
 
 Every body (particle group) has a drawing style: `draw` (dot: one pixel; splat: a disc of the particle's radius;
@@ -11,7 +12,7 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
-from .colormaps import glow_over_base, speed_map
+from .colormaps import speed_map, temperature_map
 from .style import BLEND, COLOR_MODES, DRAW
 
 
@@ -95,9 +96,8 @@ class Look:
         p = self.p
         base = p.color[i]
         c = base
-        if ti.static(self.color_mode == 0 and self.has_heat):
-            t = (p.T[i] - self.t_lo[None]) / (self.t_hi[None] - self.t_lo[None])
-            c = glow_over_base(base, t)
+        if ti.static(self.color_mode == 0 and self.has_heat):  # the colour bar's map, whatever the material
+            c = temperature_map((p.T[i] - self.t_lo[None]) / (self.t_hi[None] - self.t_lo[None]))
         elif ti.static(self.color_mode == 2):
             c = speed_map(p.v[i].norm() / self.speed_hi[None])
         elif ti.static(self.color_mode == 3 and self.has_heat):

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from .colormaps import GLOW_STOPS, SPEED_STOPS, ramp_np_many
+from .colormaps import SPEED_STOPS, TEMPERATURE_STOPS, ramp_np_many
 from .pixels import draw_text, text_scale, text_width
 
 
@@ -15,7 +15,7 @@ class Overlays:
 
     def legend_colors(self, n: int) -> np.ndarray:
         """The active colour map sampled at n points, (n, 3) floats."""
-        return ramp_np_many(SPEED_STOPS if self.cfg.color_by == "speed" else GLOW_STOPS, np.linspace(0, 1, n))
+        return ramp_np_many(SPEED_STOPS if self.cfg.color_by == "speed" else TEMPERATURE_STOPS, np.linspace(0, 1, n))
 
     def legend_geometry(self) -> tuple[int, int, int, int, int]:
         """(x0, row0, bar width, bar height, text scale) of the colour bar, rows counted from the top."""
