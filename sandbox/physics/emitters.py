@@ -18,7 +18,7 @@ import taichi as ti
 from ..config.build import load_mask
 from ..core import transfer
 from ..core.oriented import data_oriented
-from ..core.state import COUNT
+from ..core.state import COUNT, Range
 from ..errors import SceneError
 from .fields import random_uniform
 from .phase import NEVER_BONDS
@@ -105,7 +105,9 @@ class Emitters(Term):
 
     def declare(self, state) -> None:
         """Particles emitted so far (the random-number index), the rate's carried fraction, the counts."""
-        state.declare("emitters", self, ("serial", "carry", "emitted"), kind="value", valid=COUNT)
+        state.declare("emitters", self, ("serial", "emitted"), kind="value", valid=COUNT)
+        # the carried fraction may sit a rounding below zero: a particle is due 1e-9 before a whole one is owed
+        state.declare("emitters", self, ("carry",), kind="value", valid=Range(lo=-1e-6, hi=2**31 - 1))
 
     def start(self, state) -> None:
         self.emit_initial()
