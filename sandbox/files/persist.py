@@ -149,6 +149,15 @@ def saved_scene(meta: dict, path: str | Path):
         raise SandboxError(f"{path}: the saved scene does not load: {exc}") from exc
 
 
+def _check_controls(saved: dict, current: dict, path: Path) -> None:
+    """The file's live controls are those of this scene (the same names, each of the same shape)."""
+    if set(saved) != set(current):
+        raise SandboxError(f"{path}: the saved controls are {sorted(saved)}; expected this scene's {sorted(current)}")
+    for key, value in current.items():
+        if np.shape(saved[key]) != np.shape(value):
+            raise SandboxError(f"{path}: control {key} is {saved[key]!r}; expected the shape of {value!r}")
+
+
 def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
     """Put a state file saved from `sim`'s own scene back into `sim` (the window's load key, and resume): the state,
     clock, controls and integrator as saved. SandboxError when the file is of another scene, backend or thread count
@@ -175,6 +184,7 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
         raise SandboxError(f"{path}: the state file is damaged ({type(exc).__name__})") from exc
     if not isinstance(host, dict):
         raise SandboxError(f"{path}: the state file's host values are not a table; expected one written by save()")
+    _check_controls(meta["controls"], controls(sim), path)
     if meta["integrator"] not in REGISTRY:
         raise SandboxError(f"{path}: integrator {meta['integrator']!r}; expected one of {', '.join(REGISTRY)}")
     before = sim.integrator.name
