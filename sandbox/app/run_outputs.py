@@ -200,11 +200,6 @@ def _check_record(record, checkpoint: Path, option: str, needs: dict) -> None:
 
 def _remove(path: Path) -> None:
     try:
-        if path.is_dir():
-            for child in path.iterdir():
-                child.unlink()
-            path.rmdir()
-        else:
-            path.unlink(missing_ok=True)
-    except OSError:
+        path.unlink(missing_ok=True)
+    except OSError:  # left for the next run to name again
         pass

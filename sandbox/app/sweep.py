@@ -105,15 +105,16 @@ def check_keys(scene_path: str | Path, variations: list[Variation]) -> None:
             apply_override(trial, v.key, v.values[0])
             scene_from_dict(trial, path)
         except SceneError as exc:
-            if exc.key in (v.key, v.key.replace(".", "[", 1)) or "unknown key" in exc.expected or exc.file == "--set":
+            if exc.key == v.key or "unknown key" in exc.expected or exc.file == "--set":
                 raise SandboxError(f"--vary {v.key}: {exc.expected}") from None
         except SandboxError as exc:
             raise SandboxError(f"--vary {v.key}: {exc}") from None
 
 
-def run_settings(scene_path: str | Path, overrides: dict, frames, video: bool, width, height) -> dict:
-    """What makes a run what it is: the scene table with its overrides applied, and the run's settings."""
-    data = read_scene_table(Path(scene_path))
+def run_settings(table: dict, overrides: dict, frames, video: bool, width, height) -> dict:
+    """What makes a run what it is: the scene `table` (as read, left unchanged) with the run's overrides applied,
+    and the run's settings."""
+    data = copy.deepcopy(table)
     for key, value in overrides.items():
         try:
             apply_override(data, key, value)
@@ -170,7 +171,8 @@ def run_sweep(
     out.mkdir(parents=True, exist_ok=True)
     scene_path = str(Path(scene_path).resolve())
     jobs = [(k, o, out / run_folder_name(k, o)) for k, o in enumerate(runs)]
-    settings = [run_settings(scene_path, o, frames, video, width, height) for o in runs]
+    table = read_scene_table(Path(scene_path))  # read once for every run's settings
+    settings = [run_settings(table, o, frames, video, width, height) for o in runs]
     todo = []
     for (k, o, f), wanted in zip(jobs, settings):
         record = _read_record(f / RECORD)

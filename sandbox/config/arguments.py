@@ -120,15 +120,15 @@ def check_folder_output(option: str, path: str | Path, what: str = "a folder") -
 
 
 def distinct_outputs(paths: dict[str, str | None]) -> None:
-    """No two options may write the same file."""
-    seen: dict[str, str] = {}
+    """No two options may write the same file (same_file: through links too)."""
+    seen: list[tuple[str, str | Path]] = []
     for option, path in paths.items():
         if path is None:
             continue
-        key = os.path.abspath(path)
-        if key in seen:
-            raise SandboxError(f"{option} {path}: the same file as {seen[key]}; expected different outputs")
-        seen[key] = option
+        for other, earlier in seen:
+            if same_file(path, earlier):
+                raise SandboxError(f"{option} {path}: the same file as {other}; expected different outputs")
+        seen.append((option, path))
 
 
 def outputs_not_inputs(outputs: dict[str, str | None], inputs: dict[str, str | None]) -> None:

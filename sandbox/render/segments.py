@@ -85,8 +85,8 @@ class SegmentedVideo:
         if (self.offered - 1) % self.every:
             return
         if self._encoder is None:
+            # this run's name: pieces adopted from a killed run carry that run's, so the numbers cannot collide
             piece = partial_name(self.claim.path, f"seg{len(self.pieces):04d}")
-            piece = piece if piece not in self.pieces else partial_name(self.claim.path, f"seg{len(self.pieces)}b")
             self._encoder = Encoder(piece, self.width, self.height, self.fps)
             self.pieces.append(piece)
         self._encoder.write(frame)

@@ -68,11 +68,6 @@ class PngSequenceWriter(FrameWriter):
         write_png(self.path / f"frame_{self.frames_written:05d}.png", frame)
 
 
-def partial_path(path: Path) -> Path:
-    """The hidden name a file is written under until it is complete: this run's own (files/claim.py)."""
-    return partial_name(path)
-
-
 def publish(partial: Path, path: Path, keep: bool) -> None:
     """Rename a completed `partial` file to `path`, or remove it when there is nothing to keep."""
     if keep:
@@ -95,7 +90,7 @@ class StillWriter(FrameWriter):
 
     def close(self):
         if self._kept is not None:
-            partial = partial_path(self.path)
+            partial = partial_name(self.path)
             write_png(partial, self._kept)
             publish(partial, self.path, keep=True)
             self._kept = None
@@ -111,7 +106,7 @@ class FfmpegWriter(FrameWriter):
 
     def _write(self, frame):
         if self._encoder is None:
-            self._encoder = Encoder(partial_path(self.path), self.width, self.height, self.fps)
+            self._encoder = Encoder(partial_name(self.path), self.width, self.height, self.fps)
         self._encoder.write(frame)
 
     def close(self):
