@@ -254,7 +254,8 @@ def test_3d_brush_acts_at_the_particle_under_the_cursor():
     x = sim.positions()
     top_centre = x[np.argmax(x[:, 1] - 0.01 * np.abs(x[:, 0] - 24.5) - 0.01 * np.abs(x[:, 2] - 27.5))]
     ren.set_camera(top_centre + [0.0, 10.0, 10.0], top_centre, 40.0)  # looking at that particle
-    picked = ren.pick(0.5, 0.5)
+    axis = (ren.painter.cx / 320, ren.painter.cy / 180)  # where the view's axis meets the picture, below the band
+    picked = ren.pick(*axis)
     assert np.allclose(picked, top_centre)  # the nearest under the cursor: the one looked at, not one behind
     assert ren.pick(0.02, 0.98) is None  # empty sky
 
@@ -344,9 +345,9 @@ def test_energies_read_in_the_scenes_units():
 
 
 def test_the_panel_never_covers_the_scene_or_its_chart():
-    """The four scenes a class starts with, in windows of 1280 x 720 and 640 x 360: the renderer draws the domain
-    (2D) or every particle (3D) and the chart right of the panel's column and inside the picture; the lesson's lines
-    fit the panel."""
+    """The four scenes a class starts with, in windows of 1280 x 720 and 640 x 360: the renderer draws every particle
+    right of the panel's column and below the top band, the chart right of the panel in the band; the lesson's
+    lines fit the panel."""
     from sandbox.app.window_panel import PANEL_WIDTH
     from sandbox.app.window_state import lesson_text, panel_characters
     from sandbox.render.raster import Renderer
@@ -358,15 +359,18 @@ def test_the_panel_never_covers_the_scene_or_its_chart():
             left = ren.panel_px
             assert left == round(PANEL_WIDTH * width)
             if sim.dim == 2:
-                lo, hi = ren.painter.px_lo.to_numpy(), ren.painter.px_hi.to_numpy()
-                assert lo[0] >= left and hi[0] <= width and lo[1] >= 0 and hi[1] <= height, (name, lo, hi)
+                sx, sy = (sim.positions() * ren.painter.px_per_unit + ren.painter.offset.to_numpy()).T
             else:
                 rel = sim.positions() - ren.painter.eye_np
                 z = rel @ ren.painter.fwd_np
                 focal = 0.5 * height / np.tan(np.radians(ren.painter.fov) / 2)
                 sx = ren.painter.cx + focal * (rel @ ren.painter.right_np) / z
-                assert sx.min() >= left and sx.max() <= width, (name, sx.min(), sx.max())
-            assert ren.chart.x0 >= left and ren.chart.fits
+                sy = ren.painter.cy + focal * (rel @ ren.painter.up_np) / z
+            sx, sy = np.r_[sx, left], np.r_[sy, 0.0]  # the sandbox starts empty
+            assert sx.min() >= left and sx.max() <= width, (name, sx.min(), sx.max())
+            assert sy.min() >= 0 and sy.max() <= height - ren.layout.band, (name, sy.min(), sy.max())
+            x0, x1, r0, r1 = ren.chart.drawn_rect()
+            assert x0 >= left and x1 <= width and r1 <= ren.layout.band and ren.chart.fits
             chars = panel_characters(width, PANEL_WIDTH)
             assert all(len(line) <= chars for line in lesson_text(sim.scene.lesson, chars))
             sim.state.drop(ren.tails)

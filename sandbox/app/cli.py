@@ -257,6 +257,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--width", type=int, help="picture width in pixels (default: render.width)")
     run.add_argument("--height", type=int, help="picture height in pixels (default: render.height)")
     run.add_argument("--fps", type=float, help="video frames per second (default: render.fps)")
+    run.add_argument(
+        "--no-overlays", action="store_true", help="videos and pictures without the title, clock and legend"
+    )
     run.add_argument("--still-frame", type=int, help="with a .png output: which frame to keep (default: last)")
     run.add_argument("--screenshot", help="window: save the last frame here (with --frames)")
     run.add_argument("--record", help="window: record what it shows to this MP4 from the start (v toggles too)")

@@ -189,6 +189,7 @@ def cmd_run(args) -> int:
         progress=not args.quiet,
         first_frame=first_frame,
         outputs=outputs,
+        overlays=not args.no_overlays,
     )
     if result.stopped:
         print(f"error: the blow-up guard stopped the run: {result.stopped}", file=sys.stderr)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from collections.abc import Callable
@@ -52,10 +53,12 @@ def run_headless(
     on_frame: Callable[[int, Stats], None] | None = None,
     first_frame: int = 0,
     outputs: RunOutputs | None = None,
+    overlays: bool = True,
 ) -> RunResult:
     """Run `frames` frames of `substeps` steps each (None: the scene's, possibly "auto"); write frames to `out` (by
     extension) and stats to a CSV, or everything `outputs` holds (the command line's run: dump and checkpoints
-    too). `first_frame`: the frames run before (a resumed run numbers its rows on from it).
+    too). `first_frame`: the frames run before (a resumed run numbers its rows on from it). `overlays` False leaves
+    the title, clock and legend out of the pictures (the scene's charts stay).
 
     Every frame is measured, and so checked by the blow-up guard, before its row and picture are written. Ctrl-C,
     SIGTERM or SIGHUP stop the run between steps (the result says `interrupted`, and `signal`); the guard stops it
@@ -64,6 +67,8 @@ def run_headless(
     that fails (a full disk) leaves them under partial names and raises an OutputError that lists them.
     """
     cfg = sim.scene.render
+    if not overlays:
+        cfg = dataclasses.replace(cfg, title=False, clock=False, legend=False)
     width, height, fps = width or cfg.width, height or cfg.height, fps or cfg.fps
     if outputs is None:
         outputs = RunOutputs(sim, out, stats_path, size=(width, height, fps), still_frame=still_frame)

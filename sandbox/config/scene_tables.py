@@ -37,6 +37,15 @@ MAX_BONDS = 64  # bonds per particle that refreezing may fill up to (spare sprin
 MAX_EXPONENT = 64  # a whole-number exponent is unrolled into multiplications when the kernels compile
 
 
+def _view(box: tuple[float, ...]) -> str | None:
+    """render.view: empty, or [x0, y0, x1, y1] with x0 < x1 and y0 < y1."""
+    if not box:
+        return None
+    if len(box) != 4 or not (box[0] < box[2] and box[1] < box[3]):
+        return f"expected [x0, y0, x1, y1] with x0 < x1 and y0 < y1, got {list(box)}"
+    return None
+
+
 def exponent(x: float) -> str | None:
     return None if 0 < x <= MAX_EXPONENT else f"expected a number above 0 and at most {MAX_EXPONENT}, got {x}"
 
@@ -168,7 +177,7 @@ class HeatSource:
     schedule_period: float = spec(
         0.0, doc="repeat the schedule with this period (0: hold the last value)", check=non_negative
     )
-    visible: bool = spec(True, doc="2D: draw the region (in its glow colour)")
+    visible: bool = spec(True, doc="2D: draw the region (in the colour bar's colour for its temperature)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -356,7 +365,9 @@ class Render:
     fps: float = spec(30.0, doc="frames per second of the video", check=positive)
     frames: int = spec(300, doc="frames in a headless run", check=between(1, MAX_FRAMES))
     color_by: str = spec("temperature", doc="temperature, material, speed or phase", check=one_of(*COLOR_BY))
-    temperature_range: tuple[float, ...] = spec((20.0, 200.0), doc="[cold, hot] ends of the glow colour map")
+    temperature_range: tuple[float, ...] = spec(
+        (20.0, 200.0), doc="[cold, hot] ends of the temperature colour bar (°C)"
+    )
     speed_range: float = spec(10.0, doc="speed drawn brightest when colouring by speed", check=positive)
     background: tuple[float, ...] = spec((0.06, 0.07, 0.09), doc="background colour [r, g, b]")
     particle_scale: float = spec(1.0, doc="drawn radius as a multiple of the particle radius", check=positive)
@@ -375,8 +386,20 @@ class Render:
     )
     exposure: float = spec(1.0, doc="additive light: tone map 1 - exp(-exposure * light)", check=positive)
     draw_springs: bool = spec(False, doc="2D: draw live springs as lines")
-    legend: bool = spec(False, doc="draw a colour bar for the colour map, with its range and unit, in a corner")
-    clock: bool = spec(False, doc="videos and pictures: print the simulated time (t = 2.40 s) in the bottom-left")
+    legend: bool = spec(
+        True,
+        doc="the legend at the top right: a colour bar with its range and unit (temperature, speed), or a swatch per "
+        "material (material) or per solid and melt (phase)",
+    )
+    clock: bool = spec(True, doc="videos and pictures: the simulated time (t = 2.40 s) under the title")
+    title: bool = spec(True, doc="videos and pictures: the scene's name at the top left")
+    frame: str = spec(
+        "content",
+        doc="2D: what the picture shows: content (the bodies, heat sources and emitters, with a margin) or domain "
+        "(the whole box)",
+        check=one_of("content", "domain"),
+    )
+    view: tuple[float, ...] = spec((), doc="2D: the world box [x0, y0, x1, y1] to show (overrides frame)", check=_view)
     ground: bool = spec(True, doc="3D: a faint grid on the floor of the domain so depth reads")
     chart: list[str] = spec(
         doc="measurements to plot against time in a corner (window and video), e.g. "

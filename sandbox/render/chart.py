@@ -1,227 +1,222 @@
-"""A strip chart of measurements over time, drawn into the renderer's image, so the window and videos both show it.
+"""Charts of measurements against time, drawn on the host into the picture's top band (window and videos alike).
 
-`render.chart = ["mean_temperature", "molten_fraction"]` plots those Stats fields against simulated time in a box in
-the top-left corner, the whole run squeezed into the box's width. Series of one unit (the energies) share a scale, the
-others each have their own range so far (fractions [0, 1]). Under the box each series' name, latest value and unit
-in its colour and the time span; beside it, when the series share one scale, its top, middle and bottom values.
-Tick marks divide the time axis into quarters and mark the middle of the scale.
+`render.chart = ["mean_temperature", "molten_fraction"]` plots those Stats fields against simulated time. Series
+of one unit share a panel; each unit gets its own panel with its own axis, so no series is drawn on a scale the
+reader cannot see. A panel has a title in words with its unit, a value axis with three labelled ticks, a time
+axis labelled in seconds, and each series' latest value in its colour.
 """
 
+from __future__ import annotations
+
+import math
+
 import numpy as np
-import taichi as ti
+from PIL import Image, ImageDraw
 
-from ..core import transfer
-from ..core.oriented import data_oriented
-from .pixels import draw_text, get_pixel, put_pixel, text_scale, text_width
+from ..measure.units import length_unit, series_words
+from .text import GREY, dim, draw_text, line_height, text_width
 
-FRACTIONS = ("molten_fraction",)  # plotted on a fixed [0, 1] scale
-# Each series' label and unit; series of one unit share the chart's scale (the energies), which its ticks then give.
-SERIES_LABELS = {
-    "mean_temperature": ("mean T", "°C"),
-    "molten_fraction": ("molten", ""),
-    "heat_content": ("heat", "E"),
-    "kinetic_energy": ("kinetic", "E"),
-    "potential_energy": ("potential", "E"),
-    "total_energy": ("total", "E"),
-    "max_speed": ("max speed", "/s"),
-}
-COLORS = ((1.0, 0.4, 0.25), (0.35, 0.65, 1.0), (0.5, 0.9, 0.4), (0.95, 0.85, 0.3))
-SAMPLES = 256  # points per series drawn (the history is resampled to this many)
-HISTORY = 16 * SAMPLES  # samples kept; past it every other one is dropped and the sampling stride doubles
-TICK = 3  # pixels a tick mark reaches into the box
+COLORS = ((255, 110, 70), (90, 170, 255), (130, 230, 100), (240, 215, 80))
+HISTORY = 4096  # samples kept; past it every other one is dropped and the sampling stride doubles
+FRACTIONS = ("molten_fraction",)  # drawn in percent on a fixed 0 to 100 scale
 
 
-@data_oriented
+def nice_range(lo: float, hi: float) -> tuple[float, float]:
+    """A range covering [lo, hi] whose ends are round numbers (1, 2 or 5 times a power of ten)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return 0.0, 1.0
+    if hi - lo < 1e-12 * max(1.0, abs(hi)):
+        lo, hi = lo - max(1.0, abs(lo)) * 0.05, hi + max(1.0, abs(hi)) * 0.05
+    raw = (hi - lo) / 2
+    power = 10 ** math.floor(math.log10(raw))
+    step = next(s * power for s in (1, 2, 5, 10) if s * power >= raw)
+    return math.floor(lo / step) * step, math.ceil(hi / step) * step
+
+
+def tick_text(value: float) -> str:
+    """A tick's label: up to three significant digits, no float noise."""
+    return f"{value:.3g}"
+
+
+class Panel:
+    """One plot box: the series of one unit, with its axes."""
+
+    def __init__(self, names: list[int], title: str, unit: str, fixed: tuple[float, float] | None):
+        self.names, self.title, self.unit, self.fixed = names, title, unit, fixed
+
+
 class Chart:
-    """Strip chart of some Stats fields; record() each frame, the renderer calls draw()."""
+    """Measurements of `series` (Stats field names) against time, in the picture rectangle `rect` (x0, x1, row0,
+    row1; rows from the top) at font size `size`; record() each frame, label() draws it on an (H, W, 3) frame.
+    `material_names` choose the units (measure/units.py)."""
 
-    def __init__(
-        self, image, width: int, height: int, series: tuple[str, ...], scene_in_image: bool = True, left: int = 0
-    ):
-        """`image`: the renderer's float image; `scene_in_image`: the drawn scene is there (else only in the 8-bit
-        output draw() gets), which is what the box dims behind its lines; `left`: pixels a side panel covers."""
-        self.scene_in_image = scene_in_image
+    def __init__(self, series: tuple[str, ...], rect: tuple[int, int, int, int], size: int, material_names=()):
         self.series = tuple(series)
-        self.n_series = len(self.series)
-        self.image = image
-        self.width, self.height = width, height
-        self.box_w, self.box_h = max(64, width // 4), max(40, height // 5)
-        self.label_height = 4 + 5 * text_scale(height)  # the values printed under the box
-        self.x0, self.y_top = left + 10, 10  # top-left corner of the box, pixels from the top-left of the picture
-        # A picture too small to hold the box and its margins gets no chart (drawing it would write out of bounds).
-        self.fits = width >= self.box_w + self.x0 + 10 and height >= self.box_h + 2 * self.y_top
-        self.values = ti.field(ti.f32, shape=(len(self.series), SAMPLES))  # normalised to [0, 1]
-        self.colors = ti.Vector.field(3, ti.f32, shape=len(self.series))
-        transfer.upload([(self.colors, np.array([COLORS[k % len(COLORS)] for k in range(self.n_series)], np.float32))])
+        self.size = size
+        self.words = [series_words(name, material_names) for name in self.series]
+        by_unit: dict[str, list[int]] = {}
+        for k, (_, unit) in enumerate(self.words):
+            by_unit.setdefault(unit, []).append(k)
+        self.panels = []
+        for unit, ks in by_unit.items():
+            title = ", ".join(self.words[k][0] for k in ks)
+            fixed = (0.0, 100.0) if all(self.series[k] in FRACTIONS for k in ks) else None
+            self.panels.append(Panel(ks, title, unit, fixed))
         self.history: list[list[float]] = [[] for _ in self.series]
-        self.times: list[float] = []  # simulated time of each kept sample
-        self.ranges: list[tuple[float, float]] = [(0.0, 1.0)] * len(self.series)  # each series' scale
-        self.n = 0
+        self.times: list[float] = []
         self.frames = 0  # frames offered to record()
         self.stride = 1  # one sample kept per this many frames
+        self.place(rect)
+
+    def place(self, rect: tuple[int, int, int, int]) -> None:
+        """Draw into rect (x0, x1, row0, row1; rows from the top) from now on; `fits` says whether it has room."""
+        self.rect = rect
+        x0, x1, r0, r1 = rect
+        self.fits = x1 - x0 >= 12 * self.size * len(self.panels) and r1 - r0 >= 4 * line_height(self.size)
 
     def record(self, stats) -> None:
-        """Append this frame's values and upload the resampled, normalised series."""
+        """Append this frame's values (every `stride`-th frame once the history is long)."""
         self.frames += 1
         if (self.frames - 1) % self.stride:
-            return  # between kept samples
+            return
         for k, name in enumerate(self.series):
-            value = float(getattr(stats, name))
-            self.history[k].append(value if np.isfinite(value) else 0.0)
+            value = float(getattr(stats, name)) * (100.0 if name in FRACTIONS else 1.0)
+            self.history[k].append(value if math.isfinite(value) else math.nan)
         self.times.append(float(stats.time))
-        if len(self.history[0]) > HISTORY:  # bounded work per frame on a long run: keep every other sample, and
-            self.history = [h[::2] for h in self.history]  # from now on record every other frame, so the samples
+        if len(self.times) > HISTORY:  # bounded work per frame on a long run
+            self.history = [h[::2] for h in self.history]
             self.times = self.times[::2]
-            self.stride *= 2  # stay evenly spread in time
-        length = len(self.history[0])
-        self.n = min(length, SAMPLES)
-        pick = np.linspace(0, length - 1, self.n).round().astype(int)
-        table = np.zeros((len(self.series), SAMPLES), dtype=np.float32)
-        for k, name in enumerate(self.series):
-            values = np.asarray(self.history[k])
-            lo, hi = self.ranges[k] = self._range(name)
-            span = hi - lo if hi > lo else 1.0
-            table[k, : self.n] = np.clip((values[pick] - lo) / span, 0.0, 1.0)
-        self.values.from_numpy(table)
-
-    def _range(self, name: str) -> tuple[float, float]:
-        """The scale of series `name`: [0, 1] for fractions, else the range so far of every series of its unit."""
-        if name in FRACTIONS:
-            return 0.0, 1.0
-        unit = SERIES_LABELS.get(name, (name, name))[1]
-        same = [np.asarray(h) for n, h in zip(self.series, self.history) if SERIES_LABELS.get(n, (n, n))[1] == unit]
-        return float(min(v.min() for v in same)), float(max(v.max() for v in same))
+            self.stride *= 2
 
     def drawn_rect(self) -> tuple[int, int, int, int]:
-        """(x0, x1, row0, row1), rows from the top: the pixels the box and its labels may draw on. The labels under
-        the box and the scale beside it run to the right, as long as their text is (it changes every frame)."""
-        return self.x0, self.width, self.y_top, self.y_top + self.box_h + self.label_height
+        """(x0, x1, row0, row1), rows from the top: the pixels the chart draws on."""
+        return self.rect
 
-    def shared_scale(self) -> bool:
-        """Whether every series is drawn on one scale (one unit, not a fraction), so ticks can give it."""
-        units = {SERIES_LABELS.get(n, (n, n))[1] for n in self.series}
-        return len(units) == 1 and not any(n in FRACTIONS for n in self.series)
+    def panel_rects(self) -> list[tuple[int, int, int, int]]:
+        """Each panel's rectangle within the chart's, side by side."""
+        x0, x1, r0, r1 = self.rect
+        gap = self.size
+        w = (x1 - x0 - gap * (len(self.panels) - 1)) // len(self.panels)
+        return [(x0 + k * (w + gap), x0 + k * (w + gap) + w, r0, r1) for k in range(len(self.panels))]
 
-    def draw(self, out) -> None:
-        """Draw the box and the series into the renderer's float image and its 8-bit output `out` (put_pixel)."""
-        if self.fits:
-            self._draw(self.n, out)
+    def data_range(self, panel: Panel) -> tuple[float, float]:
+        """The value axis of `panel`: fixed (percent) or the nice range of its series so far."""
+        if panel.fixed:
+            return panel.fixed
+        values = np.concatenate([np.asarray(self.history[k], float) for k in panel.names])
+        values = values[np.isfinite(values)]
+        return nice_range(float(values.min()), float(values.max())) if values.size else (0.0, 1.0)
 
-    @ti.func
-    def _put(self, out: ti.template(), x, y, c):
-        """Set pixel (x, y) of the picture, y counted up from the bottom, in the float image and the 8-bit one."""
-        self.image[x, y] = c
-        put_pixel(out, self.height, x, y, c)
+    def xy(self, panel: Panel, k: int, plot: tuple[int, int, int, int]) -> list[tuple[float, float]]:
+        """Series k's points in pixels (x, row) of the plot box `plot`."""
+        x0, x1, r0, r1 = plot
+        t = np.asarray(self.times, float)
+        v = np.asarray(self.history[k], float)
+        lo, hi = self.data_range(panel)
+        t_end = max(t[-1], 1e-9)
+        keep = np.isfinite(v)
+        xs = x0 + (x1 - x0) * t[keep] / t_end
+        rows = r1 - (r1 - r0) * np.clip((v[keep] - lo) / (hi - lo), 0.0, 1.0)
+        if len(xs) > 2 * (x1 - x0):  # no more points than the box has half-pixels across
+            pick = np.linspace(0, len(xs) - 1, 2 * (x1 - x0)).round().astype(int)
+            xs, rows = xs[pick], rows[pick]
+        return list(zip(xs.tolist(), rows.tolist()))
 
-    @ti.kernel
-    def _draw(self, n: ti.i32, out: ti.types.ndarray()):
-        x0, w, h = self.x0, self.box_w, self.box_h
-        y0 = self.height - self.y_top - h  # bottom row of the box
-        for i, j in ti.ndrange(w, h):
-            behind = ti.Vector([0.0, 0.0, 0.0])
-            if ti.static(self.scene_in_image):
-                behind = self.image[x0 + i, y0 + j]
-            else:
-                behind = get_pixel(out, self.height, x0 + i, y0 + j)
-            c = behind * 0.3  # dim what is behind, so the lines read
-            # the frame, with ticks pointing in: time at each quarter along the bottom, the scale's middle at the sides
-            time_tick = j < TICK and (i == w // 4 or i == w // 2 or i == 3 * w // 4)
-            value_tick = (i < TICK or i >= w - TICK) and j == h // 2
-            if i == 0 or j == 0 or i == w - 1 or j == h - 1 or time_tick or value_tick:
-                c = ti.Vector([0.6, 0.6, 0.6])
-            self._put(out, x0 + i, y0 + j, c)
-        for s, k in ti.ndrange(self.n_series, SAMPLES - 1):
-            if k < n - 1:
-                ax = x0 + 1 + (w - 3) * k / ti.max(n - 1, 1)
-                bx = x0 + 1 + (w - 3) * (k + 1) / ti.max(n - 1, 1)
-                ay = y0 + 1 + (h - 3) * self.values[s, k]
-                by = y0 + 1 + (h - 3) * self.values[s, k + 1]
-                steps = ti.cast(ti.max(ti.abs(bx - ax), ti.abs(by - ay)), ti.i32) + 1
-                for t in range(steps + 1):
-                    f = t / steps
-                    px = ti.cast(ax + f * (bx - ax) + 0.5, ti.i32)
-                    py = ti.cast(ay + f * (by - ay) + 0.5, ti.i32)
-                    self._put(out, px, py, self.colors[s])
+    def plot_box(self, rect: tuple[int, int, int, int], lo: float, hi: float) -> tuple[int, int, int, int]:
+        """The axes' box inside a panel's rectangle: room above for the title, left for the value ticks, below for
+        the time ticks."""
+        x0, x1, r0, r1 = rect
+        lh = line_height(self.size)
+        left = max(text_width(tick_text(v), self.size) for v in (lo, hi, 0.5 * (lo + hi))) + 8
+        return x0 + left, x1 - self.size, r0 + lh + 2, r1 - lh - 6
 
     def label(self, img: np.ndarray) -> None:
-        """Under the box, each series' name, latest value and unit in its colour (with its own scale's bottom and top
-        when the series do not share one), then the time span; beside the box the shared scale's top and bottom
-        values; on an (H, W, 3) uint8 frame."""
-        if not self.history[0] or not self.fits:
+        """Draw every panel (backing, axes, ticks, lines, labels) on an (H, W, 3) uint8 frame."""
+        if not self.times or not self.fits:
             return
-        scale = text_scale(self.height)
-        y = self.y_top + self.box_h + 3
-        x = self.x0
-        for k, name in enumerate(self.series):
-            label, unit = SERIES_LABELS.get(name, (name, ""))
-            unit = "" if unit == "E" else unit  # energies: in the scene's units (docs/physics.md)
-            text = f"{label} {self.history[k][-1]:.3g}{' ' + unit if unit.startswith('°') else unit}"
-            if not self.shared_scale() and name not in FRACTIONS:  # its own scale: bottom and top of the box
-                lo, hi = self.ranges[k]
-                text += f" ({lo:.3g} to {hi:.3g})"
-            color = tuple(int(255 * c) for c in COLORS[k % len(COLORS)])
-            draw_text(img, text, x, y, scale, color)
-            x += text_width(text + "  ", scale)
-        draw_text(img, f"t 0-{self.times[-1]:.3g} s", x, y, scale, (200, 200, 200))
-        if self.shared_scale():  # the scale at the top, the middle tick and the bottom of the box
-            lo, hi = self.ranges[0]
-            right = self.x0 + self.box_w + 3
-            middle = self.y_top + self.box_h - 1 - self.box_h // 2 - (5 * scale) // 2
-            draw_text(img, f"{hi:.3g}", right, self.y_top, scale, (200, 200, 200))
-            draw_text(img, f"{0.5 * (lo + hi):.3g}", right, middle, scale, (200, 200, 200))
-            draw_text(img, f"{lo:.3g}", right, self.y_top + self.box_h - 5 * scale, scale, (200, 200, 200))
+        for panel, rect in zip(self.panels, self.panel_rects()):
+            self.draw_panel(img, panel, rect)
+
+    def draw_panel(self, img: np.ndarray, panel: Panel, rect: tuple[int, int, int, int]) -> None:
+        size, lh = self.size, line_height(self.size)
+        dim(img, rect, 0.3)
+        lo, hi = self.data_range(panel)
+        box = bx0, bx1, br0, br1 = self.plot_box(rect, lo, hi)
+        crop = img[br0 : br1 + 1, bx0 : bx1 + 1]
+        picture = Image.fromarray(np.ascontiguousarray(crop))
+        pen = ImageDraw.Draw(picture)
+        w, h = bx1 - bx0, br1 - br0
+        for frac in (0.25, 0.5, 0.75):  # light grid lines at the ticks
+            pen.line([(0, round(h * frac)), (w, round(h * frac))], fill=(70, 70, 70))
+            pen.line([(round(w * frac), 0), (round(w * frac), h)], fill=(70, 70, 70))
+        pen.rectangle([0, 0, w, h], outline=(160, 160, 160))
+        for k in panel.names:
+            points = [(x - bx0, r - br0) for x, r in self.xy(panel, k, box)]
+            color = COLORS[k % len(COLORS)]
+            if len(points) > 1:
+                pen.line(points, fill=color, width=max(2, size // 8), joint="curve")
+            elif points:
+                pen.ellipse([points[0][0] - 2, points[0][1] - 2, points[0][0] + 2, points[0][1] + 2], fill=color)
+        crop[:] = np.asarray(picture)
+        # the title: each series in its colour with its latest value, then the unit
+        x = rect[0] + 2
+        for k in panel.names:
+            latest = next((v for v in reversed(self.history[k]) if math.isfinite(v)), math.nan)
+            text = f"{self.words[k][0]} {latest:.3g}"
+            draw_text(img, text, x, rect[2], size, COLORS[k % len(COLORS)])
+            x += text_width(text + "   ", size)
+        draw_text(img, f"({panel.unit})" if panel.unit else "", x, rect[2], size, GREY)
+        for v, row in ((hi, br0), (0.5 * (lo + hi), (br0 + br1) // 2), (lo, br1)):
+            text = tick_text(v)
+            draw_text(img, text, bx0 - 6 - text_width(text, size), row - lh // 2, size, GREY)
+        t_end = self.times[-1]
+        for frac in (0.0, 0.5, 1.0):
+            text = tick_text(frac * t_end) + (" s" if frac == 1.0 else "")
+            x = bx0 + round(frac * w) - text_width(text, size) * (frac if frac < 1 else 1.0)
+            draw_text(img, text, round(x) if frac < 1 else bx1 - text_width(text, size), br1 + 3, size, GREY)
 
 
 class CurvePlot(Chart):
-    """A fixed curve (the window's potential panel: the pair force against distance) in the top-right corner, with
-    its zero line; set_curve() replaces it."""
+    """A fixed curve (the window's pair force against distance) with its zero line; set_curve() replaces it."""
 
-    def __init__(self, image, width: int, height: int, scene_in_image: bool = True):
-        super().__init__(image, width, height, ("curve", "zero"), scene_in_image)
-        self.x0 = width - self.box_w - 10
-        self.r_range: tuple[float, float] | None = None
-        self.force_top = 1.0
+    def __init__(self, rect: tuple[int, int, int, int], size: int, material_names=()):
+        super().__init__(("pair_force",), rect, size)
+        self.r: np.ndarray = np.zeros(0)
+        self.force: np.ndarray = np.zeros(0)
+        self.length = length_unit(material_names)
 
     def set_curve(self, values: np.ndarray, r_range: tuple[float, float] | None = None) -> None:
-        """Plot `values` (any length up to SAMPLES; distances r_range, evenly spaced) scaled so that zero is
-        mid-height and the largest attraction reaches a third of the way up; repulsion beyond the box is clipped."""
-        self.r_range = r_range
-        values = np.asarray(values, dtype=float)
-        scale = max(float(np.max(values)), 1e-12) * 3.0
-        self.force_top = scale  # the force at the top of the box (the bottom is minus it)
-        self.n = min(len(values), SAMPLES)
-        pick = np.linspace(0, len(values) - 1, self.n).round().astype(int)
-        table = np.zeros((2, SAMPLES), dtype=np.float32)
-        table[0, : self.n] = np.clip(0.5 + 0.5 * values[pick] / scale, 0.0, 1.0)
-        table[1, : self.n] = 0.5
-        self.values.from_numpy(table)
+        """Plot the force `values` at distances evenly spaced over r_range (length)."""
+        self.force = np.asarray(values, float)
+        lo, hi = r_range or (0.0, 1.0)
+        self.r = np.linspace(lo, hi, len(self.force))
 
     def record(self, stats) -> None:  # a fixed curve: nothing to record
         pass
 
-    def drawn_rect(self) -> tuple[int, int, int, int]:
-        """(x0, x1, row0, row1), rows from the top: the box, the force values left of it and the distance axis under
-        it."""
-        scale = text_scale(self.height)
-        left = max(0, self.x0 - text_width("-1.2e+03 ", scale))  # the widest force value (2 significant digits)
-        return left, self.width, self.y_top, self.y_top + self.box_h + self.label_height
-
     def label(self, img: np.ndarray) -> None:
-        """Name the curve and its axes on an (H, W, 3) uint8 frame: "pair force" with which way attracts at the top of
-        the box, the force at its top, zero line and bottom, and the distance axis's range under the box."""
-        if not self.fits:
+        """The curve, clipped so that the attraction's well fills a third of the box, with zero at mid-height."""
+        if not self.fits or not len(self.force):
             return
-        scale = text_scale(self.height)
-        grey = (200, 200, 200)
-        draw_text(img, "pair force, + attracts", self.x0 + 3, self.y_top + 3, scale, grey)
-        draw_text(img, "0", self.x0 - text_width("0 ", scale), self.y_top + (self.box_h - 5 * scale) // 2, scale, grey)
-        top = f"{self.force_top:.2g}"
-        draw_text(img, top, self.x0 - text_width(top + " ", scale), self.y_top, scale, grey)
-        bottom = f"-{self.force_top:.2g}"
-        low = self.y_top + self.box_h - 5 * scale
-        draw_text(img, bottom, self.x0 - text_width(bottom + " ", scale), low, scale, grey)
-        if self.r_range is not None:
-            lo, hi = self.r_range
-            axis = f"r {lo:.2g} to {hi:.2g}"
-            x = self.x0 + self.box_w - text_width(axis, scale)
-            draw_text(img, axis, x, self.y_top + self.box_h + 3, scale, grey)
+        rect = self.rect
+        size, lh = self.size, line_height(self.size)
+        top = max(float(np.max(self.force)), 1e-12) * 3.0  # the force at the top of the box (the bottom is minus it)
+        dim(img, rect, 0.3)
+        bx0, bx1, br0, br1 = self.plot_box(rect, -top, top)
+        crop = img[br0 : br1 + 1, bx0 : bx1 + 1]
+        picture = Image.fromarray(np.ascontiguousarray(crop))
+        pen = ImageDraw.Draw(picture)
+        w, h = bx1 - bx0, br1 - br0
+        pen.rectangle([0, 0, w, h], outline=(160, 160, 160))
+        pen.line([(0, h // 2), (w, h // 2)], fill=(110, 110, 110))
+        xs = (self.r - self.r[0]) / max(self.r[-1] - self.r[0], 1e-12) * w
+        rows = h / 2 - np.clip(self.force / top, -1.0, 1.0) * h / 2
+        pen.line(list(zip(xs.tolist(), rows.tolist())), fill=COLORS[0], width=2)
+        crop[:] = np.asarray(picture)
+        draw_text(img, "pair force (+ attracts)", rect[0] + 2, rect[2], size, COLORS[0])
+        for v, row in ((top, br0), (0.0, (br0 + br1) // 2), (-top, br1)):
+            text = f"{v:.2g}"
+            draw_text(img, text, bx0 - 6 - text_width(text, size), row - lh // 2, size, GREY)
+        draw_text(img, f"{self.r[0]:.2g}", bx0, br1 + 3, size, GREY)
+        end = f"distance {self.r[-1]:.2g} {self.length}"
+        draw_text(img, end, bx1 - text_width(end, size), br1 + 3, size, GREY)

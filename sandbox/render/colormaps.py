@@ -3,17 +3,6 @@
 import numpy as np
 import taichi as ti
 
-# Glow: a blackbody-like ramp for hot material (dark red -> orange -> yellow -> white).
-GLOW_STOPS = np.array(
-    [
-        [0.0, 0.3, 0.02, 0.01],
-        [0.35, 0.62, 0.06, 0.02],
-        [0.6, 1.0, 0.35, 0.04],
-        [0.82, 1.0, 0.78, 0.25],
-        [1.0, 1.0, 1.0, 0.85],
-    ],
-    dtype=np.float32,
-)
 # Temperature: cold blue -> pale yellow -> hot red (ColorBrewer's RdYlBu, reversed): every colour appears once, so a
 # particle's colour read against the colour bar gives its temperature.
 TEMPERATURE_STOPS = np.array(
@@ -64,6 +53,5 @@ def _ramp_func(stops: np.ndarray):
     return ramp
 
 
-glow = _ramp_func(GLOW_STOPS)  # heat-source plates
 temperature_map = _ramp_func(TEMPERATURE_STOPS)
 speed_map = _ramp_func(SPEED_STOPS)

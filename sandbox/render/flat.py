@@ -15,7 +15,7 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
-from .colormaps import glow
+from .colormaps import temperature_map
 from .pixels import get_pixel, put_pixel
 from .strips import StripBins
 from .style import BLEND, BRUSH_COLOR, BRUSH_OPACITY, MIN_FADE, R_MIN, SPRING_COLOR, SPRING_OPACITY, TILE, _add
@@ -34,10 +34,10 @@ def source_table(cfg, sources: list, lows: list, highs: list) -> list:
 
 @data_oriented
 class Flat2D:
-    """Draws the particles (and springs) of a 2D scene onto `canvas`; `panel_px` pixels on the left are under a side
-    panel, and the scene is drawn right of them."""
+    """Draws the particles (and springs) of a 2D scene onto `canvas` through `view` (pixels per length, offset:
+    pixel = offset + scale * world, y up; layout.fit)."""
 
-    def __init__(self, canvas, footprint, look, model, state, cfg, panel_px: int, strip_splat: bool = True):
+    def __init__(self, canvas, footprint, look, model, state, cfg, view, strip_splat: bool = True):
         """`strip_splat` False draws every particle with atomic adds (the reference the strip binning is tested
         against)."""
         self.canvas, self.footprint, self.look = canvas, footprint, look
@@ -45,16 +45,13 @@ class Flat2D:
         self.strip_splat = strip_splat
         self.background = ti.Vector(list(cfg.background))
         self.draw_springs = bool(cfg.draw_springs) and state.springs is not None
-        width, height = canvas.width, canvas.height
+        width = canvas.width
         lo, hi = np.asarray(model.scene.world.lo), np.asarray(model.scene.world.hi)
-        extent = hi - lo
-        free = width - panel_px  # the width right of a side panel
-        scale = min(free / extent[0], height / extent[1]) * 0.98
+        scale, offset = view
         self.px_per_unit = float(scale)
-        centre_px = np.array([panel_px + free / 2, height / 2])
-        self.offset = ti.Vector(list(centre_px - scale * (lo + hi) / 2))
-        self.px_lo = ti.Vector(list(centre_px - scale * extent / 2))
-        self.px_hi = ti.Vector(list(centre_px + scale * extent / 2))
+        self.offset = ti.Vector(list(offset))
+        self.px_lo = ti.Vector(list(offset + scale * lo))
+        self.px_hi = ti.Vector(list(offset + scale * hi))
         heat = model.scene.heat
         sources = [s for s in heat.sources if s.visible] if heat else []
         self.n_src = len(sources)
@@ -62,8 +59,8 @@ class Flat2D:
         table = source_table(
             cfg,
             sources,
-            [centre_px + scale * (c - (lo + hi) / 2) for c in corners[0]],
-            [centre_px + scale * (c - (lo + hi) / 2) for c in corners[1]],
+            [offset + scale * c for c in corners[0]],
+            [offset + scale * c for c in corners[1]],
         )
         (self.src_lo, _), (self.src_hi, _), (self.src_t, _) = table
         transfer.upload(table)
@@ -114,7 +111,7 @@ class Flat2D:
                 and pix[1] <= self.src_hi[k][1] + 1
             ):
                 t = (self.src_t[k] - self.look.t_lo[None]) / (self.look.t_hi[None] - self.look.t_lo[None])
-                c = glow(ti.max(t, 0.35)) if t > 0.05 else ti.Vector([0.3, 0.55, 1.0])
+                c = temperature_map(ti.math.clamp(t, 0.0, 1.0))
         return c
 
     @ti.kernel

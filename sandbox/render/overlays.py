@@ -1,73 +1,190 @@
-"""What is drawn on the host onto the 8-bit picture: the colour bar with its range, and the simulated time."""
+"""What is drawn on the host onto the 8-bit picture's top band: the title and the simulated time on the left, the
+legend on the right (a colour bar with its range and unit, or a swatch per material, or per solid and melt)."""
+
+from __future__ import annotations
 
 import numpy as np
 
+from ..measure.units import speed_unit
 from .colormaps import SPEED_STOPS, TEMPERATURE_STOPS, ramp_np_many
-from .pixels import draw_text, text_scale, text_width
+from .layout import Layout
+from .text import GREY, dim, draw_text, line_height, text_width
+
+CLOCK_ROOM = "t = 000.00 s"  # the clock the left column keeps room for (longer runs' clocks run on to the right)
+
+
+def legend_kind(cfg, has_heat: bool) -> str:
+    """What the legend shows for [render] settings `cfg`: "bar" (a colour map: temperature with heat, speed),
+    "swatches" (material and phase colours) or "" (none asked)."""
+    if not cfg.legend:
+        return ""
+    if cfg.color_by == "speed" or (cfg.color_by == "temperature" and has_heat):
+        return "bar"
+    return "swatches"
+
+
+def swatches(model, color_by: str, has_heat: bool) -> list[tuple[str, tuple[float, float, float]]]:
+    """(label, colour) of each colour the particles of `model`'s scene take when coloured by material (or by
+    temperature without heat), or by phase with heat: each material solid and melted."""
+    names = model.material_names
+    materials = model.material_list
+    if color_by == "phase" and has_heat:
+        out = []
+        for material_name, m in zip(names, materials):
+            name = material_name.replace("_", " ")
+            out += [(f"{name} solid", tuple(m.color)), (f"{name} melt", tuple(m.liquid_color))]
+        return out
+    out, seen = [], set()
+    for group in model.scene.groups:
+        color = (
+            tuple(group.color) if getattr(group, "color", ()) else tuple(materials[names.index(group.material)].color)
+        )
+        label = group.material.replace("_", " ")
+        if (label, color) not in seen:
+            seen.add((label, color))
+            out.append((label, color))
+    return out
 
 
 class Overlays:
-    """The legend (colour bar) and clock of a `width` x `height` picture with the [render] settings `cfg`; the clock
-    reads `state`'s time."""
+    """The title, clock and legend of a picture laid out by `layout`, with the [render] settings `cfg`; the clock
+    reads `state`'s time, the swatches `model`'s materials."""
 
-    def __init__(self, cfg, width: int, height: int, state):
-        self.cfg, self.width, self.height, self.state = cfg, width, height, state
+    def __init__(self, cfg, layout: Layout, state, model, title: str):
+        self.cfg, self.layout, self.state = cfg, layout, state
+        self.width, self.height = layout.width, layout.height
+        self.title = title.replace("_", " ") if cfg.title else ""
+        self.kind = legend_kind(cfg, state.particles.heat)
+        self.material_names = model.material_names
+        self.entries = swatches(model, cfg.color_by, state.particles.heat) if self.kind == "swatches" else []
+        for drop in ("title", "legend"):  # a picture too narrow for all three: the title goes first, then the legend
+            if not self.legend_shown() or self.left_end() + self.layout.margin <= self.legend_rect()[0]:
+                break
+            if drop == "title":
+                self.title = ""
+            else:
+                self.kind = ""
+
+    def legend_height(self) -> int:
+        """Rows the legend takes (0: none)."""
+        x0, x1, r0, r1 = self.legend_rect()
+        return r1 - r0 if self.legend_shown() else 0
+
+    # ------------------------------------------------------------------ where
+    def left_end(self) -> int:
+        """The pixel column where the title and clock end (the panel's edge plus a margin when there are none)."""
+        size = self.layout.size
+        x, _ = self.layout.text_origin()
+        widths = ([text_width(self.title, round(size * 1.2))] if self.title else []) + (
+            [text_width(CLOCK_ROOM, size)] if self.cfg.clock else []
+        )
+        return x + max(widths, default=0)
+
+    def legend_rect(self) -> tuple[int, int, int, int]:
+        """(x0, x1, row0, row1): the pixels the legend draws on (none: an empty rectangle at the right edge)."""
+        m, size, w = self.layout.margin, self.layout.size, self.width
+        if self.kind == "bar":
+            bar_w = min(max(120, w // 6), w // 3)
+            caption = text_width(self.caption(), size)
+            return w - m - max(bar_w, caption), w - m + 1, m, m + 2 * line_height(size) + size + 5
+        if self.kind == "swatches":
+            rows = self._swatch_rows()
+            width = max((sum(self._swatch_width(e) for e in row) for row in rows), default=0)
+            return w - m - width, w - m, m, m + len(rows) * line_height(size)
+        return w, w, 0, 0
+
+    def legend_shown(self) -> bool:
+        """Whether the legend is drawn: asked for, and room for it in the picture."""
+        x0, x1, r0, r1 = self.legend_rect()
+        return bool(self.kind) and x0 >= self.layout.panel_px and r1 <= self.height and x1 > x0
+
+    def rects(self) -> list:
+        """(x0, x1, row0, row1) of each item shown: pixels, rows counted from the top."""
+        x, row = self.layout.text_origin()
+        lines = int(bool(self.title)) + int(bool(self.cfg.clock))
+        text = [(x - 4, self.left_end() + 4, row - 4, row + lines * line_height(round(self.layout.size * 1.2)) + 4)]
+        return (text if lines else []) + ([self.legend_rect()] if self.legend_shown() else [])
+
+    # ------------------------------------------------------------------ drawing
+    def draw(self, img: np.ndarray) -> None:
+        """The title, clock and legend, as the settings ask, onto an (H, W, 3) uint8 frame (or a view of one)."""
+        size = self.layout.size
+        x, row = self.layout.text_origin()
+        if self.title:
+            draw_text(img, self.title, x, row, round(size * 1.2))
+            row += line_height(round(size * 1.2))
+        if self.cfg.clock:
+            draw_text(img, f"t = {self.state.time:.2f} s", x, row, size)
+        if self.legend_shown():
+            self.draw_bar(img) if self.kind == "bar" else self.draw_swatches(img)
 
     def legend_colors(self, n: int) -> np.ndarray:
         """The active colour map sampled at n points, (n, 3) floats."""
         return ramp_np_many(SPEED_STOPS if self.cfg.color_by == "speed" else TEMPERATURE_STOPS, np.linspace(0, 1, n))
 
-    def legend_geometry(self) -> tuple[int, int, int, int, int]:
-        """(x0, row0, bar width, bar height, text scale) of the colour bar, rows counted from the top."""
-        h, w = self.height, self.width
-        bar_w, bar_h, scale = max(60, w // 6), max(6, h // 60), text_scale(h)
-        return w - bar_w - 12, h - bar_h - 5 * scale - 12, bar_w, bar_h, scale  # its labels fit below it
+    def bar_geometry(self) -> tuple[int, int, int, int]:
+        """(x0, row0, width, height) of the colour bar's coloured pixels."""
+        _, x1, r0, _ = self.legend_rect()
+        size, w = self.layout.size, self.width
+        bar_w = min(max(120, w // 6), w // 3)
+        return x1 - 1 - bar_w, r0 + line_height(size) + 3, bar_w, max(6, round(0.8 * size))
 
-    def legend_rect(self) -> tuple[int, int, int, int]:
-        """(x0, x1, row0, row1): the pixels the legend (bar, frame and labels) may draw on."""
-        x0, y0, bar_w, bar_h, scale = self.legend_geometry()
-        return x0 - 64 * scale, x0 + bar_w + 1, y0 - 1, y0 + bar_h + 4 + 5 * scale
+    def caption(self) -> str:
+        """The colour bar's caption: "temperature (°C)"."""
+        _, _, quantity, unit = self.scale()
+        return f"{quantity} ({unit})"
 
-    def legend_shown(self) -> bool:
-        """Whether the colour bar is drawn: asked for, colouring by a scale, and room for it in the picture."""
-        x0, x1, row0, row1 = self.legend_rect()
-        fits = x0 >= 0 and row0 >= 0 and x1 <= self.width and row1 <= self.height
-        return self.cfg.legend and self.cfg.color_by in ("temperature", "speed") and fits
-
-    def rects(self) -> list:
-        """(x0, x1, row0, row1) of each overlay shown: pixels, rows counted from the top."""
-        return ([self.legend_rect()] if self.legend_shown() else []) + ([self.clock_rect()] if self.cfg.clock else [])
-
-    def draw(self, img: np.ndarray) -> None:
-        """The legend and the clock, as the settings ask, onto an (H, W, 3) uint8 frame (or a view of one)."""
-        if self.cfg.legend:
-            self.draw_legend(img)
-        if self.cfg.clock:
-            self.draw_clock(img)
-
-    def draw_legend(self, img: np.ndarray) -> None:
-        """A colour bar with its range labelled, in the bottom-right corner of an (H, W, 3) uint8 frame."""
-        if not self.legend_shown():
-            return
-        x0, y0, bar_w, bar_h, scale = self.legend_geometry()
-        colors = (self.legend_colors(bar_w) * 255).astype(np.uint8)
-        img[y0 : y0 + bar_h, x0 : x0 + bar_w] = colors[None, :, :]
-        img[y0 - 1, x0 - 1 : x0 + bar_w + 1] = 200
-        img[y0 + bar_h, x0 - 1 : x0 + bar_w + 1] = 200
+    def scale(self) -> tuple[float, float, str, str]:
+        """(low, high, quantity, unit) of the colour bar."""
         if self.cfg.color_by == "speed":
-            (lo, hi), unit = (0.0, self.cfg.speed_range), "/s"
-        else:
-            (lo, hi), unit = self.cfg.temperature_range, " °C"
-        draw_text(img, f"{lo:g}", x0, y0 + bar_h + 3, scale)
-        label = f"{hi:g}{unit}"
-        draw_text(img, label, x0 + bar_w - text_width(label, scale), y0 + bar_h + 3, scale)
+            return 0.0, float(self.cfg.speed_range), "speed", speed_unit(self.material_names)
+        lo, hi = self.cfg.temperature_range
+        return float(lo), float(hi), "temperature", "°C"
 
-    def draw_clock(self, img: np.ndarray) -> None:
-        """The simulated time, "t = 2.40 s", in the bottom-left corner of an (H, W, 3) uint8 frame."""
-        x0, _, row0, _ = self.clock_rect()
-        draw_text(img, f"t = {self.state.time:.2f} s", x0, row0, text_scale(self.height))
+    def draw_bar(self, img: np.ndarray) -> None:
+        """A colour bar under its caption ("temperature (°C)"), with its ends and middle labelled under it."""
+        size = self.layout.size
+        x0, r0, bar_w, bar_h = self.bar_geometry()
+        lo, hi, _, _ = self.scale()
+        left, _, top, _ = self.legend_rect()
+        dim(img, (left - 4, x0 + bar_w + 4, top - 2, r0 + bar_h + line_height(size) + 2), 0.45)
+        caption = self.caption()
+        draw_text(img, caption, x0 + bar_w - text_width(caption, size), top, size)
+        colors = (self.legend_colors(bar_w) * 255 + 0.5).astype(np.uint8)
+        img[r0 : r0 + bar_h, x0 : x0 + bar_w] = colors[None, :, :]
+        below = r0 + bar_h + 2
+        mid = f"{0.5 * (lo + hi):g}"
+        draw_text(img, f"{lo:g}", x0, below, size, GREY)
+        draw_text(img, mid, x0 + (bar_w - text_width(mid, size)) // 2, below, size, GREY)
+        draw_text(img, f"{hi:g}", x0 + bar_w - text_width(f"{hi:g}", size), below, size, GREY)
 
-    def clock_rect(self) -> tuple[int, int, int, int]:
-        """(x0, x1, row0, row1): the pixels the clock may draw on (room for "t = 100000.00 s")."""
-        scale = text_scale(self.height)
-        return 10, min(self.width, 10 + text_width("t = 100000.00 s", scale)), self.height - 10 - 5 * scale, self.height
+    def _swatch_width(self, entry) -> int:
+        size = self.layout.size
+        return size + 6 + text_width(entry[0], size) + size
+
+    def _swatch_rows(self) -> list[list]:
+        """The swatches in rows, each at most half the picture's width wide."""
+        rows, row, used = [], [], 0
+        for entry in self.entries:
+            w = self._swatch_width(entry)
+            if row and used + w > self.width // 2:
+                rows.append(row)
+                row, used = [], 0
+            row.append(entry)
+            used += w
+        return rows + ([row] if row else [])
+
+    def draw_swatches(self, img: np.ndarray) -> None:
+        """A filled square in each colour with what it means beside it ("wax solid", "wax melt")."""
+        size = self.layout.size
+        x0, x1, r0, r1 = self.legend_rect()
+        dim(img, (x0 - 4, x1 + 4, r0 - 2, r1 + 2), 0.45)
+        for k, row in enumerate(self._swatch_rows()):
+            x, top = x0, r0 + k * line_height(size)
+            for label, color in row:
+                sq = (top + (line_height(size) - size) // 2 + 2, x)
+                img[sq[0] : sq[0] + size - 2, sq[1] : sq[1] + size - 2] = (np.asarray(color) * 255 + 0.5).astype(
+                    np.uint8
+                )
+                draw_text(img, label, x + size + 4, top, size)
+                x += self._swatch_width((label, color))

@@ -5,7 +5,8 @@
     footprint.py  the motion-blur streak and the pixels a particle covers (and the light it deposits)
     flat.py       2D: the view, backdrop, springs, splats and tile compositing
     spheres.py    3D: the camera, shaded spheres, translucent particles, ghosts, light
-    overlays.py   the colour bar and the clock, drawn on the host; chart.py: charts in the picture
+    layout.py     the top band (title, clock, legend, charts) and the part of the world the scene shows
+    overlays.py   the title, clock and legend; chart.py: charts; both drawn on the host into the top band
 
 The image is W x H with y up (Taichi's and GGUI's convention); `frame()` returns H x W x 3 uint8, top row first. The
 renderer holds no simulation and follows nothing inside it: its motion-blur tails (`tails`) are per-particle fields
@@ -20,9 +21,12 @@ from .canvas import Canvas
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
 from .footprint import Footprint
+from .layout import content_box, fit, make_layout
 from .look import Look
 from .overlays import Overlays
 from .spheres import Spheres3D
+
+MIN_CHART_HEIGHT = 240  # pixels: a shorter picture keeps no band for charts (they would not be legible)
 
 
 class Renderer:
@@ -38,15 +42,25 @@ class Renderer:
         output: str = "image",
         strip_splat: bool = True,
         panel: float = 0.0,
+        room_for_charts: bool = False,
     ) -> None:
         """`output`: what render() leaves (canvas.py: "image", "picture" or "rgba"); `strip_splat` False draws every
         2D particle with atomic adds (the reference the strip binning is tested against); `panel`: the fraction of
         the width on the left that a side panel covers (the window's): the scene and the chart are drawn right of
-        it."""
+        it; `room_for_charts`: keep the top band tall enough for charts shown later (the window's toggles)."""
         self.model, self.state = model, state
         self.cfg = render_cfg
         self.width, self.height, self.dim = width, height, model.dim
         self.panel_px = int(round(panel * width))  # pixels on the left under a side panel
+        # the legend and title decide the band's height: laid out first on a picture with no band
+        self.overlays = Overlays(
+            render_cfg, make_layout(width, height, self.panel_px, 0, 0, False), state, model, model.scene.name
+        )
+        lines = int(bool(self.overlays.title)) + int(bool(render_cfg.clock))
+        charts = (bool(render_cfg.chart) or room_for_charts) and height >= MIN_CHART_HEIGHT
+        self.layout = make_layout(width, height, self.panel_px, lines, self.overlays.legend_height(), charts)
+        self.overlays.layout = self.layout
+        self.view_box = content_box(model.scene)  # the world box framed below the band
         # The tables go to their fields in one copy kernel when the block ends: a host write of a field element
         # compiles a writer kernel of its own (about 20 ms each at start-up). Nothing in the block reads them.
         with transfer.batched():
@@ -55,20 +69,22 @@ class Renderer:
             self.canvas = Canvas(width, height, self.dim, output, self.look.blends, ghosts, render_cfg.exposure)
             self.footprint = Footprint(self.canvas, state.particles, render_cfg, model.capacity, self.dim)
             if self.dim == 2:
+                world = (model.scene.world.lo, model.scene.world.hi)
+                view = fit(self.view_box, self.layout.scene_rect(), height, world)
                 self.painter = Flat2D(
-                    self.canvas, self.footprint, self.look, model, state, render_cfg, self.panel_px, strip_splat
+                    self.canvas, self.footprint, self.look, model, state, render_cfg, view, strip_splat
                 )
             else:
-                cx = self.panel_px + 0.5 * (width - self.panel_px)  # where the view's axis meets the picture
-                self.painter = Spheres3D(self.canvas, self.footprint, self.look, model, state, render_cfg, cx)
-            self.overlays = Overlays(render_cfg, width, height, state)
+                x0, x1, r0, r1 = self.layout.scene_rect()  # where the view's axis meets the picture (y up)
+                axis = (0.5 * (x0 + x1), height - 0.5 * (r0 + r1))
+                self.painter = Spheres3D(
+                    self.canvas, self.footprint, self.look, model, state, render_cfg, axis, self.view_box
+                )
             self.brush: tuple[float, float, float] | None = None  # see set_brush
             self.chart = None
             self.potential = None  # the window's potential panel (a CurvePlot), when shown
             if render_cfg.chart:
-                self.chart = Chart(
-                    self.canvas.image, width, height, tuple(render_cfg.chart), self._scene_in_image(), self.panel_px
-                )
+                self.chart = Chart(tuple(render_cfg.chart), self.chart_rect(), self.layout.size, model.material_names)
         self.full_refresh = True
         if self.dim == 2:
             self.refresh_backdrop()
@@ -99,7 +115,7 @@ class Renderer:
         redraw their rectangles every frame (their content changes whether or not particles move there)."""
         self.full_refresh = True
         if self.dim == 2:
-            plots = [plot.drawn_rect() for plot in (self.chart, self.potential) if plot is not None and plot.fits]
+            plots = [plot.drawn_rect() for plot in self.plots() if plot.fits]
             self.canvas.set_overlays(plots + self.overlays.rects())
 
     # ------------------------------------------------------------------ the view
@@ -146,10 +162,6 @@ class Renderer:
             self.painter.composite(int(self.full_refresh), self.canvas.out)
             self.full_refresh = False
         out = self.canvas.out
-        if self.chart is not None:
-            self.chart.draw(out)
-        if self.potential is not None:
-            self.potential.draw(out)
         if self.dim == 2 and self.brush is not None:
             self.painter.ring(*self.brush, out)
         if self.canvas.output == "rgba" and self.dim == 3:
@@ -168,25 +180,17 @@ class Renderer:
         return img
 
     def draw_text_overlays(self, img: np.ndarray) -> None:
-        """What is drawn on the host onto an (H, W, 3) uint8 frame (or a view of one): the colour bar, the chart's
-        and the pair-force panel's labels, and the clock."""
-        if self.cfg.legend:
-            self.overlays.draw_legend(img)
-        for plot in (self.chart, self.potential):
-            if plot is not None:
-                plot.label(img)
-        if self.cfg.clock:
-            self.overlays.draw_clock(img)
+        """What is drawn on the host onto an (H, W, 3) uint8 frame (or a view of one): the title, clock and legend,
+        the charts and the pair-force panel."""
+        self.overlays.draw(img)
+        for plot in self.plots():
+            plot.label(img)
 
     def set_brush(self, centre_px: tuple[float, float] | None, radius_px: float = 0.0) -> None:
         """2D: outline a tool's brush over the pictures from the next render(): a ring of radius_px pixels about
         centre_px (pixels, y up, GGUI's cursor times the picture size); None: no outline (the window's cursor).
         Drawn into the picture: GGUI's canvas.circles cost 3 ms a frame on the 2-core machine."""
         self.brush = None if centre_px is None else (float(centre_px[0]), float(centre_px[1]), float(radius_px))
-
-    def _scene_in_image(self) -> bool:
-        """Whether the float image holds the drawn scene (else only the 8-bit output does): what a chart dims."""
-        return self.canvas.keep_image or self.dim == 3
 
     def show_on(self, canvas) -> None:
         """Hand the last rendered picture to a GGUI canvas: the packed output as it is, else the float image."""
@@ -212,11 +216,11 @@ class Renderer:
         if values is None:
             if self.potential is not None:
                 self.potential = None
-                self._overlays_changed()
+                self._place_plots()
             return
         if self.potential is None:
-            self.potential = CurvePlot(self.canvas.image, self.width, self.height, self._scene_in_image())
-            self._overlays_changed()
+            self.potential = CurvePlot((0, 0, 0, 0), self.layout.size, self.model.material_names)
+            self._place_plots()
         self.potential.set_curve(values, r_range)
 
     def record(self, stats) -> None:
@@ -226,12 +230,26 @@ class Renderer:
 
     def set_chart(self, series: tuple[str, ...]) -> None:
         """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh."""
-        scene_in_image = self._scene_in_image()
-        self.chart = (
-            Chart(self.canvas.image, self.width, self.height, tuple(series), scene_in_image, self.panel_px)
-            if series
-            else None
-        )
+        self.chart = Chart(tuple(series), (0, 0, 0, 0), self.layout.size, self.model.material_names) if series else None
+        self._place_plots()
+
+    def plots(self) -> list:
+        """The charts shown: the measurements' and the pair-force panel."""
+        return [plot for plot in (self.chart, self.potential) if plot is not None]
+
+    def chart_rect(self) -> tuple[int, int, int, int]:
+        """(x0, x1, row0, row1): the band between the title's column and the legend that the charts share."""
+        right = self.overlays.legend_rect()[0] if self.overlays.legend_shown() else self.width
+        return self.layout.chart_rect(self.overlays.left_end(), right)
+
+    def _place_plots(self) -> None:
+        """Share the chart band among the plots shown (side by side), then redraw their rectangles each frame."""
+        plots = self.plots()
+        x0, x1, r0, r1 = self.chart_rect()
+        gap = self.layout.size
+        w = (x1 - x0 - gap * (len(plots) - 1)) // max(len(plots), 1)
+        for k, plot in enumerate(plots):
+            plot.place((x0 + k * (w + gap), x0 + k * (w + gap) + w, r0, r1))
         self._overlays_changed()
 
     def legend_colors(self, n: int) -> np.ndarray:

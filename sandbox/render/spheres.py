@@ -15,26 +15,28 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
-from .colormaps import glow
+from .colormaps import temperature_map
 from .flat import source_table
 from .style import BLEND, R_MIN
 
 
 @data_oriented
 class Spheres3D:
-    """Draws the particles of a 3D scene onto `canvas` through a camera; `cx` is where the view's axis meets the
-    picture (right of a side panel)."""
+    """Draws the particles of a 3D scene onto `canvas` through a camera; `axis` (pixels, y up) is where the view's
+    axis meets the picture (the middle of the part below the top band, right of a side panel); by default the
+    camera looks at the middle of `view_box` (world lo, hi: the content, layout.content_box) from where it fits."""
 
-    def __init__(self, canvas, footprint, look, model, state, cfg, cx: float):
+    def __init__(self, canvas, footprint, look, model, state, cfg, axis: tuple[float, float], view_box):
         self.canvas, self.footprint, self.look = canvas, footprint, look
         self.model, self.p = model, state.particles
-        self.cx = cx
+        self.cx, self.cy = float(axis[0]), float(axis[1])
         self.background = ti.Vector(list(cfg.background))
         lo, hi = np.asarray(model.scene.world.lo), np.asarray(model.scene.world.hi)
-        centre = (lo + hi) / 2
-        size = float(np.linalg.norm(hi - lo))
+        centre = (np.asarray(view_box[0]) + np.asarray(view_box[1])) / 2
+        size = float(np.linalg.norm(np.asarray(view_box[1]) - np.asarray(view_box[0])))
         target = np.asarray(cfg.camera_target) if cfg.camera_target else centre
-        default_eye = centre + np.array([0.35, 0.45, 1.0]) * size * 0.9
+        room = canvas.height / max(2 * self.cy, 1.0)  # back off as far as the band above takes rows from the view
+        default_eye = centre + np.array([0.35, 0.45, 1.0]) * size * 0.9 * room
         eye = np.asarray(cfg.camera_position) if cfg.camera_position else default_eye
         # fields, not compile-time constants, so the window can orbit without recompiling
         self.camera = ti.Vector.field(3, ti.f32, shape=4)  # eye, right, up, forward
@@ -48,7 +50,7 @@ class Spheres3D:
         self.floor_lo = ti.Vector([float(lo[0]), float(lo[2])])
         self.floor_hi = ti.Vector([float(hi[0]), float(hi[2])])
         self.grid_step = float(max(1.0, round(max(hi[0] - lo[0], hi[2] - lo[2]) / 12)))
-        # heat sources lying on the floor are drawn on it in their glow colour
+        # heat sources lying on the floor are drawn on it in the colour bar's colour for their temperature
         heat = model.scene.heat
         sources = [s for s in (heat.sources if heat else []) if s.lo[1] <= lo[1] + 1 and s.visible]
         self.n_src = len(sources)
@@ -103,7 +105,7 @@ class Spheres3D:
         focal = 0.5 * height / math.tan(math.radians(self.fov) / 2)
         front = z > 1e-6
         sx = self.cx + focal * (rel @ self.right_np) / np.where(front, z, 1.0)
-        sy = height * 0.5 + focal * (rel @ self.up_np) / np.where(front, z, 1.0)
+        sy = self.cy + focal * (rel @ self.up_np) / np.where(front, z, 1.0)
         near = front & ((sx - u * width) ** 2 + (sy - v * height) ** 2 <= reach_px**2)
         if not near.any():
             return None
@@ -115,7 +117,7 @@ class Spheres3D:
         rel = ti.cast(pos, ti.f32) - self.camera[0]
         z = rel.dot(self.camera[3])
         sx = self.cx + self.focal_field[None] * rel.dot(self.camera[1]) / ti.max(z, 1e-6)
-        sy = self.canvas.height * 0.5 + self.focal_field[None] * rel.dot(self.camera[2]) / ti.max(z, 1e-6)
+        sy = self.cy + self.focal_field[None] * rel.dot(self.camera[2]) / ti.max(z, 1e-6)
         return ti.Vector([sx, sy]), z
 
     @ti.kernel
@@ -129,7 +131,7 @@ class Spheres3D:
                 ray = (
                     self.camera[3] * self.focal_field[None]
                     + self.camera[1] * (x + 0.5 - self.cx)
-                    + self.camera[2] * (y + 0.5 - 0.5 * canvas.height)
+                    + self.camera[2] * (y + 0.5 - self.cy)
                 ).normalized()
                 if ray[1] < -1e-6:
                     s = (self.floor_y - self.camera[0][1]) / ray[1]
@@ -146,7 +148,7 @@ class Spheres3D:
                                 t = (self.src_t[k] - self.look.t_lo[None]) / (
                                     self.look.t_hi[None] - self.look.t_lo[None]
                                 )
-                                c = c * 0.6 + 0.3 * (glow(ti.max(t, 0.35)) if t > 0.05 else ti.Vector([0.3, 0.55, 1.0]))
+                                c = c * 0.6 + 0.3 * (temperature_map(ti.math.clamp(t, 0.0, 1.0)))
             canvas.image[x, y] = c
             canvas.depth[x, y] = 2147483647
             if ti.static(canvas.has_additive):

@@ -1,0 +1,71 @@
+"""Text on the 8-bit pictures (titles, clocks, legends, chart labels) in a real, anti-aliased font.
+
+The font is Pillow's built-in scalable one (`ImageFont.load_default(size)`, FreeType), so no font file has to be
+found on the machine. Text is drawn with a dark outline, so it reads over any colour of the scene.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+LIGHT = (235, 235, 235)  # the text colour when none is given
+GREY = (190, 190, 190)
+
+
+def text_size(height: int) -> int:
+    """The font size (pixels) for a picture `height` pixels tall: 1/40 of it, at least 11 (legible at 360p, about
+    18 at 720p and 27 at 1080p)."""
+    return max(11, round(height / 40))
+
+
+@lru_cache(maxsize=32)
+def font(size: int) -> ImageFont.FreeTypeFont:
+    """Pillow's built-in scalable font at `size` pixels."""
+    return ImageFont.load_default(size=size)
+
+
+def text_width(text: str, size: int) -> int:
+    """Pixels `text` takes across at font size `size`."""
+    return int(np.ceil(font(size).getlength(text)))
+
+
+def line_height(size: int) -> int:
+    """Pixels from one line's top to the next's at font size `size`."""
+    return round(size * 1.3)
+
+
+def draw_text(img: np.ndarray, text: str, x: int, y: int, size: int, color=LIGHT, outline: bool = True) -> None:
+    """Draw `text` into an (H, W, 3) uint8 image (or a view of one) with its top-left corner at pixel (x, y), rows
+    counted from the top, font size `size` pixels; what falls outside the image is clipped."""
+    if not text:
+        return
+    face = font(size)
+    pad = 2
+    w, h = text_width(text, size) + 2 * pad, line_height(size) + 2 * pad
+    x0, y0 = x - pad, y - pad
+    cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x0 + w, img.shape[1]), min(y0 + h, img.shape[0])
+    if cx0 >= cx1 or cy0 >= cy1:
+        return
+    glyphs = Image.new("L", (w, h))
+    ImageDraw.Draw(glyphs).text((pad, pad), text, font=face, fill=255)
+    cover = np.asarray(glyphs, np.float32)[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0, None] / 255.0
+    region = img[cy0:cy1, cx0:cx1]
+    if outline:
+        halo = Image.new("L", (w, h))
+        ImageDraw.Draw(halo).text((pad, pad), text, font=face, fill=255, stroke_width=max(1, size // 10))
+        shade = np.asarray(halo, np.float32)[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0, None] / 255.0 * 0.75
+        region[:] = (region * (1.0 - shade)).astype(np.uint8)
+    ink = np.asarray(color, np.float32)[None, None, :]
+    region[:] = (region * (1.0 - cover) + ink * cover + 0.5).astype(np.uint8)
+
+
+def dim(img: np.ndarray, rect: tuple[int, int, int, int], keep: float = 0.3) -> None:
+    """Darken the pixels of rect (x0, x1, row0, row1; rows from the top) of an (H, W, 3) uint8 image to `keep` of
+    their brightness: the backing of a chart or legend, so that its lines read over the scene."""
+    x0, x1, r0, r1 = rect
+    x0, r0, x1, r1 = max(x0, 0), max(r0, 0), min(x1, img.shape[1]), min(r1, img.shape[0])
+    if x0 < x1 and r0 < r1:
+        img[r0:r1, x0:x1] = (img[r0:r1, x0:x1] * keep).astype(np.uint8)
