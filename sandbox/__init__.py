@@ -7,13 +7,25 @@ import tempfile
 # Taichi prints a banner when it is first imported; the sandbox's users see their own output instead (set
 # ENABLE_TAICHI_HEADER_PRINT=1 to see it).
 os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "False")
+# ... and info lines such as "Graphical python shell detected" in Jupyter: only its errors reach the user.
+os.environ.setdefault("TI_LOG_LEVEL", "error")
 if not os.environ.get("HOME"):  # importing Taichi aborts the process without it (cron jobs, services)
     os.environ["HOME"] = tempfile.gettempdir()
 
 __version__ = "0.1.0"
 
 # The Python API (sandbox/api.py), imported on first use so that `import sandbox` stays light.
-__all__ = ["FrameTable", "Simulation", "load", "material_names", "own_process", "resume", "scene_names", "use"]
+__all__ = [
+    "FrameTable",
+    "Simulation",
+    "load",
+    "material_names",
+    "own_process",
+    "plateau",
+    "resume",
+    "scene_names",
+    "use",
+]
 _EXPORTS = {
     "load": "api",
     "resume": "api",
@@ -23,6 +35,7 @@ _EXPORTS = {
     "own_process": "core.runtime",
     "Simulation": "simulation",
     "FrameTable": "files.table",
+    "plateau": "measure.curves",
 }
 
 

@@ -1,6 +1,7 @@
 """The melting block end to end: heat melts it, no heat keeps it solid, in 2D and 3D."""
 
 import numpy as np
+import pytest
 
 from sandbox.config.scene import load_scene
 from sandbox.simulation import Simulation
@@ -52,3 +53,18 @@ def test_melting_block_3d_melts():
     history = run_frames(sim, 40)
     assert history[0].molten_fraction < 0.5 < history[-1].molten_fraction
     assert history[-1].mean_temperature > history[0].mean_temperature
+
+
+def test_plateau_finds_the_longest_level_stretch_of_a_heating_curve():
+    import sandbox
+
+    t = np.linspace(0.0, 10.0, 501)
+    wiggle = 0.3 * np.sin(7.0 * t)
+    curve = np.where(t < 2.0, -15.0 + 7.5 * t, np.where(t < 6.0, 0.0 + wiggle, 10.0 * (t - 6.0)))
+    found = sandbox.plateau(t, curve, tolerance=0.5)
+    assert found.start == pytest.approx(2.0, abs=0.15) and found.end == pytest.approx(6.0, abs=0.15)  # 1 °C of slope
+    assert abs(found.level) < 0.1 and found.duration == pytest.approx(4.0, abs=0.3)
+    assert str(found).startswith("level at ")
+    assert sandbox.plateau(t, 5.0 * t, tolerance=0.01) is None or sandbox.plateau(t, 5.0 * t, 0.01).duration < 0.05
+    with pytest.raises(ValueError, match="1D arrays of one length"):
+        sandbox.plateau(t, curve[:-1])

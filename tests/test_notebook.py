@@ -42,8 +42,16 @@ def test_the_classroom_notebook_runs_and_shows_its_results(tmp_path):
     molten = float(re.search(r"molten fraction ([0-9.]+)", text).group(1))
     temperature = float(re.search(r"mean temperature ([0-9.]+)", text).group(1))
     assert molten > 0.5 and temperature > 62.0  # most of it melted, and the melt is above the liquidus on average
-    assert "image/png" in _outputs(cells[2])[2]  # the heating curve
+    text, _, kinds = _outputs(cells[2])  # the heating curve of the ice cube, with its plateau found
+    assert "image/png" in kinds
+    level, start, end = map(float, re.search(r"level at (-?[0-9.]+) from ([0-9.]+) s to ([0-9.]+) s", text).groups())
+    assert abs(level) <= 1.0 and end - start > 3.0  # the ice melts at 0 °C, and melting takes most of the run
     text, _, kinds = _outputs(cells[3])
     assert "image/png" in kinds
-    half = dict(re.findall(r"'(\w+)': ([0-9.]+)", text))
+    half = dict(re.findall(r"(\w+) ([0-9.]+) s", text.split("half melted after:")[1]))
     assert float(half["chocolate"]) < float(half["wax"])  # the lower melting range melts first
+    streams = [out for c in cells for out in c.get("outputs", []) if out.get("output_type") == "stream"]
+    every = "".join(out["text"] for out in streams if out.get("name") == "stdout")
+    every += "".join(out["text"] for out in streams if out.get("name") == "stderr" and "frame/s" not in out["text"])
+    assert "Taichi" not in every and "[I " not in every  # no log lines among the lesson's output
+    assert not re.search(r"\d\.\d{5,}", every)  # numbers printed rounded, no float noise

@@ -21,7 +21,7 @@ from ..config.arguments import (
 )
 from ..config.materials import Material, load_library
 from ..config.resources import shipped_scenes
-from ..config.scene import load_scene
+from ..config.scene import load_scene, read_scene_table
 from ..config.scene_tables import (
     Body,
     Emitter,
@@ -209,7 +209,8 @@ def cmd_sweep(args) -> int:
         )
         return exit_code(exc)
     counts = {o: sum(r["outcome"] == o for r in records) for o in ("done", "stopped", "error", "pending")}
-    plot = plot_sweep(out, records, [v.key for v in variations], args.metric)
+    table = read_scene_table(_scene_path(args.scene))
+    plot = plot_sweep(out, records, [v.key for v in variations], args.metric, table)
     summary = ", ".join(f"{n} {o}" for o, n in counts.items() if n)
     print(f"wrote {out}/manifest.csv ({summary})" + (f" and {plot.name}" if plot else ""), file=sys.stderr)
     return 0 if counts["pending"] == 0 else EXIT_STOPPED

@@ -30,6 +30,7 @@ from .. import __version__
 from ..config.scene import apply_override, parse_override, read_scene_table, scene_from_dict
 from ..errors import SandboxError, SceneError
 from ..research.dask_pool import choose_scheduler, dask_client, local_shape
+from ..research.figures import key_label, legend_beside, metric_label, pyplot, save
 from .sweep_run import RECORD, execute_run, identity
 
 METRICS = (
@@ -253,37 +254,39 @@ def write_manifest(out: Path, jobs: list) -> list[dict]:
     return records
 
 
-def plot_sweep(out: Path, records: list[dict], keys: list[str], metric: str) -> Path | None:
-    """sweep.png: `metric` against each varied key (one panel per key), or None without matplotlib."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+def plot_sweep(
+    out: Path, records: list[dict], keys: list[str], metric: str, scene_table: dict | None = None
+) -> Path | None:
+    """sweep.png: `metric` against each varied key (one panel per key), or None without matplotlib. Axes in words
+    with units (`scene_table` names the body or source a key belongs to); numbers as lines through the points,
+    words (materials, integrators) as categories: bars for one series, points side by side for several; legends
+    beside the axes."""
+    plt = pyplot()
+    if plt is None:
         return None
     done = [r for r in records if r.get("outcome") == "done" and r.get(metric) is not None]
-    fig, axes = plt.subplots(1, len(keys), figsize=(5 * len(keys), 3.6), squeeze=False)
+    ylabel, factor = metric_label(metric)
+    fig, axes = plt.subplots(1, len(keys), figsize=(5.2 * len(keys), 3.8), squeeze=False, layout="constrained")
     for ax, key in zip(axes[0], keys):
         others = [k for k in keys if k != key]
         groups: dict = {}
         for r in done:
             groups.setdefault(tuple(str(r["overrides"][k]) for k in others), []).append(r)
-        for label, group in groups.items():
-            values = [r["overrides"][key] for r in group]
-            if all(isinstance(v, int | float) for v in values) or all(isinstance(v, str) for v in values):
-                group.sort(key=lambda r: r["overrides"][key])  # numbers in order, words alphabetically
-            ax.plot(
-                [r["overrides"][key] for r in group],
-                [r[metric] for r in group],
-                "o-",
-                label=", ".join(label) or None,
-            )
-        ax.set(xlabel=key, ylabel=metric)
+        categorical = any(isinstance(r["overrides"][key], str) for r in done)
+        categories = list(dict.fromkeys(str(r["overrides"][key]) for r in done))
+        width = 0.8 / max(len(groups), 1)
+        for g, (label, group) in enumerate(groups.items()):
+            name = ", ".join(label) or None
+            if categorical:
+                where = {c: k for k, c in enumerate(categories)}
+                xs = [where[str(r["overrides"][key])] + (g - (len(groups) - 1) / 2) * width for r in group]
+                ax.bar(xs, [r[metric] * factor for r in group], width=width * 0.9, label=name)
+            else:
+                group.sort(key=lambda r: r["overrides"][key])
+                ax.plot([r["overrides"][key] for r in group], [r[metric] * factor for r in group], "o-", label=name)
+        if categorical:
+            ax.set_xticks(range(len(categories)), categories)
+        ax.set(xlabel=key_label(key, scene_table), ylabel=ylabel)
         if others:
-            ax.legend(title=", ".join(others), fontsize=8)
-    fig.tight_layout()
-    path = out / "sweep.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+            legend_beside(ax, title=", ".join(key_label(k, scene_table) for k in others))
+    return save(fig, out / "sweep.png")

@@ -26,6 +26,7 @@ import numpy as np
 from ..config.scene import scene_from_dict
 from ..core import runtime
 from ..simulation import Simulation
+from .figures import legend_beside, pyplot, save
 from .study_runs import STUDY_PATH
 
 STEFAN_LENGTH = 60.0  # slab length (periodic), in units where the coarsest spacing is 1
@@ -263,43 +264,32 @@ def _write_report(out: Path, results: list[StefanResult], curve: HeatingCurve) -
 
 
 def _plot(out: Path, results: list[StefanResult], curve: HeatingCurve) -> None:
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    """stefan.png (the melt front against the Neumann solution) and heating_curve.png (temperature and melt at
+    constant power, the plateau the latent heat predicts shaded); legends beside the axes."""
+    plt = pyplot()
+    if plt is None:
         return
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(7.5, 4), layout="constrained")
     t = np.linspace(0, results[0].times[-1], 200)
-    ax.plot(t, 2 * results[0].lam * np.sqrt(t), "k-", label="Neumann solution")
+    ax.plot(t, 2 * results[0].lam * np.sqrt(t), "k-", label="exact (Neumann) solution")
     for r, marker in zip(results, "os^"):
         keep = r.every(60)
-        ax.plot(
-            r.times[keep],
-            r.front[keep],
-            marker,
-            fillstyle="none",
-            label=f"particles, spacing {r.spacing:g} ({r.error:.2%})",
-        )
-    ax.set_xlabel("time")
-    ax.set_ylabel("melt front position s(t)")
-    ax.set_title("One-phase Stefan problem, St = 1")
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(out / "stefan.png", dpi=110)
-    plt.close(fig)
-    fig, ax1 = plt.subplots(figsize=(6, 4))
+        label = f"particles {r.spacing:g} mm apart (error {r.error:.1%})"
+        ax.plot(r.times[keep], r.front[keep], marker, fillstyle="none", label=label)
+    ax.set(xlabel="time (s)", ylabel="melt front position (mm)", title="Melting from a hot wall (Stefan number 1)")
+    legend_beside(ax)
+    save(fig, out / "stefan.png")
+    fig, ax1 = plt.subplots(figsize=(7.5, 4), layout="constrained")
     ax1.plot(curve.times, curve.mean_temperature, "C3-", label="mean temperature")
     ax1.set_xlabel("time (s)")
-    ax1.set_ylabel("mean temperature (C)")
+    ax1.set_ylabel("mean temperature (°C)", color="C3")
     ax2 = ax1.twinx()
-    ax2.plot(curve.times, curve.molten_fraction, "C0--", label="melt fraction")
-    ax2.set_ylabel("melt fraction")
-    start, end = curve.plateau
-    ax1.axvspan(start, start + curve.expected_plateau, color="0.9", label="L M / P")
+    ax2.plot(curve.times, 100 * np.asarray(curve.molten_fraction), "C0--", label="melted")
+    ax2.set_ylabel("melted (%)", color="C0")
+    ax2.set_ylim(0, 100)
+    start, _ = curve.plateau
+    ax1.axvspan(start, start + curve.expected_plateau, color="0.9", label="plateau predicted: latent heat / power")
     ax1.set_title("Heating curve of ice at constant power")
-    fig.legend(loc="upper left", bbox_to_anchor=(0.12, 0.88))
-    fig.tight_layout()
-    fig.savefig(out / "heating_curve.png", dpi=110)
-    plt.close(fig)
+    handles = ax1.get_legend_handles_labels()[0] + ax2.get_legend_handles_labels()[0]
+    ax2.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.15, 1.0), borderaxespad=0.0, fontsize=8)
+    save(fig, out / "heating_curve.png")

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..integrators import REGISTRY
+from .figures import fit_note, legend_beside, pyplot, save
 from .study_problems import fitted_order
 from .study_runs import Run, StudyResult
 
@@ -126,36 +127,31 @@ def report_markdown(res: StudyResult, plots: list[str]) -> str:
 
 
 def make_plots(out: Path, res: StudyResult) -> list[str]:
-    """Work-precision (error against wall seconds) and error against dt per problem; [] without matplotlib."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    """Work-precision (error against wall seconds) and error against the time step per problem, log-log, with each
+    integrator's fitted order beside its theory (and a caveat where the fit rests on two points); [] without
+    matplotlib."""
+    plt = pyplot()
+    if plt is None:
         return []
     names = []
     for problem in dict.fromkeys(r.problem for r in res.runs):
         runs = [r for r in res.runs if r.problem == problem and r.stable and r.error > 0 and np.isfinite(r.error)]
         if not runs:
             continue
-        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.4), layout="constrained")
         for name in dict.fromkeys(r.integrator for r in runs):
             mine = sorted((r for r in runs if r.integrator == name), key=lambda r: r.dt)
             dts, errs, walls = [r.dt for r in mine], [r.error for r in mine], [r.wall_seconds for r in mine]
             order = fitted_order(dts, errs)
             ax1.loglog(walls, errs, "o-", label=name)
-            ax2.loglog(dts, errs, "o-", label=f"{name} (order {order:.2f}, theory {theory_order(problem, name)})")
-        ax1.set_xlabel("wall seconds")
-        ax1.set_ylabel("error")
-        ax1.set_title(f"{problem}: error against run time")
-        ax2.set_xlabel("dt")
-        ax2.set_title(f"{problem}: error against dt")
-        ax1.legend(fontsize=7)
-        ax2.legend(fontsize=7)
-        fig.tight_layout()
+            fitted = f"order {order:.2f}{fit_note(min(len(dts), 3))}" if np.isfinite(order) else "one point"
+            ax2.loglog(dts, errs, "o-", label=f"{name}: {fitted}, theory {theory_order(problem, name)}")
+        ax1.set(xlabel="run time (s)", ylabel="error against the exact solution", title=f"{problem}: cost")
+        ax2.set(xlabel="time step dt (s)", ylabel="error against the exact solution", title=f"{problem}: convergence")
+        for ax in (ax1, ax2):
+            ax.tick_params(labelsize=8)
+        legend_beside(ax2)
         fname = f"{problem}.png"
-        fig.savefig(out / fname, dpi=90)
-        plt.close(fig)
+        save(fig, out / fname, dpi=90)
         names.append(fname)
     return names
