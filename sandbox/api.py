@@ -91,7 +91,8 @@ def load(
         data, path = copy.deepcopy(dict(scene)), Path.cwd() / "scene.toml"
     else:
         path = Path(scene)
-        if not path.exists() and isinstance(scene, str) and shipped_scene(scene) is not None:
+        # a shipped scene's name, unless a file of that name is here (a folder of that name does not hide it)
+        if not path.is_file() and isinstance(scene, str) and shipped_scene(scene) is not None:
             path = shipped_scene(scene)
         data = read_scene_table(path, unknown("scene", str(scene), scene_names()) + " (or a path to a .toml file)")
     for key, value in _overrides(set):

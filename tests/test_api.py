@@ -239,3 +239,11 @@ def test_extxyz_frames_read_back_with_ase(tmp_path):
     bonds = [tuple(map(int, pair.split("-"))) for pair in atoms.info["Bonds"].split()]
     assert len(bonds) == int(sim.state.springs.alive.to_numpy()[: sim.state.springs.span[None]].sum())
     assert "Bonds" not in frames[0].info
+
+
+def test_a_folder_named_like_a_shipped_scene_does_not_hide_it(tmp_path, monkeypatch):
+    import sandbox
+
+    (tmp_path / "lj_box").mkdir()
+    monkeypatch.chdir(tmp_path)
+    assert sandbox.load("lj_box").scene.name == "lj_box"

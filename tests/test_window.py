@@ -135,28 +135,33 @@ from sandbox.config.scene import load_scene
 from sandbox.simulation import Simulation
 from sandbox.app.window import run_window
 sim = Simulation(load_scene(sys.argv[1]))
-record = sys.argv[3] if len(sys.argv) > 3 else None
-ran = run_window(sim, frames=3, screenshot=sys.argv[2], show=False, record=record, steady=False)  # fixed substeps
+record = sys.argv[3] if len(sys.argv) > 3 and sys.argv[3] else None
+size = tuple(map(int, sys.argv[4].split("x"))) if len(sys.argv) > 4 else None
+ran = run_window(sim, frames=3, screenshot=sys.argv[2], show=False, record=record, steady=False, size=size)
 print("frames", ran.frames)
 """
 
 
-def run_hidden_window(shot, video=None):
-    """Three frames of spring_lattice in a hidden GGUI window, in a fresh process; skips without Vulkan."""
-    args = [sys.executable, "-c", SCRIPT, str(SCENES / "spring_lattice.toml"), str(shot)]
-    proc = subprocess.run(args + ([str(video)] if video else []), capture_output=True, text=True, cwd=ROOT, timeout=600)
+def run_hidden_window(shot, video=None, size=(1280, 720)):
+    """Three frames of spring_lattice in a hidden GGUI window of `size`, in a fresh process; skips without Vulkan."""
+    args = [sys.executable, "-c", SCRIPT, str(SCENES / "spring_lattice.toml"), str(shot), str(video or "")]
+    args.append(f"{size[0]}x{size[1]}")
+    proc = subprocess.run(args, capture_output=True, text=True, cwd=ROOT, timeout=600)
     if "Vulkan must be available" in proc.stdout + proc.stderr:
         pytest.skip("no Vulkan driver: apt-get install mesa-vulkan-drivers libvulkan1 (.ci/run does)")
     assert proc.returncode == 0, proc.stderr[-2000:]
     return proc
 
 
-def test_window_frame_matches_the_headless_renderer(tmp_path):
+@pytest.mark.parametrize("size", [(1280, 720), (1024, 768)])
+def test_window_frame_matches_the_headless_renderer(tmp_path, size):
+    """The window opens at the size asked for (--width/--height) and draws at it."""
     shot = tmp_path / "window.png"
-    proc = run_hidden_window(shot)
+    proc = run_hidden_window(shot, size=size)
     assert "frames 3" in proc.stdout
     img = read_png(shot)
-    assert img.shape[:2] == (720, 1280)
+    width, height = size
+    assert img.shape[:2] == (height, width)
     # the same three frames drawn headless, right of the panel as the window draws them (with its colour bar): the
     # window shows what the video shows, beside its panel (plus the brush cursor)
     from sandbox.app.window_panel import PANEL_WIDTH
@@ -164,9 +169,8 @@ def test_window_frame_matches_the_headless_renderer(tmp_path):
     from sandbox.render.raster import Renderer
 
     sim = Simulation(load_scene(SCENES / "spring_lattice.toml"))
-    ren = Renderer(
-        sim.model, sim.state, 1280, 720, view_config(sim.scene.render, make_state(sim, None)), panel=PANEL_WIDTH
-    )
+    view = view_config(sim.scene.render, make_state(sim, None))
+    ren = Renderer(sim.model, sim.state, width, height, view, panel=PANEL_WIDTH, room_for_charts=True)
     for _ in range(3):
         ren.begin_frame()
         sim.advance_frame()
@@ -260,16 +264,6 @@ def test_3d_brush_acts_at_the_particle_under_the_cursor():
     assert ren.pick(0.02, 0.98) is None  # empty sky
 
 
-def test_the_selected_tool_is_marked_and_every_button_names_its_key():
-    from sandbox.app.window_state import tool_label
-
-    assert tool_label("heat", "heat") == "> 1 heat <"
-    assert tool_label("spawn", "heat") == "  8 spawn  "
-    labels = [tool_label(name, "drag") for name in ("heat", "cool", "drag")]
-    assert [label.startswith(">") for label in labels] == [False, False, True]
-    assert len(set(labels)) == 3  # ImGui tells buttons apart by their labels
-
-
 def test_the_probe_reads_the_particle_under_the_cursor():
     from sandbox.app.probe import particle_at, probe
 
@@ -337,11 +331,12 @@ def test_pacing_learns_a_frames_fixed_simulation_cost_and_runs_the_substeps_that
     assert quick.choose(8) == 8
 
 
-def test_energies_read_in_the_scenes_units():
-    from sandbox.app.window_state import energy_unit
+def test_energies_and_pressures_read_in_the_scenes_units():
+    from sandbox.measure.units import energy_unit, pressure_unit
 
-    assert energy_unit(_block()) == "pJ"
-    assert energy_unit(Simulation(load_scene(SCENES / "lj_box.toml", ["bodies.0.hi=[11.18, 11.18]"]))) == "eps"
+    assert energy_unit(_block().material_names) == "pJ" and pressure_unit(["wax"], 2) == "pJ/mm^2"
+    lj = Simulation(load_scene(SCENES / "lj_box.toml", ["bodies.0.hi=[11.18, 11.18]"]))
+    assert energy_unit(lj.material_names) == "eps" and pressure_unit(lj.material_names, 3) == "eps/sigma^3"
 
 
 def test_the_panel_never_covers_the_scene_or_its_chart():
@@ -425,3 +420,83 @@ def test_every_panel_line_is_wrapped_to_the_panel_width():
     say(gui, 22, "")
     assert all(len(line) <= 22 for line in gui.lines) and len(gui.lines) == 4 and gui.lines[-1] == ""
     assert " ".join(gui.lines).split() == "energy (pJ): kinetic 1031 total 1.351e+05".split()
+
+
+class MeasuringGui:
+    """A stand-in for GGUI's panel that adds up the rows it would draw, with Dear ImGui's default metrics (a 13-pixel
+    font: text rows 17 pixels, widget rows 23, a 19-pixel title bar and 8 pixels of padding above and below)."""
+
+    TEXT, WIDGET, FRAME = 17, 23, 19 + 16
+
+    def __init__(self):
+        self.heights: dict[str, float] = {}
+        self.lines: list[str] = []
+        self.window = None
+
+    def sub_window(self, name, x, y, width, height):
+        import contextlib
+
+        self.window = name
+        self.heights[name] = self.FRAME
+        self.fraction = height
+        return contextlib.nullcontext()
+
+    def text(self, line, color=None):
+        self.heights[self.window] += self.TEXT
+        self.lines.append(line)
+
+    def _widget(self, label, value):
+        self.heights[self.window] += self.WIDGET
+        self.lines.append(label)
+        return value
+
+    def checkbox(self, label, value):
+        return self._widget(label, value)
+
+    def slider_int(self, label, value, lo, hi):
+        return self._widget(label, value)
+
+    def slider_float(self, label, value, lo, hi):
+        return self._widget(label, value)
+
+    def button(self, label):
+        return self._widget(label, False)
+
+
+@pytest.mark.parametrize("size", [(1024, 768), (1280, 720), (1920, 1080)])
+def test_the_panel_fits_the_window_with_nothing_cut_off(size):
+    """Every shipped scene's panel, lesson open or closed, with the pair-force sliders and the help shown: its rows
+    fit the window's height and its lines the panel's width."""
+    from sandbox.app.window_panel import PANEL_WIDTH, draw_panel
+    from sandbox.app.window_state import make_state, panel_characters
+
+    width, height = size
+    chars = panel_characters(width, PANEL_WIDTH)
+    for path in sorted(SCENES.glob("*.toml")):
+        sim = Simulation(load_scene(path))
+        stats = sim.stats()
+        for lesson in (True, False):
+            state = make_state(sim, None)
+            state.show_lesson, state.potential, state.show_help = lesson, True, True
+            state.probe = "wax, 123.4 C, 45% melted, speed 1.23 mm/s, 6 bonds"
+            state.log.append("saved out/melting_block.state.npz")
+            gui = MeasuringGui()
+            draw_panel(gui, sim, state, stats, 30.0, width)
+            panel = gui.heights[sim.scene.name.replace("_", " ")]
+            assert panel <= height, (path.stem, lesson, panel, height)
+            assert gui.heights["keys"] <= 0.9 * height
+            assert all(len(line) <= chars for line in gui.lines if not line.startswith("tool:")), path.stem
+
+
+def test_a_resized_window_is_drawn_again_at_its_size_once_the_drag_settles():
+    from sandbox.app.window_parts import ResizeWatch
+
+    watch = ResizeWatch((1280, 720))
+    assert watch.settled((1280, 720), now=0.0) is None  # unchanged
+    assert watch.settled((1100, 700), now=1.0) is None  # still being dragged
+    assert watch.settled((1000, 650), now=1.1) is None
+    assert watch.settled((1000, 650), now=1.2) is None  # not yet still for long enough
+    assert watch.settled((1000, 650), now=1.5) == (1000, 650)
+    assert watch.settled((1000, 650), now=2.0) is None  # drawn at it now
+    assert watch.settled((100, 50), now=3.0) is None and watch.settled((100, 50), now=3.5) == (320, 180)  # smallest
+    assert watch.settled((800, 600), now=4.0) is None and watch.settled((800, 600), True, now=5.0) is None  # recording

@@ -147,10 +147,13 @@ def cmd_run(args) -> int:
         print(f"warning: {line}; expect the blow-up guard to stop the run", file=sys.stderr)
     if not headless:
         try:
-            ran = run_window(sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record)
+            window = (args.width or scene.render.width, args.height or scene.render.height)
+            ran = run_window(
+                sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record, size=window
+            )
             while ran.next_scene:  # the panel's scene picker: the same process opens the next scene
                 sim = open_scene(ran.next_scene, args.arch)
-                ran = run_window(sim)
+                ran = run_window(sim, size=ran.size)
             return 0
         except WindowUnavailable as exc:
             print(f"{exc}: running headless", file=sys.stderr)

@@ -28,7 +28,7 @@ from .history import UndoRing
 from .probe import particle_at, probe
 from .tools import Tools
 from .window_panel import PANEL_WIDTH, draw_panel
-from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder
+from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder, ResizeWatch
 from .window_state import apply_requests, make_state, quick_save_path, view_config
 
 __all__ = ["FRAME_PARTS", "WindowRun", "WindowUnavailable", "open_scene", "run_window", "window_unavailable_reason"]
@@ -62,19 +62,23 @@ def run_window(
     record: str | None = None,
     timings: dict[str, list[float]] | None = None,
     steady: bool = True,
+    size: tuple[int, int] | None = None,
 ) -> WindowRun:
     """Show the simulation in a GGUI window until closed (or for `frames` frames); returns the frames shown and the
     scene the user picked to switch to, if any (the caller opens it: open_scene, then run_window again). `record`:
     write the frames to this video from the start (the v key starts and stops recordings to out/SCENE_N.mp4).
     `timings`: append each frame's seconds by part (FRAME_PARTS, and "frame" for the whole loop) to these lists
     (the benchmark; it waits for each part's kernels to finish). `steady`: pace the substeps to hold the frame rate
-    (FramePacer); False runs the wanted substeps every frame whatever they cost.
+    (FramePacer); False runs the wanted substeps every frame whatever they cost. `size`: the window's (width,
+    height) in pixels (default: render.width and render.height); the window can be resized, and the picture is
+    drawn again at its new size (text, charts and framing follow).
 
     Raises SandboxError with one line when no window can be opened (e.g. no Vulkan driver).
     """
     cfg = sim.scene.render
+    shape = tuple(size or (cfg.width, cfg.height))
     try:
-        window = ti.ui.Window(f"sandbox: {sim.scene.name}", (cfg.width, cfg.height), vsync=True, show_window=show)
+        window = ti.ui.Window(f"sandbox: {sim.scene.name}", shape, vsync=True, show_window=show)
     except Exception as exc:  # GGUI raises RuntimeError without Vulkan; keep the message to one line
         first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise WindowUnavailable(f"cannot open a window: {first_line}") from None
@@ -82,8 +86,8 @@ def run_window(
     output = window_output(canvas)
     state = make_state(sim, substeps)
     view = view_config(cfg, state)  # the renderer's configuration; the window's toggles rebuild it when they differ
-    size = picture_size(sim, cfg.width, cfg.height)  # what the renderer draws; GGUI stretches it to the window
-    renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH)
+    size = picture_size(sim, *shape)  # what the renderer draws; GGUI stretches it to the window
+    renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH, room_for_charts=True)
     sim.state.carry(renderer.tails)  # its motion-blur tails move with the particles
     gui = window.get_gui()
     tools = Tools(sim)
@@ -105,6 +109,7 @@ def run_window(
     shown, fps, last = 0, 0.0, time.perf_counter()
     clock = FrameClock(timings)
     pacer = FramePacer()
+    resize = ResizeWatch(shape)
     while window.running:
         clock.start()
         frame_start = time.perf_counter()
@@ -124,16 +129,24 @@ def run_window(
             sim.model.gravity[None] = g_norm * np.array([np.sin(a), -np.cos(a)]) * state.gravity_on
         else:
             sim.model.gravity[None] = gravity if state.gravity_on else 0 * gravity
-        if view_config(cfg, state) != view:  # a view toggle: a renderer built for it (its kernels are specialised)
+        resized = resize.settled(window.get_window_shape() if show else shape, state.recording)
+        if resized:  # the user resized the window: draw at its new size from now on
+            shape, size = resized, picture_size(sim, *resized)
+            state.log.append(f"window {shape[0]} x {shape[1]}")
+        if view_config(cfg, state) != view or resized:  # a renderer built for it (its kernels are specialised)
             view = view_config(cfg, state)
             sim.state.drop(renderer.tails)
-            renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH)
+            old_chart = renderer.chart
+            renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH, room_for_charts=True)
+            if renderer.chart is not None and old_chart is not None:
+                renderer.chart.adopt(old_chart)  # the scene's chart keeps its history
             sim.state.carry(renderer.tails)
             if orbit is not None:
                 renderer.set_camera(orbit.eye(), orbit.target, renderer.painter.fov)
             chart_series = tuple(cfg.chart)  # what the new renderer shows; the energy plot is restored below
             potential_shown = (False, 1.0, 1.0)  # ... and the pair-force panel
-            state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
+            if not resized:
+                state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
         if sim.scene.world.substeps != "auto":
             sim.dt = base_dt * state.dt_scale
         if sim.terms.pair is not None:
@@ -199,7 +212,7 @@ def run_window(
         state.probe = probe_under(sim, renderer, u, v) if show else ""
         clock.lap("readouts")
         if state.tool and sim.dim == 2:  # the brush, outlined at the cursor
-            renderer.set_brush((u * cfg.width, v * cfg.height), state.radius * renderer.painter.px_per_unit)
+            renderer.set_brush((u * renderer.width, v * renderer.height), state.radius * renderer.painter.px_per_unit)
         else:
             renderer.set_brush(None)
         renderer.render()
@@ -212,7 +225,7 @@ def run_window(
         fps = 0.9 * fps + 0.1 / max(now - last, 1e-6)
         last = now
         state.pace = 0.0 if state.paused else fps * state.frame_substeps * sim.dt  # simulated s per wall s
-        draw_panel(gui, sim, state, stats, fps)
+        draw_panel(gui, sim, state, stats, fps, shape[0])
         if not state.paused:
             rest = (sim_start - frame_start) + (time.perf_counter() - sim_end)  # the frame's work besides stepping
             pacer.record(state.frame_substeps, sim_end - sim_start, rest)
@@ -231,7 +244,7 @@ def run_window(
     if message:
         print(message)
     window.destroy()
-    return WindowRun(shown, state.switch_to or None)
+    return WindowRun(shown, state.switch_to or None, shape)
 
 
 WINDOW_3D_SCALE = 0.5  # the window draws 3D scenes at this fraction of its size: shading every pixel of 1280 x 720
@@ -251,6 +264,7 @@ class WindowRun:
 
     frames: int
     next_scene: str | None = None
+    size: tuple[int, int] | None = None  # the window's last (width, height): the next scene opens at it
 
 
 def open_scene(name: str, arch: str = "cpu"):

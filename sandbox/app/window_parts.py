@@ -1,5 +1,5 @@
 """The window's helpers that hold no simulation state: the frame clock (seconds per part of the loop), the 3D orbit
-camera driven by the mouse, and the MP4 recorder of the window's pictures."""
+camera driven by the mouse, the MP4 recorder of the window's pictures, and the watch on the window's size."""
 
 from __future__ import annotations
 
@@ -177,3 +177,27 @@ class Recorder:
             message = f"saved {self.path} ({self.writer.frames_written} frames)"
             self.writer = None
         return message
+
+
+class ResizeWatch:
+    """When the user resizes the window, its new size once it has held still for SETTLE seconds (a drag reports
+    every size on the way; each new size builds a renderer); never while recording (a video keeps one size)."""
+
+    SETTLE = 0.3  # seconds
+    SMALLEST = (320, 180)  # pixels: a window dragged smaller is drawn at this size (GGUI stretches it)
+
+    def __init__(self, shape: tuple[int, int]):
+        self.shape = tuple(shape)
+        self.seen, self.since = self.shape, time.perf_counter()
+
+    def settled(self, shape, recording: bool = False, now: float | None = None) -> tuple[int, int] | None:
+        """The window's new (width, height) when it differs from the size drawn at and has held still; else None."""
+        now = time.perf_counter() if now is None else now
+        shape = (max(int(shape[0]), self.SMALLEST[0]), max(int(shape[1]), self.SMALLEST[1]))
+        if shape != self.seen:
+            self.seen, self.since = shape, now
+            return None
+        if shape == self.shape or recording or now - self.since < self.SETTLE:
+            return None
+        self.shape = shape
+        return shape

@@ -194,12 +194,6 @@ def view_config(cfg, state: WindowState):
     )
 
 
-def tool_label(name: str, selected: str) -> str:
-    """A tool button's label: its key and name, marked when it is the selected tool."""
-    key = TOOLS.index(name) + 1
-    return f"> {key} {name} <" if name == selected else f"  {key} {name}  "
-
-
 LESSON_WIDTH = 46  # characters per line of the lesson in the panel of a 1280-pixel window
 CHARACTER_PX = 7.5  # the width of one of GGUI's panel characters, pixels (its font is 13 px high)
 
@@ -211,12 +205,6 @@ def lesson_text(lesson, width: int = LESSON_WIDTH) -> tuple[str, ...]:
     for label, text in lesson.parts():
         lines += textwrap.wrap(f"{label}: {text}", width)
     return tuple(lines)
-
-
-def energy_unit(sim) -> str:
-    """The unit the scene's energies come in: epsilon for reduced Lennard-Jones scenes (every material "lj"), else
-    picojoules (a spacing is 1 mm, a particle of density 1 weighs 1 mg, time is in seconds: mg mm^2/s^2 = pJ)."""
-    return "eps" if set(sim.material_names) == {"lj"} else "pJ"
 
 
 def pace_text(state: WindowState) -> str:

@@ -393,6 +393,11 @@ class Render:
     )
     clock: bool = spec(True, doc="videos and pictures: the simulated time (t = 2.40 s) under the title")
     title: bool = spec(True, doc="videos and pictures: the scene's name at the top left")
+    text_scale: float = spec(
+        1.0,
+        doc="text and legend size as a multiple of the default (1/40 of the picture's height): 1.5 for a projector",
+        check=between(0.5, 4.0),
+    )
     frame: str = spec(
         "content",
         doc="2D: what the picture shows: content (the bodies, heat sources and emitters, with a margin) or domain "

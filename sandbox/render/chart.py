@@ -88,6 +88,12 @@ class Chart:
             self.times = self.times[::2]
             self.stride *= 2
 
+    def adopt(self, other: Chart) -> None:
+        """Take over `other`'s history where it plots the same series (a renderer rebuilt at a new size)."""
+        if other.series == self.series:
+            self.history, self.times = [list(h) for h in other.history], list(other.times)
+            self.frames, self.stride = other.frames, other.stride
+
     def drawn_rect(self) -> tuple[int, int, int, int]:
         """(x0, x1, row0, row1), rows from the top: the pixels the chart draws on."""
         return self.rect

@@ -47,10 +47,13 @@ class Layout:
         return left + self.margin, right - self.margin, self.margin, self.band - self.margin // 2
 
 
-def make_layout(width: int, height: int, panel_px: int, text_lines: int, legend: int, charts: bool) -> Layout:
+def make_layout(
+    width: int, height: int, panel_px: int, text_lines: int, legend: int, charts: bool, text_scale: float = 1.0
+) -> Layout:
     """The layout of a picture that shows `text_lines` lines on the left (title, clock), a legend `legend` rows
-    tall and charts, as asked; with none of them the band is empty and the scene has the whole picture."""
-    size = text_size(height)
+    tall and charts, as asked, with text `text_scale` times the default size; with none of them the band is empty
+    and the scene has the whole picture."""
+    size = max(11, round(text_size(height) * text_scale))
     rows = max(text_lines * line_height(round(size * 1.2)), legend)
     if charts:
         rows = max(rows, 6 * line_height(size), round(0.26 * height))

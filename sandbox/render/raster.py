@@ -53,12 +53,13 @@ class Renderer:
         self.width, self.height, self.dim = width, height, model.dim
         self.panel_px = int(round(panel * width))  # pixels on the left under a side panel
         # the legend and title decide the band's height: laid out first on a picture with no band
+        scale = render_cfg.text_scale
         self.overlays = Overlays(
-            render_cfg, make_layout(width, height, self.panel_px, 0, 0, False), state, model, model.scene.name
+            render_cfg, make_layout(width, height, self.panel_px, 0, 0, False, scale), state, model, model.scene.name
         )
         lines = int(bool(self.overlays.title)) + int(bool(render_cfg.clock))
         charts = (bool(render_cfg.chart) or room_for_charts) and height >= MIN_CHART_HEIGHT
-        self.layout = make_layout(width, height, self.panel_px, lines, self.overlays.legend_height(), charts)
+        self.layout = make_layout(width, height, self.panel_px, lines, self.overlays.legend_height(), charts, scale)
         self.overlays.layout = self.layout
         self.view_box = content_box(model.scene)  # the world box framed below the band
         # The tables go to their fields in one copy kernel when the block ends: a host write of a field element
