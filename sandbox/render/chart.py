@@ -38,6 +38,21 @@ def tick_text(value: float) -> str:
     return f"{value:.3g}"
 
 
+def short_words(name: str) -> str:
+    """A series' name in one word, for a narrow panel."""
+    return {"mean_temperature": "mean", "molten_fraction": "melted"}.get(name, name.split("_")[0])
+
+
+def value_text(value: float, unit: str) -> str:
+    """A latest value as a reader wants it: temperatures to a tenth of a degree, percentages whole, else three
+    significant digits."""
+    if unit == "°C":
+        return f"{value:.1f}"
+    if unit == "%":
+        return f"{value:.0f}"
+    return f"{value:.3g}"
+
+
 class Panel:
     """One plot box: the series of one unit, with its axes."""
 
@@ -72,7 +87,7 @@ class Chart:
         """Draw into rect (x0, x1, row0, row1; rows from the top) from now on; `fits` says whether it has room."""
         self.rect = rect
         x0, x1, r0, r1 = rect
-        self.fits = x1 - x0 >= 12 * self.size * len(self.panels) and r1 - r0 >= 4 * line_height(self.size)
+        self.fits = x1 - x0 >= 8 * self.size * len(self.panels) and r1 - r0 >= 4 * line_height(self.size)
 
     def record(self, stats) -> None:
         """Append this frame's values (every `stride`-th frame once the history is long)."""
@@ -164,19 +179,25 @@ class Chart:
             elif points:
                 pen.ellipse([points[0][0] - 2, points[0][1] - 2, points[0][0] + 2, points[0][1] + 2], fill=color)
         crop[:] = np.asarray(picture)
-        # the title: each series in its colour with its latest value, then the unit
+        # the title: each series in its colour with its latest value, then the unit; the words shortened, then
+        # left out, where the panel is too narrow for them
+        latest = [next((v for v in reversed(self.history[k]) if math.isfinite(v)), math.nan) for k in panel.names]
+        unit = f"({panel.unit})" if panel.unit else ""
+        for words in (lambda k: self.words[k][0], lambda k: short_words(self.series[k]), lambda k: ""):
+            texts = [f"{words(k)} {value_text(v, panel.unit)}".strip() for k, v in zip(panel.names, latest)]
+            if sum(text_width(t + "   ", size) for t in texts) + text_width(unit, size) <= rect[1] - rect[0] - 4:
+                break
         x = rect[0] + 2
-        for k in panel.names:
-            latest = next((v for v in reversed(self.history[k]) if math.isfinite(v)), math.nan)
-            text = f"{self.words[k][0]} {latest:.3g}"
+        for k, text in zip(panel.names, texts):
             draw_text(img, text, x, rect[2], size, COLORS[k % len(COLORS)])
             x += text_width(text + "   ", size)
-        draw_text(img, f"({panel.unit})" if panel.unit else "", x, rect[2], size, GREY)
+        draw_text(img, unit, x, rect[2], size, GREY)
         for v, row in ((hi, br0), (0.5 * (lo + hi), (br0 + br1) // 2), (lo, br1)):
             text = tick_text(v)
             draw_text(img, text, bx0 - 6 - text_width(text, size), row - lh // 2, size, GREY)
         t_end = self.times[-1]
-        for frac in (0.0, 0.5, 1.0):
+        middle_fits = text_width(tick_text(t_end) + " s  " + tick_text(t_end / 2), size) < w / 2
+        for frac in (0.0, 0.5, 1.0) if middle_fits else (0.0, 1.0):
             text = tick_text(frac * t_end) + (" s" if frac == 1.0 else "")
             x = bx0 + round(frac * w) - text_width(text, size) * (frac if frac < 1 else 1.0)
             draw_text(img, text, round(x) if frac < 1 else bx1 - text_width(text, size), br1 + 3, size, GREY)

@@ -59,6 +59,12 @@ class Renderer:
         )
         lines = int(bool(self.overlays.title)) + int(bool(render_cfg.clock))
         charts = (bool(render_cfg.chart) or room_for_charts) and height >= MIN_CHART_HEIGHT
+        if render_cfg.chart and not room_for_charts:  # no band for a chart the picture is too narrow to hold
+            band = self.overlays.layout.chart_rect(self.overlays.left_end(), self.overlays.legend_rect()[0])
+            room = (band[0], band[1], 0, height // 2)
+            charts = (
+                charts and Chart(tuple(render_cfg.chart), room, self.overlays.layout.size, model.material_names).fits
+            )
         self.layout = make_layout(width, height, self.panel_px, lines, self.overlays.legend_height(), charts, scale)
         self.overlays.layout = self.layout
         self.view_box = content_box(model.scene)  # the world box framed below the band

@@ -1,0 +1,40 @@
+"""Make the strips of stills the README and docs/ show (docs/ice_cube.png, docs/candle.png, docs/freeze_thaw.png,
+docs/smoke_vortex.png), each still as `sandbox run` draws it: `python benchmarks/doc_pictures.py [NAME ...]`."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+import sandbox
+
+DOCS = Path(__file__).resolve().parent.parent / "docs"
+# scene: (seconds at which a still is taken, width, height of each still)
+STRIPS = {
+    "ice_cube": ((0.2, 3.0, 4.6, 9.0), 480, 270),
+    "candle": ((0.4, 3.0, 6.0, 9.0), 480, 270),
+    "freeze_thaw": ((1.0, 3.0, 5.0, 7.0), 480, 270),
+    "smoke_vortex": ((10.0,), 480, 270),
+}
+
+
+def strip(name: str) -> Path:
+    """Run the scene and put its stills side by side, 4 pixels apart."""
+    times, width, height = STRIPS[name]
+    sim = sandbox.load(name)
+    stills = []
+    for t in times:
+        while sim.time < t - 1e-9:
+            sim.run(1)
+        stills.append(sim.picture(width, height))
+    gap = np.full((height, 4, 3), 255, np.uint8)
+    row = np.concatenate([x for still in stills for x in (still, gap)][:-1], axis=1)
+    path = DOCS / f"{name}.png"
+    Image.fromarray(row).save(path, optimize=True)
+    return path
+
+
+if __name__ == "__main__":
+    for name in sys.argv[1:] or STRIPS:
+        print(strip(name))
