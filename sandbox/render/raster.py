@@ -21,12 +21,9 @@ from .canvas import Canvas
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
 from .footprint import Footprint
-from .layout import content_box, fit, make_layout
 from .look import Look
-from .overlays import Overlays
+from .plan import plan_picture
 from .spheres import Spheres3D
-
-MIN_CHART_HEIGHT = 240  # pixels: a shorter picture keeps no band for charts (they would not be legible)
 
 
 class Renderer:
@@ -52,22 +49,8 @@ class Renderer:
         self.cfg = render_cfg
         self.width, self.height, self.dim = width, height, model.dim
         self.panel_px = int(round(panel * width))  # pixels on the left under a side panel
-        # the legend and title decide the band's height: laid out first on a picture with no band
-        scale = render_cfg.text_scale
-        self.overlays = Overlays(
-            render_cfg, make_layout(width, height, self.panel_px, 0, 0, False, scale), state, model, model.scene.name
-        )
-        lines = int(bool(self.overlays.title)) + int(bool(render_cfg.clock))
-        charts = (bool(render_cfg.chart) or room_for_charts) and height >= MIN_CHART_HEIGHT
-        if render_cfg.chart and not room_for_charts:  # no band for a chart the picture is too narrow to hold
-            band = self.overlays.layout.chart_rect(self.overlays.left_end(), self.overlays.legend_rect()[0])
-            room = (band[0], band[1], 0, height // 2)
-            charts = (
-                charts and Chart(tuple(render_cfg.chart), room, self.overlays.layout.size, model.material_names).fits
-            )
-        self.layout = make_layout(width, height, self.panel_px, lines, self.overlays.legend_height(), charts, scale)
-        self.overlays.layout = self.layout
-        self.view_box = content_box(model.scene)  # the world box framed below the band
+        plan = plan_picture(model, state, width, height, render_cfg, self.panel_px, room_for_charts)
+        self.plan, self.layout, self.overlays, self.view_box = plan, plan.layout, plan.overlays, plan.view_box
         # The tables go to their fields in one copy kernel when the block ends: a host write of a field element
         # compiles a writer kernel of its own (about 20 ms each at start-up). Nothing in the block reads them.
         with transfer.batched():
@@ -76,8 +59,7 @@ class Renderer:
             self.canvas = Canvas(width, height, self.dim, output, self.look.blends, ghosts, render_cfg.exposure)
             self.footprint = Footprint(self.canvas, state.particles, render_cfg, model.capacity, self.dim)
             if self.dim == 2:
-                world = (model.scene.world.lo, model.scene.world.hi)
-                view = fit(self.view_box, self.layout.scene_rect(), height, world)
+                view = plan.view
                 self.painter = Flat2D(
                     self.canvas, self.footprint, self.look, model, state, render_cfg, view, strip_splat
                 )
