@@ -1,11 +1,11 @@
 """The interactive window (Taichi GGUI), drawing through the same Renderer as headless video.
 
-Keys (also listed by the help overlay, h or F1): space pause/resume, s single step, r reset, 1-8 choose a tool
-(heat, cool, drag, attract, repel, impulse, erase, spawn), [ and ] brush radius, + and - substeps per frame, g
-gravity on/off, i next integrator, m next spawn material, p screenshot, z undo the last tool stroke, w save the
-state, o load it back, q or Esc quit. The left mouse button applies
-the tool at the cursor (2D scenes); in 3D the mouse orbits (left), zooms (right) and pans (middle). The side panel
-shows only the controls the scene uses (no heat tools without heat).
+Keys (also listed by the help overlay, h): space pause/resume, s single step, r reset, Tab next tool (heat, cool,
+drag, attract, repel, impulse, erase, spawn), Up and Down brush radius, Right and Left substeps per frame, g gravity
+on/off, i next integrator, m next spawn material, p screenshot, z undo the last tool stroke, w save the state, o
+load it back, x full screen, q or Esc quit (GGUI reports letters and named keys only: no digits, brackets or F keys).
+The left mouse button applies the tool at the cursor (2D scenes); in 3D the mouse orbits (left), zooms (right) and
+pans (middle). The side panel shows only the controls the scene uses (no heat tools without heat).
 Everything the keys do goes through WindowState.handle_key, which needs no screen, so it is tested directly.
 """
 
@@ -28,7 +28,7 @@ from .history import UndoRing
 from .probe import particle_at, probe
 from .tools import Tools
 from .window_panel import PANEL_WIDTH, draw_panel
-from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder, ResizeWatch
+from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder, ResizeWatch, screen_size
 from .window_state import apply_requests, make_state, quick_save_path, view_config
 
 __all__ = ["FRAME_PARTS", "WindowRun", "WindowUnavailable", "open_scene", "run_window", "window_unavailable_reason"]
@@ -43,6 +43,16 @@ def window_unavailable_reason() -> str | None:
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         return "no display"
     return None
+
+
+def open_window(name: str, shape: tuple[int, int], show: bool = True, pos: tuple[int, int] = (100, 100)):
+    """A GGUI window titled for scene `name`, `shape` (width, height) pixels, its top-left corner at `pos`; a
+    WindowUnavailable with one line where none can be opened (no Vulkan driver)."""
+    try:
+        return ti.ui.Window(f"sandbox: {name}", tuple(shape), vsync=True, show_window=show, pos=tuple(pos))
+    except Exception as exc:  # GGUI raises RuntimeError without Vulkan; keep the message to one line
+        first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise WindowUnavailable(f"cannot open a window: {first_line}") from None
 
 
 def window_output(canvas) -> str:
@@ -76,12 +86,9 @@ def run_window(
     Raises SandboxError with one line when no window can be opened (e.g. no Vulkan driver).
     """
     cfg = sim.scene.render
-    shape = tuple(size or (cfg.width, cfg.height))
-    try:
-        window = ti.ui.Window(f"sandbox: {sim.scene.name}", shape, vsync=True, show_window=show)
-    except Exception as exc:  # GGUI raises RuntimeError without Vulkan; keep the message to one line
-        first_line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise WindowUnavailable(f"cannot open a window: {first_line}") from None
+    shape = windowed = tuple(size or (cfg.width, cfg.height))
+    window = open_window(sim.scene.name, shape, show)
+    full_screen = False
     canvas = window.get_canvas()
     output = window_output(canvas)
     state = make_state(sim, substeps)
@@ -130,6 +137,18 @@ def run_window(
         else:
             sim.model.gravity[None] = gravity if state.gravity_on else 0 * gravity
         resized = resize.settled(window.get_window_shape() if show else shape, state.recording)
+        if state.full_screen != full_screen:  # x: the window opened again at the screen's size, or back
+            screen = screen_size() if state.full_screen else None
+            if state.full_screen and screen is None:
+                state.full_screen = False
+                state.log.append("full screen: the screen's size is not known here (pip install screeninfo)")
+            else:
+                window.destroy()
+                target, place = (screen[2:], screen[:2]) if screen else (windowed, (100, 100))
+                window = open_window(sim.scene.name, target, show, place)
+                canvas, gui, full_screen = window.get_canvas(), window.get_gui(), state.full_screen
+                resize = ResizeWatch(target)
+                resized = tuple(target)
         if resized:  # the user resized the window: draw at its new size from now on
             shape, size = resized, picture_size(sim, *resized)
             state.log.append(f"window {shape[0]} x {shape[1]}")

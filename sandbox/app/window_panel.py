@@ -90,12 +90,14 @@ def controls(gui, chars: int, sim, state: WindowState) -> None:
         k = gui.slider_int(f"tool: {state.tool}", tools.index(state.tool) + 1, 1, len(tools))
         state.tool = tools[min(max(k, 1), len(tools)) - 1]
         spawn = f", spawns {state.material} (m)" if state.tool == "spawn" else ""
-        say(gui, chars, f"keys 1-8 pick a tool{spawn}" + ("; 3D: Shift + left button" if sim.dim == 3 else ""))
+        say(gui, chars, f"Tab: next tool{spawn}" + ("; 3D: Shift + left button" if sim.dim == 3 else ""))
         state.radius = gui.slider_float(f"brush ({length_unit(sim.material_names)})", state.radius, 0.5, 30.0)
         if gui.button("undo the stroke (z)"):
             state.undo = True
     if gui.button("reset to the start (r)"):
         state.reset = True
+    if gui.button("leave full screen (x)" if state.full_screen else "full screen (x)"):
+        state.full_screen = not state.full_screen
     state.paused = gui.checkbox("paused (space)", state.paused)
     if sim.terms.heat is not None:
         sources = sim.terms.heat.sources

@@ -201,3 +201,18 @@ class ResizeWatch:
             return None
         self.shape = shape
         return shape
+
+
+def screen_size() -> tuple[int, int, int, int] | None:
+    """(x, y, width, height) in pixels of the primary screen (the first where none is marked primary), or None where
+    it cannot be known (no display, or screeninfo not installed): GGUI does not tell."""
+    try:
+        import screeninfo
+
+        monitors = screeninfo.get_monitors()
+    except Exception:  # ImportError, or screeninfo's ScreenInfoError without a display
+        return None
+    if not monitors:
+        return None
+    m = next((m for m in monitors if m.is_primary), monitors[0])
+    return int(m.x), int(m.y), int(m.width), int(m.height)

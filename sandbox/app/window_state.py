@@ -15,14 +15,16 @@ from ..files.persist import load_into, save_state
 from ..integrators import REGISTRY
 from .tools import TOOLS
 
-TOOL_KEYS = {str(k + 1): name for k, name in enumerate(TOOLS)}
+TOOL_KEYS = {str(k + 1): name for k, name in enumerate(TOOLS)}  # for a GGUI that reports digits (1.7 does not)
+# GGUI (Taichi 1.7) reports letters and named keys only (Escape, Return, Tab, arrows, space, Shift, ...): digits,
+# brackets, + and - and the F keys never arrive, so every key the help lists is one of those.
 HELP = [
     "space  pause / resume",
     "s      single step (paused)",
     "r      reset to the start",
-    "1-8    tool: " + ", ".join(f"{k} {v}" for k, v in TOOL_KEYS.items()),
-    "[ ]    brush radius",
-    "+ -    substeps per frame",
+    "Tab    next tool: " + ", ".join(TOOLS) + " (or the panel's slider)",
+    "Up Down     brush radius",
+    "Right Left  substeps per frame",
     "g      gravity on / off",
     "i      next integrator",
     "z      undo the last tool stroke (Ctrl+Z too)",
@@ -38,8 +40,9 @@ HELP = [
     "b      motion blur on / off",
     "k      springs drawn on / off (2D)",
     "l      the scene's lesson on / off",
-    "h, F1  this help",
-    "q, Esc quit",
+    "x      full screen on / off",
+    "h      this help",
+    "q, Esc  quit",
     "left mouse: apply the tool at the cursor (2D)",
     "3D: left drag orbit, right drag zoom, middle drag pan",
 ]
@@ -85,6 +88,7 @@ class WindowState:
     switch_to: str = ""  # a shipped scene picked in the panel: the window closes and opens it
     picking: bool = False  # the panel lists the shipped scenes to switch to
     pace: float = 0.0  # simulated seconds per wall second
+    full_screen: bool = False  # F11: the window at the screen's size
     log: list[str] = field(default_factory=list)
 
     def __post_init__(self):
@@ -108,19 +112,24 @@ class WindowState:
                 self.tool = TOOL_KEYS[key]
             else:
                 self.log.append(f"{TOOL_KEYS[key]} is not available in this scene")
-        elif key == "[":
+        elif key == "Tab" and self.tools_available:
+            k = self.tools_available.index(self.tool) if self.tool in self.tools_available else -1
+            self.tool = self.tools_available[(k + 1) % len(self.tools_available)]
+        elif key in ("[", "Down"):
             self.radius = max(0.5, self.radius / 1.25)
-        elif key == "]":
+        elif key in ("]", "Up"):
             self.radius = min(100.0, self.radius * 1.25)
-        elif key in ("+", "="):
+        elif key in ("+", "=", "Right"):
             self.substeps = min(1000, self.substeps + 1)
-        elif key == "-":
+        elif key in ("-", "Left"):
             self.substeps = max(1, self.substeps - 1)
         elif key == "g":
             self.gravity_on = not self.gravity_on
         elif key == "i":
             k = self.integrators.index(self.integrator)
             self.integrator = self.integrators[(k + 1) % len(self.integrators)]
+        elif key in ("x", "F11"):
+            self.full_screen = not self.full_screen
         elif key in ("h", "F1"):
             self.show_help = not self.show_help
         elif key == "p":
