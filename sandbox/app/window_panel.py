@@ -70,9 +70,8 @@ def readouts(gui, chars: int, sim, state: WindowState, stats, fps: float) -> Non
         if len(groups) == 1:
             say(gui, chars, f"temperature {reading(groups[0][1], 'C')}   {melted}")
         else:
-            say(gui, chars, f"temperatures ({melted} in all):")
-            for name, temperature in groups[:4]:
-                say(gui, chars, f"  {name.replace('_', ' ')}: {temperature:.1f} C")
+            each = ", ".join(f"{name.replace('_', ' ')} {temperature:.1f} C" for name, temperature in groups[:4])
+            say(gui, chars, f"temperatures: {each}; {melted} in all")
     names = sim.material_names
     energy = f"energy ({energy_unit(names)}): moving {stats.kinetic_energy:.4g}, total {stats.total_energy:.4g}"
     say(gui, chars, energy)

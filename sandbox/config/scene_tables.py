@@ -210,6 +210,18 @@ class Heat:
         0, doc="bonds per particle that refreezing fills up to (0: 8 in 2D, 12 in 3D)", check=between(0, MAX_BONDS)
     )
     refreeze_interval: int = spec(10, doc="steps between refreezing passes", check=at_least(1))
+    agitation_time: float = spec(
+        0.0,
+        doc="temperature as motion: the time (s) in which a molten particle's motion relaxes to its temperature "
+        "(a Langevin thermostat about the local flow; 0: off, the motion does not follow the temperature)",
+        check=non_negative,
+    )
+    agitation_scale: float = spec(
+        0.01,
+        doc="with agitation_time: the thermal energy kT per kelvin (pJ/K): a particle of 1 mg at 100 °C jiggles at "
+        "sqrt(kT / m) = 1.9 mm/s per direction",
+        check=positive,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -3,6 +3,7 @@ are evaluated over (grid.py, neighbours.py, reorder.py). Importing this package 
 module is imported here."""
 
 from . import (  # noqa: F401 - each registers its terms
+    agitation,
     body_forces,
     emitters,
     fields,
