@@ -17,7 +17,6 @@ same step draws the same numbers in any thread order and after a resume, so runs
 runs between steps (the long way); scenes without heat.agitation_time > 0 do not build it.
 """
 
-
 import math
 
 import taichi as ti
