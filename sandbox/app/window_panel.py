@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import textwrap
 
 import numpy as np
@@ -67,11 +68,14 @@ def readouts(gui, chars: int, sim, state: WindowState, stats, fps: float) -> Non
     if sim.terms.heat is not None:
         groups = thermometers(sim)
         melted = f"melted {100 * stats.molten_fraction:.0f}%"
+        motion = ""
+        if math.isfinite(stats.kinetic_temperature):  # temperature as motion: what the motion says
+            motion = f"; the motion says {stats.kinetic_temperature:.0f} C"
         if len(groups) == 1:
-            say(gui, chars, f"temperature {reading(groups[0][1], 'C')}   {melted}")
+            say(gui, chars, f"temperature {reading(groups[0][1], 'C')}   {melted}{motion}")
         else:
             each = ", ".join(f"{name.replace('_', ' ')} {temperature:.1f} C" for name, temperature in groups[:4])
-            say(gui, chars, f"temperatures: {each}; {melted} in all")
+            say(gui, chars, f"temperatures: {each}; {melted} in all{motion}")
     names = sim.material_names
     energy = f"energy ({energy_unit(names)}): moving {stats.kinetic_energy:.4g}, total {stats.total_energy:.4g}"
     say(gui, chars, energy)
@@ -86,10 +90,11 @@ def controls(gui, chars: int, sim, state: WindowState) -> None:
     """Tools, run controls and settings: one widget per row (GGUI's panel has no rows of several)."""
     if state.tools_available:
         tools = state.tools_available
-        k = gui.slider_int(f"tool: {state.tool}", tools.index(state.tool) + 1, 1, len(tools))
+        spawn = f" {state.material} (m)" if state.tool == "spawn" else ""
+        k = gui.slider_int(f"tool (Tab): {state.tool}{spawn}", tools.index(state.tool) + 1, 1, len(tools))
         state.tool = tools[min(max(k, 1), len(tools)) - 1]
-        spawn = f", spawns {state.material} (m)" if state.tool == "spawn" else ""
-        say(gui, chars, f"Tab: next tool{spawn}" + ("; 3D: Shift + left button" if sim.dim == 3 else ""))
+        if sim.dim == 3:
+            say(gui, chars, "3D: Shift + left button uses the tool")
         state.radius = gui.slider_float(f"brush ({length_unit(sim.material_names)})", state.radius, 0.5, 30.0)
         if gui.button("undo the stroke (z)"):
             state.undo = True

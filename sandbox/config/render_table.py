@@ -11,6 +11,7 @@ from .schema import between, non_negative, one_of, positive, spec, unit_interval
 COLOR_BY = ("temperature", "material", "speed", "phase")
 CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
     "mean_temperature",
+    "kinetic_temperature",
     "molten_fraction",
     "heat_content",
     "kinetic_energy",

@@ -18,6 +18,7 @@ STAT_COLUMNS = (
     "pressure",
     "wall_pressure",
     "mean_temperature",
+    "kinetic_temperature",
     "molten_fraction",
     "heat_content",
     "broken_springs",
@@ -54,6 +55,9 @@ class Stats:
     # momentum the walls took per unit time and wall area since the gauge restarted (each frame); nan without walls
     # or before any time has passed
     wall_pressure: float = float("nan")
+    # temperature as motion (heat.agitation_time): the temperature the molten particles' motion relative to the local
+    # flow says, m |v - u|^2 / (dim x heat.agitation_scale) - 273.15 averaged; nan without the thermostat
+    kinetic_temperature: float = float("nan")
 
     @property
     def potential_energy(self) -> float:
@@ -94,4 +98,5 @@ class Stats:
             particles=n,
             pressure=(2.0 * m["ke"] + m.get("pair_virial", 0.0) + m.get("spring_virial", 0.0)) / (dim * volume),
             wall_pressure=wall_pressure,
+            kinetic_temperature=m["agitation"] / (dim * m["free"]) - 273.15 if m.get("free") else float("nan"),
         )

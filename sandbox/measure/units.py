@@ -37,6 +37,7 @@ def pressure_unit(material_names, dim: int) -> str:
 # Each chart series' words and unit ("energy", "heat" and "speed" stand for the scene's units of them).
 SERIES = {
     "mean_temperature": ("mean temperature", "°C"),
+    "kinetic_temperature": ("temperature of the motion", "°C"),
     "molten_fraction": ("molten", "%"),
     "heat_content": ("heat content", "heat"),
     "kinetic_energy": ("kinetic energy", "energy"),

@@ -22,7 +22,7 @@ import math
 import taichi as ti
 
 from ..core.oriented import data_oriented
-from .term import Term, register
+from .term import Measure, Term, register
 
 KELVIN = 273.15  # °C to kelvin
 KJ_PER_KG_PER_PJ_PER_MG = 1e-9  # 1 pJ / 1 mg = 1e-12 J / 1e-6 kg = 1e-6 J/kg = 1e-9 kJ/kg
@@ -62,6 +62,7 @@ class Agitation(Term):
 
     key = "agitation"
     order = 85.0  # after the heat update, before refreezing
+    measures = (Measure("agitation", "sum", "particles"), Measure("free", "count", "particles"))
 
     @staticmethod
     def wanted(parts) -> bool:
@@ -116,6 +117,15 @@ class Agitation(Term):
     def free(self, i):
         _, phi = self.phase.state(self.p.h[i], self.p.material[i])
         return phi >= FREE
+
+    @ti.func
+    def measure_particle(self, i):
+        """(m |v - u|^2 / scale, 1) for a free particle, (0, 0) else: the motion's thermometer (kelvin x dim)."""
+        heat, free = 0.0, 0
+        if self.free(i):
+            rel = self.p.v[i] - self.flow[i]
+            heat, free = self.p.mass[i] * rel.dot(rel) / self.scale, 1
+        return heat, free
 
     @ti.kernel
     def _flow_near(self, grid: ti.template()):

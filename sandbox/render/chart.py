@@ -40,7 +40,9 @@ def tick_text(value: float) -> str:
 
 def short_words(name: str) -> str:
     """A series' name in one word, for a narrow panel."""
-    return {"mean_temperature": "mean", "molten_fraction": "melted"}.get(name, name.split("_")[0])
+    return {"mean_temperature": "mean", "kinetic_temperature": "motion", "molten_fraction": "melted"}.get(
+        name, name.split("_")[0]
+    )
 
 
 def value_text(value: float, unit: str) -> str:
