@@ -22,6 +22,7 @@ import math
 import taichi as ti
 
 from ..core.oriented import data_oriented
+from .fields import random_uniform
 from .term import Measure, Term, register
 
 KELVIN = 273.15  # °C to kelvin
@@ -30,28 +31,11 @@ FREE = 0.5  # melt fraction from which a particle's motion follows its temperatu
 
 
 @ti.func
-def mix32(x):
-    """A 32-bit integer hash (lowbias32): every input bit changes about half the output bits."""
-    x ^= x >> 16
-    x *= ti.u32(0x7FEB352D)
-    x ^= x >> 15
-    x *= ti.u32(0x846CA68B)
-    x ^= x >> 16
-    return x
-
-
-@ti.func
-def unit_uniform(a, b, k):
-    """A number in (0, 1] drawn from the counters (a, b, k) alone (particle id, step, which number)."""
-    h = mix32(mix32(ti.cast(a, ti.u32) * ti.u32(0x9E3779B9) + ti.cast(k, ti.u32)) ^ ti.cast(b, ti.u32))
-    return (ti.cast(h >> 8, ti.f32) + 1.0) / 16777216.0
-
-
-@ti.func
 def normal(a, b, k):
-    """A standard normal number from the counters (a, b, k) (Box-Muller on two hashed uniforms)."""
-    u1 = unit_uniform(a, b, 2 * k)
-    u2 = unit_uniform(a, b, 2 * k + 1)
+    """A standard normal number from the counters (a, b, k): particle id, step, which number (Box-Muller on two of
+    fields.py's hashed uniforms; 1 - u lies in (0, 1], so the logarithm is finite)."""
+    u1 = 1.0 - random_uniform(ti.cast(b, ti.u32), ti.cast(a, ti.u32), ti.cast(2 * k, ti.u32))
+    u2 = random_uniform(ti.cast(b, ti.u32), ti.cast(a, ti.u32), ti.cast(2 * k + 1, ti.u32))
     return ti.sqrt(-2.0 * ti.log(u1)) * ti.cos(2.0 * math.pi * u2)
 
 
