@@ -102,13 +102,13 @@ def test_the_title_clock_and_colour_bar_are_written_where_the_layout_puts_them()
 
 
 def test_a_particles_colour_in_phase_mode_is_one_of_the_legends_swatches():
-    """ice_cube draws by phase: the legend names each colour (ice solid, ice melt), the swatches are drawn in those
+    """ice_cube draws by phase: the legend names each colour (ice solid, melt, vapour), the swatches are drawn in those
     colours, and the pixel under a solid particle's centre is the solid swatch's colour."""
     sim = Simulation(load_scene(SCENES / "ice_cube.toml"))
     ren = Renderer(sim.model, sim.state, 640, 360, sim.scene.render)
     img = ren.frame()
     entries = ren.overlays.entries
-    assert [label for label, _ in entries] == ["ice solid", "ice melt"]
+    assert [label for label, _ in entries] == ["ice solid", "ice melt", "ice vapour"]  # water boils at 100 °C
     solid = (np.asarray(entries[0][1]) * 255 + 0.5).astype(np.uint8)
     x0, x1, r0, r1 = ren.overlays.legend_rect()
     assert (np.all(img[r0:r1, x0:x1] == solid, axis=2)).sum() > 20  # its swatch

@@ -56,6 +56,18 @@ class Material:
     latent_heat: float = spec(
         0.0, doc="heat per unit mass that melting absorbs and freezing releases (specific enthalpy)", check=non_negative
     )
+    boil_temperature: float = spec(
+        math.inf,
+        doc="the liquid boils at this temperature (inf: never): it holds there while vaporization_heat is taken, "
+        "and its vapour feels no pair attraction",
+        check=celsius,
+        infinite=True,
+    )
+    vaporization_heat: float = spec(
+        0.0,
+        doc="heat per unit mass that boiling absorbs and condensing releases (specific enthalpy)",
+        check=non_negative,
+    )
     stiffness_at_melt: float = spec(
         0.2,
         doc="fraction of the bond stiffness left when the solid reaches melt_temperature (softening is linear from "
@@ -96,6 +108,10 @@ class Material:
     @property
     def melts(self) -> bool:
         return math.isfinite(self.melt_temperature)
+
+    @property
+    def boils(self) -> bool:
+        return math.isfinite(self.boil_temperature)
 
 
 def check_material(material: Material, file: str, key: str) -> Material:

@@ -13,6 +13,7 @@ CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
     "mean_temperature",
     "kinetic_temperature",
     "molten_fraction",
+    "gas_fraction",
     "heat_content",
     "kinetic_energy",
     "potential_energy",

@@ -35,6 +35,8 @@ class MaterialTable:
             "melt": [min(m.melt_temperature, 1e30) for m in materials],  # solidus (degrees)
             "liquidus": [min(m.liquidus_temperature, 1e30) for m in materials],  # degrees
             "latent": [m.latent_heat for m in materials],  # heat / mass
+            "boil": [min(m.boil_temperature, 1e30) for m in materials],  # degrees
+            "vaporize": [m.vaporization_heat for m in materials],  # heat / mass
             "stiff_at_melt": [m.stiffness_at_melt for m in materials],  # fraction of k_s left at the solidus
             "break_fraction": [m.break_melt_fraction for m in materials],  # both ends this molten: bond breaks
             "undercool": [m.refreeze_undercooling for m in materials],  # degrees below the solidus to refreeze

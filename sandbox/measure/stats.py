@@ -20,6 +20,7 @@ STAT_COLUMNS = (
     "mean_temperature",
     "kinetic_temperature",
     "molten_fraction",
+    "gas_fraction",
     "heat_content",
     "broken_springs",
     "max_speed",
@@ -58,6 +59,7 @@ class Stats:
     # temperature as motion (heat.agitation_time): the temperature the molten particles' motion relative to the local
     # flow says, m |v - u|^2 / (dim x heat.agitation_scale) - 273.15 averaged; nan without the thermostat
     kinetic_temperature: float = float("nan")
+    gas_fraction: float = 0.0  # mean gas (vapour) fraction of the particles of materials that boil
 
     @property
     def potential_energy(self) -> float:
@@ -99,4 +101,5 @@ class Stats:
             pressure=(2.0 * m["ke"] + m.get("pair_virial", 0.0) + m.get("spring_virial", 0.0)) / (dim * volume),
             wall_pressure=wall_pressure,
             kinetic_temperature=m["agitation"] / (dim * m["free"]) - 273.15 if m.get("free") else float("nan"),
+            gas_fraction=m["psi"] / m["boilable"] if m.get("boilable") else 0.0,
         )

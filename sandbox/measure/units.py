@@ -39,6 +39,7 @@ SERIES = {
     "mean_temperature": ("mean temperature", "°C"),
     "kinetic_temperature": ("temperature of the motion", "°C"),
     "molten_fraction": ("molten", "%"),
+    "gas_fraction": ("boiled", "%"),
     "heat_content": ("heat content", "heat"),
     "kinetic_energy": ("kinetic energy", "energy"),
     "potential_energy": ("potential energy", "energy"),

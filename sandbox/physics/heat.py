@@ -75,6 +75,8 @@ class Heat(Term):
         Measure("heat", "sum", "particles"),
         Measure("phi", "sum", "particles"),
         Measure("meltable", "count", "particles"),
+        Measure("psi", "sum", "particles"),
+        Measure("boilable", "count", "particles"),
     )
 
     @staticmethod
@@ -237,14 +239,19 @@ class Heat(Term):
     # ------------------------------------------------------------------ its measurements
     @ti.func
     def measure_particle(self, i):
-        """(T, -T, T, m h, melt fraction where the material melts, 1 where it melts)."""
+        """(T, -T, T, m h, melt fraction where the material melts, 1 where it melts, gas fraction where it boils,
+        1 where it boils)."""
         p = self.p
         t = p.T[i]
         phi, meltable = 0.0, 0
         if self.mats.melt[p.material[i]] < 1e29:
             meltable = 1
             phi = self.phase.fraction(p.h[i], p.material[i])
-        return t, -t, t, p.mass[i] * p.h[i], phi, meltable
+        psi, boilable = 0.0, 0
+        if self.mats.boil[p.material[i]] < 1e29:
+            boilable = 1
+            psi = self.phase.gas(p.h[i], p.material[i])
+        return t, -t, t, p.mass[i] * p.h[i], phi, meltable, psi, boilable
 
     # ------------------------------------------------------------------ its stability
     def stable_dt(self, integrator) -> float:

@@ -120,6 +120,9 @@ class PairForce(Term):
         self.has_viscosity = bool(np.any(self.visc_np > 0))
         self.even_fast_path = bool(np.all(self.eps_np == 0)) and self.a % 2 == 0 and self.b % 2 == 0
         self.mass, self.material, self.v, self.x = particles.mass, particles.material, particles.v, particles.x
+        # boiling: a particle's vapour share feels no attraction (compiled in only where a material boils)
+        self.boils = particles.heat and any(m.boils for m in materials)
+        self.phase, self.h = (model.phase, particles.h) if self.boils else (None, None)
 
     def words(self, where: str) -> list[str]:
         return [f"pair force (a={self.a:g}, b={self.b:g}, cutoff {self.cutoff:g})"] if where == "rates" else []
@@ -242,6 +245,10 @@ class PairForce(Term):
     def law(self, c, i, j, d, r2):
         """g(r) d per unit mass product for coefficients c (see coefficients), with the core cap: finite at any r."""
         alpha, beta, eps, rc, f_core = c[0], c[1], c[2], c[3], c[4]
+        if ti.static(self.boils):  # vapour does not stick: attraction only between the liquid shares
+            alpha *= (1.0 - self.phase.gas(self.h[i], self.material[i])) * (
+                1.0 - self.phase.gas(self.h[j], self.material[j])
+            )
         f = ti.Vector.zero(float, self.dim)
         if r2 >= rc * rc:
             g = 0.0

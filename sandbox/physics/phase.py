@@ -41,20 +41,37 @@ def melt_fraction_np(T: np.ndarray, solidus: np.ndarray, liquidus: np.ndarray) -
     return np.clip(ramp, 0.0, 1.0)
 
 
-def enthalpy_np(T, c, solidus, liquidus, latent) -> np.ndarray:
-    """Specific enthalpy h = c T + L phi(T) (heat per unit mass) of particles at temperature T (degrees)."""
-    return np.asarray(c) * T + np.asarray(latent) * melt_fraction_np(T, solidus, liquidus)
+def enthalpy_np(T, c, solidus, liquidus, latent, boil=np.inf, vapor=0.0) -> np.ndarray:
+    """Specific enthalpy h = c T + L phi(T) + L_v psi(T) (heat per unit mass) of particles at temperature T
+    (degrees); psi, the gas fraction, is a step at the boiling point (a particle set at it starts as liquid)."""
+    T = np.asarray(T, dtype=np.float64)
+    gas = np.where(T > np.asarray(boil), np.asarray(vapor, dtype=np.float64), 0.0)
+    return np.asarray(c) * T + np.asarray(latent) * melt_fraction_np(T, solidus, liquidus) + gas
 
 
-def temperature_np(h, c, solidus, liquidus, latent) -> tuple[np.ndarray, np.ndarray]:
+def gas_fraction_np(h, c, liquidus, latent, boil=np.inf, vapor=0.0) -> np.ndarray:
+    """psi in [0, 1] (NumPy twin of Phase.gas): the share of the vaporization heat taken above the enthalpy at which
+    the liquid reaches its boiling point."""
+    h = np.asarray(h, dtype=np.float64)
+    hb = np.asarray(c) * np.minimum(boil, 1e30) + np.asarray(latent)
+    vapor = np.asarray(vapor, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        psi = np.where(vapor > 0, (h - hb) / np.where(vapor > 0, vapor, 1.0), np.where(h > hb, 1.0, 0.0))
+    return np.clip(psi, 0.0, 1.0)
+
+
+def temperature_np(h, c, solidus, liquidus, latent, boil=np.inf, vapor=0.0) -> tuple[np.ndarray, np.ndarray]:
     """(T, phi) from specific enthalpy h (NumPy twin of Phase.state, for tests and initial states)."""
     h = np.asarray(h, dtype=np.float64)
+    boil, vapor = (np.broadcast_to(np.asarray(a, dtype=np.float64), h.shape) for a in (boil, vapor))
     c, ts, tl, lat = (np.broadcast_to(np.asarray(a, dtype=np.float64), h.shape) for a in (c, solidus, liquidus, latent))
     hs, hl = c * ts, c * tl + lat
     T = h / c
     phi = np.zeros_like(h)
     above = h >= hl
     T = np.where(above, (h - lat) / c, T)
+    hb = c * np.minimum(boil, 1e30) + lat  # the liquid at its boiling point
+    T = np.where(above & (h > hb), np.where(h < hb + vapor, boil, (h - lat - vapor) / c), T)
     phi = np.where(above, 1.0, phi)
     mushy = (h > hs) & ~above
     wide = mushy & (tl > ts)
@@ -68,14 +85,22 @@ def temperature_np(h, c, solidus, liquidus, latent) -> tuple[np.ndarray, np.ndar
     return T, phi
 
 
-ENTHALPY_LAW = ("specific_heat", "melt_temperature", "liquidus_temperature", "latent_heat")  # the law's arguments
+# the law's arguments (temperature_np and enthalpy_np take them in this order)
+ENTHALPY_LAW = (
+    "specific_heat",
+    "melt_temperature",
+    "liquidus_temperature",
+    "latent_heat",
+    "boil_temperature",
+    "vaporization_heat",
+)
 
 
 def initial_enthalpy(temperature: np.ndarray, material: np.ndarray, materials: list) -> tuple[np.ndarray, np.ndarray]:
     """(specific enthalpy, melt fraction) of particles at `temperature` (degrees) of `material` ids (into the
     `materials` records)."""
-    c, ts, tl, latent = (material_column(materials, material, name) for name in ENTHALPY_LAW)
-    return enthalpy_np(temperature, c, ts, tl, latent), melt_fraction_np(temperature, ts, tl)
+    c, ts, tl, latent, boil, vapor = (material_column(materials, material, name) for name in ENTHALPY_LAW)
+    return enthalpy_np(temperature, c, ts, tl, latent, boil, vapor), melt_fraction_np(temperature, ts, tl)
 
 
 @data_oriented
@@ -99,6 +124,10 @@ class Phase:
         elif h >= hl:
             t = (h - lat) / c
             phi = 1.0
+            hb = c * self.mats.boil[mat] + lat  # the liquid at its boiling point (never reached: boil = 1e30)
+            if h > hb:
+                lv = self.mats.vaporize[mat]
+                t = self.mats.boil[mat] if h < hb + lv else (h - lat - lv) / c
         elif tl > ts:
             t = ts + (h - hs) / (c + lat / (tl - ts))
             phi = (t - ts) / (tl - ts)
@@ -109,14 +138,30 @@ class Phase:
 
     @ti.func
     def enthalpy(self, t, mat):
-        """Specific enthalpy of material mat at temperature t."""
+        """Specific enthalpy of material mat at temperature t (liquid at the boiling point, gas above it)."""
         ts, tl = self.mats.melt[mat], self.mats.liquidus[mat]
         phi = 0.0
         if tl > ts:
             phi = ti.min(ti.max((t - ts) / (tl - ts), 0.0), 1.0)
         elif t > ts:
             phi = 1.0
-        return self.mats.specific_heat[mat] * t + self.mats.latent[mat] * phi
+        h = self.mats.specific_heat[mat] * t + self.mats.latent[mat] * phi
+        if t > self.mats.boil[mat]:
+            h += self.mats.vaporize[mat]
+        return h
+
+    @ti.func
+    def gas(self, h, mat):
+        """Gas fraction psi in [0, 1] of specific enthalpy h in material mat: the share of its vaporization heat
+        taken (0 for a material that never boils)."""
+        hb = self.mats.specific_heat[mat] * self.mats.boil[mat] + self.mats.latent[mat]
+        lv = self.mats.vaporize[mat]
+        psi = 0.0
+        if h > hb:
+            psi = 1.0
+            if lv > 0.0:
+                psi = ti.min((h - hb) / lv, 1.0)
+        return psi
 
     @ti.func
     def fraction(self, h, mat):

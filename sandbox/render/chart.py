@@ -18,7 +18,7 @@ from .text import GREY, dim, draw_text, line_height, text_width
 
 COLORS = ((255, 110, 70), (90, 170, 255), (130, 230, 100), (240, 215, 80))
 HISTORY = 4096  # samples kept; past it every other one is dropped and the sampling stride doubles
-FRACTIONS = ("molten_fraction",)  # drawn in percent on a fixed 0 to 100 scale
+FRACTIONS = ("molten_fraction", "gas_fraction")  # drawn in percent on a fixed 0 to 100 scale
 
 
 def nice_range(lo: float, hi: float) -> tuple[float, float]:

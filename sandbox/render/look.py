@@ -15,6 +15,8 @@ from ..core.oriented import data_oriented
 from .colormaps import speed_map, temperature_map
 from .style import BLEND, COLOR_MODES, DRAW
 
+VAPOUR_COLOR = (0.9, 0.9, 0.9)  # drawing by phase: a boiling material's vapour
+
 
 @data_oriented
 class Look:
@@ -51,6 +53,7 @@ class Look:
         t_lo, t_hi = cfg.temperature_range
         transfer.upload([(self.t_lo, t_lo), (self.t_hi, t_hi), (self.speed_hi, cfg.speed_range)])
         self.particle_scale = float(cfg.particle_scale)
+        self.boils = self.has_heat and any(m.boils for m in model.material_list)
 
     @ti.func
     def life_left(self, i):
@@ -103,4 +106,7 @@ class Look:
         elif ti.static(self.color_mode == 3 and self.has_heat):
             phi = self.model.phase.fraction(p.h[i], p.material[i])
             c = (1.0 - phi) * base + phi * self.model.materials.liquid_color[p.material[i]]
+            if ti.static(self.boils):  # vapour: pale grey, mixed in by the gas fraction
+                psi = self.model.phase.gas(p.h[i], p.material[i])
+                c = (1.0 - psi) * c + psi * ti.Vector(VAPOUR_COLOR)
         return c

@@ -8,6 +8,7 @@ import numpy as np
 from ..measure.units import speed_unit
 from .colormaps import SPEED_STOPS, TEMPERATURE_STOPS, ramp_np_many
 from .layout import Layout
+from .look import VAPOUR_COLOR
 from .text import GREY, dim, draw_text, line_height, text_width
 
 CLOCK_ROOM = "t = 000.00 s"  # the clock the left column keeps room for (longer runs' clocks run on to the right)
@@ -33,6 +34,8 @@ def swatches(model, color_by: str, has_heat: bool) -> list[tuple[str, tuple[floa
         for material_name, m in zip(names, materials):
             name = material_name.replace("_", " ")
             out += [(f"{name} solid", tuple(m.color)), (f"{name} melt", tuple(m.liquid_color))]
+            if m.boils:
+                out.append((f"{name} vapour", VAPOUR_COLOR))
         return out
     out, seen = [], set()
     for group in model.scene.groups:

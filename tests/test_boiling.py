@@ -1,0 +1,65 @@
+"""Boiling (issue 46, item 2): a liquid hot enough leaves as vapour. While it boils its temperature holds at the
+boiling point, as melting holds it at the melting point, for as long as the vaporization heat takes: L_v M / P at
+power P; the vapour feels no attraction, so with the thermostat it flies apart and fills its box."""
+
+import numpy as np
+import pytest
+
+import sandbox
+
+POWER = 400_000.0  # heat per second (mg kJ/kg per s = mJ/s) shared by mass among every particle
+
+
+def pot(power: float = POWER):
+    """400 water particles at 98 °C in a closed 30 x 30 box, heated at constant power everywhere, the motion coupled
+    to the temperature (so the vapour moves)."""
+    return sandbox.load(
+        {
+            "world": {"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.001, "substeps": 20},
+            "pair": {"a": 8.0, "b": 14.0, "cutoff": 2.5},
+            "heat": {
+                "ambient": 20.0,
+                "refreeze": False,
+                "agitation_time": 0.005,
+                "agitation_scale": 0.003,
+                "sources": [{"mode": "power", "power": power, "lo": [0, 0], "hi": [30, 30], "visible": False}],
+            },
+            "bodies": [
+                {"material": "ice", "shape": "box", "lo": [5, 0], "hi": [25, 20], "springs": False, "temperature": 98.0}
+            ],
+        }
+    )
+
+
+def test_boiling_holds_the_temperature_at_the_boiling_point_for_the_vaporization_heat():
+    sim = pot()
+    mass = float(sim.state.particles.mass.to_numpy()[: sim.model.built.count].sum())
+    rows = sim.run(160)
+    t, temperature, gas = (np.asarray(rows[k], float) for k in ("time", "mean_temperature", "gas_fraction"))
+    start, end = np.argmax(gas >= 0.05), np.argmax(gas >= 0.95)
+    assert 0 < start < end, (gas[0], gas[-1])
+    boiling = slice(start, end + 1)
+    assert temperature[boiling] == pytest.approx(100.0, abs=0.5)  # held at the boiling point
+    expected = 0.9 * 2257.0 * mass / POWER  # from 5% to 95% of the vaporization heat
+    assert t[end] - t[start] == pytest.approx(expected, rel=0.05)
+    assert temperature[-1] > 100.5  # all vapour: it warms again
+
+
+def test_vapour_fills_its_box_and_is_counted():
+    sim = pot()
+    sim.run(160)
+    x = sim.positions()
+    assert sim.stats().gas_fraction == pytest.approx(1.0)
+    assert x[:, 1].max() > 25.0 and x[:, 1].mean() > 10.0  # the liquid sat below 20; the vapour rises through the box
+    liquid = sandbox.load("ice_cube")
+    assert liquid.stats().gas_fraction == 0.0
+    # drawn by phase, vapour is the legend's "ice vapour" colour
+    from sandbox.render.look import VAPOUR_COLOR
+    from sandbox.render.raster import Renderer
+
+    ren = Renderer(sim.model, sim.state, 320, 320, sim.scene.render.__class__(color_by="phase", title=False))
+    img = ren.frame().astype(int)
+    centres = ren.plan.pixels(sim.state.particles.x.to_numpy()[: int(sim.state.particles.n[None])])
+    under = np.array([img[int(r), int(c)] for c, r in centres if 0 <= r < 320 and 0 <= c < 320])
+    vapour = np.round(np.asarray(VAPOUR_COLOR) * 255)
+    assert (np.abs(under - vapour).max(axis=1) <= 3).mean() > 0.8
