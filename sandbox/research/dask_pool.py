@@ -9,6 +9,7 @@ process runs each job with the threads its share of the cores allows; each job s
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 from collections.abc import Iterator
 
@@ -81,7 +82,19 @@ def dask_client(scheduler: str, workers: int, option: str = "--scheduler"):
             raise SandboxError(f"{option} {scheduler}: no Dask scheduler answered ({exc})") from exc
     try:
         yield client
+    except BaseException:
+        # Stopping on Ctrl-C, a signal or an error: the workers exit with the process group, and closing the cluster
+        # then cancels the nannies' own close, which Dask logs as an ERROR with a traceback. That is shutdown noise,
+        # not the user's news (the caller says in one line what stopped and what was kept).
+        quiet_dask_logs()
+        raise
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def quiet_dask_logs() -> None:
+    """Only Dask's critical log lines from now on (every logger under "distributed")."""
+    for name in [n for n in logging.root.manager.loggerDict if n.startswith("distributed")] + ["distributed"]:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
