@@ -129,7 +129,7 @@ def test_good_scene_loads_with_defaults(scene_file):
         ),
         (GOOD + '\n[[fields]]\nkind = "vortex"\n', "fields[0].center", "missing"),
         (GOOD + '\n[[fields]]\nkind = "tornado"\n', "fields[0].kind", "expected one of"),
-        (GOOD + '\n[render]\nchart = ["temprature"]\n', "render.chart", "unknown series"),
+        (GOOD + '\n[render]\nchart = ["gas_fractio"]\n', "render.chart", "did you mean 'gas_fraction'?"),
     ],
 )
 def test_bad_scene_names_file_key_and_expectation(scene_file, text, key, expectation):

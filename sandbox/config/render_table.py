@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .arguments import MAX_FRAMES, MAX_SIDE
-from .schema import between, non_negative, one_of, positive, spec, unit_interval
+from .schema import between, non_negative, one_of, positive, spec, unit_interval, unknown
 
 COLOR_BY = ("temperature", "material", "speed", "phase")
 CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
@@ -83,12 +83,5 @@ class Render:
         doc="measurements to plot against time in a corner (window and video), e.g. "
         '["mean_temperature", "molten_fraction"]; one of: ' + ", ".join(CHART_SERIES),
         factory=list,
-        check=lambda names: next(
-            (
-                f"unknown series {n!r}; expected one of: {', '.join(CHART_SERIES)}"
-                for n in names
-                if n not in CHART_SERIES
-            ),
-            None,
-        ),
+        check=lambda names: next((unknown("series", n, CHART_SERIES) for n in names if n not in CHART_SERIES), None),
     )
