@@ -8,6 +8,7 @@ import pytest
 
 from sandbox.config.scene import load_scene
 from sandbox.render.chart import COLORS, Chart, nice_range
+from sandbox.render.plan import plan_picture
 from sandbox.render.raster import Renderer
 from sandbox.render.text import GREY, LIGHT, draw_text, font, line_height, text_size, text_width
 from sandbox.render.video import read_png
@@ -54,22 +55,23 @@ def test_the_scene_is_framed_below_the_band_and_nothing_written_covers_it(scene,
     band, inside the picture, and apart from each other."""
     sim = Simulation(load_scene(SCENES / f"{scene}.toml"))
     sim.run(5)
-    ren = Renderer(sim.model, sim.state, *size, sim.scene.render)
+    plan = plan_picture(sim.model, sim.state, *size, sim.scene.render)  # what the renderer draws by
     w, h = size
-    band = ren.layout.band
-    view = ren.painter
+    band = plan.layout.band
     n = int(sim.state.particles.n[None])
-    radius = sim.state.particles.radius.to_numpy()[:n] * view.px_per_unit
-    centres = sim.state.particles.x.to_numpy()[:n] * view.px_per_unit + np.asarray(view.offset.to_list())
-    rows = h - centres[:, 1]
+    radius = sim.state.particles.radius.to_numpy()[:n] * plan.view[0]
+    centres = plan.pixels(sim.state.particles.x.to_numpy()[:n])
+    rows = centres[:, 1]
     assert (rows - radius >= band - 1).all() and (rows + radius <= h + 1).all()
     assert (centres[:, 0] - radius >= -1).all() and (centres[:, 0] + radius <= w + 1).all()
-    rects = ren.overlays.rects() + [p.drawn_rect() for p in ren.plots() if p.fits]
+    rects = plan.overlays.rects()
+    if sim.scene.render.chart:
+        chart = Chart(tuple(sim.scene.render.chart), plan.chart_rect(), plan.layout.size, sim.model.material_names)
+        assert chart.fits  # the scene's chart has room in the band at each size
+        rects.append(chart.drawn_rect())
     for k, r in enumerate(rects):
         assert 0 <= r[0] < r[1] <= w and 0 <= r[2] < r[3] <= band, r
         assert all(disjoint(r, other) for other in rects[k + 1 :])
-    if sim.scene.render.chart:
-        assert ren.chart.fits  # the scene's chart has room in the band at each size
 
 
 def test_the_content_fills_the_frame_it_is_given():

@@ -25,6 +25,11 @@ class PicturePlan:
     view_box: tuple[np.ndarray, np.ndarray]
     view: tuple[float, np.ndarray] | None
 
+    def chart_rect(self) -> tuple[int, int, int, int]:
+        """(x0, x1, row0, row1): the band between the title's column and the legend that the charts share."""
+        right = self.overlays.legend_rect()[0] if self.overlays.legend_shown() else self.layout.width
+        return self.layout.chart_rect(self.overlays.left_end(), right)
+
     def pixels(self, x: np.ndarray) -> np.ndarray:
         """2D: the picture points (columns, rows from the top) of world positions x, (N, 2)."""
         scale, offset = self.view

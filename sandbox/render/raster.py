@@ -228,8 +228,7 @@ class Renderer:
 
     def chart_rect(self) -> tuple[int, int, int, int]:
         """(x0, x1, row0, row1): the band between the title's column and the legend that the charts share."""
-        right = self.overlays.legend_rect()[0] if self.overlays.legend_shown() else self.width
-        return self.layout.chart_rect(self.overlays.left_end(), right)
+        return self.plan.chart_rect()
 
     def _place_plots(self) -> None:
         """Share the chart band among the plots shown (side by side), then redraw their rectangles each frame."""
