@@ -70,6 +70,7 @@ class Agitation(Term):
         pair = parts.scene.pair
         self.reach = float(pair.cutoff) if pair is not None else 0.0
         self.flow = ti.Vector.field(self.dim, float, shape=parts.model.capacity)  # local flow velocity, scratch
+        self.is_free = ti.field(ti.i32, shape=parts.model.capacity)  # free() of each particle, for the flow's scan
         self.moved = ti.field(ti.f64, shape=())  # energy given to the motion so far (pJ; taken from the heat)
 
     def words(self, where: str) -> list[str]:
@@ -81,7 +82,7 @@ class Agitation(Term):
         ]
 
     def nbytes(self) -> int:
-        return self.flow.shape[0] * self.dim * 8
+        return self.flow.shape[0] * (self.dim * 8 + 4)
 
     def after_step(self, state) -> None:
         """One thermostat step over the step just taken: the local flow, then each free particle's new velocity."""
@@ -113,8 +114,10 @@ class Agitation(Term):
 
     @ti.kernel
     def _flow_near(self, grid: ti.template()):
+        for i in range(self.p.n[None]):  # once per particle, not once per pair the scan visits
+            self.is_free[i] = int(self.free(i))
         for i in range(self.p.n[None]):
-            if self.free(i):
+            if self.is_free[i]:
                 acc = grid.fold(self.p.x[i], ti.Vector.zero(float, self.dim + 1), self._add_flow, (i,), False, 0)
                 self.flow[i] = ti.Vector([acc[k] for k in ti.static(range(self.dim))]) / acc[self.dim]
 
@@ -122,7 +125,7 @@ class Agitation(Term):
     def _add_flow(self, acc, j, d, k, extra: ti.template()):
         """acc + w (v_j, 1) for free neighbour j within the reach, w = 1 - r / reach (i itself: w = 1)."""
         r = d.norm()
-        if r < self.reach and self.free(j):
+        if r < self.reach and self.is_free[j]:
             w = 1.0 - r / self.reach
             for a in ti.static(range(self.dim)):
                 acc[a] += w * self.p.v[j][a]

@@ -8,12 +8,14 @@ axis labelled in seconds, and each series' latest value in its colour.
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
 from PIL import Image, ImageDraw
 
 from ..measure.units import length_unit, series_words
+from .layout import side_by_side
 from .text import GREY, dim, draw_text, line_height, text_width
 
 COLORS = ((255, 110, 70), (90, 170, 255), (130, 230, 100), (240, 215, 80))
@@ -53,6 +55,24 @@ def value_text(value: float, unit: str) -> str:
     if unit == "%":
         return f"{value:.0f}"
     return f"{value:.3g}"
+
+
+@contextlib.contextmanager
+def pen_on(img: np.ndarray, box: tuple[int, int, int, int]):
+    """A Pillow pen on the plot box (x0, x1, row0, row1; rows from the top) of an (H, W, 3) uint8 image, with the
+    box's width and height: yields (pen, w, h) in coordinates relative to the box; what it draws is copied back."""
+    bx0, bx1, br0, br1 = box
+    crop = img[br0 : br1 + 1, bx0 : bx1 + 1]
+    picture = Image.fromarray(np.ascontiguousarray(crop))
+    yield ImageDraw.Draw(picture), bx1 - bx0, br1 - br0
+    crop[:] = np.asarray(picture)
+
+
+def value_ticks(img: np.ndarray, box: tuple[int, int, int, int], texts: tuple[str, str, str], size: int) -> None:
+    """The value axis's labels (top, middle, bottom) right-aligned left of the plot box."""
+    bx0, _, br0, br1 = box
+    for text, row in zip(texts, (br0, (br0 + br1) // 2, br1)):
+        draw_text(img, text, bx0 - 6 - text_width(text, size), row - line_height(size) // 2, size, GREY)
 
 
 class Panel:
@@ -117,10 +137,7 @@ class Chart:
 
     def panel_rects(self) -> list[tuple[int, int, int, int]]:
         """Each panel's rectangle within the chart's, side by side."""
-        x0, x1, r0, r1 = self.rect
-        gap = self.size
-        w = (x1 - x0 - gap * (len(self.panels) - 1)) // len(self.panels)
-        return [(x0 + k * (w + gap), x0 + k * (w + gap) + w, r0, r1) for k in range(len(self.panels))]
+        return side_by_side(self.rect, len(self.panels), self.size)
 
     def data_range(self, panel: Panel) -> tuple[float, float]:
         """The value axis of `panel`: fixed (percent) or the nice range of its series so far."""
@@ -161,26 +178,22 @@ class Chart:
             self.draw_panel(img, panel, rect)
 
     def draw_panel(self, img: np.ndarray, panel: Panel, rect: tuple[int, int, int, int]) -> None:
-        size, lh = self.size, line_height(self.size)
+        size = self.size
         dim(img, rect, 0.3)
         lo, hi = self.data_range(panel)
         box = bx0, bx1, br0, br1 = self.plot_box(rect, lo, hi)
-        crop = img[br0 : br1 + 1, bx0 : bx1 + 1]
-        picture = Image.fromarray(np.ascontiguousarray(crop))
-        pen = ImageDraw.Draw(picture)
-        w, h = bx1 - bx0, br1 - br0
-        for frac in (0.25, 0.5, 0.75):  # light grid lines at the ticks
-            pen.line([(0, round(h * frac)), (w, round(h * frac))], fill=(70, 70, 70))
-            pen.line([(round(w * frac), 0), (round(w * frac), h)], fill=(70, 70, 70))
-        pen.rectangle([0, 0, w, h], outline=(160, 160, 160))
-        for k in panel.names:
-            points = [(x - bx0, r - br0) for x, r in self.xy(panel, k, box)]
-            color = COLORS[k % len(COLORS)]
-            if len(points) > 1:
-                pen.line(points, fill=color, width=max(2, size // 8), joint="curve")
-            elif points:
-                pen.ellipse([points[0][0] - 2, points[0][1] - 2, points[0][0] + 2, points[0][1] + 2], fill=color)
-        crop[:] = np.asarray(picture)
+        with pen_on(img, box) as (pen, w, h):
+            for frac in (0.25, 0.5, 0.75):  # light grid lines at the ticks
+                pen.line([(0, round(h * frac)), (w, round(h * frac))], fill=(70, 70, 70))
+                pen.line([(round(w * frac), 0), (round(w * frac), h)], fill=(70, 70, 70))
+            pen.rectangle([0, 0, w, h], outline=(160, 160, 160))
+            for k in panel.names:
+                points = [(x - bx0, r - br0) for x, r in self.xy(panel, k, box)]
+                color = COLORS[k % len(COLORS)]
+                if len(points) > 1:
+                    pen.line(points, fill=color, width=max(2, size // 8), joint="curve")
+                elif points:
+                    pen.ellipse([points[0][0] - 2, points[0][1] - 2, points[0][0] + 2, points[0][1] + 2], fill=color)
         # the title: each series in its colour with its latest value, then the unit; the words shortened, then
         # left out, where the panel is too narrow for them
         latest = [next((v for v in reversed(self.history[k]) if math.isfinite(v)), math.nan) for k in panel.names]
@@ -194,9 +207,7 @@ class Chart:
             draw_text(img, text, x, rect[2], size, COLORS[k % len(COLORS)])
             x += text_width(text + "   ", size)
         draw_text(img, unit, x, rect[2], size, GREY)
-        for v, row in ((hi, br0), (0.5 * (lo + hi), (br0 + br1) // 2), (lo, br1)):
-            text = tick_text(v)
-            draw_text(img, text, bx0 - 6 - text_width(text, size), row - lh // 2, size, GREY)
+        value_ticks(img, box, (tick_text(hi), tick_text(0.5 * (lo + hi)), tick_text(lo)), size)
         t_end = self.times[-1]
         middle_fits = text_width(tick_text(t_end) + " s  " + tick_text(t_end / 2), size) < w / 2
         for frac in (0.0, 0.5, 1.0) if middle_fits else (0.0, 1.0):
@@ -228,24 +239,18 @@ class CurvePlot(Chart):
         if not self.fits or not len(self.force):
             return
         rect = self.rect
-        size, lh = self.size, line_height(self.size)
+        size = self.size
         top = max(float(np.max(self.force)), 1e-12) * 3.0  # the force at the top of the box (the bottom is minus it)
         dim(img, rect, 0.3)
-        bx0, bx1, br0, br1 = self.plot_box(rect, -top, top)
-        crop = img[br0 : br1 + 1, bx0 : bx1 + 1]
-        picture = Image.fromarray(np.ascontiguousarray(crop))
-        pen = ImageDraw.Draw(picture)
-        w, h = bx1 - bx0, br1 - br0
-        pen.rectangle([0, 0, w, h], outline=(160, 160, 160))
-        pen.line([(0, h // 2), (w, h // 2)], fill=(110, 110, 110))
-        xs = (self.r - self.r[0]) / max(self.r[-1] - self.r[0], 1e-12) * w
-        rows = h / 2 - np.clip(self.force / top, -1.0, 1.0) * h / 2
-        pen.line(list(zip(xs.tolist(), rows.tolist())), fill=COLORS[0], width=2)
-        crop[:] = np.asarray(picture)
+        box = bx0, bx1, br0, br1 = self.plot_box(rect, -top, top)
+        with pen_on(img, box) as (pen, w, h):
+            pen.rectangle([0, 0, w, h], outline=(160, 160, 160))
+            pen.line([(0, h // 2), (w, h // 2)], fill=(110, 110, 110))
+            xs = (self.r - self.r[0]) / max(self.r[-1] - self.r[0], 1e-12) * w
+            rows = h / 2 - np.clip(self.force / top, -1.0, 1.0) * h / 2
+            pen.line(list(zip(xs.tolist(), rows.tolist())), fill=COLORS[0], width=2)
         draw_text(img, "pair force (+ attracts)", rect[0] + 2, rect[2], size, COLORS[0])
-        for v, row in ((top, br0), (0.0, (br0 + br1) // 2), (-top, br1)):
-            text = f"{v:.2g}"
-            draw_text(img, text, bx0 - 6 - text_width(text, size), row - lh // 2, size, GREY)
+        value_ticks(img, box, (f"{top:.2g}", f"{0.0:.2g}", f"{-top:.2g}"), size)
         draw_text(img, f"{self.r[0]:.2g}", bx0, br1 + 3, size, GREY)
         end = f"distance {self.r[-1]:.2g} {self.length}"
         draw_text(img, end, bx1 - text_width(end, size), br1 + 3, size, GREY)

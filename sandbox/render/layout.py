@@ -47,6 +47,18 @@ class Layout:
         return left + self.margin, right - self.margin, self.margin, self.band - self.margin // 2
 
 
+def side_by_side(rect: tuple[int, int, int, int], count: int, gap: int) -> list[tuple[int, int, int, int]]:
+    """`count` rectangles of equal width, `gap` pixels apart, sharing rect (x0, x1, row0, row1) from left to right."""
+    x0, x1, r0, r1 = rect
+    w = (x1 - x0 - gap * (count - 1)) // max(count, 1)
+    return [(x0 + k * (w + gap), x0 + k * (w + gap) + w, r0, r1) for k in range(count)]
+
+
+def title_size(size: int) -> int:
+    """The title's font size for text of font size `size` (a fifth larger)."""
+    return round(size * 1.2)
+
+
 def make_layout(
     width: int, height: int, panel_px: int, text_lines: int, legend: int, charts: bool, text_scale: float = 1.0
 ) -> Layout:
@@ -54,7 +66,7 @@ def make_layout(
     tall and charts, as asked, with text `text_scale` times the default size; with none of them the band is empty
     and the scene has the whole picture."""
     size = max(11, round(text_size(height) * text_scale))
-    rows = max(text_lines * line_height(round(size * 1.2)), legend)
+    rows = max(text_lines * line_height(title_size(size)), legend)
     if charts:
         rows = max(rows, 6 * line_height(size), round(0.26 * height))
     margin = size // 2 + 4

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..measure.units import speed_unit
 from .colormaps import SPEED_STOPS, TEMPERATURE_STOPS, ramp_np_many
-from .layout import Layout
+from .layout import Layout, title_size
 from .look import VAPOUR_COLOR
 from .text import GREY, dim, draw_text, line_height, text_width
 
@@ -78,7 +78,7 @@ class Overlays:
         """The pixel column where the title and clock end (the panel's edge plus a margin when there are none)."""
         size = self.layout.size
         x, _ = self.layout.text_origin()
-        widths = ([text_width(self.title, round(size * 1.2))] if self.title else []) + (
+        widths = ([text_width(self.title, title_size(size))] if self.title else []) + (
             [text_width(CLOCK_ROOM, size)] if self.cfg.clock else []
         )
         return x + max(widths, default=0)
@@ -87,9 +87,8 @@ class Overlays:
         """(x0, x1, row0, row1): the pixels the legend draws on (none: an empty rectangle at the right edge)."""
         m, size, w = self.layout.margin, self.layout.size, self.width
         if self.kind == "bar":
-            bar_w = min(max(120, w // 6), w // 3)
             caption = text_width(self.caption(), size)
-            return w - m - max(bar_w, caption), w - m + 1, m, m + 2 * line_height(size) + size + 5
+            return w - m - max(self.bar_width(), caption), w - m + 1, m, m + 2 * line_height(size) + size + 5
         if self.kind == "swatches":
             rows = self._swatch_rows()
             width = max((sum(self._swatch_width(e) for e in row) for row in rows), default=0)
@@ -105,7 +104,7 @@ class Overlays:
         """(x0, x1, row0, row1) of each item shown: pixels, rows counted from the top."""
         x, row = self.layout.text_origin()
         lines = int(bool(self.title)) + int(bool(self.cfg.clock))
-        text = [(x - 4, self.left_end() + 4, row - 4, row + lines * line_height(round(self.layout.size * 1.2)) + 4)]
+        text = [(x - 4, self.left_end() + 4, row - 4, row + lines * line_height(title_size(self.layout.size)) + 4)]
         return (text if lines else []) + ([self.legend_rect()] if self.legend_shown() else [])
 
     # ------------------------------------------------------------------ drawing
@@ -114,8 +113,8 @@ class Overlays:
         size = self.layout.size
         x, row = self.layout.text_origin()
         if self.title:
-            draw_text(img, self.title, x, row, round(size * 1.2))
-            row += line_height(round(size * 1.2))
+            draw_text(img, self.title, x, row, title_size(size))
+            row += line_height(title_size(size))
         if self.cfg.clock:
             draw_text(img, f"t = {self.state.time:.2f} s", x, row, size)
         if self.legend_shown():
@@ -128,9 +127,12 @@ class Overlays:
     def bar_geometry(self) -> tuple[int, int, int, int]:
         """(x0, row0, width, height) of the colour bar's coloured pixels."""
         _, x1, r0, _ = self.legend_rect()
-        size, w = self.layout.size, self.width
-        bar_w = min(max(120, w // 6), w // 3)
+        size, bar_w = self.layout.size, self.bar_width()
         return x1 - 1 - bar_w, r0 + line_height(size) + 3, bar_w, max(6, round(0.8 * size))
+
+    def bar_width(self) -> int:
+        """Pixels across the colour bar: a sixth of the picture, at least 120, at most a third."""
+        return min(max(120, self.width // 6), self.width // 3)
 
     def caption(self) -> str:
         """The colour bar's caption: "temperature (°C)"."""

@@ -27,14 +27,20 @@ class PicturePlan:
 
     def chart_rect(self) -> tuple[int, int, int, int]:
         """(x0, x1, row0, row1): the band between the title's column and the legend that the charts share."""
-        right = self.overlays.legend_rect()[0] if self.overlays.legend_shown() else self.layout.width
-        return self.layout.chart_rect(self.overlays.left_end(), right)
+        return chart_band(self.overlays)
 
     def pixels(self, x: np.ndarray) -> np.ndarray:
         """2D: the picture points (columns, rows from the top) of world positions x, (N, 2)."""
         scale, offset = self.view
         p = np.asarray(x, float) * scale + offset
         return np.stack([p[:, 0], self.layout.height - p[:, 1]], axis=1)
+
+
+def chart_band(overlays: Overlays) -> tuple[int, int, int, int]:
+    """(x0, x1, row0, row1) of `overlays`' layout between the title's column and the legend (the picture's right
+    edge where no legend is shown): where the charts go."""
+    right = overlays.legend_rect()[0] if overlays.legend_shown() else overlays.layout.width
+    return overlays.layout.chart_rect(overlays.left_end(), right)
 
 
 def plan_picture(model, state, width: int, height: int, cfg, panel_px: int = 0, room_for_charts: bool = False):
@@ -46,7 +52,7 @@ def plan_picture(model, state, width: int, height: int, cfg, panel_px: int = 0, 
     lines = int(bool(overlays.title)) + int(bool(cfg.clock))
     charts = (bool(cfg.chart) or room_for_charts) and height >= MIN_CHART_HEIGHT
     if cfg.chart and not room_for_charts:  # no band for a chart the picture is too narrow to hold
-        band = overlays.layout.chart_rect(overlays.left_end(), overlays.legend_rect()[0])
+        band = chart_band(overlays)
         room = (band[0], band[1], 0, height // 2)
         charts = charts and Chart(tuple(cfg.chart), room, overlays.layout.size, model.material_names).fits
     layout = make_layout(width, height, panel_px, lines, overlays.legend_height(), charts, scale)

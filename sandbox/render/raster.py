@@ -21,6 +21,7 @@ from .canvas import Canvas
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
 from .footprint import Footprint
+from .layout import side_by_side
 from .look import Look
 from .plan import plan_picture
 from .spheres import Spheres3D
@@ -233,11 +234,8 @@ class Renderer:
     def _place_plots(self) -> None:
         """Share the chart band among the plots shown (side by side), then redraw their rectangles each frame."""
         plots = self.plots()
-        x0, x1, r0, r1 = self.chart_rect()
-        gap = self.layout.size
-        w = (x1 - x0 - gap * (len(plots) - 1)) // max(len(plots), 1)
-        for k, plot in enumerate(plots):
-            plot.place((x0 + k * (w + gap), x0 + k * (w + gap) + w, r0, r1))
+        for plot, rect in zip(plots, side_by_side(self.chart_rect(), len(plots), self.layout.size)):
+            plot.place(rect)
         self._overlays_changed()
 
     def legend_colors(self, n: int) -> np.ndarray:
