@@ -80,6 +80,8 @@ def picture(sim, width: int | None = None, height: int | None = None, **render) 
         renderer = Renderer(sim.model, sim.state, size[0], size[1], cfg, output="picture")
         sim.state.carry(renderer.tails)
         cached = sim._picture_renderer = (key, renderer)
+    if cached[1].plots():
+        cached[1].record(sim.stats())  # the charts and the phase diagram's dot show this moment
     return np.array(cached[1].frame(), copy=True)
 
 

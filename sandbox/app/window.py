@@ -155,10 +155,9 @@ def run_window(
         if view_config(cfg, state) != view or resized:  # a renderer built for it (its kernels are specialised)
             view = view_config(cfg, state)
             sim.state.drop(renderer.tails)
-            old_chart = renderer.chart
+            old = renderer
             renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH, room_for_charts=True)
-            if renderer.chart is not None and old_chart is not None:
-                renderer.chart.adopt(old_chart)  # the scene's chart keeps its history
+            renderer.adopt_plots(old)  # the scene's charts keep their history
             sim.state.carry(renderer.tails)
             if orbit is not None:
                 renderer.set_camera(orbit.eye(), orbit.target, renderer.painter.fov)

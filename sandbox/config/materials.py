@@ -68,6 +68,11 @@ class Material:
         doc="heat per unit mass that boiling absorbs and condensing releases (specific enthalpy)",
         check=non_negative,
     )
+    molar_mass: float | None = spec(
+        None,
+        doc="g/mol, for the phase diagram's vapour-pressure curve (Clausius-Clapeyron); unset: Trouton's rule",
+        check=positive,
+    )
     stiffness_at_melt: float = spec(
         0.2,
         doc="fraction of the bond stiffness left when the solid reaches melt_temperature (softening is linear from "

@@ -19,7 +19,11 @@ CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
     "potential_energy",
     "total_energy",
     "max_speed",
+    "pressure",
+    "wall_pressure",
+    "phase_diagram",  # not a measurement: the phase diagram's panel with the state's dot (render/phase_plot.py)
 )
+PHASE_DIAGRAM = "phase_diagram"
 
 
 def _view(box: tuple[float, ...]) -> str | None:

@@ -45,11 +45,14 @@ SERIES = {
     "potential_energy": ("potential energy", "energy"),
     "total_energy": ("total energy", "energy"),
     "max_speed": ("fastest particle", "speed"),
+    "pressure": ("pressure", "pressure"),
+    "wall_pressure": ("pressure on the walls", "pressure"),
+    "phase_diagram": ("phase diagram", ""),
 }
 
 
-def series_words(name: str, material_names) -> tuple[str, str]:
-    """(words, unit) of the measurement `name` for a scene of these materials."""
+def series_words(name: str, material_names, dim: int = 2) -> tuple[str, str]:
+    """(words, unit) of the measurement `name` for a `dim`-D scene of these materials."""
     words, unit = SERIES.get(name, (name.replace("_", " "), ""))
     if unit == "energy":
         unit = energy_unit(material_names)
@@ -57,4 +60,6 @@ def series_words(name: str, material_names) -> tuple[str, str]:
         unit = "eps" if reduced(material_names) else "mJ"
     elif unit == "speed":
         unit = speed_unit(material_names)
+    elif unit == "pressure":
+        unit = pressure_unit(material_names, dim)
     return words, unit

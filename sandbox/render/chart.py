@@ -85,12 +85,12 @@ class Panel:
 class Chart:
     """Measurements of `series` (Stats field names) against time, in the picture rectangle `rect` (x0, x1, row0,
     row1; rows from the top) at font size `size`; record() each frame, label() draws it on an (H, W, 3) frame.
-    `material_names` choose the units (measure/units.py)."""
+    `material_names` and `dim` choose the units (measure/units.py)."""
 
-    def __init__(self, series: tuple[str, ...], rect: tuple[int, int, int, int], size: int, material_names=()):
+    def __init__(self, series: tuple[str, ...], rect: tuple[int, int, int, int], size: int, material_names=(), dim=2):
         self.series = tuple(series)
         self.size = size
-        self.words = [series_words(name, material_names) for name in self.series]
+        self.words = [series_words(name, material_names, dim) for name in self.series]
         by_unit: dict[str, list[int]] = {}
         for k, (_, unit) in enumerate(self.words):
             by_unit.setdefault(unit, []).append(k)

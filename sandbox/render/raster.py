@@ -13,16 +13,21 @@ renderer holds no simulation and follows nothing inside it: its motion-blur tail
 that whoever pairs it with a state attaches there (`state.carry(renderer.tails)`), so they move with the particles.
 """
 
+from __future__ import annotations
+
 import numpy as np
 
+from ..config.render_table import PHASE_DIAGRAM
 from ..core import transfer
 from ..core.taichi_compat import field_info
+from ..measure.phase_map import phase_map_of
 from .canvas import Canvas
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
 from .footprint import Footprint
 from .layout import side_by_side
 from .look import Look
+from .phase_plot import PhasePlot
 from .plan import plan_picture
 from .spheres import Spheres3D
 
@@ -73,8 +78,8 @@ class Renderer:
             self.brush: tuple[float, float, float] | None = None  # see set_brush
             self.chart = None
             self.potential = None  # the window's potential panel (a CurvePlot), when shown
-            if render_cfg.chart:
-                self.chart = Chart(tuple(render_cfg.chart), self.chart_rect(), self.layout.size, model.material_names)
+            self.phase_plot = None  # the phase diagram (render.chart names "phase_diagram")
+            self.set_chart(tuple(render_cfg.chart), place=False)
         self.full_refresh = True
         if self.dim == 2:
             self.refresh_backdrop()
@@ -215,27 +220,48 @@ class Renderer:
 
     def record(self, stats) -> None:
         """Give the chart (if the scene has one) this frame's measurements."""
-        if self.chart is not None:
-            self.chart.record(stats)
+        for plot in (self.chart, self.phase_plot):
+            if plot is not None:
+                plot.record(stats)
 
-    def set_chart(self, series: tuple[str, ...]) -> None:
-        """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh."""
-        self.chart = Chart(tuple(series), (0, 0, 0, 0), self.layout.size, self.model.material_names) if series else None
-        self._place_plots()
+    def set_chart(self, series: tuple[str, ...], place: bool = True) -> None:
+        """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh. The
+        series "phase_diagram" is the phase diagram's panel (render/phase_plot.py)."""
+        model, size = self.model, self.layout.size
+        measured = tuple(name for name in series if name != PHASE_DIAGRAM)
+        self.chart = Chart(measured, (0, 0, 0, 0), size, model.material_names, model.dim) if measured else None
+        phase_map = phase_map_of(model) if PHASE_DIAGRAM in series else None
+        self.phase_plot = None
+        if phase_map is not None:
+            self.phase_plot = PhasePlot(phase_map, (0, 0, 0, 0), size, model.material_names, model.dim)
+        if place:
+            self._place_plots()
+        else:
+            self._share_band()
+
+    def adopt_plots(self, other: Renderer) -> None:
+        """Take over the charts' history from `other` (the renderer this one replaces at a new size)."""
+        for mine, theirs in ((self.chart, other.chart), (self.phase_plot, other.phase_plot)):
+            if mine is not None and theirs is not None:
+                mine.adopt(theirs)
 
     def plots(self) -> list:
-        """The charts shown: the measurements' and the pair-force panel."""
-        return [plot for plot in (self.chart, self.potential) if plot is not None]
+        """The charts shown: the measurements', the phase diagram and the pair-force panel."""
+        return [plot for plot in (self.chart, self.phase_plot, self.potential) if plot is not None]
 
     def chart_rect(self) -> tuple[int, int, int, int]:
         """(x0, x1, row0, row1): the band between the title's column and the legend that the charts share."""
         return self.plan.chart_rect()
 
-    def _place_plots(self) -> None:
-        """Share the chart band among the plots shown (side by side), then redraw their rectangles each frame."""
+    def _share_band(self) -> None:
+        """Share the chart band among the plots shown, side by side."""
         plots = self.plots()
         for plot, rect in zip(plots, side_by_side(self.chart_rect(), len(plots), self.layout.size)):
             plot.place(rect)
+
+    def _place_plots(self) -> None:
+        """Share the chart band among the plots shown, then redraw their rectangles each frame."""
+        self._share_band()
         self._overlays_changed()
 
     def legend_colors(self, n: int) -> np.ndarray:
