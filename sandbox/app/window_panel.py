@@ -86,6 +86,20 @@ def readouts(gui, chars: int, sim, state: WindowState, stats, fps: float) -> Non
     say(gui, chars, f"integrator {state.integrator} (i)   {pace_text(state)}")
 
 
+def source_sliders(gui, sources, most: int = 2) -> None:
+    """A slider for each of the first `most` heat sources: its temperature, or its power (positive heats, negative
+    cools); moving one takes the source over from its schedule."""
+    for k, src in enumerate(sources.specs[:most]):
+        now = sources.value(k)
+        if src.mode == "power":
+            top = 2.0 * max([abs(src.power), *map(abs, src.schedule_values)]) or 1.0
+            value = gui.slider_float(f"{src.name} (mJ/s)", now, -top, top)
+        else:
+            value = gui.slider_float(f"{src.name} C", now, -100.0, 1500.0)
+        if value != now:
+            sources.hold(k, value)
+
+
 def controls(gui, chars: int, sim, state: WindowState) -> None:
     """Tools, run controls and settings: one widget per row (GGUI's panel has no rows of several)."""
     if state.tools_available:
@@ -106,6 +120,7 @@ def controls(gui, chars: int, sim, state: WindowState) -> None:
     if sim.terms.heat is not None:
         sources = sim.terms.heat.sources
         sources.ambient[None] = gui.slider_float("air C", float(sources.ambient[None]), -50.0, 300.0)
+        source_sliders(gui, sources)
     if sim.scene.world.substeps != "auto":
         state.dt_scale = gui.slider_float("time step x", state.dt_scale, 0.1, 2.0)
         stable = f", springs stable below {state.stable_dt:.2g} s" if sim.state.springs else ""

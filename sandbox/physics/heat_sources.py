@@ -49,6 +49,7 @@ class HeatSources:
             ]
         )
         self._values: list[float | None] = values  # the values last written to src_value
+        self.held: set[int] = set()  # sources set by hand (the window's sliders): their schedules no longer apply
 
     @property
     def scheduled(self) -> bool:
@@ -57,10 +58,22 @@ class HeatSources:
     def set_time(self, t: float) -> None:
         """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""
         for k, src in enumerate(self.specs):
-            value = source_value(src, t)
-            if value != self._values[k]:
-                self.src_value[k] = value
-                self._values[k] = value
+            if k not in self.held:
+                self._write(k, source_value(src, t))
+
+    def value(self, k: int) -> float:
+        """Source k's temperature (degrees) or power (heat / time) now."""
+        return float(self._values[k])
+
+    def hold(self, k: int, value: float) -> None:
+        """Set source k's temperature or power by hand; its schedule no longer applies."""
+        self.held.add(k)
+        self._write(k, float(value))
+
+    def _write(self, k: int, value: float) -> None:
+        if value != self._values[k]:
+            self.src_value[k] = value
+            self._values[k] = value
 
     @ti.func
     def inside(self, k, xi):
