@@ -37,6 +37,11 @@ def test_good_scene_loads_with_defaults(scene_file):
         (GOOD.replace("dim = 2", "dim = 2\ndt = -0.1"), "world.dt", "expected a number > 0"),
         (GOOD.replace("dim = 2", "dim = 2\ndt = 0.0"), "world.dt", "expected a number > 0"),
         (GOOD.replace('material = "jelly"', 'material = "jely"'), "bodies[0].material", "unknown material 'jely'"),
+        (
+            GOOD.replace('material = "jelly"', 'material = "jelly"\nseed = -1'),
+            "bodies[0].seed",
+            "expected a number >= 0",
+        ),
         (GOOD.replace("hi = [20.0, 20.0]", "hi = [20.0, 20.0, 20.0]"), "world.hi", "expected 2 numbers"),
         (
             GOOD + '\n[materials.heavy]\nbased_on = "jelly"\nparticle_mass = -1.0\n',

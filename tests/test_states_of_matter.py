@@ -142,3 +142,18 @@ def test_boiling_pot_melts_then_boils_and_the_steam_heats():
     assert len(steam) >= 100
     early, late = steam[:50], steam[-50:]
     assert temperature[late].mean() > temperature[early].mean() + 20.0
+
+
+def test_a_heater_set_by_hand_leaves_its_schedule():
+    """The window's heater slider (HeatSources.hold): set to zero, the heater stops moving heat even where its
+    schedule would heat; set negative, it cools at that power."""
+    sim = sandbox.load("states_of_matter")
+    sources = sim.terms.heat.sources
+    sources.hold(0, 0.0)
+    before = sim.stats().heat_content
+    sim.run(5)
+    assert sim.stats().heat_content == pytest.approx(before, abs=1e-3)
+    sources.hold(0, -1000.0)
+    sim.run(5)
+    seconds = 5 * sim.scene.world.substeps * sim.scene.world.dt
+    assert sim.stats().heat_content - before == pytest.approx(-1000.0 * seconds, rel=1e-3)

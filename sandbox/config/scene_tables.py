@@ -337,7 +337,7 @@ class Body(FieldCoupling):
     velocity: tuple[float, ...] = spec((), doc="initial velocity")
     random_velocity: float = spec(0.0, doc="std. dev. of random initial velocity per component", check=non_negative)
     jitter: float = spec(0.0, doc="random displacement of lattice sites, as a fraction of spacing", check=unit_interval)
-    seed: int = spec(0, doc="random seed for velocity and jitter")
+    seed: int = spec(0, doc="random seed for velocity and jitter", check=at_least(0))
     draw: str = spec(
         "",
         doc="splat (a disc of the particle's radius), dot (one pixel) or sphere (3D shaded); "

@@ -49,7 +49,7 @@ class HeatSources:
             ]
         )
         self._values: list[float | None] = values  # the values last written to src_value
-        self.held: set[int] = set()  # sources set by hand (the window's sliders): their schedules no longer apply
+        self.by_hand: set[int] = set()  # sources set by hand (the window's sliders): their schedules no longer apply
 
     @property
     def scheduled(self) -> bool:
@@ -58,7 +58,7 @@ class HeatSources:
     def set_time(self, t: float) -> None:
         """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""
         for k, src in enumerate(self.specs):
-            if k not in self.held:
+            if k not in self.by_hand:
                 self._write(k, source_value(src, t))
 
     def value(self, k: int) -> float:
@@ -67,7 +67,7 @@ class HeatSources:
 
     def hold(self, k: int, value: float) -> None:
         """Set source k's temperature or power by hand; its schedule no longer applies."""
-        self.held.add(k)
+        self.by_hand.add(k)
         self._write(k, float(value))
 
     def _write(self, k: int, value: float) -> None:
