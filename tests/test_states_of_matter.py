@@ -112,11 +112,11 @@ def test_the_lesson_melts_at_0_boils_at_100_and_the_steam_fills_the_box(cycle):
     assert temperature[boiling] == pytest.approx(100.0, abs=0.5)
     ratio = boiling.sum() / melting.sum()
     assert ratio == pytest.approx(2257.0 / 334.0, rel=0.25)
-    steam = heating & (gas == 1.0)
+    steam = (t < 36.0) & (gas == 1.0)
     assert steam.any() and cycle["heights"][steam].max() > 0.7 * cycle["top"]  # the steam rises through the box
-    cooling = (t > 24.0) & (t < 48.0)
+    cooling = (t > 36.0) & (t < 60.0)
     assert temperature[cooling & (gas > 0.05) & (gas < 0.95)] == pytest.approx(100.0, abs=0.5)  # condensing
-    assert (melt[t > 48.0] == 0.0).all()  # frozen again
+    assert (melt[t > 60.0] == 0.0).all()  # frozen again
 
 
 @pytest.mark.parametrize("state", list(SNAPSHOTS))
@@ -129,9 +129,9 @@ def test_pictures_show_the_phase_diagram_dot_in_the_states_region(cycle, state):
     assert np.abs(pixel - np.asarray(DOT)).max() <= 3
 
 
-def test_boiling_pot_melts_then_boils_and_the_steam_heats():
-    """boiling_pot's lesson: the plate melts the ice before most of it boils, all of it boils, and once it is all
-    steam the steam gets hotter."""
+def test_boiling_pot_melts_then_boils_and_the_steam_presses_and_heats():
+    """boiling_pot's lesson: the plate melts the ice before most of it boils, all of it boils, the steam presses
+    harder on the walls than the ice did (measured 2.1 against 1.3 pJ/mm^2), and it keeps getting hotter."""
     sim = sandbox.load("boiling_pot")
     table = sim.run(sim.scene.render.frames)
     rows = {k: np.asarray(table[k], float) for k in table}
@@ -139,9 +139,11 @@ def test_boiling_pot_melts_then_boils_and_the_steam_heats():
     assert np.argmax(melt >= 0.99) < np.argmax(gas >= 0.5)  # melted before half of it has boiled
     assert gas[-1] == 1.0
     steam = np.flatnonzero(gas == 1.0)
-    assert len(steam) >= 100
-    early, late = steam[:50], steam[-50:]
+    assert len(steam) >= 150
+    early, late = steam[:75], steam[-75:]
     assert temperature[late].mean() > temperature[early].mean() + 20.0
+    pressure = rows["wall_pressure"]  # the walls' gauge, averaged over each stage (140 particles: it is noisy)
+    assert np.nanmean(pressure[steam]) > 1.3 * np.nanmean(pressure[melt < 0.99])
 
 
 def test_a_heater_set_by_hand_leaves_its_schedule():

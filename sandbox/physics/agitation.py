@@ -1,8 +1,9 @@
 """Temperature as motion: a Langevin thermostat that keeps each free particle's thermal agitation at its temperature.
 
 Free particles (melted past half, where the springs have broken) relax their velocity relative to the local flow u_i
-(the mean velocity of the free particles within the pair cutoff, weighted 1 - r/R) toward a Maxwell distribution at
-their own temperature, by the exact Ornstein-Uhlenbeck step over dt with coupling time tau:
+(the mean velocity of the other free particles within the pair cutoff, weighted 1 - r/R, the weights summed to at
+least 1: where they sum to less, as in a gas, the flow shrinks toward rest) toward a Maxwell distribution at their
+own temperature, by the exact Ornstein-Uhlenbeck step over dt with coupling time tau:
 
     v_i <- u_i + c1 (v_i - u_i) + c2 sqrt(kT_i / m_i) xi,   c1 = exp(-dt / tau),  c2 = sqrt(1 - c1^2)
 
@@ -119,13 +120,14 @@ class Agitation(Term):
         for i in range(self.p.n[None]):
             if self.is_free[i]:
                 acc = grid.fold(self.p.x[i], ti.Vector.zero(float, self.dim + 1), self._add_flow, (i,), False, 0)
-                self.flow[i] = ti.Vector([acc[k] for k in ti.static(range(self.dim))]) / acc[self.dim]
+                # a particle with few free neighbours (a gas) is held about rest: its flow shrinks toward zero
+                self.flow[i] = ti.Vector([acc[k] for k in ti.static(range(self.dim))]) / ti.max(acc[self.dim], 1.0)
 
     @ti.func
     def _add_flow(self, acc, j, d, k, extra: ti.template()):
-        """acc + w (v_j, 1) for free neighbour j within the reach, w = 1 - r / reach (i itself: w = 1)."""
+        """acc + w (v_j, 1) for free neighbour j (not i itself) within the reach, w = 1 - r / reach."""
         r = d.norm()
-        if r < self.reach and self.is_free[j]:
+        if r < self.reach and self.is_free[j] and j != extra[0]:
             w = 1.0 - r / self.reach
             for a in ti.static(range(self.dim)):
                 acc[a] += w * self.p.v[j][a]
