@@ -78,7 +78,7 @@ class PhaseMap:
         """((T lo, T hi) °C, (P lo, P hi)): the diagram's ranges, from below the melting point to well past boiling
         and from the sublimation curve's foot to above the condensed dots."""
         span = self.boil - self.melt
-        t_lo, t_hi = self.melt - 0.5 * span, self.boil + 1.5 * span
+        t_lo, t_hi = self.melt - 0.5 * span, self.boil + 2.0 * span
         p_lo = float(self.vapour_pressure(t_lo))
         p_hi = CONDENSED * 4.0 * float(self.vapour_pressure(self.boil + 0.25 * span))
         return (t_lo, t_hi), (p_lo, p_hi)

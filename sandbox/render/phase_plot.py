@@ -121,7 +121,7 @@ class PhasePlot:
                 pen.ellipse([x - radius, r - radius, x + radius, r + radius], fill=DOT, outline=(255, 255, 255))
         for name, (t, frac) in {
             "solid": (self.t_lo, 0.08),
-            "liquid": (pmap.melt, 0.08),
+            "liquid": (0.5 * (pmap.melt + pmap.boil), 0.08),
             "gas": (pmap.boil + 0.3 * (self.t_hi - pmap.boil), 0.8),
         }.items():
             x = bx0 + int(self.to_pixels(box, t, 1.0)[0]) + 4
