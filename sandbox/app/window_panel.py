@@ -68,6 +68,9 @@ def readouts(gui, chars: int, sim, state: WindowState, stats, fps: float) -> Non
     if sim.terms.heat is not None:
         groups = thermometers(sim)
         melted = f"melted {100 * stats.molten_fraction:.0f}%"
+        if any(material.boils for material in sim.model.material_list):
+            solid, liquid, gas = (round(100 * share) for share in stats.phase_shares)
+            melted = f"solid {solid}%, liquid {liquid}%, gas {gas}%"
         motion = ""
         if math.isfinite(stats.kinetic_temperature):  # temperature as motion: what the motion says
             motion = f"; the motion says {stats.kinetic_temperature:.0f} C"

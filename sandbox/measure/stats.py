@@ -62,6 +62,14 @@ class Stats:
     gas_fraction: float = 0.0  # mean gas (vapour) fraction of the particles of materials that boil
 
     @property
+    def phase_shares(self) -> tuple[float, float, float]:
+        """(solid, liquid, gas) shares in [0, 1] of a scene whose material melts and boils: the gas is counted among
+        the molten."""
+        gas = min(max(self.gas_fraction, 0.0), 1.0)
+        molten = max(self.molten_fraction, gas)
+        return 1.0 - molten, molten - gas, gas
+
+    @property
     def potential_energy(self) -> float:
         return self.spring_energy + self.pair_energy + self.gravity_energy
 
