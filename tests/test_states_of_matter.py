@@ -169,3 +169,19 @@ def test_the_phase_shares_add_up_with_the_gas_among_the_molten():
     assert stats.phase_shares == (0.0, 0.75, 0.25)
     stats.molten_fraction, stats.gas_fraction = 0.4, 0.0
     assert stats.phase_shares == pytest.approx((0.6, 0.4, 0.0))
+
+
+def test_a_narrow_band_keeps_the_phase_diagram_and_lets_the_chart_go():
+    """In the window at 1280 x 720 (its panel takes the left) the top band cannot hold the two-panel chart and the
+    phase diagram: the chart gives way and the phase diagram keeps the width it needs; a wide picture shows both."""
+    from sandbox.app.window_panel import PANEL_WIDTH
+    from sandbox.render.raster import Renderer
+
+    sim = sandbox.load("states_of_matter")
+    cfg = sim.scene.render
+    narrow = Renderer(sim.model, sim.state, 1280, 720, cfg, panel=PANEL_WIDTH, room_for_charts=True)
+    assert narrow.phase_plot.fits and not narrow.chart.fits
+    wide = Renderer(sim.model, sim.state, 1920, 1080, cfg)
+    assert wide.phase_plot.fits and wide.chart.fits
+    (_, a1, *_), (b0, b1, *_) = wide.chart.drawn_rect(), wide.phase_plot.drawn_rect()
+    assert a1 <= b0 and b1 - b0 >= wide.phase_plot.min_width()

@@ -109,7 +109,11 @@ class Chart:
         """Draw into rect (x0, x1, row0, row1; rows from the top) from now on; `fits` says whether it has room."""
         self.rect = rect
         x0, x1, r0, r1 = rect
-        self.fits = x1 - x0 >= 8 * self.size * len(self.panels) and r1 - r0 >= 4 * line_height(self.size)
+        self.fits = x1 - x0 >= self.min_width() and r1 - r0 >= 4 * line_height(self.size)
+
+    def min_width(self) -> int:
+        """Pixels across it needs to be legible."""
+        return 8 * self.size * len(self.panels)
 
     def record(self, stats) -> None:
         """Append this frame's values (every `stride`-th frame once the history is long)."""

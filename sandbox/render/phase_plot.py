@@ -40,11 +40,15 @@ class PhasePlot:
         (self.t_lo, self.t_hi), (p_lo, p_hi) = self.map.axes()
         self.log_lo, self.log_hi = math.floor(math.log10(p_lo)), math.ceil(math.log10(p_hi))
 
+    def min_width(self) -> int:
+        """Pixels across it needs to be legible."""
+        return 10 * self.size
+
     def place(self, rect: tuple[int, int, int, int]) -> None:
         """Draw into rect from now on; `fits` says whether it has room."""
         self.rect = rect
         x0, x1, r0, r1 = rect
-        self.fits = x1 - x0 >= 10 * self.size and r1 - r0 >= 5 * line_height(self.size)
+        self.fits = x1 - x0 >= self.min_width() and r1 - r0 >= 5 * line_height(self.size)
 
     def drawn_rect(self) -> tuple[int, int, int, int]:
         return self.rect

@@ -25,7 +25,6 @@ from .canvas import Canvas
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
 from .footprint import Footprint
-from .layout import side_by_side
 from .look import Look
 from .phase_plot import PhasePlot
 from .plan import plan_picture
@@ -254,10 +253,26 @@ class Renderer:
         return self.plan.chart_rect()
 
     def _share_band(self) -> None:
-        """Share the chart band among the plots shown, side by side."""
+        """Share the chart band among the plots shown, side by side, each as wide as it needs at least and the rest
+        in proportion; where the band cannot hold them all the measurements' chart gives way first, so the phase
+        diagram and the window's pair-force panel stay legible."""
         plots = self.plots()
-        for plot, rect in zip(plots, side_by_side(self.chart_rect(), len(plots), self.layout.size)):
-            plot.place(rect)
+        x0, x1, r0, r1 = self.chart_rect()
+        gap = self.layout.size
+        shown = list(plots)
+        while shown and sum(plot.min_width() for plot in shown) + gap * (len(shown) - 1) > x1 - x0:
+            shown.remove(self.chart if self.chart in shown else shown[0])
+        for plot in plots:
+            if plot not in shown:
+                plot.place((0, 0, 0, 0))
+        if not shown:
+            return
+        need = [plot.min_width() for plot in shown]
+        spare = (x1 - x0 - gap * (len(shown) - 1)) / sum(need)
+        x = x0
+        for plot, width in zip(shown, need):
+            plot.place((round(x), round(x + width * spare), r0, r1))
+            x += width * spare + gap
 
     def _place_plots(self) -> None:
         """Share the chart band among the plots shown, then redraw their rectangles each frame."""
