@@ -195,7 +195,7 @@ def test_window_records_what_it_shows_to_mp4(tmp_path):
 
 
 def test_thermometers_read_each_body():
-    from sandbox.app.window_panel import thermometers
+    from sandbox.app.panel import thermometers
 
     sim = Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"]))
     assert thermometers(sim) == [("block", pytest.approx(20.0))]

@@ -2,29 +2,14 @@
 
 from __future__ import annotations
 
-import math
 import textwrap
 
-import numpy as np
-
 from ..config.resources import shipped_scenes
-from ..measure.units import energy_unit, length_unit, pressure_unit
-from .window_state import HELP, WindowState, lesson_text, pace_text, panel_characters, pick_scene, reading
+from ..measure.units import length_unit
+from . import panel
+from .window_state import HELP, WindowState, lesson_text, pace_text, panel_characters, pick_scene
 
 PANEL_WIDTH = 0.28  # of the window's width: the panel's column, full height; the renderer draws right of it
-
-
-def thermometers(sim) -> list[tuple[str, float]]:
-    """(name, mean temperature) of each body and emitter that has particles now, for the panel's readout."""
-    if sim.terms.heat is None:
-        return []
-    n = int(sim.particles.n[None])
-    groups = sim.particles.group.to_numpy()[:n]
-    temps = sim.particles.T.to_numpy()[:n]
-    names = [g.name for g in sim.scene.groups] + ["spawned"]
-    sums = np.bincount(groups, weights=temps, minlength=len(names))
-    counts = np.bincount(groups, minlength=len(names))
-    return [(names[k], float(sums[k] / counts[k])) for k in range(len(names)) if counts[k]]
 
 
 def say(gui, chars: int, text: str) -> None:
@@ -59,48 +44,32 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float, window_width: in
 
 
 def readouts(gui, chars: int, sim, state: WindowState, stats, fps: float) -> None:
-    """What the simulation measures, in words and the scene's units; a temperature per body where there are
-    several (a candle's flame and wax are not averaged into one number). ASCII only: GGUI's font has no degree
-    sign."""
-    say(gui, chars, f"time {stats.time:.2f} s   {fps:.0f} frames/s   {'PAUSED' if state.paused else ''}")
-    springs = f"   broken bonds {stats.broken_springs}" if sim.state.springs is not None else ""
-    say(gui, chars, f"particles {stats.particles}{springs}")
-    if sim.terms.heat is not None:
-        groups = thermometers(sim)
-        melted = f"melted {100 * stats.molten_fraction:.0f}%"
-        if any(material.boils for material in sim.model.material_list):
-            solid, liquid, gas = (round(100 * share) for share in stats.phase_shares)
-            melted = f"solid {solid}%, liquid {liquid}%, gas {gas}%"
-        motion = ""
-        if math.isfinite(stats.kinetic_temperature):  # temperature as motion: what the motion says
-            motion = f"; the motion says {stats.kinetic_temperature:.0f} C"
-        if len(groups) == 1:
-            say(gui, chars, f"temperature {reading(groups[0][1], 'C')}   {melted}{motion}")
-        else:
-            each = ", ".join(f"{name.replace('_', ' ')} {temperature:.1f} C" for name, temperature in groups[:4])
-            say(gui, chars, f"temperatures: {each}; {melted} in all{motion}")
-    names = sim.material_names
-    energy = f"energy ({energy_unit(names)}): moving {stats.kinetic_energy:.4g}, total {stats.total_energy:.4g}"
-    say(gui, chars, energy)
-    unit = pressure_unit(names, sim.dim)
-    walls = f", on the walls {reading(stats.wall_pressure, digits=3)}" if sim.model.domain.wall_area else ""
-    say(gui, chars, f"pressure ({unit}) {reading(stats.pressure, digits=3)}{walls}")
+    """The shared description's measurements (panel.py), packed into as few lines as the panel's width allows, then
+    the probe and the integrator. ASCII only: GGUI's font has no degree sign."""
+    line = "PAUSED" if state.paused else ""
+    for item in panel.readouts(sim, stats, fps):
+        text = f"{item.words} {item.text()}"
+        if line and len(line) + 3 + len(text) > chars:
+            say(gui, chars, line)
+            line = ""
+        line = f"{line}   {text}" if line else text
+    if line:
+        say(gui, chars, line)
     say(gui, chars, f"under the cursor: {state.probe or '-'}")
     say(gui, chars, f"integrator {state.integrator} (i)   {pace_text(state)}")
 
 
-def source_sliders(gui, sources, most: int = 2) -> None:
-    """A slider for each of the first `most` heat sources: its temperature, or its power (positive heats, negative
-    cools); moving one takes the source over from its schedule."""
-    for k, src in enumerate(sources.specs[:most]):
-        now = sources.value(k)
-        if src.mode == "power":
-            top = 2.0 * max([abs(src.power), *map(abs, src.schedule_values)]) or 1.0
-            value = gui.slider_float(f"{src.name} (mJ/s)", now, -top, top)
-        else:
-            value = gui.slider_float(f"{src.name} C", now, -100.0, 1500.0)
-        if value != now:
-            sources.hold(k, value)
+def setting_sliders(gui, sim) -> None:
+    """A slider for each setting the shared description offers (panel.py): air, heat sources (gravity has the
+    window's own angle slider and g key, which set it every frame)."""
+    for item in panel.settings(sim):
+        if item.key == "gravity":
+            continue
+        value = gui.slider_float(
+            f"{item.words} ({item.unit})" if item.unit else item.words, item.value, item.lo, item.hi
+        )
+        if value != item.value:
+            panel.apply_setting(sim, item.key, value)
 
 
 def controls(gui, chars: int, sim, state: WindowState) -> None:
@@ -120,10 +89,7 @@ def controls(gui, chars: int, sim, state: WindowState) -> None:
     if gui.button("leave full screen (x)" if state.full_screen else "full screen (x)"):
         state.full_screen = not state.full_screen
     state.paused = gui.checkbox("paused (space)", state.paused)
-    if sim.terms.heat is not None:
-        sources = sim.terms.heat.sources
-        sources.ambient[None] = gui.slider_float("air C", float(sources.ambient[None]), -50.0, 300.0)
-        source_sliders(gui, sources)
+    setting_sliders(gui, sim)
     if sim.scene.world.substeps != "auto":
         state.dt_scale = gui.slider_float("time step x", state.dt_scale, 0.1, 2.0)
         stable = f", springs stable below {state.stable_dt:.2g} s" if sim.state.springs else ""

@@ -1,0 +1,162 @@
+"""What a scene's panel shows and offers, described once as data: the readouts with their units, the settings a
+lesson asks students to change, the tools, and a sentence saying what the scene is doing. The desktop window
+(window_panel.py) draws it with GGUI widgets, the browser page (serve.py, web/app.js) with HTML; neither decides
+for itself what to show, so they never disagree. Words here are English; the page translates by `key`."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..measure.units import energy_unit, length_unit, pressure_unit
+
+
+@dataclass(frozen=True)
+class Readout:
+    """One measurement: `key` names it (the page's message catalogue), `words` in English, `value` in `unit`
+    (nan: nothing to measure), shown with `digits` decimals."""
+
+    key: str
+    words: str
+    value: float
+    unit: str = ""
+    digits: int = 1
+
+    def text(self) -> str:
+        """The value with its unit, or "-" (ASCII: the window's font has no en dash)."""
+        if not math.isfinite(self.value):
+            return "-"
+        return f"{self.value:.{self.digits}f}{' ' + self.unit if self.unit else ''}"
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A slider: `key` names it, `words` in English; its `value` between `lo` and `hi` in `unit`."""
+
+    key: str
+    words: str
+    value: float
+    lo: float
+    hi: float
+    unit: str = ""
+    step: float = 1.0
+
+
+def thermometers(sim) -> list[tuple[str, float]]:
+    """(name, mean temperature) of each body and emitter that has particles now."""
+    if sim.terms.heat is None:
+        return []
+    n = int(sim.particles.n[None])
+    groups = sim.particles.group.to_numpy()[:n]
+    temps = sim.particles.T.to_numpy()[:n]
+    names = [g.name for g in sim.scene.groups] + ["spawned"]
+    sums = np.bincount(groups, weights=temps, minlength=len(names))
+    counts = np.bincount(groups, minlength=len(names))
+    return [(names[k], float(sums[k] / counts[k])) for k in range(len(names)) if counts[k]]
+
+
+def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
+    """The panel's measurements of `sim` now (`stats`: its Stats; `fps`: frames drawn per wall second)."""
+    names = sim.material_names
+    out = [Readout("time", "time", stats.time, "s", 2)]
+    if fps is not None:
+        out.append(Readout("fps", "frames per second", fps, "", 0))
+    out.append(Readout("particles", "particles", stats.particles, "", 0))
+    if sim.state.springs is not None:
+        out.append(Readout("broken", "broken bonds", stats.broken_springs, "", 0))
+    if sim.terms.heat is not None:
+        out.append(Readout("temperature", "mean temperature", stats.mean_temperature, "C"))
+        groups = thermometers(sim)
+        if len(groups) > 1:  # a temperature per body: a candle's flame and wax are not averaged into one number
+            out += [Readout("temperature_of", name.replace("_", " "), t, "C") for name, t in groups[:4]]
+        if any(material.boils for material in sim.model.material_list):
+            solid, liquid, gas = stats.phase_shares
+            out += [
+                Readout("solid", "solid", 100 * solid, "%", 0),
+                Readout("liquid", "liquid", 100 * liquid, "%", 0),
+                Readout("gas", "gas", 100 * gas, "%", 0),
+            ]
+        else:
+            out.append(Readout("melted", "melted", 100 * stats.molten_fraction, "%", 0))
+        if math.isfinite(stats.kinetic_temperature):
+            out.append(Readout("motion", "the motion says", stats.kinetic_temperature, "C", 0))
+    out.append(Readout("energy", "total energy", stats.total_energy, energy_unit(names), 4))
+    out.append(Readout("pressure", "pressure", stats.pressure, pressure_unit(names, sim.dim), 3))
+    if sim.model.domain.wall_area:
+        out.append(
+            Readout("wall_pressure", "pressure on the walls", stats.wall_pressure, pressure_unit(names, sim.dim), 3)
+        )
+    return out
+
+
+def settings(sim) -> list[Setting]:
+    """The sliders a lesson asks students to move: the room's temperature, each heat source's temperature or power
+    (the first two), and gravity (its strength along -y, 2D scenes that have it)."""
+    out = []
+    heat = sim.terms.heat
+    if heat is not None:
+        sources = heat.sources
+        out.append(Setting("air", "air temperature", float(sources.ambient[None]), -50.0, 300.0, "C"))
+        for k, src in enumerate(sources.specs[:2]):
+            if src.mode == "power":
+                top = 2.0 * max([abs(src.power), *map(abs, src.schedule_values)]) or 1.0
+                out.append(Setting(f"source{k}", src.name, sources.value(k), -top, top, "mJ/s", top / 100))
+            else:
+                out.append(Setting(f"source{k}", src.name, sources.value(k), -100.0, 1500.0, "C"))
+    gravity = sim.model.gravity.to_numpy()
+    if sim.dim == 2 and any(sim.scene.world.gravity):
+        top = 4.0 * float(np.linalg.norm(sim.scene.world.gravity))
+        out.append(
+            Setting(
+                "gravity", "gravity", float(-gravity[1]), 0.0, top, f"{length_unit(sim.material_names)}/s^2", top / 100
+            )
+        )
+    return out
+
+
+def apply_setting(sim, key: str, value: float) -> None:
+    """Move the slider `key` (one of settings(sim)'s) to `value`, clamped to its range; ValueError for a key the
+    scene does not offer."""
+    offered = {s.key: s for s in settings(sim)}
+    if key not in offered:
+        raise ValueError(f"this scene has no setting {key!r} (it has: {', '.join(offered) or 'none'})")
+    s = offered[key]
+    value = min(max(float(value), s.lo), s.hi)
+    if key == "air":
+        sim.terms.heat.sources.ambient[None] = value
+    elif key.startswith("source"):
+        sim.terms.heat.sources.hold(int(key[len("source") :]), value)
+    elif key == "gravity":
+        g = sim.model.gravity.to_numpy()
+        sim.model.gravity[None] = [float(g[0]), -value]
+
+
+def summary(sim, stats, previous: float | None) -> dict:
+    """What the scene is doing, for a screen reader: {"key": sentence key, values...}; e.g. ("the block is 40%
+    molten, mean temperature 58 C, rising"). `previous`: the mean temperature a few seconds ago (None: unknown)."""
+    if sim.terms.heat is None or not math.isfinite(stats.mean_temperature):
+        return {"key": "summary_motion", "particles": stats.particles, "speed": round(stats.max_speed, 2)}
+    trend = "steady"
+    if previous is not None and math.isfinite(previous):
+        change = stats.mean_temperature - previous
+        trend = "rising" if change > 0.5 else "falling" if change < -0.5 else "steady"
+    shares = stats.phase_shares
+    return {
+        "key": "summary_heat",
+        "molten": round(100 * stats.molten_fraction),
+        "gas": round(100 * shares[2]),
+        "temperature": round(stats.mean_temperature),
+        "trend": trend,
+    }
+
+
+def as_json(items) -> list[dict]:
+    """Readouts or settings as plain dicts (nan as None) for the page."""
+    out = []
+    for item in items:
+        d = asdict(item)
+        d["value"] = d["value"] if math.isfinite(d["value"]) else None
+        out.append(d)
+    return out
