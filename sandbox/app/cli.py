@@ -36,7 +36,7 @@ from ..config.scene_tables import (
     SmokeSource,
     World,
 )
-from ..config.schema import describe
+from ..config.schema import describe, unknown
 from ..core import runtime
 from ..errors import OutputError, SandboxError, SimulationError
 from ..render.video import check_output
@@ -333,8 +333,40 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="only the window: the frame rate it holds on every shipped scene (hidden window, pacing on; needs Vulkan)",
     )
+    bench.add_argument(
+        "--serve",
+        type=int,
+        metavar="N",
+        default=0,
+        help="only the classroom server: N simulated browser tabs over loopback (frame rate, latency, CPU, memory)",
+    )
     bench.set_defaults(func=cmd_bench)
+
+    serve = sub.add_parser("serve", help="the classroom in a browser: serve the sandbox to a room of browsers")
+    serve.add_argument("scene", nargs="?", default="melting_block", help="the scene a new tab opens (shipped name)")
+    serve.add_argument("--host", default="127.0.0.1", help="address to listen on (other than loopback: needs a token)")
+    serve.add_argument("--port", type=int, default=8000)
+    serve.add_argument("--token", help="the token every request must carry (made up and printed when needed)")
+    serve.add_argument("--max-sessions", type=int, default=8, help="browser tabs served at once")
+    serve.set_defaults(func=cmd_serve)
     return parser
+
+
+def cmd_serve(args) -> int:
+    names = sorted(p.stem for p in shipped_scenes())
+    if args.scene not in names:
+        raise SandboxError(unknown("scene", args.scene, names) + " (the classroom serves shipped scenes)")
+    if not 0 < args.port < 65536:
+        raise SandboxError(f"--port: expected 1 to 65535, got {args.port}")
+    if args.max_sessions < 1:
+        raise SandboxError(f"--max-sessions: expected at least 1, got {args.max_sessions}")
+    if args.token is not None and len(args.token) < 8:
+        raise SandboxError("--token: expected at least 8 characters")
+    try:
+        from .serve import serve
+    except ImportError as exc:
+        raise SandboxError(f"sandbox serve needs the serve extra: pip install -e '.[serve]' ({exc.name} is missing)")
+    return serve(args.scene, args.host, args.port, args.token, args.max_sessions)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,354 @@
+"""The classroom in a browser: `sandbox serve` serves the sandbox to a room of browsers with nothing installed on
+them. Each tab gets a session, its own simulation in its own process (serve_session.py); the page (web/) shows its
+pictures, drawn by the project's renderer, and its panel from the shared description (panel.py). A teacher's page
+lists the sessions with a small live picture of each, and pauses them or pushes a scene or a setting to all.
+
+Safe on a school network: it binds 127.0.0.1 unless told otherwise; any other address requires a token (made and
+printed with the address when not given) on every request and WebSocket, whose Origin must be the page's own; every
+message is checked (serve_protocol.py); sessions are limited in number, upload size and idle time; nothing a
+client sends names a file on the server; scripts and styles come from the package (no CDN).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import json
+import multiprocessing
+import secrets
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from urllib.parse import urlsplit
+
+from ..config.resources import shipped_scenes
+from .serve_protocol import ProtocolError, RateLimit, parse
+from .serve_session import scratch_dir, session_main
+
+WEB = Path(__file__).resolve().parent / "web"
+PICTURE = (960, 540)  # the sessions' picture size (the page scales it to fit)
+MAX_UPLOAD = 16 * 1024 * 1024  # bytes of an uploaded state file
+IDLE_SECONDS = 300.0  # a tab silent this long (closed, asleep) loses its session
+START_SECONDS = 60.0  # a session that has not drawn its first picture by then is given up
+
+
+@dataclass
+class Handle:
+    """The server's side of one session: its process, pipe and the tab's WebSocket."""
+
+    sid: str
+    scene: str
+    process: object
+    conn: object
+    outbox: asyncio.Queue = field(default_factory=asyncio.Queue)
+    waiters: dict = field(default_factory=dict)  # message type -> future (saved, thumbnail)
+    last_seen: float = field(default_factory=time.monotonic)
+    started: float = field(default_factory=time.monotonic)
+    frames: int = 0
+    info: dict = field(default_factory=dict)
+
+    def send(self, message: dict) -> None:
+        self.conn.send_bytes(json.dumps(message).encode())
+
+    def expect(self, kind: str) -> asyncio.Future:
+        future = asyncio.get_running_loop().create_future()
+        self.waiters[kind] = future
+        return future
+
+
+class Classroom:
+    """The sessions, their limits and the token (module docstring)."""
+
+    def __init__(self, scene: str, token: str | None, max_sessions: int, idle: float = IDLE_SECONDS):
+        self.scene, self.token, self.max_sessions, self.idle = scene, token, max_sessions, idle
+        self.scenes = sorted(p.stem for p in shipped_scenes())
+        self.sessions: dict[str, Handle] = {}
+        self.context = multiprocessing.get_context("spawn")
+        self.scratch = scratch_dir()
+
+    # ------------------------------------------------------------------ sessions
+    def open(self, scene: str) -> Handle:
+        """A new session of `scene` (a shipped scene's name) in a process of its own."""
+        parent, child = self.context.Pipe()
+        process = self.context.Process(target=session_main, args=(child, scene, *PICTURE), daemon=True)
+        process.start()
+        child.close()
+        handle = Handle(secrets.token_urlsafe(8), scene, process, parent)
+        self.sessions[handle.sid] = handle
+        asyncio.get_running_loop().add_reader(parent.fileno(), self._readable, handle)
+        return handle
+
+    def close(self, handle: Handle) -> None:
+        """End a session: its process and memory go with it."""
+        self.sessions.pop(handle.sid, None)
+        with contextlib.suppress(Exception):
+            asyncio.get_running_loop().remove_reader(handle.conn.fileno())
+        with contextlib.suppress(Exception):
+            handle.conn.close()
+        handle.process.terminate()
+        handle.process.join(timeout=2)
+        if handle.process.is_alive():
+            handle.process.kill()
+        handle.outbox.put_nowait(None)
+
+    def _readable(self, handle: Handle) -> None:
+        try:
+            data = handle.conn.recv_bytes()
+        except (EOFError, OSError):  # the session's process ended (a crash): tell the tab, free the rest
+            handle.outbox.put_nowait(("text", json.dumps({"t": "error", "key": "session_ended"})))
+            self.close(handle)
+            return
+        kind, body = data[:1], data[1:]
+        if kind == b"F":
+            handle.frames += 1
+            handle.outbox.put_nowait(("bytes", body))
+        elif kind == b"T":
+            future = handle.waiters.pop("thumb", None)
+            if future and not future.done():
+                future.set_result(body)
+        else:
+            message = json.loads(body)
+            if message.get("t") == "info":
+                handle.info = message
+            future = handle.waiters.pop(message.get("t"), None)
+            if future and not future.done():
+                future.set_result(message)
+            handle.outbox.put_nowait(("text", body.decode()))
+
+    async def reap_idle(self) -> None:
+        """Close the sessions of tabs that have gone silent."""
+        while True:
+            await asyncio.sleep(min(self.idle / 4, 15.0))
+            now = time.monotonic()
+            for handle in list(self.sessions.values()):
+                if now - handle.last_seen > self.idle or (handle.frames == 0 and now - handle.started > START_SECONDS):
+                    self.close(handle)
+
+    # ------------------------------------------------------------------ checks
+    def allowed(self, request) -> bool:
+        """The request carries the token (query or cookie), where one is set."""
+        if self.token is None:
+            return True
+        given = request.query_params.get("token") or request.cookies.get("sandbox_token") or ""
+        return secrets.compare_digest(given, self.token)
+
+    @staticmethod
+    def same_origin(websocket) -> bool:
+        """A WebSocket's Origin, where the browser sent one, is the page's own host."""
+        origin = websocket.headers.get("origin")
+        return origin is None or urlsplit(origin).netloc == websocket.headers.get("host")
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def make_app(classroom: Classroom):
+    """The Starlette application of `classroom`: the page, its assets, the WebSocket, state files, the teacher."""
+    from starlette.applications import Starlette
+    from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response
+    from starlette.routing import Mount, Route, WebSocketRoute
+    from starlette.staticfiles import StaticFiles
+    from starlette.websockets import WebSocketDisconnect
+
+    def page(name: str):
+        async def endpoint(request):
+            if not classroom.allowed(request):
+                return PlainTextResponse("403: this classroom needs its token (the address the server printed)", 403)
+            response = FileResponse(WEB / name, headers={"Cache-Control": "no-store"})
+            if classroom.token:
+                response.set_cookie("sandbox_token", classroom.token, httponly=True, samesite="strict")
+            return response
+
+        return endpoint
+
+    async def scenes(request):
+        if not classroom.allowed(request):
+            return PlainTextResponse("403", 403)
+        return JSONResponse({"scenes": classroom.scenes, "default": classroom.scene})
+
+    def handle_of(request) -> Handle | None:
+        return classroom.sessions.get(request.query_params.get("sid", ""))
+
+    async def state(request):
+        if not classroom.allowed(request):
+            return PlainTextResponse("403", 403)
+        handle = handle_of(request)
+        if handle is None:
+            return PlainTextResponse("no such session", 404)
+        path = classroom.scratch / f"{secrets.token_hex(8)}.npz"
+        if request.method == "GET":  # download: the session saves, the file goes to the tab, then away
+            saved = handle.expect("saved")
+            handle.send({"t": "save", "path": str(path)})
+            try:
+                await asyncio.wait_for(saved, 30)
+            except asyncio.TimeoutError:
+                return PlainTextResponse("the session did not save in time", 504)
+            data = path.read_bytes()
+            path.unlink(missing_ok=True)
+            name = f"{handle.scene}.npz"
+            return Response(
+                data,
+                media_type="application/octet-stream",
+                headers={"Content-Disposition": f'attachment; filename="{name}"'},
+            )
+        body = bytearray()
+        async for chunk in request.stream():
+            body += chunk
+            if len(body) > MAX_UPLOAD:
+                return PlainTextResponse(f"state file refused: larger than {MAX_UPLOAD // 2**20} MB", 413)
+        path.write_bytes(bytes(body))
+        handle.send({"t": "upload", "path": str(path)})  # checked by the session; its answer comes by WebSocket
+        return PlainTextResponse("checking", 202)
+
+    async def sessions(request):
+        if not classroom.allowed(request):
+            return PlainTextResponse("403", 403)
+        now = time.monotonic()
+        rows = [
+            {
+                "sid": h.sid,
+                "scene": h.scene,
+                "frames": h.frames,
+                "time": h.info.get("time", 0.0),
+                "fps": h.frames / max(now - h.started, 1e-9),
+            }
+            for h in classroom.sessions.values()
+        ]
+        return JSONResponse({"sessions": rows, "max": classroom.max_sessions})
+
+    async def thumb(request):
+        if not classroom.allowed(request):
+            return PlainTextResponse("403", 403)
+        handle = handle_of(request)
+        if handle is None:
+            return PlainTextResponse("no such session", 404)
+        future = handle.expect("thumb")
+        handle.send({"t": "thumb"})
+        try:
+            data = await asyncio.wait_for(future, 10)
+        except asyncio.TimeoutError:
+            return PlainTextResponse("no picture in time", 504)
+        return Response(data, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
+
+    async def broadcast(request):
+        if not classroom.allowed(request):
+            return PlainTextResponse("403", 403)
+        body = await request.body()
+        try:
+            message = parse(body, classroom.scenes)
+        except ProtocolError as exc:
+            return PlainTextResponse(str(exc), 400)
+        if message["t"] not in ("action", "scene", "set"):
+            return PlainTextResponse("broadcast: expected an action, a scene or a setting", 400)
+        for handle in list(classroom.sessions.values()):
+            handle.send(message)
+            if message["t"] == "scene":
+                handle.scene = message["name"]
+        return JSONResponse({"sent": len(classroom.sessions)})
+
+    async def socket(websocket):
+        if not classroom.allowed(websocket) or not classroom.same_origin(websocket):
+            await websocket.close(code=1008)
+            return
+        await websocket.accept()
+        if len(classroom.sessions) >= classroom.max_sessions:
+            text = f"the classroom is full ({classroom.max_sessions} sessions): try again later"
+            await websocket.send_text(json.dumps({"t": "error", "key": "full", "text": text}))
+            await websocket.close(code=1013)
+            return
+        scene = websocket.query_params.get("scene", classroom.scene)
+        if scene not in classroom.scenes:
+            scene = classroom.scene
+        handle = classroom.open(scene)
+        await websocket.send_text(json.dumps({"t": "hello", "sid": handle.sid, "scenes": classroom.scenes}))
+        limit = RateLimit()
+
+        async def pump():
+            while (item := await handle.outbox.get()) is not None:
+                kind, body = item
+                await (websocket.send_bytes(body) if kind == "bytes" else websocket.send_text(body))
+
+        sender = asyncio.create_task(pump())
+        try:
+            while True:
+                text = await websocket.receive_text()
+                handle.last_seen = time.monotonic()
+                if not limit.allow():
+                    if limit.tokens > -1.0:  # say it once per burst, not once per message
+                        await websocket.send_text(json.dumps({"t": "error", "text": "too many messages: slow down"}))
+                        limit.tokens = -2.0
+                    continue
+                try:
+                    message = parse(text, classroom.scenes)
+                except ProtocolError as exc:
+                    await websocket.send_text(json.dumps({"t": "error", "text": str(exc)}))
+                    continue
+                if message["t"] == "scene":
+                    handle.scene = message["name"]
+                handle.send(message)
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            pass
+        finally:
+            classroom.close(handle)
+            sender.cancel()
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app):
+        reaper = asyncio.create_task(classroom.reap_idle())
+        yield
+        reaper.cancel()
+        for handle in list(classroom.sessions.values()):
+            classroom.close(handle)
+
+    return Starlette(
+        routes=[
+            Route("/", page("index.html")),
+            Route("/teacher", page("teacher.html")),
+            Route("/api/scenes", scenes),
+            Route("/api/state", state, methods=["GET", "POST"]),
+            Route("/api/sessions", sessions),
+            Route("/api/thumb", thumb),
+            Route("/api/broadcast", broadcast, methods=["POST"]),
+            WebSocketRoute("/ws", socket),
+            Mount("/static", app=TokenGate(StaticFiles(directory=WEB), classroom)),
+        ],
+        lifespan=lifespan,
+    )
+
+
+class TokenGate:
+    """ASGI middleware: the wrapped app only for requests that carry the classroom's token."""
+
+    def __init__(self, app, classroom: Classroom):
+        self.app, self.classroom = app, classroom
+
+    async def __call__(self, scope, receive, send):
+        from starlette.requests import Request
+        from starlette.responses import PlainTextResponse
+
+        if scope["type"] == "http" and not self.classroom.allowed(Request(scope)):
+            await PlainTextResponse("403", 403)(scope, receive, send)
+            return
+        await self.app(scope, receive, send)
+
+
+def serve(scene: str, host: str, port: int, token: str | None, max_sessions: int) -> int:
+    """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed)."""
+    import uvicorn
+
+    if token is None and not is_loopback(host):
+        token = secrets.token_urlsafe(12)
+    classroom = Classroom(scene, token, max_sessions)
+    query = f"?token={token}" if token else ""
+    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
+    print(f"the classroom: http://{shown}:{port}/{query}")
+    print(f"the teacher's view: http://{shown}:{port}/teacher{query}")
+    uvicorn.run(make_app(classroom), host=host, port=port, log_level="warning", ws_max_size=64 * 1024)
+    return 0

@@ -1,0 +1,235 @@
+"""One browser tab's sandbox, in a process of its own (Taichi's runtime is one per process, so a blow-up or a crash
+in one tab never touches another, and closing the tab frees its memory with the process).
+
+The server (serve.py) and the session talk over a multiprocessing pipe in bytes: the server sends JSON commands
+(already validated by serve_protocol.py); the session answers b"F" + a JPEG picture, or b"J" + JSON (readouts,
+messages). It draws a frame only when the page has asked for one (a "ready" credit), so the frame rate follows what
+the network and the server's load allow; the simulation advances one frame per picture delivered, so under load a
+session runs in slow motion rather than dropping pictures.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
+SUMMARY_EVERY = 2.0  # seconds of simulated time between the trend's reference temperatures
+
+
+def session_main(conn, scene: str, width: int, height: int, threads: int = 1) -> None:
+    """Run one tab's simulation of the shipped scene `scene`, drawing `width` x `height` pictures, until the server
+    closes the pipe. Never raises: what goes wrong is reported to the page."""
+    os.environ.setdefault("SANDBOX_CPU_THREADS", str(threads))  # sessions share the cores: one thread each
+    os.environ.setdefault("TI_LOG_LEVEL", "error")
+    try:
+        Session(conn, scene, width, height).loop()
+    except (EOFError, BrokenPipeError, KeyboardInterrupt):
+        pass
+
+
+class Session:
+    """The simulation, its tools and its undo ring, driven by the server's commands (module docstring)."""
+
+    def __init__(self, conn, scene: str, width: int, height: int):
+        self.conn = conn
+        self.width, self.height = width, height
+        self.credits = FIRST_CREDITS
+        self.paused = False
+        self.single_steps = 0
+        self.stroke: dict | None = None  # the tool stroke in progress: tool, centre (world), radius
+        self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
+        self.frames = 0
+        self.started = time.perf_counter()
+        self.load(scene)
+
+    # ------------------------------------------------------------------ the scene
+    def load(self, scene: str) -> None:
+        import sandbox
+
+        from .history import UndoRing
+        from .tools import Tools
+
+        self.sim = sandbox.load(scene)
+        self.scene = scene
+        self.tools = Tools(self.sim)
+        self.history = UndoRing()
+        self.reference = (self.sim.time, None)  # (time, mean temperature) the trend compares with
+        self.tell({"t": "scene", "scene": scene, "lesson": self.lesson(), "tools": self.tool_names()})
+
+    def lesson(self) -> dict:
+        lesson = self.sim.scene.lesson
+        return {k: getattr(lesson, k, "") for k in ("happens", "explore", "physics")} if lesson else {}
+
+    def tool_names(self) -> list[str]:
+        from .window_state import tools_for
+
+        return tools_for(self.sim) if self.sim.dim == 2 else []
+
+    # ------------------------------------------------------------------ the pipe
+    def tell(self, message: dict) -> None:
+        self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
+
+    def loop(self) -> None:
+        while True:
+            waiting = self.credits <= 0
+            while self.conn.poll(0.05 if waiting else 0):
+                self.handle(json.loads(self.conn.recv_bytes()))
+                waiting = self.credits <= 0
+            if self.credits > 0:
+                self.credits -= 1
+                self.frame()
+
+    def handle(self, msg: dict) -> None:
+        kind = msg["t"]
+        if kind == "ready":
+            self.credits = min(self.credits + 1, FIRST_CREDITS + 1)
+        elif kind == "tool":
+            self.tool(msg)
+        elif kind == "pointer":
+            self.pointer = (msg["x"], msg["y"])
+        elif kind == "set":
+            from . import panel
+
+            try:
+                panel.apply_setting(self.sim, msg["key"], msg["value"])
+            except ValueError as exc:
+                self.tell({"t": "error", "text": str(exc)})
+        elif kind == "action":
+            self.action(msg["name"])
+        elif kind == "scene":
+            self.load(msg["name"])
+        elif kind == "save":
+            self.save(Path(msg["path"]))
+        elif kind == "upload":
+            self.upload(Path(msg["path"]))
+        elif kind == "thumb":
+            self.conn.send_bytes(b"T" + self.jpeg(self.sim.picture(240, 135, title=False, legend=False), 70))
+
+    def action(self, name: str) -> None:
+        if name == "pause":
+            self.paused = True
+        elif name == "play":
+            self.paused = False
+        elif name == "step":
+            self.paused, self.single_steps = True, self.single_steps + 1
+        elif name == "reset":
+            self.sim.reset()
+            self.history = type(self.history)()
+        elif name == "undo":
+            done = self.history.undo(self.sim)
+            self.tell({"t": "notice", "key": "undone" if done else "nothing_to_undo"})
+        self.tell({"t": "paused", "paused": self.paused})
+
+    # ------------------------------------------------------------------ tools
+    def world_at(self, fx: float, fy: float):
+        """The world point (2D) under the picture fraction (fx, fy), rows from the top; None outside a 2D view."""
+        cached = getattr(self.sim, "_picture_renderer", None)
+        if cached is None or self.sim.dim != 2:
+            return None
+        plan = cached[1].plan
+        scale, offset = plan.view
+        column, row_up = fx * self.width, (1.0 - fy) * self.height
+        return ((column - offset[0]) / scale, (row_up - offset[1]) / scale)
+
+    def tool(self, msg: dict) -> None:
+        if msg["tool"] not in self.tool_names():
+            self.tell({"t": "error", "text": f"this scene has no {msg['tool']} tool"})
+            return
+        centre = self.world_at(msg["x"], msg["y"])
+        if not msg["down"] or centre is None:
+            self.stroke = None
+            return
+        if self.stroke is None:  # a stroke starts: keep the state before it for undo
+            self.history.push(self.sim)
+        self.stroke = {"tool": msg["tool"], "centre": centre, "radius": float(msg["radius"])}
+
+    def apply_stroke(self, dt: float) -> None:
+        if self.stroke is None:
+            return
+        s = self.stroke
+        self.tools.apply(s["tool"], s["centre"], s["radius"], dt, material=None)
+
+    # ------------------------------------------------------------------ a frame
+    def frame(self) -> None:
+        from ..errors import SimulationError
+        from . import panel
+
+        sim = self.sim
+        try:
+            if not self.paused or self.single_steps:
+                self.single_steps = max(self.single_steps - 1, 0)
+                self.apply_stroke(sim.dt * sim.frame_substeps()[0])
+                sim.advance_frame()
+            stats = sim.stats(pair_energy=False)
+        except SimulationError as exc:  # a blow-up: say so and start the scene again
+            self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
+            sim.reset()
+            stats = sim.stats(pair_energy=False)
+        picture = sim.picture(self.width, self.height)
+        self.frames += 1
+        if sim.time - self.reference[0] >= SUMMARY_EVERY or self.reference[1] is None:
+            self.reference = (sim.time, stats.mean_temperature)
+        info = {
+            "t": "info",
+            "readouts": panel.as_json(panel.readouts(sim, stats)),
+            "settings": panel.as_json(panel.settings(sim)),
+            "summary": panel.summary(sim, stats, self.reference[1]),
+            "probe": self.probe(),
+            "time": sim.time,
+            "frame": self.frames,
+        }
+        self.tell(info)
+        self.conn.send_bytes(b"F" + self.jpeg(picture, 82))
+
+    def probe(self) -> str | None:
+        from .probe import particle_at, probe
+
+        if self.pointer is None:
+            return None
+        point = self.world_at(*self.pointer)
+        if point is None:
+            return None
+        i = particle_at(self.sim, point)
+        return None if i is None else probe(self.sim, i).text()
+
+    @staticmethod
+    def jpeg(picture, quality: int) -> bytes:
+        from PIL import Image
+
+        out = io.BytesIO()
+        Image.fromarray(picture).save(out, "JPEG", quality=quality)
+        return out.getvalue()
+
+    # ------------------------------------------------------------------ state files
+    def save(self, path: Path) -> None:
+        from ..files.persist import save_state
+
+        saved = save_state(self.sim, path)
+        self.tell({"t": "saved", "path": str(saved)})
+
+    def upload(self, path: Path) -> None:
+        """Load a state file the page uploaded (the server wrote it to `path`): checked before anything changes;
+        refused with the checker's one line, the session running on."""
+        from ..errors import SandboxError
+        from ..files.persist import load_into
+
+        try:
+            load_into(self.sim, path)
+        except (SandboxError, OSError, ValueError, KeyError) as exc:
+            self.tell({"t": "error", "key": "upload_refused", "text": str(exc)})
+        else:
+            self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
+        finally:
+            path.unlink(missing_ok=True)
+
+
+def scratch_dir() -> Path:
+    """The server's own folder for state files in transit (never a name a client chose)."""
+    path = Path(tempfile.gettempdir()) / f"sandbox-serve-{os.getpid()}"
+    path.mkdir(exist_ok=True)
+    return path

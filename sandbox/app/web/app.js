@@ -1,0 +1,238 @@
+// The classroom page: shows this tab's session (pictures drawn by the sandbox's renderer, streamed over a
+// WebSocket one at a time: the page asks for the next picture when it has drawn the last, so the frame rate follows
+// the network and the server), and its panel from the shared description (sandbox/app/panel.py). Every string the
+// page shows comes from a message catalogue (static/i18n/*.json).
+"use strict";
+
+const params = new URLSearchParams(location.search);
+const token = params.get("token") || "";
+const $ = (id) => document.getElementById(id);
+let words = {};
+let socket = null;
+let sid = null;
+let paused = false;
+let tools = [];
+let settingKeys = "";
+let lastSummary = null;
+let lastReadoutsShown = 0;
+
+function t(key, values) {
+  let text = words[key] ?? key;
+  for (const [k, v] of Object.entries(values || {})) text = text.replaceAll(`{${k}}`, v);
+  return text;
+}
+
+async function setLanguage(lang) {
+  const response = await fetch(`static/i18n/${lang}.json${token ? "?token=" + token : ""}`);
+  words = await response.json();
+  document.documentElement.lang = lang;
+  localStorage.setItem("sandbox-lang", lang);
+  $("lang").value = lang;
+  for (const el of document.querySelectorAll("[data-i18n]")) el.textContent = t(el.dataset.i18n);
+  $("pause").textContent = t(paused ? "play" : "pause");
+  fillTools();
+  settingKeys = "";  // relabel the sliders
+}
+
+function chooseLanguage() {
+  const asked = params.get("lang") || localStorage.getItem("sandbox-lang") || navigator.language || "en";
+  const lang = asked.slice(0, 2).toLowerCase();
+  return ["en", "fr"].includes(lang) ? lang : "en";
+}
+
+function say(text) { $("status").textContent = text; }
+
+function send(message) {
+  if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(message));
+}
+
+function connect(scene) {
+  const proto = location.protocol === "https:" ? "wss:" : "ws:";
+  const query = new URLSearchParams({ scene: scene || "" });
+  if (token) query.set("token", token);
+  socket = new WebSocket(`${proto}//${location.host}/ws?${query}`);
+  socket.binaryType = "blob";
+  say(t("connecting"));
+  socket.onmessage = (event) => (typeof event.data === "string" ? onText(JSON.parse(event.data)) : onPicture(event.data));
+  socket.onclose = () => say(t("disconnected"));
+}
+
+async function onPicture(blob) {
+  const bitmap = await createImageBitmap(blob);
+  const canvas = $("picture");
+  if (canvas.width !== bitmap.width) { canvas.width = bitmap.width; canvas.height = bitmap.height; }
+  canvas.getContext("2d").drawImage(bitmap, 0, 0);
+  bitmap.close();
+  canvas.dataset.frames = String(Number(canvas.dataset.frames || 0) + 1);
+  requestAnimationFrame(() => send({ t: "ready" }));  // the next picture, once this one is on the screen
+}
+
+function onText(msg) {
+  if (msg.t === "hello") { sid = msg.sid; say(t("connected")); }
+  else if (msg.t === "scene") onScene(msg);
+  else if (msg.t === "info") onInfo(msg);
+  else if (msg.t === "paused") { paused = msg.paused; $("pause").textContent = t(paused ? "play" : "pause"); }
+  else if (msg.t === "error") say(msg.key ? t(msg.key, { text: msg.text || "" }) : msg.text);
+  else if (msg.t === "notice") say(t(msg.key, { text: msg.text || "" }));
+}
+
+function onScene(msg) {
+  $("scene").value = msg.scene;
+  for (const part of ["happens", "explore", "physics"]) $(part).textContent = (msg.lesson || {})[part] || "";
+  $("lesson-box").hidden = !msg.lesson || !msg.lesson.happens;
+  tools = msg.tools || [];
+  fillTools();
+  settingKeys = "";
+}
+
+function fillTools() {
+  const select = $("tool");
+  const current = select.value;
+  select.replaceChildren(...["none", ...tools].map((name) => new Option(t("tool_" + name), name)));
+  select.value = ["none", ...tools].includes(current) ? current : tools[0] || "none";
+}
+
+function readoutLabel(r) {
+  return r.key === "temperature_of" ? t("r_temperature_of", { words: r.words }) : t("r_" + r.key);
+}
+
+function onInfo(msg) {
+  const now = performance.now();
+  if (now - lastReadoutsShown > 1000) {  // once a second: readable, and not a flood for a screen reader
+    lastReadoutsShown = now;
+    const rows = [];
+    for (const r of msg.readouts) {
+      const dt = document.createElement("dt");
+      dt.textContent = readoutLabel(r);
+      const dd = document.createElement("dd");
+      dd.dataset.key = r.key;
+      const unit = r.unit === "C" ? "°C" : r.unit;
+      dd.textContent = r.value === null ? "-" : `${r.value.toFixed(r.digits)}${unit ? " " + unit : ""}`;
+      rows.push(dt, dd);
+    }
+    $("readouts").replaceChildren(...rows);
+    $("probe").textContent = msg.probe || "-";
+  }
+  const summary = t(msg.summary.key, { ...msg.summary, trend: t("trend_" + (msg.summary.trend || "steady")) });
+  if (summary !== lastSummary && (!lastSummary || now - (onInfo.spoken || 0) > 5000)) {
+    onInfo.spoken = now;
+    lastSummary = summary;
+    $("summary").textContent = summary;
+    $("picture").setAttribute("aria-label", t("picture_label", { summary }));
+  }
+  fillSettings(msg.settings);
+}
+
+function settingLabel(s) {
+  return (s.key.startsWith("source") ? t("s_source", { words: s.words }) : t("s_" + s.key)) + (s.unit ? ` (${s.unit.replace(/^C$/, "°C")})` : "");
+}
+
+function fillSettings(settings) {
+  const keys = settings.map((s) => s.key).join(",");
+  if (keys !== settingKeys) {
+    settingKeys = keys;
+    const rows = settings.map((s) => {
+      const row = document.createElement("div");
+      row.className = "row";
+      const label = document.createElement("label");
+      label.htmlFor = "set-" + s.key;
+      label.textContent = settingLabel(s);
+      const input = document.createElement("input");
+      Object.assign(input, { type: "range", id: "set-" + s.key, min: s.lo, max: s.hi, step: s.step, value: s.value });
+      const out = document.createElement("output");
+      out.id = "out-" + s.key;
+      input.addEventListener("input", () => { out.textContent = Number(input.value).toFixed(1); send({ t: "set", key: s.key, value: Number(input.value) }); });
+      row.append(label, input, out);
+      return row;
+    });
+    $("settings").replaceChildren(...rows);
+  }
+  for (const s of settings) {
+    const input = $("set-" + s.key);
+    if (input && document.activeElement !== input && input.dataset.dragging !== "1") input.value = s.value;
+    const out = $("out-" + s.key);
+    if (out) out.textContent = Number(s.value).toFixed(1);
+  }
+}
+
+// ---------------------------------------------------------------- the tools on the picture
+function fraction(event) {
+  const box = $("picture").getBoundingClientRect();
+  return { x: Math.min(Math.max((event.clientX - box.left) / box.width, 0), 1), y: Math.min(Math.max((event.clientY - box.top) / box.height, 0), 1) };
+}
+let stroking = false;
+const keyboardPoint = { x: 0.5, y: 0.6 };
+function toolMessage(point, down) {
+  return { t: "tool", tool: $("tool").value, x: point.x, y: point.y, radius: Number($("brush").value), down };
+}
+function setupPicture() {
+  const canvas = $("picture");
+  canvas.addEventListener("pointerdown", (e) => {
+    if ($("tool").value === "none") return;
+    stroking = true;
+    canvas.setPointerCapture(e.pointerId);
+    send(toolMessage(fraction(e), true));
+  });
+  canvas.addEventListener("pointermove", (e) => {
+    const p = fraction(e);
+    send({ t: "pointer", x: p.x, y: p.y });
+    if (stroking) send(toolMessage(p, true));
+  });
+  const end = (e) => { if (stroking) { stroking = false; send(toolMessage(fraction(e), false)); } };
+  canvas.addEventListener("pointerup", end);
+  canvas.addEventListener("pointercancel", end);
+  canvas.addEventListener("keydown", (e) => {  // the keyboard's pointer: arrows move it, Enter held uses the tool
+    const step = e.shiftKey ? 0.1 : 0.02;
+    const moves = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, -step], ArrowDown: [0, step] };
+    if (moves[e.key]) {
+      keyboardPoint.x = Math.min(Math.max(keyboardPoint.x + moves[e.key][0], 0), 1);
+      keyboardPoint.y = Math.min(Math.max(keyboardPoint.y + moves[e.key][1], 0), 1);
+      send({ t: "pointer", ...keyboardPoint });
+      if (stroking) send(toolMessage(keyboardPoint, true));
+      e.preventDefault();
+    } else if (e.key === "Enter" && $("tool").value !== "none") {
+      stroking = true;
+      send(toolMessage(keyboardPoint, true));
+      e.preventDefault();
+    }
+  });
+  canvas.addEventListener("keyup", (e) => {
+    if (e.key === "Enter" && stroking) { stroking = false; send(toolMessage(keyboardPoint, false)); }
+  });
+}
+
+function setupControls() {
+  $("pause").addEventListener("click", () => send({ t: "action", name: paused ? "play" : "pause" }));
+  for (const name of ["step", "reset", "undo"]) $(name).addEventListener("click", () => send({ t: "action", name }));
+  $("scene").addEventListener("change", () => send({ t: "scene", name: $("scene").value }));
+  $("lang").addEventListener("change", () => setLanguage($("lang").value));
+  $("brush").addEventListener("input", () => { $("brush-value").textContent = $("brush").value; });
+  $("download").addEventListener("click", () => {
+    if (!sid) return;
+    const a = document.createElement("a");
+    a.href = `api/state?sid=${sid}${token ? "&token=" + token : ""}`;
+    a.download = ($("scene").value || "sandbox") + ".npz";
+    a.click();
+  });
+  $("upload").addEventListener("change", async () => {
+    const file = $("upload").files[0];
+    if (!file || !sid) return;
+    const response = await fetch(`api/state?sid=${sid}${token ? "&token=" + token : ""}`, { method: "POST", body: file });
+    if (!response.ok) say(await response.text());
+    $("upload").value = "";
+  });
+}
+
+async function start() {
+  await setLanguage(chooseLanguage());
+  const response = await fetch(`api/scenes${token ? "?token=" + token : ""}`);
+  const { scenes, default: first } = await response.json();
+  const wanted = params.get("scene");
+  $("scene").replaceChildren(...scenes.map((name) => new Option(name.replaceAll("_", " "), name)));
+  $("scene").value = scenes.includes(wanted) ? wanted : first;
+  setupControls();
+  setupPicture();
+  connect($("scene").value);
+}
+
+start();

@@ -1,0 +1,48 @@
+// The teacher's view: every session with a small live picture; pause them all, or send a scene or a setting to all.
+"use strict";
+const token = new URLSearchParams(location.search).get("token") || "";
+const q = (extra) => { const p = new URLSearchParams(extra || {}); if (token) p.set("token", token); return "?" + p; };
+const $ = (id) => document.getElementById(id);
+let words = {};
+
+async function language() {
+  const lang = (navigator.language || "en").slice(0, 2);
+  words = await (await fetch(`static/i18n/${["en", "fr"].includes(lang) ? lang : "en"}.json${q()}`)).json();
+  for (const el of document.querySelectorAll("[data-i18n]")) el.textContent = words[el.dataset.i18n] || el.textContent;
+}
+
+async function broadcast(message) {
+  const response = await fetch(`api/broadcast${q()}`, { method: "POST", body: JSON.stringify(message) });
+  $("status").textContent = response.ok ? `→ ${(await response.json()).sent}` : await response.text();
+}
+
+async function refresh() {
+  const { sessions } = await (await fetch(`api/sessions${q()}`)).json();
+  const rows = sessions.map((s) => {
+    const tr = document.createElement("tr");
+    const img = document.createElement("img");
+    img.src = `api/thumb${q({ sid: s.sid, n: Date.now() })}`;
+    img.alt = `${s.scene}, t = ${s.time.toFixed(1)} s`;
+    img.width = 240; img.height = 135;
+    for (const text of [s.sid, s.scene.replaceAll("_", " "), s.time.toFixed(1)]) {
+      const td = document.createElement("td"); td.textContent = text; tr.append(td);
+    }
+    const td = document.createElement("td"); td.append(img); tr.append(td);
+    return tr;
+  });
+  if (!rows.length) { const tr = document.createElement("tr"); tr.textContent = words.no_sessions || ""; rows.push(tr); }
+  $("sessions").replaceChildren(...rows);
+}
+
+async function start() {
+  await language();
+  const { scenes } = await (await fetch(`api/scenes${q()}`)).json();
+  $("scene").replaceChildren(...scenes.map((name) => new Option(name.replaceAll("_", " "), name)));
+  $("pause-all").onclick = () => broadcast({ t: "action", name: "pause" });
+  $("play-all").onclick = () => broadcast({ t: "action", name: "play" });
+  $("push-scene").onclick = () => broadcast({ t: "scene", name: $("scene").value });
+  $("push-air").onclick = () => broadcast({ t: "set", key: "air", value: Number($("air").value) });
+  refresh();
+  setInterval(refresh, 3000);
+}
+start();
