@@ -365,7 +365,8 @@ def cmd_serve(args) -> int:
     try:
         from .serve import serve
     except ImportError as exc:
-        raise SandboxError(f"sandbox serve needs the serve extra: pip install -e '.[serve]' ({exc.name} is missing)")
+        missing = f"sandbox serve needs the serve extra: pip install -e '.[serve]' ({exc.name} is missing)"
+        raise SandboxError(missing) from None
     return serve(args.scene, args.host, args.port, args.token, args.max_sessions)
 
 
