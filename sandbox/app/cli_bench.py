@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 from ..core import runtime
+from ..errors import SandboxError
 from ..research.bench import (
     LIKE_LAMMPS,
     PEER_ROUNDS,
@@ -35,6 +36,17 @@ def run_bench(args) -> int:
     if args.scaling:
         print("W1 throughput against N:")
         scaling(args.arch, repeats, Path(args.out))
+        return 0
+    if args.serve:
+        from ..research.serve_bench import bench_serve, report
+
+        if args.serve < 1:
+            raise SandboxError(f"--serve: expected a number of sessions of at least 1, got {args.serve}")
+        result = bench_serve(args.serve)
+        print(report(result))
+        if args.json:
+            Path(args.json).write_text(json.dumps(result, indent=2))
+            print(f"wrote {args.json}")
         return 0
     if args.window:
         rates = window_rates(args.arch, frames=40 if args.quick else 120)

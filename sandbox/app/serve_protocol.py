@@ -68,7 +68,10 @@ def parse(text: str | bytes, scenes) -> dict:
         key = msg.get("key")
         if not isinstance(key, str) or not key.isidentifier() or len(key) > 32:
             raise ProtocolError("set: key must be a setting's name")
-        return {"t": "set", "key": key, "value": _number(msg, "value", -1e6, 1e6)}
+        out = {"t": "set", "key": key, "value": _number(msg, "value", -1e6, 1e6)}
+        if "seq" in msg:  # a number the session echoes in its next readouts (the benchmark's latency probe)
+            out["seq"] = int(_number(msg, "seq", 0, 2**31))
+        return out
     if kind == "action":
         return {"t": "action", "name": _choice(msg, "name", ACTIONS)}
     if kind == "scene":

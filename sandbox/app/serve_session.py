@@ -17,7 +17,12 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
+JPEG_QUALITY = 80
+READOUTS_EVERY = 6  # pictures between the readouts sent with them
+CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
 SUMMARY_EVERY = 2.0  # seconds of simulated time between the trend's reference temperatures
 
 
@@ -44,6 +49,7 @@ class Session:
         self.stroke: dict | None = None  # the tool stroke in progress: tool, centre (world), radius
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
         self.frames = 0
+        self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
         self.started = time.perf_counter()
         self.load(scene)
 
@@ -95,6 +101,7 @@ class Session:
         elif kind == "set":
             from . import panel
 
+            self.seq = msg.get("seq", self.seq)
             try:
                 panel.apply_setting(self.sim, msg["key"], msg["value"])
             except ValueError as exc:
@@ -108,7 +115,10 @@ class Session:
         elif kind == "upload":
             self.upload(Path(msg["path"]))
         elif kind == "thumb":
-            self.conn.send_bytes(b"T" + self.jpeg(self.sim.picture(240, 135, title=False, legend=False), 70))
+            from PIL import Image
+
+            small = Image.fromarray(self.draw()).resize((240, 135), Image.Resampling.BILINEAR)
+            self.conn.send_bytes(b"T" + self.jpeg(np.asarray(small), 70))
 
     def action(self, name: str) -> None:
         if name == "pause":
@@ -157,7 +167,6 @@ class Session:
     # ------------------------------------------------------------------ a frame
     def frame(self) -> None:
         from ..errors import SimulationError
-        from . import panel
 
         sim = self.sim
         try:
@@ -165,26 +174,41 @@ class Session:
                 self.single_steps = max(self.single_steps - 1, 0)
                 self.apply_stroke(sim.dt * sim.frame_substeps()[0])
                 sim.advance_frame()
-            stats = sim.stats(pair_energy=False)
         except SimulationError as exc:  # a blow-up: say so and start the scene again
             self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
             sim.reset()
-            stats = sim.stats(pair_energy=False)
-        picture = sim.picture(self.width, self.height)
+        picture = self.draw()
         self.frames += 1
+        info = {"t": "info", "time": sim.time, "frame": self.frames, "seq": self.seq}
+        if self.frames % READOUTS_EVERY == 1:  # the page shows readouts a few times a second, not every frame
+            info.update(self.readouts())
+        self.tell(info)
+        self.conn.send_bytes(b"F" + self.jpeg(picture, JPEG_QUALITY))
+
+    def draw(self):
+        """This moment's picture: the renderer's own buffer, encoded before the next frame (no copy)."""
+        cached = getattr(self.sim, "_picture_renderer", None)
+        if cached is None or cached[0][0] != (self.width, self.height):
+            return self.sim.picture(self.width, self.height)  # builds and caches the renderer
+        renderer = cached[1]
+        if renderer.plots() and self.frames % CHART_EVERY == 0:
+            renderer.record(self.sim.stats(pair_energy=False))
+        return renderer.frame()
+
+    def readouts(self) -> dict:
+        """The panel's description now (panel.py) and the sentence for screen readers."""
+        from . import panel
+
+        sim = self.sim
+        stats = sim.stats(pair_energy=False)
         if sim.time - self.reference[0] >= SUMMARY_EVERY or self.reference[1] is None:
             self.reference = (sim.time, stats.mean_temperature)
-        info = {
-            "t": "info",
+        return {
             "readouts": panel.as_json(panel.readouts(sim, stats)),
             "settings": panel.as_json(panel.settings(sim)),
             "summary": panel.summary(sim, stats, self.reference[1]),
             "probe": self.probe(),
-            "time": sim.time,
-            "frame": self.frames,
         }
-        self.tell(info)
-        self.conn.send_bytes(b"F" + self.jpeg(picture, 82))
 
     def probe(self) -> str | None:
         from .probe import particle_at, probe

@@ -27,6 +27,7 @@ def font(size: int) -> ImageFont.FreeTypeFont:
     return ImageFont.load_default(size=size)
 
 
+@lru_cache(maxsize=4096)
 def text_width(text: str, size: int) -> int:
     """Pixels `text` takes across at font size `size`."""
     return int(np.ceil(font(size).getlength(text)))
@@ -37,27 +38,40 @@ def line_height(size: int) -> int:
     return round(size * 1.3)
 
 
+@lru_cache(maxsize=2048)
+def _masks(text: str, size: int, outline: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """The coverage of `text`'s glyphs and of its outline, (h, w, 1) floats in [0, 1] with a 2-pixel margin: drawn
+    by Pillow once per text and size, then reused (a picture's labels repeat from frame to frame)."""
+    face = font(size)
+    pad = 2
+    w, h = text_width(text, size) + 2 * pad, line_height(size) + 2 * pad
+    glyphs = Image.new("L", (w, h))
+    ImageDraw.Draw(glyphs).text((pad, pad), text, font=face, fill=255)
+    cover = np.asarray(glyphs, np.float32)[:, :, None] / 255.0
+    shade = None
+    if outline:
+        halo = Image.new("L", (w, h))
+        ImageDraw.Draw(halo).text((pad, pad), text, font=face, fill=255, stroke_width=max(1, size // 10))
+        shade = np.asarray(halo, np.float32)[:, :, None] / 255.0 * 0.75
+    return cover, shade
+
+
 def draw_text(img: np.ndarray, text: str, x: int, y: int, size: int, color=LIGHT, outline: bool = True) -> None:
     """Draw `text` into an (H, W, 3) uint8 image (or a view of one) with its top-left corner at pixel (x, y), rows
     counted from the top, font size `size` pixels; what falls outside the image is clipped."""
     if not text:
         return
-    face = font(size)
+    cover, shade = _masks(text, size, outline)
     pad = 2
-    w, h = text_width(text, size) + 2 * pad, line_height(size) + 2 * pad
+    h, w = cover.shape[:2]
     x0, y0 = x - pad, y - pad
     cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x0 + w, img.shape[1]), min(y0 + h, img.shape[0])
     if cx0 >= cx1 or cy0 >= cy1:
         return
-    glyphs = Image.new("L", (w, h))
-    ImageDraw.Draw(glyphs).text((pad, pad), text, font=face, fill=255)
-    cover = np.asarray(glyphs, np.float32)[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0, None] / 255.0
     region = img[cy0:cy1, cx0:cx1]
-    if outline:
-        halo = Image.new("L", (w, h))
-        ImageDraw.Draw(halo).text((pad, pad), text, font=face, fill=255, stroke_width=max(1, size // 10))
-        shade = np.asarray(halo, np.float32)[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0, None] / 255.0 * 0.75
-        region[:] = (region * (1.0 - shade)).astype(np.uint8)
+    if shade is not None:
+        region[:] = (region * (1.0 - shade[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0])).astype(np.uint8)
+    cover = cover[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0]
     ink = np.asarray(color, np.float32)[None, None, :]
     region[:] = (region * (1.0 - cover) + ink * cover + 0.5).astype(np.uint8)
 

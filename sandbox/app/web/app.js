@@ -97,6 +97,7 @@ function readoutLabel(r) {
 }
 
 function onInfo(msg) {
+  if (!msg.readouts) return;  // a picture's clock only: the readouts come with every few pictures
   const now = performance.now();
   if (now - lastReadoutsShown > 1000) {  // once a second: readable, and not a flood for a screen reader
     lastReadoutsShown = now;
