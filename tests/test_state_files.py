@@ -142,7 +142,7 @@ HOSTILE_JSON = [None, -1, 0, 10**12, -1.5, "x", [], {}, [1e30], True, 3.0]
 
 
 @settings(
-    max_examples=3000 if CAMPAIGN else 40,
+    max_examples=3000 if CAMPAIGN else 20,
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )

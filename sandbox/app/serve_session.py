@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
+MAX_FPS = 30.0  # pictures a second at most: more shows nothing new to a class and takes a core from other tabs
 JPEG_QUALITY = 80
 READOUTS_EVERY = 6  # pictures between the readouts sent with them
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
@@ -81,13 +82,16 @@ class Session:
         self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
 
     def loop(self) -> None:
+        due = 0.0  # when the next picture may be drawn (MAX_FPS)
         while True:
-            waiting = self.credits <= 0
-            while self.conn.poll(0.05 if waiting else 0):
-                self.handle(json.loads(self.conn.recv_bytes()))
-                waiting = self.credits <= 0
-            if self.credits > 0:
+            wait = 0.05 if self.credits <= 0 else max(due - time.perf_counter(), 0.0)
+            if self.conn.poll(wait):
+                while self.conn.poll(0):  # everything the page sent, before the next picture
+                    self.handle(json.loads(self.conn.recv_bytes()))
+                continue
+            if self.credits > 0 and time.perf_counter() >= due:
                 self.credits -= 1
+                due = time.perf_counter() + 1.0 / MAX_FPS
                 self.frame()
 
     def handle(self, msg: dict) -> None:
