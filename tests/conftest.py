@@ -81,8 +81,13 @@ def compiled_kernels(monkeypatch) -> list[str]:
 # The modules in the order their tests start, the longest first (seconds with an empty kernel cache, 2 workers), so
 # that the last to start are short and both workers finish together. A module missing here starts last.
 LONGEST_FIRST = (
+    "test_window_screens",
+    "test_state_files",
     "test_fast_paths",
+    "test_states_of_matter",
     "test_render",
+    "test_run_files",
+    "test_serve",
     "test_effects",
     "test_api",
     "test_integrators",
@@ -101,6 +106,10 @@ LONGEST_FIRST = (
     "test_install",
     "test_pressure",
     "test_fuzz",
+    "test_agitation",
+    "test_boiling",
+    "test_picture_layout",
+    "test_figures",
     "test_melting",
     "test_cli_arguments",
     "test_motion",
