@@ -63,6 +63,12 @@ def test_bad_values_give_one_line_and_exit_2_writing_nothing(extra, expected, tm
         (["bench", "--repeats", "0"], "--repeats 0: expected an integer from 1"),
         (["bench", "--json", "{tmp}/b.txt"], "expected a file ending in .json"),
         (["bench", "--scaling", "--out", "{tmp}/plain"], "is a file; expected a folder"),
+        (["bench", "--serve", "0"], "--serve: expected a number of sessions of at least 1"),
+        (["serve", "{tmp}/plain"], "unknown scene"),
+        (["serve", "--port", "70000"], "--port: expected 1 to 65535"),
+        (["serve", "--max-sessions", "0"], "--max-sessions: expected at least 1"),
+        (["serve", "--max-fps", "500"], "--max-fps: expected 1 to 60"),
+        (["serve", "--token", "short"], "--token: expected at least 8 characters"),
     ],
 )
 def test_study_and_bench_check_their_arguments_first(argv, expected, tmp_path, capsys):

@@ -348,6 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=int, default=8000)
     serve.add_argument("--token", help="the token every request must carry (made up and printed when needed)")
     serve.add_argument("--max-sessions", type=int, default=8, help="browser tabs served at once")
+    serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
     serve.set_defaults(func=cmd_serve)
     return parser
 
@@ -360,6 +361,8 @@ def cmd_serve(args) -> int:
         raise SandboxError(f"--port: expected 1 to 65535, got {args.port}")
     if args.max_sessions < 1:
         raise SandboxError(f"--max-sessions: expected at least 1, got {args.max_sessions}")
+    if not 1.0 <= args.max_fps <= 60.0:
+        raise SandboxError(f"--max-fps: expected 1 to 60, got {args.max_fps:g}")
     if args.token is not None and len(args.token) < 8:
         raise SandboxError("--token: expected at least 8 characters")
     try:
@@ -367,7 +370,7 @@ def cmd_serve(args) -> int:
     except ImportError as exc:
         missing = f"sandbox serve needs the serve extra: pip install -e '.[serve]' ({exc.name} is missing)"
         raise SandboxError(missing) from None
-    return serve(args.scene, args.host, args.port, args.token, args.max_sessions)
+    return serve(args.scene, args.host, args.port, args.token, args.max_sessions, args.max_fps)
 
 
 def main(argv: list[str] | None = None) -> int:

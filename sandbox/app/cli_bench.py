@@ -37,7 +37,7 @@ def run_bench(args) -> int:
         print("W1 throughput against N:")
         scaling(args.arch, repeats, Path(args.out))
         return 0
-    if args.serve:
+    if args.serve is not None:
         from ..research.serve_bench import bench_serve, report
 
         if args.serve < 1:

@@ -60,8 +60,10 @@ class Handle:
 class Classroom:
     """The sessions, their limits and the token (module docstring)."""
 
-    def __init__(self, scene: str, token: str | None, max_sessions: int, idle: float = IDLE_SECONDS):
-        self.scene, self.token, self.max_sessions, self.idle = scene, token, max_sessions, idle
+    def __init__(
+        self, scene: str, token: str | None, max_sessions: int, idle: float = IDLE_SECONDS, max_fps: float = 30.0
+    ):
+        self.scene, self.token, self.max_sessions, self.idle, self.max_fps = scene, token, max_sessions, idle, max_fps
         self.scenes = sorted(p.stem for p in shipped_scenes())
         self.sessions: dict[str, Handle] = {}
         self.context = multiprocessing.get_context("spawn")
@@ -71,7 +73,8 @@ class Classroom:
     def open(self, scene: str) -> Handle:
         """A new session of `scene` (a shipped scene's name) in a process of its own."""
         parent, child = self.context.Pipe()
-        process = self.context.Process(target=session_main, args=(child, scene, *PICTURE), daemon=True)
+        args = (child, scene, *PICTURE, self.max_fps)
+        process = self.context.Process(target=session_main, args=args, daemon=True)
         process.start()
         child.close()
         handle = Handle(secrets.token_urlsafe(8), scene, process, parent)
@@ -339,13 +342,13 @@ class TokenGate:
         await self.app(scope, receive, send)
 
 
-def serve(scene: str, host: str, port: int, token: str | None, max_sessions: int) -> int:
+def serve(scene: str, host: str, port: int, token: str | None, max_sessions: int, max_fps: float = 30.0) -> int:
     """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed)."""
     import uvicorn
 
     if token is None and not is_loopback(host):
         token = secrets.token_urlsafe(12)
-    classroom = Classroom(scene, token, max_sessions)
+    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps)
     query = f"?token={token}" if token else ""
     shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
     print(f"the classroom: http://{shown}:{port}/{query}")

@@ -20,20 +20,20 @@ from pathlib import Path
 import numpy as np
 
 FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
-MAX_FPS = 30.0  # pictures a second at most: more shows nothing new to a class and takes a core from other tabs
+MAX_FPS = 30.0  # pictures a second at most (serve --max-fps): more shows a class nothing new, and takes a core
 JPEG_QUALITY = 80
 READOUTS_EVERY = 6  # pictures between the readouts sent with them
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
 SUMMARY_EVERY = 2.0  # seconds of simulated time between the trend's reference temperatures
 
 
-def session_main(conn, scene: str, width: int, height: int, threads: int = 1) -> None:
-    """Run one tab's simulation of the shipped scene `scene`, drawing `width` x `height` pictures, until the server
-    closes the pipe. Never raises: what goes wrong is reported to the page."""
+def session_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, threads: int = 1) -> None:
+    """Run one tab's simulation of the shipped scene `scene`, drawing `width` x `height` pictures (at most `max_fps`
+    a second), until the server closes the pipe. Never raises: what goes wrong is reported to the page."""
     os.environ.setdefault("SANDBOX_CPU_THREADS", str(threads))  # sessions share the cores: one thread each
     os.environ.setdefault("TI_LOG_LEVEL", "error")
     try:
-        Session(conn, scene, width, height).loop()
+        Session(conn, scene, width, height, max_fps).loop()
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
 
@@ -41,8 +41,9 @@ def session_main(conn, scene: str, width: int, height: int, threads: int = 1) ->
 class Session:
     """The simulation, its tools and its undo ring, driven by the server's commands (module docstring)."""
 
-    def __init__(self, conn, scene: str, width: int, height: int):
+    def __init__(self, conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS):
         self.conn = conn
+        self.interval = 1.0 / max_fps
         self.width, self.height = width, height
         self.credits = FIRST_CREDITS
         self.paused = False
@@ -82,7 +83,7 @@ class Session:
         self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
 
     def loop(self) -> None:
-        due = 0.0  # when the next picture may be drawn (MAX_FPS)
+        due = 0.0  # when the next picture may be drawn (at most max_fps a second)
         while True:
             wait = 0.05 if self.credits <= 0 else max(due - time.perf_counter(), 0.0)
             if self.conn.poll(wait):
@@ -91,7 +92,7 @@ class Session:
                 continue
             if self.credits > 0 and time.perf_counter() >= due:
                 self.credits -= 1
-                due = time.perf_counter() + 1.0 / MAX_FPS
+                due = time.perf_counter() + self.interval
                 self.frame()
 
     def handle(self, msg: dict) -> None:
