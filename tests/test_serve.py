@@ -2,6 +2,7 @@
 Chromium, headless), and its server's token, message checks and limits. Skipped where Chromium or Playwright is
 missing (.ci/run installs both)."""
 
+import json
 import re
 import shutil
 import socket
@@ -237,3 +238,62 @@ def test_a_misbehaving_tab_does_not_disturb_another(classroom, shared):
     assert rate > 5.0  # still drawing (alone it draws 12 a second, the cap the tests set)
     assert frames(good) > start
     bad.close()
+
+
+def test_every_string_the_pages_show_is_in_both_catalogues():
+    """The pages' words come from the catalogues: every data-i18n key and every t("...") key of the pages and their
+    scripts is in English and in French, and the two catalogues have the same keys."""
+    from sandbox.app.serve import WEB
+
+    en = json.loads((WEB / "i18n" / "en.json").read_text())
+    fr = json.loads((WEB / "i18n" / "fr.json").read_text())
+    assert set(en) == set(fr)
+    used = set()
+    for name in ("index.html", "teacher.html"):
+        used |= set(re.findall(r'data-i18n(?:-label)?="([a-z_]+)"', (WEB / name).read_text()))
+    script = (WEB / "app.js").read_text()
+    used |= {key for key in re.findall(r'\bt\("([a-z_]+)"', script) if not key.endswith("_")}  # not prefixes
+    used |= {
+        "tool_" + name for name in ("none", "heat", "cool", "drag", "attract", "repel", "impulse", "erase", "spawn")
+    }
+    used |= {"r_" + key for key in ("time", "particles", "broken", "temperature", "melted", "solid", "liquid", "gas")}
+    assert used - set(en) == set()
+    assert all(en[k] != fr[k] for k in ("title", "reset", "lesson", "r_temperature"))  # translated, not copied
+
+
+def test_the_teacher_pauses_every_session_and_the_classroom_has_a_limit(classroom, shared):
+    """The teacher's view lists the sessions and pauses them all (the tab's pause button turns to play); a server
+    with --max-sessions 1 tells a second tab it is full."""
+    import asyncio
+    import concurrent.futures
+
+    import websockets
+
+    _, address = classroom
+    rows = json.loads(urllib.request.urlopen(address.rstrip("/") + "/api/sessions", timeout=5).read())["sessions"]
+    assert len(rows) >= 1 and rows[0]["scene"] == "melting_block"
+    thumb = urllib.request.urlopen(address.rstrip("/") + f"/api/thumb?sid={rows[0]['sid']}", timeout=15).read()
+    assert thumb[:2] == b"\xff\xd8"  # a JPEG
+    pause = json.dumps({"t": "action", "name": "pause"}).encode()
+    urllib.request.urlopen(urllib.request.Request(address.rstrip("/") + "/api/broadcast", data=pause), timeout=5)
+    shared.wait_for_function("document.getElementById('pause').textContent === 'Play'", timeout=10000)
+    play = json.dumps({"t": "action", "name": "play"}).encode()
+    urllib.request.urlopen(urllib.request.Request(address.rstrip("/") + "/api/broadcast", data=play), timeout=5)
+    shared.wait_for_function("document.getElementById('pause').textContent === 'Pause'", timeout=10000)
+
+    proc, small = start_server("lj_box", "--max-sessions", "1", "--max-fps", "5")
+    url = small.replace("http://", "ws://").rstrip("/") + "/ws"
+
+    async def two_tabs():
+        async with websockets.connect(url) as first:
+            assert json.loads(await first.recv())["t"] == "hello"
+            async with websockets.connect(url) as second:
+                return json.loads(await second.recv())
+
+    try:  # in a thread of its own: Playwright's sync API holds this thread's event loop
+        with concurrent.futures.ThreadPoolExecutor(1) as pool:
+            refused = pool.submit(asyncio.run, two_tabs()).result(60)
+        assert refused["key"] == "full" and "1 sessions" in refused["text"]
+    finally:
+        proc.terminate()
+        proc.wait(10)

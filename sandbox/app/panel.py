@@ -82,7 +82,7 @@ def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
             out.append(Readout("melted", "melted", 100 * stats.molten_fraction, "%", 0))
         if math.isfinite(stats.kinetic_temperature):
             out.append(Readout("motion", "the motion says", stats.kinetic_temperature, "C", 0))
-    out.append(Readout("energy", "total energy", stats.total_energy, energy_unit(names), 4))
+    out.append(Readout("energy", "total energy", stats.total_energy, energy_unit(names), 1))
     out.append(Readout("pressure", "pressure", stats.pressure, pressure_unit(names, sim.dim), 3))
     if sim.model.domain.wall_area:
         out.append(

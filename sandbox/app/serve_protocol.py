@@ -56,7 +56,7 @@ def parse(text: str | bytes, scenes) -> dict:
         down = msg.get("down")
         if not isinstance(down, bool):
             raise ProtocolError("tool: down must be true or false")
-        return {
+        out = {
             "t": "tool",
             "tool": _choice(msg, "tool", TOOLS),
             "x": _number(msg, "x", 0, 1),
@@ -64,6 +64,12 @@ def parse(text: str | bytes, scenes) -> dict:
             "radius": _number(msg, "radius", 0.5, 30.0),
             "down": down,
         }
+        material = msg.get("material")
+        if material is not None:  # the spawn tool's material: a name the session checks against its scene's
+            if not isinstance(material, str) or not material.isidentifier() or len(material) > 32:
+                raise ProtocolError("tool: material must be a material's name")
+            out["material"] = material
+        return out
     if kind == "set":
         key = msg.get("key")
         if not isinstance(key, str) or not key.isidentifier() or len(key) > 32:

@@ -67,7 +67,15 @@ class Session:
         self.tools = Tools(self.sim)
         self.history = UndoRing()
         self.reference = (self.sim.time, None)  # (time, mean temperature) the trend compares with
-        self.tell({"t": "scene", "scene": scene, "lesson": self.lesson(), "tools": self.tool_names()})
+        self.tell(
+            {
+                "t": "scene",
+                "scene": scene,
+                "lesson": self.lesson(),
+                "tools": self.tool_names(),
+                "materials": list(self.sim.material_names),
+            }
+        )
 
     def lesson(self) -> dict:
         lesson = self.sim.scene.lesson
@@ -159,15 +167,19 @@ class Session:
         if not msg["down"] or centre is None:
             self.stroke = None
             return
+        material = msg.get("material")
+        if material is not None and material not in self.sim.material_names:
+            self.tell({"t": "error", "text": f"this scene has no material {material!r}"})
+            return
         if self.stroke is None:  # a stroke starts: keep the state before it for undo
             self.history.push(self.sim)
-        self.stroke = {"tool": msg["tool"], "centre": centre, "radius": float(msg["radius"])}
+        self.stroke = {"tool": msg["tool"], "centre": centre, "radius": float(msg["radius"]), "material": material}
 
     def apply_stroke(self, dt: float) -> None:
         if self.stroke is None:
             return
         s = self.stroke
-        self.tools.apply(s["tool"], s["centre"], s["radius"], dt, material=None)
+        self.tools.apply(s["tool"], s["centre"], s["radius"], dt, material=s["material"])
 
     # ------------------------------------------------------------------ a frame
     def frame(self) -> None:

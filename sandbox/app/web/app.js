@@ -82,6 +82,7 @@ function onScene(msg) {
   $("lesson-box").hidden = !msg.lesson || !msg.lesson.happens;
   tools = msg.tools || [];
   fillTools();
+  $("material").replaceChildren(...(msg.materials || []).map((name) => new Option(name.replaceAll("_", " "), name)));
   settingKeys = "";
 }
 
@@ -164,7 +165,9 @@ function fraction(event) {
 let stroking = false;
 const keyboardPoint = { x: 0.5, y: 0.6 };
 function toolMessage(point, down) {
-  return { t: "tool", tool: $("tool").value, x: point.x, y: point.y, radius: Number($("brush").value), down };
+  const message = { t: "tool", tool: $("tool").value, x: point.x, y: point.y, radius: Number($("brush").value), down };
+  if (message.tool === "spawn" && $("material").value) message.material = $("material").value;
+  return message;
 }
 function setupPicture() {
   const canvas = $("picture");
@@ -206,6 +209,7 @@ function setupControls() {
   $("pause").addEventListener("click", () => send({ t: "action", name: paused ? "play" : "pause" }));
   for (const name of ["step", "reset", "undo"]) $(name).addEventListener("click", () => send({ t: "action", name }));
   $("scene").addEventListener("change", () => send({ t: "scene", name: $("scene").value }));
+  $("tool").addEventListener("change", () => { $("material-row").hidden = $("tool").value !== "spawn"; });
   $("lang").addEventListener("change", () => setLanguage($("lang").value));
   $("brush").addEventListener("input", () => { $("brush-value").textContent = $("brush").value; });
   $("download").addEventListener("click", () => {
