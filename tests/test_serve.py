@@ -297,3 +297,19 @@ def test_the_teacher_pauses_every_session_and_the_classroom_has_a_limit(classroo
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+def test_a_downloaded_state_uploads_back_into_the_session(classroom, shared):
+    """The state file a tab downloads is the project's own (it opens as one), and uploading it back loads it."""
+    import io
+
+    import numpy as np
+
+    _, address = classroom
+    sid = shared.evaluate("sid")
+    data = urllib.request.urlopen(address.rstrip("/") + f"/api/state?sid={sid}", timeout=30).read()
+    with np.load(io.BytesIO(data), allow_pickle=False) as saved:
+        assert {"meta", "field:particles.x", "field:particles.h"} <= set(saved.files)
+    upload = urllib.request.Request(address.rstrip("/") + f"/api/state?sid={sid}", data=data, method="POST")
+    assert urllib.request.urlopen(upload, timeout=10).status == 202
+    shared.wait_for_function("document.getElementById('status').textContent.includes('State loaded')", timeout=15000)

@@ -172,26 +172,36 @@ def make_app(classroom: Classroom):
         return endpoint
 
     async def scenes(request):
-        if not classroom.allowed(request):
-            return PlainTextResponse("403", 403)
         return JSONResponse({"scenes": classroom.scenes, "default": classroom.scene})
 
-    def handle_of(request) -> Handle | None:
-        return classroom.sessions.get(request.query_params.get("sid", ""))
+    def gated(endpoint, session: bool = False):
+        """The endpoint, for requests that carry the token; with `session`, given the session the request names."""
 
-    async def state(request):
-        if not classroom.allowed(request):
-            return PlainTextResponse("403", 403)
-        handle = handle_of(request)
-        if handle is None:
-            return PlainTextResponse("no such session", 404)
+        async def checked(request):
+            if not classroom.allowed(request):
+                return PlainTextResponse("403", 403)
+            if not session:
+                return await endpoint(request)
+            handle = classroom.sessions.get(request.query_params.get("sid", ""))
+            if handle is None:
+                return PlainTextResponse("no such session", 404)
+            return await endpoint(request, handle)
+
+        return checked
+
+    async def ask(handle: Handle, kind: str, message: dict, seconds: float):
+        """Send the session `message` and wait for its answer of type `kind` (None after `seconds`)."""
+        answer = handle.expect(kind)
+        handle.send(message)
+        try:
+            return await asyncio.wait_for(answer, seconds)
+        except asyncio.TimeoutError:
+            return None
+
+    async def state(request, handle: Handle):
         path = classroom.scratch / f"{secrets.token_hex(8)}.npz"
         if request.method == "GET":  # download: the session saves, the file goes to the tab, then away
-            saved = handle.expect("saved")
-            handle.send({"t": "save", "path": str(path)})
-            try:
-                await asyncio.wait_for(saved, 30)
-            except asyncio.TimeoutError:
+            if await ask(handle, "saved", {"t": "save", "path": str(path)}, 30) is None:
                 return PlainTextResponse("the session did not save in time", 504)
             data = path.read_bytes()
             path.unlink(missing_ok=True)
@@ -211,8 +221,6 @@ def make_app(classroom: Classroom):
         return PlainTextResponse("checking", 202)
 
     async def sessions(request):
-        if not classroom.allowed(request):
-            return PlainTextResponse("403", 403)
         now = time.monotonic()
         rows = [
             {
@@ -226,23 +234,13 @@ def make_app(classroom: Classroom):
         ]
         return JSONResponse({"sessions": rows, "max": classroom.max_sessions})
 
-    async def thumb(request):
-        if not classroom.allowed(request):
-            return PlainTextResponse("403", 403)
-        handle = handle_of(request)
-        if handle is None:
-            return PlainTextResponse("no such session", 404)
-        future = handle.expect("thumb")
-        handle.send({"t": "thumb"})
-        try:
-            data = await asyncio.wait_for(future, 10)
-        except asyncio.TimeoutError:
+    async def thumb(request, handle: Handle):
+        data = await ask(handle, "thumb", {"t": "thumb"}, 10)
+        if data is None:
             return PlainTextResponse("no picture in time", 504)
         return Response(data, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
 
     async def broadcast(request):
-        if not classroom.allowed(request):
-            return PlainTextResponse("403", 403)
         body = await request.body()
         try:
             message = parse(body, classroom.scenes)
@@ -314,11 +312,11 @@ def make_app(classroom: Classroom):
         routes=[
             Route("/", page("index.html")),
             Route("/teacher", page("teacher.html")),
-            Route("/api/scenes", scenes),
-            Route("/api/state", state, methods=["GET", "POST"]),
-            Route("/api/sessions", sessions),
-            Route("/api/thumb", thumb),
-            Route("/api/broadcast", broadcast, methods=["POST"]),
+            Route("/api/scenes", gated(scenes)),
+            Route("/api/state", gated(state, session=True), methods=["GET", "POST"]),
+            Route("/api/sessions", gated(sessions)),
+            Route("/api/thumb", gated(thumb, session=True)),
+            Route("/api/broadcast", gated(broadcast), methods=["POST"]),
             WebSocketRoute("/ws", socket),
             Mount("/static", app=TokenGate(StaticFiles(directory=WEB), classroom)),
         ],
