@@ -66,6 +66,9 @@ def test_wheel_runs_shipped_scenes_from_an_empty_folder(installed_wheel, tmp_pat
     )
     checked = _run([sandbox, "check", str(scene)], tmp_path, env=env)
     assert checked.returncode == 0 and "valid" in checked.stdout, checked.stderr
+    page = "from sandbox.app.serve import WEB; print(sorted(p.name for p in WEB.rglob('*.*')))"
+    shipped = _run([str(installed_wheel / "bin" / "python"), "-c", page], tmp_path, env=env)
+    assert "app.js" in shipped.stdout and "fr.json" in shipped.stdout, shipped.stdout + shipped.stderr  # the classroom
 
 
 def test_a_source_tree_finds_its_scenes_and_the_benchmarks_find_their_inputs(monkeypatch):
