@@ -37,3 +37,34 @@ def test_w3_is_timed_over_the_same_run_from_the_start_every_repeat():
     assert [count for count, _ in ends] == [2400, 2400, 2400]  # the compiling run, then each timed one
     assert np.array_equal(ends[0][1], ends[1][1]) and np.array_equal(ends[1][1], ends[2][1])  # the same each time
     assert sim.stats().molten_fraction > 0.8  # the run spans the melt, solid to puddle
+
+
+def test_the_pair_rate_counts_each_pair_within_the_cutoff_once_and_the_ideal_loop_computes_lj_forces():
+    """bench's pair interactions: pair_count agrees with a brute-force count over the periodic box; the ideal
+    in-cache loop's forces are the Lennard-Jones forces of NumPy's brute-force sum."""
+    import numpy as np
+
+    from sandbox.research.bench import lj_box_sim
+    from sandbox.research.peer_bench import _IdealLoop, pair_count
+
+    sim = lj_box_sim(20, "cpu")  # 400 particles
+    sim.step(20)
+    x = sim.positions()
+    box = np.asarray(sim.scene.world.hi, float) - np.asarray(sim.scene.world.lo, float)
+    d = x[:, None, :] - x[None, :, :]
+    d -= box * np.round(d / box)
+    r2 = (d**2).sum(-1)
+    brute = int((np.triu(r2 < sim.scene.pair.cutoff**2, k=1)).sum())
+    assert pair_count(sim) == brute
+
+    loop = _IdealLoop(2, 256, 0.8, 2.5)
+    loop.forces()
+    x = loop.x.to_numpy().astype(np.float64)
+    d = x[:, None, :] - x[None, :, :]
+    d -= loop.side * np.round(d / loop.side)
+    r2 = (d**2).sum(-1)
+    np.fill_diagonal(r2, np.inf)
+    inv6 = np.where(r2 < 6.25, r2**-3, 0.0)
+    expected = (24.0 * inv6 * (2.0 * inv6 - 1.0) / r2)[:, :, None] * d
+    assert np.allclose(loop.f.to_numpy(), expected.sum(1), rtol=1e-3, atol=1e-3)
+    assert loop.pairs == int((r2 < 6.25).sum())

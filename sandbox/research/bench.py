@@ -31,11 +31,9 @@ from ..integrators import REGISTRY
 from ..render.raster import Renderer
 from ..simulation import Simulation, timed_steps
 from .launch_count import count_launches
+from .peer_bench import write_lammps_input
 
-ROOT = Path(__file__).resolve().parents[2]  # the repository root (sandbox/research/ is two below)
 SCENES = SCENES_DIR
-LAMMPS_INPUT = ROOT / "benchmarks" / "lammps" / "in.lj2d"
-LAMMPS_INPUT_3D = ROOT / "benchmarks" / "lammps" / "in.lj3d"
 
 
 def lj_box_sim(n_side: int, arch: str):
@@ -184,11 +182,12 @@ def lammps_w1(n_side: int, procs: int = 2, steps: int = 500, dim: int = 2) -> di
     mpirun = shutil.which("mpirun") or _beside_python("mpirun")
     if not lmp:
         return None
+    script = write_lammps_input(dim, Path(tempfile.gettempdir()) / "sandbox-bench-lammps")
     if dim == 2:
         cells = max(3, round(n_side / math.sqrt(2)))
-        args = ["-in", str(LAMMPS_INPUT), "-var", "nx", str(cells), "-var", "ny", str(cells)]
+        args = ["-in", str(script), "-var", "nx", str(cells), "-var", "ny", str(cells)]
     else:
-        args = ["-in", str(LAMMPS_INPUT_3D), "-var", "n", str(n_side)]
+        args = ["-in", str(script), "-var", "n", str(n_side)]
     cmd = [lmp, *args, "-var", "steps", str(steps), "-log", "none"]
     if procs > 1 and mpirun:
         cmd = [mpirun, "-np", str(procs)] + cmd

@@ -1,0 +1,206 @@
+"""The comparison with LAMMPS made reproducible, and each rate read against what the cores allow.
+
+- `lammps_input(dim)`: LAMMPS's standard Lennard-Jones liquid input, written by the bench itself (so an installed
+  sandbox runs the comparison without the repository's benchmarks/ folder), with the settings printed beside it.
+- `CpuHog`: another CPU-bound process on the machine, for `sandbox bench --contended`.
+- `ideal_pair_rate()`: the micro-benchmark: Lennard-Jones pair interactions per second of an ideal loop (a small
+  system whose neighbour list fits in cache, sorted, no rebuilds, no integration) on the same cores; and
+  `pair_rate(sim, ...)`: the pair interactions per second a workload reaches, so each figure reads as a fraction
+  of what the hardware allows.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import time
+from pathlib import Path
+
+import numpy as np
+import taichi as ti
+
+SETTINGS = {  # LAMMPS's bench/in.lj liquid, and its 2D twin (the W1 box); both sides use these
+    2: {"density": 0.8, "temperature": 1.0, "cutoff": 2.5, "skin": 0.3, "dt": 0.005, "lattice": "sq2"},
+    3: {"density": 0.8442, "temperature": 1.44, "cutoff": 2.5, "skin": 0.3, "dt": 0.005, "lattice": "sc"},
+}
+
+_HEAD = """# LAMMPS's standard Lennard-Jones liquid ({dim}D), written by `sandbox bench --lammps`: density {density},
+# T {temperature}, cutoff {cutoff}, skin {skin} (neighbour list checked every step, rebuilt when a particle has
+# moved half the skin), velocity Verlet (fix nve), dt {dt}.
+# {run}
+units           lj
+atom_style      atomic
+"""
+_BODY = """mass            1 1.0
+velocity        all create {temperature} 87287 loop geom
+pair_style      lj/cut {cutoff}
+pair_coeff      1 1 1.0 1.0 {cutoff}
+neighbor        {skin} bin
+neigh_modify    every 1 delay 0 check yes
+fix             1 all nve
+{enforce}timestep        {dt}
+thermo          500
+run             100
+run             ${{steps}}
+"""
+_LATTICE = {
+    2: """dimension       2
+boundary        p p p
+variable        nx index 71
+variable        ny index 71
+variable        steps index 1000
+lattice         sq2 {density}
+region          box block 0 ${{nx}} 0 ${{ny}} -0.5 0.5
+create_box      1 box
+create_atoms    1 box
+""",
+    3: """variable        n index 32
+variable        steps index 500
+lattice         sc {density}
+region          box block 0 ${{n}} 0 ${{n}} 0 ${{n}}
+create_box      1 box
+create_atoms    1 box
+""",
+}
+_RUN = {
+    2: "Run: mpirun -np 2 lmp -in in.lj2d -var nx 224 -var ny 224 -var steps 1000  (N = 2 nx ny)",
+    3: "Run: mpirun -np 2 lmp -in in.lj3d -var n 32 -var steps 500  (N = n^3)",
+}
+
+
+def lammps_input(dim: int) -> str:
+    """The LAMMPS input of the W1 liquid in `dim` dimensions (2D variables nx, ny: sq2 cells per axis; 3D n: simple
+    cubic cells per axis; steps)."""
+    s = SETTINGS[dim]
+    enforce = "fix             2 all enforce2d\n" if dim == 2 else ""
+    return _HEAD.format(dim=dim, run=_RUN[dim], **s) + _LATTICE[dim].format(**s) + _BODY.format(enforce=enforce, **s)
+
+
+def write_lammps_input(dim: int, folder: Path) -> Path:
+    """Write lammps_input(dim) into `folder` (created) and return its path."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"in.lj{dim}d"
+    path.write_text(lammps_input(dim))
+    return path
+
+
+def describe(dim: int, particles: int, procs: int) -> str:
+    """The settings both sides run with, in one line."""
+    s = SETTINGS[dim]
+    return (
+        f"{dim}D LJ liquid, N = {particles}, density {s['density']}, T {s['temperature']}, cutoff {s['cutoff']}, "
+        f"skin {s['skin']} (checked every step, rebuilt at half the skin), velocity Verlet, dt {s['dt']}; "
+        f"LAMMPS on {procs} MPI processes, the sandbox on the same cores"
+    )
+
+
+def _spin(stop) -> None:
+    x = 0.0
+    while not stop.is_set():
+        for _ in range(100_000):
+            x = x * 0.999 + 1.0
+
+
+class CpuHog:
+    """One other CPU-bound process for as long as the `with` block lasts (bench --contended)."""
+
+    def __enter__(self):
+        context = multiprocessing.get_context("spawn")
+        self.stop = context.Event()
+        self.process = context.Process(target=_spin, args=(self.stop,), daemon=True)
+        self.process.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop.set()
+        self.process.join(5)
+        if self.process.is_alive():
+            self.process.kill()
+
+
+def pair_count(sim) -> int:
+    """Pairs of particles within the pair cutoff now (each pair once)."""
+    x = sim.positions()
+    lo, hi = np.asarray(sim.scene.world.lo, float), np.asarray(sim.scene.world.hi, float)
+    box = hi - lo
+    cutoff = float(sim.scene.pair.cutoff)
+    cells = np.maximum((box // cutoff).astype(int), 1)
+    key = np.floor((x - lo) / box * cells).astype(int) % cells
+    order = np.lexsort(key.T[::-1])
+    flat = np.ravel_multi_index(key[order].T, cells)
+    starts = np.searchsorted(flat, np.arange(np.prod(cells) + 1))
+    count = 0
+    offsets = np.stack(np.meshgrid(*[(-1, 0, 1)] * x.shape[1], indexing="ij"), -1).reshape(-1, x.shape[1])
+    for c in range(int(np.prod(cells))):
+        mine = order[starts[c] : starts[c + 1]]
+        if not len(mine):
+            continue
+        home = np.array(np.unravel_index(c, cells))
+        near = np.unique(np.ravel_multi_index(((home + offsets) % cells).T, cells))
+        others = np.concatenate([order[starts[n] : starts[n + 1]] for n in near])
+        d = x[mine][:, None, :] - x[others][None, :, :]
+        d -= box * np.round(d / box)
+        r2 = (d**2).sum(-1)
+        count += int(((r2 < cutoff**2) & (mine[:, None] < others[None, :])).sum())
+    return count
+
+
+def pair_rate(sim, particle_steps_per_second: float) -> float:
+    """Pair interactions per second of a workload stepping at `particle_steps_per_second` (pairs within the cutoff,
+    each once, per step)."""
+    n = max(int(sim.particles.n[None]), 1)
+    return pair_count(sim) * particle_steps_per_second / n
+
+
+@ti.data_oriented
+class _IdealLoop:
+    """N particles at `density` in a periodic box, their pairs within the cutoff in one sorted list built once."""
+
+    def __init__(self, dim: int, n: int, density: float, cutoff: float, seed: int = 1):
+        rng = np.random.default_rng(seed)
+        side = (n / density) ** (1 / dim)
+        per_axis = math.ceil(n ** (1 / dim))
+        grid = np.stack(np.meshgrid(*[np.arange(per_axis)] * dim, indexing="ij"), -1).reshape(-1, dim)[:n]
+        x = (grid + 0.5) * side / per_axis + rng.normal(0, 0.05, (n, dim))
+        d = x[:, None, :] - x[None, :, :]
+        d -= side * np.round(d / side)
+        i, j = np.nonzero(((d**2).sum(-1) < cutoff**2) & ~np.eye(n, dtype=bool))
+        self.pairs = len(i)  # both directions, as a per-particle force loop visits them
+        self.side, self.cutoff2 = side, cutoff * cutoff
+        self.x = ti.Vector.field(dim, ti.f32, shape=n)
+        self.f = ti.Vector.field(dim, ti.f32, shape=n)
+        self.start = ti.field(ti.i32, shape=n + 1)
+        self.neighbour = ti.field(ti.i32, shape=max(len(j), 1))
+        self.x.from_numpy(x.astype(np.float32))
+        self.start.from_numpy(np.searchsorted(i, np.arange(n + 1)).astype(np.int32))
+        self.neighbour.from_numpy(j.astype(np.int32))
+
+    @ti.kernel
+    def forces(self):
+        for a in range(self.x.shape[0]):
+            xa = self.x[a]
+            fa = ti.Vector.zero(ti.f32, self.x.n)
+            for k in range(self.start[a], self.start[a + 1]):
+                d = xa - self.x[self.neighbour[k]]
+                d -= self.side * ti.round(d / self.side)
+                r2 = d.dot(d)
+                if r2 < self.cutoff2:
+                    inv2 = 1.0 / r2
+                    inv6 = inv2 * inv2 * inv2
+                    fa += 24.0 * inv2 * inv6 * (2.0 * inv6 - 1.0) * d
+            self.f[a] = fa
+
+
+def ideal_pair_rate(dim: int = 2, n: int = 4096, seconds: float = 0.5) -> float:
+    """Pair interactions per second (each pair once) of the ideal loop in `dim` dimensions on this runtime's CPU
+    threads: the most the same cores reach on the force loop alone."""
+    s = SETTINGS[dim]
+    loop = _IdealLoop(dim, n, s["density"], s["cutoff"])
+    loop.forces()
+    ti.sync()
+    repeats, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        loop.forces()
+        repeats += 1
+    ti.sync()
+    return loop.pairs / 2 * repeats / (time.perf_counter() - t0)
