@@ -110,3 +110,14 @@ def test_the_real_command_prints_no_traceback(tmp_path):
         assert "Traceback" not in done.stderr and expected in done.stderr
         assert done.stdout == ""
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_plain_bench_runs_the_workloads_not_one_of_its_only_modes():
+    """`sandbox bench` with no mode flag is the whole bench: --serve, --3d, --contended, --window and --scaling are
+    off (a default of 0 for --serve once sent every plain bench to the --serve check)."""
+    from sandbox.app.cli import build_parser
+
+    args = build_parser().parse_args(["bench"])
+    assert args.serve is None and not (args.three_d or args.contended or args.window or args.scaling)
+    args = build_parser().parse_args(["bench", "--lammps", "--3d", "--contended"])
+    assert args.three_d and args.contended and args.lammps

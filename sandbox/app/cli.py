@@ -348,7 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--serve",
         type=int,
         metavar="N",
-        default=0,
+        default=None,
         help="only the classroom server: N simulated browser tabs over loopback (frame rate, latency, CPU, memory)",
     )
     bench.set_defaults(func=cmd_bench)
