@@ -177,6 +177,7 @@ def peer_comparison(args, repeats: int) -> int:
         res["pairs_per_second"] = pair_rate(sim, res["particle_steps_per_second"])
         results[name] = res
     runtime.reset()
+    runtime.init(args.arch)
     ideal = ideal_pair_rate(dim)
     results["ideal_pairs_per_second"] = ideal
     print(describe(dim, results["quiet"]["particles"], 2))
