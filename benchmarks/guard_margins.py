@@ -12,8 +12,7 @@ import time
 
 from sandbox.config.resources import shipped_scenes
 from sandbox.config.scene import load_scene
-from sandbox.diagnostics import SUMS
-from sandbox.guard import RUNAWAY_FACTOR
+from sandbox.measure.guard import RUNAWAY_FACTOR
 from sandbox.simulation import Simulation
 
 
@@ -24,19 +23,19 @@ def margins(path) -> str:
     energy = travel = 0.0
     coldest, hottest = float("inf"), float("-inf")
     start = time.perf_counter()
+    heated = sim.terms.heat is not None
     for _ in range(scene.render.frames):
         sim.advance_frame()
-        sim.stats()
-        values = sim._acc.to_numpy()
-        acc = {k: float(values[i]) for k, i in SUMS.items()}
+        acc = sim.diagnostics.measure(pairs=False)  # the sums the guard reads (Simulation.stats checks them)
+        sim.stats(pair_energy=False)
         scale = RUNAWAY_FACTOR * limits.energy_scale(acc["mass"])
         energy = max(energy, acc["ke"] / scale if scale > 0 else 0.0)
         travel = max(travel, acc["vmax"] * sim.dt / limits.step_travel)
-        if sim.heat is not None:
+        if heated:
             coldest, hottest = min(coldest, -acc["tcold"]), max(hottest, acc["thot"])
     heat = (
         f"T {coldest:.1f}..{hottest:.1f} C of {limits.temperature_lo:.0f}..{limits.temperature_hi:.0f}"
-        if sim.heat is not None
+        if heated
         else "no heat"
     )
     wall = time.perf_counter() - start
