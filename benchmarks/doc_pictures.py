@@ -1,5 +1,6 @@
 """Make the strips of stills the README and docs/ show (docs/ice_cube.png, docs/candle.png, docs/freeze_thaw.png,
-docs/smoke_vortex.png, docs/states_of_matter.png), each still as `sandbox run` draws it: `python benchmarks/doc_pictures.py [NAME ...]`."""
+docs/smoke_vortex.png, docs/states_of_matter.png), each still as `sandbox run` draws it:
+`python benchmarks/doc_pictures.py [NAME ...]`."""
 
 import sys
 from pathlib import Path
