@@ -143,6 +143,19 @@ class Classroom:
         return origin is None or urlsplit(origin).netloc == websocket.headers.get("host")
 
 
+def lan_address() -> str:
+    """This machine's address on its network (what the students' browsers open when the server listens on every
+    address): the one it would send from; no packet is sent. 127.0.0.1 where there is no network."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.connect(("10.255.255.255", 1))
+            return probe.getsockname()[0]
+        except OSError:
+            return "127.0.0.1"
+
+
 def is_loopback(host: str) -> bool:
     if host == "localhost":
         return True
@@ -348,7 +361,7 @@ def serve(scene: str, host: str, port: int, token: str | None, max_sessions: int
         token = secrets.token_urlsafe(12)
     classroom = Classroom(scene, token, max_sessions, max_fps=max_fps)
     query = f"?token={token}" if token else ""
-    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
+    shown = lan_address() if host in ("0.0.0.0", "::") else host
     print(f"the classroom: http://{shown}:{port}/{query}")
     print(f"the teacher's view: http://{shown}:{port}/teacher{query}")
     uvicorn.run(make_app(classroom), host=host, port=port, log_level="warning", ws_max_size=64 * 1024)
