@@ -63,3 +63,42 @@ def test_vapour_fills_its_box_and_is_counted():
     under = np.array([img[int(r), int(c)] for c, r in centres if 0 <= r < 320 and 0 <= c < 320])
     vapour = np.round(np.asarray(VAPOUR_COLOR) * 255)
     assert (np.abs(under - vapour).max(axis=1) <= 3).mean() > 0.8
+
+
+@pytest.mark.parametrize("temperature, attraction", [(50.0, 1.0), (150.0, 0.0)])
+def test_the_pair_energy_counts_only_the_liquid_shares_attraction(temperature, attraction):
+    """The pair energy reported follows the force: between vapour particles (150 C: all boiled) the attraction is
+    gone from the energy too (only the shifted repulsion is left); between liquid ones (50 C) it is whole. Checked
+    against a NumPy sum of the pair potential over every pair within the cutoff."""
+    from sandbox.physics.pair import pair_energy
+
+    sim = sandbox.load(
+        {
+            "world": {"dim": 2, "lo": [0, 0], "hi": [20, 20]},
+            "pair": {"a": 8.0, "b": 14.0, "cutoff": 2.5},
+            "heat": {"refreeze": False},
+            "bodies": [
+                {
+                    "material": "ice",
+                    "shape": "box",
+                    "lo": [4, 4],
+                    "hi": [11.2, 11.2],
+                    "spacing": 1.2,
+                    "springs": False,
+                    "temperature": temperature,
+                }
+            ],
+        }
+    )
+    pair = sim.terms.pair
+    x = sim.positions()
+    mass = sim.state.particles.mass.to_numpy()[: len(x)]
+    alpha, beta, eps = pair.alpha_np[0, 0] * attraction, pair.beta_np[0, 0], pair.eps_np[0, 0]
+    expected = 0.0
+    for i in range(len(x)):
+        for j in range(i + 1, len(x)):
+            r = float(np.linalg.norm(x[i] - x[j]))
+            if r < pair.cutoff:
+                expected += mass[i] * mass[j] * pair_energy(r, alpha, beta, eps, pair.a, pair.b, pair.cutoff)
+    assert sim.stats().gas_fraction == (1.0 if temperature > 100 else 0.0)
+    assert sim.stats().pair_energy == pytest.approx(expected, rel=1e-4, abs=1e-6)

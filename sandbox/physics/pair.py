@@ -115,6 +115,7 @@ class PairForce(Term):
         # eps and visc are filled here; the other tables by set_scale (one copy kernel each time)
         self.eps, self.visc = real_fields(self.eps_np, self.visc_np)
         self.alpha, self.beta, self.r_core, self.shift, self.f_core = (ti.field(float, shape=(n, n)) for _ in range(5))
+        self.shift_att = ti.field(float, shape=(n, n))  # the attraction's part of the shift (vapour scales it)
         self.set_scale(1.0, 1.0)
         self.single_material = n == 1
         self.has_viscosity = bool(np.any(self.visc_np > 0))
@@ -155,8 +156,11 @@ class PairForce(Term):
         # Energy shift so that U(cutoff) = 0 (zero with pair.shift = false), and U at the core for the linear
         # continuation below it.
         self.shift_np = np.array([[self._u(self.cutoff, p, q) for q in range(n)] for p in range(n)])
+        att = np.array([[_antiderivative(self.cutoff, self.eps_np[p, q], self.a) for q in range(n)] for p in range(n)])
+        self.shift_att_np = self.alpha_np * att
         if not self.shifted:
             self.shift_np = np.zeros_like(self.shift_np)
+            self.shift_att_np = np.zeros_like(self.shift_att_np)
         # Force magnitude at the core radius, g(r_core) r_core per unit mass product (held below the core).
         rc = self.r_core_np
         g_core = self.alpha_np / (rc + self.eps_np) ** self.a - self.beta_np / rc**self.b
@@ -166,6 +170,7 @@ class PairForce(Term):
                 (self.beta, self.beta_np),
                 (self.r_core, self.r_core_np),
                 (self.shift, self.shift_np),
+                (self.shift_att, self.shift_att_np),
                 (self.f_core, g_core * rc),
             ]
         )
@@ -242,13 +247,17 @@ class PairForce(Term):
         return self.mass[j] * self.law(self.coefficients(p, q), i, j, d, r2)
 
     @ti.func
+    def liquid_share(self, i, j):
+        """(1 - psi_i)(1 - psi_j): the share of the pair's attraction its particles' liquid parts feel (a material
+        that boils; psi the gas fraction)."""
+        return (1.0 - self.phase.gas(self.h[i], self.material[i])) * (1.0 - self.phase.gas(self.h[j], self.material[j]))
+
+    @ti.func
     def law(self, c, i, j, d, r2):
         """g(r) d per unit mass product for coefficients c (see coefficients), with the core cap: finite at any r."""
         alpha, beta, eps, rc, f_core = c[0], c[1], c[2], c[3], c[4]
         if ti.static(self.boils):  # vapour does not stick: attraction only between the liquid shares
-            alpha *= (1.0 - self.phase.gas(self.h[i], self.material[i])) * (
-                1.0 - self.phase.gas(self.h[j], self.material[j])
-            )
+            alpha *= self.liquid_share(i, j)
         f = ti.Vector.zero(float, self.dim)
         if r2 >= rc * rc:
             g = 0.0
@@ -298,17 +307,26 @@ class PairForce(Term):
         r = ti.sqrt(r2)
         rc = self.r_core[p, q]
         re = ti.max(r, rc)
-        u = self._u_func(re, p, q) - self.shift[p, q]
+        s = 1.0  # the attraction's share: vapour feels none, as in law()
+        if ti.static(self.boils):
+            s = self.liquid_share(i, j)
+        u = self._u_func(re, p, q, s) - self.shift[p, q]
+        if ti.static(self.boils):
+            u += (1.0 - s) * self.shift_att[p, q]
         if r < rc:  # linear continuation: dU/dr stays equal to the (capped) force
-            g = self.alpha[p, q] * self._powneg(rc + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(
-                rc, self.b
-            )
+            alpha = self.alpha[p, q]
+            if ti.static(self.boils):
+                alpha *= s
+            g = alpha * self._powneg(rc + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(rc, self.b)
             u += g * rc * (r - rc)
         return self.mass[i] * self.mass[j] * u
 
     @ti.func
-    def _u_func(self, r, p, q):
+    def _u_func(self, r, p, q, s):
+        """The unshifted potential per unit mass product at r, its attraction scaled by s where a material boils."""
         alpha, beta, eps = self.alpha[p, q], self.beta[p, q], self.eps[p, q]
+        if ti.static(self.boils):
+            alpha *= s
         u = r + eps
         att = 0.0 * r
         if ti.static(self.a == 2.0):
