@@ -313,3 +313,24 @@ def test_a_downloaded_state_uploads_back_into_the_session(classroom, shared):
     upload = urllib.request.Request(address.rstrip("/") + f"/api/state?sid={sid}", data=data, method="POST")
     assert urllib.request.urlopen(upload, timeout=10).status == 202
     shared.wait_for_function("document.getElementById('status').textContent.includes('State loaded')", timeout=15000)
+
+
+def test_the_page_draws_its_own_colour_bar_and_a_chart_with_axes(shared):
+    """Beside the picture, in HTML: the colour bar of the picture's map (its caption, unit and range, the same colours
+    as the renderer's), and a chart of the mean temperature against time with labelled axes."""
+    from sandbox.render.colormaps import TEMPERATURE_STOPS, ramp_np_many
+
+    shared.wait_for_function("document.querySelectorAll('#chart polyline').length === 1", timeout=15000)
+    assert shared.inner_text("#legend").startswith("temperature (°C)")
+    assert "20" in shared.inner_text("#legend") and "200" in shared.inner_text("#legend")
+    gradient = shared.eval_on_selector("#legend .bar", "e => e.style.background")
+    assert gradient.count("rgb(") == 16
+    cold, hot = (
+        (round(255 * c) for c in ramp_np_many(TEMPERATURE_STOPS, [0.0])[0]),
+        ramp_np_many(TEMPERATURE_STOPS, [1.0]),
+    )
+    assert gradient.split("rgb(")[1].startswith(", ".join(str(v) for v in cold))  # the map's cold end first
+    assert gradient.split("rgb(")[-1].startswith(", ".join(str(round(255 * c)) for c in hot[0]))
+    points = shared.eval_on_selector("#chart polyline", "e => e.getAttribute('points').split(' ').length")
+    labels = shared.eval_on_selector_all("#chart text", "es => es.map(e => e.textContent)")
+    assert points >= 2 and labels[-1].endswith(" s") and len(labels) == 4

@@ -221,11 +221,34 @@ class Session:
         if sim.time - self.reference[0] >= SUMMARY_EVERY or self.reference[1] is None:
             self.reference = (sim.time, stats.mean_temperature)
         return {
+            "legend": self.legend(),
             "readouts": panel.as_json(panel.readouts(sim, stats)),
             "settings": panel.as_json(panel.settings(sim)),
             "summary": panel.summary(sim, stats, self.reference[1]),
             "probe": self.probe(),
         }
+
+    def legend(self) -> dict:
+        """What the picture's colours mean, for the page's own legend: a colour bar (its range, quantity, unit and
+        16 colours) or swatches (label, colour); {} before the first picture or where the scene shows none."""
+        cached = getattr(self.sim, "_picture_renderer", None)
+        if cached is None:
+            return {}
+        overlays = cached[1].overlays
+        if overlays.kind == "bar":
+            lo, hi, quantity, unit = overlays.scale()
+            return {
+                "kind": "bar",
+                "lo": lo,
+                "hi": hi,
+                "quantity": quantity,
+                "unit": unit,
+                "colors": hex_colors(overlays.legend_colors(16)),
+            }
+        if overlays.kind == "swatches":
+            labels = [label for label, _ in overlays.entries]
+            return {"kind": "swatches", "labels": labels, "colors": hex_colors(c for _, c in overlays.entries)}
+        return {}
 
     def probe(self) -> str | None:
         from .probe import particle_at, probe
@@ -267,6 +290,11 @@ class Session:
             self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
         finally:
             path.unlink(missing_ok=True)
+
+
+def hex_colors(colors) -> list[str]:
+    """RGB colours in [0, 1] as CSS "#rrggbb"."""
+    return ["#" + "".join(f"{round(255 * float(c)):02x}" for c in rgb) for rgb in colors]
 
 
 def scratch_dir() -> Path:

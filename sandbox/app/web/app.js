@@ -81,6 +81,7 @@ function onScene(msg) {
   for (const part of ["happens", "explore", "physics"]) $(part).textContent = (msg.lesson || {})[part] || "";
   $("lesson-box").hidden = !msg.lesson || !msg.lesson.happens;
   tools = msg.tools || [];
+  history.length = 0;
   fillTools();
   $("material").replaceChildren(...(msg.materials || []).map((name) => new Option(name.replaceAll("_", " "), name)));
   settingKeys = "";
@@ -97,9 +98,74 @@ function readoutLabel(r) {
   return r.key === "temperature_of" ? t("r_temperature_of", { words: r.words }) : t("r_" + r.key);
 }
 
+const history = [];  // [time s, mean temperature °C] for the page's chart
+
+function showLegend(legend) {
+  const box = $("legend");
+  const key = JSON.stringify(legend || {});
+  if (box.dataset.key === key) return;
+  box.dataset.key = key;
+  const parts = [];
+  if (legend && legend.kind === "bar") {
+    const caption = document.createElement("span");
+    caption.textContent = `${t("legend_" + legend.quantity)} (${legend.unit})`;
+    const bar = document.createElement("span");
+    bar.className = "bar";
+    bar.style.background = `linear-gradient(to right, ${legend.colors.join(", ")})`;
+    const ends = document.createElement("span");
+    ends.textContent = `${legend.lo} … ${legend.hi}`;
+    parts.push(caption, bar, ends);
+  } else if (legend && legend.kind === "swatches") {
+    legend.labels.forEach((label, k) => {
+      const item = document.createElement("span");
+      const swatch = document.createElement("span");
+      swatch.className = "swatch";
+      swatch.style.background = legend.colors[k];
+      item.append(swatch, label);
+      parts.push(item);
+    });
+  }
+  box.replaceChildren(...parts);
+}
+
+function drawChart() {
+  const svg = $("chart");
+  const points = history.filter(([, v]) => v !== null);
+  if (points.length < 2) { svg.replaceChildren(); return; }
+  const [x0, x1] = [points[0][0], points[points.length - 1][0]];
+  const values = points.map(([, v]) => v);
+  let lo = Math.min(...values), hi = Math.max(...values);
+  if (hi - lo < 1) { lo -= 0.5; hi += 0.5; }
+  const X = (tm) => 50 + 420 * (tm - x0) / Math.max(x1 - x0, 1e-9);
+  const Y = (v) => 150 - 140 * (v - lo) / (hi - lo);
+  const ns = "http://www.w3.org/2000/svg";
+  const el = (name, attrs, text) => {
+    const e = document.createElementNS(ns, name);
+    for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+    if (text !== undefined) e.textContent = text;
+    return e;
+  };
+  svg.replaceChildren(
+    el("line", { x1: 50, y1: 10, x2: 50, y2: 150, class: "axis" }),
+    el("line", { x1: 50, y1: 150, x2: 470, y2: 150, class: "axis" }),
+    el("text", { x: 45, y: 16, "text-anchor": "end" }, hi.toFixed(1)),
+    el("text", { x: 45, y: 150, "text-anchor": "end" }, lo.toFixed(1)),
+    el("text", { x: 50, y: 168, "text-anchor": "middle" }, x0.toFixed(1)),
+    el("text", { x: 470, y: 168, "text-anchor": "end" }, x1.toFixed(1) + " s"),
+    el("polyline", { class: "line", points: points.map(([tm, v]) => `${X(tm).toFixed(1)},${Y(v).toFixed(1)}`).join(" ") }),
+  );
+}
+
 function onInfo(msg) {
   if (!msg.readouts) return;  // a picture's clock only: the readouts come with every few pictures
   const now = performance.now();
+  showLegend(msg.legend);
+  const mean = msg.readouts.find((r) => r.key === "temperature");
+  if (mean) {
+    if (history.length && msg.time < history[history.length - 1][0]) history.length = 0;  // reset or a new scene
+    history.push([msg.time, mean.value]);
+    if (history.length > 600) history.splice(0, history.length - 600);
+  }
   if (now - lastReadoutsShown > 1000) {  // once a second: readable, and not a flood for a screen reader
     lastReadoutsShown = now;
     const rows = [];
@@ -114,6 +180,7 @@ function onInfo(msg) {
     }
     $("readouts").replaceChildren(...rows);
     $("probe").textContent = msg.probe || "-";
+    drawChart();
   }
   const summary = t(msg.summary.key, { ...msg.summary, trend: t("trend_" + (msg.summary.trend || "steady")) });
   if (summary !== lastSummary && (!lastSummary || now - (onInfo.spoken || 0) > 5000)) {
