@@ -72,24 +72,11 @@ def test_the_pair_energy_counts_only_the_liquid_shares_attraction(temperature, a
     against a NumPy sum of the pair potential over every pair within the cutoff."""
     from sandbox.physics.pair import pair_energy
 
-    sim = sandbox.load(
-        {
-            "world": {"dim": 2, "lo": [0, 0], "hi": [20, 20]},
-            "pair": {"a": 8.0, "b": 14.0, "cutoff": 2.5},
-            "heat": {"refreeze": False},
-            "bodies": [
-                {
-                    "material": "ice",
-                    "shape": "box",
-                    "lo": [4, 4],
-                    "hi": [11.2, 11.2],
-                    "spacing": 1.2,
-                    "springs": False,
-                    "temperature": temperature,
-                }
-            ],
-        }
-    )
+    drop = dict(material="ice", shape="box", lo=[4, 4], hi=[11.2, 11.2], spacing=1.2, springs=False)
+    world = {"dim": 2, "lo": [0, 0], "hi": [20, 20]}
+    pair_law = {"a": 8.0, "b": 14.0, "cutoff": 2.5}
+    body = dict(drop, temperature=temperature)
+    sim = sandbox.load({"world": world, "pair": pair_law, "heat": {"refreeze": False}, "bodies": [body]})
     pair = sim.terms.pair
     x = sim.positions()
     mass = sim.state.particles.mass.to_numpy()[: len(x)]
