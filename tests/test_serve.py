@@ -204,6 +204,10 @@ def test_the_second_language_shows_translated_text(classroom):
     page.wait_for_selector("#readouts dt")
     assert "température moyenne" in page.inner_text("#readouts")
     assert page.evaluate("document.documentElement.lang") == "fr"
+    page.select_option("#scene", "ice_cube")  # the scene picker: the session opens it in place of the last one
+    page.wait_for_function("document.getElementById('happens').textContent.includes('ice cube')", timeout=30000)
+    before = frames(page)
+    page.wait_for_function(f"Number(document.getElementById('picture').dataset.frames) > {before + 5}")
     page.close()
 
 

@@ -52,18 +52,22 @@ class Session:
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
         self.frames = 0
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
-        self.started = time.perf_counter()
         self.load(scene)
 
     # ------------------------------------------------------------------ the scene
     def load(self, scene: str) -> None:
-        import sandbox
-
+        """Open the shipped scene `scene` as the window's scene picker does (Taichi restarted, so switching scenes
+        frees the last one's fields), with this session's own renderer at its picture size."""
+        from ..render.raster import Renderer
         from .history import UndoRing
         from .tools import Tools
+        from .window import open_scene
 
-        self.sim = sandbox.load(scene)
-        self.scene = scene
+        self.sim = open_scene(scene)
+        self.renderer = Renderer(
+            self.sim.model, self.sim.state, self.width, self.height, self.sim.scene.render, output="picture"
+        )
+        self.sim.state.carry(self.renderer.tails)
         self.tools = Tools(self.sim)
         self.history = UndoRing()
         self.reference = (self.sim.time, None)  # (time, mean temperature) the trend compares with
@@ -151,11 +155,9 @@ class Session:
     # ------------------------------------------------------------------ tools
     def world_at(self, fx: float, fy: float):
         """The world point (2D) under the picture fraction (fx, fy), rows from the top; None outside a 2D view."""
-        cached = getattr(self.sim, "_picture_renderer", None)
-        if cached is None or self.sim.dim != 2:
+        if self.sim.dim != 2:
             return None
-        plan = cached[1].plan
-        scale, offset = plan.view
+        scale, offset = self.renderer.plan.view
         column, row_up = fx * self.width, (1.0 - fy) * self.height
         return ((column - offset[0]) / scale, (row_up - offset[1]) / scale)
 
@@ -204,13 +206,9 @@ class Session:
 
     def draw(self):
         """This moment's picture: the renderer's own buffer, encoded before the next frame (no copy)."""
-        cached = getattr(self.sim, "_picture_renderer", None)
-        if cached is None or cached[0][0] != (self.width, self.height):
-            return self.sim.picture(self.width, self.height)  # builds and caches the renderer
-        renderer = cached[1]
-        if renderer.plots() and self.frames % CHART_EVERY == 0:
-            renderer.record(self.sim.stats(pair_energy=False))
-        return renderer.frame()
+        if self.renderer.plots() and self.frames % CHART_EVERY == 0:
+            self.renderer.record(self.sim.stats(pair_energy=False))
+        return self.renderer.frame()
 
     def readouts(self) -> dict:
         """The panel's description now (panel.py) and the sentence for screen readers."""
@@ -230,11 +228,8 @@ class Session:
 
     def legend(self) -> dict:
         """What the picture's colours mean, for the page's own legend: a colour bar (its range, quantity, unit and
-        16 colours) or swatches (label, colour); {} before the first picture or where the scene shows none."""
-        cached = getattr(self.sim, "_picture_renderer", None)
-        if cached is None:
-            return {}
-        overlays = cached[1].overlays
+        16 colours) or swatches (label, colour); {} where the scene shows none."""
+        overlays = self.renderer.overlays
         if overlays.kind == "bar":
             lo, hi, quantity, unit = overlays.scale()
             return {
