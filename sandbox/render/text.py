@@ -13,6 +13,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 LIGHT = (235, 235, 235)  # the text colour when none is given
 GREY = (190, 190, 190)
+PAD = 2  # pixels of margin around a text's glyphs (room for the outline)
 
 
 def text_size(height: int) -> int:
@@ -43,15 +44,14 @@ def _masks(text: str, size: int, outline: bool) -> tuple[np.ndarray, np.ndarray 
     """The coverage of `text`'s glyphs and of its outline, (h, w, 1) floats in [0, 1] with a 2-pixel margin: drawn
     by Pillow once per text and size, then reused (a picture's labels repeat from frame to frame)."""
     face = font(size)
-    pad = 2
-    w, h = text_width(text, size) + 2 * pad, line_height(size) + 2 * pad
+    w, h = text_width(text, size) + 2 * PAD, line_height(size) + 2 * PAD
     glyphs = Image.new("L", (w, h))
-    ImageDraw.Draw(glyphs).text((pad, pad), text, font=face, fill=255)
+    ImageDraw.Draw(glyphs).text((PAD, PAD), text, font=face, fill=255)
     cover = np.asarray(glyphs, np.float32)[:, :, None] / 255.0
     shade = None
     if outline:
         halo = Image.new("L", (w, h))
-        ImageDraw.Draw(halo).text((pad, pad), text, font=face, fill=255, stroke_width=max(1, size // 10))
+        ImageDraw.Draw(halo).text((PAD, PAD), text, font=face, fill=255, stroke_width=max(1, size // 10))
         shade = np.asarray(halo, np.float32)[:, :, None] / 255.0 * 0.75
     return cover, shade
 
@@ -62,9 +62,8 @@ def draw_text(img: np.ndarray, text: str, x: int, y: int, size: int, color=LIGHT
     if not text:
         return
     cover, shade = _masks(text, size, outline)
-    pad = 2
     h, w = cover.shape[:2]
-    x0, y0 = x - pad, y - pad
+    x0, y0 = x - PAD, y - PAD
     cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x0 + w, img.shape[1]), min(y0 + h, img.shape[0])
     if cx0 >= cx1 or cy0 >= cy1:
         return
