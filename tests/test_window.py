@@ -221,13 +221,14 @@ def test_view_toggles_cycle_the_colour_maps_the_scene_can_use():
 
 
 def test_the_empty_sandbox_starts_with_the_spawn_tool_and_reads_no_nan():
-    from sandbox.app.window_state import make_state, reading
+    from sandbox.app.panel import Readout
+    from sandbox.app.window_state import make_state
 
     empty = make_state(Simulation(load_scene(SCENES / "sandbox.toml")), None)
     assert empty.tool == "spawn"  # the heat tool did nothing in an empty box
     block = make_state(Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]"])), None)
     assert block.tool == "heat"
-    assert reading(float("nan"), "C") == "-" and reading(61.04, "C") == "61.0 C"
+    assert Readout("t", "t", float("nan"), "C").text() == "-" and Readout("t", "t", 61.04, "C").text() == "61.0 C"
 
 
 def test_orbit_camera_round_trips_and_keeps_its_target():

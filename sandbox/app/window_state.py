@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -186,12 +185,6 @@ def make_state(sim, substeps: int | None) -> WindowState:
         draw_springs=cfg.draw_springs,
         tool="spawn" if empty and "spawn" in tools else "",
     )
-
-
-def reading(value: float, unit: str = "", digits: int = 1) -> str:
-    """A readout: the value with its unit, or "-" where there is nothing to measure (the mean temperature of no
-    particles). ASCII: the window's font has no en dash."""
-    return f"{value:.{digits}f}{' ' + unit if unit else ''}" if math.isfinite(value) else "-"
 
 
 def view_config(cfg, state: WindowState):
