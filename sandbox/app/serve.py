@@ -52,9 +52,16 @@ class Handle:
         self.conn.send_bytes(json.dumps(message).encode())
 
     def expect(self, kind: str) -> asyncio.Future:
+        """A future that answer(kind, ...) resolves."""
         future = asyncio.get_running_loop().create_future()
         self.waiters[kind] = future
         return future
+
+    def answer(self, kind: str, value) -> None:
+        """Resolve the future expect(kind) made, if one waits."""
+        future = self.waiters.pop(kind, None)
+        if future and not future.done():
+            future.set_result(value)
 
 
 class Classroom:
@@ -107,16 +114,12 @@ class Classroom:
             handle.frames += 1
             handle.outbox.put_nowait(("bytes", body))
         elif kind == b"T":
-            future = handle.waiters.pop("thumb", None)
-            if future and not future.done():
-                future.set_result(body)
+            handle.answer("thumb", body)
         else:
             message = json.loads(body)
             if message.get("t") == "info":
                 handle.info = message
-            future = handle.waiters.pop(message.get("t"), None)
-            if future and not future.done():
-                future.set_result(message)
+            handle.answer(message.get("t"), message)
             handle.outbox.put_nowait(("text", body.decode()))
 
     async def reap_idle(self) -> None:
