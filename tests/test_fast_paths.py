@@ -73,6 +73,54 @@ def test_a_half_list_holds_each_pair_of_the_full_list_once(side):
     assert listed_pairs(half) == full_pairs
 
 
+def _packed_box(dim: int, side: float, periodic: bool, half: bool):
+    """A jittered LJ packing of a box `side` wide in `dim` dimensions, f64, periodic or walled."""
+    data = scene_dict(
+        world={"dim": dim, "lo": [0] * dim, "hi": [side] * dim, "dt": 0.005, "periodic": periodic, "precision": "f64"},
+        pair={"a": 8.0, "b": 14.0, "cutoff": 2.5},
+        bodies=[
+            {
+                "material": "lj",
+                "shape": "box",
+                "lo": [0.3] * dim,
+                "hi": [side - 0.3] * dim,
+                "spacing": 1.118,
+                "springs": False,
+                "random_velocity": 1.0,
+                "seed": 3,
+            }
+        ],
+    )
+    sim = Simulation(make_scene(data), half_lists=half)
+    sim.step(40)  # off the lattice: cell boundaries and the periodic seams crossed at odd places
+    sim.hood.lists.invalidate()
+    sim.rates.evaluate()  # the lists built for the positions now
+    return sim
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("side", [8.5, 12.0])  # 8.5: three cells per axis
+def test_the_half_lists_hold_every_pair_within_reach_and_skin_once(dim, periodic, side):
+    """Against a brute-force search over every pair (minimum image in a periodic box): the half rows, built a row of
+    three cells at a time, list each pair within reach + skin exactly once and no pair twice."""
+    sim = _packed_box(dim, side, periodic, half=True)
+    lists = sim.hood.lists
+    n = int(sim.particles.n[None])
+    x = sim.positions()
+    d = x[None, :, :] - x[:, None, :]
+    if periodic:
+        d -= side * np.round(d / side)
+    r2 = (d**2).sum(-1)
+    near = (r2 < (lists.reach + lists.skin) ** 2) & np.triu(np.ones((n, n), bool), 1)
+    count, ids = lists.count.to_numpy()[:n], lists.ids.to_numpy()
+    within = [
+        (min(i, int(j)), max(i, int(j))) for i in range(n) for j in ids[i, : count[i]] if near[min(i, j), max(i, j)]
+    ]
+    assert len(within) == len(set(within))  # no pair twice
+    assert set(within) == set(zip(*np.nonzero(near)))
+
+
 def test_half_lists_give_the_forces_and_heat_rates_of_full_lists():
     """The melting block (springs, viscosity, heat, a hot plate) part-way through melting: every particle's force and
     enthalpy rate agree to round-off whichever way the pairs are visited."""

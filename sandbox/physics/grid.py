@@ -28,8 +28,8 @@ class CellGrid:
         extent = self.hi - self.lo
         if periodic:
             counts = np.maximum(np.floor(extent / reach).astype(int), 3)
-        else:
-            counts = np.maximum(np.ceil(extent / reach).astype(int), 1)
+        else:  # floor, not ceil: a cell narrower than reach would hide neighbours two cells away
+            counts = np.maximum(np.floor(extent / reach).astype(int), 1)
         # Bound the cell count so a tiny radius in a huge domain cannot allocate gigabytes.
         while np.prod(counts.astype(np.int64)) > max(4 * capacity, 1 << 16) and not periodic:
             counts = np.maximum(counts // 2, 1)
@@ -157,6 +157,46 @@ class CellGrid:
             off[a] = k % 3 - 1
             k //= 3
         return off
+
+    @ti.func
+    def row_base(self, c, r):
+        """Row r (0 .. 3^(D-1) - 1) of the cells around cell c: the cells whose leading coordinates (all but the last)
+        are c's plus an offset in -1, 0, 1 (r's digits, the first axis most significant), all along the last axis.
+        Returns the flat index of that row's cell at last coordinate 0, the shift to add to positions found there
+        (leading axes only; see neighbour_cell) and whether the row lies inside a walled grid. A row's cells are
+        consecutive in cell order, so their particles are one range of sorted_ids."""
+        base = 0
+        shift = ti.Vector.zero(self.x.dtype, self.dim)
+        inside = True
+        rem = r
+        for b in ti.static(range(self.dim - 1)):
+            a = ti.static(self.dim - 2 - b)  # the last leading axis first: the least significant digit of r
+            nc = c[a] + rem % 3 - 1
+            rem //= 3
+            if ti.static(self.periodic):
+                if nc < 0:
+                    nc += self.counts[a]
+                    shift[a] = -self._box[a]
+                elif nc >= self.counts[a]:
+                    nc -= self.counts[a]
+                    shift[a] = self._box[a]
+            elif nc < 0 or nc >= self.counts[a]:
+                inside = False
+            base += nc * self.stride(a)
+        return base, shift, inside
+
+    @ti.func
+    def stride(self, a: ti.template()):
+        """The flat-index step of one cell along axis a."""
+        step = 1
+        for k in ti.static(range(a + 1, self.dim)):
+            step *= self.counts[k]
+        return step
+
+    @property
+    def n_rows(self) -> int:
+        """Rows of three cells along the last axis in the 3^D cells around a cell (see row_base)."""
+        return 3 ** (self.dim - 1)
 
     @property
     def n_offsets(self) -> int:
