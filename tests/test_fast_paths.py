@@ -468,7 +468,7 @@ def test_a_team_that_cannot_start_changes_nothing_and_the_scene_steps_the_long_w
     long_way.plan.fuses = False
     sim.plan.use_team(Team(sim.rates, 2 * sim.plan.team.workers))
     before = _state(sim)
-    assert sim.plan.team.run(5, 1, 0, sim.integrator, sim.hood.lists.ids, sim.dt, sim.plan.fused.stopped_stage) == -1
+    assert sim.plan.team.run(5, 1, 0, sim.integrator, sim.hood.ids(True), sim.dt, sim.plan.fused.stopped_stage) == -1
     assert_same_states(before, _state(sim))
     sim.step(30)
     long_way.step(30)
@@ -649,7 +649,7 @@ def test_a_list_that_overflows_between_the_stages_of_a_step_is_widened_and_the_s
         nb.invalidate()
         nb.ensure_fresh()  # a build at the current positions
         nb._allocate(int(nb.count.to_numpy()[:n].max()))  # no room for one more neighbour
-        nb._sort_and_fill(nb.ids)  # the same build again, into the narrow lists
+        nb._sort_and_fill(nb.flat)  # the same build again, into the narrow lists
         assert int(nb.overflow[None]) == 0
         sim.step(300)
     assert fast.hood.lists.grown == long_way.hood.lists.grown == 1

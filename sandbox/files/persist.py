@@ -212,9 +212,8 @@ def _put_back(state, saved: dict, host: dict) -> None:
         if e.kind == NDARRAY:
             values, current = saved[f"{NDARRAY}:{e.name}"], e.get()
             if tuple(current.shape) != values.shape:  # the lists were widened during the run
-                current = runtime.ndarray(current.dtype, values.shape)
-                e.set(current)
-            current.from_numpy(values)
+                e.set(runtime.ndarray(current.dtype, values.shape))
+            e.get().from_numpy(values)
         elif e.kind == VALUE:
             value = host[e.name]
             e.set(tuple(value) if isinstance(e.get(), tuple) else value)

@@ -90,8 +90,10 @@ class ImplicitHeat(Term):
         acc = ti.Vector([0.0, 0.0])
         xi = self.p.x[i]
         if ti.static(use_list):
-            for k in range(self.parts.neighbours.lists.count[i]):
-                j = ids[i, k]
+            lists = self.parts.neighbours.lists
+            row = lists.row(i, ids)
+            for k in range(lists.count[i]):
+                j = ids[row + k]
                 acc = self._add_neighbour(acc, j, self.domain.separation(xi, self.p.x[j]), k, (i, y))
         else:
             acc = self.parts.neighbours.grid.fold(xi, acc, self._add_neighbour, (i, y), False, 0)

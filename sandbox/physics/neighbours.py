@@ -19,6 +19,7 @@ code that makes springs invalidates the list, so an entry never names a slot tha
 import math
 import warnings
 
+import numpy as np
 import taichi as ti
 
 from ..core import runtime
@@ -27,12 +28,33 @@ from ..core.particles import fold_bonds
 from ..core.state import COUNT, Range
 
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
-LIST_ARRAY = ti.types.ndarray(dtype=ti.i32, ndim=2)  # the type of the lists as a kernel argument: see the docstring
+# The type of the lists as a kernel argument (see the docstring): one flat array, row i of width w at [i w, (i + 1) w).
+# Flat rather than (capacity, width): a 2D ndarray's row stride is reloaded from memory at every entry the pair pass
+# reads (the compiler cannot tell the pass's stores leave it alone), and the pass ran 12% slower.
+LIST_ARRAY = ti.types.ndarray(dtype=ti.i32, ndim=1)
 
 
 def no_lists():
-    """A stand-in for the lists where a kernel takes them but the step does not use them (1 x 1, never read)."""
-    return runtime.ndarray(ti.i32, (1, 1))
+    """A stand-in for the lists where a kernel takes them but the step does not use them (one entry, never read)."""
+    return runtime.ndarray(ti.i32, (1,))
+
+
+class ListTable:
+    """The flat lists seen as the (capacity, width) table that state files and tests read and write."""
+
+    def __init__(self, lists):
+        self.lists = lists
+        self.dtype = ti.i32
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.lists.capacity, self.lists.width)
+
+    def to_numpy(self) -> np.ndarray:
+        return self.lists.flat.to_numpy().reshape(self.shape)
+
+    def from_numpy(self, table: np.ndarray) -> None:
+        self.lists.flat.from_numpy(np.ascontiguousarray(table, dtype=np.int32).reshape(-1))
 
 
 @data_oriented
@@ -115,7 +137,23 @@ class NeighbourList:
 
     def _allocate(self, width: int) -> None:
         self.width = width
-        self.ids = runtime.ndarray(ti.i32, (self.capacity, width))  # neighbour ids, first count[i] of row i valid
+        self.flat = runtime.ndarray(ti.i32, (self.capacity * width,))  # neighbour ids, first count[i] of row i valid
+
+    @property
+    def ids(self) -> ListTable:
+        """The lists as a (capacity, width) table (state files, tests); kernels take `flat`."""
+        return ListTable(self)
+
+    @ids.setter
+    def ids(self, table) -> None:
+        """Lists as wide as `table` (a state file's, widened during its run); its values are then written through
+        `ids.from_numpy`."""
+        self._allocate(int(table.shape[1]))
+
+    @ti.func
+    def row(self, i, ids: ti.template()):
+        """Where row i of the flat lists `ids` starts."""
+        return i * (ids.shape[0] // self.capacity)
 
     def nbytes(self) -> int:
         return self.capacity * (4 * self.width + 4 + 4 * self.dim)
@@ -126,9 +164,9 @@ class NeighbourList:
         if moved is None:
             moved = self._moved_too_far()
         if self.must_rebuild() or moved:  # no host read of the count or the overflow flag on steps without a rebuild
-            self._sort_and_fill(self.ids)
+            self._sort_and_fill(self.flat)
             if self.overflow[None] and self.grow():
-                self._fill(self.ids)
+                self._fill(self.flat)
             self.usable = self.overflow[None] == 0
             self.mark_built()
             self.host_builds += 1
@@ -227,23 +265,24 @@ class NeighbourList:
     def fill_one(self, i, ids: ti.template()):
         """Build particle i's list into row i of `ids` (its count, its position at the build; bonded pairs marked);
         set `overflow` when it does not fit."""
+        width = ids.shape[0] // self.capacity
         c = self._visit(i, (self.reach + self.skin) ** 2, True, ids, self.half)
         self.count[i] = c
         self.x_ref[i] = self.x[i]
-        if c > ids.shape[1]:
+        if c > width:
             self.overflow[None] = 1
         if ti.static(self.marks_bonds):  # each live bond of i: if the pair is in i's list (not j's), mark it
-            fold_bonds(self.springs, i, 0, self._mark_bond, (ti.min(c, ids.shape[1]), ids))
+            fold_bonds(self.springs, i, 0, self._mark_bond, (ti.min(c, width), i * width, ids))
 
     @ti.func
     def _mark_bond(self, acc, i, j, spring, extra: ti.template()):
-        """Mark the pair (i, j) of live `spring` as bonded where it is among the first extra[0] entries of i's row of
-        the lists extra[1] (it is listed under i or under j, once)."""
-        listed = extra[0]
-        ids = ti.static(extra[1])
+        """Mark the pair (i, j) of live `spring` as bonded where it is among the first extra[0] entries of i's row
+        (starting at extra[1]) of the lists extra[2] (it is listed under i or under j, once)."""
+        listed, row = extra[0], extra[1]
+        ids = ti.static(extra[2])
         for k in range(listed):
-            if ids[i, k] == j:
-                ids[i, k] = -(spring + 1)
+            if ids[row + k] == j:
+                ids[row + k] = -(spring + 1)
         return acc
 
     @ti.func
@@ -261,7 +300,9 @@ class NeighbourList:
         xi = self.x[i]
         width = 0
         if ti.static(store):
-            width = ids.shape[1]  # read once: an ndarray's shape is reloaded at every use after a store
+            width = (
+                ids.shape[0] // self.capacity
+            )  # read once: an ndarray's shape is reloaded at every use after a store
         cell = grid.cell_of(xi)
         last = ti.static(self.dim - 1)
         along = ti.static(grid.counts[last])
@@ -316,12 +357,13 @@ class NeighbourList:
     def _scan(self, i, xs, start, end, c, width, r2max, store: ti.template(), ids: ti.template()):
         """The candidates in places start .. end - 1 of cell order, seen from xs (i's position less the range's
         periodic shift): each written at row i's end and counted when within reach; returns the new count."""
+        row = i * width
         for k in range(start, end):
             j = self.grid.sorted_ids[k]
             d = self.grid.x_sorted[k] - xs
             if ti.static(store):
                 if c < width:
-                    ids[i, c] = j
+                    ids[row + c] = j
             c += ti.cast((d.dot(d) < r2max) and j != i, ti.i32)
         return c
 
@@ -340,7 +382,7 @@ class Neighbourhood:
 
     def ids(self, use_lists: bool):
         """The lists to hand a kernel: the lists when the step uses them, else the 1 x 1 stand-in."""
-        return self.lists.ids if use_lists else self.no_lists
+        return self.lists.flat if use_lists else self.no_lists
 
     def refresh(self, moved: bool) -> bool:
         """Before an evaluation: rebuild the lists if stale (`moved`: a particle has moved half the skin), else sort

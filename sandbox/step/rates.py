@@ -124,8 +124,9 @@ class Rates:
         rows = [term.row(i) for term in ti.static(self.pair_terms)]
         fi = ti.Vector.zero(float, self.dim)
         qi = 0.0
+        row = self.hood.lists.row(i, ids)
         for k in range(self.hood.lists.count[i]):
-            j = ids[i, k]
+            j = ids[row + k]
             bonded = False  # joined by a live spring: no pair force (heat still flows)
             if ti.static(self.marks_bonds):
                 if j < 0:
@@ -248,8 +249,9 @@ class Rates:
                         pairs[self.dim] += self.pair_q[t, i]
                         self.pair_q[t, i] = 0.0
             elif ti.static(use_list):
+                row = self.hood.lists.row(i, ids)
                 for k in range(self.hood.lists.count[i]):
-                    j = ids[i, k]
+                    j = ids[row + k]
                     pairs = self._add_pair(pairs, j, self.domain.separation(xi, p.x[j]), k, (i, rows))
             else:
                 pairs = self.hood.grid.fold(xi, pairs, self._add_pair, (i, rows), False, 0)
