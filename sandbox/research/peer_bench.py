@@ -153,24 +153,28 @@ def pair_rate(sim, particle_steps_per_second: float) -> float:
     return pair_count(sim) * particle_steps_per_second / n
 
 
+IDEAL_CHUNKS_PER_THREAD = 2  # as the sandbox's pair pass: blocks of particles per thread, each with its own row
+SPREAD = 512  # iterations between two chunks of the ideal loop, so the thread pool hands them to different threads
+
+
 @ti.data_oriented
 class _IdealLoop:
-    """N particles at `density` in an open box, their pairs within the cutoff in one sorted full list built once
-    (each pair from both sides: no atomics, the fastest form of the loop on CPU threads), no periodic images, no
-    rebuilds."""
+    """N particles at `density` in an open box, each pair within the cutoff listed once (a sorted half list in one
+    flat array, built once): no pairs in a skin shell to mask, no periodic images, no rebuilds, no integration. Each
+    thread takes blocks of particles and writes what its pairs give to the other particle into its block's own
+    force row (no atomics), as the sandbox's pair pass does; summing the rows is not part of the loop."""
 
-    def __init__(self, dim: int, n: int, density: float, cutoff: float, seed: int = 1):
+    def __init__(self, dim: int, n: int, density: float, cutoff: float, seed: int = 1, threads: int = 2):
         rng = np.random.default_rng(seed)
         side = (n / density) ** (1 / dim)
         per_axis = math.ceil(n ** (1 / dim))
         grid = np.stack(np.meshgrid(*[np.arange(per_axis)] * dim, indexing="ij"), -1).reshape(-1, dim)[:n]
         x = (grid + 0.5) * side / per_axis + rng.normal(0, 0.05, (n, dim))
-        d = x[:, None, :] - x[None, :, :]
-        i, j = np.nonzero(((d**2).sum(-1) < cutoff * cutoff) & ~np.eye(n, dtype=bool))
-        self.pairs = len(i) // 2  # each pair once
-        self.cutoff2 = cutoff * cutoff
+        i, j = _pairs_within(x, cutoff)
+        self.pairs = len(i)
+        self.chunks = IDEAL_CHUNKS_PER_THREAD * max(threads, 1)
         self.x = ti.Vector.field(dim, ti.f32, shape=n)
-        self.f = ti.Vector.field(dim, ti.f32, shape=n)
+        self.rows = ti.Vector.field(dim, ti.f32, shape=(self.chunks, n))
         self.start = ti.field(ti.i32, shape=n + 1)
         self.neighbour = ti.field(ti.i32, shape=max(len(j), 1))
         self.x.from_numpy(x.astype(np.float32))
@@ -179,22 +183,69 @@ class _IdealLoop:
 
     @ti.kernel
     def forces(self):
-        for a in range(self.x.shape[0]):
-            xa = self.x[a]
-            fa = ti.Vector.zero(ti.f32, self.x.n)
-            for k in range(self.start[a], self.start[a + 1]):
-                d = xa - self.x[self.neighbour[k]]
-                inv2 = 1.0 / d.dot(d)
-                inv6 = inv2 * inv2 * inv2
-                fa += 24.0 * inv2 * inv6 * (2.0 * inv6 - 1.0) * d
-            self.f[a] = fa
+        """Every pair once: the force on a into row t at a, its opposite into row t at the neighbour."""
+        n = self.x.shape[0]
+        for u in range(self.chunks * SPREAD):
+            if u % SPREAD == 0:
+                t = u // SPREAD
+                for a in range(t * n // self.chunks, (t + 1) * n // self.chunks):
+                    xa = self.x[a]
+                    fa = ti.Vector.zero(ti.f32, self.x.n)
+                    for k in range(self.start[a], self.start[a + 1]):
+                        b = self.neighbour[k]
+                        d = xa - self.x[b]
+                        inv2 = 1.0 / d.dot(d)
+                        inv6 = inv2 * inv2 * inv2
+                        fab = 24.0 * inv2 * inv6 * (2.0 * inv6 - 1.0) * d
+                        fa += fab
+                        self.rows[t, b] = self.rows[t, b] - fab
+                    self.rows[t, a] = self.rows[t, a] + fa
+
+    def force(self) -> np.ndarray:
+        """The force on each particle (the rows summed) after one forces() from cleared rows, (N, D)."""
+        self.rows.fill(0)
+        self.forces()
+        return self.rows.to_numpy().sum(0)
 
 
-def ideal_pair_rate(dim: int = 2, n: int = 4096, seconds: float = 0.5) -> float:
+def _pairs_within(x: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j) with i < j for every pair of the points x (N, D) closer than cutoff (an open box), sorted by i then j:
+    a cell at a time against the cells around it."""
+    lo = x.min(0)
+    cells = np.maximum(((x.max(0) - lo) // cutoff).astype(int) + 1, 1)
+    key = np.minimum(((x - lo) // cutoff).astype(int), cells - 1)
+    flat = np.ravel_multi_index(key.T, cells)
+    order = np.argsort(flat, kind="stable")
+    starts = np.searchsorted(flat[order], np.arange(np.prod(cells) + 1))
+    offsets = np.stack(np.meshgrid(*[(-1, 0, 1)] * x.shape[1], indexing="ij"), -1).reshape(-1, x.shape[1])
+    found_i, found_j = [], []
+    for c in range(int(np.prod(cells))):
+        mine = order[starts[c] : starts[c + 1]]
+        if not len(mine):
+            continue
+        near = np.array(np.unravel_index(c, cells)) + offsets
+        near = near[((near >= 0) & (near < cells)).all(1)]
+        others = np.concatenate([order[starts[k] : starts[k + 1]] for k in np.ravel_multi_index(near.T, cells)])
+        r2 = ((x[mine][:, None, :] - x[others][None, :, :]) ** 2).sum(-1)
+        a, b = np.nonzero((r2 < cutoff * cutoff) & (mine[:, None] < others[None, :]))
+        found_i.append(mine[a])
+        found_j.append(others[b])
+    i, j = np.concatenate(found_i), np.concatenate(found_j)
+    sort = np.lexsort((j, i))
+    return i[sort], j[sort]
+
+
+IDEAL_PARTICLES = {2: 32768, 3: 16384}  # in cache on a 2 MB L2 share (positions, list and rows), yet a launch's
+# fixed cost (20-40 us) is a few percent of its work
+
+
+def ideal_pair_rate(dim: int = 2, seconds: float = 0.5) -> float:
     """Pair interactions per second (each pair once) of the ideal loop in `dim` dimensions on this runtime's CPU
     threads: the most the same cores reach on the force loop alone."""
+    from ..core import taichi_compat
+
     s = SETTINGS[dim]
-    loop = _IdealLoop(dim, n, s["density"], s["cutoff"])
+    loop = _IdealLoop(dim, IDEAL_PARTICLES[dim], s["density"], s["cutoff"], threads=taichi_compat.cpu_threads())
     loop.forces()
     ti.sync()
     repeats, t0 = 0, time.perf_counter()
