@@ -52,6 +52,15 @@ class Domain:
         return d
 
     @ti.func
+    def inside_by(self, x, margin):
+        """Whether x lies farther than `margin` from every face of the box: then a particle within `margin` of it is
+        met without crossing a periodic seam, and x_j - x is already the minimum image."""
+        inside = True
+        for a in ti.static(range(self.dim)):
+            inside = inside and x[a] - self.lo[a] > margin and self.hi[a] - x[a] > margin
+        return inside
+
+    @ti.func
     def enforce(self, x, v, radius, mass):
         """Position and velocity after the walls (or the periodic wrap) act on a particle of the given radius; a hit
         adds its momentum, mass times the normal velocity change, to the walls' gauge (mass 0: not counted)."""

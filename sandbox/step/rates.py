@@ -60,6 +60,9 @@ class Rates:
         self.half = self.has_lists and hood.half
         self.marks_bonds = self.has_lists and hood.marks_bonds
         self.no_lists = hood.no_lists if hood is not None else no_lists()
+        if self.has_lists:
+            # a listed pair is at most reach + skin apart at the build and each has moved under half the skin since
+            self.seam_margin = hood.lists.reach + 2.0 * hood.lists.skin
         if self.half:
             # Each worker thread takes a contiguous block of particles and writes what its pairs give to the other
             # particle into its own buffer row (no atomics, no write conflicts); the per-particle pass sums the rows.
@@ -118,13 +121,32 @@ class Rates:
     def _half_row(self, t, i, ids: ti.template()):
         """The pairs (i, j) of i's half list: i's share kept, j's (equal and opposite) written to chunk t's buffer
         row. Row t belongs to this chunk alone, so it is updated by a plain load and store: `+=` on a field would be
-        an atomic compare-and-swap loop on the CPU (1.4x slower pass)."""
+        an atomic compare-and-swap loop on the CPU (1.4x slower pass). In a periodic box a particle away from the
+        seams (all but a few percent) takes a copy of the loop without the minimum-image test: it would never shift."""
         p = self.state.particles
         xi = p.x[i]
         rows = [term.row(i) for term in ti.static(self.pair_terms)]
+        row = self.hood.lists.row(i, ids)
         fi = ti.Vector.zero(float, self.dim)
         qi = 0.0
-        row = self.hood.lists.row(i, ids)
+        if ti.static(self.domain.periodic):
+            if self.domain.inside_by(xi, self.seam_margin):
+                fi, qi = self._half_pairs(t, i, xi, rows, row, ids, False)
+            else:
+                fi, qi = self._half_pairs(t, i, xi, rows, row, ids, True)
+        else:
+            fi, qi = self._half_pairs(t, i, xi, rows, row, ids, False)
+        self.pair_f[t, i] = self.pair_f[t, i] + fi
+        if ti.static(self.heat_pair_terms):
+            self.pair_q[t, i] = self.pair_q[t, i] + qi
+
+    @ti.func
+    def _half_pairs(self, t, i, xi, rows: ti.template(), row, ids: ti.template(), wrap: ti.template()):
+        """The pairs of i's half-list row starting at `row` in `ids`: each j's share written to buffer row t;
+        returns i's (force, heat flow). `wrap`: take the minimum image (else x_j - x_i as it is)."""
+        p = self.state.particles
+        fi = ti.Vector.zero(float, self.dim)
+        qi = 0.0
         for k in range(self.hood.lists.count[i]):
             j = ids[row + k]
             bonded = False  # joined by a live spring: no pair force (heat still flows)
@@ -133,7 +155,9 @@ class Rates:
                     s = -j - 1
                     j = self.springs.other_end(i, s)
                     bonded = self.springs.alive[s] != 0
-            d = self.domain.separation(xi, p.x[j])
+            d = p.x[j] - xi
+            if ti.static(wrap):
+                d = self.domain.separation(xi, p.x[j])
             r2 = d.dot(d)
             if ti.static(self.force_pair_terms):
                 fij = self._pair_sum("force", rows, i, j, d, r2, bonded)
@@ -143,9 +167,7 @@ class Rates:
                 qij = self._pair_sum("heat", rows, i, j, d, r2, bonded)
                 qi += qij
                 self.pair_q[t, j] = self.pair_q[t, j] - qij
-        self.pair_f[t, i] = self.pair_f[t, i] + fi
-        if ti.static(self.heat_pair_terms):
-            self.pair_q[t, i] = self.pair_q[t, i] + qi
+        return fi, qi
 
     @ti.func
     def _pair_sum(self, channel: ti.template(), rows: ti.template(), i, j, d, r2, bonded):
