@@ -18,7 +18,7 @@ from ..core.particles import fold_bonds
 from ..physics.neighbours import LIST_ARRAY, no_lists
 from ..physics.term import hook_order
 
-CHUNKS_PER_THREAD = 2  # half-list pass: blocks of particles per CPU thread, each with its own buffer row
+CHUNKS_PER_THREAD = 2  # half-list pass on the thread pool: blocks of particles per thread, each with its own row
 
 
 def _having(terms: list, flag: str, hook: str | None = None) -> list:
@@ -66,7 +66,9 @@ class Rates:
         if self.half:
             # Each worker thread takes a contiguous block of particles and writes what its pairs give to the other
             # particle into its own buffer row (no atomics, no write conflicts); the per-particle pass sums the rows.
-            self.n_chunks = CHUNKS_PER_THREAD * max(1, model.threads)
+            # A team hands each worker its chunks in order, so one each (fewer rows to sum); the thread pool
+            # balances two a thread.
+            self.n_chunks = (1 if self.loops.team else CHUNKS_PER_THREAD) * max(1, model.threads)
             self.n_pair_rows = 1 if self.loops.serial_pairs else self.n_chunks  # rows the pair pass writes
             self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_pair_rows, capacity))
             if self.heat_pair_terms:
