@@ -1,6 +1,7 @@
 """Uniform cell grid for neighbour search, rebuilt by a counting sort (no float atomics).
 
-Cells are at least `reach` wide, so all neighbours of a particle within `reach` lie in the 3^D cells around its own.
+Cells are at least `reach` wide, and 1 / ROW_SPAN of it along the last axis, so all neighbours of a particle within
+`reach` lie in the 3^(D-1) (2 ROW_SPAN + 1) cells around its own.
 Build: count particles per cell with an integer atomic (the returned old count is the particle's slot in its cell),
 a serial prefix sum over cells, then a scatter of particle ids into `sorted_ids` in cell order.
 """
@@ -11,6 +12,8 @@ import numpy as np
 import taichi as ti
 
 from ..core.oriented import data_oriented
+
+ROW_SPAN = 3  # cells per reach along the last axis (one along the others)
 
 
 @data_oriented
@@ -26,10 +29,14 @@ class CellGrid:
         self.lo = np.asarray(lo, dtype=np.float64)
         self.hi = np.asarray(hi, dtype=np.float64)
         extent = self.hi - self.lo
-        if periodic:
-            counts = np.maximum(np.floor(extent / reach).astype(int), 3)
-        else:  # floor, not ceil: a cell narrower than reach would hide neighbours two cells away
-            counts = np.maximum(np.floor(extent / reach).astype(int), 1)
+        # Along the last axis cells are 1 / ROW_SPAN of the reach: a row of cells along it is one range of cell order
+        # whatever its length, so narrower cells there trim the candidates a scan tests at no cost in ranges.
+        self.row_span = ROW_SPAN
+        per_reach = np.array([1] * (len(extent) - 1) + [ROW_SPAN])
+        if periodic:  # enough cells that the cells around one are each visited once
+            counts = np.maximum(np.floor(extent * per_reach / reach).astype(int), 2 * per_reach + 1)
+        else:  # floor, not ceil: a cell narrower than reach / per_reach would hide neighbours
+            counts = np.maximum(np.floor(extent * per_reach / reach).astype(int), 1)
         # Bound the cell count so a tiny radius in a huge domain cannot allocate gigabytes.
         while np.prod(counts.astype(np.int64)) > max(4 * capacity, 1 << 16) and not periodic:
             counts = np.maximum(counts // 2, 1)
@@ -148,14 +155,16 @@ class CellGrid:
 
     @ti.func
     def offset(self, k):
-        """The k-th of the 3^D cell offsets (k in 0 .. 3^D - 1), each component in -1, 0, 1.
+        """The k-th of the n_offsets cell offsets around a cell: -1, 0, 1 along the leading axes, -ROW_SPAN ..
+        ROW_SPAN along the last.
 
         Visited with a runtime loop rather than a ti.static unroll: unrolling 27 copies of the fused force and
         heat code made the 3D kernels take tens of seconds to compile."""
         off = ti.Vector.zero(ti.i32, self.dim)
         for a in ti.static(range(self.dim)):
-            off[a] = k % 3 - 1
-            k //= 3
+            width = ti.static(2 * ROW_SPAN + 1 if a == self.dim - 1 else 3)
+            off[a] = k % width - width // 2
+            k //= width
         return off
 
     @ti.func
@@ -195,12 +204,12 @@ class CellGrid:
 
     @property
     def n_rows(self) -> int:
-        """Rows of three cells along the last axis in the 3^D cells around a cell (see row_base)."""
+        """Rows of cells along the last axis among the cells around a cell (see row_base)."""
         return 3 ** (self.dim - 1)
 
     @property
     def n_offsets(self) -> int:
-        return 3**self.dim
+        return 3 ** (self.dim - 1) * (2 * ROW_SPAN + 1)
 
     def describe(self) -> str:
         return (

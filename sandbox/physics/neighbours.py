@@ -300,57 +300,38 @@ class NeighbourList:
         xi = self.x[i]
         width = 0
         if ti.static(store):
-            width = (
-                ids.shape[0] // self.capacity
-            )  # read once: an ndarray's shape is reloaded at every use after a store
+            width = ids.shape[0] // self.capacity  # read once: a shape is reloaded at every use after a store
         cell = grid.cell_of(xi)
         last = ti.static(self.dim - 1)
         along = ti.static(grid.counts[last])
+        span = ti.static(grid.row_span)  # cells along the last axis within reach of a cell
         centre = grid.n_rows // 2  # the row of i's own cell
         c = 0
         for r in range(centre if ti.static(half) else 0, grid.n_rows):
             base, shift, inside = grid.row_base(cell, r)
             if inside:
                 own_row = ti.static(half) and r == centre
-                lo = cell[last] if own_row else cell[last] - 1
-                hi = cell[last] + 1
+                lo = cell[last] if own_row else cell[last] - span
+                hi = cell[last] + span
                 first, final = base + ti.max(lo, 0), base + ti.min(hi, along - 1)
                 start = grid.cell_start[first]
                 if own_row:
                     start += grid.slot[i] + 1
-                c = self._scan(
-                    i, xi - shift, start, grid.cell_start[final] + grid.cell_count[final], c, width, r2max, store, ids
-                )
+                end = grid.cell_start[final] + grid.cell_count[final]
+                c = self._scan(i, xi - shift, start, end, c, width, r2max, store, ids)
                 if ti.static(grid.periodic):  # the row's ends wrap around the box along the last axis
-                    if lo < 0:
+                    if lo < 0:  # cells along + lo .. along - 1, one box length below
                         wrapped = shift
                         wrapped[last] = -grid._box[last]
-                        k = base + along - 1
-                        c = self._scan(
-                            i,
-                            xi - wrapped,
-                            grid.cell_start[k],
-                            grid.cell_start[k] + grid.cell_count[k],
-                            c,
-                            width,
-                            r2max,
-                            store,
-                            ids,
-                        )
-                    if hi >= along:
+                        start = grid.cell_start[base + along + lo]
+                        end = grid.cell_start[base + along - 1] + grid.cell_count[base + along - 1]
+                        c = self._scan(i, xi - wrapped, start, end, c, width, r2max, store, ids)
+                    if hi >= along:  # cells 0 .. hi - along, one box length above
                         wrapped = shift
                         wrapped[last] = grid._box[last]
-                        c = self._scan(
-                            i,
-                            xi - wrapped,
-                            grid.cell_start[base],
-                            grid.cell_start[base] + grid.cell_count[base],
-                            c,
-                            width,
-                            r2max,
-                            store,
-                            ids,
-                        )
+                        start = grid.cell_start[base]
+                        end = grid.cell_start[base + hi - along] + grid.cell_count[base + hi - along]
+                        c = self._scan(i, xi - wrapped, start, end, c, width, r2max, store, ids)
         return c
 
     @ti.func
