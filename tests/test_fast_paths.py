@@ -122,6 +122,16 @@ def test_the_half_lists_hold_every_pair_within_reach_and_skin_once(dim, periodic
     assert set(within) == set(zip(*np.nonzero(near)))
 
 
+@pytest.mark.parametrize("periodic", [True, False])
+def test_3d_half_rows_in_vectorized_blocks_give_the_forces_of_full_lists(periodic):
+    """A 3D liquid of pair forces alone: its half rows are computed in blocks (Rates.blocked_rows), 38 pairs a row;
+    every particle's force agrees with the full lists' gather to round-off (f64)."""
+    sims = [_packed_box(3, 8.5, periodic, half=h) for h in (True, False)]
+    assert sims[0].rates.blocked_rows and not sims[1].rates.half
+    f_half, f_full = (s.forces() for s in sims)
+    assert np.abs(f_half - f_full).max() <= 1e-9 * np.abs(f_full).max()
+
+
 def test_half_lists_give_the_forces_and_heat_rates_of_full_lists():
     """The melting block (springs, viscosity, heat, a hot plate) part-way through melting: every particle's force and
     enthalpy rate agree to round-off whichever way the pairs are visited."""

@@ -18,6 +18,7 @@ from ..core.particles import fold_bonds
 from ..physics.neighbours import LIST_ARRAY, no_lists
 from ..physics.term import hook_order
 
+PAIR_BLOCK = 16  # half-list entries computed in one vectorized loop before they are applied (see _blocked_force_pairs)
 CHUNKS_PER_THREAD = 2  # half-list pass on the thread pool: blocks of particles per thread, each with its own row
 
 
@@ -60,6 +61,9 @@ class Rates:
         self.half = self.has_lists and hood.half
         self.marks_bonds = self.has_lists and hood.marks_bonds
         self.no_lists = hood.no_lists if hood is not None else no_lists()
+        # 3D rows of pair forces alone (no heat flows, no bonded pairs marked) are computed in vectorized blocks:
+        # W1-3D's pair pass 9% faster; W1's in 2D (10 pairs a row, against 38) 5% slower, so 2D keeps the plain loop
+        self.blocked_rows = self.dim == 3 and not self.heat_pair_terms and not self.marks_bonds
         if self.has_lists:
             # a listed pair is at most reach + skin apart at the build and each has moved under half the skin since
             self.seam_margin = hood.lists.reach + 2.0 * hood.lists.skin
@@ -149,27 +153,59 @@ class Rates:
         p = self.state.particles
         fi = ti.Vector.zero(float, self.dim)
         qi = 0.0
-        for k in range(self.hood.lists.count[i]):
-            j = ids[row + k]
-            bonded = False  # joined by a live spring: no pair force (heat still flows)
-            if ti.static(self.marks_bonds):
-                if j < 0:
-                    s = -j - 1
-                    j = self.springs.other_end(i, s)
-                    bonded = self.springs.alive[s] != 0
-            d = p.x[j] - xi
-            if ti.static(wrap):
-                d = self.domain.separation(xi, p.x[j])
-            r2 = d.dot(d)
-            if ti.static(self.force_pair_terms):
-                fij = self._pair_sum("force", rows, i, j, d, r2, bonded)
-                fi += fij
-                self.pair_f[t, j] = self.pair_f[t, j] - fij
-            if ti.static(self.heat_pair_terms):
-                qij = self._pair_sum("heat", rows, i, j, d, r2, bonded)
-                qi += qij
-                self.pair_q[t, j] = self.pair_q[t, j] - qij
+        if ti.static(self.blocked_rows):
+            fi = self._blocked_force_pairs(t, i, xi, rows, row, ids, wrap)
+        else:
+            for k in range(self.hood.lists.count[i]):
+                j = ids[row + k]
+                bonded = False  # joined by a live spring: no pair force (heat still flows)
+                if ti.static(self.marks_bonds):
+                    if j < 0:
+                        s = -j - 1
+                        j = self.springs.other_end(i, s)
+                        bonded = self.springs.alive[s] != 0
+                d = p.x[j] - xi
+                if ti.static(wrap):
+                    d = self.domain.separation(xi, p.x[j])
+                r2 = d.dot(d)
+                if ti.static(self.force_pair_terms):
+                    fij = self._pair_sum("force", rows, i, j, d, r2, bonded)
+                    fi += fij
+                    self.pair_f[t, j] = self.pair_f[t, j] - fij
+                if ti.static(self.heat_pair_terms):
+                    qij = self._pair_sum("heat", rows, i, j, d, r2, bonded)
+                    qi += qij
+                    self.pair_q[t, j] = self.pair_q[t, j] - qij
         return fi, qi
+
+    @ti.func
+    def _blocked_force_pairs(self, t, i, xi, rows: ti.template(), row, ids: ti.template(), wrap: ti.template()):
+        """_half_pairs for rows of pair forces alone (see blocked_rows), PAIR_BLOCK entries at a time: one loop
+        computes each pair's force into a local block and sums i's with no store to a field, so the compiler runs it
+        on the vector units (gathering the neighbours' positions); a scalar loop then applies the block to the other
+        particles. Returns the force on i."""
+        p = self.state.particles
+        fi = ti.Vector.zero(float, self.dim)
+        count = self.hood.lists.count[i]
+        for block in range((count + PAIR_BLOCK - 1) // PAIR_BLOCK):
+            first = row + block * PAIR_BLOCK
+            size = ti.min(PAIR_BLOCK, count - block * PAIR_BLOCK)
+            js = ti.Vector.zero(ti.i32, PAIR_BLOCK)
+            fs = ti.Matrix.zero(float, PAIR_BLOCK, self.dim)
+            for k in range(size):
+                j = ids[first + k]
+                d = p.x[j] - xi
+                if ti.static(wrap):
+                    d = self.domain.separation(xi, p.x[j])
+                fij = self._pair_sum("force", rows, i, j, d, d.dot(d), False)
+                fi += fij
+                js[k] = j
+                for a in ti.static(range(self.dim)):
+                    fs[k, a] = fij[a]
+            for k in range(size):
+                j = js[k]
+                self.pair_f[t, j] = self.pair_f[t, j] - ti.Vector([fs[k, a] for a in ti.static(range(self.dim))])
+        return fi
 
     @ti.func
     def _pair_sum(self, channel: ti.template(), rows: ti.template(), i, j, d, r2, bonded):
