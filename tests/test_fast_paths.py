@@ -99,10 +99,10 @@ def _packed_box(dim: int, side: float, periodic: bool, half: bool):
 
 
 @pytest.mark.parametrize(
-    "dim, periodic, side",  # 8.5: three cells per axis; the walled 12.0 box's cells were narrower than the reach
-    [(2, True, 8.5), (3, True, 8.5), (2, False, 8.5), (3, False, 12.0)],
+    "dim, periodic",  # a box 8.5 wide: three cells across the leading axes; walled, its cells were narrower than reach
+    [(2, True), (3, True), (2, False), (3, False)],
 )
-def test_the_half_lists_hold_every_pair_within_reach_and_skin_once(dim, periodic, side):
+def test_the_half_lists_hold_every_pair_within_reach_and_skin_once(dim, periodic, side=8.5):
     """Against a brute-force search over every pair (minimum image in a periodic box): the half rows, built a row of
     three cells at a time, list each pair within reach + skin exactly once and no pair twice."""
     sim = _packed_box(dim, side, periodic, half=True)
@@ -122,11 +122,10 @@ def test_the_half_lists_hold_every_pair_within_reach_and_skin_once(dim, periodic
     assert set(within) == set(zip(*np.nonzero(near)))
 
 
-@pytest.mark.parametrize("periodic", [True, False])
-def test_3d_half_rows_in_vectorized_blocks_give_the_forces_of_full_lists(periodic):
-    """A 3D liquid of pair forces alone: its half rows are computed in blocks (Rates.blocked_rows), 38 pairs a row;
-    every particle's force agrees with the full lists' gather to round-off (f64)."""
-    sims = [_packed_box(3, 8.5, periodic, half=h) for h in (True, False)]
+def test_3d_half_rows_in_vectorized_blocks_give_the_forces_of_full_lists():
+    """A periodic 3D liquid of pair forces alone: its half rows are computed in blocks (Rates.blocked_rows), 38
+    pairs a row; every particle's force agrees with the full lists' gather to round-off (f64)."""
+    sims = [_packed_box(3, 8.5, True, half=h) for h in (True, False)]
     assert sims[0].rates.blocked_rows and not sims[1].rates.half
     f_half, f_full = (s.forces() for s in sims)
     assert np.abs(f_half - f_full).max() <= 1e-9 * np.abs(f_full).max()

