@@ -119,7 +119,7 @@ class Agitation(Term):
             self.is_free[i] = int(self.free(i))
         for i in range(self.p.n[None]):
             if self.is_free[i]:
-                acc = grid.fold(self.p.x[i], ti.Vector.zero(float, self.dim + 1), self._add_flow, (i,), False, 0)
+                acc = grid.fold(self.p.x[i], ti.Vector.zero(float, self.dim + 1), self._add_flow, (i,))
                 # a particle with few free neighbours (a gas) is held about rest: its flow shrinks toward zero
                 self.flow[i] = ti.Vector([acc[k] for k in ti.static(range(self.dim))]) / ti.max(acc[self.dim], 1.0)
 

@@ -131,25 +131,18 @@ class CellGrid:
         return result, shift
 
     @ti.func
-    def fold(self, xi, acc, visit: ti.template(), extra: ti.template(), half: ti.template(), slot):
+    def fold(self, xi, acc, visit: ti.template(), extra: ti.template()):
         """The one scan of the cells around position xi: acc = visit(acc, j, d, k, extra) for each particle j stored
         there (k: its place in cell order), d = x_j - xi to the image of j nearest xi; returns acc. The particle at
         xi itself is visited too (visitors skip it by id). `extra`: what the visitor reads besides, a tuple passed as
-        it is (visitors take it as a template and read fields and flags in it through ti.static). `half`: only the
-        forward half of the stencil, and in xi's own cell only the places after `slot` (each pair of particles is then
-        visited from one side only)."""
+        it is (visitors take it as a template and read fields and flags in it through ti.static). Half lists are
+        built by NeighbourList's own scan, a row of cells at a time."""
         cell = self.cell_of(xi)
-        centre = self.n_offsets // 2  # the offset (0, .., 0)
-        first_offset = centre if ti.static(half) else 0
-        for o in range(first_offset, self.n_offsets):
+        for o in range(self.n_offsets):
             nc, shift = self.neighbour_cell(cell, self.offset(o))
             if nc >= 0:
-                start = self.cell_start[nc]
-                if ti.static(half):
-                    if o == centre:
-                        start += slot + 1
                 xs = xi - shift
-                for k in range(start, self.cell_start[nc] + self.cell_count[nc]):
+                for k in range(self.cell_start[nc], self.cell_start[nc] + self.cell_count[nc]):
                     acc = visit(acc, self.sorted_ids[k], self.x_sorted[k] - xs, k, extra)
         return acc
 

@@ -270,7 +270,7 @@ class Refreeze(Term):
         ti.loop_config(serialize=True)
         for i in range(p.n[None]):
             if p.liquid[i] == FREEZING:
-                cursor = grid.fold(p.x[i], cursor, self._bond_to, (i, p.material[i]), False, 0)
+                cursor = grid.fold(p.x[i], cursor, self._bond_to, (i, p.material[i]))
         for i in range(p.n[None]):
             if p.liquid[i] == FREEZING:
                 p.liquid[i] = LIQUID

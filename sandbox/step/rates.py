@@ -314,7 +314,7 @@ class Rates:
                     j = ids[row + k]
                     pairs = self._add_pair(pairs, j, self.domain.separation(xi, p.x[j]), k, (i, rows))
             else:
-                pairs = self.hood.grid.fold(xi, pairs, self._add_pair, (i, rows), False, 0)
+                pairs = self.hood.grid.fold(xi, pairs, self._add_pair, (i, rows))
             for a in ti.static(range(self.dim)):
                 f[a] += pairs[a]
             q += pairs[self.dim]
