@@ -35,10 +35,10 @@ def main() -> None:
         return Simulation(load_scene(SCENES / "melting_block.toml", melting_block_of(args.side)))
 
     ways = {name: build() for name in ("team", "one thread", "long way")}
-    if ways["team"].team is None:
-        raise SystemExit("this size does not step as a team here (see sandbox/loops.py TEAM_FROM, and threads >= 2)")
-    ways["one thread"].team = None  # _run_fused falls back to _fused_steps: the same batches on the calling thread
-    ways["long way"].fuses_steps = False
+    if ways["team"].plan.team is None:
+        raise SystemExit("this size does not step as a team here (see sandbox/core/loops.py TEAM_FROM, threads >= 2)")
+    ways["one thread"].plan.use_team(None)  # the same fused batches on the calling thread
+    ways["long way"].plan.fuses = False
     times: dict[str, list[float]] = {name: [] for name in ways}
     for sim in ways.values():
         sim.step(args.steps)  # compile, and the first list builds
@@ -49,7 +49,7 @@ def main() -> None:
             sim.step(args.steps)
             ti.sync()
             times[name].append((time.perf_counter() - t0) / args.steps * 1e6)
-    n = ways["team"].built.count
+    n = ways["team"].model.built.count
     for name, ts in times.items():
         print(f"{name:>10}: median {statistics.median(ts):7.0f} us/step, min {min(ts):7.0f} ({n} particles)")
 
