@@ -17,6 +17,7 @@ import time
 import taichi as ti
 
 from sandbox.core import runtime
+from sandbox.core.loops import SPREAD_STRIDE, spread_item
 from sandbox.research.bench import lj_box_3d_sim, lj_box_sim
 from sandbox.simulation import timed_steps
 
@@ -53,9 +54,10 @@ def main() -> None:
     @ti.kernel
     def pair_pass(ids: ti.types.ndarray(dtype=ti.i32, ndim=1)):
         n = rates.state.particles.n[None]
-        for u in range(rates.n_chunks * 512):
-            if u % 512 == 0:
-                rates.half_rows_of_chunk(u // 512, n, ids)
+        for u in range(rates.n_chunks * SPREAD_STRIDE):
+            t = spread_item(u)
+            if t >= 0:
+                rates.half_rows_of_chunk(t, n, ids)
 
     @ti.kernel
     def particle_pass(ids: ti.types.ndarray(dtype=ti.i32, ndim=1)):

@@ -4,8 +4,8 @@
   sandbox runs the comparison without the repository's benchmarks/ folder), with the settings printed beside it.
 - `CpuHog`: another CPU-bound process on the machine, for `sandbox bench --contended`.
 - `ideal_pair_rate()`: the micro-benchmark: Lennard-Jones pair interactions per second (each pair once) of an ideal
-  loop (a small system whose full neighbour list fits in cache, sorted, no periodic images, no rebuilds, no
-  integration) on the same cores; and
+  loop (the sandbox's half-list pass at its best: only pairs within the cutoff, in cache, no periodic images, no
+  rebuilds, no integration) on the same cores; and
   `pair_rate(sim, ...)`: the pair interactions per second a workload reaches, so each figure reads as a fraction
   of what the hardware allows.
 """
@@ -19,6 +19,9 @@ from pathlib import Path
 
 import numpy as np
 import taichi as ti
+
+from ..core.loops import SPREAD_STRIDE, spread_item
+from ..step.rates import CHUNKS_PER_THREAD
 
 SETTINGS = {  # LAMMPS's bench/in.lj liquid, and its 2D twin (the W1 box); both sides use these
     2: {"density": 0.8, "temperature": 1.0, "cutoff": 2.5, "skin": 0.3, "dt": 0.005, "lattice": "sq2"},
@@ -122,28 +125,9 @@ class CpuHog:
 def pair_count(sim) -> int:
     """Pairs of particles within the pair cutoff now (each pair once)."""
     x = sim.positions()
-    lo, hi = np.asarray(sim.scene.world.lo, float), np.asarray(sim.scene.world.hi, float)
-    box = hi - lo
-    cutoff = float(sim.scene.pair.cutoff)
-    cells = np.maximum((box // cutoff).astype(int), 1)
-    key = np.floor((x - lo) / box * cells).astype(int) % cells
-    order = np.lexsort(key.T[::-1])
-    flat = np.ravel_multi_index(key[order].T, cells)
-    starts = np.searchsorted(flat, np.arange(np.prod(cells) + 1))
-    count = 0
-    offsets = np.stack(np.meshgrid(*[(-1, 0, 1)] * x.shape[1], indexing="ij"), -1).reshape(-1, x.shape[1])
-    for c in range(int(np.prod(cells))):
-        mine = order[starts[c] : starts[c + 1]]
-        if not len(mine):
-            continue
-        home = np.array(np.unravel_index(c, cells))
-        near = np.unique(np.ravel_multi_index(((home + offsets) % cells).T, cells))
-        others = np.concatenate([order[starts[n] : starts[n + 1]] for n in near])
-        d = x[mine][:, None, :] - x[others][None, :, :]
-        d -= box * np.round(d / box)
-        r2 = (d**2).sum(-1)
-        count += int(((r2 < cutoff**2) & (mine[:, None] < others[None, :])).sum())
-    return count
+    lo, hi = np.asarray(sim.scene.world.lo, x.dtype), np.asarray(sim.scene.world.hi, float)
+    i, _ = _pairs_within(x - lo, float(sim.scene.pair.cutoff), hi - lo)
+    return len(i)
 
 
 def pair_rate(sim, particle_steps_per_second: float) -> float:
@@ -151,10 +135,6 @@ def pair_rate(sim, particle_steps_per_second: float) -> float:
     each once, per step)."""
     n = max(int(sim.particles.n[None]), 1)
     return pair_count(sim) * particle_steps_per_second / n
-
-
-IDEAL_CHUNKS_PER_THREAD = 2  # as the sandbox's pair pass: blocks of particles per thread, each with its own row
-SPREAD = 512  # iterations between two chunks of the ideal loop, so the thread pool hands them to different threads
 
 
 @ti.data_oriented
@@ -172,7 +152,7 @@ class _IdealLoop:
         x = (grid + 0.5) * side / per_axis + rng.normal(0, 0.05, (n, dim))
         i, j = _pairs_within(x, cutoff)
         self.pairs = len(i)
-        self.chunks = IDEAL_CHUNKS_PER_THREAD * max(threads, 1)
+        self.chunks = CHUNKS_PER_THREAD * max(threads, 1)  # as the sandbox's pass on the thread pool
         self.x = ti.Vector.field(dim, ti.f32, shape=n)
         self.rows = ti.Vector.field(dim, ti.f32, shape=(self.chunks, n))
         self.start = ti.field(ti.i32, shape=n + 1)
@@ -185,9 +165,9 @@ class _IdealLoop:
     def forces(self):
         """Every pair once: the force on a into row t at a, its opposite into row t at the neighbour."""
         n = self.x.shape[0]
-        for u in range(self.chunks * SPREAD):
-            if u % SPREAD == 0:
-                t = u // SPREAD
+        for u in range(self.chunks * SPREAD_STRIDE):
+            t = spread_item(u)
+            if t >= 0:
                 for a in range(t * n // self.chunks, (t + 1) * n // self.chunks):
                     xa = self.x[a]
                     fa = ti.Vector.zero(ti.f32, self.x.n)
@@ -208,26 +188,37 @@ class _IdealLoop:
         return self.rows.to_numpy().sum(0)
 
 
-def _pairs_within(x: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
-    """(i, j) with i < j for every pair of the points x (N, D) closer than cutoff (an open box), sorted by i then j:
-    a cell at a time against the cells around it."""
-    lo = x.min(0)
-    cells = np.maximum(((x.max(0) - lo) // cutoff).astype(int) + 1, 1)
-    key = np.minimum(((x - lo) // cutoff).astype(int), cells - 1)
+def _pairs_within(x: np.ndarray, cutoff: float, box: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j) with i < j for every pair of the points x (N, D) closer than cutoff, sorted by i then j: in an open box,
+    or with `box` (its edges; x in [0, box)) by the minimum image in a periodic one. A cell at a time against the
+    cells around it."""
+    periodic = box is not None
+    lo = np.zeros(x.shape[1]) if periodic else x.min(0)
+    if periodic:
+        cells = np.maximum((box // cutoff).astype(int), 1)
+        key = np.floor((x - lo) / box * cells).astype(int) % cells
+    else:
+        cells = ((x.max(0) - lo) // cutoff).astype(int) + 1
+        key = np.minimum(((x - lo) // cutoff).astype(int), cells - 1)
     flat = np.ravel_multi_index(key.T, cells)
     order = np.argsort(flat, kind="stable")
     starts = np.searchsorted(flat[order], np.arange(np.prod(cells) + 1))
     offsets = np.stack(np.meshgrid(*[(-1, 0, 1)] * x.shape[1], indexing="ij"), -1).reshape(-1, x.shape[1])
-    found_i, found_j = [], []
+    found_i, found_j = [np.zeros(0, int)], [np.zeros(0, int)]
     for c in range(int(np.prod(cells))):
         mine = order[starts[c] : starts[c + 1]]
         if not len(mine):
             continue
         near = np.array(np.unravel_index(c, cells)) + offsets
-        near = near[((near >= 0) & (near < cells)).all(1)]
-        others = np.concatenate([order[starts[k] : starts[k + 1]] for k in np.ravel_multi_index(near.T, cells)])
-        r2 = ((x[mine][:, None, :] - x[others][None, :, :]) ** 2).sum(-1)
-        a, b = np.nonzero((r2 < cutoff * cutoff) & (mine[:, None] < others[None, :]))
+        if periodic:
+            near = np.unique(np.ravel_multi_index((near % cells).T, cells))  # few cells: an image may repeat
+        else:
+            near = np.ravel_multi_index(near[((near >= 0) & (near < cells)).all(1)].T, cells)
+        others = np.concatenate([order[starts[k] : starts[k + 1]] for k in near])
+        d = x[others][None, :, :] - x[mine][:, None, :]
+        if periodic:
+            d -= box * np.round(d / box)
+        a, b = np.nonzero(((d**2).sum(-1) < cutoff * cutoff) & (mine[:, None] < others[None, :]))
         found_i.append(mine[a])
         found_j.append(others[b])
     i, j = np.concatenate(found_i), np.concatenate(found_j)
