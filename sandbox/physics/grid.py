@@ -111,24 +111,32 @@ class CellGrid:
         there: on periodic grids a cell that wraps around lies one box length away (minimum image without a
         division or rounding per pair)."""
         nc = c + off
-        result = 0
         shift = ti.Vector.zero(self.x.dtype, self.dim)
+        inside = True
+        for a in ti.static(range(self.dim)):
+            nc[a], shift[a], inside_a = self.wrap_axis(nc[a], a)
+            inside = inside and inside_a
+        return self.flat(nc) if inside else -1, shift
+
+    @ti.func
+    def wrap_axis(self, n, a: ti.template()):
+        """Cell coordinate n (at most one grid length off it) along axis a brought into the grid: (the coordinate,
+        the shift to add to positions found there, whether it lies inside). On a periodic grid a cell that wraps
+        around lies one box length away (minimum image without a division or rounding per pair) and every cell is
+        inside; on a walled grid nothing wraps."""
+        wrapped = n
+        shift = ti.cast(0.0, self.x.dtype)
+        inside = True
         if ti.static(self.periodic):
-            for a in ti.static(range(self.dim)):
-                if nc[a] < 0:
-                    nc[a] += self.counts[a]
-                    shift[a] = -self._box[a]
-                elif nc[a] >= self.counts[a]:
-                    nc[a] -= self.counts[a]
-                    shift[a] = self._box[a]
-            result = self.flat(nc)
+            if n < 0:
+                wrapped = n + self.counts[a]
+                shift = -self._box[a]
+            elif n >= self.counts[a]:
+                wrapped = n - self.counts[a]
+                shift = self._box[a]
         else:
-            inside = True
-            for k in ti.static(range(self.dim)):
-                if nc[k] < 0 or nc[k] >= self.counts[k]:
-                    inside = False
-            result = self.flat(nc) if inside else -1
-        return result, shift
+            inside = n >= 0 and n < self.counts[a]
+        return wrapped, shift, inside
 
     @ti.func
     def fold(self, xi, acc, visit: ti.template(), extra: ti.template()):
@@ -165,7 +173,7 @@ class CellGrid:
         """Row r (0 .. 3^(D-1) - 1) of the cells around cell c: the cells whose leading coordinates (all but the last)
         are c's plus an offset in -1, 0, 1 (r's digits, the first axis most significant), all along the last axis.
         Returns the flat index of that row's cell at last coordinate 0, the shift to add to positions found there
-        (leading axes only; see neighbour_cell) and whether the row lies inside a walled grid. A row's cells are
+        (leading axes only; see wrap_axis) and whether the row lies inside a walled grid. A row's cells are
         consecutive in cell order, so their particles are one range of sorted_ids."""
         base = 0
         shift = ti.Vector.zero(self.x.dtype, self.dim)
@@ -173,17 +181,9 @@ class CellGrid:
         rem = r
         for b in ti.static(range(self.dim - 1)):
             a = ti.static(self.dim - 2 - b)  # the last leading axis first: the least significant digit of r
-            nc = c[a] + rem % 3 - 1
+            nc, shift[a], inside_a = self.wrap_axis(c[a] + rem % 3 - 1, a)
             rem //= 3
-            if ti.static(self.periodic):
-                if nc < 0:
-                    nc += self.counts[a]
-                    shift[a] = -self._box[a]
-                elif nc >= self.counts[a]:
-                    nc -= self.counts[a]
-                    shift[a] = self._box[a]
-            elif nc < 0 or nc >= self.counts[a]:
-                inside = False
+            inside = inside and inside_a
             base += nc * self.stride(a)
         return base, shift, inside
 
@@ -194,6 +194,11 @@ class CellGrid:
         for k in ti.static(range(a + 1, self.dim)):
             step *= self.counts[k]
         return step
+
+    @ti.func
+    def cells_range(self, first, last):
+        """(start, end): the places in cell order of the particles of cells first .. last, consecutive cells."""
+        return self.cell_start[first], self.cell_start[last] + self.cell_count[last]
 
     @property
     def n_rows(self) -> int:

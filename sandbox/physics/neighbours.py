@@ -313,24 +313,20 @@ class NeighbourList:
                 own_row = ti.static(half) and r == centre
                 lo = cell[last] if own_row else cell[last] - span
                 hi = cell[last] + span
-                first, final = base + ti.max(lo, 0), base + ti.min(hi, along - 1)
-                start = grid.cell_start[first]
+                start, end = grid.cells_range(base + ti.max(lo, 0), base + ti.min(hi, along - 1))
                 if own_row:
                     start += grid.slot[i] + 1
-                end = grid.cell_start[final] + grid.cell_count[final]
                 c = self._scan(i, xi - shift, start, end, c, width, r2max, store, ids)
                 if ti.static(grid.periodic):  # the row's ends wrap around the box along the last axis
                     if lo < 0:  # cells along + lo .. along - 1, one box length below
                         wrapped = shift
                         wrapped[last] = -grid._box[last]
-                        start = grid.cell_start[base + along + lo]
-                        end = grid.cell_start[base + along - 1] + grid.cell_count[base + along - 1]
+                        start, end = grid.cells_range(base + along + lo, base + along - 1)
                         c = self._scan(i, xi - wrapped, start, end, c, width, r2max, store, ids)
                     if hi >= along:  # cells 0 .. hi - along, one box length above
                         wrapped = shift
                         wrapped[last] = grid._box[last]
-                        start = grid.cell_start[base]
-                        end = grid.cell_start[base + hi - along] + grid.cell_count[base + hi - along]
+                        start, end = grid.cells_range(base, base + hi - along)
                         c = self._scan(i, xi - wrapped, start, end, c, width, r2max, store, ids)
         return c
 
