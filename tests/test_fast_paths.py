@@ -98,13 +98,13 @@ def _packed_box(dim: int, side: float, periodic: bool, half: bool):
     return sim
 
 
-@pytest.mark.parametrize(
-    "periodic", [True, False]
-)  # 2D periodic: test_a_half_list_holds_each_pair_of_the_full_list_once
-def test_the_half_lists_hold_every_pair_within_reach_and_skin_once(periodic, dim=3, side=8.5):
-    """Against a brute-force search over every pair (minimum image in a periodic box): the 3D half rows, built a row
-    of cells at a time, list each pair within reach + skin exactly once and no pair twice. The box is 8.5 wide: three
-    cells across the leading axes; walled, its cells were narrower than the reach and missed pairs."""
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("periodic", [True, False])
+def test_the_half_lists_hold_every_pair_within_reach_and_skin_once(periodic, dim, side=8.5):
+    """Against a brute-force search over every pair (minimum image in a periodic box): the half rows, built a row
+    of cells at a time and each row trimmed to the cells within reach of the particle, list each pair within reach +
+    skin exactly once and no pair twice. The box is 8.5 wide: three cells across the leading axes; walled, its cells
+    were narrower than the reach and missed pairs."""
     sim = _packed_box(dim, side, periodic, half=True)
     lists = sim.hood.lists
     n = int(sim.particles.n[None])

@@ -14,6 +14,7 @@ import taichi as ti
 from ..core.oriented import data_oriented
 
 ROW_SPAN = 3  # cells per reach along the last axis (one along the others)
+BOUND_SLACK = 1e-3  # cell widths a scan bound is widened by, against rounding in the positions' cell coordinates
 
 
 @data_oriented
@@ -32,6 +33,10 @@ class CellGrid:
         # Along the last axis cells are 1 / ROW_SPAN of the reach: a row of cells along it is one range of cell order
         # whatever its length, so narrower cells there trim the candidates a scan tests at no cost in ranges.
         self.row_span = ROW_SPAN
+        # In 3D a list build trims each row of cells to those within reach of the particle (row_base's gap2,
+        # row_cells): a quarter fewer candidates, build 26% faster; in 2D the bound's square root and floors cost more
+        # than the few candidates they save (build 15% slower), so 2D rows keep their full span.
+        self.trims_rows = self.dim >= 3
         per_reach = np.array([1] * (len(extent) - 1) + [ROW_SPAN])
         if periodic:  # enough cells that the cells around one are each visited once
             counts = np.maximum(np.floor(extent * per_reach / reach).astype(int), 2 * per_reach + 1)
@@ -169,23 +174,56 @@ class CellGrid:
         return off
 
     @ti.func
-    def row_base(self, c, r):
+    def place_in_cell(self, p, c):
+        """Where position p lies in cell c along each axis, in cell widths: 0 at the cell's low face, 1 at its high
+        one; clamped to 0 .. 1, so a particle the grid clamped into an edge cell is taken at that cell's face, nearer
+        every other cell than it is (a bound built on it stays conservative)."""
+        return ti.math.clamp((p - self._lo) * self._inv - ti.cast(c, self.x.dtype), 0.0, 1.0)
+
+    @ti.func
+    def row_base(self, c, r, place):
         """Row r (0 .. 3^(D-1) - 1) of the cells around cell c: the cells whose leading coordinates (all but the last)
         are c's plus an offset in -1, 0, 1 (r's digits, the first axis most significant), all along the last axis.
         Returns the flat index of that row's cell at last coordinate 0, the shift to add to positions found there
-        (leading axes only; see wrap_axis) and whether the row lies inside a walled grid. A row's cells are
-        consecutive in cell order, so their particles are one range of sorted_ids."""
+        (leading axes only; see wrap_axis), whether the row lies inside a walled grid, and the squared distance across
+        the leading axes from a point at `place` in cell c (see place_in_cell) to the row (0 for c's own row, and for
+        every row without trims_rows; a hair short of it, against rounding). A row's cells are consecutive in cell
+        order, so their particles are one range of sorted_ids."""
         base = 0
         shift = ti.Vector.zero(self.x.dtype, self.dim)
         inside = True
+        gap2 = ti.cast(0.0, self.x.dtype)
         rem = r
         for b in ti.static(range(self.dim - 1)):
             a = ti.static(self.dim - 2 - b)  # the last leading axis first: the least significant digit of r
-            nc, shift[a], inside_a = self.wrap_axis(c[a] + rem % 3 - 1, a)
+            off = rem % 3 - 1
+            nc, shift[a], inside_a = self.wrap_axis(c[a] + off, a)
             rem //= 3
             inside = inside and inside_a
             base += nc * self.stride(a)
-        return base, shift, inside
+            gap = 0.0  # to the row's near face, in cell widths
+            if off < 0:
+                gap = place[a]
+            elif off > 0:
+                gap = 1.0 - place[a]
+            if ti.static(self.trims_rows):
+                gap = ti.max(gap - BOUND_SLACK, 0.0) * self.cell_size[a]
+                gap2 += gap * gap
+        return base, shift, inside, gap2
+
+    @ti.func
+    def row_cells(self, place, reach2_left):
+        """The offsets (lowest, highest) along the last axis, within -row_span .. row_span, of the cells of a row
+        that hold points within sqrt(reach2_left) along that axis of a point at `place` in its own cell (see
+        place_in_cell): reach2_left is the squared reach less the squared distance to the row across the leading
+        axes. Always includes the point's own cell. Without trims_rows: the whole span."""
+        last = ti.static(self.dim - 1)
+        lowest, highest = -self.row_span, self.row_span
+        if ti.static(self.trims_rows):
+            along = ti.sqrt(ti.max(reach2_left, 0.0)) * self._inv[last] + BOUND_SLACK  # in cell widths
+            lowest = ti.max(lowest, ti.cast(ti.floor(place[last] - along), ti.i32))
+            highest = ti.min(highest, ti.cast(ti.floor(place[last] + along), ti.i32))
+        return lowest, highest
 
     @ti.func
     def stride(self, a: ti.template()):
