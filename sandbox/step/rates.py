@@ -12,6 +12,7 @@ the same terms in the same order.
 
 import taichi as ti
 
+from ..core import runtime
 from ..core.loops import SPREAD_STRIDE, spread_item
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
@@ -61,9 +62,12 @@ class Rates:
         self.half = self.has_lists and hood.half
         self.marks_bonds = self.has_lists and hood.marks_bonds
         self.no_lists = hood.no_lists if hood is not None else no_lists()
-        # 3D rows of pair forces alone (no heat flows, no bonded pairs marked) are computed in vectorized blocks:
-        # W1-3D's pair pass 9% faster; W1's in 2D (10 pairs a row, against 38) 5% slower, so 2D keeps the plain loop
-        self.blocked_rows = self.dim == 3 and not self.heat_pair_terms and not self.marks_bonds
+        # 3D rows of pair forces alone (no heat flows, no bonded pairs marked) are computed in vectorized blocks
+        # where the CPU's gathers pay (runtime.vector_gathers_pay); W1's rows in 2D (10 pairs a row, against 38) ran
+        # 5% slower in blocks even there, so 2D keeps the plain loop
+        self.blocked_rows = (
+            self.dim == 3 and not self.heat_pair_terms and not self.marks_bonds and runtime.vector_gathers_pay()
+        )
         if self.has_lists:
             # a listed pair is at most reach + skin apart at the build and each has moved under half the skin since
             self.seam_margin = hood.lists.reach + 2.0 * hood.lists.skin
