@@ -123,6 +123,29 @@ def test_the_half_lists_hold_every_pair_within_reach_and_skin_once(periodic, dim
     assert set(within) == set(zip(*np.nonzero(near)))
 
 
+@pytest.mark.parametrize(
+    "cpuinfo, chosen, expected",
+    [
+        ("vendor_id\t: GenuineIntel\nflags\t\t: fpu avx2 avx512f avx512dq\n", "", True),
+        ("vendor_id\t: AuthenticAMD\nflags\t\t: fpu avx2 avx512f avx512dq\n", "", False),
+        ("vendor_id\t: GenuineIntel\nflags\t\t: fpu avx2\n", "", False),
+        ("", "", False),
+        ("vendor_id\t: AuthenticAMD\nflags\t\t: fpu avx512f\n", "1", True),
+        ("vendor_id\t: GenuineIntel\nflags\t\t: fpu avx512f\n", "0", False),
+    ],
+)
+def test_rows_are_blocked_where_the_cpus_gathers_pay_or_where_asked(monkeypatch, cpuinfo, chosen, expected):
+    """Vectorized pair blocks on Intel CPUs with AVX-512 only (AMD's gathers made the 3D pass slower), unless
+    SANDBOX_PAIR_BLOCKS says otherwise."""
+    monkeypatch.setattr(runtime, "_cpuinfo", lambda: cpuinfo)
+    monkeypatch.setenv("SANDBOX_PAIR_BLOCKS", chosen)
+    runtime.vector_gathers_pay.cache_clear()
+    try:
+        assert runtime.vector_gathers_pay() is expected
+    finally:
+        runtime.vector_gathers_pay.cache_clear()
+
+
 @pytest.mark.parametrize("blocks", [True, False])
 def test_3d_half_rows_give_the_forces_of_full_lists(monkeypatch, blocks):
     """A periodic 3D liquid of pair forces alone, 38 pairs a half row, computed in vectorized blocks or one pair at a

@@ -58,7 +58,7 @@ def run_bench(args) -> int:
             print(f"wrote {args.json}")
         return 0
     results: dict = {
-        "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},
+        "machine": machine(),
         "workloads": {},
     }
     sizes = [100] if args.quick else [100, 317]
@@ -103,6 +103,7 @@ def run_bench(args) -> int:
     with tempfile.TemporaryDirectory() as cache:
         results["startup"] = {"cold_seconds": startup_seconds(cache), "warm_seconds": startup_seconds(cache)}
 
+    print(f"on {results['machine']['cpu']}, {results['machine']['cpus']} cores")
     print(f"{'workload':42s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s}")
     for name, res in rows:
         lmp = res.get("lammps", {})
@@ -153,6 +154,16 @@ def run_bench(args) -> int:
     return 0
 
 
+def machine() -> dict:
+    """What the figures were measured on: platform, Python, CPU model and core count."""
+    return {
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "cpu": runtime.cpu_model(),
+        "cpus": os.cpu_count(),
+    }
+
+
 def peer_comparison(args, repeats: int) -> int:
     """`sandbox bench --lammps --3d` / `--contended`: W1 (2D, 100k) or W1-3D (32,768) against LAMMPS in alternating
     rounds, quiet and (with --contended) beside a CPU hog; each side's pair interactions per second as a fraction of
@@ -166,7 +177,7 @@ def peer_comparison(args, repeats: int) -> int:
     folder = Path(args.out)
     script = write_lammps_input(dim, folder)
     rounds = 1 if args.quick else PEER_ROUNDS
-    results: dict = {"dim": dim, "lammps_input": str(script)}
+    results: dict = {"dim": dim, "lammps_input": str(script), "machine": machine()}
     conditions = [("quiet", contextlib.nullcontext)] + ([("contended", CpuHog)] if args.contended else [])
     for name, context in conditions:
         runtime.reset()
@@ -179,6 +190,7 @@ def peer_comparison(args, repeats: int) -> int:
         res["ideal_pairs_per_second"] = ideal
         results[name] = res
     print(describe(dim, results["quiet"]["particles"], 2))
+    print(f"on {results['machine']['cpu']}, {results['machine']['cpus']} cores")
     print(f"LAMMPS input written to {script}")
     for name, _ in conditions:
         res = results[name]

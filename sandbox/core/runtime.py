@@ -154,6 +154,26 @@ def real_dtype():
 
 
 @functools.cache
+def _cpuinfo() -> str:
+    """The start of /proc/cpuinfo (its first processor's lines); '' where there is none."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as info:
+            return info.read(1 << 16)
+    except OSError:
+        return ""
+
+
+def cpu_model() -> str:
+    """The host CPU's model name (from /proc/cpuinfo, else what the platform says), for benchmark reports."""
+    for line in _cpuinfo().splitlines():
+        if line.startswith("model name"):
+            return line.split(":", 1)[1].strip()
+    import platform
+
+    return platform.processor() or platform.machine() or "unknown CPU"
+
+
+@functools.cache
 def vector_gathers_pay() -> bool:
     """Whether loops that gather from scattered particles run faster vectorized on this CPU (Rates.blocked_rows).
     Measured on W1-3D's pair pass: 13% faster on an Intel CPU with AVX-512, 12% slower on an AMD EPYC (Zen 4,
@@ -161,9 +181,5 @@ def vector_gathers_pay() -> bool:
     chosen = os.environ.get("SANDBOX_PAIR_BLOCKS", "")
     if chosen in ("0", "1"):
         return chosen == "1"
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as info:
-            head = info.read(1 << 16)
-    except OSError:
-        return False
-    return "GenuineIntel" in head and " avx512f" in head
+    info = _cpuinfo()
+    return "GenuineIntel" in info and " avx512f" in info
