@@ -39,6 +39,15 @@ def no_lists():
     return runtime.ndarray(ti.i32, (1,))
 
 
+def list_width(widest: int) -> int:
+    """Entries per row for lists whose widest row holds `widest` neighbours: 1.5 times that plus 8 (at least 16), and
+    never a multiple of 32. Rows a multiple of 32 entries (128 bytes) apart start on a fraction of the cache's sets
+    (at 128 entries, 8 of 64): W1-3D's lists at width 128 made its step 20% slower than at 129, and its half lists,
+    once sized from full rows, were exactly that wide."""
+    width = max(16, int(math.ceil(1.5 * widest)) + 8)
+    return width + 4 if width % 32 == 0 else width
+
+
 class ListTable:
     """The flat lists seen as the (capacity, width) table that state files and tests read and write."""
 
@@ -97,13 +106,11 @@ class NeighbourList:
         self.host_builds = 0  # builds run by ensure_fresh
         self.fused_builds = ti.field(ti.i32, shape=())  # builds run inside the fused step (Simulation._fused_steps)
         self.fused = False  # the fused step has run: `builds` must read fused_builds
-        # Sized from the widest row the lists hold now (a half row for half lists). The 1.5x margin covers a liquid's
-        # fluctuations and most of a lattice melting into a denser liquid (the melting block's half rows reach 1.6x
-        # their lattice widest: the lists grow once). Rows sized from full rows were twice as wide as they needed:
-        # W1-3D's lists spanned 25 MB (width 128 for 38 neighbours), and narrower rows made its step 17% faster
-        # (the pass and the build touch fewer pages).
+        # Sized from the widest row the lists hold now (a half row for half lists; see list_width). The 1.5x margin
+        # covers a liquid's fluctuations and most of a lattice melting into a denser liquid (the melting block's half
+        # rows reach 1.6x their lattice widest: the lists grow once, compiling nothing).
         widest = int(self._sort_and_count())
-        self._allocate(max(16, int(math.ceil(1.5 * widest)) + 8))
+        self._allocate(list_width(widest))
         self.grown = 0
 
     def declare(self, state) -> None:
@@ -180,11 +187,11 @@ class NeighbourList:
         return self.host_builds + (int(self.fused_builds[None]) if self.fused else 0)
 
     def grow(self) -> bool:
-        """After a build that overflowed: reallocate the lists 1.5x as wide as the widest count of that build (plus
-        8); False when that would pass MAX_BYTES (the lists stay as they are). The caller builds them again."""
+        """After a build that overflowed: reallocate the lists for the widest count of that build (see list_width);
+        False when that would pass MAX_BYTES (the lists stay as they are). The caller builds them again."""
         n = int(self.n[None])
         widest = int(self.count.to_numpy()[:n].max())
-        wider = int(math.ceil(1.5 * widest)) + 8
+        wider = list_width(widest)
         if self.capacity * wider * 4 > MAX_BYTES:
             return False
         self._allocate(wider)
