@@ -218,6 +218,10 @@ def cmd_sweep(args) -> int:
 
 def cmd_bench(args) -> int:
     check_count("--repeats", args.repeats, 1, 1000)
+    if args.side is not None:
+        if not (args.three_d or args.contended):
+            raise SandboxError("--side: only with --3d or --contended (the comparison against LAMMPS)")
+        check_count("--side", args.side, 8, 100 if args.three_d else 1000)
     if args.json is not None:
         check_file_output("--json", args.json, (".json",))
     if args.scaling:
@@ -329,6 +333,14 @@ def build_parser() -> argparse.ArgumentParser:
         dest="three_d",
         action="store_true",
         help="only the 3D LJ liquid against LAMMPS (its standard in.lj: 32,768 atoms), with pair rates",
+    )
+    bench.add_argument(
+        "--side",
+        type=int,
+        metavar="K",
+        default=None,
+        help="with --3d or --contended: K particles along each axis (3D: K^3, default 32, at most 100; 2D: K^2, "
+        "default 317)",
     )
     bench.add_argument(
         "--contended",

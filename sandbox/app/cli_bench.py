@@ -173,7 +173,8 @@ def peer_comparison(args, repeats: int) -> int:
     from ..research.peer_bench import CpuHog, describe, ideal_pair_rate, pair_rate, write_lammps_input
 
     dim = 3 if args.three_d else 2
-    n_side = 32 if dim == 3 else (100 if args.quick else 317)
+    n_side = args.side or (32 if dim == 3 else (100 if args.quick else 317))
+    lammps_steps = max(20, min(500, int(6e7 / n_side**dim)))  # 500 at the default sizes, 60 at a million
     folder = Path(args.out)
     script = write_lammps_input(dim, folder)
     rounds = 1 if args.quick else PEER_ROUNDS
@@ -183,7 +184,9 @@ def peer_comparison(args, repeats: int) -> int:
         runtime.reset()
         sim = lj_box_3d_sim(n_side, args.arch) if dim == 3 else lj_box_sim(n_side, args.arch)
         with context():
-            res = against_lammps(sim, lambda: lammps_w1(n_side, dim=dim), repeats, rounds if args.lammps else 0)
+            res = against_lammps(
+                sim, lambda: lammps_w1(n_side, dim=dim, steps=lammps_steps), repeats, rounds if args.lammps else 0
+            )
             ideal = ideal_pair_rate(dim)  # under the same load
         res = res[LIKE_LAMMPS]
         res["pairs_per_second"] = pair_rate(sim, res["particle_steps_per_second"])
