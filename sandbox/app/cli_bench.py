@@ -28,6 +28,7 @@ from ..research.bench import (
     spring_heat_lattice_sim,
     startup_seconds,
 )
+from ..research.peer_bench import ideal_pair_rate, pair_rate
 from .bench_window import interactive_frame, print_window_rates, window_rates
 
 
@@ -76,9 +77,14 @@ def run_bench(args) -> int:
         both = against_lammps(sim, run_lammps, repeats, rounds if args.lammps else 0, (LIKE_LAMMPS, "symplectic_euler"))
         for integrator, res in both.items():
             res["arch"] = runtime.running_arch()
+            res["pairs_per_second"] = pair_rate(sim, res["particle_steps_per_second"])
+            res["dim"] = sim.model.dim
             name = f"{label} N={res['particles']} {integrator}"
             results["workloads"][name] = res
             rows.append((name, res))
+    runtime.reset()
+    runtime.require(args.arch, "f32")
+    results["ideal_pairs_per_second"] = {dim: ideal_pair_rate(dim) for dim in sorted({r["dim"] for _, r in rows})}
     runtime.reset()
     results["integrators_w1"] = integrator_rates(lj_box_sim(100, args.arch), repeats)
     for name, factory, timing in (
@@ -104,15 +110,27 @@ def run_bench(args) -> int:
         results["startup"] = {"cold_seconds": startup_seconds(cache), "warm_seconds": startup_seconds(cache)}
 
     print(f"on {results['machine']['cpu']}, {results['machine']['cpus']} cores")
-    print(f"{'workload':42s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s}")
+    print(
+        f"{'workload':42s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s} "
+        f"{'M pairs/s (of ideal)':>21s}"
+    )
+    ideal = results["ideal_pairs_per_second"]
     for name, res in rows:
         lmp = res.get("lammps", {})
         lrate = f"{lmp['particle_steps_per_second'] / 1e6:8.2f}" if "particle_steps_per_second" in lmp else "       -"
         ratio = f"{res['ratio_to_lammps']:6.2f}" if "ratio_to_lammps" in res else "     -"
+        pairs = ""
+        if "pairs_per_second" in res:
+            share = res["pairs_per_second"] / ideal[res["dim"]]
+            pairs = f"{res['pairs_per_second'] / 1e6:13.1f} ({100 * share:3.0f}%)"
         print(
             f"{name:42s} {res['particles']:8d} {res['particle_steps_per_second'] / 1e6:19.2f} "
-            f"{res['seconds_per_step'] * 1e3:8.3f} {lrate} {ratio}"
+            f"{res['seconds_per_step'] * 1e3:8.3f} {lrate} {ratio} {pairs}"
         )
+    print(
+        "ideal pair loop (pairs within the cutoff, each once, in cache; see docs/performance.md): "
+        + ", ".join(f"{dim}D {rate / 1e6:.0f} M pairs/s" for dim, rate in ideal.items())
+    )
     print(
         "W1 N=10000 by integrator (M particle-steps/s): "
         + ", ".join(f"{k} {v['particle_steps_per_second'] / 1e6:.2f}" for k, v in results["integrators_w1"].items())
@@ -170,7 +188,7 @@ def peer_comparison(args, repeats: int) -> int:
     the ideal in-cache pair loop on the same cores."""
     import contextlib
 
-    from ..research.peer_bench import CpuHog, describe, ideal_pair_rate, pair_rate, write_lammps_input
+    from ..research.peer_bench import CpuHog, describe, write_lammps_input
 
     dim = 3 if args.three_d else 2
     n_side = args.side or (32 if dim == 3 else (100 if args.quick else 317))
