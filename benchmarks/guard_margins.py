@@ -33,11 +33,12 @@ def margins(path) -> str:
         travel = max(travel, acc["vmax"] * sim.dt / limits.step_travel)
         if heated:
             coldest, hottest = min(coldest, -acc["tcold"]), max(hottest, acc["thot"])
-    heat = (
-        f"T {coldest:.1f}..{hottest:.1f} C of {limits.temperature_lo:.0f}..{limits.temperature_hi:.0f}"
-        if heated
-        else "no heat"
-    )
+    if not heated:
+        heat = "no heat"
+    elif coldest > hottest:  # the sums' sentinels: no particle was measured (an empty box)
+        heat = "no particles"
+    else:
+        heat = f"T {coldest:.1f}..{hottest:.1f} C of {limits.temperature_lo:.0f}..{limits.temperature_hi:.0f}"
     wall = time.perf_counter() - start
     return (
         f"{path.stem:18s} {scene.render.frames:4d} frames  energy {energy:.1e}  travel {travel:.1e}  {heat}"
