@@ -16,6 +16,8 @@ import subprocess
 import sys
 import tempfile
 
+import this_tree
+
 CHILD = """
 import json, sys, time
 import taichi as ti
@@ -49,7 +51,8 @@ def main() -> None:
     for _ in range(args.rounds):
         for setting in results:
             with tempfile.TemporaryDirectory() as cache:
-                env = dict(os.environ, TI_OFFLINE_CACHE_FILE_PATH=cache)
+                # the child imports this checkout's sandbox, as this script does (see this_tree.py)
+                env = dict(os.environ, TI_OFFLINE_CACHE_FILE_PATH=cache, PYTHONPATH=str(this_tree.ROOT))
                 command = [sys.executable, "-c", CHILD, args.scene, setting]
                 out = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
                 results[setting].append(json.loads(out.stdout.strip().splitlines()[-1]))

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import this_tree  # noqa: F401  (this checkout's sandbox, not the installed one)
 from PIL import Image
 
 import sandbox

@@ -12,6 +12,8 @@ import sys
 import time
 from pathlib import Path
 
+import this_tree  # this checkout's sandbox, not the installed one
+
 from sandbox.config.resources import shipped_scenes
 
 
@@ -19,7 +21,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="gif-sizes", help="folder for the GIFs")
     args = parser.parse_args()
-    out = Path(args.out)
+    out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     worst = 0.0
     print(f"{'scene':<18} {'MB':>6} {'wall s':>7}")
@@ -30,6 +32,7 @@ def main() -> int:
             [sys.executable, "-m", "sandbox", "run", scene.stem, "--headless", "--quiet", "--out", str(gif)],
             capture_output=True,
             text=True,
+            cwd=this_tree.ROOT,  # `-m sandbox` from the checkout's root: its own sandbox, as this script's
         )
         wall = time.perf_counter() - start
         if done.returncode != 0:

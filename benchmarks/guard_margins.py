@@ -10,6 +10,8 @@ temperature range seen against the range allowed. A healthy scene stays far belo
 import sys
 import time
 
+import this_tree  # noqa: F401  (this checkout's sandbox, not the installed one)
+
 from sandbox.config.resources import shipped_scenes
 from sandbox.config.scene import load_scene
 from sandbox.measure.guard import RUNAWAY_FACTOR

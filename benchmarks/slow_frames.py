@@ -11,6 +11,7 @@ import argparse
 import time
 
 import taichi as ti
+import this_tree  # noqa: F401  (this checkout's sandbox, not the installed one)
 
 from sandbox.config.scene import load_scene
 from sandbox.research.bench import SCENES

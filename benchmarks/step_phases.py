@@ -15,6 +15,7 @@ import statistics
 import time
 
 import taichi as ti
+import this_tree  # noqa: F401  (this checkout's sandbox, not the installed one)
 
 from sandbox.core import runtime
 from sandbox.core.loops import SPREAD_STRIDE, spread_item

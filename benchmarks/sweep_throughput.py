@@ -14,6 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import this_tree  # noqa: F401  (this checkout's sandbox, not the installed one)
+
 from sandbox.app.sweep import parse_vary, plan_runs, run_sweep
 from sandbox.config.resources import shipped_scene
 

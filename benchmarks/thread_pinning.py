@@ -10,6 +10,7 @@ import os
 import time
 
 import taichi as ti
+import this_tree  # noqa: F401  (this checkout's sandbox, not the installed one)
 
 from sandbox.core import threads
 
