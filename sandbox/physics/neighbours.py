@@ -160,6 +160,11 @@ class NeighbourList:
         self._allocate(int(table.shape[1]))
 
     @ti.func
+    def width_of(self, ids: ti.template()):
+        """Entries per row of the flat lists `ids`."""
+        return ids.shape[0] // self.capacity
+
+    @ti.func
     def row(self, i, ids: ti.template()):
         """Where row i of the flat lists `ids` starts."""
         return i * (ids.shape[0] // self.capacity)

@@ -124,19 +124,20 @@ class Rates:
     @ti.func
     def half_rows_of_chunk(self, t, n, ids: ti.template()):
         """The half-list rows of chunk t of the n particles (a contiguous block of ids), into buffer row t."""
+        width = self.hood.lists.width_of(ids)  # once: after a store the compiler reloads the shape and divides again
         for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
-            self._half_row(t, i, ids)
+            self._half_row(t, i, ids, i * width)
 
     @ti.func
-    def _half_row(self, t, i, ids: ti.template()):
-        """The pairs (i, j) of i's half list: i's share kept, j's (equal and opposite) written to chunk t's buffer
-        row. Row t belongs to this chunk alone, so it is updated by a plain load and store: `+=` on a field would be
-        an atomic compare-and-swap loop on the CPU (1.4x slower pass). In a periodic box a particle away from the
-        seams (all but a few percent) takes a copy of the loop without the minimum-image test: it would never shift."""
+    def _half_row(self, t, i, ids: ti.template(), row):
+        """The pairs (i, j) of i's half list (its row of `ids` starts at `row`): i's share kept, j's (equal and
+        opposite) written to chunk t's buffer row. Row t belongs to this chunk alone, so it is updated by a plain load
+        and store: `+=` on a field would be an atomic compare-and-swap loop on the CPU (1.4x slower pass). In a
+        periodic box a particle away from the seams (all but a few percent) takes a copy of the loop without the
+        minimum-image test: it would never shift."""
         p = self.state.particles
         xi = p.x[i]
         rows = [term.row(i) for term in ti.static(self.pair_terms)]
-        row = self.hood.lists.row(i, ids)
         fi = ti.Vector.zero(float, self.dim)
         qi = 0.0
         if ti.static(self.domain.periodic):
@@ -262,9 +263,10 @@ class Rates:
         if ti.static(use_list and self.half):
             n = p.n[None]
             if ti.static(self.loops.serial_pairs):
+                width = self.hood.lists.width_of(ids)
                 ti.loop_config(serialize=True)
                 for i in range(n):
-                    self._half_row(0, i, ids)
+                    self._half_row(0, i, ids, i * width)
             else:
                 for u in range(self.n_chunks * SPREAD_STRIDE):  # a loop over the chunks alone runs on one thread
                     t = spread_item(u)
