@@ -10,6 +10,7 @@ import contextlib
 import functools
 import io
 import os
+import platform
 import weakref
 
 import taichi as ti
@@ -168,8 +169,6 @@ def cpu_model() -> str:
     for line in _cpuinfo().splitlines():
         if line.startswith("model name"):
             return line.split(":", 1)[1].strip()
-    import platform
-
     return platform.processor() or platform.machine() or "unknown CPU"
 
 

@@ -201,12 +201,12 @@ class CellGrid:
             rem //= 3
             inside = inside and inside_a
             base += nc * self.stride(a)
-            gap = 0.0  # to the row's near face, in cell widths
-            if off < 0:
-                gap = place[a]
-            elif off > 0:
-                gap = 1.0 - place[a]
             if ti.static(self.trims_rows):
+                gap = 0.0  # to the row's near face, in cell widths
+                if off < 0:
+                    gap = place[a]
+                elif off > 0:
+                    gap = 1.0 - place[a]
                 gap = ti.max(gap - BOUND_SLACK, 0.0) * self.cell_size[a]
                 gap2 += gap * gap
         return base, shift, inside, gap2
@@ -224,6 +224,34 @@ class CellGrid:
             lowest = ti.max(lowest, ti.cast(ti.floor(place[last] - along), ti.i32))
             highest = ti.min(highest, ti.cast(ti.floor(place[last] + along), ti.i32))
         return lowest, highest
+
+    @ti.func
+    def row_ranges(self, i, cell, place, r, own_row, r2max):
+        """The places in cell order to scan in row r of the cells around particle i's cell (see row_base) for its
+        neighbours within sqrt(r2max), i at `place` in its cell (see place_in_cell; the row trimmed as row_cells says):
+        (start, end) of the row's cells inside the box, then of those past a periodic box's end along the last axis
+        (empty where none are); the shift to add to positions of the first range, and the last axis's shift of the
+        second. `own_row`: i's own row of a half list, from the place after i's own."""
+        last = ti.static(self.dim - 1)
+        along = ti.static(self.counts[last])
+        ranges = ti.Vector.zero(ti.i32, 4)
+        wrap = ti.cast(0.0, self.x.dtype)
+        base, shift, inside, gap2 = self.row_base(cell, r, place)
+        if inside and gap2 < r2max:
+            lowest, highest = self.row_cells(place, r2max - gap2)
+            lo = cell[last] if own_row else cell[last] + lowest
+            hi = cell[last] + highest
+            ranges[0], ranges[1] = self.cells_range(base + ti.max(lo, 0), base + ti.min(hi, along - 1))
+            if own_row:
+                ranges[0] += self.slot[i] + 1
+            if ti.static(self.periodic):  # the row's ends wrap around the box along the last axis
+                if lo < 0:  # cells along + lo .. along - 1, one box length below
+                    wrap = -self._box[last]
+                    ranges[2], ranges[3] = self.cells_range(base + along + lo, base + along - 1)
+                elif hi >= along:  # cells 0 .. hi - along, one box length above
+                    wrap = self._box[last]
+                    ranges[2], ranges[3] = self.cells_range(base, base + hi - along)
+        return ranges, shift, wrap
 
     @ti.func
     def stride(self, a: ti.template()):

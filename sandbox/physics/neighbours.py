@@ -167,7 +167,7 @@ class NeighbourList:
     @ti.func
     def row(self, i, ids: ti.template()):
         """Where row i of the flat lists `ids` starts."""
-        return i * (ids.shape[0] // self.capacity)
+        return i * self.width_of(ids)
 
     def nbytes(self) -> int:
         return self.capacity * (4 * self.width + 4 + 4 * self.dim)
@@ -279,7 +279,7 @@ class NeighbourList:
     def fill_one(self, i, ids: ti.template()):
         """Build particle i's list into row i of `ids` (its count, its position at the build; bonded pairs marked);
         set `overflow` when it does not fit."""
-        width = ids.shape[0] // self.capacity
+        width = self.width_of(ids)
         c = self._visit(i, (self.reach + self.skin) ** 2, True, ids, self.half)
         self.count[i] = c
         self.x_ref[i] = self.x[i]
@@ -316,7 +316,7 @@ class NeighbourList:
         xi = self.x[i]
         width = 0
         if ti.static(store):
-            width = ids.shape[0] // self.capacity  # read once: a shape is reloaded at every use after a store
+            width = self.width_of(ids)  # read once: a shape is reloaded at every use after a store
         cell = grid.cell_of(xi)
         last = ti.static(self.dim - 1)
         place = grid.place_in_cell(xi, cell)
@@ -333,7 +333,7 @@ class NeighbourList:
             ends = ti.Vector.zero(ti.i32, 2 * rows)
             shifts = ti.Matrix.zero(self.x.dtype, 2 * rows, self.dim)
             for q in ti.static(range(rows)):
-                ranges, shift, wrap = self._row_ranges(i, cell, place, first + q, q == 0, r2max)
+                ranges, shift, wrap = grid.row_ranges(i, cell, place, first + q, q == 0, r2max)
                 starts[2 * q], ends[2 * q], starts[2 * q + 1], ends[2 * q + 1] = ranges
                 for a in ti.static(range(self.dim)):
                     shifts[2 * q, a] = shift[a]
@@ -344,40 +344,12 @@ class NeighbourList:
                 c = self._scan(i, xs, starts[q], ends[q], c, width, r2max, store, ids)
         else:  # 2D, full rows (GPU lists) and the count that sizes the lists: a row at a time, less to compile
             for r in range(rows):
-                ranges, shift, wrap = self._row_ranges(i, cell, place, first + r, half and r == 0, r2max)
+                ranges, shift, wrap = grid.row_ranges(i, cell, place, first + r, half and r == 0, r2max)
                 c = self._scan(i, xi - shift, ranges[0], ranges[1], c, width, r2max, store, ids)
                 if ti.static(grid.periodic):
                     shift[last] = wrap
                     c = self._scan(i, xi - shift, ranges[2], ranges[3], c, width, r2max, store, ids)
         return c
-
-    @ti.func
-    def _row_ranges(self, i, cell, place, r, own_row, r2max):
-        """The places in cell order to scan in row r of the cells around i's cell (see CellGrid.row_base): (start,
-        end) of the row's cells inside the box, then of those past a periodic box's end along the last axis (empty
-        where none are); the shift to add to positions of the first range, and the last axis's shift of the second.
-        `own_row`: i's own row of a half list, from the place after i's own."""
-        grid = self.grid
-        last = ti.static(self.dim - 1)
-        along = ti.static(grid.counts[last])
-        ranges = ti.Vector.zero(ti.i32, 4)
-        wrap = ti.cast(0.0, self.x.dtype)
-        base, shift, inside, gap2 = grid.row_base(cell, r, place)
-        if inside and gap2 < r2max:
-            lowest, highest = grid.row_cells(place, r2max - gap2)
-            lo = cell[last] if own_row else cell[last] + lowest
-            hi = cell[last] + highest
-            ranges[0], ranges[1] = grid.cells_range(base + ti.max(lo, 0), base + ti.min(hi, along - 1))
-            if own_row:
-                ranges[0] += grid.slot[i] + 1
-            if ti.static(grid.periodic):  # the row's ends wrap around the box along the last axis
-                if lo < 0:  # cells along + lo .. along - 1, one box length below
-                    wrap = -grid._box[last]
-                    ranges[2], ranges[3] = grid.cells_range(base + along + lo, base + along - 1)
-                elif hi >= along:  # cells 0 .. hi - along, one box length above
-                    wrap = grid._box[last]
-                    ranges[2], ranges[3] = grid.cells_range(base, base + hi - along)
-        return ranges, shift, wrap
 
     @ti.func
     def _scan(self, i, xs, start, end, c, width, r2max, store: ti.template(), ids: ti.template()):
