@@ -20,6 +20,7 @@ from ..config.arguments import (
     check_picture,
     check_rate,
     distinct_outputs,
+    file_stem,
     gif_plan,
     gif_warning,
     outputs_not_inputs,
@@ -104,10 +105,11 @@ def cmd_run(args) -> int:
     _check_run_numbers(args)
     scene, first_frame, saved_meta = _resumed_scene(args) if args.resume else (_load(args), 0, None)
     frames = args.frames or scene.render.frames
-    if frames <= first_frame:
+    finishing = bool(saved_meta and saved_meta.get("outputs")) and not args.restart_outputs
+    if frames < first_frame or (frames == first_frame and not finishing):
         raise SandboxError(f"--frames {frames}: the state was saved at frame {first_frame}; expected more frames")
     if args.checkpoint_every and args.checkpoint is None:
-        args.checkpoint = f"out/{scene.name}.state.npz"
+        args.checkpoint = f"out/{file_stem(scene.name)}.state.npz"
     if args.still_frame is not None:
         check_count("--still-frame", args.still_frame, 0, frames - 1)
     substeps = args.substeps  # None: the scene's (an integer, or "auto")
@@ -122,17 +124,18 @@ def cmd_run(args) -> int:
             print(f"{reason}: running headless", file=sys.stderr)
     out = args.out
     if headless and out is None:
-        out = f"out/{scene.name}.mp4"
+        out = f"out/{file_stem(scene.name)}.mp4"
         try:
             check_output(out)
         except SandboxError:
-            out = f"out/{scene.name}"
+            out = f"out/{file_stem(scene.name)}"
             print(f"imageio-ffmpeg is not installed: writing PNG frames to {out}/ instead of an MP4", file=sys.stderr)
     width, height = args.width or scene.render.width, args.height or scene.render.height
     fps, every = args.fps or scene.render.fps, 1
     if out is not None and Path(out).suffix.lower() == ".gif":
         sized = args.width is not None or args.height is not None
-        width, height, every, size = gif_plan(width, height, fps, frames - first_frame, sized)
+        # planned for the whole run, so that a resumed run keeps the frames the uninterrupted one keeps
+        width, height, every, size = gif_plan(width, height, fps, frames, sized)
         if size > GIF_WARN:
             print(f"warning: {gif_warning(out, width, height, fps / every, size)}", file=sys.stderr)
     check_picture(width, height, out)
@@ -157,7 +160,7 @@ def cmd_run(args) -> int:
             return 0
         except WindowUnavailable as exc:
             print(f"{exc}: running headless", file=sys.stderr)
-            out = out or f"out/{scene.name}.mp4"
+            out = out or f"out/{file_stem(scene.name)}.mp4"
             check_picture(width, height, out)
             _check_run_outputs(args, out, scene)
 
@@ -176,6 +179,8 @@ def cmd_run(args) -> int:
         restart=args.restart_outputs,
     )
     start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
+    if frames == first_frame:
+        start = f"no frames (the outputs of the {frames} saved are finished)"
     print(
         f"{scene.name}: {sim.model.built.count} particles, {sim.model.built.spring_count} springs, {start} x "
         f"{substeps or scene.world.substeps} steps on {sim.arch} -> {out}",

@@ -28,6 +28,7 @@ from ..render.video import StillWriter
 from ..scripting import extxyz_text
 from ..simulation import STAT_COLUMNS, Stats
 
+KIND_WORDS = {"mp4": "an MP4 video", "gif": "a GIF", "png-folder": "a folder of PNG frames", "text": "a text file"}
 RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
 
 
@@ -102,7 +103,7 @@ class RunOutputs:
             elif suffix == ".png":
                 self.writers["--out"] = StillWriter(claim.path, width, height, fps, still_frame)
             else:
-                self.writers["--out"] = PngFolder(claim)
+                self.writers["--out"] = PngFolder(claim, width, height)
         for option in ("--stats", "--dump"):
             if option in claims:
                 self.writers[option] = AppendFile(claims[option])
@@ -117,6 +118,7 @@ class RunOutputs:
                     f"{option} {claims[option].path}: the checkpoint {resume[0]} was written by a run without it, so "
                     f"there is nothing to continue; {RESTART_HINT}"
                 )
+            _check_kind(record, resume[0], option, claims[option].path, writer)
             _check_record(record, resume[0], option, writer.RECORD)
             found[option] = writer.find(record, resume[0])
         for option, writer in self.writers.items():
@@ -124,6 +126,8 @@ class RunOutputs:
                 writer.adopt(found[option])
             elif isinstance(writer, AppendFile):
                 writer.start(_csv_text(None) if option == "--stats" else "")
+            elif not isinstance(writer, StillWriter):
+                writer.start()
         in_use = {p for w in self.writers.values() if not isinstance(w, StillWriter) for p in w.in_use()}
         for claim in self.claims:
             for leftover in claim.leftovers():
@@ -133,6 +137,9 @@ class RunOutputs:
         if self.removed:
             names = ", ".join(p.name for p in self.removed)
             print(f"removed {len(self.removed)} partial file(s) a killed run left: {names}", file=sys.stderr)
+        stale = getattr(self.writers.get("--out"), "removed", [])
+        if stale:
+            print(f"removed {len(stale)} frame file(s) of an earlier run from {claims['--out'].path}", file=sys.stderr)
 
     # ------------------------------------------------------------------ each frame
     def frame(self, frame: int, stats: Stats, step_seconds: float, picture: Callable[[], object] | None) -> None:
@@ -146,14 +153,22 @@ class RunOutputs:
         if "--dump" in self.writers and done % self.dump_every == 0:
             self.writers["--dump"].write(extxyz_text(self.sim))
         if self.checkpoint_every and done % self.checkpoint_every == 0:
-            records = {option: w.mark() for option, w in self.writers.items() if not isinstance(w, StillWriter)}
-            save_state(self.sim, self.checkpoint, frame=done, outputs=records)  # an OutputError when it fails
+            self._checkpoint(done)
+
+    def _checkpoint(self, done: int) -> None:
+        records = {option: w.mark() for option, w in self.writers.items() if not isinstance(w, StillWriter)}
+        save_state(self.sim, self.checkpoint, frame=done, outputs=records)  # an OutputError when it fails
 
     # ------------------------------------------------------------------ ending
-    def close(self, complete: bool) -> list[Path]:
+    def close(self, complete: bool, finished_frame: int | None = None) -> list[Path]:
         """complete: every output takes its name; else (a failed write) each is left under its partial name.
-        Returns the partial files kept (empty when complete)."""
+        `finished_frame`: the run reached its last frame, this many frames done: a checkpoint is written there first
+        (where it was not already), so a kill while the outputs are joined and named leaves a state whose resume
+        finishes them. Returns the partial files kept (empty when complete)."""
         try:
+            if complete and finished_frame is not None and self.checkpoint_every:
+                if finished_frame % self.checkpoint_every:
+                    self._checkpoint(finished_frame)
             if complete:
                 for writer in self.writers.values():
                     writer.close() if isinstance(writer, StillWriter) else writer.publish()
@@ -183,6 +198,19 @@ def _records(resume, restart: bool) -> dict | None:
         return None
     records = resume[1].get("outputs")
     return records if isinstance(records, dict) else None
+
+
+def _check_kind(record, checkpoint: Path, option: str, path: Path, writer) -> None:
+    """The checkpoint continued the same kind of output (an MP4, a GIF, a PNG folder) as this run writes."""
+    kind = record.get("kind") if isinstance(record, dict) else None
+    if kind != writer.kind:
+        was = (
+            KIND_WORDS.get(kind, "an output of unknown kind") if isinstance(kind, str) else "an output of unknown kind"
+        )
+        raise SandboxError(
+            f"{option} {path}: the checkpoint {checkpoint} continues {was}, this run writes {writer.words}; "
+            f"{RESTART_HINT}"
+        )
 
 
 def _check_record(record, checkpoint: Path, option: str, needs: dict) -> None:

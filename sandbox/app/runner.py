@@ -86,8 +86,8 @@ def run_headless(
     done = 0
     interrupted, signum, stopped = False, None, None
     complete = True
-    try:
-        with Stopper() as stopper:
+    with Stopper() as stopper:
+        try:
             for frame in range(first_frame, first_frame + frames):
                 ti.sync()
                 t0 = time.perf_counter()
@@ -104,21 +104,25 @@ def run_headless(
                         on_frame(frame, last)
                 if bar is not None:
                     bar.update(1)
-    except KeyboardInterrupt as exc:
-        interrupted, signum = True, exit_code(exc) - 128
-    except SimulationError as exc:
-        stopped = str(exc)
-    except OutputError as exc:
-        complete = False
-        kept = outputs.close(complete=False)
-        raise OutputError(exc.path, exc.reason, kept) from None
-    except BaseException:
-        complete = False
-        outputs.close(complete=False)
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
-        if complete:
-            outputs.close(complete=True)
+        except KeyboardInterrupt as exc:
+            interrupted, signum = True, exit_code(exc) - 128
+        except SimulationError as exc:
+            stopped = str(exc)
+        except OutputError as exc:
+            complete = False
+            kept = outputs.close(complete=False)
+            raise OutputError(exc.path, exc.reason, kept) from None
+        except BaseException:
+            complete = False
+            outputs.close(complete=False)
+            raise
+        finally:
+            if bar is not None:
+                bar.close()
+            if complete:
+                finished = first_frame + done if done == frames and not (interrupted or stopped) else None
+                with stopper.deferred():  # a signal now waits until every output has its name
+                    outputs.close(complete=True, finished_frame=finished)
+        if stopper.pending is not None and not interrupted:
+            interrupted, signum = True, stopper.pending
     return RunResult(done, sim.time, time.perf_counter() - start, last, interrupted, stopped, signum)

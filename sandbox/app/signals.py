@@ -20,16 +20,19 @@ class Signalled(KeyboardInterrupt):
 
 
 class Stopper:
-    """Installs the handlers for its `with` block (only in the main thread: elsewhere it does nothing)."""
+    """Installs the handlers for its `with` block (only in the main thread: elsewhere it does nothing). A signal the
+    process was started ignoring (SIGHUP under `nohup`, SIGINT in a background job) stays ignored."""
 
     def __init__(self) -> None:
         self._previous: dict[int, object] = {}
         self._holding = False
-        self._pending: int | None = None
+        self.pending: int | None = None  # a signal that came while held
 
     def __enter__(self) -> Stopper:
         if threading.current_thread() is threading.main_thread():
             for signum in HANDLED:
+                if signal.getsignal(signum) is signal.SIG_IGN:
+                    continue  # ignored by whoever started us (`nohup` ignores SIGHUP): it stays ignored
                 self._previous[signum] = signal.signal(signum, self._handle)
         return self
 
@@ -40,7 +43,7 @@ class Stopper:
 
     def _handle(self, signum, _frame) -> None:
         if self._holding:
-            self._pending = signum
+            self.pending = signum
         else:
             raise Signalled(signum)
 
@@ -52,8 +55,17 @@ class Stopper:
             yield
         finally:
             self._holding = False
-        if self._pending is not None:
-            raise Signalled(self._pending)
+        if self.pending is not None:
+            raise Signalled(self.pending)
+
+    @contextmanager
+    def deferred(self):
+        """Defer signals until the block is done and do not stop: `pending` says which one came."""
+        self._holding = True
+        try:
+            yield
+        finally:
+            self._holding = False
 
 
 def exit_code(exc: KeyboardInterrupt) -> int:

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import taichi as ti
 
+from ..config.arguments import file_stem
 from ..render.video import open_writer
 
 FRAME_PARTS = ("events", "simulation", "readouts", "drawing", "display")  # the window loop's parts, in order
@@ -165,7 +166,7 @@ class Recorder:
         message = ""
         if recording and self.writer is None:
             self.count += 1
-            path = self.next_path or f"out/{self.scene_name}_{self.count}.mp4"
+            path = self.next_path or f"out/{file_stem(self.scene_name)}_{self.count}.mp4"
             self.next_path = None
             self.writer = open_writer(path, *self.size, self.fps)
             self.path = path

@@ -9,6 +9,7 @@ import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..config.arguments import file_stem
 from ..errors import SandboxError
 from ..files.persist import load_into, save_state
 from ..integrators import REGISTRY
@@ -220,7 +221,7 @@ def pace_text(state: WindowState) -> str:
 
 def quick_save_path(sim) -> Path:
     """Where the window's save key writes the state, and its load key reads it: out/SCENE.state.npz."""
-    return Path("out") / f"{sim.scene.name}.state.npz"
+    return Path("out") / f"{file_stem(sim.scene.name)}.state.npz"
 
 
 def apply_requests(sim, state: WindowState, history, path: Path) -> None:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -26,6 +27,14 @@ GIF_FPS = 15.0  # a default GIF's highest frame rate
 GIF_BUDGET = 8e6  # bytes a default GIF aims below
 GIF_WARN = 50e6  # bytes: a GIF estimated larger is warned about before the run
 GIF_BYTES_PER_PIXEL = 0.36  # per pixel per frame, measured on melting_block (480 x 270, 300 frames: 13.8 MB)
+
+
+def file_stem(name: str) -> str:
+    """A scene's name as the stem of the files named after it (out/NAME.mp4): letters, digits, `-`, `_` and `.`
+    kept, anything else (`/`, `..`, spaces, quotes, control characters) as `_`, no leading `.` or `-`, at most 100
+    characters; "scene" when nothing is left. A name from someone else's scene file never leaves the folder."""
+    stem = re.sub(r"[^A-Za-z0-9_.-]", "_", name)[:100].lstrip(".-")
+    return stem if stem.strip("_.") else "scene"
 
 
 def gif_plan(width: int, height: int, fps: float, frames: int, sized: bool) -> tuple[int, int, int, float]:

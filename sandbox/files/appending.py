@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 
 from ..errors import OutputError, SandboxError
-from .claim import Claim
+from .claim import Claim, create_exclusive, own_partial
 
 CHUNK = 1 << 20
 
@@ -19,6 +19,7 @@ class AppendFile:
     """The output `claim.path`, opened by start() (fresh) or resume(record) (continuing a marked file)."""
 
     RECORD = {"partial": str, "bytes": int, "sha256": str}  # what mark() records
+    kind, words = "text", "a text file"
 
     def __init__(self, claim: Claim) -> None:
         self.claim = claim
@@ -29,7 +30,7 @@ class AppendFile:
 
     # ------------------------------------------------------------------ opening
     def start(self, header: str = "") -> None:
-        self._file = self._open(self.partial, "wb")
+        self._file = self._create(self.partial)
         if header:
             self.write(header)
 
@@ -37,8 +38,9 @@ class AppendFile:
         """The file the checkpoint marked (the partial a killed run left, or the finished file), proven to begin
         with the `record["bytes"]` bytes recorded; else a SandboxError saying it does not match. Changes nothing."""
         path, size, digest = self.claim.path, record["bytes"], record["sha256"]
-        for source in (path.with_name(record["partial"]), path):
-            prefix = _prefix_hash(source, size)
+        left = own_partial(path, record["partial"])  # only a name of this output's own partial pattern
+        for source in (left, path):
+            prefix = _prefix_hash(source, size) if source is not None else None
             if prefix is not None and prefix.hexdigest() == digest:
                 return source, prefix, size
         raise SandboxError(
@@ -52,7 +54,7 @@ class AppendFile:
         source, prefix, size = found
         try:
             if source == self.claim.path:
-                with open(source, "rb") as src, open(self.partial, "wb") as dst:
+                with open(source, "rb") as src, self._create(self.partial) as dst:
                     _copy(src, dst, size)
             else:
                 self.partial = source
@@ -64,6 +66,10 @@ class AppendFile:
 
     def in_use(self) -> list[Path]:
         return [self.partial]
+
+    def _create(self, path: Path):
+        """A new partial file (never one that exists, never through a link)."""
+        return os.fdopen(create_exclusive(path, self.claim.option), "wb")
 
     def _open(self, path: Path, mode: str):
         try:
@@ -89,6 +95,7 @@ class AppendFile:
         except OSError as exc:
             raise OutputError(self.claim.path, exc.strerror or type(exc).__name__) from exc
         return {
+            "kind": self.kind,
             "path": str(self.claim.path),
             "partial": self.partial.name,
             "bytes": self._bytes,

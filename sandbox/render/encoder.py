@@ -5,6 +5,9 @@ holds the frames its checkpoint recorded).
 ffmpeg runs in its own session, so a Ctrl-C or SIGTERM sent to the terminal's process group reaches only the
 sandbox, which then closes the file in order; every exit status is checked, so a full disk is an OutputError rather
 than a silently truncated file.
+
+ffmpeg is given every path as `file:` and an absolute path, so no name is read as an option (a leading `-`), a
+protocol (`concat:`, `a:b`) or a quoted string (`'`); the concat list quotes its names the way ffmpeg unquotes them.
 """
 
 from __future__ import annotations
@@ -43,6 +46,16 @@ def _run(args: list[str], what: Path) -> str:
     return done.stdout
 
 
+def ff_path(path: Path) -> str:
+    """`path` as ffmpeg reads it without interpreting it: the file protocol and an absolute path."""
+    return "file:" + str(Path(path).absolute())
+
+
+def _quoted(text: str) -> str:
+    """`text` as one word of an ffmpeg concat list: inside single quotes, a quote written as '\\''."""
+    return "'" + text.replace("'", "'\\''") + "'"
+
+
 def _last_line(text: str) -> str:
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     return lines[-1] if lines else "ffmpeg failed"
@@ -56,7 +69,7 @@ class Encoder:
         self.path = path
         rate = str(Fraction(fps).limit_denominator())
         args = ["-y", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}", "-pix_fmt", "rgb24"]
-        args += ["-r", rate, "-i", "-", "-an", *_codec(path), str(path)]
+        args += ["-r", rate, "-i", "-", "-an", *_codec(path), ff_path(path)]
         self._log = tempfile.TemporaryFile()  # noqa: SIM115 - closed in close()/kill()
         self._proc = subprocess.Popen(
             [ffmpeg_exe(), "-nostdin", "-v", "error", *args],
@@ -99,7 +112,7 @@ class Encoder:
 def frame_digests(path: Path, frames: int | None = None) -> list[str]:
     """The MD5 of each decoded frame of a video (the first `frames`, or all)."""
     limit = ["-frames:v", str(frames)] if frames is not None else []
-    out = _run(["-i", str(path), "-map", "0:v", *limit, "-f", "framemd5", "-"], path)
+    out = _run(["-i", ff_path(path), "-map", "0:v", *limit, "-f", "framemd5", "-"], path)
     return [line.rsplit(",", 1)[-1].strip() for line in out.splitlines() if line and not line.startswith("#")]
 
 
@@ -107,10 +120,10 @@ def join(pieces: list[Path], path: Path) -> None:
     """Write the videos `pieces` one after another into `path`: MP4 pieces are copied packet for packet (every piece
     starts on a key frame), GIF pieces are decoded and given one palette again."""
     listing = path.with_name(path.name + ".pieces.txt")
-    listing.write_text("".join(f"file '{p.resolve()}'\n" for p in pieces))
+    listing.write_text("".join(f"file {_quoted(ff_path(p))}\n" for p in pieces))
     try:
         codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() == ".mp4" else _codec(path)
-        _run(["-y", "-f", "concat", "-safe", "0", "-i", str(listing), *codec, str(path)], path)
+        _run(["-y", "-f", "concat", "-safe", "0", "-i", ff_path(listing), *codec, ff_path(path)], path)
     finally:
         listing.unlink(missing_ok=True)
 
@@ -118,4 +131,4 @@ def join(pieces: list[Path], path: Path) -> None:
 def cut(source: Path, frames: int, path: Path) -> None:
     """Write the first `frames` frames of `source` to `path` (MP4: copied, and exact where a piece began there)."""
     codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() == ".mp4" else _codec(path)
-    _run(["-y", "-i", str(source), "-map", "0:v", "-frames:v", str(frames), *codec, str(path)], path)
+    _run(["-y", "-i", ff_path(source), "-map", "0:v", "-frames:v", str(frames), *codec, ff_path(path)], path)

@@ -8,13 +8,14 @@ from __future__ import annotations
 import hashlib
 import io
 import os
+import re
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 from ..errors import OutputError, SandboxError
-from ..files.claim import Claim, partial_name
+from ..files.claim import Claim, create_exclusive, is_regular_file, own_partial, partial_name
 from .encoder import Encoder, cut, frame_digests, join
 
 RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
@@ -24,14 +25,27 @@ def _digest(items: list[str]) -> str:
     return hashlib.sha256("\n".join(items).encode()).hexdigest()
 
 
+def _settings(words: str, width: int, height: int, fps: float, every: int) -> str:
+    return f"{words} of {width}x{height} at {fps:g} frames/s" + (f", every {every} frames kept" if every > 1 else "")
+
+
+def _new_file(path: Path, option: str) -> Path:
+    """Create `path` empty for a writer that opens it by name (ffmpeg), never through a link or over a file."""
+    os.close(create_exclusive(path, option))
+    return path
+
+
 class SegmentedVideo:
     """`claim.path` (.mp4 or .gif) written piece by piece."""
 
-    RECORD = {"pieces": list, "frames": int, "offered": int, "digest": str}  # what mark() records
+    # what mark() records
+    RECORD = {"pieces": list, "frames": int, "offered": int, "digest": str, "size": list, "fps": float, "every": int}
 
     def __init__(self, claim: Claim, width: int, height: int, fps: float, every: int = 1) -> None:
         """`every`: keep every `every`-th frame offered (a GIF's lower frame rate; the video plays at fps / every)."""
         self.claim, self.width, self.height, self.fps, self.every = claim, width, height, fps / every, every
+        self.kind = claim.path.suffix.lower().lstrip(".")
+        self.words = "a GIF" if self.kind == "gif" else "an MP4 video"
         self.pieces: list[Path] = []
         self.digests: list[str] = []  # of the frames in closed pieces
         self.frames = 0  # written, in all pieces
@@ -44,14 +58,15 @@ class SegmentedVideo:
         else the first frames of the finished video cut into a piece of this run's own (for a GIF, whose finished
         frames were given one palette again, only their count is checked). A SandboxError when neither matches."""
         path, frames = self.claim.path, record["frames"]
+        self._check_settings(record, checkpoint)
         if frames == 0:
             return [], [], record["offered"]
-        left = [path.with_name(name) for name in record["pieces"]]
-        if all(p.is_file() for p in left):
+        left = [own_partial(path, name, pieces=True) for name in record["pieces"]]  # only names of its own pattern
+        if left and all(p is not None for p in left):
             pieces, exact = left, True
         elif path.is_file():
-            first = partial_name(path, "seg0000")
-            self._cut = first
+            first = self.claim.partial("seg0000")
+            self._cut = _new_file(first, self.claim.option)
             try:
                 cut(path, frames, first)
             except OutputError:
@@ -72,6 +87,21 @@ class SegmentedVideo:
             )
         return pieces, digests, record["offered"]
 
+    def _check_settings(self, record: dict, checkpoint: Path) -> None:
+        """The picture size, frame rate and kept frames of this run are those the checkpoint's video was made with."""
+        saved = (record["size"], float(record["fps"]), record["every"])
+        if saved != ([self.width, self.height], float(self.fps), self.every):
+            was = _settings(self.words, *(saved[0] if len(saved[0]) == 2 else (0, 0)), saved[1], saved[2])
+            now = _settings(self.words, self.width, self.height, self.fps, self.every)
+            raise SandboxError(
+                f"{self.claim.option} {self.claim.path}: the checkpoint {checkpoint} continues {was}, this run "
+                f"writes {now}; expected the same --width, --height and --fps, or --restart-outputs to start the "
+                "outputs over"
+            )
+
+    def start(self) -> None:
+        """A fresh video: nothing to prepare (pieces are made as frames come)."""
+
     def adopt(self, found) -> None:
         """Continue after the pieces find() returned (new pieces are numbered on, under this run's names)."""
         self.pieces, self.digests, self.offered = list(found[0]), list(found[1]), found[2]
@@ -86,7 +116,7 @@ class SegmentedVideo:
             return
         if self._encoder is None:
             # this run's name: pieces adopted from a killed run carry that run's, so the numbers cannot collide
-            piece = partial_name(self.claim.path, f"seg{len(self.pieces):04d}")
+            piece = _new_file(self.claim.partial(f"seg{len(self.pieces):04d}"), self.claim.option)
             self._encoder = Encoder(piece, self.width, self.height, self.fps)
             self.pieces.append(piece)
         self._encoder.write(frame)
@@ -102,11 +132,15 @@ class SegmentedVideo:
         """Close the piece being written; the record a checkpoint keeps."""
         self._close_piece()
         return {
+            "kind": self.kind,
             "path": str(self.claim.path),
             "pieces": [p.name for p in self.pieces],
             "frames": self.frames,
             "offered": self.offered,
             "digest": _digest(self.digests),
+            "size": [self.width, self.height],
+            "fps": float(self.fps),
+            "every": self.every,
         }
 
     def publish(self) -> None:
@@ -119,7 +153,7 @@ class SegmentedVideo:
         if len(self.pieces) == 1:
             os.replace(self.pieces[0], self.claim.path)
         else:
-            joined = self.claim.partial()
+            joined = _new_file(self.claim.partial(), self.claim.option)
             join(self.pieces, joined)
             os.replace(joined, self.claim.path)
             for piece in self.pieces:
@@ -140,18 +174,28 @@ class SegmentedVideo:
 
 class PngFolder:
     """`claim.path` a folder of frame_00000.png, frame_00001.png, ... numbered from the run's first frame; each file
-    written under a partial name and renamed."""
+    written under a partial name and renamed. The folder is the run's like a file is: frames of an earlier run
+    (`frame_NNNNN.png` past the ones continued) are removed when the run starts, so it never holds two runs' frames."""
 
-    RECORD = {"frames": int, "digest": str}
+    RECORD = {"frames": int, "digest": str, "size": list}
+    FRAME = re.compile(r"frame_(\d{5,})\.png")
 
-    def __init__(self, claim: Claim) -> None:
-        self.claim = claim
+    def __init__(self, claim: Claim, width: int = 0, height: int = 0) -> None:
+        self.claim, self.width, self.height = claim, width, height
+        self.kind, self.words = "png-folder", "a folder of PNG frames"
         self.frames = 0
         self.hashes: list[str] = []
+        self.removed: list[Path] = []
 
     def find(self, record: dict, checkpoint: Path):
         """The hashes of the `record["frames"]` frame files the checkpoint marked, or a SandboxError."""
         frames = record["frames"]
+        if record["size"] != [self.width, self.height]:
+            raise SandboxError(
+                f"{self.claim.option} {self.claim.path}: the checkpoint {checkpoint} continues frames of "
+                f"{'x'.join(map(str, record['size']))}, this run draws {self.width}x{self.height}; expected the same "
+                f"--width and --height, or {RESTART_HINT.split(', or ')[1]}"
+            )
         hashes = []
         for k in range(frames):
             try:
@@ -165,8 +209,26 @@ class PngFolder:
             )
         return hashes
 
+    def start(self) -> None:
+        """A fresh folder of frames: any frame files of an earlier run are removed."""
+        self._remove_from(0)
+
     def adopt(self, hashes) -> None:
         self.frames, self.hashes = len(hashes), list(hashes)
+        self._remove_from(self.frames)
+
+    def _remove_from(self, first: int) -> None:
+        """Remove the frame files numbered `first` and on (regular files of the frame pattern only)."""
+        try:
+            names = os.listdir(self.claim.path)
+        except OSError:  # no folder yet
+            return
+        for name in sorted(names):
+            match = self.FRAME.fullmatch(name)
+            path = self.claim.path / name
+            if match and int(match.group(1)) >= first and is_regular_file(path):
+                path.unlink(missing_ok=True)
+                self.removed.append(path)
 
     def in_use(self) -> list[Path]:
         return []
@@ -182,7 +244,8 @@ class PngFolder:
         partial = partial_name(target)
         try:
             self.claim.path.mkdir(parents=True, exist_ok=True)
-            partial.write_bytes(data)
+            with os.fdopen(create_exclusive(partial, self.claim.option), "wb") as out:
+                out.write(data)
             os.replace(partial, target)
         except OSError as exc:
             partial.unlink(missing_ok=True)
@@ -191,7 +254,13 @@ class PngFolder:
         self.frames += 1
 
     def mark(self) -> dict:
-        return {"path": str(self.claim.path), "frames": self.frames, "digest": _digest(self.hashes)}
+        return {
+            "kind": self.kind,
+            "path": str(self.claim.path),
+            "frames": self.frames,
+            "digest": _digest(self.hashes),
+            "size": [self.width, self.height],
+        }
 
     def publish(self) -> None:
         pass
