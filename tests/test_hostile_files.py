@@ -269,3 +269,22 @@ def test_nohup_runs_ignore_sighup(tmp_path):
     _, err = proc.communicate(timeout=300)
     assert proc.returncode == 143, err
     assert err.splitlines()[-1].startswith("stopped by SIGTERM")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "/dev/zero", "/dev/urandom", "oversized", "folder"])
+def test_a_scene_path_that_is_not_a_small_regular_file_is_refused_at_once(tmp_path, capsys, kind):
+    """A FIFO or /dev/urandom used to hang, /dev/zero to take 22 GB: refused in one line before anything is read."""
+    path = {"fifo": tmp_path / "s.toml", "oversized": tmp_path / "big.toml", "folder": tmp_path}.get(kind, Path(kind))
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "oversized":
+        path.write_text("# " + "x" * (5 << 20) + "\n")
+    signal.alarm(60)  # a hang fails the test instead of the suite
+    try:
+        code = main(["run", str(path), "--headless", "--frames", "1"])
+    finally:
+        signal.alarm(0)
+    lines = errors(capsys)
+    assert code == EXIT_BAD_INPUT and len(lines) == 1, lines
+    said = {"folder": "is a folder", "oversized": "larger than 4 MiB"}.get(kind, "not a regular file")
+    assert said in lines[0]

@@ -4,9 +4,11 @@ shapes, missing entries, the meta table, the host values, truncation); SANDBOX_F
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
+import re
 import zipfile
 
 import numpy as np
@@ -200,3 +202,98 @@ def test_a_checked_state_still_resumes_bit_for_bit(saved):
     again = sandbox.resume(path)
     a, b = sim.run(2), again.run(2)
     assert np.array_equal(a["total_energy"], b["total_energy"])
+
+
+def _npy(shape: tuple, dtype: str, payload: bytes = b"") -> bytes:
+    """A .npy member whose header declares `shape` of `dtype`, followed by `payload` (whatever its size)."""
+    buffer = io.BytesIO()
+    header = {"descr": dtype, "fortran_order": False, "shape": shape}
+    np.lib.format.write_array_header_1_0(buffer, header)
+    return buffer.getvalue() + payload
+
+
+def _rezip(path, out, replace: dict | None = None, method: int | None = None, flags: int = 0) -> None:
+    """Copy the archive at `path` to `out` with members replaced (name: bytes), and, where asked, every member's
+    compression method (`method`) and general-purpose flags (`flags` or-ed in) patched in the written headers."""
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(out, "w") as dst:
+        for info in src.infolist():
+            name = info.filename[:-4]
+            dst.writestr(info.filename, (replace or {}).get(name, src.read(info)))
+    if method is None and not flags:
+        return
+    blob = bytearray(out.read_bytes())
+    for signature, method_at, flags_at in ((b"PK\x03\x04", 8, 6), (b"PK\x01\x02", 10, 8)):
+        at = blob.find(signature)
+        while at >= 0:
+            if method is not None:
+                blob[at + method_at : at + method_at + 2] = method.to_bytes(2, "little")
+            old = int.from_bytes(blob[at + flags_at : at + flags_at + 2], "little")
+            blob[at + flags_at : at + flags_at + 2] = (old | flags).to_bytes(2, "little")
+            at = blob.find(signature, at + 4)
+    out.write_bytes(bytes(blob))
+
+
+@pytest.mark.parametrize(
+    "member, content, says",
+    [
+        ("field:particles.x", _npy((2**40,), "<f4"), "declares shape (1099511627776,)"),
+        ("meta", _npy((10**12,), "<U10"), "declares shape (1000000000000,)"),
+        ("host", _npy((4,), "|O", b"\x00" * 32), "Python objects"),
+        ("field:particles.v", b"\x93NUMPY garbage", "no valid array header"),
+    ],
+    ids=["2**40 floats", "10**12 strings", "objects", "garbage header"],
+)
+def test_a_member_declaring_more_than_it_holds_is_refused_before_any_allocation(saved, tmp_path, member, content, says):
+    """A 64-byte member declaring 2**40 floats asked np.load for 4 TiB (a traceback; in the classroom, a dead
+    session): its header is now checked against the member's size before anything is allocated."""
+    _, _, _, path = saved
+    crafted = tmp_path / "crafted.npz"
+    _rezip(path, crafted, replace={member: content})
+    with pytest.raises(SandboxError, match=re.escape(says)) as caught:
+        sandbox.resume(crafted)
+    assert str(crafted) in str(caught.value) and "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    "method, flags, says",
+    [
+        (12, 0, "compression method 12"),
+        (14, 0, "compression method 14"),
+        (99, 0, "compression method 99"),
+        (None, 1, "is encrypted"),
+    ],
+)
+def test_members_of_other_compression_methods_or_encrypted_are_refused(saved, tmp_path, method, flags, says):
+    _, _, _, path = saved
+    crafted = tmp_path / "crafted.npz"
+    _rezip(path, crafted, method=method, flags=flags)
+    with pytest.raises(SandboxError, match=says):
+        sandbox.resume(crafted)
+
+
+MEMBER_SHAPES = st.sampled_from([(), (0,), (1,), (3, 2), (2**31,), (2**40,), (10**12, 3), (2**62, 2**62)])
+MEMBER_DTYPES = st.sampled_from(["<f4", "<f8", "<i4", "|u1", "<U8", "<U100000000", "|O", "|V16", ">f8"])
+
+
+@settings(
+    max_examples=2000 if CAMPAIGN else 25,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(data=st.data())
+def test_fuzzed_archive_members_are_refused_in_one_line_never_allocated(saved, tmp_path_factory, data):
+    """Any member replaced by a header of any shape and dtype with any payload, under any compression method or
+    flags: a SandboxError naming the file, or (where it happens to be valid) a state that is then checked; never a
+    MemoryError, a traceback of another kind, or a hang."""
+    arrays, _, _, path = saved
+    member = data.draw(st.sampled_from(["meta", "host", *sorted(arrays)]))
+    payload = data.draw(st.binary(max_size=64))
+    content = _npy(data.draw(MEMBER_SHAPES), data.draw(MEMBER_DTYPES), payload)
+    crafted = tmp_path_factory.mktemp("members") / "state.npz"
+    method = data.draw(st.sampled_from([None, None, 0, 8, 12, 14, 95, 98]))
+    _rezip(path, crafted, replace={member: content}, method=method, flags=data.draw(st.sampled_from([0, 0, 1, 8])))
+    runtime.reset()
+    try:
+        sandbox.resume(crafted)
+    except SandboxError as exc:
+        assert str(crafted) in str(exc) and "\n" not in str(exc)

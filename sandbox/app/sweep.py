@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..config.resources import read_small_text
 from ..config.scene import apply_override, parse_override, read_scene_table, scene_from_dict
 from ..errors import SandboxError, SceneError
 from ..research.dask_pool import choose_scheduler, dask_client, local_shape
@@ -221,8 +222,8 @@ def _read_record(path: Path) -> dict | None:
     if not path.exists():
         return None
     try:
-        record = json.loads(path.read_text())
-    except (OSError, ValueError):
+        record = json.loads(read_small_text(path))
+    except (OSError, ValueError, RecursionError):
         return {}
     return record if isinstance(record, dict) else {}
 

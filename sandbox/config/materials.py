@@ -20,7 +20,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from .resources import ASSETS_DIR, MATERIALS_FILE  # noqa: F401 - ASSETS_DIR is re-exported for scene.py
+from .resources import ASSETS_DIR, MATERIALS_FILE, read_small_text  # noqa: F401 - ASSETS_DIR is re-exported for scene.py
 
 
 def _colour(c: tuple[float, ...]) -> str | None:
@@ -136,11 +136,13 @@ def check_material(material: Material, file: str, key: str) -> Material:
 def load_library(path: Path = MATERIALS_FILE) -> dict[str, Material]:
     """Read the materials library (a TOML file of [name] tables) into Material objects."""
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(read_small_text(path))
     except FileNotFoundError as exc:
         raise SceneError(str(path), "", "materials library not found") from exc
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SceneError(str(path), "", f"not valid TOML: {exc}") from exc
+    except (ValueError, OSError) as exc:
+        raise SceneError(str(path), "", f"not a materials library: {exc}") from exc
     return {
         name: check_material(parse_table(Material, table, str(path), name), str(path), name)
         for name, table in data.items()

@@ -18,6 +18,7 @@ from ..errors import SceneError
 from .arguments import MAX_SUBSTEPS
 from .budget import check_size
 from .materials import ASSETS_DIR, resolve_materials
+from .resources import read_small_text
 from .scene_tables import (
     Body,
     Emitter,
@@ -97,7 +98,7 @@ def read_scene_table(path: Path, missing: str = "no such scene file") -> dict:
     expected), a folder, or not TOML."""
     file = str(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(read_small_text(path))
     except RecursionError:
         data = None
     except FileNotFoundError as exc:
@@ -106,6 +107,11 @@ def read_scene_table(path: Path, missing: str = "no such scene file") -> dict:
         raise SceneError(file, "", "is a folder; expected a scene file (.toml)") from exc
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SceneError(file, "", f"not valid TOML: {exc}") from exc
+    except ValueError as exc:
+        raise SceneError(file, "", str(exc)) from exc
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise SceneError(file, "", f"cannot be read ({reason}); expected a scene file") from exc
     check_depth(data, file)
     return data
 

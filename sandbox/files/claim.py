@@ -28,6 +28,7 @@ from pathlib import Path
 
 from ..errors import OutputError, SandboxError
 
+
 def new_token() -> str:
     """A writer's part of its partial names: the process id and a random part."""
     return f"{os.getpid()}-{secrets.token_hex(3)}"

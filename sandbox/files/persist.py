@@ -15,9 +15,9 @@ whose shape differs (another scene, another thread count) is an error, not a gue
 from __future__ import annotations
 
 import json
+import math
 import os
 import warnings
-import zipfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -30,11 +30,13 @@ from ..core import runtime, taichi_compat, transfer
 from ..core.state import FIELD, NDARRAY, VALUE
 from ..errors import OutputError, SandboxError, SimulationError
 from ..integrators import REGISTRY
+from .archive import ArchiveError, read_arrays
 from .claim import partial_name
 from .state_check import check_meta, check_state
 
 FORMAT = "sandbox-state"
 FORMAT_VERSION = 2
+MAX_META_BYTES = 16 << 20  # the meta table (the scene, the outputs' records) and the host values, each
 
 
 @contextmanager
@@ -120,11 +122,12 @@ def read_meta(path: str | Path) -> dict:
     version of the sandbox."""
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
+        meta = json.loads(str(read_arrays(path, ["meta"], MAX_META_BYTES)["meta"]))
     except FileNotFoundError as exc:
         raise SandboxError(f"{path}: no such state file") from exc
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError, RecursionError) as exc:
+    except ArchiveError as exc:
+        raise SandboxError(f"{path}: {exc}") from None
+    except (OSError, ValueError, KeyError, RecursionError) as exc:
         raise SandboxError(
             f"{path}: not a readable sandbox state file ({type(exc).__name__}); expected an .npz "
             "written by sim.save() or --checkpoint-every"
@@ -177,10 +180,11 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
             f"(SANDBOX_CPU_THREADS={meta['threads']})"
         )
     try:
-        with np.load(path, allow_pickle=False) as data:
-            saved = {key: data[key] for key in data.files}
+        saved = read_arrays(path, limit=_archive_limit(sim.state))
         host = json.loads(str(saved["host"]))
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError, RecursionError) as exc:
+    except ArchiveError as exc:
+        raise SandboxError(f"{path}: {exc}") from None
+    except (OSError, ValueError, KeyError, RecursionError) as exc:
         raise SandboxError(f"{path}: the state file is damaged ({type(exc).__name__})") from exc
     if not isinstance(host, dict):
         raise SandboxError(f"{path}: the state file's host values are not a table; expected one written by save()")
@@ -200,6 +204,18 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
         term.apply_controls(meta["controls"])
     for part in sim.parts:
         part.after_restore(sim.state)
+
+
+def _archive_limit(state) -> int:
+    """Bytes a state file of `state`'s scene may hold uncompressed: four times what its entries hold now (the
+    neighbour lists may have widened), plus room for the meta and host tables."""
+    now = 0
+    for e in state.entries():
+        if e.kind != VALUE:
+            current = e.get()
+            items = math.prod(current.shape) * (current.n if isinstance(current, ti.MatrixField) else 1)
+            now += items * 8  # no entry's type is wider than 8 bytes
+    return 4 * now + 2 * MAX_META_BYTES
 
 
 def _put_back(state, saved: dict, host: dict) -> None:
