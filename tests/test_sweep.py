@@ -141,31 +141,67 @@ def test_an_unknown_key_is_refused_before_anything_runs(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.slow  # a Dask cluster in another process
-@pytest.mark.xdist_group("dask")
-def test_ctrl_c_stops_a_cluster_sweep_in_one_line_with_exit_130(tmp_path):
-    """Ctrl-C at a terminal signals the whole process group: the sweep, its nannies and workers."""
-    import os
-    import signal
+def _sweep_process(tmp_path, *extra: str):
     import subprocess
     import sys
-    import time
 
-    pytest.importorskip("distributed")
     args = ["sweep", "melting_block", "--vary", "bodies.0.material=wax,chocolate,butter", "--frames", "500000"]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "sandbox", *args, "--out", str(tmp_path), "--scheduler", "local", "--workers", "2"],
+    return subprocess.Popen(
+        [sys.executable, "-m", "sandbox", *args, "--out", str(tmp_path), *extra],
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
     )
+
+
+def _stop_when_running(proc, tmp_path, signum) -> list[str]:
+    """Wait until a run writes its rows, send `signum` to the sweep's whole process group; its stderr lines."""
+    import os
+    import time
+
     end = time.monotonic() + 120
-    while not list(tmp_path.glob("*/.stats.csv.*.partial.csv")) and time.monotonic() < end:
-        time.sleep(0.1)
+    while not list(tmp_path.glob("*/.stats.csv.*.partial.csv")) and time.monotonic() < end and proc.poll() is None:
+        time.sleep(0.05)
     time.sleep(1.0)
-    os.killpg(proc.pid, signal.SIGINT)
+    os.killpg(proc.pid, signum)
     _, err = proc.communicate(timeout=120)
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert proc.returncode == 130, err
-    assert lines[-1].startswith("interrupted: the completed runs are kept in") and "Traceback" not in err, err
+    assert "Traceback" not in err, err
+    return [line for line in err.splitlines() if line.strip()]
+
+
+@pytest.mark.parametrize("signum, code", [(2, 130), (15, 143), (1, 129)], ids=["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_signal_stops_a_serial_sweep_in_one_line_and_the_stopped_run_is_not_recorded_done(tmp_path, signum, code):
+    """SIGINT, SIGTERM or SIGHUP during a serial sweep's first run: the project's exit code and one line, the run
+    that was stopped has no run.json (so the next sweep runs it again) and the manifest calls it pending."""
+    proc = _sweep_process(tmp_path, "--scheduler", "serial")
+    lines = _stop_when_running(proc, tmp_path, signum)
+    name = {2: "SIGINT", 15: "SIGTERM", 1: "SIGHUP"}[signum]
+    assert proc.returncode == code, lines
+    assert lines[-1].startswith(f"stopped by {name}: the completed runs are kept in"), lines
+    assert not list(tmp_path.glob("*/run.json"))
+    rows = list(csv.DictReader(open(tmp_path / "manifest.csv", newline="")))
+    assert [r["outcome"] for r in rows] == ["pending"] * 3
+
+
+def test_a_vary_value_that_is_not_finite_is_refused_in_one_line(tmp_path, capsys):
+    from sandbox.app.cli import main
+
+    for vary in ("world.dt=1e308,nan", "world.dt=inf", "heat.ambient=-inf,20"):
+        assert main(["sweep", "melting_block", "--vary", vary, "--out", str(tmp_path / "s")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "expected finite numbers" in err[0], err
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.slow  # a Dask cluster in another process
+@pytest.mark.xdist_group("dask")
+@pytest.mark.parametrize("signum, code", [(2, 130), (15, 143)], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_stops_a_cluster_sweep_in_one_line(tmp_path, signum, code):
+    """Ctrl-C at a terminal (or a scheduler's SIGTERM) signals the whole process group: the sweep, its nannies and
+    workers."""
+    pytest.importorskip("distributed")
+    proc = _sweep_process(tmp_path, "--scheduler", "local", "--workers", "2")
+    lines = _stop_when_running(proc, tmp_path, signum)
+    assert proc.returncode == code, lines
+    assert lines[-1].startswith("stopped by SIG") and "the completed runs are kept in" in lines[-1], lines
     assert (tmp_path / "manifest.csv").exists()

@@ -54,7 +54,7 @@ from .cli_common import (
     stability_warnings,
 )
 from .cli_run import cmd_run
-from .signals import exit_code
+from .signals import Stopper, exit_code
 from .sweep import METRICS, check_keys, parse_vary, plan_runs, plot_sweep, run_sweep
 
 
@@ -189,23 +189,26 @@ def cmd_sweep(args) -> int:
         check_output(out / "out.mp4")
     print(f"{scene.name}: {len(runs)} runs -> {out}", file=sys.stderr)
     try:
-        records = run_sweep(
-            _scene_path(args.scene),
-            runs,
-            out,
-            frames=args.frames,
-            video=args.video,
-            width=args.width,
-            height=args.height,
-            scheduler=args.scheduler,
-            workers=args.workers,
-            threads=args.threads,
-            log=lambda line: print(line, file=sys.stderr),
-            redo=args.redo,
-        )
+        with Stopper():  # SIGTERM and SIGHUP stop a sweep as Ctrl-C does, serial or on Dask
+            records = run_sweep(
+                _scene_path(args.scene),
+                runs,
+                out,
+                frames=args.frames,
+                video=args.video,
+                width=args.width,
+                height=args.height,
+                scheduler=args.scheduler,
+                workers=args.workers,
+                threads=args.threads,
+                log=lambda line: print(line, file=sys.stderr),
+                redo=args.redo,
+            )
     except KeyboardInterrupt as exc:
+        name = signal.Signals(exit_code(exc) - 128).name
         print(
-            f"interrupted: the completed runs are kept in {out}; run the same command again to resume", file=sys.stderr
+            f"stopped by {name}: the completed runs are kept in {out}; run the same command again to run the rest",
+            file=sys.stderr,
         )
         return exit_code(exc)
     counts = {o: sum(r["outcome"] == o for r in records) for o in ("done", "stopped", "error", "pending")}

@@ -19,6 +19,7 @@ import copy
 import csv
 import itertools
 import json
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -73,6 +74,9 @@ def parse_vary(text: str) -> Variation:
         values = tuple(float(v) for v in np.linspace(start, stop, count))
     else:
         values = tuple(parse_override(f"{key}={item}")[1] for item in raw.split(","))
+    numbers = [v for v in values if isinstance(v, float)]
+    if not all(math.isfinite(v) for v in numbers):
+        raise SandboxError(f"--vary {text}: {raw} holds a value that is not a finite number; expected finite numbers")
     return Variation(key, values)
 
 

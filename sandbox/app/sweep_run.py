@@ -1,9 +1,11 @@
 """One run of a sweep, as a worker process executes it: the scene with its overrides, headless, into its own folder.
 
-A run folder holds stats.csv, the optional video, and run.json, written last and atomically: a folder with a
-run.json is a run that completed (done, stopped by the guard, or refused by a scene error), and a second invocation
-of the sweep skips it. Everything else is written under temporary names first (runner.run_headless), so a worker that
-dies mid-run leaves no file under a final name, and the retried run starts its folder afresh.
+A run folder holds stats.csv, the optional video, and run.json, written last and atomically: a folder with a run.json
+is a run that completed (done: all its frames; stopped by the guard; or refused by a scene error), and a second
+invocation of the sweep skips it. A run stopped by a signal writes no run.json (the signal goes on up and stops the
+sweep), so the next invocation runs it again. Everything else is written under temporary names first
+(runner.run_headless), so a worker that dies mid-run leaves no file under a final name, and the retried run starts
+its folder afresh.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import hashlib
 import json
 import math
 import os
+import signal
 import time
 from pathlib import Path
 
@@ -23,6 +26,7 @@ from ..errors import SandboxError
 from ..research.dask_pool import cpu_threads
 from ..simulation import Simulation
 from .runner import run_headless
+from .signals import Signalled
 
 RECORD = "run.json"
 CRASH_HOOK = "SANDBOX_SWEEP_CRASH_ONCE"  # tests: a marker path; the first run to see it missing kills its process
@@ -118,6 +122,8 @@ def execute_run(
             result = run_headless(
                 sim, n, None, video_path, stats_path, width, height, progress=False, on_frame=maybe_crash
             )
+            if result.interrupted:  # no record: the run is not complete, and the next sweep runs it again
+                raise Signalled(result.signal or signal.SIGINT)
             with open(stats_path, newline="") as f:
                 rows = list(csv.DictReader(f))
             conserves = not (scene.heat and scene.heat.sources) and not scene.emitters and not scene.world.drag
@@ -126,8 +132,10 @@ def execute_run(
             record["video"] = str(video_path) if video_path and video_path.exists() else None
             if result.stopped:
                 record.update(outcome="stopped", message=result.stopped)
-            else:
+            elif result.frames == n:
                 record.update(outcome="done", message="")
+            else:  # cannot happen without a signal or the guard; never recorded as done
+                raise SandboxError(f"{folder}: the run ended after {result.frames} of its {n} frames")
         except SandboxError as exc:
             record.update(outcome="error", message=str(exc))
     record["wall_seconds"] = time.perf_counter() - start
