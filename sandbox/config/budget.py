@@ -91,10 +91,15 @@ def check_size(file: str, world, bodies: list, emitters: list, has_neighbours: b
                 "(a larger spacing or a smaller body, or raise world.max_particles)",
             )
         counts.append(n)
-    total = sum(counts) + sum(emitter_population(e) for e in emitters)
+    living = [emitter_population(e) for e in emitters]
+    total = sum(counts) + sum(living)
     if total > limit:
+        where, what = "bodies", "bodies and emitters"
+        if sum(living) > sum(counts):  # mostly emitted: name the emitter that holds the most at once
+            k = int(np.argmax(living))
+            where, what = f"emitters[{k}]", f"{living[k]:,} of them living at once from this emitter"
         raise SceneError(
-            file, "bodies", f"about {total:,} particles in all (bodies and emitters); expected at most {limit:,}"
+            file, where, f"about {total:,} particles in all ({what}); expected at most world.max_particles = {limit:,}"
         )
     if world.capacity > limit:
         raise SceneError(file, "world.capacity", f"{world.capacity:,} slots; expected at most {limit:,}")

@@ -19,6 +19,12 @@ from ..errors import SceneError
 Check = Callable[[Any], "str | None"]
 
 ABSOLUTE_ZERO = -273.15  # degrees Celsius: the lowest temperature a scene may name
+# Every number a scene holds lies in these ranges unless its own check says more (generated for every key, so none
+# is missed): the scene's units (mm, g/cm^3, simulated seconds, degrees) put every sensible value between them, and
+# f32 fields hold them without overflowing or flushing to zero.
+MAX_MAGNITUDE = 1e9
+MIN_MAGNITUDE = 1e-9  # a nonzero number smaller than this is refused (0 itself is allowed where the key's check is)
+MAX_INT = 2**31 - 1  # integers go to 32-bit fields and seeds
 
 
 def unknown(what: str, word, choices) -> str:
@@ -178,6 +184,9 @@ def parse_table(cls: type, data: Any, file: str, key: str = "") -> Any:
             value = _convert(hints[name], data[name], file, sub)
             if isinstance(value, float) and math.isinf(value) and not f.metadata.get("infinite"):
                 raise SceneError(file, sub, f"expected a finite number, got {value}")
+            problem = out_of_range(value)
+            if problem:
+                raise SceneError(file, sub, problem)
             check = f.metadata.get("check")
             if check is not None and value is not None:
                 problem = check(value)
@@ -187,6 +196,21 @@ def parse_table(cls: type, data: Any, file: str, key: str = "") -> Any:
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
             raise SceneError(file, sub, f"missing; expected {_type_name(hints[name])}: {f.metadata.get('doc', '')}")
     return cls(**values)
+
+
+def out_of_range(value: Any) -> str | None:
+    """What is wrong with a number (or a vector's numbers) outside the ranges every scene number keeps, or None."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int):
+        return None if abs(value) <= MAX_INT else f"expected an integer from {-MAX_INT:,} to {MAX_INT:,}, got {value}"
+    if isinstance(value, float):
+        if math.isinf(value) or value == 0 or MIN_MAGNITUDE <= abs(value) <= MAX_MAGNITUDE:
+            return None
+        return f"expected 0 or a number of magnitude {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g}, got {value:g}"
+    if isinstance(value, tuple):
+        return next((problem for v in value if (problem := out_of_range(v))), None)
+    return None
 
 
 def _join(key: str, name: str) -> str:
