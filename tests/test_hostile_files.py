@@ -31,10 +31,10 @@ SMALL = ["--width", "160", "--height", "96"]
 OUTPUTS = ["--checkpoint", "c.npz", "--stats", "s.csv", "--dump", "d.extxyz", "--out", "m.mp4"]
 
 
-def run(folder: Path, *args: str, resume: bool = False, frames: int = 8, outputs=OUTPUTS) -> int:
+def run(folder: Path, *args: str, resume: bool = False, frames: int = 8, outputs=OUTPUTS, size=SMALL) -> int:
     """`sandbox run` in `folder` (4 frames a checkpoint); its exit code."""
     scene = ["candle", "--resume", "c.npz"] if resume else SCENE
-    argv = ["run", *scene, "--headless", "--quiet", "--frames", str(frames), "--checkpoint-every", "4", *SMALL]
+    argv = ["run", *scene, "--headless", "--quiet", "--frames", str(frames), "--checkpoint-every", "4", *size]
     cwd = os.getcwd()
     os.chdir(folder)
     try:
@@ -198,9 +198,10 @@ class Killed(BaseException):
     """A stand-in for kill -9 in the middle of joining the pieces: nothing after it runs."""
 
 
-def test_a_kill_while_the_outputs_are_joined_is_finished_by_resume(finished, tmp_path, monkeypatch, capsys):
-    """Killed while the video's pieces are joined (8 frames, the last checkpoint at frame 8): the resume with the
-    same frame count finishes every output from the pieces, without running a frame again."""
+def test_a_kill_while_the_outputs_are_joined_is_finished_by_resume(tmp_path, monkeypatch, capsys):
+    """Killed while the video's pieces are joined (10 frames, checkpoints every 4): the run checkpointed its last
+    frame before joining, so the resume with the same frame count finishes every output from the pieces without
+    running a frame again."""
     folder = tmp_path / "killed"
     folder.mkdir()
 
@@ -209,15 +210,57 @@ def test_a_kill_while_the_outputs_are_joined_is_finished_by_resume(finished, tmp
 
     monkeypatch.setattr(segments, "join", killed)
     with pytest.raises(Killed):
-        run(folder)
+        run(folder, frames=10)
     monkeypatch.undo()
     assert not (folder / "m.mp4").exists()
-    code = run(folder, resume=True, frames=8)
-    assert code == 0, errors(capsys)
-    assert frame_digests(folder / "m.mp4") == frame_digests(finished / "m.mp4")
-    for name in ("s.csv", "d.extxyz"):
-        assert (folder / name).read_bytes().count(b"\n") == (finished / name).read_bytes().count(b"\n")
+    capsys.readouterr()
+    code = run(folder, resume=True, frames=10)
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "no frames (the outputs of the 10 saved are finished)" in err
+    assert len(frame_digests(folder / "m.mp4")) == 10
+    assert (folder / "s.csv").read_text().count("\n") == 11 and (folder / "d.extxyz").read_text().count("Lattice") == 10
     assert not [p.name for p in folder.iterdir() if p.name.startswith(".")]
+
+
+def test_a_resumed_gif_keeps_the_frames_the_uninterrupted_gif_keeps(tmp_path, monkeypatch, capsys):
+    """A GIF keeps every k-th frame, k planned from the run's length: planned from the frames left after the
+    checkpoint, the resumed part kept other frames (151 where the uninterrupted run kept 150). A small size budget
+    makes k depend on the length here (12 frames: every 4th; 4 frames: every 2nd)."""
+    from sandbox.app import run_outputs
+    from sandbox.config import arguments
+
+    monkeypatch.setattr(arguments, "GIF_BUDGET", 100e3)
+    outputs = ["--checkpoint", "c.npz", "--out", "m.gif"]
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    whole.mkdir(), killed.mkdir()
+    assert run(whole, frames=12, outputs=outputs, size=[]) == 0
+    original = run_outputs.RunOutputs.frame
+
+    def kill_at_frame_10(self, frame, *rest):
+        if frame == 9:
+            raise Killed
+        original(self, frame, *rest)
+
+    monkeypatch.setattr(run_outputs.RunOutputs, "frame", kill_at_frame_10)
+    with pytest.raises(Killed):
+        run(killed, frames=12, outputs=outputs, size=[])
+    monkeypatch.setattr(run_outputs.RunOutputs, "frame", original)
+    assert run(killed, resume=True, frames=12, outputs=outputs, size=[]) == 0, errors(capsys)
+    assert len(frame_digests(killed / "m.gif")) == len(frame_digests(whole / "m.gif")) == 3
+
+
+def test_a_still_png_that_cannot_be_written_fails_with_exit_4(tmp_path, monkeypatch, capsys):
+    from sandbox.render import video
+
+    def full_disk(path, frame):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(video, "write_png", full_disk)
+    code = run(tmp_path, frames=2, outputs=["--out", "still.png"])
+    lines = errors(capsys)
+    assert code == 4 and len(lines) == 1 and "No space left on device" in lines[0], lines
+    assert not (tmp_path / "still.png").exists() and not list(tmp_path.glob(".still.png*"))
 
 
 def test_a_png_folder_holds_only_this_runs_frames(tmp_path, capsys):

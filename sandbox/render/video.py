@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from ..errors import SandboxError
+from ..errors import OutputError, SandboxError
 from ..files.claim import partial_name
 from .encoder import Encoder, ffmpeg_exe
 
@@ -89,11 +89,17 @@ class StillWriter(FrameWriter):
             self._kept = frame.copy()
 
     def close(self):
+        """Write the kept frame under a partial name and give it its name; OutputError (the partial removed) when
+        the write fails (a full disk)."""
         if self._kept is not None:
             partial = partial_name(self.path)
-            write_png(partial, self._kept)
-            publish(partial, self.path, keep=True)
-            self._kept = None
+            kept, self._kept = self._kept, None
+            try:
+                write_png(partial, kept)
+                publish(partial, self.path, keep=True)
+            except OSError as exc:
+                partial.unlink(missing_ok=True)
+                raise OutputError(self.path, exc.strerror or type(exc).__name__) from None
 
 
 class FfmpegWriter(FrameWriter):
