@@ -25,17 +25,18 @@ MEMORY_SHARE = 0.8  # of the memory available now that a scene may ask for
 def emitter_population(e) -> int:
     """Most particles an emitter keeps alive at once (capacity planning): all it ever emits if they never die."""
     bursts = len(e.bursts) * e.burst_count
+    refill = 0
     if e.refill_density:
         if e.shape == "box":
             measure = float(np.prod(np.asarray(e.hi) - np.asarray(e.lo)))
         else:
             measure = math.pi * e.size**2 if e.shape == "disk" else 4 / 3 * math.pi * e.size**3
-        bursts += int(2 * e.refill_density * measure)  # the region full, and room for what flows out
+        refill = int(2 * e.refill_density * measure)  # the region full, and room for what flows out
     if e.lifetime <= 0:
         horizon = 0.0 if e.rate == 0 else (e.stop - e.start if math.isfinite(e.stop) else 600.0)
-        return int(e.count + bursts + e.rate * horizon) + 16
+        return int(e.count + bursts + refill + e.rate * horizon) + 16
     longest = e.lifetime * (1 + e.lifetime_spread)
-    return int(e.count + min(bursts, e.burst_count * (1 + longest)) + e.rate * longest * 1.1) + 16
+    return int(e.count + min(bursts, e.burst_count * (1 + longest)) + refill + e.rate * longest * 1.1) + 16
 
 
 def body_particles(body, dim: int) -> int:
