@@ -331,3 +331,11 @@ def test_a_scene_path_that_is_not_a_small_regular_file_is_refused_at_once(tmp_pa
     assert code == EXIT_BAD_INPUT and len(lines) == 1, lines
     said = {"folder": "is a folder", "oversized": "larger than 4 MiB"}.get(kind, "not a regular file")
     assert said in lines[0]
+
+
+def test_a_name_longer_than_the_file_system_takes_is_refused_before_the_run(tmp_path, capsys):
+    name = "y" * 300 + ".csv"
+    assert run(tmp_path, frames=1, outputs=["--stats", name]) == EXIT_BAD_INPUT
+    lines = errors(capsys)
+    assert len(lines) == 1 and "a name of 304 bytes; expected at most 255" in lines[0], lines
+    assert not list(tmp_path.iterdir())

@@ -416,6 +416,10 @@ def main(argv: list[str] | None = None) -> int:
     except SandboxError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except OSError as exc:  # a file the checks above could not foresee (a disk gone, a permission changed)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_WRITE_FAILED
     except KeyboardInterrupt as exc:
         print("interrupted", file=sys.stderr)
         return exit_code(exc)

@@ -17,6 +17,7 @@ from ..config.arguments import (
     check_count,
     check_file_output,
     check_frames_output,
+    check_name_lengths,
     check_picture,
     check_rate,
     distinct_outputs,
@@ -69,6 +70,9 @@ def _check_run_outputs(args, out: str | None, scene) -> None:
         "--checkpoint": args.checkpoint,
     }
     distinct_outputs(outputs)
+    for option, path in outputs.items():  # all before any folder is made for one of them
+        if path is not None:
+            check_name_lengths(option, path)
     inputs = {"--resume": args.resume, "scene": scene.path}
     masks = [thing.mask for thing in (*scene.bodies, *scene.emitters) if thing.mask]
     inputs.update({f"mask {Path(m).name}": m for m in masks})

@@ -96,10 +96,23 @@ def _probe_folder(option: str, path: Path, folder: Path) -> None:
     raise SandboxError(f"{option} {path}: {problem}; expected a writable folder")
 
 
+NAME_MAX = 255  # bytes in one file or folder name (ext4, xfs, btrfs, tmpfs, APFS)
+
+
+def check_name_lengths(option: str, path: str | Path) -> None:
+    """Every name along `path` fits the file system's limit on one name (a longer one fails only when written)."""
+    for part in Path(path).parts:
+        if len(os.fsencode(part)) > NAME_MAX:
+            raise SandboxError(
+                f"{option} {str(path)[:60]}...: a name of {len(os.fsencode(part))} bytes; expected at most {NAME_MAX}"
+            )
+
+
 def check_file_output(option: str, path: str | Path, suffixes: tuple[str, ...] | None = None) -> Path:
     """An output file: a known suffix (when `suffixes` is given), not an existing folder, in a writable folder
     (created if missing). Returns the path."""
     path = Path(path)
+    check_name_lengths(option, path)
     if suffixes is not None and path.suffix.lower() not in suffixes:
         raise SandboxError(f"{option} {path}: expected a file ending in {' or '.join(suffixes)}")
     if path.is_dir():
@@ -122,6 +135,7 @@ def check_frames_output(option: str, path: str | Path) -> Path:
 def check_folder_output(option: str, path: str | Path, what: str = "a folder") -> Path:
     """An output folder: not an existing file, writable (created if missing). Returns the path."""
     path = Path(path)
+    check_name_lengths(option, path)
     if path.exists() and not path.is_dir():
         raise SandboxError(f"{option} {path}: is a file; expected {what}")
     _probe_folder(option, path, path)
