@@ -16,6 +16,7 @@ __version__ = "0.1.0"
 
 # The Python API (sandbox/api.py), imported on first use so that `import sandbox` stays light.
 __all__ = [
+    "Cache",
     "FrameTable",
     "Simulation",
     "load",
@@ -36,6 +37,7 @@ _EXPORTS = {
     "Simulation": "simulation",
     "FrameTable": "files.table",
     "plateau": "measure.curves",
+    "Cache": "scripting",
 }
 
 

@@ -226,6 +226,14 @@ class Simulation:
         """Write the particles as one extended-XYZ frame (ASE, OVITO) to `path` (see scripting.write_extxyz)."""
         scripting.write_extxyz(self, path, append, bonds)
 
+    def write_cache(
+        self, path: str | Path, frames: int, every: int = 1, surface: bool = False, fps: float = 30.0
+    ) -> Path:
+        """Run `frames` frames into a particle cache for Blender, Houdini or ParaView (PATH.usd, .vtp or .ply; see
+        scripting.write_cache and docs/export.md): the state now and after every `every`-th frame; `surface`: a
+        surface mesh of the bodies and melts with each. Returns the path to open."""
+        return scripting.write_cache(self, path, frames, every, surface, fps)
+
     def _repr_html_(self) -> str:
         return scripting.html(self)
 

@@ -282,6 +282,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --resume: start --out, --stats and --dump over from the state's frame instead of continuing them",
     )
     run.add_argument("--dump-every", type=int, metavar="N", help="with --dump: every N frames (default 1)")
+    run.add_argument(
+        "--cache",
+        metavar="PATH",
+        help="write a particle cache for Blender, Houdini, ParaView: PATH.usd (.usda/.usdc), PATH.vtp (with a .pvd) "
+        "or PATH.ply, one file per cached frame (docs/export.md)",
+    )
+    run.add_argument("--cache-every", type=int, metavar="N", help="with --cache: every N frames (default 1)")
+    run.add_argument(
+        "--cache-surface", action="store_true", help="with --cache: a surface mesh of the bodies and melts too"
+    )
     run.set_defaults(func=cmd_run)
 
     check = sub.add_parser("check", help="validate a scene and print the pipeline it will run")

@@ -28,7 +28,10 @@ from ..config.arguments import (
 )
 from ..core import runtime
 from ..errors import SandboxError
+from ..files.cache_sequence import CACHE_SUFFIXES, cache_kind, index_path
+from ..files.cache_usd import pxr
 from ..files.persist import read_meta, saved_scene
+from ..render.surface import EXPORT_HINT
 from ..render.video import check_output
 from ..simulation import Simulation
 from .cli_common import EXIT_STOPPED, _load, stability_warnings
@@ -54,6 +57,9 @@ def _check_run_numbers(args) -> None:
         raise SandboxError(f"--checkpoint {args.checkpoint}: expected together with --checkpoint-every N")
     if args.dump_every is not None and args.dump is None:
         raise SandboxError(f"--dump-every {args.dump_every}: expected together with --dump PATH.extxyz")
+    check_count("--cache-every", args.cache_every, 1, MAX_FRAMES)
+    if (args.cache_every is not None or args.cache_surface) and args.cache is None:
+        raise SandboxError("--cache-every/--cache-surface: expected together with --cache PATH.usd|.vtp|.ply")
     if args.resume is not None and args.set:
         raise SandboxError("--set with --resume: a resumed run continues the saved scene; expected no --set")
 
@@ -68,6 +74,7 @@ def _check_run_outputs(args, out: str | None, scene) -> None:
         "--record": args.record,
         "--dump": args.dump,
         "--checkpoint": args.checkpoint,
+        "--cache": index_path(Path(args.cache)) if args.cache else None,
     }
     distinct_outputs(outputs)
     for option, path in outputs.items():  # all before any folder is made for one of them
@@ -79,6 +86,8 @@ def _check_run_outputs(args, out: str | None, scene) -> None:
     outputs_not_inputs(outputs, inputs)
     if args.dump is not None:
         check_file_output("--dump", args.dump, (".extxyz", ".xyz"))
+    if args.cache is not None:
+        check_cache_output(args.cache, args.cache_surface)
     if args.checkpoint is not None:
         check_file_output("--checkpoint", args.checkpoint, (".npz",))
     if out is not None:
@@ -91,6 +100,20 @@ def _check_run_outputs(args, out: str | None, scene) -> None:
     if args.record is not None:
         check_file_output("--record", args.record, (".mp4",))
         check_output(args.record)
+
+
+def check_cache_output(path: str, surface: bool) -> None:
+    """--cache: a known kind, its packages installed, a writable folder; the frame files' names fit."""
+    kind = cache_kind(Path(path))
+    check_file_output("--cache", path, CACHE_SUFFIXES)
+    check_name_lengths("--cache", Path(path).with_name(Path(path).stem + ".surface.00000.usdc"))
+    if kind == "usd":
+        pxr()
+    if surface:
+        try:
+            import pysplashsurf  # noqa: F401
+        except ImportError:
+            raise SandboxError(f"--cache-surface: surfaces need pysplashsurf; {EXPORT_HINT}") from None
 
 
 def _resumed_scene(args):
@@ -118,8 +141,8 @@ def cmd_run(args) -> int:
         check_count("--still-frame", args.still_frame, 0, frames - 1)
     substeps = args.substeps  # None: the scene's (an integer, or "auto")
     headless = args.headless
-    if not headless and (args.dump or args.checkpoint_every):
-        print("--dump and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
+    if not headless and (args.dump or args.checkpoint_every or args.cache):
+        print("--dump, --cache and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
         headless = True
     if not headless:
         reason = window_unavailable_reason()
@@ -181,6 +204,9 @@ def cmd_run(args) -> int:
         checkpoint_every=args.checkpoint_every,
         resume=(Path(args.resume), saved_meta) if args.resume else None,
         restart=args.restart_outputs,
+        cache=args.cache,
+        cache_every=args.cache_every or 1,
+        cache_surface=args.cache_surface,
     )
     start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
     if frames == first_frame:

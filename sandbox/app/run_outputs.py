@@ -20,15 +20,17 @@ from pathlib import Path
 
 from ..errors import OutputError, SandboxError
 from ..files.appending import AppendFile
+from ..files.cache_sequence import CacheSequence, index_path
 from ..files.claim import Claim
 from ..files.persist import save_state
 from ..measure.stats import stat_values
 from ..render.segments import PngFolder, SegmentedVideo
 from ..render.video import StillWriter
-from ..scripting import extxyz_text
+from ..scripting import cache_frame, extxyz_text
 from ..simulation import STAT_COLUMNS, Stats
 
 KIND_WORDS = {"mp4": "an MP4 video", "gif": "a GIF", "png-folder": "a folder of PNG frames", "text": "a text file"}
+KIND_WORDS.update({f"cache-{k}": f"a {k.upper()} particle cache" for k in ("usd", "vtk", "ply")})
 RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
 
 
@@ -68,12 +70,18 @@ class RunOutputs:
         checkpoint_every: int | None = None,
         resume: tuple[Path, dict] | None = None,
         restart: bool = False,
+        cache: str | Path | None = None,
+        cache_every: int = 1,
+        cache_surface: bool = False,
     ) -> None:
         self.sim = sim
         self.dump_every = dump_every
+        self.cache = Path(cache) if cache else None
+        self.cache_every, self.cache_surface = cache_every, cache_surface
         self.checkpoint = Path(checkpoint) if checkpoint else None
         self.checkpoint_every = checkpoint_every if self.checkpoint is not None else None
         named = {"--out": out, "--stats": stats, "--dump": dump, "--checkpoint": self.checkpoint}
+        named["--cache"] = index_path(self.cache) if self.cache else None
         self.named = {option: Path(p) for option, p in named.items() if p is not None}
         self.claims = [Claim(option, path) for option, path in self.named.items()]
         self.writers: dict[str, object] = {}
@@ -107,6 +115,8 @@ class RunOutputs:
         for option in ("--stats", "--dump"):
             if option in claims:
                 self.writers[option] = AppendFile(claims[option])
+        if "--cache" in claims:
+            self.writers["--cache"] = CacheSequence(claims["--cache"], self.cache, fps)
         records = _records(resume, restart)
         found = {}  # every output checked before any is touched
         for option, writer in self.writers.items():
@@ -137,9 +147,11 @@ class RunOutputs:
         if self.removed:
             names = ", ".join(p.name for p in self.removed)
             print(f"removed {len(self.removed)} partial file(s) a killed run left: {names}", file=sys.stderr)
-        stale = getattr(self.writers.get("--out"), "removed", [])
-        if stale:
-            print(f"removed {len(stale)} frame file(s) of an earlier run from {claims['--out'].path}", file=sys.stderr)
+        for option in ("--out", "--cache"):
+            stale = getattr(self.writers.get(option), "removed", [])
+            if stale:
+                where = claims[option].path if option == "--out" else self.cache.parent
+                print(f"removed {len(stale)} frame file(s) of an earlier run from {where}", file=sys.stderr)
 
     # ------------------------------------------------------------------ each frame
     def frame(self, frame: int, stats: Stats, step_seconds: float, picture: Callable[[], object] | None) -> None:
@@ -152,6 +164,8 @@ class RunOutputs:
             self.writers["--out"].write(picture())
         if "--dump" in self.writers and done % self.dump_every == 0:
             self.writers["--dump"].write(extxyz_text(self.sim))
+        if "--cache" in self.writers and done % self.cache_every == 0:
+            self.writers["--cache"].write(cache_frame(self.sim, self.cache_surface))
         if self.checkpoint_every and done % self.checkpoint_every == 0:
             self._checkpoint(done)
 

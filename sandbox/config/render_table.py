@@ -89,3 +89,16 @@ class Render:
         factory=list,
         check=lambda names: next((unknown("series", n, CHART_SERIES) for n in names if n not in CHART_SERIES), None),
     )
+    surface_smoothing: float = spec(
+        2.0,
+        doc="caches with surfaces (--cache-surface): the SPH smoothing length in particle radii",
+        check=between(0.5, 8.0),
+    )
+    surface_iso: float = spec(
+        0.6, doc="caches with surfaces: the iso-level of the particles' normalised density", check=between(0.05, 0.95)
+    )
+    surface_cell: float = spec(
+        0.5,
+        doc="caches with surfaces: the marching-cubes cell in particle radii (smaller: finer, slower)",
+        check=between(0.1, 4.0),
+    )

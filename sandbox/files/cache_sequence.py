@@ -1,0 +1,198 @@
+"""A particle cache written frame by frame beside the path named for it, under the rules of docs/files.md.
+
+    --cache out/wax.ply   out/wax.00000.ply, out/wax.00001.ply, ... (and out/wax.surface.00000.ply ... with surfaces)
+    --cache out/wax.vtp   out/wax.00000.vtp ... (and out/wax.surface.00000.vtp ...) and the collection out/wax.pvd
+    --cache out/wax.usd   out/wax.00000.usdc ... and the stage out/wax.usd (.usda and .usdc as asked)
+
+The index (`.pvd`, the USD stage) is the path the claim holds; every file is written under the run's partial name
+and renamed when whole, the index again at every checkpoint and at the end, so a reader never meets half a file. The
+frame files are the run's like a PNG folder's frames: those of an earlier run (of the cache's own pattern, beyond the
+frames continued) are removed when the run starts. A checkpoint records the frames written, their times and a digest
+of every file's SHA-256, which a resume checks before it numbers on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+from pathlib import Path
+
+from ..errors import OutputError, SandboxError
+from .cache_formats import CacheFrame, ply_bytes, pvd_text, surface_ply_bytes, surface_vtp_bytes, vtp_bytes
+from .claim import Claim, create_exclusive, is_regular_file, partial_name
+
+CACHE_SUFFIXES = (".usd", ".usda", ".usdc", ".vtp", ".pvd", ".ply")
+RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
+
+
+def cache_kind(path: Path) -> str:
+    """ "usd", "vtk" or "ply" by the path's extension; a SandboxError for any other."""
+    suffix = path.suffix.lower()
+    if suffix not in CACHE_SUFFIXES:
+        raise SandboxError(
+            f"--cache {path}: unknown cache kind {suffix!r}; expected one of {', '.join(CACHE_SUFFIXES)}"
+        )
+    return {".vtp": "vtk", ".pvd": "vtk", ".ply": "ply"}.get(suffix, "usd")
+
+
+def index_path(path: Path) -> Path:
+    """The file the claim holds and readers open: the .pvd of a VTK cache, the stage of a USD cache, the named path of
+    a PLY cache (a PLY sequence has no index: the name is claimed for its frames)."""
+    return path.with_suffix(".pvd") if cache_kind(path) == "vtk" else path
+
+
+def _digest(items: list[str]) -> str:
+    return hashlib.sha256("\n".join(items).encode()).hexdigest()
+
+
+class CacheSequence:
+    """The cache `claim.path` (its index, index_path()) holding one frame per write(); `fps`: time codes per second
+    of a USD stage; `lines`: springs as line cells in a VTK cache."""
+
+    RECORD = {"written": list, "digest": str}
+
+    def __init__(self, claim: Claim, named: Path, fps: float = 30.0, lines: bool = True) -> None:
+        self.claim, self.named, self.fps, self.lines = claim, named, fps, lines
+        self.format = cache_kind(named)
+        self.kind = f"cache-{self.format}"
+        self.words = f"a {self.format.upper()} particle cache"
+        self.ext = {"usd": ".usdc", "vtk": ".vtp", "ply": ".ply"}[self.format]
+        self.stem = named.name[: -len(named.suffix)]
+        self.frames: list[list] = []  # [frame, time, has surface] per written frame
+        self.hashes: list[str] = []
+        self.up, self.surface = "Y", False
+        self.removed: list[Path] = []
+        self._pattern = re.compile(rf"{re.escape(self.stem)}(\.surface)?\.(\d{{5,}}){re.escape(self.ext)}")
+
+    # ------------------------------------------------------------------ names
+    def frame_file(self, index: int, surface: bool = False) -> Path:
+        return self.named.with_name(f"{self.stem}{'.surface' if surface else ''}.{index:05d}{self.ext}")
+
+    def _files(self, k: int) -> list[Path]:
+        frame, _, surface = self.frames[k]
+        files = [self.frame_file(frame)]
+        return files + [self.frame_file(frame, True)] if surface and self.format != "usd" else files
+
+    # ------------------------------------------------------------------ opening
+    def start(self) -> None:
+        """A fresh cache: frame files of an earlier run are removed."""
+        self._remove_beyond(-1)
+
+    def find(self, record: dict, checkpoint: Path):
+        """The frames the checkpoint recorded, their files proven by their digests; else a SandboxError."""
+        frames = record["written"]
+        ok = all(isinstance(f, list) and len(f) == 3 and isinstance(f[0], int) and f[0] >= 0 for f in frames)
+        if not ok:
+            raise SandboxError(f"{checkpoint}: its record of --cache is damaged; {RESTART_HINT}")
+        self.frames, hashes = [list(f) for f in frames], []
+        for k in range(len(frames)):
+            for path in self._files(k):
+                try:
+                    hashes.append(hashlib.sha256(path.read_bytes()).hexdigest())
+                except OSError:
+                    hashes.append("missing")
+        if _digest(hashes) != record["digest"]:
+            self.frames = []
+            raise SandboxError(
+                f"--cache {self.named}: does not hold the {len(frames)} frames the checkpoint {checkpoint} was written "
+                f"with; {RESTART_HINT}"
+            )
+        return frames, hashes
+
+    def adopt(self, found) -> None:
+        frames, self.hashes = found
+        self.frames = [list(f) for f in frames]
+        self.surface = any(f[2] for f in self.frames)
+        self._remove_beyond(self.frames[-1][0] if self.frames else -1)
+
+    def _remove_beyond(self, last: int) -> None:
+        """Remove the cache's frame files numbered after `last` (regular files of its own pattern only)."""
+        try:
+            names = os.listdir(self.named.parent)
+        except OSError:
+            return
+        for name in sorted(names):
+            match = self._pattern.fullmatch(name)
+            path = self.named.with_name(name)
+            if match and int(match.group(2)) > last and is_regular_file(path):
+                path.unlink(missing_ok=True)
+                self.removed.append(path)
+
+    def in_use(self) -> list[Path]:
+        return []
+
+    # ------------------------------------------------------------------ writing
+    def write(self, frame: CacheFrame) -> None:
+        """Write one frame's files (and the index is rewritten at the next mark or at the end)."""
+        self.up = frame.up
+        surface = frame.surface is not None
+        self.surface = self.surface or surface
+        target = self.frame_file(frame.frame)
+        if self.format == "usd":
+            from .cache_usd import write_frame_layer
+
+            self._publish(target, lambda partial: write_frame_layer(partial, frame))
+        else:
+            data = ply_bytes(frame) if self.format == "ply" else vtp_bytes(frame, self.lines)
+            self._publish(target, data)
+            if surface:
+                data = surface_ply_bytes(frame) if self.format == "ply" else surface_vtp_bytes(frame)
+                self._publish(self.frame_file(frame.frame, True), data)
+        self.frames.append([frame.frame, frame.time, surface])
+
+    def _publish(self, target: Path, data) -> None:
+        """Write `target` under a partial name (bytes, or a function that writes the partial path), hash it, and
+        give it its name."""
+        partial = partial_name(target, token=self.claim.token)
+        try:
+            if isinstance(data, bytes):
+                with os.fdopen(create_exclusive(partial, "--cache"), "wb") as out:
+                    out.write(data)
+            else:
+                data(partial)
+            self.hashes.append(hashlib.sha256(partial.read_bytes()).hexdigest())
+            os.replace(partial, target)
+        except OSError as exc:
+            partial.unlink(missing_ok=True)
+            raise OutputError(target, exc.strerror or type(exc).__name__) from exc
+
+    def _write_index(self) -> None:
+        if self.format == "ply":
+            return
+        index = self.claim.path
+        if self.format == "vtk":
+            entries = []
+            for frame, time, surface in self.frames:
+                entries.append((time, 0, self.frame_file(frame).name))
+                if surface:
+                    entries.append((time, 1, self.frame_file(frame, True).name))
+            data = pvd_text(entries).encode()
+            self._publish_index(index, lambda partial: partial.write_bytes(data))
+        else:
+            from .cache_usd import write_stage
+
+            clips = [(frame, self.frame_file(frame).name) for frame, _, _ in self.frames]
+            self._publish_index(index, lambda partial: write_stage(partial, clips, self.fps, self.up, self.surface))
+
+    def _publish_index(self, index: Path, write) -> None:
+        partial = self.claim.partial()
+        try:
+            os.close(create_exclusive(partial, "--cache"))
+            write(partial)
+            os.replace(partial, index)
+        except OSError as exc:
+            partial.unlink(missing_ok=True)
+            raise OutputError(index, exc.strerror or type(exc).__name__) from exc
+
+    def mark(self) -> dict:
+        """Rewrite the index; the record a checkpoint keeps."""
+        self._write_index()
+        return {"kind": self.kind, "path": str(self.named), "written": self.frames, "digest": _digest(self.hashes)}
+
+    # ------------------------------------------------------------------ ending
+    def publish(self) -> None:
+        self._write_index()
+
+    def abandon(self) -> list[Path]:
+        return []

@@ -1,0 +1,113 @@
+"""A particle cache as USD (the `usd-core` package): one crate layer per frame, joined by value clips.
+
+    NAME.usd (or .usda/.usdc)   the stage: units (metersPerUnit 0.001), up axis, time codes (one per frame, at the
+                                run's frame rate), /World with a Points prim /World/particles (and a Mesh
+                                /World/surface where surfaces are cached) whose attributes are declared here and
+                                whose values come from the clips
+    NAME.00012.usdc             frame 12: the points, widths, velocities and primvars (temperature in degrees C,
+                                melt_fraction, phase, material, body, id) at time code 12; the surface mesh too
+
+A frame is written and closed on its own, so a run of a million particles streams to disk a frame at a time (a
+single layer holding every time sample would keep them all in memory until it is saved). USD resolves the clips when
+the stage is read (Blender, Houdini, Omniverse, usdview, or `pxr.Usd.Stage.Open`), so `attr.Get(time)` reads frame
+`time` from its own file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SandboxError
+from .cache_formats import METERS_PER_UNIT, CacheFrame
+
+USD_HINT = "install the export extra: python3 -m pip install -e '.[export]'"
+PRIMVARS = {"temperature": "Float", "melt_fraction": "Float", "phase": "Int", "material": "Int", "body": "Int"}
+
+
+def pxr():
+    """The pxr modules (Usd, UsdGeom, Sdf, Vt, Gf); a SandboxError naming the extra where usd-core is missing."""
+    try:
+        from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+    except ImportError as exc:
+        raise SandboxError(f"a .usd cache needs usd-core; {USD_HINT}") from exc
+    return Usd, UsdGeom, Sdf, Vt, Gf
+
+
+def write_frame_layer(path: Path, frame: CacheFrame) -> None:
+    """Write frame `frame` as the crate layer `path` (its values at time code frame.frame)."""
+    Usd, UsdGeom, Sdf, Vt, _ = pxr()
+    layer = Sdf.Layer.CreateAnonymous(".usdc")
+    stage = Usd.Stage.Open(layer)
+    t = Usd.TimeCode(frame.frame)
+    points = UsdGeom.Points.Define(stage, "/World/particles")
+    points.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(frame.points.astype(np.float32)), t)
+    points.GetWidthsAttr().Set(Vt.FloatArray.FromNumpy(frame.widths.astype(np.float32)), t)
+    velocity = frame.point_data.get("velocity")
+    if velocity is not None:
+        points.GetVelocitiesAttr().Set(Vt.Vec3fArray.FromNumpy(velocity.astype(np.float32)), t)
+    points.GetIdsAttr().Set(Vt.Int64Array.FromNumpy(frame.point_data["id"].astype(np.int64)), t)
+    points.GetPrim().CreateAttribute("sandbox:time", Sdf.ValueTypeNames.Double).Set(float(frame.time), t)
+    api = UsdGeom.PrimvarsAPI(points.GetPrim())
+    for name, kind in PRIMVARS.items():
+        if name in frame.point_data:
+            values = frame.point_data[name]
+            array = (
+                Vt.FloatArray.FromNumpy(values.astype(np.float32))
+                if kind == "Float"
+                else Vt.IntArray.FromNumpy(values.astype(np.int32))
+            )
+            api.CreatePrimvar(name, getattr(Sdf.ValueTypeNames, f"{kind}Array"), UsdGeom.Tokens.vertex).Set(array, t)
+    if frame.surface is not None:
+        s = frame.surface
+        mesh = UsdGeom.Mesh.Define(stage, "/World/surface")
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(s.vertices.astype(np.float32)), t)
+        mesh.GetFaceVertexCountsAttr().Set(Vt.IntArray.FromNumpy(np.full(len(s.triangles), 3, np.int32)), t)
+        mesh.GetFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(s.triangles.reshape(-1).astype(np.int32)), t)
+        for name, values in s.vertex_data.items():
+            UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
+                name, Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
+            ).Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), t)
+    layer.Export(str(path))
+
+
+def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, surface: bool) -> None:
+    """Write the stage `path` over the frame layers `clips` ((frame, file name beside it), in order)."""
+    Usd, UsdGeom, Sdf, Vt, Gf = pxr()
+    layer = Sdf.Layer.CreateAnonymous(path.suffix if path.suffix in (".usda", ".usdc") else ".usda")
+    stage = Usd.Stage.Open(layer)
+    UsdGeom.SetStageMetersPerUnit(stage, METERS_PER_UNIT)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if up == "Z" else UsdGeom.Tokens.y)
+    frames = [f for f, _ in clips] or [0]
+    stage.SetStartTimeCode(frames[0])
+    stage.SetEndTimeCode(frames[-1])
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetFramesPerSecond(fps)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    points = UsdGeom.Points.Define(stage, "/World/particles")
+    for attr in (points.CreatePointsAttr(), points.CreateWidthsAttr(), points.CreateVelocitiesAttr()):
+        attr.SetCustomDataByKey("sandbox", "values in the clips")
+    points.CreateIdsAttr()
+    points.GetPrim().CreateAttribute("sandbox:time", Sdf.ValueTypeNames.Double)  # simulated seconds at each frame
+    api = UsdGeom.PrimvarsAPI(points.GetPrim())
+    for name, kind in PRIMVARS.items():
+        api.CreatePrimvar(name, getattr(Sdf.ValueTypeNames, f"{kind}Array"), UsdGeom.Tokens.vertex)
+    if surface:
+        mesh = UsdGeom.Mesh.Define(stage, "/World/surface")
+        mesh.CreatePointsAttr(), mesh.CreateFaceVertexCountsAttr(), mesh.CreateFaceVertexIndicesAttr()
+        UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
+            "temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
+        )
+    if clips:
+        api = Usd.ClipsAPI(world.GetPrim())
+        api.SetClipAssetPaths(Sdf.AssetPathArray([f"./{name}" for _, name in clips]))
+        api.SetClipPrimPath("/World")
+        api.SetClipActive(Vt.Vec2dArray([Gf.Vec2d(f, k) for k, (f, _) in enumerate(clips)]))
+        api.SetClipTimes(Vt.Vec2dArray([Gf.Vec2d(f, f) for f, _ in clips]))
+    text = layer.ExportToString() if layer.GetFileFormat().formatId == "usda" else None
+    if text is not None:
+        path.write_text(text)
+    else:
+        layer.Export(str(path))

@@ -1,0 +1,263 @@
+"""Particle caches for Blender, Houdini and ParaView (issue 59), each read back by an independent reader (usd-core's
+own API, VTK's XML reader, plyfile) and checked against `sim.particles()` at the frames cached: counts, time
+samples, attributes, units; the surface of a sphere of particles against the sphere's area and volume; resume and
+bad input as for every output; a Blender render where Blender is installed."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import sandbox
+from sandbox.app.cli import EXIT_BAD_INPUT, main
+from sandbox.render.surface import area_and_volume, reconstruct
+
+pytestmark = pytest.mark.xdist_group("export")
+
+SMALL = {"bodies.0.hi": [70.0, 8.0]}  # candle: 96 wax particles and springs, a flame of emitted ones, heat
+FRAMES, EVERY = 4, 2
+
+
+def padded(a: np.ndarray) -> np.ndarray:
+    out = np.zeros((len(a), 3))
+    out[:, : a.shape[1]] = a
+    return out
+
+
+@pytest.fixture(scope="module", params=["usd", "vtp", "ply"])
+def cached(request, tmp_path_factory):
+    """A candle cached through the Python API at frames 0, 2, 4 (with surfaces), and the particle tables then."""
+    folder = tmp_path_factory.mktemp(f"cache_{request.param}")
+    path = folder / f"wax.{request.param}"
+    sim = sandbox.load("candle", set=SMALL, arch="cpu")
+    tables = []
+    with sandbox.Cache(path) as cache:
+        for k in range(FRAMES + 1):
+            if k % EVERY == 0:
+                cache.write(sim, surface=True)
+                tables.append((sim.frames_done, sim.time, sim.particles(), sim.scene.spacing))
+            sim.run(1)
+    return request.param, path, tables
+
+
+def test_the_cache_holds_every_cached_frame_as_the_simulation_had_it(cached):
+    kind, path, tables = cached
+    read = {"usd": _read_usd, "vtp": _read_vtk, "ply": _read_ply}[kind]
+    frames = read(path, [frame for frame, *_ in tables])
+    assert [f["frame"] for f in frames] == [frame for frame, *_ in tables]
+    for got, (_, time, p, _) in zip(frames, tables):
+        assert got["time"] == pytest.approx(time, abs=1e-6)
+        assert len(got["points"]) == len(p["id"])
+        np.testing.assert_allclose(got["points"], padded(p["position"]), atol=1e-5)
+        np.testing.assert_allclose(got["temperature"], p["temperature"], rtol=1e-6)
+        np.testing.assert_array_equal(got["id"], p["id"])
+        np.testing.assert_array_equal(got["material"], p["material"])
+        assert set(np.unique(got["phase"])) <= {0, 1, 2}
+        melted = p["melt_fraction"] >= 0.5
+        assert np.array_equal(got["phase"] >= 1, melted | (got["phase"] == 2))
+        assert got["surface_points"] > 100 and got["surface_triangles"] > 100
+        t_lo, t_hi = p["temperature"].min(), p["temperature"].max()
+        assert t_lo - 1e-3 <= got["surface_temperature_min"] <= got["surface_temperature_max"] <= t_hi + 1e-3
+
+
+def _read_usd(path: Path, frames: list[int]) -> list[dict]:
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(path))
+    assert UsdGeom.GetStageMetersPerUnit(stage) == pytest.approx(0.001)
+    assert UsdGeom.GetStageUpAxis(stage) == "Y"
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (frames[0], frames[-1])
+    points = UsdGeom.Points(stage.GetPrimAtPath("/World/particles"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/surface"))
+    assert points and mesh
+    out = []
+    for frame in frames:
+        prim = points.GetPrim()
+        surface = np.asarray(mesh.GetPrim().GetAttribute("primvars:temperature").Get(frame))
+        out.append(
+            {
+                "frame": frame,
+                "time": prim.GetAttribute("sandbox:time").Get(frame),
+                "points": np.asarray(points.GetPointsAttr().Get(frame)),
+                "temperature": np.asarray(prim.GetAttribute("primvars:temperature").Get(frame)),
+                "id": np.asarray(points.GetIdsAttr().Get(frame)),
+                "material": np.asarray(prim.GetAttribute("primvars:material").Get(frame)),
+                "phase": np.asarray(prim.GetAttribute("primvars:phase").Get(frame)),
+                "surface_points": len(mesh.GetPointsAttr().Get(frame)),
+                "surface_triangles": len(mesh.GetFaceVertexCountsAttr().Get(frame)),
+                "surface_temperature_min": surface.min(),
+                "surface_temperature_max": surface.max(),
+            }
+        )
+        assert np.all(np.asarray(points.GetWidthsAttr().Get(frame)) > 0)
+    return out
+
+
+def _read_vtk(path: Path, frames: list[int]) -> list[dict]:
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    collection = ET.parse(path.with_suffix(".pvd")).getroot().find("Collection")
+    sets = [(float(d.get("timestep")), int(d.get("part")), d.get("file")) for d in collection]
+    out = []
+    for k in range(len(frames)):
+        (time, _, particles), (_, part, surface) = sets[2 * k], sets[2 * k + 1]
+        assert part == 1
+        data = {}
+        for name in (particles, surface):
+            reader = vtkXMLPolyDataReader()
+            reader.SetFileName(str(path.parent / name))
+            reader.Update()
+            data[name] = reader.GetOutput()
+        poly, mesh = data[particles], data[surface]
+        arrays = {poly.GetPointData().GetArrayName(i): vtk_to_numpy(poly.GetPointData().GetArray(i)) for i in range(8)}
+        temperature = vtk_to_numpy(mesh.GetPointData().GetArray("temperature"))
+        assert poly.GetNumberOfVerts() == poly.GetNumberOfPoints() and poly.GetNumberOfLines() > 0
+        out.append(
+            {
+                "frame": int(particles.split(".")[-2]),
+                "time": time,
+                "points": vtk_to_numpy(poly.GetPoints().GetData()),
+                "temperature": arrays["temperature"],
+                "id": arrays["id"],
+                "material": arrays["material"],
+                "phase": arrays["phase"],
+                "surface_points": mesh.GetNumberOfPoints(),
+                "surface_triangles": mesh.GetNumberOfPolys(),
+                "surface_temperature_min": temperature.min(),
+                "surface_temperature_max": temperature.max(),
+            }
+        )
+    return out
+
+
+def _read_ply(path: Path, frames: list[int]) -> list[dict]:
+    from plyfile import PlyData
+
+    out = []
+    for frame in frames:
+        ply = PlyData.read(str(path.with_name(f"wax.{frame:05d}.ply")))
+        surface = PlyData.read(str(path.with_name(f"wax.surface.{frame:05d}.ply")))
+        v = ply["vertex"]
+        comment = ply.comments[0].split()
+        assert ply.comments[1] == "unit 0.001 m up Y" and len(ply["edge"].data) > 0
+        assert surface["face"].data["vertex_indices"][0].size == 3
+        out.append(
+            {
+                "frame": int(comment[2]),
+                "time": float(comment[4]),
+                "points": np.stack([v["x"], v["y"], v["z"]], axis=1),
+                "temperature": v["temperature"],
+                "id": v["id"],
+                "material": v["material"],
+                "phase": v["phase"],
+                "surface_points": len(surface["vertex"].data),
+                "surface_triangles": len(surface["face"].data),
+                "surface_temperature_min": surface["vertex"]["temperature"].min(),
+                "surface_temperature_max": surface["vertex"]["temperature"].max(),
+            }
+        )
+    return out
+
+
+def test_the_surface_of_a_sphere_of_particles_has_its_area_and_volume():
+    """A ball of radius 8 spacings on a cubic lattice (2,109 particles, each a unit cube of volume): the
+    reconstructed surface encloses the particles' volume within 2% and has the area of that sphere within 6%
+    (marching cubes' facets add a little area), and the values interpolated onto it are the particles' there."""
+    g = np.arange(-12, 13, dtype=np.float64)
+    lattice = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+    ball = lattice[np.linalg.norm(lattice, axis=1) <= 8.0]
+    surface = reconstruct(ball, {"r": np.linalg.norm(ball, axis=1)}, radius=0.5)
+    area, volume = area_and_volume(surface)
+    sphere_r = (3 * len(ball) / (4 * np.pi)) ** (1 / 3)
+    assert volume == pytest.approx(len(ball), rel=0.02)
+    assert area == pytest.approx(4 * np.pi * sphere_r**2, rel=0.06)
+    assert np.median(surface.vertex_data["r"]) == pytest.approx(7.6, abs=0.6)  # the outer shell's radii
+
+
+def test_a_2d_scene_gives_a_closed_slab(tmp_path):
+    """A 2D block of 20 x 10 particles is extruded three spacings thick: its volume is about 20 x 10 x 3."""
+    x, y = np.meshgrid(np.arange(20.0), np.arange(10.0))
+    points = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    _, volume = area_and_volume(reconstruct(points, {}, radius=0.5, dim=2))
+    assert volume == pytest.approx(20 * 10 * 3, rel=0.05)
+
+
+def run(folder: Path, *extra: str, frames: int = 8) -> int:
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        argv = ["run", "candle", "--set", "bodies.0.hi=[70.0,8.0]", "--headless", "--quiet", "--frames", str(frames)]
+        return main([*argv, *extra])
+    finally:
+        os.chdir(cwd)
+
+
+def test_a_cache_resumes_like_every_output(tmp_path):
+    """8 frames with checkpoints, then resumed to 12: the PLY files are byte for byte those of one run of 12."""
+    whole, resumed = tmp_path / "whole", tmp_path / "resumed"
+    whole.mkdir(), resumed.mkdir()
+    outputs = ["--checkpoint-every", "4", "--checkpoint", "c.npz", "--cache", "c.ply"]
+    assert run(whole, *outputs, frames=12) == 0
+    assert run(resumed, *outputs, frames=8) == 0
+    resume = ["run", "candle", "--resume", "c.npz", "--headless", "--quiet", "--frames", "12", *outputs[:4]]
+    cwd = os.getcwd()
+    os.chdir(resumed)
+    try:
+        assert main([*resume, "--cache", "c.ply"]) == 0
+    finally:
+        os.chdir(cwd)
+    names = sorted(p.name for p in whole.glob("c.*.ply"))
+    assert names == [f"c.{k:05d}.ply" for k in range(1, 13)]
+    assert sorted(p.name for p in resumed.glob("c.*.ply")) == names
+    for name in names:
+        assert (resumed / name).read_bytes() == (whole / name).read_bytes(), name
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["--cache", "wax.obj"], "unknown cache kind '.obj'"),
+        (["--cache", "/proc/nowhere/wax.usd"], "--cache /proc/nowhere/wax.usd"),
+        (["--cache", "s.vtp", "--stats", "s.pvd"], "--cache s.pvd: the same file as --stats"),
+        (["--cache-every", "2"], "expected together with --cache"),
+    ],
+)
+def test_bad_cache_options_are_one_line_and_write_nothing(tmp_path, capsys, args, says):
+    assert run(tmp_path, *args, frames=2) == EXIT_BAD_INPUT
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error")]
+    assert len(err) == 1 and says in err[0], err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.skipif(shutil.which("blender") is None, reason="Blender is not installed (apt-get install blender)")
+def test_blender_renders_the_cache_with_hot_and_cold_apart(tmp_path):
+    """examples/blender_render.py renders a surface cache headless: the picture is not blank and the hot end of a
+    block heated from one side is redder than its cold end."""
+    sim = sandbox.load("melting_block", arch="cpu")
+    sim.run(40)
+    with sandbox.Cache(tmp_path / "block.ply") as cache:
+        cache.write(sim, surface=True)
+    script = Path(__file__).parents[1] / "examples" / "blender_render.py"
+    surface = tmp_path / f"block.surface.{sim.frames_done:05d}.ply"
+    picture = tmp_path / "render.png"
+    done = subprocess.run(
+        ["blender", "-b", "--factory-startup", "-P", str(script), "--", str(surface), str(picture), "64"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0 and picture.exists(), done.stdout[-2000:] + done.stderr[-2000:]
+    from PIL import Image
+
+    image = np.asarray(Image.open(picture).convert("RGB"), dtype=float)
+    assert image.std() > 5  # not blank
+    redness = image[..., 0] - image[..., 2]
+    lit = image.sum(axis=2) > 60
+    assert redness[lit].max() - redness[lit].min() > 60  # hot and cold parts differ in colour
