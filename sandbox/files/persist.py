@@ -126,7 +126,10 @@ def read_meta(path: str | Path) -> dict:
     except FileNotFoundError as exc:
         raise SandboxError(f"{path}: no such state file") from exc
     except ArchiveError as exc:
-        raise SandboxError(f"{path}: {exc}") from None
+        raise SandboxError(
+            f"{path}: not a readable sandbox state file: {exc}; expected an .npz written by sim.save() or "
+            "--checkpoint-every"
+        ) from None
     except (OSError, ValueError, KeyError, RecursionError) as exc:
         raise SandboxError(
             f"{path}: not a readable sandbox state file ({type(exc).__name__}); expected an .npz "
