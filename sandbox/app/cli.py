@@ -229,6 +229,9 @@ def cmd_bench(args) -> int:
         check_file_output("--json", args.json, (".json",))
     if args.scaling:
         check_folder_output("--out", args.out)
+    if args.cache is not None:
+        check_count("--cache", args.cache, 1, 100_000_000)
+        check_count("--cache-frames", args.cache_frames, 1, 100_000)
     runtime.require(args.arch, "f32")
 
     return run_bench(args)
@@ -364,6 +367,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--scaling", action="store_true", help="only W1 against N from 1k to 1M: scaling.json/.csv/.png in --out"
     )
     bench.add_argument("--out", default="bench-out", help="folder for --scaling's files")
+    bench.add_argument(
+        "--cache",
+        type=int,
+        metavar="N",
+        help="only the particle caches: frames of N particles written as PLY, VTK and USD, against the disk's rate",
+    )
+    bench.add_argument("--cache-frames", type=int, default=20, metavar="F", help="with --cache: frames (default 20)")
     bench.add_argument(
         "--window",
         action="store_true",

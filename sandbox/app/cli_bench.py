@@ -51,6 +51,15 @@ def run_bench(args) -> int:
         return 0
     if args.three_d or args.contended:
         return peer_comparison(args, repeats)
+    if args.cache is not None:
+        from ..research import cache_bench
+
+        result = cache_bench.run(args.cache, args.cache_frames, None)
+        print(cache_bench.report(result))
+        if args.json:
+            Path(args.json).write_text(json.dumps(result, indent=2))
+            print(f"wrote {args.json}")
+        return 0
     if args.window:
         rates = window_rates(args.arch, frames=40 if args.quick else 120)
         print_window_rates(rates)

@@ -149,10 +149,12 @@ class CacheSequence:
             if isinstance(data, bytes):
                 with os.fdopen(create_exclusive(partial, "--cache"), "wb") as out:
                     out.write(data)
+                digest = hashlib.sha256(data).hexdigest()
             else:
                 data(partial)
-            self.hashes.append(hashlib.sha256(partial.read_bytes()).hexdigest())
+                digest = hashlib.sha256(partial.read_bytes()).hexdigest()
             os.replace(partial, target)
+            self.hashes.append(digest)
         except OSError as exc:
             partial.unlink(missing_ok=True)
             raise OutputError(target, exc.strerror or type(exc).__name__) from exc

@@ -100,12 +100,19 @@ def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, s
         UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
             "temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
         )
+    del stage  # the clips are authored on the layer alone: composing them here would look for the frame files
     if clips:
-        api = Usd.ClipsAPI(world.GetPrim())
-        api.SetClipAssetPaths(Sdf.AssetPathArray([f"./{name}" for _, name in clips]))
-        api.SetClipPrimPath("/World")
-        api.SetClipActive(Vt.Vec2dArray([Gf.Vec2d(f, k) for k, (f, _) in enumerate(clips)]))
-        api.SetClipTimes(Vt.Vec2dArray([Gf.Vec2d(f, f) for f, _ in clips]))
+        layer.GetPrimAtPath("/World").SetInfo(
+            "clips",
+            {
+                "default": {
+                    "assetPaths": Sdf.AssetPathArray([f"./{name}" for _, name in clips]),
+                    "primPath": "/World",
+                    "active": Vt.Vec2dArray([Gf.Vec2d(f, k) for k, (f, _) in enumerate(clips)]),
+                    "times": Vt.Vec2dArray([Gf.Vec2d(f, f) for f, _ in clips]),
+                }
+            },
+        )
     text = layer.ExportToString() if layer.GetFileFormat().formatId == "usda" else None
     if text is not None:
         path.write_text(text)
