@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..errors import OutputError, SandboxError
 from .cache_formats import CacheFrame, ply_bytes, pvd_text, surface_ply_bytes, surface_vtp_bytes, vtp_bytes
-from .claim import Claim, create_exclusive, is_regular_file, partial_name
+from .claim import Claim, create_exclusive, partial_name, remove_numbered, write_whole
 
 CACHE_SUFFIXES = (".usd", ".usda", ".usdc", ".vtp", ".pvd", ".ply")
 RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
@@ -63,7 +63,7 @@ class CacheSequence:
         self.hashes: list[str] = []
         self.up, self.surface = "Y", False
         self.removed: list[Path] = []
-        self._pattern = re.compile(rf"{re.escape(self.stem)}(\.surface)?\.(\d{{5,}}){re.escape(self.ext)}")
+        self._pattern = re.compile(rf"{re.escape(self.stem)}(?:\.surface)?\.(\d{{5,}}){re.escape(self.ext)}")
 
     # ------------------------------------------------------------------ names
     def frame_file(self, index: int, surface: bool = False) -> Path:
@@ -108,16 +108,7 @@ class CacheSequence:
 
     def _remove_beyond(self, last: int) -> None:
         """Remove the cache's frame files numbered after `last` (regular files of its own pattern only)."""
-        try:
-            names = os.listdir(self.named.parent)
-        except OSError:
-            return
-        for name in sorted(names):
-            match = self._pattern.fullmatch(name)
-            path = self.named.with_name(name)
-            if match and int(match.group(2)) > last and is_regular_file(path):
-                path.unlink(missing_ok=True)
-                self.removed.append(path)
+        self.removed += remove_numbered(self.named.parent, self._pattern, last + 1)
 
     def in_use(self) -> list[Path]:
         return []
@@ -144,20 +135,20 @@ class CacheSequence:
     def _publish(self, target: Path, data) -> None:
         """Write `target` under a partial name (bytes, or a function that writes the partial path), hash it, and
         give it its name."""
+        if isinstance(data, bytes):
+            write_whole(target, data, "--cache", self.claim.token)
+            self.hashes.append(hashlib.sha256(data).hexdigest())
+            return
         partial = partial_name(target, token=self.claim.token)
         try:
-            if isinstance(data, bytes):
-                with os.fdopen(create_exclusive(partial, "--cache"), "wb") as out:
-                    out.write(data)
-                digest = hashlib.sha256(data).hexdigest()
-            else:
-                data(partial)
-                digest = hashlib.sha256(partial.read_bytes()).hexdigest()
+            os.close(create_exclusive(partial, "--cache"))
+            data(partial)
+            digest = hashlib.sha256(partial.read_bytes()).hexdigest()
             os.replace(partial, target)
-            self.hashes.append(digest)
         except OSError as exc:
             partial.unlink(missing_ok=True)
             raise OutputError(target, exc.strerror or type(exc).__name__) from exc
+        self.hashes.append(digest)
 
     def _write_index(self) -> None:
         if self.format == "ply":

@@ -177,3 +177,33 @@ class Claim:
                 if is_regular_file(candidate):
                     found.append(candidate)
         return sorted(found)
+
+
+def write_whole(target: Path, data: bytes, option: str, token: str = RUN_TOKEN) -> None:
+    """Write `data` to `target` as a whole: under a new partial name (never through a link), then renamed. An
+    OutputError naming `target` (the partial removed) when the write fails."""
+    partial = partial_name(target, token=token)
+    try:
+        with os.fdopen(create_exclusive(partial, option), "wb") as out:
+            out.write(data)
+        os.replace(partial, target)
+    except OSError as exc:
+        partial.unlink(missing_ok=True)
+        raise OutputError(target, exc.strerror or type(exc).__name__) from exc
+
+
+def remove_numbered(folder: Path, pattern: re.Pattern, first: int) -> list[Path]:
+    """Remove the regular files in `folder` whose names match `pattern` (its last group a frame number) numbered
+    `first` or later: an earlier run's frames. Returns those removed."""
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:  # no folder yet
+        return []
+    removed = []
+    for name in names:
+        match = pattern.fullmatch(name)
+        path = folder / name
+        if match and int(match.group(match.lastindex)) >= first and is_regular_file(path):
+            path.unlink(missing_ok=True)
+            removed.append(path)
+    return removed

@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image
 
 from ..errors import OutputError, SandboxError
-from ..files.claim import Claim, create_exclusive, is_regular_file, own_partial, partial_name
+from ..files.claim import Claim, create_exclusive, own_partial, remove_numbered, write_whole
 from .encoder import Encoder, cut, frame_digests, join
 
 RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
@@ -219,16 +219,7 @@ class PngFolder:
 
     def _remove_from(self, first: int) -> None:
         """Remove the frame files numbered `first` and on (regular files of the frame pattern only)."""
-        try:
-            names = os.listdir(self.claim.path)
-        except OSError:  # no folder yet
-            return
-        for name in sorted(names):
-            match = self.FRAME.fullmatch(name)
-            path = self.claim.path / name
-            if match and int(match.group(1)) >= first and is_regular_file(path):
-                path.unlink(missing_ok=True)
-                self.removed.append(path)
+        self.removed += remove_numbered(self.claim.path, self.FRAME, first)
 
     def in_use(self) -> list[Path]:
         return []
@@ -240,16 +231,11 @@ class PngFolder:
         buffer = io.BytesIO()
         Image.fromarray(np.ascontiguousarray(frame)).save(buffer, format="PNG")
         data = buffer.getvalue()
-        target = self._file(self.frames)
-        partial = partial_name(target)
         try:
             self.claim.path.mkdir(parents=True, exist_ok=True)
-            with os.fdopen(create_exclusive(partial, self.claim.option), "wb") as out:
-                out.write(data)
-            os.replace(partial, target)
         except OSError as exc:
-            partial.unlink(missing_ok=True)
-            raise OutputError(target, exc.strerror or type(exc).__name__) from exc
+            raise OutputError(self.claim.path, exc.strerror or type(exc).__name__) from exc
+        write_whole(self._file(self.frames), data, self.claim.option)
         self.hashes.append(hashlib.sha256(data).hexdigest())
         self.frames += 1
 
