@@ -62,6 +62,9 @@ def _bonds_per_particle(body, dim: int, sites: int) -> int:
     return min(offsets, sites - 1)
 
 
+MAX_PERIODIC_CELLS = 1 << 26
+
+
 def available_memory() -> int | None:
     """Bytes of memory available now (Linux's MemAvailable), or None where it cannot be read."""
     try:
@@ -77,9 +80,12 @@ def available_memory() -> int | None:
         return None
 
 
-def check_size(file: str, world, bodies: list, emitters: list, has_neighbours: bool, smoke) -> None:
-    """Refuse a scene too big to build: more particles than world.max_particles (per body, then in all), or an
-    estimated footprint above MEMORY_SHARE of the memory available now. Raises SceneError."""
+def check_size(
+    file: str, world, bodies: list, emitters: list, has_neighbours: bool, smoke, reach_hint: float = 1.0
+) -> None:
+    """Refuse a scene too big to build: more particles than world.max_particles (per body, then in all), a periodic
+    box of more than MAX_PERIODIC_CELLS cells of `reach_hint` (the pair cutoff, length), or an estimated footprint
+    above MEMORY_SHARE of the memory available now. Raises SceneError."""
     dim, limit = world.dim, world.max_particles
     counts = []
     for i, body in enumerate(bodies):
@@ -104,6 +110,16 @@ def check_size(file: str, world, bodies: list, emitters: list, has_neighbours: b
         )
     if world.capacity > limit:
         raise SceneError(file, "world.capacity", f"{world.capacity:,} slots; expected at most {limit:,}")
+    if world.periodic and has_neighbours:  # a periodic grid keeps every cell of the box (nothing bounds it later)
+        reach = max(reach_hint, 1e-9)
+        cells = math.prod(max(1, int((h - l) / reach)) for l, h in zip(world.lo, world.hi))
+        if cells > MAX_PERIODIC_CELLS:
+            raise SceneError(
+                file,
+                "world.hi",
+                f"a periodic box of about {cells:,} cells of the interaction reach {reach:g}; expected at most "
+                f"{MAX_PERIODIC_CELLS:,} (a smaller box or a longer cutoff)",
+            )
     slots = max(world.capacity, total + total // 2)
     springs = sum(n * _bonds_per_particle(b, dim, n) // 2 for n, b in zip(counts, bodies))
     cells = 0

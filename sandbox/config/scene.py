@@ -199,7 +199,8 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
             raise SceneError(file, "world.periodic", f"expected every side of a periodic domain >= 3 x {reach}")
     render = raw.render
     _check_render(file, render, dim)
-    check_size(file, world, bodies, emitters, bool(raw.pair or heat), raw.smoke)
+    reach = raw.pair.cutoff if raw.pair else 1.0
+    check_size(file, world, bodies, emitters, bool(raw.pair or heat), raw.smoke, reach)
     return Scene(
         name=raw.scene.name or path.stem,
         description=raw.scene.description,

@@ -22,7 +22,7 @@ ABSOLUTE_ZERO = -273.15  # degrees Celsius: the lowest temperature a scene may n
 # Every number a scene holds lies in these ranges unless its own check says more (generated for every key, so none
 # is missed): the scene's units (mm, g/cm^3, simulated seconds, degrees) put every sensible value between them, and
 # f32 fields hold them without overflowing or flushing to zero.
-MAX_MAGNITUDE = 1e9
+MAX_MAGNITUDE = 1e12  # the integrator study's unbounded box is +-1e12
 MIN_MAGNITUDE = 1e-9  # a nonzero number smaller than this is refused (0 itself is allowed where the key's check is)
 MAX_INT = 2**31 - 1  # integers go to 32-bit fields and seeds
 
@@ -184,14 +184,14 @@ def parse_table(cls: type, data: Any, file: str, key: str = "") -> Any:
             value = _convert(hints[name], data[name], file, sub)
             if isinstance(value, float) and math.isinf(value) and not f.metadata.get("infinite"):
                 raise SceneError(file, sub, f"expected a finite number, got {value}")
-            problem = out_of_range(value)
-            if problem:
-                raise SceneError(file, sub, problem)
             check = f.metadata.get("check")
             if check is not None and value is not None:
                 problem = check(value)
                 if problem:
                     raise SceneError(file, sub, problem)
+            problem = out_of_range(value)  # after the key's own check, whose words say more
+            if problem:
+                raise SceneError(file, sub, problem)
             values[name] = value
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
             raise SceneError(file, sub, f"missing; expected {_type_name(hints[name])}: {f.metadata.get('doc', '')}")

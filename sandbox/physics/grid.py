@@ -43,7 +43,8 @@ class CellGrid:
         else:  # floor, not ceil: a cell narrower than reach / per_reach would hide neighbours
             counts = np.maximum(np.floor(extent * per_reach / reach).astype(int), 1)
         # Bound the cell count so a tiny radius in a huge domain cannot allocate gigabytes.
-        while np.prod(counts.astype(np.int64)) > max(4 * capacity, 1 << 16) and not periodic:
+        # Python integers: the product of a huge domain's counts overflows int64 (and wrapped past this bound)
+        while math.prod(int(c) for c in counts) > max(4 * capacity, 1 << 16) and not periodic:
             counts = np.maximum(counts // 2, 1)
         self.counts = tuple(int(c) for c in counts)
         self.cell_size = tuple(float(e / c) for e, c in zip(extent, counts))

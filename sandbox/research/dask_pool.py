@@ -71,8 +71,10 @@ def dask_client(scheduler: str, workers: int, option: str = "--scheduler"):
 
     cluster = None
     if scheduler == "local":
+        # the workers log only what is critical: a task's error comes back to the client as its exception, and
+        # on Ctrl-C or SIGTERM to the process group a worker losing its scheduler logs a traceback that is noise
         cluster = LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=50
         )
         client = Client(cluster)
     else:
