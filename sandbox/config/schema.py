@@ -23,7 +23,8 @@ ABSOLUTE_ZERO = -273.15  # degrees Celsius: the lowest temperature a scene may n
 # is missed): the scene's units (mm, g/cm^3, simulated seconds, degrees) put every sensible value between them, and
 # f32 fields hold them without overflowing or flushing to zero.
 MAX_MAGNITUDE = 1e12  # the integrator study's unbounded box is +-1e12
-MIN_MAGNITUDE = 1e-9  # a nonzero number smaller than this is refused (0 itself is allowed where the key's check is)
+MIN_MAGNITUDE = 1e-12  # a nonzero number smaller is refused (0 itself where the key's check allows it); the study's
+# implicit_tolerance is 1e-10
 MAX_INT = 2**31 - 1  # integers go to 32-bit fields and seeds
 
 
