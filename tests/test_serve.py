@@ -27,7 +27,8 @@ def free_port() -> int:
 
 
 def start_server(*args: str) -> tuple[subprocess.Popen, str]:
-    """`sandbox serve` in a process of its own; returns it and the address it printed (with any token)."""
+    """`sandbox serve` in a process of its own; returns it and the address it printed (with any token); the
+    teacher's address (with the teacher's secret) is the process's `teacher`."""
     port = free_port()
     proc = subprocess.Popen(
         [sys.executable, "-m", "sandbox", "serve", *args, "--port", str(port)],
@@ -36,6 +37,8 @@ def start_server(*args: str) -> tuple[subprocess.Popen, str]:
         text=True,
     )
     address = proc.stdout.readline().strip().split(": ", 1)[-1]
+    proc.teacher = proc.stdout.readline().strip().split(": ", 1)[-1]
+    proc.teacher_query = "teacher=" + proc.teacher.split("teacher=")[1].split("&")[0]
     query = "?token=" + address.split("token=")[1] if "token=" in address else ""
     for _ in range(100):
         try:
@@ -81,7 +84,13 @@ def test_a_server_on_another_address_needs_its_token():
             with pytest.raises(urllib.error.HTTPError) as refused:
                 urllib.request.urlopen(f"http://127.0.0.1:{port}{path}", timeout=5)
             assert refused.value.code == 403, path
-            assert urllib.request.urlopen(f"http://127.0.0.1:{port}{path}?token={token}", timeout=5).status == 200
+            teacher = path in ("/teacher", "/api/sessions")
+            if teacher:  # the class's token alone is a student's: refused
+                with pytest.raises(urllib.error.HTTPError) as refused:
+                    urllib.request.urlopen(f"http://127.0.0.1:{port}{path}?token={token}", timeout=5)
+                assert refused.value.code == 403, path
+            query = f"?token={token}" + (f"&{proc.teacher_query}" if teacher else "")
+            assert urllib.request.urlopen(f"http://127.0.0.1:{port}{path}{query}", timeout=5).status == 200
         with pytest.raises(urllib.error.HTTPError):
             urllib.request.urlopen(f"http://127.0.0.1:{port}/?token=wrong{token}", timeout=5)
     finally:
@@ -98,7 +107,7 @@ def classroom():
     with playwright.sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
         try:
-            yield browser, address
+            yield browser, address, proc.teacher_query
         finally:
             browser.close()
             proc.terminate()
@@ -114,7 +123,7 @@ def shared(classroom):
 
 
 def open_page(classroom, query: str = ""):
-    browser, address = classroom
+    browser, address, _ = classroom
     page = browser.new_page(viewport={"width": 1280, "height": 800})
     page.goto(address + query)
     page.wait_for_function("Number(document.getElementById('picture').dataset.frames || 0) > 3", timeout=30000)
@@ -273,16 +282,17 @@ def test_the_teacher_pauses_every_session_and_the_classroom_has_a_limit(classroo
 
     import websockets
 
-    _, address = classroom
-    rows = json.loads(urllib.request.urlopen(address.rstrip("/") + "/api/sessions", timeout=5).read())["sessions"]
+    _, address, teacher = classroom
+    base = address.rstrip("/")
+    rows = json.loads(urllib.request.urlopen(f"{base}/api/sessions?{teacher}", timeout=5).read())["sessions"]
     assert len(rows) >= 1 and rows[0]["scene"] == "melting_block"
-    thumb = urllib.request.urlopen(address.rstrip("/") + f"/api/thumb?sid={rows[0]['sid']}", timeout=15).read()
+    thumb = urllib.request.urlopen(f"{base}/api/thumb?sid={rows[0]['sid']}&{teacher}", timeout=15).read()
     assert thumb[:2] == b"\xff\xd8"  # a JPEG
     pause = json.dumps({"t": "action", "name": "pause"}).encode()
-    urllib.request.urlopen(urllib.request.Request(address.rstrip("/") + "/api/broadcast", data=pause), timeout=5)
+    urllib.request.urlopen(urllib.request.Request(f"{base}/api/broadcast?{teacher}", data=pause), timeout=5)
     shared.wait_for_function("document.getElementById('pause').textContent === 'Play'", timeout=10000)
     play = json.dumps({"t": "action", "name": "play"}).encode()
-    urllib.request.urlopen(urllib.request.Request(address.rstrip("/") + "/api/broadcast", data=play), timeout=5)
+    urllib.request.urlopen(urllib.request.Request(f"{base}/api/broadcast?{teacher}", data=play), timeout=5)
     shared.wait_for_function("document.getElementById('pause').textContent === 'Pause'", timeout=10000)
 
     proc, small = start_server("lj_box", "--max-sessions", "1", "--max-fps", "5")
@@ -309,12 +319,16 @@ def test_a_downloaded_state_uploads_back_into_the_session(classroom, shared):
 
     import numpy as np
 
-    _, address = classroom
-    sid = shared.evaluate("sid")
-    data = urllib.request.urlopen(address.rstrip("/") + f"/api/state?sid={sid}", timeout=30).read()
+    _, address, _ = classroom
+    sid, key = shared.evaluate("sid"), shared.evaluate("sessionKey")
+    mine = address.rstrip("/") + f"/api/state?sid={sid}&key={key}"
+    with pytest.raises(urllib.error.HTTPError) as refused:  # the session's id without its socket's key: refused
+        urllib.request.urlopen(address.rstrip("/") + f"/api/state?sid={sid}", timeout=30)
+    assert refused.value.code == 403
+    data = urllib.request.urlopen(mine, timeout=30).read()
     with np.load(io.BytesIO(data), allow_pickle=False) as saved:
         assert {"meta", "field:particles.x", "field:particles.h"} <= set(saved.files)
-    upload = urllib.request.Request(address.rstrip("/") + f"/api/state?sid={sid}", data=data, method="POST")
+    upload = urllib.request.Request(mine, data=data, method="POST")
     assert urllib.request.urlopen(upload, timeout=10).status == 202
     shared.wait_for_function("document.getElementById('status').textContent.includes('State loaded')", timeout=15000)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import sys
 import textwrap
@@ -393,6 +394,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on (other than loopback: needs a token)")
     serve.add_argument("--port", type=int, default=8000)
     serve.add_argument("--token", help="the token every request must carry (made up and printed when needed)")
+    serve.add_argument(
+        "--teacher-token", help="the teacher's secret, for /teacher and its routes (made up and printed when not given)"
+    )
     serve.add_argument("--max-sessions", type=int, default=8, help="browser tabs served at once")
     serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
     serve.set_defaults(func=cmd_serve)
@@ -409,14 +413,17 @@ def cmd_serve(args) -> int:
         raise SandboxError(f"--max-sessions: expected at least 1, got {args.max_sessions}")
     if not 1.0 <= args.max_fps <= 60.0:
         raise SandboxError(f"--max-fps: expected 1 to 60, got {args.max_fps:g}")
-    if args.token is not None and len(args.token) < 8:
-        raise SandboxError("--token: expected at least 8 characters")
+    for option, value in (("--token", args.token), ("--teacher-token", args.teacher_token)):
+        if value is not None and (len(value) < 8 or not re.fullmatch(r"[A-Za-z0-9_-]+", value)):
+            raise SandboxError(f"{option}: expected at least 8 letters, digits, '-' or '_'")
+    if args.token is not None and args.token == args.teacher_token:
+        raise SandboxError("--teacher-token: the same as --token; expected a secret of the teacher's own")
     try:
         from .serve import serve
     except ImportError as exc:
         missing = f"sandbox serve needs the serve extra: pip install -e '.[serve]' ({exc.name} is missing)"
         raise SandboxError(missing) from None
-    return serve(args.scene, args.host, args.port, args.token, args.max_sessions, args.max_fps)
+    return serve(args.scene, args.host, args.port, args.token, args.max_sessions, args.max_fps, args.teacher_token)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -7,6 +7,12 @@ Safe on a school network: it binds 127.0.0.1 unless told otherwise; any other ad
 printed with the address when not given) on every request and WebSocket, whose Origin must be the page's own; every
 message is checked (serve_protocol.py); sessions are limited in number, upload size and idle time; nothing a
 client sends names a file on the server; scripts and styles come from the package (no CDN).
+
+Roles: the teacher's page and routes (the sessions, their pictures, broadcasts, any session's state) need the
+teacher's secret, separate from the class's link (always made up and printed in the teacher's address; the page
+keeps it in a cookie). A student's session answers only to the socket that opened it: the hello gives that socket
+the session's key, which the page's state download and upload carry; without it (or the teacher's secret) they are
+refused alike whether the session exists or not. Every body is limited before it is read.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ import ipaddress
 import json
 import multiprocessing
 import secrets
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +36,8 @@ from .serve_session import scratch_dir, session_main
 WEB = Path(__file__).resolve().parent / "web"
 PICTURE = (960, 540)  # the sessions' picture size (the page scales it to fit)
 MAX_UPLOAD = 16 * 1024 * 1024  # bytes of an uploaded state file
+MAX_BROADCAST = 2048  # bytes of a teacher's broadcast message
+WARN_SECONDS = 2.0  # "too many messages" is said at most once in this long
 IDLE_SECONDS = 300.0  # a tab silent this long (closed, asleep) loses its session
 START_SECONDS = 60.0  # a session that has not drawn its first picture by then is given up
 
@@ -41,6 +50,7 @@ class Handle:
     scene: str
     process: object
     conn: object
+    key: str = field(default_factory=lambda: secrets.token_urlsafe(18))  # the opening socket's, for HTTP calls
     outbox: asyncio.Queue = field(default_factory=asyncio.Queue)
     waiters: dict = field(default_factory=dict)  # message type -> future (saved, thumbnail)
     last_seen: float = field(default_factory=time.monotonic)
@@ -68,9 +78,16 @@ class Classroom:
     """The sessions, their limits and the token (module docstring)."""
 
     def __init__(
-        self, scene: str, token: str | None, max_sessions: int, idle: float = IDLE_SECONDS, max_fps: float = 30.0
+        self,
+        scene: str,
+        token: str | None,
+        max_sessions: int,
+        idle: float = IDLE_SECONDS,
+        max_fps: float = 30.0,
+        teacher: str | None = None,
     ):
         self.scene, self.token, self.max_sessions, self.idle, self.max_fps = scene, token, max_sessions, idle, max_fps
+        self.teacher = teacher or secrets.token_urlsafe(12)
         self.scenes = sorted(p.stem for p in shipped_scenes())
         self.sessions: dict[str, Handle] = {}
         self.context = multiprocessing.get_context("spawn")
@@ -139,6 +156,16 @@ class Classroom:
         given = request.query_params.get("token") or request.cookies.get("sandbox_token") or ""
         return secrets.compare_digest(given, self.token)
 
+    def is_teacher(self, request) -> bool:
+        """The request carries the class token (where set) and the teacher's secret (query or cookie)."""
+        given = request.query_params.get("teacher") or request.cookies.get("sandbox_teacher") or ""
+        return self.allowed(request) and secrets.compare_digest(given, self.teacher)
+
+    @staticmethod
+    def owns(request, handle) -> bool:
+        """The request carries the key the session's own socket was given."""
+        return handle is not None and secrets.compare_digest(request.query_params.get("key", ""), handle.key)
+
     @staticmethod
     def same_origin(websocket) -> bool:
         """A WebSocket's Origin, where the browser sent one, is the page's own host."""
@@ -176,13 +203,17 @@ def make_app(classroom: Classroom):
     from starlette.staticfiles import StaticFiles
     from starlette.websockets import WebSocketDisconnect
 
-    def page(name: str):
+    def page(name: str, teacher: bool = False):
         async def endpoint(request):
             if not classroom.allowed(request):
                 return PlainTextResponse("403: this classroom needs its token (the address the server printed)", 403)
+            if teacher and not classroom.is_teacher(request):
+                return PlainTextResponse("403: the teacher's page needs the teacher's address (printed second)", 403)
             response = FileResponse(WEB / name, headers={"Cache-Control": "no-store"})
             if classroom.token:
                 response.set_cookie("sandbox_token", classroom.token, httponly=True, samesite="strict")
+            if teacher:
+                response.set_cookie("sandbox_teacher", classroom.teacher, httponly=True, samesite="strict")
             return response
 
         return endpoint
@@ -190,20 +221,37 @@ def make_app(classroom: Classroom):
     async def scenes(request):
         return JSONResponse({"scenes": classroom.scenes, "default": classroom.scene})
 
-    def gated(endpoint, session: bool = False):
-        """The endpoint, for requests that carry the token; with `session`, given the session the request names."""
+    def gated(endpoint, role: str = "class"):
+        """The endpoint for requests allowed in `role`: "class" (the class token), "teacher" (the teacher's secret),
+        or "owner" (a session named by `sid`, for the teacher or the socket that opened it, given its handle)."""
 
         async def checked(request):
             if not classroom.allowed(request):
                 return PlainTextResponse("403", 403)
-            if not session:
+            if role == "teacher" and not classroom.is_teacher(request):
+                return PlainTextResponse("403: for the teacher", 403)
+            if role != "owner":
                 return await endpoint(request)
             handle = classroom.sessions.get(request.query_params.get("sid", ""))
+            if not (classroom.is_teacher(request) or classroom.owns(request, handle)):
+                return PlainTextResponse("403: not your session", 403)  # said alike whether it exists or not
             if handle is None:
                 return PlainTextResponse("no such session", 404)
             return await endpoint(request, handle)
 
         return checked
+
+    async def bounded_body(request, limit: int) -> bytes | None:
+        """The request's body, or None as soon as it is (or says it will be) longer than `limit` bytes."""
+        declared = request.headers.get("content-length", "")
+        if declared.isdigit() and int(declared) > limit:
+            return None
+        body = bytearray()
+        async for chunk in request.stream():
+            body += chunk
+            if len(body) > limit:
+                return None
+        return bytes(body)
 
     async def ask(handle: Handle, kind: str, message: dict, seconds: float):
         """Send the session `message` and wait for its answer of type `kind` (None after `seconds`)."""
@@ -227,12 +275,10 @@ def make_app(classroom: Classroom):
                 media_type="application/octet-stream",
                 headers={"Content-Disposition": f'attachment; filename="{name}"'},
             )
-        body = bytearray()
-        async for chunk in request.stream():
-            body += chunk
-            if len(body) > MAX_UPLOAD:
-                return PlainTextResponse(f"state file refused: larger than {MAX_UPLOAD // 2**20} MB", 413)
-        path.write_bytes(bytes(body))
+        body = await bounded_body(request, MAX_UPLOAD)
+        if body is None:
+            return PlainTextResponse(f"state file refused: larger than {MAX_UPLOAD // 2**20} MB", 413)
+        path.write_bytes(body)
         handle.send({"t": "upload", "path": str(path)})  # checked by the session; its answer comes by WebSocket
         return PlainTextResponse("checking", 202)
 
@@ -250,14 +296,19 @@ def make_app(classroom: Classroom):
         ]
         return JSONResponse({"sessions": rows, "max": classroom.max_sessions})
 
-    async def thumb(request, handle: Handle):
+    async def thumb(request):
+        handle = classroom.sessions.get(request.query_params.get("sid", ""))
+        if handle is None:
+            return PlainTextResponse("no such session", 404)
         data = await ask(handle, "thumb", {"t": "thumb"}, 10)
         if data is None:
             return PlainTextResponse("no picture in time", 504)
         return Response(data, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
 
     async def broadcast(request):
-        body = await request.body()
+        body = await bounded_body(request, MAX_BROADCAST)
+        if body is None:
+            return PlainTextResponse(f"broadcast: larger than {MAX_BROADCAST} bytes; expected one message", 413)
         try:
             message = parse(body, classroom.scenes)
         except ProtocolError as exc:
@@ -284,8 +335,9 @@ def make_app(classroom: Classroom):
         if scene not in classroom.scenes:
             scene = classroom.scene
         handle = classroom.open(scene)
-        await websocket.send_text(json.dumps({"t": "hello", "sid": handle.sid, "scenes": classroom.scenes}))
-        limit = RateLimit()
+        hello = {"t": "hello", "sid": handle.sid, "key": handle.key, "scenes": classroom.scenes}
+        await websocket.send_text(json.dumps(hello))
+        limit, warned = RateLimit(), -WARN_SECONDS
 
         async def pump():
             while (item := await handle.outbox.get()) is not None:
@@ -295,12 +347,18 @@ def make_app(classroom: Classroom):
         sender = asyncio.create_task(pump())
         try:
             while True:
-                text = await websocket.receive_text()
+                received = await websocket.receive()
+                if received["type"] == "websocket.disconnect":
+                    break
                 handle.last_seen = time.monotonic()
                 if not limit.allow():
-                    if limit.tokens > -1.0:  # say it once per burst, not once per message
+                    if handle.last_seen - warned > WARN_SECONDS:  # said once a burst, not once a message
+                        warned = handle.last_seen
                         await websocket.send_text(json.dumps({"t": "error", "text": "too many messages: slow down"}))
-                        limit.tokens = -2.0
+                    continue
+                text = received.get("text")
+                if text is None:
+                    await websocket.send_text(json.dumps({"t": "error", "text": "expected text (JSON), not bytes"}))
                     continue
                 try:
                     message = parse(text, classroom.scenes)
@@ -323,16 +381,17 @@ def make_app(classroom: Classroom):
         reaper.cancel()
         for handle in list(classroom.sessions.values()):
             classroom.close(handle)
+        shutil.rmtree(classroom.scratch, ignore_errors=True)
 
     return Starlette(
         routes=[
             Route("/", page("index.html")),
-            Route("/teacher", page("teacher.html")),
+            Route("/teacher", page("teacher.html", teacher=True)),
             Route("/api/scenes", gated(scenes)),
-            Route("/api/state", gated(state, session=True), methods=["GET", "POST"]),
-            Route("/api/sessions", gated(sessions)),
-            Route("/api/thumb", gated(thumb, session=True)),
-            Route("/api/broadcast", gated(broadcast), methods=["POST"]),
+            Route("/api/state", gated(state, "owner"), methods=["GET", "POST"]),
+            Route("/api/sessions", gated(sessions, "teacher")),
+            Route("/api/thumb", gated(thumb, "teacher")),
+            Route("/api/broadcast", gated(broadcast, "teacher"), methods=["POST"]),
             WebSocketRoute("/ws", socket),
             Mount("/static", app=TokenGate(StaticFiles(directory=WEB), classroom)),
         ],
@@ -356,16 +415,26 @@ class TokenGate:
         await self.app(scope, receive, send)
 
 
-def serve(scene: str, host: str, port: int, token: str | None, max_sessions: int, max_fps: float = 30.0) -> int:
-    """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed)."""
+def serve(
+    scene: str,
+    host: str,
+    port: int,
+    token: str | None,
+    max_sessions: int,
+    max_fps: float = 30.0,
+    teacher: str | None = None,
+) -> int:
+    """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed) and
+    the teacher's (with the teacher's secret, made up when not given)."""
     import uvicorn
 
     if token is None and not is_loopback(host):
         token = secrets.token_urlsafe(12)
-    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps)
+    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps, teacher=teacher)
     query = f"?token={token}" if token else ""
     shown = lan_address() if host in ("0.0.0.0", "::") else host
-    print(f"the classroom: http://{shown}:{port}/{query}")
-    print(f"the teacher's view: http://{shown}:{port}/teacher{query}")
+    print(f"the classroom: http://{shown}:{port}/{query}", flush=True)
+    teacher_query = f"?teacher={classroom.teacher}" + (f"&token={token}" if token else "")
+    print(f"the teacher's view (yours alone): http://{shown}:{port}/teacher{teacher_query}", flush=True)
     uvicorn.run(make_app(classroom), host=host, port=port, log_level="warning", ws_max_size=64 * 1024)
     return 0

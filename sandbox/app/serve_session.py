@@ -280,7 +280,8 @@ class Session:
         try:
             load_into(self.sim, path)
         except (SandboxError, OSError, ValueError, KeyError) as exc:
-            self.tell({"t": "error", "key": "upload_refused", "text": str(exc)})
+            said = str(exc).replace(str(path), "the uploaded file")  # the server's folders are not the page's news
+            self.tell({"t": "error", "key": "upload_refused", "text": said})
         else:
             self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
         finally:
@@ -293,7 +294,6 @@ def hex_colors(colors) -> list[str]:
 
 
 def scratch_dir() -> Path:
-    """The server's own folder for state files in transit (never a name a client chose)."""
-    path = Path(tempfile.gettempdir()) / f"sandbox-serve-{os.getpid()}"
-    path.mkdir(exist_ok=True)
-    return path
+    """The server's own new folder for state files in transit (never a name a client chose; made with a name no
+    one else can have picked; removed when the server stops)."""
+    return Path(tempfile.mkdtemp(prefix="sandbox-serve-"))

@@ -10,6 +10,7 @@ const $ = (id) => document.getElementById(id);
 let words = {};
 let socket = null;
 let sid = null;
+let sessionKey = ""; // the session's key: only this tab's socket is given it, and the state routes ask for it
 let paused = false;
 let tools = [];
 let settingKeys = "";
@@ -68,7 +69,7 @@ async function onPicture(blob) {
 }
 
 function onText(msg) {
-  if (msg.t === "hello") { sid = msg.sid; say(t("connected")); }
+  if (msg.t === "hello") { sid = msg.sid; sessionKey = msg.key || ""; say(t("connected")); }
   else if (msg.t === "scene") onScene(msg);
   else if (msg.t === "info") onInfo(msg);
   else if (msg.t === "paused") { paused = msg.paused; $("pause").textContent = t(paused ? "play" : "pause"); }
@@ -282,14 +283,14 @@ function setupControls() {
   $("download").addEventListener("click", () => {
     if (!sid) return;
     const a = document.createElement("a");
-    a.href = `api/state?sid=${sid}${token ? "&token=" + token : ""}`;
+    a.href = `api/state?sid=${sid}&key=${encodeURIComponent(sessionKey)}${token ? "&token=" + token : ""}`;
     a.download = ($("scene").value || "sandbox") + ".npz";
     a.click();
   });
   $("upload").addEventListener("change", async () => {
     const file = $("upload").files[0];
     if (!file || !sid) return;
-    const response = await fetch(`api/state?sid=${sid}${token ? "&token=" + token : ""}`, { method: "POST", body: file });
+    const response = await fetch(`api/state?sid=${sid}&key=${encodeURIComponent(sessionKey)}${token ? "&token=" + token : ""}`, { method: "POST", body: file });
     if (!response.ok) say(await response.text());
     $("upload").value = "";
   });

@@ -1,7 +1,13 @@
 // The teacher's view: every session with a small live picture; pause them all, or send a scene or a setting to all.
 "use strict";
 const token = new URLSearchParams(location.search).get("token") || "";
-const q = (extra) => { const p = new URLSearchParams(extra || {}); if (token) p.set("token", token); return "?" + p; };
+const teacher = new URLSearchParams(location.search).get("teacher") || ""; // also kept in a cookie by the page
+const q = (extra) => {
+  const p = new URLSearchParams(extra || {});
+  if (token) p.set("token", token);
+  if (teacher) p.set("teacher", teacher);
+  return "?" + p;
+};
 const $ = (id) => document.getElementById(id);
 let words = {};
 
