@@ -15,6 +15,8 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 pytest.importorskip("starlette")
 pytest.importorskip("httpx")
@@ -22,6 +24,7 @@ pytest.importorskip("httpx")
 from starlette.testclient import TestClient  # noqa: E402
 
 from sandbox.app.serve import MAX_BROADCAST, Classroom, Handle, make_app  # noqa: E402
+from sandbox.app.serve_protocol import ProtocolError, parse  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("serve")
 TOKEN, TEACHER = "class-token-123", "teacher-secret-456"
@@ -197,3 +200,34 @@ def test_a_socket_sending_bytes_or_flooding_is_told_once_and_the_server_leaves_n
         output, _ = proc.communicate(timeout=30)
     assert "Traceback" not in output and "KeyError" not in output, output
     assert not list(tmp_path.glob("sandbox-serve-*")), "the server's scratch folder was left behind"
+
+
+JSON_VALUES = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=20),
+    lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
+    max_leaves=12,
+)
+KINDS = ["ready", "pointer", "tool", "action", "scene", "set", "lang", "thumb", "upload", "save", "x"]
+
+
+@settings(max_examples=3000 if os.environ.get("SANDBOX_FUZZ") == "campaign" else 300, deadline=None)
+@given(
+    raw=st.one_of(
+        st.binary(max_size=64),
+        st.text(max_size=64),
+        st.builds(
+            lambda kind, fields: json.dumps({"t": kind, **fields}),
+            st.sampled_from(KINDS),
+            st.dictionaries(st.sampled_from(["x", "y", "down", "name", "key", "value", "tool", "lang"]), JSON_VALUES),
+        ),
+    )
+)
+def test_any_message_is_a_checked_message_or_one_line_refusal(raw):
+    """Whatever a page sends (bytes, text, any JSON under any known type): a message of a known type with checked
+    fields, or one ProtocolError line; never another exception."""
+    try:
+        message = parse(raw, ["melting_block", "lj_box"])
+    except ProtocolError as exc:
+        assert "\n" not in str(exc)
+        return
+    assert message["t"] in KINDS and json.dumps(message, allow_nan=False)
