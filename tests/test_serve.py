@@ -30,8 +30,9 @@ def start_server(*args: str) -> tuple[subprocess.Popen, str]:
     """`sandbox serve` in a process of its own; returns it and the address it printed (with any token); the
     teacher's address (with the teacher's secret) is the process's `teacher`."""
     port = free_port()
+    warm = [] if "--warm" in args else ["--warm", "1"]  # one session kept started: light beside the suite
     proc = subprocess.Popen(
-        [sys.executable, "-m", "sandbox", "serve", *args, "--port", str(port)],
+        [sys.executable, "-m", "sandbox", "serve", *args, *warm, "--port", str(port)],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
@@ -352,3 +353,56 @@ def test_the_page_draws_its_own_colour_bar_and_a_chart_with_axes(shared):
     points = shared.eval_on_selector("#chart polyline", "e => e.getAttribute('points').split(' ').length")
     labels = shared.eval_on_selector_all("#chart text", "es => es.map(e => e.textContent)")
     assert points >= 2 and labels[-1].endswith(" s") and len(labels) == 4
+
+
+@pytest.mark.slow  # a server with four session processes
+def test_a_class_opening_the_link_together_gets_pictures_at_once_and_a_full_class_says_so():
+    """Four tabs connect at the same moment to a server whose four sessions are warm: each draws its first picture
+    within seconds (they stayed black for minutes), and with them open a fifth is told the class is full (never
+    "Ready." without a picture, never a silent drop)."""
+    import asyncio
+    import concurrent.futures
+
+    import websockets
+
+    proc, address = start_server("lj_box", "--max-sessions", "4", "--warm", "4", "--max-fps", "5")
+    url = address.replace("http://", "ws://").rstrip("/") + "/ws"
+
+    async def class_of(n: int):
+        """n tabs opened together, each until its first picture; with them still open, one more tab."""
+        sockets = [await websockets.connect(url, max_size=None) for _ in range(n)]
+        start = time.monotonic()
+
+        async def first_picture(socket):
+            said = []
+            while True:
+                message = await asyncio.wait_for(socket.recv(), 60)
+                if isinstance(message, bytes):
+                    return time.monotonic() - start, said
+                said.append(json.loads(message))
+
+        try:
+            tabs = await asyncio.gather(*(first_picture(socket) for socket in sockets))
+            async with websockets.connect(url) as late:
+                refused = json.loads(await late.recv())
+        finally:
+            for socket in sockets:
+                await socket.close()
+        return tabs, refused
+
+    try:
+        deadline = time.monotonic() + 120  # the pool starts one session at a time: wait until all four are warm
+        sessions = address.rstrip("/") + f"/api/sessions?{proc.teacher_query}"
+        while time.monotonic() < deadline and proc.poll() is None:
+            if json.loads(urllib.request.urlopen(sessions, timeout=5).read())["warm"] >= 4:
+                break
+            time.sleep(0.5)
+        with concurrent.futures.ThreadPoolExecutor(1) as pool:  # Playwright's sync API holds this thread's loop
+            tabs, refused = pool.submit(asyncio.run, class_of(4)).result(180)
+        waits = sorted(wait for wait, _ in tabs)
+        assert waits[-1] < 5.0, waits  # every tab's first picture within seconds of opening
+        assert all(not any(m.get("key") == "starting" for m in said) for _, said in tabs)  # all were warm
+        assert refused["t"] == "error" and refused["key"] == "full"
+    finally:
+        proc.terminate()
+        proc.wait(10)

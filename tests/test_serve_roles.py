@@ -6,6 +6,7 @@ stand-in session that answers as a real one does, so no simulation is started fo
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import json
 import os
 import signal
@@ -190,7 +191,8 @@ def test_a_socket_sending_bytes_or_flooding_is_told_once_and_the_server_leaves_n
                         said.append(json.loads(text)["text"])
                 return hello, said
 
-        hello, said = asyncio.run(misbehave())
+        with concurrent.futures.ThreadPoolExecutor(1) as pool:  # a thread of its own: no other event loop there
+            hello, said = pool.submit(asyncio.run, misbehave()).result(120)
         assert hello["t"] == "hello" and len(hello["key"]) >= 20
         assert said.count("expected text (JSON), not bytes") == 1
         assert 1 <= sum("too many messages" in s for s in said) <= 1

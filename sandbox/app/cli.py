@@ -398,6 +398,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--teacher-token", help="the teacher's secret, for /teacher and its routes (made up and printed when not given)"
     )
     serve.add_argument("--max-sessions", type=int, default=8, help="browser tabs served at once")
+    serve.add_argument(
+        "--warm",
+        type=int,
+        metavar="N",
+        help="sessions of the scene kept started ahead of the tabs, so a class joins at once (default: --max-sessions)",
+    )
     serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
     serve.set_defaults(func=cmd_serve)
     return parser
@@ -411,6 +417,8 @@ def cmd_serve(args) -> int:
         raise SandboxError(f"--port: expected 1 to 65535, got {args.port}")
     if args.max_sessions < 1:
         raise SandboxError(f"--max-sessions: expected at least 1, got {args.max_sessions}")
+    if args.warm is not None and args.warm < 0:
+        raise SandboxError(f"--warm: expected 0 or more sessions, got {args.warm}")
     if not 1.0 <= args.max_fps <= 60.0:
         raise SandboxError(f"--max-fps: expected 1 to 60, got {args.max_fps:g}")
     for option, value in (("--token", args.token), ("--teacher-token", args.teacher_token)):
@@ -423,7 +431,9 @@ def cmd_serve(args) -> int:
     except ImportError as exc:
         missing = f"sandbox serve needs the serve extra: pip install -e '.[serve]' ({exc.name} is missing)"
         raise SandboxError(missing) from None
-    return serve(args.scene, args.host, args.port, args.token, args.max_sessions, args.max_fps, args.teacher_token)
+    return serve(
+        args.scene, args.host, args.port, args.token, args.max_sessions, args.max_fps, args.teacher_token, args.warm
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

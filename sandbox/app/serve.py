@@ -85,9 +85,12 @@ class Classroom:
         idle: float = IDLE_SECONDS,
         max_fps: float = 30.0,
         teacher: str | None = None,
+        warm: int | None = None,
     ):
         self.scene, self.token, self.max_sessions, self.idle, self.max_fps = scene, token, max_sessions, idle, max_fps
         self.teacher = teacher or secrets.token_urlsafe(12)
+        self.warm_target = max_sessions if warm is None else min(warm, max_sessions)
+        self.warm: list[Handle] = []  # started sessions of the default scene no tab has yet (keep_warm)
         self.scenes = sorted(p.stem for p in shipped_scenes())
         self.sessions: dict[str, Handle] = {}
         self.context = multiprocessing.get_context("spawn")
@@ -95,20 +98,51 @@ class Classroom:
 
     # ------------------------------------------------------------------ sessions
     def open(self, scene: str) -> Handle:
-        """A new session of `scene` (a shipped scene's name) in a process of its own."""
+        """A session of `scene` (a shipped scene's name) for a tab: a warm one where one of that scene is ready
+        (its first picture already drawn), else one started now in a process of its own."""
+        ready = [h for h in self.warm if h.scene == scene and h.frames > 0 and h.process.is_alive()]
+        if ready:
+            handle = ready[0]
+            self.warm.remove(handle)
+        else:
+            if self.warm and len(self.sessions) + len(self.warm) >= self.max_sessions:
+                self.close(self.warm[-1])  # a tab's own scene before a warm one nobody has asked for
+            handle = self.spawn(scene)
+        handle.started = time.monotonic()
+        self.sessions[handle.sid] = handle
+        return handle
+
+    def starting(self) -> int:
+        """Tabs' sessions that have not drawn their first picture yet (a newcomer is behind them)."""
+        return sum(1 for h in self.sessions.values() if h.frames == 0)
+
+    async def keep_warm(self) -> None:
+        """Keep up to `warm_target` sessions of the default scene started ahead of the tabs (all sessions, warm or
+        a tab's, at most max_sessions), starting one at a time so that a small machine is not swamped."""
+        while True:
+            self.warm = [h for h in self.warm if h.process.is_alive()]
+            starting = any(h.frames == 0 for h in self.warm)
+            room = self.max_sessions - len(self.sessions) - len(self.warm)
+            if not starting and len(self.warm) < self.warm_target and room > 0:
+                self.warm.append(self.spawn(self.scene))
+            await asyncio.sleep(0.25)
+
+    def spawn(self, scene: str) -> Handle:
+        """Start a session process of `scene`; its messages wait in its handle's outbox until a tab takes it."""
         parent, child = self.context.Pipe()
         args = (child, scene, *PICTURE, self.max_fps)
         process = self.context.Process(target=session_main, args=args, daemon=True)
         process.start()
         child.close()
         handle = Handle(secrets.token_urlsafe(8), scene, process, parent)
-        self.sessions[handle.sid] = handle
         asyncio.get_running_loop().add_reader(parent.fileno(), self._readable, handle)
         return handle
 
     def close(self, handle: Handle) -> None:
         """End a session: its process and memory go with it."""
         self.sessions.pop(handle.sid, None)
+        if handle in self.warm:
+            self.warm.remove(handle)
         with contextlib.suppress(Exception):
             asyncio.get_running_loop().remove_reader(handle.conn.fileno())
         with contextlib.suppress(Exception):
@@ -145,7 +179,11 @@ class Classroom:
             await asyncio.sleep(min(self.idle / 4, 15.0))
             now = time.monotonic()
             for handle in list(self.sessions.values()):
-                if now - handle.last_seen > self.idle or (handle.frames == 0 and now - handle.started > START_SECONDS):
+                if handle.frames == 0 and now - handle.started > START_SECONDS:  # said, never silent
+                    text = f"your sandbox did not start within {START_SECONDS:.0f} s (the server is busy): reload"
+                    handle.outbox.put_nowait(("text", json.dumps({"t": "error", "key": "start_failed", "text": text})))
+                    self.close(handle)
+                elif now - handle.last_seen > self.idle:
                     self.close(handle)
 
     # ------------------------------------------------------------------ checks
@@ -294,7 +332,8 @@ def make_app(classroom: Classroom):
             }
             for h in classroom.sessions.values()
         ]
-        return JSONResponse({"sessions": rows, "max": classroom.max_sessions})
+        ready = sum(1 for h in classroom.warm if h.frames > 0)
+        return JSONResponse({"sessions": rows, "max": classroom.max_sessions, "warm": ready})
 
     async def thumb(request):
         handle = classroom.sessions.get(request.query_params.get("sid", ""))
@@ -334,9 +373,13 @@ def make_app(classroom: Classroom):
         scene = websocket.query_params.get("scene", classroom.scene)
         if scene not in classroom.scenes:
             scene = classroom.scene
+        ahead = classroom.starting()
         handle = classroom.open(scene)
         hello = {"t": "hello", "sid": handle.sid, "key": handle.key, "scenes": classroom.scenes}
         await websocket.send_text(json.dumps(hello))
+        if handle.frames == 0:  # not a warm one: say so, and how many are starting before it
+            text = json.dumps({"t": "notice", "key": "starting", "text": str(ahead)})
+            await websocket.send_text(text)
         limit, warned = RateLimit(), -WARN_SECONDS
 
         async def pump():
@@ -376,10 +419,11 @@ def make_app(classroom: Classroom):
 
     @contextlib.asynccontextmanager
     async def lifespan(app):
-        reaper = asyncio.create_task(classroom.reap_idle())
+        tasks = [asyncio.create_task(classroom.reap_idle()), asyncio.create_task(classroom.keep_warm())]
         yield
-        reaper.cancel()
-        for handle in list(classroom.sessions.values()):
+        for task in tasks:
+            task.cancel()
+        for handle in [*classroom.sessions.values(), *classroom.warm]:
             classroom.close(handle)
         shutil.rmtree(classroom.scratch, ignore_errors=True)
 
@@ -423,6 +467,7 @@ def serve(
     max_sessions: int,
     max_fps: float = 30.0,
     teacher: str | None = None,
+    warm: int | None = None,
 ) -> int:
     """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed) and
     the teacher's (with the teacher's secret, made up when not given)."""
@@ -430,7 +475,7 @@ def serve(
 
     if token is None and not is_loopback(host):
         token = secrets.token_urlsafe(12)
-    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps, teacher=teacher)
+    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps, teacher=teacher, warm=warm)
     query = f"?token={token}" if token else ""
     shown = lan_address() if host in ("0.0.0.0", "::") else host
     print(f"the classroom: http://{shown}:{port}/{query}", flush=True)

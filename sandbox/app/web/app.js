@@ -10,6 +10,7 @@ const $ = (id) => document.getElementById(id);
 let words = {};
 let socket = null;
 let sid = null;
+let refused = false; // the server said why it closed: that stays on screen
 let sessionKey = ""; // the session's key: only this tab's socket is given it, and the state routes ask for it
 let paused = false;
 let tools = [];
@@ -55,7 +56,7 @@ function connect(scene) {
   socket.binaryType = "blob";
   say(t("connecting"));
   socket.onmessage = (event) => (typeof event.data === "string" ? onText(JSON.parse(event.data)) : onPicture(event.data));
-  socket.onclose = () => say(t("disconnected"));
+  socket.onclose = () => { if (!refused) say(t("disconnected")); };  // "full" and other refusals stay on screen
 }
 
 async function onPicture(blob) {
@@ -65,15 +66,19 @@ async function onPicture(blob) {
   canvas.getContext("2d").drawImage(bitmap, 0, 0);
   bitmap.close();
   canvas.dataset.frames = String(Number(canvas.dataset.frames || 0) + 1);
+  if (canvas.dataset.frames === "1") say(t("connected"));  // "Ready." only with a picture to show
   requestAnimationFrame(() => send({ t: "ready" }));  // the next picture, once this one is on the screen
 }
 
 function onText(msg) {
-  if (msg.t === "hello") { sid = msg.sid; sessionKey = msg.key || ""; say(t("connected")); }
+  if (msg.t === "hello") { sid = msg.sid; sessionKey = msg.key || ""; }
   else if (msg.t === "scene") onScene(msg);
   else if (msg.t === "info") onInfo(msg);
   else if (msg.t === "paused") { paused = msg.paused; $("pause").textContent = t(paused ? "play" : "pause"); }
-  else if (msg.t === "error") say(msg.key ? t(msg.key, { text: msg.text || "" }) : msg.text);
+  else if (msg.t === "error") {
+    if (msg.key === "full" || msg.key === "start_failed" || msg.key === "session_ended") refused = true;
+    say(msg.key ? t(msg.key, { text: msg.text || "" }) : msg.text);
+  }
   else if (msg.t === "notice") say(t(msg.key, { text: msg.text || "" }));
 }
 
