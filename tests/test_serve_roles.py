@@ -233,3 +233,26 @@ def test_any_message_is_a_checked_message_or_one_line_refusal(raw):
         assert "\n" not in str(exc)
         return
     assert message["t"] in KINDS and json.dumps(message, allow_nan=False)
+
+
+def test_the_serve_bench_fails_in_one_line_when_the_server_does_not_serve():
+    """`sandbox bench --serve` waited a fixed 3 s for the server (and crashed when it took longer) and reported
+    0.0 pictures a second with exit 0 when tabs got nothing: it now waits for the warm sessions and says so."""
+    from sandbox.errors import SandboxError
+    from sandbox.research.serve_bench import _wait_until_warm
+
+    stopped = subprocess.Popen(
+        [sys.executable, "-c", "import sys; sys.stderr.write('port in use\\n'); sys.exit(1)"],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    stopped.wait(10)
+    with pytest.raises(SandboxError, match=r"the server stopped \(port in use\)"):
+        _wait_until_warm(stopped, 9, "secret-123", 2, limit=5)
+    silent = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"], stderr=subprocess.PIPE, text=True)
+    try:
+        with pytest.raises(SandboxError, match="did not start 2 sessions within 1 s"):
+            _wait_until_warm(silent, 9, "secret-123", 2, limit=1)
+    finally:
+        silent.kill()
+        silent.wait()

@@ -12,11 +12,15 @@ from __future__ import annotations
 import asyncio
 import json
 import os
+import secrets
 import socket
 import statistics
 import subprocess
 import sys
 import time
+import urllib.request
+
+from ..errors import SandboxError
 
 WARMUP = 8.0  # seconds after every session has drawn its first picture
 MEASURE = 15.0  # seconds measured
@@ -71,17 +75,19 @@ def bench_serve(clients: int, scene: str = "melting_block") -> dict:
     from ..config.resources import shipped_scene
     from ..config.scene import load_scene
 
-    port = _free_port()
+    port, teacher = _free_port(), secrets.token_urlsafe(12)
     server = subprocess.Popen(
-        [sys.executable, "-m", "sandbox", "serve", scene, "--port", str(port), "--max-sessions", str(clients)],
+        [sys.executable, "-m", "sandbox", "serve", scene, "--port", str(port), "--max-sessions", str(clients)]
+        + ["--teacher-token", teacher],
         stdout=subprocess.DEVNULL,
-        stderr=subprocess.STDOUT,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     try:
-        time.sleep(3.0)  # the server's own start
+        _wait_until_warm(server, port, teacher, clients)  # the class arrives when its sessions are ready
         url = f"ws://127.0.0.1:{port}/ws?scene={scene}"
         t0 = time.monotonic()
-        start = t0 + 10.0 + WARMUP  # sessions start within 10 s
+        start = t0 + WARMUP
         stop = start + MEASURE
         results = [{} for _ in range(clients)]
 
@@ -97,6 +103,12 @@ def bench_serve(clients: int, scene: str = "melting_block") -> dict:
     finally:
         server.terminate()
         server.wait(10)
+    silent = sum(1 for r in results if not r.get("frames"))
+    if silent:
+        raise SandboxError(
+            f"serve bench: {silent} of {clients} tabs received no picture in {MEASURE:.0f} s; expected every tab to "
+            "be served (the machine is too busy, or the server failed)"
+        )
     scene_cfg = load_scene(shipped_scene(scene))
     world = scene_cfg.world
     pace = (world.dt * world.substeps if world.substeps != "auto" else world.frame_time) * scene_cfg.render.fps
@@ -115,6 +127,28 @@ def bench_serve(clients: int, scene: str = "melting_block") -> dict:
         # the simulated tabs share the machine with the server: their CPU (over the whole run) is not the server's
         "clients_cpu_percent": 100 * (after.user + after.system - before.user - before.system) / (stop - t0),
     }
+
+
+def _wait_until_warm(server, port: int, teacher: str, clients: int, limit: float = 300.0) -> None:
+    """Wait until the server listens and has `clients` sessions started ahead of the tabs (its warm pool); a
+    SandboxError when it exits or does not get there within `limit` seconds."""
+    url = f"http://127.0.0.1:{port}/api/sessions?teacher={teacher}"
+    end = time.monotonic() + limit
+    while time.monotonic() < end:
+        if server.poll() is not None:
+            raise SandboxError(f"serve bench: the server stopped ({_last_line(server.stderr.read())})")
+        try:
+            if json.loads(urllib.request.urlopen(url, timeout=2).read())["warm"] >= clients:
+                return
+        except (OSError, ValueError, KeyError):
+            pass  # not listening yet
+        time.sleep(0.5)
+    raise SandboxError(f"serve bench: the server did not start {clients} sessions within {limit:.0f} s")
+
+
+def _last_line(text: str) -> str:
+    lines = [line for line in (text or "").splitlines() if line.strip()]
+    return lines[-1] if lines else "no output"
 
 
 class _Sampler:
