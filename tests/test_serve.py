@@ -406,3 +406,16 @@ def test_a_class_opening_the_link_together_gets_pictures_at_once_and_a_full_clas
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+def test_the_page_starts_with_the_tool_and_the_lesson_of_its_own_controls(classroom):
+    """The sandbox scene's lesson says the add-particles tool is picked: the page picks it (it picked heat), and its
+    "Try" speaks of the page's menus, not of keys."""
+    page = open_page(classroom, "?scene=sandbox")
+    try:
+        page.wait_for_function("document.getElementById('tool').value === 'spawn'", timeout=30000)
+        explore = page.text_content("#explore")
+        assert "Material menu" in explore and "press m" not in explore and "Tab" not in explore
+        assert page.is_visible("#material")  # the spawn tool's material menu shows with it
+    finally:
+        page.close()

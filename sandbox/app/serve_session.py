@@ -77,18 +77,24 @@ class Session:
                 "scene": scene,
                 "lesson": self.lesson(),
                 "tools": self.tool_names(),
+                "tool": self.first_tool(),
                 "materials": list(self.sim.material_names),
             }
         )
 
     def lesson(self) -> dict:
-        lesson = self.sim.scene.lesson
-        return {k: getattr(lesson, k, "") for k in ("happens", "explore", "physics")} if lesson else {}
+        return page_lesson(self.sim.scene.lesson)
 
     def tool_names(self) -> list[str]:
         from .window_state import tools_for
 
         return tools_for(self.sim) if self.sim.dim == 2 else []
+
+    def first_tool(self) -> str:
+        """The tool the page starts with: the window's (window_state.first_tool), where the page has tools."""
+        from .window_state import first_tool
+
+        return first_tool(self.sim) if self.tool_names() else "none"
 
     # ------------------------------------------------------------------ the pipe
     def tell(self, message: dict) -> None:
@@ -286,6 +292,14 @@ class Session:
             self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
         finally:
             path.unlink(missing_ok=True)
+
+
+def page_lesson(lesson) -> dict:
+    """The lesson as the page shows it: what happens, what to try with the page's own controls (`explore_page`,
+    else `explore`), the physics."""
+    if not lesson:
+        return {}
+    return {"happens": lesson.happens, "explore": lesson.explore_page or lesson.explore, "physics": lesson.physics}
 
 
 def hex_colors(colors) -> list[str]:

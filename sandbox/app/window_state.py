@@ -166,6 +166,14 @@ def tools_for(sim) -> list[str]:
     return [t for t in TOOLS if sim.terms.heat is not None or t not in ("heat", "cool")]
 
 
+def first_tool(sim) -> str:
+    """The tool a scene starts with, in the window and the page alike: spawning in an empty scene (nothing to heat
+    or push), else the first of tools_for(sim) ("" where there is none)."""
+    tools = tools_for(sim)
+    empty = sim.model.built.count == 0 and not sim.scene.emitters
+    return "spawn" if empty and "spawn" in tools else (tools[0] if tools else "")
+
+
 def make_state(sim, substeps: int | None) -> WindowState:
     world = sim.scene.world
     fixed = substeps or (world.substeps if world.substeps != "auto" else 8)
@@ -173,7 +181,6 @@ def make_state(sim, substeps: int | None) -> WindowState:
     modes = ["temperature", "phase"] if sim.terms.heat is not None else []
     modes += ["speed", "material"]
     tools = tools_for(sim)
-    empty = sim.model.built.count == 0 and not sim.scene.emitters  # nothing to heat or push: start by spawning
     return WindowState(
         tools,
         list(REGISTRY),
@@ -184,7 +191,7 @@ def make_state(sim, substeps: int | None) -> WindowState:
         color_by=cfg.color_by if cfg.color_by in modes else modes[0],
         motion_blur=cfg.motion_blur,
         draw_springs=cfg.draw_springs,
-        tool="spawn" if empty and "spawn" in tools else "",
+        tool=first_tool(sim),
     )
 
 

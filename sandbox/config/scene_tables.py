@@ -37,7 +37,12 @@ class Lesson:
     """[scene.lesson]: a short lesson in a teacher's words, shown by `sandbox list` and at the top of the window."""
 
     happens: str = spec("", doc="what happens in the scene, in a sentence or two")
-    explore: str = spec("", doc="what to try: keys, tools, --set values")
+    explore: str = spec("", doc="what to try in the window and from the command line: keys, tools, --set values")
+    explore_page: str = spec(
+        "",
+        doc="what to try in the classroom's page: its buttons, Tool menu and sliders, no keys or command-line options "
+        "(the page shows `explore` where this is empty)",
+    )
     physics: str = spec("", doc="the physics it shows")
 
     def parts(self) -> list[tuple[str, str]]:

@@ -88,16 +88,20 @@ function onScene(msg) {
   $("lesson-box").hidden = !msg.lesson || !msg.lesson.happens;
   tools = msg.tools || [];
   history.length = 0;
-  fillTools();
+  fillTools(msg.tool);
   $("material").replaceChildren(...(msg.materials || []).map((name) => new Option(name.replaceAll("_", " "), name)));
   settingKeys = "";
 }
 
-function fillTools() {
+function fillTools(start) {
   const select = $("tool");
+  const offered = ["none", ...tools];
   const current = select.value;
-  select.replaceChildren(...["none", ...tools].map((name) => new Option(t("tool_" + name), name)));
-  select.value = ["none", ...tools].includes(current) ? current : tools[0] || "none";
+  select.replaceChildren(...offered.map((name) => new Option(t("tool_" + name), name)));
+  // a new scene starts with its own tool (the one its lesson speaks of); a new language keeps the tool in hand
+  if (start && offered.includes(start)) select.value = start;
+  else select.value = offered.includes(current) ? current : tools[0] || "none";
+  $("material-row").hidden = select.value !== "spawn";
 }
 
 function readoutLabel(r) {

@@ -1,0 +1,42 @@
+"""Lessons speak of the front-end that shows them (issue 56, item 5): the page's "Try" names the page's own controls
+(no keys, no command-line options), and a tool a lesson says is picked at the start is the one the window and the
+page start with (window_state.first_tool)."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+import sandbox
+from sandbox.app.serve_session import page_lesson
+from sandbox.app.window_state import first_tool
+from sandbox.config.resources import shipped_scenes
+from sandbox.config.scene import load_scene
+
+LESSONS = {p.stem: load_scene(p).lesson for p in shipped_scenes() if load_scene(p).lesson.happens}
+WINDOW_ONLY = re.compile(r"--[a-z]|\bTab\b|Shift|right button|\b[Pp]ress (?:space|[a-z]\b)|\bkeys?\b|\borbit")
+PICKED = re.compile(r"\b(add particles|[a-z]+) tool(?: \(|, )picked at the start", re.IGNORECASE)
+PAGE_NAMES = {"add particles": "spawn"}  # the page's words for a tool, where they are not its name
+
+
+def test_every_shipped_lesson_is_checked():
+    assert len(LESSONS) >= 13
+
+
+@pytest.mark.parametrize("name", sorted(LESSONS))
+def test_the_pages_lesson_names_only_the_pages_controls(name):
+    text = page_lesson(LESSONS[name])["explore"]
+    assert text and not WINDOW_ONLY.search(text), f"{name}: {WINDOW_ONLY.search(text).group(0)!r} in {text!r}"
+
+
+@pytest.mark.parametrize(
+    "name",
+    sorted(n for n, lesson in LESSONS.items() if PICKED.search(lesson.explore + " " + page_lesson(lesson)["explore"])),
+)
+def test_the_tool_a_lesson_says_is_picked_is_the_one_picked(name):
+    sim = sandbox.load(name, arch="cpu")
+    lesson = LESSONS[name]
+    for text in (lesson.explore, page_lesson(lesson)["explore"]):
+        for said in PICKED.findall(text):
+            assert PAGE_NAMES.get(said.lower(), said.lower()) == first_tool(sim), (name, text)
