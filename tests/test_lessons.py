@@ -40,3 +40,21 @@ def test_the_tool_a_lesson_says_is_picked_is_the_one_picked(name):
     for text in (lesson.explore, page_lesson(lesson)["explore"]):
         for said in PICKED.findall(text):
             assert PAGE_NAMES.get(said.lower(), said.lower()) == first_tool(sim), (name, text)
+
+
+def test_the_summarys_trend_follows_a_climbing_temperature():
+    """The trend compared the temperature with a reference reset to the current value every 2 s, so right after
+    each reset a climbing temperature read "steady"; it now slides: every sample after the first second of a climb
+    of 1 C per 0.1 s reads rising, a flat one steady, a fall falling, and a reset starts afresh."""
+    from sandbox.app.panel import Trend, trend_word
+
+    trend = Trend(2.0)
+    words = [trend_word(20 + 10 * t, trend.add(t, 20 + 10 * t)) for t in [k * 0.1 for k in range(60)]]
+    assert words[10:] == ["rising"] * 50, words
+    flat = Trend(2.0)
+    assert {trend_word(50.0, flat.add(k * 0.1, 50.0)) for k in range(40)} == {"steady"}
+    falling = Trend(2.0)
+    assert [trend_word(90 - 5 * k * 0.1, falling.add(k * 0.1, 90 - 5 * k * 0.1)) for k in range(40)][15:] == [
+        "falling"
+    ] * 25
+    assert trend.add(0.0, 20.0) is None  # time went back (a reset): no trend until half a window has passed

@@ -419,3 +419,50 @@ def test_the_page_starts_with_the_tool_and_the_lesson_of_its_own_controls(classr
         assert page.is_visible("#material")  # the spawn tool's material menu shows with it
     finally:
         page.close()
+
+
+def test_the_page_is_calm_for_screen_readers_and_passes_axe(classroom):
+    """In 10 s the live summary speaks at most a few times (it spoke on every change of a number); the readouts and
+    the sliders' outputs are not live regions; the keyboard's pointer is drawn on the picture; an arrow key in the
+    scene picker does not open a scene (Enter does); axe-core finds no serious or critical violation."""
+    from axe_playwright_python.sync_playwright import Axe
+
+    page = open_page(classroom)
+    try:
+        page.wait_for_function("Number(document.getElementById('picture').dataset.frames) > 5", timeout=30000)
+        page.evaluate(
+            """() => { window.spoken = 0; new MutationObserver(() => window.spoken++).observe(
+                document.getElementById('summary'), {childList: true, characterData: true, subtree: true}); }"""
+        )
+        time.sleep(10)
+        assert page.evaluate("window.spoken") <= 3
+        assert page.get_attribute("#readouts", "aria-live") is None
+        assert all(live == "off" for live in page.eval_on_selector_all("output", "els => els.map(e => e.ariaLive)"))
+        page.click("#describe")
+        page.wait_for_function("document.getElementById('summary').textContent.length > 10")
+
+        page.focus("#picture")
+        page.keyboard.press("ArrowRight")
+        frames = int(page.evaluate("document.getElementById('picture').dataset.frames"))
+        page.wait_for_function(f"Number(document.getElementById('picture').dataset.frames) > {frames + 2}")
+        ring = page.evaluate(
+            """() => { const c = document.getElementById('picture'); const x = Math.round(0.52 * c.width) + 10;
+                const y = Math.round(0.6 * c.height);
+                return Array.from(c.getContext('2d').getImageData(x, y, 1, 1).data); }"""
+        )
+        assert ring[:3] == [255, 255, 255], ring  # the white ring of the keyboard's pointer
+
+        before = page.evaluate("document.getElementById('scene').value")
+        page.focus("#scene")
+        page.keyboard.press("ArrowDown")
+        time.sleep(3)
+        assert "Enter" in page.text_content("#status")
+        assert page.evaluate("currentScene") == before  # an arrow only moves through the list
+        page.keyboard.press("Enter")
+        page.wait_for_function(f"currentScene !== {json.dumps(before)}", timeout=30000)
+
+        results = Axe().run(page)
+        serious = [v for v in results.response["violations"] if v["impact"] in ("serious", "critical")]
+        assert not serious, [(v["id"], v["help"]) for v in serious]
+    finally:
+        page.close()

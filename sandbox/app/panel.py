@@ -6,6 +6,7 @@ for itself what to show, so they never disagree. Words here are English; the pag
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -138,10 +139,7 @@ def summary(sim, stats, previous: float | None) -> dict:
     molten, mean temperature 58 C, rising"). `previous`: the mean temperature a few seconds ago (None: unknown)."""
     if sim.terms.heat is None or not math.isfinite(stats.mean_temperature):
         return {"key": "summary_motion", "particles": stats.particles, "speed": round(stats.max_speed, 2)}
-    trend = "steady"
-    if previous is not None and math.isfinite(previous):
-        change = stats.mean_temperature - previous
-        trend = "rising" if change > 0.5 else "falling" if change < -0.5 else "steady"
+    trend = trend_word(stats.mean_temperature, previous)
     shares = stats.phase_shares
     return {
         "key": "summary_heat",
@@ -150,6 +148,33 @@ def summary(sim, stats, previous: float | None) -> dict:
         "temperature": round(stats.mean_temperature),
         "trend": trend,
     }
+
+
+def trend_word(now: float, previous: float | None) -> str:
+    """ "rising", "falling" or "steady": `now` (degrees) against `previous`, the value a trend window ago."""
+    if previous is None or not math.isfinite(previous) or not math.isfinite(now):
+        return "steady"
+    change = now - previous
+    return "rising" if change > 0.5 else "falling" if change < -0.5 else "steady"
+
+
+class Trend:
+    """A value's samples over the last `window` simulated seconds, for summary()'s trend: add() returns the value
+    about a window ago (None until the samples span half a window), sliding with every sample."""
+
+    def __init__(self, window: float = 2.0) -> None:
+        self.window = window
+        self.samples: deque[tuple[float, float]] = deque()
+
+    def add(self, time: float, value: float) -> float | None:
+        """Record `value` at simulated `time` (s); the value about a window before it."""
+        if self.samples and time < self.samples[-1][0]:  # a reset or a new scene: time went back
+            self.samples.clear()
+        self.samples.append((time, value))
+        while len(self.samples) > 1 and time - self.samples[1][0] >= self.window:
+            self.samples.popleft()
+        first_time, first_value = self.samples[0]
+        return first_value if time - first_time >= self.window / 2 else None
 
 
 def as_json(items) -> list[dict]:

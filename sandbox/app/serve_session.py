@@ -24,7 +24,7 @@ MAX_FPS = 30.0  # pictures a second at most (serve --max-fps): more shows a clas
 JPEG_QUALITY = 80
 READOUTS_EVERY = 6  # pictures between the readouts sent with them
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
-SUMMARY_EVERY = 2.0  # seconds of simulated time between the trend's reference temperatures
+SUMMARY_EVERY = 2.0  # seconds of simulated time the summary's trend looks back over
 
 
 def session_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, threads: int = 1) -> None:
@@ -70,7 +70,7 @@ class Session:
         self.sim.state.carry(self.renderer.tails)
         self.tools = Tools(self.sim)
         self.history = UndoRing()
-        self.reference = (self.sim.time, None)  # (time, mean temperature) the trend compares with
+        self.trend = panel_trend()  # the mean temperature's last seconds, for the summary's trend
         self.tell(
             {
                 "t": "scene",
@@ -222,13 +222,12 @@ class Session:
 
         sim = self.sim
         stats = sim.stats(pair_energy=False)
-        if sim.time - self.reference[0] >= SUMMARY_EVERY or self.reference[1] is None:
-            self.reference = (sim.time, stats.mean_temperature)
+        previous = self.trend.add(sim.time, stats.mean_temperature)
         return {
             "legend": self.legend(),
             "readouts": panel.as_json(panel.readouts(sim, stats)),
             "settings": panel.as_json(panel.settings(sim)),
-            "summary": panel.summary(sim, stats, self.reference[1]),
+            "summary": panel.summary(sim, stats, previous),
             "probe": self.probe(),
         }
 
@@ -292,6 +291,12 @@ class Session:
             self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
         finally:
             path.unlink(missing_ok=True)
+
+
+def panel_trend():
+    from .panel import Trend
+
+    return Trend(SUMMARY_EVERY)
 
 
 def page_lesson(lesson) -> dict:

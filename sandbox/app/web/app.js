@@ -10,6 +10,7 @@ const $ = (id) => document.getElementById(id);
 let words = {};
 let socket = null;
 let sid = null;
+let currentScene = "";
 let refused = false; // the server said why it closed: that stays on screen
 let sessionKey = ""; // the session's key: only this tab's socket is given it, and the state routes ask for it
 let paused = false;
@@ -63,8 +64,20 @@ async function onPicture(blob) {
   const bitmap = await createImageBitmap(blob);
   const canvas = $("picture");
   if (canvas.width !== bitmap.width) { canvas.width = bitmap.width; canvas.height = bitmap.height; }
-  canvas.getContext("2d").drawImage(bitmap, 0, 0);
+  const context = canvas.getContext("2d");
+  context.drawImage(bitmap, 0, 0);
   bitmap.close();
+  if (document.activeElement === canvas) {  // the keyboard's pointer, where the arrows have put it
+    const x = keyboardPoint.x * canvas.width, y = keyboardPoint.y * canvas.height;
+    context.lineWidth = 3;
+    for (const [colour, r] of [["#000", 13], ["#fff", 10]]) {
+      context.strokeStyle = colour;
+      context.beginPath();
+      context.arc(x, y, r, 0, 2 * Math.PI);
+      context.moveTo(x - r - 6, y); context.lineTo(x - r + 4, y); context.moveTo(x + r - 4, y); context.lineTo(x + r + 6, y);
+      context.stroke();
+    }
+  }
   canvas.dataset.frames = String(Number(canvas.dataset.frames || 0) + 1);
   if (canvas.dataset.frames === "1") say(t("connected"));  // "Ready." only with a picture to show
   requestAnimationFrame(() => send({ t: "ready" }));  // the next picture, once this one is on the screen
@@ -84,6 +97,7 @@ function onText(msg) {
 
 function onScene(msg) {
   $("scene").value = msg.scene;
+  currentScene = msg.scene;
   for (const part of ["happens", "explore", "physics"]) $(part).textContent = (msg.lesson || {})[part] || "";
   $("lesson-box").hidden = !msg.lesson || !msg.lesson.happens;
   tools = msg.tools || [];
@@ -193,13 +207,22 @@ function onInfo(msg) {
     drawChart();
   }
   const summary = t(msg.summary.key, { ...msg.summary, trend: t("trend_" + (msg.summary.trend || "steady")) });
-  if (summary !== lastSummary && (!lastSummary || now - (onInfo.spoken || 0) > 5000)) {
-    onInfo.spoken = now;
-    lastSummary = summary;
-    $("summary").textContent = summary;
-    $("picture").setAttribute("aria-label", t("picture_label", { summary }));
+  lastSummary = summary;
+  $("picture").setAttribute("aria-label", t("picture_label", { summary }));  // read when asked, never announced
+  // the live region speaks when the state changes in words (the trend, a quarter more melted or boiled), not as
+  // the numbers run: a screen reader is not talked over every frame
+  const s = msg.summary;
+  const state = [s.key, s.trend, Math.floor((s.molten || 0) / 25), Math.floor((s.gas || 0) / 25)].join("|");
+  if (state !== onInfo.state && now - (onInfo.spoken || -1e9) > 3000) {
+    onInfo.state = state;
+    speak(summary);
   }
   fillSettings(msg.settings);
+}
+
+function speak(text) {
+  onInfo.spoken = performance.now();
+  $("summary").textContent = text;
 }
 
 function settingLabel(s) {
@@ -220,6 +243,7 @@ function fillSettings(settings) {
       Object.assign(input, { type: "range", id: "set-" + s.key, min: s.lo, max: s.hi, step: s.step, value: s.value });
       const out = document.createElement("output");
       out.id = "out-" + s.key;
+      out.setAttribute("aria-live", "off");  // the slider itself says its value; an <output> would speak every change
       input.addEventListener("input", () => { out.textContent = Number(input.value).toFixed(1); send({ t: "set", key: s.key, value: Number(input.value) }); });
       row.append(label, input, out);
       return row;
@@ -285,7 +309,17 @@ function setupPicture() {
 function setupControls() {
   $("pause").addEventListener("click", () => send({ t: "action", name: paused ? "play" : "pause" }));
   for (const name of ["step", "reset", "undo"]) $(name).addEventListener("click", () => send({ t: "action", name }));
-  $("scene").addEventListener("change", () => send({ t: "scene", name: $("scene").value }));
+  // the scene picker opens a scene when it is confirmed: picked with the mouse, or Enter after the arrows (an
+  // arrow key alone, which browsers report as a change, only moves through the list)
+  let byKeys = false;
+  const openPicked = () => { if ($("scene").value !== currentScene) send({ t: "scene", name: $("scene").value }); };
+  $("scene").addEventListener("keydown", (e) => {
+    if (e.key === "Enter") { byKeys = false; openPicked(); e.preventDefault(); }
+    else if (!["Tab", "Shift"].includes(e.key)) byKeys = true;
+  });
+  $("scene").addEventListener("pointerdown", () => { byKeys = false; });
+  $("scene").addEventListener("change", () => { if (byKeys) say(t("scene_confirm")); else openPicked(); });
+  $("describe").addEventListener("click", () => { if (lastSummary) speak(lastSummary); });
   $("tool").addEventListener("change", () => { $("material-row").hidden = $("tool").value !== "spawn"; });
   $("lang").addEventListener("change", () => setLanguage($("lang").value));
   $("brush").addEventListener("input", () => { $("brush-value").textContent = $("brush").value; });
