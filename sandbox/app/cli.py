@@ -423,7 +423,7 @@ def cmd_serve(args) -> int:
         raise SandboxError(f"--max-fps: expected 1 to 60, got {args.max_fps:g}")
     for option, value in (("--token", args.token), ("--teacher-token", args.teacher_token)):
         if value is not None and (len(value) < 8 or not re.fullmatch(r"[A-Za-z0-9_-]+", value)):
-            raise SandboxError(f"{option}: expected at least 8 letters, digits, '-' or '_'")
+            raise SandboxError(f"{option}: expected at least 8 characters, each a letter, a digit, '-' or '_'")
     if args.token is not None and args.token == args.teacher_token:
         raise SandboxError("--teacher-token: the same as --token; expected a secret of the teacher's own")
     try:
