@@ -32,6 +32,17 @@ class ProbeReading:
             parts += [f"{self.temperature:.1f} C", f"{100 * self.melt_fraction:.0f}% molten"]
         return ", ".join(parts + [f"speed {self.speed:.3g} /s"])
 
+    def fields(self) -> dict:
+        """The reading as values for a page to put in its own words: material and phase names, temperature
+        (degrees, rounded to 0.1), melt percent and speed (3 significant digits); None where there is no heat."""
+        return {
+            "material": self.material,
+            "phase": self.phase,
+            "temperature": None if self.temperature is None else round(self.temperature, 1),
+            "melt": None if self.melt_fraction is None else round(100 * self.melt_fraction),
+            "speed": float(f"{self.speed:.3g}"),
+        }
+
 
 def particle_at(sim, point, reach: float | None = None) -> int | None:
     """2D (or 3D with a world point): the particle whose centre is nearest `point` (length units, (D,)) within

@@ -397,11 +397,13 @@ def make_app(classroom: Classroom):
                 if not limit.allow():
                     if handle.last_seen - warned > WARN_SECONDS:  # said once a burst, not once a message
                         warned = handle.last_seen
-                        await websocket.send_text(json.dumps({"t": "error", "text": "too many messages: slow down"}))
+                        slow = {"t": "error", "key": "too_many", "text": "too many messages: slow down"}
+                        await websocket.send_text(json.dumps(slow))
                     continue
                 text = received.get("text")
                 if text is None:
-                    await websocket.send_text(json.dumps({"t": "error", "text": "expected text (JSON), not bytes"}))
+                    said = {"t": "error", "key": "not_text", "text": "expected text (JSON), not bytes"}
+                    await websocket.send_text(json.dumps(said))
                     continue
                 try:
                     message = parse(text, classroom.scenes)

@@ -13,7 +13,7 @@ MAX_RATE = 120.0  # messages per second a tab may send (a pointer stroke sends ~
 BURST = 240.0  # messages a tab may send at once before the rate applies
 ACTIONS = ("pause", "play", "step", "reset", "undo")
 TOOLS = ("heat", "cool", "drag", "attract", "repel", "impulse", "erase", "spawn")
-LANGUAGES = ("en", "fr")
+LANGUAGES = ("en", "fr", "ar")
 
 
 class ProtocolError(ValueError):

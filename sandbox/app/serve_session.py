@@ -10,6 +10,7 @@ session runs in slow motion rather than dropping pictures.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import os
@@ -58,14 +59,19 @@ class Session:
     def load(self, scene: str) -> None:
         """Open the shipped scene `scene` as the window's scene picker does (Taichi restarted, so switching scenes
         frees the last one's fields), with this session's own renderer at its picture size."""
+        from ..render.overlays import Overlays
         from ..render.raster import Renderer
         from .history import UndoRing
         from .tools import Tools
         from .window import open_scene
 
         self.sim = open_scene(scene)
-        self.renderer = Renderer(
-            self.sim.model, self.sim.state, self.width, self.height, self.sim.scene.render, output="picture"
+        # the picture carries no words: the page shows the title, clock, legend and chart itself, in its language
+        words_off = dataclasses.replace(self.sim.scene.render, title=False, clock=False, legend=False, chart=[])
+        self.renderer = Renderer(self.sim.model, self.sim.state, self.width, self.height, words_off, output="picture")
+        # the page's legend: what the scene's own settings would draw (the picture draws none)
+        self.legend_source = Overlays(
+            self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
         self.sim.state.carry(self.renderer.tails)
         self.tools = Tools(self.sim)
@@ -234,7 +240,7 @@ class Session:
     def legend(self) -> dict:
         """What the picture's colours mean, for the page's own legend: a colour bar (its range, quantity, unit and
         16 colours) or swatches (label, colour); {} where the scene shows none."""
-        overlays = self.renderer.overlays
+        overlays = self.legend_source
         if overlays.kind == "bar":
             lo, hi, quantity, unit = overlays.scale()
             return {
@@ -250,7 +256,7 @@ class Session:
             return {"kind": "swatches", "labels": labels, "colors": hex_colors(c for _, c in overlays.entries)}
         return {}
 
-    def probe(self) -> str | None:
+    def probe(self) -> dict | None:
         from .probe import particle_at, probe
 
         if self.pointer is None:
@@ -259,7 +265,7 @@ class Session:
         if point is None:
             return None
         i = particle_at(self.sim, point)
-        return None if i is None else probe(self.sim, i).text()
+        return None if i is None else probe(self.sim, i).fields()
 
     @staticmethod
     def jpeg(picture, quality: int) -> bytes:

@@ -25,22 +25,51 @@ function t(key, values) {
   return text;
 }
 
+// a scene's, material's or phase's name in the page's language (the catalogue's "scene_NAME" ...), else the name
+function named(kind, name) { return words[`${kind}_${name}`] ?? String(name).replaceAll("_", " "); }
+
+const LANGUAGES = ["en", "fr", "ar"];
+const RIGHT_TO_LEFT = ["ar"];
+let lessons = {};  // scene -> {happens, explore, physics} in the page's language (en: the scene's own words)
+let lessonOf = {};  // the scene's own lesson, as the server sent it
+
 async function setLanguage(lang) {
-  const response = await fetch(`static/i18n/${lang}.json${token ? "?token=" + token : ""}`);
-  words = await response.json();
+  const query = token ? "?token=" + token : "";
+  words = await (await fetch(`static/i18n/${lang}.json${query}`)).json();
+  lessons = lang === "en" ? {} : await (await fetch(`static/i18n/lessons.${lang}.json${query}`)).json();
   document.documentElement.lang = lang;
+  document.documentElement.dir = RIGHT_TO_LEFT.includes(lang) ? "rtl" : "ltr";  // the layout mirrored
   localStorage.setItem("sandbox-lang", lang);
   $("lang").value = lang;
   for (const el of document.querySelectorAll("[data-i18n]")) el.textContent = t(el.dataset.i18n);
+  for (const el of document.querySelectorAll("[data-i18n-label]:not(canvas)")) el.ariaLabel = t(el.dataset.i18nLabel);
   $("pause").textContent = t(paused ? "play" : "pause");
   fillTools();
   settingKeys = "";  // relabel the sliders
+  for (const option of $("scene").options) option.textContent = named("scene", option.value);
+  for (const option of $("material").options) option.textContent = named("material", option.value);
+  showLesson();
+  $("legend").dataset.key = "";  // the legend's words again, in this language
+}
+
+function showLesson() {
+  const lesson = lessons[currentScene] || lessonOf;
+  for (const part of ["happens", "explore", "physics"]) $(part).textContent = lesson[part] || "";
+  $("lesson-box").hidden = !lesson.happens;
+}
+
+function probeText(p) {
+  if (!p) return "-";
+  const parts = [named("material", p.material), named("phase", p.phase)];
+  if (p.temperature !== null) parts.push(t("probe_heat", { temperature: p.temperature.toFixed(1), melt: p.melt }));
+  parts.push(t("probe_speed", { speed: p.speed }));
+  return parts.join(t("list_separator"));
 }
 
 function chooseLanguage() {
   const asked = params.get("lang") || localStorage.getItem("sandbox-lang") || navigator.language || "en";
   const lang = asked.slice(0, 2).toLowerCase();
-  return ["en", "fr"].includes(lang) ? lang : "en";
+  return LANGUAGES.includes(lang) ? lang : "en";
 }
 
 function say(text) { $("status").textContent = text; }
@@ -98,12 +127,12 @@ function onText(msg) {
 function onScene(msg) {
   $("scene").value = msg.scene;
   currentScene = msg.scene;
-  for (const part of ["happens", "explore", "physics"]) $(part).textContent = (msg.lesson || {})[part] || "";
-  $("lesson-box").hidden = !msg.lesson || !msg.lesson.happens;
+  lessonOf = msg.lesson || {};
+  showLesson();
   tools = msg.tools || [];
   history.length = 0;
   fillTools(msg.tool);
-  $("material").replaceChildren(...(msg.materials || []).map((name) => new Option(name.replaceAll("_", " "), name)));
+  $("material").replaceChildren(...(msg.materials || []).map((name) => new Option(named("material", name), name)));
   settingKeys = "";
 }
 
@@ -119,7 +148,7 @@ function fillTools(start) {
 }
 
 function readoutLabel(r) {
-  return r.key === "temperature_of" ? t("r_temperature_of", { words: r.words }) : t("r_" + r.key);
+  return r.key === "temperature_of" ? t("r_temperature_of", { words: named("body", r.words) }) : t("r_" + r.key);
 }
 
 const history = [];  // [time s, mean temperature °C] for the page's chart
@@ -136,6 +165,7 @@ function showLegend(legend) {
     const bar = document.createElement("span");
     bar.className = "bar";
     bar.style.background = `linear-gradient(to right, ${legend.colors.join(", ")})`;
+    bar.dir = "ltr";  // a colour scale runs from low to high left to right in every language
     const ends = document.createElement("span");
     ends.textContent = `${legend.lo} … ${legend.hi}`;
     parts.push(caption, bar, ends);
@@ -145,7 +175,7 @@ function showLegend(legend) {
       const swatch = document.createElement("span");
       swatch.className = "swatch";
       swatch.style.background = legend.colors[k];
-      item.append(swatch, label);
+      item.append(swatch, words["material_" + label] ?? named("phase", label));
       parts.push(item);
     });
   }
@@ -203,7 +233,7 @@ function onInfo(msg) {
       rows.push(dt, dd);
     }
     $("readouts").replaceChildren(...rows);
-    $("probe").textContent = msg.probe || "-";
+    $("probe").textContent = probeText(msg.probe);
     drawChart();
   }
   const summary = t(msg.summary.key, { ...msg.summary, trend: t("trend_" + (msg.summary.trend || "steady")) });
@@ -226,7 +256,7 @@ function speak(text) {
 }
 
 function settingLabel(s) {
-  return (s.key.startsWith("source") ? t("s_source", { words: s.words }) : t("s_" + s.key)) + (s.unit ? ` (${s.unit.replace(/^C$/, "°C")})` : "");
+  return (s.key.startsWith("source") ? t("s_source", { words: named("source", s.words) }) : t("s_" + s.key)) + (s.unit ? ` (${s.unit.replace(/^C$/, "°C")})` : "");
 }
 
 function fillSettings(settings) {
@@ -344,7 +374,7 @@ async function start() {
   const response = await fetch(`api/scenes${token ? "?token=" + token : ""}`);
   const { scenes, default: first } = await response.json();
   const wanted = params.get("scene");
-  $("scene").replaceChildren(...scenes.map((name) => new Option(name.replaceAll("_", " "), name)));
+  $("scene").replaceChildren(...scenes.map((name) => new Option(named("scene", name), name)));
   $("scene").value = scenes.includes(wanted) ? wanted : first;
   setupControls();
   setupPicture();
