@@ -519,3 +519,16 @@ def test_an_arabic_page_is_mirrored_and_shows_no_english(classroom):
         assert not leaked, leaked
     finally:
         page.close()
+
+
+def test_the_teachers_page_follows_lang(classroom):
+    """The teacher's view took the browser's language only; ?lang= now chooses it, as on the students' page."""
+    browser, address, teacher = classroom
+    page = browser.new_page()
+    try:
+        page.goto(address.rstrip("/") + f"/teacher?{teacher}&lang=ar")
+        page.wait_for_function("document.documentElement.dir === 'rtl'", timeout=15000)
+        assert page.inner_text("h1") == "واجهة المعلم"
+        assert "مكعب ثلج" in page.inner_text("#scene")
+    finally:
+        page.close()

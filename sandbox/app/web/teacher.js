@@ -11,9 +11,15 @@ const q = (extra) => {
 const $ = (id) => document.getElementById(id);
 let words = {};
 
+const named = (kind, name) => words[`${kind}_${name}`] ?? name.replaceAll("_", " ");
+
 async function language() {
-  const lang = (navigator.language || "en").slice(0, 2);
-  words = await (await fetch(`static/i18n/${["en", "fr"].includes(lang) ? lang : "en"}.json${q()}`)).json();
+  // ?lang= first (as the students' page), then the language the page last used, then the browser's
+  const asked = new URLSearchParams(location.search).get("lang") || localStorage.getItem("sandbox-lang") || navigator.language || "en";
+  const lang = ["en", "fr", "ar"].includes(asked.slice(0, 2)) ? asked.slice(0, 2) : "en";
+  words = await (await fetch(`static/i18n/${lang}.json${q()}`)).json();
+  document.documentElement.lang = lang;
+  document.documentElement.dir = lang === "ar" ? "rtl" : "ltr";
   for (const el of document.querySelectorAll("[data-i18n]")) el.textContent = words[el.dataset.i18n] || el.textContent;
 }
 
@@ -28,9 +34,9 @@ async function refresh() {
     const tr = document.createElement("tr");
     const img = document.createElement("img");
     img.src = `api/thumb${q({ sid: s.sid, n: Date.now() })}`;
-    img.alt = `${s.scene}, t = ${s.time.toFixed(1)} s`;
+    img.alt = `${named("scene", s.scene)}, t = ${s.time.toFixed(1)} s`;
     img.width = 240; img.height = 135;
-    for (const text of [s.sid, s.scene.replaceAll("_", " "), s.time.toFixed(1)]) {
+    for (const text of [s.sid, named("scene", s.scene), s.time.toFixed(1)]) {
       const td = document.createElement("td"); td.textContent = text; tr.append(td);
     }
     const td = document.createElement("td"); td.append(img); tr.append(td);
@@ -43,7 +49,7 @@ async function refresh() {
 async function start() {
   await language();
   const { scenes } = await (await fetch(`api/scenes${q()}`)).json();
-  $("scene").replaceChildren(...scenes.map((name) => new Option(name.replaceAll("_", " "), name)));
+  $("scene").replaceChildren(...scenes.map((name) => new Option(named("scene", name), name)));
   $("pause-all").onclick = () => broadcast({ t: "action", name: "pause" });
   $("play-all").onclick = () => broadcast({ t: "action", name: "play" });
   $("push-scene").onclick = () => broadcast({ t: "scene", name: $("scene").value });
