@@ -494,7 +494,7 @@ def test_every_name_and_lesson_a_page_shows_is_translated():
                 english = page_lesson(scene.lesson)
                 ours = lessons[path.stem]
                 assert all(ours[part] and ours[part] != english[part] for part in english), (lang, path.stem)
-        assert all(f"phase_{p}" in words for p in ("solid", "melting", "liquid", "fluid", "gas", "melt"))
+        assert all(f"phase_{p}" in words for p in ("solid", "melting", "liquid", "fluid", "gas", "melt", "vapour"))
 
 
 def test_an_arabic_page_is_mirrored_and_shows_no_english(classroom):

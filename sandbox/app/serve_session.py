@@ -66,8 +66,9 @@ class Session:
         from .window import open_scene
 
         self.sim = open_scene(scene)
-        # the picture carries no words: the page shows the title, clock, legend and chart itself, in its language
-        words_off = dataclasses.replace(self.sim.scene.render, title=False, clock=False, legend=False, chart=[])
+        # the page shows the title, clock and legend itself, in its language; the picture keeps the scene's charts
+        # (the phase diagram among them: the page draws only the temperature's)
+        words_off = dataclasses.replace(self.sim.scene.render, title=False, clock=False, legend=False)
         self.renderer = Renderer(self.sim.model, self.sim.state, self.width, self.height, words_off, output="picture")
         # the page's legend: what the scene's own settings would draw (the picture draws none)
         self.legend_source = Overlays(

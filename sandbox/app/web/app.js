@@ -58,6 +58,16 @@ function showLesson() {
   $("lesson-box").hidden = !lesson.happens;
 }
 
+// a swatch's label: a material ("candle wax"), or a material and its phase ("water solid", "wax melt")
+function swatchLabel(label) {
+  const words_ = label.split(" ");
+  const phase = words_[words_.length - 1];
+  if (words_.length > 1 && ["solid", "melt", "vapour"].includes(phase)) {
+    return `${named("material", words_.slice(0, -1).join("_"))} ${named("phase", phase)}`;
+  }
+  return named("material", label.replaceAll(" ", "_"));
+}
+
 function probeText(p) {
   if (!p) return "-";
   const parts = [named("material", p.material), named("phase", p.phase)];
@@ -175,7 +185,7 @@ function showLegend(legend) {
       const swatch = document.createElement("span");
       swatch.className = "swatch";
       swatch.style.background = legend.colors[k];
-      item.append(swatch, words["material_" + label] ?? named("phase", label));
+      item.append(swatch, swatchLabel(label));
       parts.push(item);
     });
   }
