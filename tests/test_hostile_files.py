@@ -280,7 +280,9 @@ def test_a_png_folder_holds_only_this_runs_frames(tmp_path, capsys):
     assert "removed 19 frame file(s) of an earlier run" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("name", ["it's.mp4", "-lead.mp4", "a:b.mp4", "concat:x.mp4", "x" * 250 + ".mp4"])
+@pytest.mark.parametrize(
+    "name", ["-it's a:b.mp4", "concat:" + "x" * 243 + ".mp4"], ids=["quote-colon-dash", "concat-long"]
+)
 def test_output_names_that_ffmpeg_could_misread_are_written_and_resumed(tmp_path, capsys, name):
     """Quotes, a leading dash, colons and the longest name the file system takes: written in pieces and joined."""
     outputs = ["--checkpoint", "c.npz", f"--out={name}"]  # `--out=-lead.mp4`: as a shell user writes it

@@ -14,7 +14,8 @@ from sandbox.app.window_state import first_tool
 from sandbox.config.resources import shipped_scenes
 from sandbox.config.scene import load_scene
 
-LESSONS = {p.stem: load_scene(p).lesson for p in shipped_scenes() if load_scene(p).lesson.happens}
+SCENES = {p.stem: load_scene(p) for p in shipped_scenes()}
+LESSONS = {name: scene.lesson for name, scene in SCENES.items() if scene.lesson.happens}
 WINDOW_ONLY = re.compile(r"--[a-z]|\bTab\b|Shift|right button|\b[Pp]ress (?:space|[a-z]\b)|\bkeys?\b|\borbit")
 PICKED = re.compile(r"\b(add particles|[a-z]+) tool(?: \(|, )picked at the start", re.IGNORECASE)
 PAGE_NAMES = {"add particles": "spawn"}  # the page's words for a tool, where they are not its name
@@ -35,11 +36,19 @@ def test_the_pages_lesson_names_only_the_pages_controls(name):
     sorted(n for n, lesson in LESSONS.items() if PICKED.search(lesson.explore + " " + page_lesson(lesson)["explore"])),
 )
 def test_the_tool_a_lesson_says_is_picked_is_the_one_picked(name):
-    sim = sandbox.load(name, arch="cpu")
+    scene = SCENES[name]
     lesson = LESSONS[name]
     for text in (lesson.explore, page_lesson(lesson)["explore"]):
         for said in PICKED.findall(text):
-            assert PAGE_NAMES.get(said.lower(), said.lower()) == first_tool(sim), (name, text)
+            assert PAGE_NAMES.get(said.lower(), said.lower()) == first_tool(scene), (name, text)
+
+
+def test_first_tool_is_the_windows_and_the_simulations_own():
+    """The scene-level rule agrees with what a built simulation offers (its tools, its particles)."""
+    from sandbox.app.window_state import tools_for
+
+    sim = sandbox.load("sandbox", arch="cpu")
+    assert sim.model.built.count == 0 and first_tool(sim.scene) == "spawn" and "spawn" in tools_for(sim)
 
 
 def test_the_summarys_trend_follows_a_climbing_temperature():

@@ -72,7 +72,7 @@ def test_any_value_of_any_key_is_a_scene_or_one_line_naming_the_key(scene, key, 
 
 
 @settings(
-    max_examples=600 if CAMPAIGN else 6,
+    max_examples=600 if CAMPAIGN else 3,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow],
 )

@@ -360,17 +360,17 @@ def test_the_page_draws_its_own_colour_bar_and_a_chart_with_axes(shared):
     assert points >= 2 and labels[-1].endswith(" s") and len(labels) == 4
 
 
-@pytest.mark.slow  # a server with four session processes
+@pytest.mark.slow  # a server with three session processes
 def test_a_class_opening_the_link_together_gets_pictures_at_once_and_a_full_class_says_so():
-    """Four tabs connect at the same moment to a server whose four sessions are warm: each draws its first picture
-    within seconds (they stayed black for minutes), and with them open a fifth is told the class is full (never
+    """Three tabs connect at the same moment to a server whose three sessions are warm: each draws its first picture
+    within seconds (they stayed black for minutes), and with them open a fourth is told the class is full (never
     "Ready." without a picture, never a silent drop)."""
     import asyncio
     import concurrent.futures
 
     import websockets
 
-    proc, address = start_server("lj_box", "--max-sessions", "4", "--warm", "4", "--max-fps", "5")
+    proc, address = start_server("lj_box", "--max-sessions", "3", "--warm", "3", "--max-fps", "5")
     url = address.replace("http://", "ws://").rstrip("/") + "/ws"
 
     async def class_of(n: int):
@@ -399,11 +399,11 @@ def test_a_class_opening_the_link_together_gets_pictures_at_once_and_a_full_clas
         deadline = time.monotonic() + 120  # the pool starts one session at a time: wait until all four are warm
         sessions = address.rstrip("/") + f"/api/sessions?{proc.teacher_query}"
         while time.monotonic() < deadline and proc.poll() is None:
-            if json.loads(urllib.request.urlopen(sessions, timeout=5).read())["warm"] >= 4:
+            if json.loads(urllib.request.urlopen(sessions, timeout=5).read())["warm"] >= 3:
                 break
             time.sleep(0.5)
         with concurrent.futures.ThreadPoolExecutor(1) as pool:  # Playwright's sync API holds this thread's loop
-            tabs, refused = pool.submit(asyncio.run, class_of(4)).result(180)
+            tabs, refused = pool.submit(asyncio.run, class_of(3)).result(180)
         waits = sorted(wait for wait, _ in tabs)
         assert waits[-1] < 5.0, waits  # every tab's first picture within seconds of opening
         assert all(not any(m.get("key") == "starting" for m in said) for _, said in tabs)  # all were warm
@@ -427,7 +427,7 @@ def test_the_page_starts_with_the_tool_and_the_lesson_of_its_own_controls(classr
 
 
 def test_the_page_is_calm_for_screen_readers_and_passes_axe(classroom):
-    """In 10 s the live summary speaks at most a few times (it spoke on every change of a number); the readouts and
+    """In 6 s the live summary speaks at most twice (it spoke on every change of a number); the readouts and
     the sliders' outputs are not live regions; the keyboard's pointer is drawn on the picture; an arrow key in the
     scene picker does not open a scene (Enter does); axe-core finds no serious or critical violation."""
     from axe_playwright_python.sync_playwright import Axe
@@ -439,8 +439,8 @@ def test_the_page_is_calm_for_screen_readers_and_passes_axe(classroom):
             """() => { window.spoken = 0; new MutationObserver(() => window.spoken++).observe(
                 document.getElementById('summary'), {childList: true, characterData: true, subtree: true}); }"""
         )
-        time.sleep(10)
-        assert page.evaluate("window.spoken") <= 3
+        time.sleep(6)
+        assert page.evaluate("window.spoken") <= 2
         assert page.get_attribute("#readouts", "aria-live") is None
         assert all(live == "off" for live in page.eval_on_selector_all("output", "els => els.map(e => e.ariaLive)"))
         page.click("#describe")

@@ -101,7 +101,7 @@ class Session:
         """The tool the page starts with: the window's (window_state.first_tool), where the page has tools."""
         from .window_state import first_tool
 
-        return first_tool(self.sim) if self.tool_names() else "none"
+        return first_tool(self.sim.scene) if self.tool_names() else "none"
 
     # ------------------------------------------------------------------ the pipe
     def tell(self, message: dict) -> None:

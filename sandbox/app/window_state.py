@@ -166,11 +166,11 @@ def tools_for(sim) -> list[str]:
     return [t for t in TOOLS if sim.terms.heat is not None or t not in ("heat", "cool")]
 
 
-def first_tool(sim) -> str:
-    """The tool a scene starts with, in the window and the page alike: spawning in an empty scene (nothing to heat
-    or push), else the first of tools_for(sim) ("" where there is none)."""
-    tools = tools_for(sim)
-    empty = sim.model.built.count == 0 and not sim.scene.emitters
+def first_tool(scene) -> str:
+    """The tool a scene starts with, in the window and the page alike: spawning in an empty scene (no bodies or
+    emitters: nothing to heat or push), else the first tool it offers (the heat tools only with heat)."""
+    tools = [t for t in TOOLS if scene.heat is not None or t not in ("heat", "cool")]
+    empty = not scene.bodies and not scene.emitters
     return "spawn" if empty and "spawn" in tools else (tools[0] if tools else "")
 
 
@@ -191,7 +191,7 @@ def make_state(sim, substeps: int | None) -> WindowState:
         color_by=cfg.color_by if cfg.color_by in modes else modes[0],
         motion_blur=cfg.motion_blur,
         draw_springs=cfg.draw_springs,
-        tool=first_tool(sim),
+        tool=first_tool(sim.scene),
     )
 
 
