@@ -228,8 +228,7 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
     }
     bonds = None
     if sim.state.springs is not None:
-        row = {int(i): k for k, i in enumerate(table["id"])}
-        bonds = np.array([[row[int(a)], row[int(b)]] for a, b in spring_pairs(sim)], dtype=np.int64).reshape(-1, 2)
+        bonds = np.searchsorted(table["id"], spring_pairs(sim)).astype(np.int64).reshape(-1, 2)  # ids -> rows
     gravity = np.abs(np.asarray(sim.scene.world.gravity or (0.0,) * dim))
     up = "Z" if dim == 3 and gravity.size == 3 and gravity.argmax() == 2 and gravity.max() > 0 else "Y"
     shape = None

@@ -21,7 +21,7 @@ from pathlib import Path
 from ..errors import OutputError, SandboxError
 from ..files.appending import AppendFile
 from ..files.cache_sequence import CacheSequence, index_path
-from ..files.claim import Claim
+from ..files.claim import RESTART_HINT, Claim
 from ..files.persist import save_state
 from ..measure.stats import stat_values
 from ..render.segments import PngFolder, SegmentedVideo
@@ -31,7 +31,6 @@ from ..simulation import STAT_COLUMNS, Stats
 
 KIND_WORDS = {"mp4": "an MP4 video", "gif": "a GIF", "png-folder": "a folder of PNG frames", "text": "a text file"}
 KIND_WORDS.update({f"cache-{k}": f"a {k.upper()} particle cache" for k in ("usd", "vtk", "ply")})
-RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
 
 
 def stats_row(frame: int, s: Stats, step_seconds: float) -> dict:

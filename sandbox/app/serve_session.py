@@ -62,6 +62,7 @@ class Session:
         from ..render.overlays import Overlays
         from ..render.raster import Renderer
         from .history import UndoRing
+        from .panel import Trend
         from .tools import Tools
         from .window import open_scene
 
@@ -77,7 +78,7 @@ class Session:
         self.sim.state.carry(self.renderer.tails)
         self.tools = Tools(self.sim)
         self.history = UndoRing()
-        self.trend = panel_trend()  # the mean temperature's last seconds, for the summary's trend
+        self.trend = Trend(SUMMARY_EVERY)  # the mean temperature's last seconds, for the summary's trend
         self.tell(
             {
                 "t": "scene",
@@ -298,12 +299,6 @@ class Session:
             self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
         finally:
             path.unlink(missing_ok=True)
-
-
-def panel_trend():
-    from .panel import Trend
-
-    return Trend(SUMMARY_EVERY)
 
 
 def page_lesson(lesson) -> dict:

@@ -14,16 +14,14 @@ of every file's SHA-256, which a resume checks before it numbers on.
 from __future__ import annotations
 
 import hashlib
-import os
 import re
 from pathlib import Path
 
-from ..errors import OutputError, SandboxError
+from ..errors import SandboxError
 from .cache_formats import CacheFrame, ply_bytes, pvd_text, surface_ply_bytes, surface_vtp_bytes, vtp_bytes
-from .claim import Claim, create_exclusive, partial_name, remove_numbered, write_whole
+from .claim import RESTART_HINT, Claim, digest_of, remove_numbered, write_whole
 
 CACHE_SUFFIXES = (".usd", ".usda", ".usdc", ".vtp", ".pvd", ".ply")
-RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
 
 
 def cache_kind(path: Path) -> str:
@@ -40,10 +38,6 @@ def index_path(path: Path) -> Path:
     """The file the claim holds and readers open: the .pvd of a VTK cache, the stage of a USD cache, the named path of
     a PLY cache (a PLY sequence has no index: the name is claimed for its frames)."""
     return path.with_suffix(".pvd") if cache_kind(path) == "vtk" else path
-
-
-def _digest(items: list[str]) -> str:
-    return hashlib.sha256("\n".join(items).encode()).hexdigest()
 
 
 class CacheSequence:
@@ -92,7 +86,7 @@ class CacheSequence:
                     hashes.append(hashlib.sha256(path.read_bytes()).hexdigest())
                 except OSError:
                     hashes.append("missing")
-        if _digest(hashes) != record["digest"]:
+        if digest_of(hashes) != record["digest"]:
             self.frames = []
             raise SandboxError(
                 f"--cache {self.named}: does not hold the {len(frames)} frames the checkpoint {checkpoint} was written "
@@ -133,55 +127,32 @@ class CacheSequence:
         self.frames.append([frame.frame, frame.time, surface])
 
     def _publish(self, target: Path, data) -> None:
-        """Write `target` under a partial name (bytes, or a function that writes the partial path), hash it, and
-        give it its name."""
-        if isinstance(data, bytes):
-            write_whole(target, data, "--cache", self.claim.token)
-            self.hashes.append(hashlib.sha256(data).hexdigest())
-            return
-        partial = partial_name(target, token=self.claim.token)
-        try:
-            os.close(create_exclusive(partial, "--cache"))
-            data(partial)
-            digest = hashlib.sha256(partial.read_bytes()).hexdigest()
-            os.replace(partial, target)
-        except OSError as exc:
-            partial.unlink(missing_ok=True)
-            raise OutputError(target, exc.strerror or type(exc).__name__) from exc
-        self.hashes.append(digest)
+        """Write `target` whole (bytes, or a function that writes the path it is given) and keep its digest."""
+        write_whole(target, data, "--cache", self.claim.token)
+        self.hashes.append(hashlib.sha256(data if isinstance(data, bytes) else target.read_bytes()).hexdigest())
 
     def _write_index(self) -> None:
+        """The .pvd collection or the USD stage over the frames written so far (a PLY sequence has none)."""
         if self.format == "ply":
             return
-        index = self.claim.path
         if self.format == "vtk":
             entries = []
             for frame, time, surface in self.frames:
                 entries.append((time, 0, self.frame_file(frame).name))
                 if surface:
                     entries.append((time, 1, self.frame_file(frame, True).name))
-            data = pvd_text(entries).encode()
-            self._publish_index(index, lambda partial: partial.write_bytes(data))
+            write_whole(self.claim.path, pvd_text(entries).encode(), "--cache", self.claim.token)
         else:
             from .cache_usd import write_stage
 
             clips = [(frame, self.frame_file(frame).name) for frame, _, _ in self.frames]
-            self._publish_index(index, lambda partial: write_stage(partial, clips, self.fps, self.up, self.surface))
-
-    def _publish_index(self, index: Path, write) -> None:
-        partial = self.claim.partial()
-        try:
-            os.close(create_exclusive(partial, "--cache"))
-            write(partial)
-            os.replace(partial, index)
-        except OSError as exc:
-            partial.unlink(missing_ok=True)
-            raise OutputError(index, exc.strerror or type(exc).__name__) from exc
+            stage = lambda path: write_stage(path, clips, self.fps, self.up, self.surface)  # noqa: E731
+            write_whole(self.claim.path, stage, "--cache", self.claim.token)
 
     def mark(self) -> dict:
         """Rewrite the index; the record a checkpoint keeps."""
         self._write_index()
-        return {"kind": self.kind, "path": str(self.named), "written": self.frames, "digest": _digest(self.hashes)}
+        return {"kind": self.kind, "path": str(self.named), "written": self.frames, "digest": digest_of(self.hashes)}
 
     # ------------------------------------------------------------------ ending
     def publish(self) -> None:

@@ -24,6 +24,7 @@ import os
 import re
 import secrets
 import stat
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import OutputError, SandboxError
@@ -179,13 +180,27 @@ class Claim:
         return sorted(found)
 
 
-def write_whole(target: Path, data: bytes, option: str, token: str = RUN_TOKEN) -> None:
-    """Write `data` to `target` as a whole: under a new partial name (never through a link), then renamed. An
-    OutputError naming `target` (the partial removed) when the write fails."""
+RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
+
+
+def digest_of(items: list[str]) -> str:
+    """One SHA-256 over a list of digests (a checkpoint's record of many frames or files)."""
+    return hashlib.sha256("\n".join(items).encode()).hexdigest()
+
+
+def write_whole(target: Path, data: bytes | Callable[[Path], None], option: str, token: str = RUN_TOKEN) -> None:
+    """Write `target` as a whole: `data` (bytes, or a function that writes the path it is given) under a new partial
+    name (never through a link), then renamed. An OutputError naming `target` (the partial removed) when the write
+    fails."""
     partial = partial_name(target, token=token)
     try:
-        with os.fdopen(create_exclusive(partial, option), "wb") as out:
-            out.write(data)
+        fd = create_exclusive(partial, option)
+        if isinstance(data, bytes):
+            with os.fdopen(fd, "wb") as out:
+                out.write(data)
+        else:
+            os.close(fd)
+            data(partial)
         os.replace(partial, target)
     except OSError as exc:
         partial.unlink(missing_ok=True)

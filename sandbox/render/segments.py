@@ -15,14 +15,8 @@ import numpy as np
 from PIL import Image
 
 from ..errors import OutputError, SandboxError
-from ..files.claim import Claim, create_exclusive, own_partial, remove_numbered, write_whole
+from ..files.claim import RESTART_HINT, Claim, create_exclusive, digest_of, own_partial, remove_numbered, write_whole
 from .encoder import Encoder, cut, frame_digests, join
-
-RESTART_HINT = "expected the files that run wrote, or --restart-outputs to start the outputs over"
-
-
-def _digest(items: list[str]) -> str:
-    return hashlib.sha256("\n".join(items).encode()).hexdigest()
 
 
 def _settings(words: str, width: int, height: int, fps: float, every: int) -> str:
@@ -80,7 +74,7 @@ class SegmentedVideo:
                 f"{RESTART_HINT}"
             )
         digests = [d for piece in pieces for d in frame_digests(piece)]
-        if len(digests) != frames or (exact and _digest(digests) != record["digest"]):
+        if len(digests) != frames or (exact and digest_of(digests) != record["digest"]):
             raise SandboxError(
                 f"{self.claim.option} {path}: does not hold the {frames} frames the checkpoint {checkpoint} was "
                 f"written with; {RESTART_HINT}"
@@ -137,7 +131,7 @@ class SegmentedVideo:
             "pieces": [p.name for p in self.pieces],
             "frames": self.frames,
             "offered": self.offered,
-            "digest": _digest(self.digests),
+            "digest": digest_of(self.digests),
             "size": [self.width, self.height],
             "fps": float(self.fps),
             "every": self.every,
@@ -194,7 +188,7 @@ class PngFolder:
             raise SandboxError(
                 f"{self.claim.option} {self.claim.path}: the checkpoint {checkpoint} continues frames of "
                 f"{'x'.join(map(str, record['size']))}, this run draws {self.width}x{self.height}; expected the same "
-                f"--width and --height, or {RESTART_HINT.split(', or ')[1]}"
+                "--width and --height, or --restart-outputs to start the outputs over"
             )
         hashes = []
         for k in range(frames):
@@ -202,7 +196,7 @@ class PngFolder:
                 hashes.append(hashlib.sha256(self._file(k).read_bytes()).hexdigest())
             except OSError:
                 break
-        if len(hashes) != frames or _digest(hashes) != record["digest"]:
+        if len(hashes) != frames or digest_of(hashes) != record["digest"]:
             raise SandboxError(
                 f"{self.claim.option} {self.claim.path}: does not hold the {frames} frames the checkpoint {checkpoint} "
                 f"was written with; {RESTART_HINT}"
@@ -244,7 +238,7 @@ class PngFolder:
             "kind": self.kind,
             "path": str(self.claim.path),
             "frames": self.frames,
-            "digest": _digest(self.hashes),
+            "digest": digest_of(self.hashes),
             "size": [self.width, self.height],
         }
 
