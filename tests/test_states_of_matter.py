@@ -169,9 +169,10 @@ def test_a_heater_set_by_hand_leaves_its_schedule():
 
 def test_the_phase_shares_add_up_with_the_gas_among_the_molten():
     """The panel's solid, liquid and gas shares: the gas is part of the molten share, the three sum to one."""
+    from sandbox.config.quantities import QUANTITIES
     from sandbox.measure.stats import Stats
 
-    stats = Stats(0.0, 0.0, 0.0, 0.0, 0.0, 100.0, 1.0, 0.0, 0, 0.0, 10, gas_fraction=0.25)
+    stats = Stats(**{q.name: 0.0 for q in QUANTITIES} | {"molten_fraction": 1.0, "gas_fraction": 0.25})
     assert stats.phase_shares == (0.0, 0.75, 0.25)
     stats.molten_fraction, stats.gas_fraction = 0.4, 0.0
     assert stats.phase_shares == pytest.approx((0.6, 0.4, 0.0))

@@ -98,29 +98,30 @@ def test_undo_puts_back_the_state_before_each_stroke_and_keeps_memory_bounded():
 
 
 def test_save_and_load_keys_continue_as_the_uninterrupted_run(tmp_path):
-    from sandbox.app.history import UndoRing
-    from sandbox.app.window_state import apply_requests
+    from sandbox.app.controller import Controller
+    from sandbox.app.window_state import apply_requests, make_state
 
-    sim, s, path = _block(), state(), tmp_path / "quick.state.npz"
+    sim, path = _block(), tmp_path / "quick.state.npz"
+    s, control = make_state(sim, None), Controller(sim)
     s.handle_key("o")
-    apply_requests(sim, s, UndoRing(), path)
+    apply_requests(control, s, path)
     assert "press w first" in s.log[-1]
     sim.step(20)
     s.handle_key("w")
-    apply_requests(sim, s, UndoRing(), path)
+    apply_requests(control, s, path)
     assert path.exists() and s.log[-1] == f"saved {path}" and not s.save
     sim.step(40)
     uninterrupted = sim.snapshot()
     sim.step(7)  # wander off, then load back
     s.handle_key("o")
-    apply_requests(sim, s, UndoRing(), path)
+    apply_requests(control, s, path)
     assert s.log[-1].startswith(f"loaded {path}") and sim.step_count == 20
     sim.step(40)
     assert _same(sim.snapshot(), uninterrupted)
     other = Simulation(load_scene(SCENES / "spring_lattice.toml"))
-    kept = other.snapshot()
+    kept, s = other.snapshot(), make_state(other, None)
     s.handle_key("o")
-    apply_requests(other, s, UndoRing(), path)
+    apply_requests(Controller(other), s, path)
     assert "expected one saved from this 'spring_lattice'" in s.log[-1]
     assert _same(other.snapshot(), kept)
 
@@ -470,6 +471,7 @@ class MeasuringGui:
 def test_the_panel_fits_the_window_with_nothing_cut_off():
     """Every shipped scene's panel at 1024 x 768, 1280 x 720 and 1920 x 1080, lesson open or closed, with the
     pair-force sliders and the help shown: its rows fit the window's height and its lines the panel's width."""
+    from sandbox.app.controller import Controller
     from sandbox.app.window_panel import PANEL_WIDTH, draw_panel
     from sandbox.app.window_state import make_state, panel_characters
 
@@ -483,7 +485,7 @@ def test_the_panel_fits_the_window_with_nothing_cut_off():
             state.probe = "wax, 123.4 C, 45% melted, speed 1.23 mm/s, 6 bonds"
             state.log.append("saved out/melting_block.state.npz")
             gui = MeasuringGui()
-            draw_panel(gui, sim, state, stats, 30.0, width)
+            draw_panel(gui, Controller(sim), state, stats, 30.0, width)
             panel = gui.heights[sim.scene.name.replace("_", " ")]
             assert panel <= height, (path.stem, lesson, panel, height)
             assert gui.heights["keys"] <= 0.9 * height

@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import asdict, dataclass
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..measure.units import energy_unit, length_unit, pressure_unit
+from ..config.quantities import BY_NAME
+from ..measure.units import energy_unit, series_words
 
 
 @dataclass(frozen=True)
@@ -34,7 +36,8 @@ class Readout:
 
 @dataclass(frozen=True)
 class Setting:
-    """A slider: `key` names it, `words` in English; its `value` between `lo` and `hi` in `unit`."""
+    """A slider: `key` names it, `words` in English; its `value` between `lo` and `hi` in `unit`; `apply(value)`
+    sets it (clamped to the range by the controller). Declared once, in controller.Controller.settings."""
 
     key: str
     words: str
@@ -43,6 +46,7 @@ class Setting:
     hi: float
     unit: str = ""
     step: float = 1.0
+    apply: Callable[[float], None] | None = field(default=None, compare=False, repr=False)
 
 
 def thermometers(sim) -> list[tuple[str, float]]:
@@ -58,17 +62,28 @@ def thermometers(sim) -> list[tuple[str, float]]:
     return [(names[k], float(sums[k] / counts[k])) for k in range(len(names)) if counts[k]]
 
 
+def measured(key: str, name: str, sim, stats, digits: int = 1) -> Readout:
+    """The panel's row `key` for the declared quantity `name` (config/quantities.py): its words, its value in the
+    scene's units (fractions in percent; temperatures as "C": the window's font has no degree sign)."""
+    q = BY_NAME[name]
+    value = float(getattr(stats, name))
+    unit = series_words(name, sim.material_names, sim.dim)[1] if q.chart else q.unit
+    if unit == "%":
+        value *= 100.0
+    unit = {"°C": "C", "count": "", "energy": energy_unit(sim.material_names)}.get(unit, unit)
+    return Readout(key, q.words, value, unit, digits)
+
+
 def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
     """The panel's measurements of `sim` now (`stats`: its Stats; `fps`: frames drawn per wall second)."""
-    names = sim.material_names
-    out = [Readout("time", "time", stats.time, "s", 2)]
+    out = [measured("time", "time", sim, stats, 2)]
     if fps is not None:
         out.append(Readout("fps", "frames per second", fps, "", 0))
-    out.append(Readout("particles", "particles", stats.particles, "", 0))
+    out.append(measured("particles", "particles", sim, stats, 0))
     if sim.state.springs is not None:
-        out.append(Readout("broken", "broken bonds", stats.broken_springs, "", 0))
+        out.append(measured("broken", "broken_springs", sim, stats, 0))
     if sim.terms.heat is not None:
-        out.append(Readout("temperature", "mean temperature", stats.mean_temperature, "C"))
+        out.append(measured("temperature", "mean_temperature", sim, stats))
         groups = thermometers(sim)
         if len(groups) > 1:  # a temperature per body: a candle's flame and wax are not averaged into one number
             out += [Readout("temperature_of", name.replace("_", " "), t, "C") for name, t in groups[:4]]
@@ -80,58 +95,14 @@ def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
                 Readout("gas", "gas", 100 * gas, "%", 0),
             ]
         else:
-            out.append(Readout("melted", "melted", 100 * stats.molten_fraction, "%", 0))
+            out.append(measured("melted", "molten_fraction", sim, stats, 0))
         if math.isfinite(stats.kinetic_temperature):
-            out.append(Readout("motion", "the motion says", stats.kinetic_temperature, "C", 0))
-    out.append(Readout("energy", "total energy", stats.total_energy, energy_unit(names), 1))
-    out.append(Readout("pressure", "pressure", stats.pressure, pressure_unit(names, sim.dim), 3))
+            out.append(measured("motion", "kinetic_temperature", sim, stats, 0))
+    out.append(measured("energy", "total_energy", sim, stats, 1))
+    out.append(measured("pressure", "pressure", sim, stats, 3))
     if sim.model.domain.wall_area:
-        out.append(
-            Readout("wall_pressure", "pressure on the walls", stats.wall_pressure, pressure_unit(names, sim.dim), 3)
-        )
+        out.append(measured("wall_pressure", "wall_pressure", sim, stats, 3))
     return out
-
-
-def settings(sim) -> list[Setting]:
-    """The sliders a lesson asks students to move: the room's temperature, each heat source's temperature or power
-    (the first two), and gravity (its strength along -y, 2D scenes that have it)."""
-    out = []
-    heat = sim.terms.heat
-    if heat is not None:
-        sources = heat.sources
-        out.append(Setting("air", "air temperature", float(sources.ambient[None]), -50.0, 300.0, "C"))
-        for k, src in enumerate(sources.specs[:2]):
-            if src.mode == "power":
-                top = 2.0 * max([abs(src.power), *map(abs, src.schedule_values)]) or 1.0
-                out.append(Setting(f"source{k}", src.name, sources.value(k), -top, top, "mJ/s", top / 100))
-            else:
-                out.append(Setting(f"source{k}", src.name, sources.value(k), -100.0, 1500.0, "C"))
-    gravity = sim.model.gravity.to_numpy()
-    if sim.dim == 2 and any(sim.scene.world.gravity):
-        top = 4.0 * float(np.linalg.norm(sim.scene.world.gravity))
-        out.append(
-            Setting(
-                "gravity", "gravity", float(-gravity[1]), 0.0, top, f"{length_unit(sim.material_names)}/s^2", top / 100
-            )
-        )
-    return out
-
-
-def apply_setting(sim, key: str, value: float) -> None:
-    """Move the slider `key` (one of settings(sim)'s) to `value`, clamped to its range; ValueError for a key the
-    scene does not offer."""
-    offered = {s.key: s for s in settings(sim)}
-    if key not in offered:
-        raise ValueError(f"this scene has no setting {key!r} (it has: {', '.join(offered) or 'none'})")
-    s = offered[key]
-    value = min(max(float(value), s.lo), s.hi)
-    if key == "air":
-        sim.terms.heat.sources.ambient[None] = value
-    elif key.startswith("source"):
-        sim.terms.heat.sources.hold(int(key[len("source") :]), value)
-    elif key == "gravity":
-        g = sim.model.gravity.to_numpy()
-        sim.model.gravity[None] = [float(g[0]), -value]
 
 
 def summary(sim, stats, previous: float | None) -> dict:
@@ -182,6 +153,7 @@ def as_json(items) -> list[dict]:
     out = []
     for item in items:
         d = asdict(item)
+        d.pop("apply", None)  # what a slider does stays here
         d["value"] = d["value"] if math.isfinite(d["value"]) else None
         out.append(d)
     return out

@@ -25,7 +25,6 @@ MAX_FPS = 30.0  # pictures a second at most (serve --max-fps): more shows a clas
 JPEG_QUALITY = 80
 READOUTS_EVERY = 6  # pictures between the readouts sent with them
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
-SUMMARY_EVERY = 2.0  # seconds of simulated time the summary's trend looks back over
 
 
 def session_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, threads: int = 1) -> None:
@@ -47,9 +46,7 @@ class Session:
         self.interval = 1.0 / max_fps
         self.width, self.height = width, height
         self.credits = FIRST_CREDITS
-        self.paused = False
-        self.single_steps = 0
-        self.stroke: dict | None = None  # the tool stroke in progress: tool, centre (world), radius
+        self.control = None  # the Controller: the simulation's tools, run controls, settings and readouts
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
         self.frames = 0
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
@@ -61,12 +58,12 @@ class Session:
         frees the last one's fields), with this session's own renderer at its picture size."""
         from ..render.overlays import Overlays
         from ..render.raster import Renderer
-        from .history import UndoRing
-        from .panel import Trend
-        from .tools import Tools
-        from .window import open_scene
+        from .controller import Controller
 
-        self.sim = open_scene(scene)
+        if self.control is None:
+            self.control = Controller.open(scene)
+        else:
+            self.control.switch(scene)
         # the page shows the title, clock and legend itself, in its language; the picture keeps the scene's charts
         # (the phase diagram among them: the page draws only the temperature's)
         words_off = dataclasses.replace(self.sim.scene.render, title=False, clock=False, legend=False)
@@ -76,9 +73,6 @@ class Session:
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
         self.sim.state.carry(self.renderer.tails)
-        self.tools = Tools(self.sim)
-        self.history = UndoRing()
-        self.trend = Trend(SUMMARY_EVERY)  # the mean temperature's last seconds, for the summary's trend
         self.tell(
             {
                 "t": "scene",
@@ -90,19 +84,20 @@ class Session:
             }
         )
 
+    @property
+    def sim(self):
+        return self.control.sim
+
     def lesson(self) -> dict:
         return page_lesson(self.sim.scene.lesson)
 
     def tool_names(self) -> list[str]:
-        from .window_state import tools_for
-
-        return tools_for(self.sim) if self.sim.dim == 2 else []
+        """The scene's tools, where the page can aim them (2D pictures)."""
+        return self.control.tool_names() if self.sim.dim == 2 else []
 
     def first_tool(self) -> str:
-        """The tool the page starts with: the window's (window_state.first_tool), where the page has tools."""
-        from .window_state import first_tool
-
-        return first_tool(self.sim.scene) if self.tool_names() else "none"
+        """The tool the page starts with: the window's, where the page has tools."""
+        return self.control.first_tool() if self.tool_names() else "none"
 
     # ------------------------------------------------------------------ the pipe
     def tell(self, message: dict) -> None:
@@ -130,11 +125,9 @@ class Session:
         elif kind == "pointer":
             self.pointer = (msg["x"], msg["y"])
         elif kind == "set":
-            from . import panel
-
             self.seq = msg.get("seq", self.seq)
             try:
-                panel.apply_setting(self.sim, msg["key"], msg["value"])
+                self.control.set(msg["key"], msg["value"])
             except ValueError as exc:
                 self.tell({"t": "error", "text": str(exc)})
         elif kind == "action":
@@ -152,19 +145,18 @@ class Session:
             self.conn.send_bytes(b"T" + self.jpeg(np.asarray(small), 70))
 
     def action(self, name: str) -> None:
+        control = self.control
         if name == "pause":
-            self.paused = True
+            control.pause()
         elif name == "play":
-            self.paused = False
+            control.play()
         elif name == "step":
-            self.paused, self.single_steps = True, self.single_steps + 1
+            control.step_once()
         elif name == "reset":
-            self.sim.reset()
-            self.history = type(self.history)()
+            control.reset()
         elif name == "undo":
-            done = self.history.undo(self.sim)
-            self.tell({"t": "notice", "key": "undone" if done else "nothing_to_undo"})
-        self.tell({"t": "paused", "paused": self.paused})
+            self.tell({"t": "notice", "key": control.undo().key})
+        self.tell({"t": "paused", "paused": control.paused})
 
     # ------------------------------------------------------------------ tools
     def world_at(self, fx: float, fy: float):
@@ -176,26 +168,19 @@ class Session:
         return ((column - offset[0]) / scale, (row_up - offset[1]) / scale)
 
     def tool(self, msg: dict) -> None:
+        from ..errors import SandboxError
+
         if msg["tool"] not in self.tool_names():
             self.tell({"t": "error", "text": f"this scene has no {msg['tool']} tool"})
             return
         centre = self.world_at(msg["x"], msg["y"])
         if not msg["down"] or centre is None:
-            self.stroke = None
+            self.control.release()
             return
-        material = msg.get("material")
-        if material is not None and material not in self.sim.material_names:
-            self.tell({"t": "error", "text": f"this scene has no material {material!r}"})
-            return
-        if self.stroke is None:  # a stroke starts: keep the state before it for undo
-            self.history.push(self.sim)
-        self.stroke = {"tool": msg["tool"], "centre": centre, "radius": float(msg["radius"]), "material": material}
-
-    def apply_stroke(self, dt: float) -> None:
-        if self.stroke is None:
-            return
-        s = self.stroke
-        self.tools.apply(s["tool"], s["centre"], s["radius"], dt, material=s["material"])
+        try:
+            self.control.press(msg["tool"], centre, float(msg["radius"]), msg.get("material"))
+        except SandboxError as exc:
+            self.tell({"t": "error", "text": str(exc)})
 
     # ------------------------------------------------------------------ a frame
     def frame(self) -> None:
@@ -203,13 +188,10 @@ class Session:
 
         sim = self.sim
         try:
-            if not self.paused or self.single_steps:
-                self.single_steps = max(self.single_steps - 1, 0)
-                self.apply_stroke(sim.dt * sim.frame_substeps()[0])
-                sim.advance_frame()
+            self.control.advance()
         except SimulationError as exc:  # a blow-up: say so and start the scene again
             self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
-            sim.reset()
+            self.control.reset()
         picture = self.draw()
         self.frames += 1
         info = {"t": "info", "time": sim.time, "frame": self.frames, "seq": self.seq}
@@ -228,14 +210,12 @@ class Session:
         """The panel's description now (panel.py) and the sentence for screen readers."""
         from . import panel
 
-        sim = self.sim
-        stats = sim.stats(pair_energy=False)
-        previous = self.trend.add(sim.time, stats.mean_temperature)
+        stats = self.sim.stats(pair_energy=False)
         return {
             "legend": self.legend(),
-            "readouts": panel.as_json(panel.readouts(sim, stats)),
-            "settings": panel.as_json(panel.settings(sim)),
-            "summary": panel.summary(sim, stats, previous),
+            "readouts": panel.as_json(self.control.readouts(stats)),
+            "settings": panel.as_json(self.control.settings()),
+            "summary": self.control.summary(stats),
             "probe": self.probe(),
         }
 
@@ -279,19 +259,16 @@ class Session:
 
     # ------------------------------------------------------------------ state files
     def save(self, path: Path) -> None:
-        from ..files.persist import save_state
-
-        saved = save_state(self.sim, path)
+        saved = self.control.save(path)
         self.tell({"t": "saved", "path": str(saved)})
 
     def upload(self, path: Path) -> None:
         """Load a state file the page uploaded (the server wrote it to `path`): checked before anything changes;
         refused with the checker's one line, the session running on."""
         from ..errors import SandboxError
-        from ..files.persist import load_into
 
         try:
-            load_into(self.sim, path)
+            self.control.load(path)
         except (SandboxError, OSError, ValueError, KeyError) as exc:
             said = str(exc).replace(str(path), "the uploaded file")  # the server's folders are not the page's news
             self.tell({"t": "error", "key": "upload_refused", "text": said})

@@ -15,7 +15,6 @@ import os
 import time
 from dataclasses import dataclass
 
-import numpy as np
 import taichi as ti
 
 from ..config.resources import shipped_scene
@@ -24,9 +23,8 @@ from ..core import runtime, taichi_compat
 from ..errors import SandboxError
 from ..render.raster import Renderer
 from ..simulation import Simulation
-from .history import UndoRing
+from .controller import Controller
 from .probe import particle_at, probe
-from .tools import Tools
 from .window_panel import PANEL_WIDTH, draw_panel
 from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder, ResizeWatch, screen_size
 from .window_state import apply_requests, make_state, quick_save_path, view_config
@@ -97,21 +95,17 @@ def run_window(
     renderer = Renderer(sim.model, sim.state, *size, view, output, panel=PANEL_WIDTH, room_for_charts=True)
     sim.state.carry(renderer.tails)  # its motion-blur tails move with the particles
     gui = window.get_gui()
-    tools = Tools(sim)
+    control = Controller(sim)
     state.recording = record is not None
     recorder = Recorder(sim.scene.name, *size, cfg.fps, record)
     chart_series = tuple(cfg.chart)
     potential_shown = (False, 1.0, 1.0)
     orbit = OrbitCamera(renderer.painter.eye_np, renderer.painter.target_np) if sim.dim == 3 else None
     last_cursor = None
-    base_dt = sim.dt
-    gravity = np.asarray(sim.scene.world.gravity, dtype=float)
-    g_norm = float(np.linalg.norm(gravity))
     if (
         sim.hood is not None and sim.hood.order is not None
     ):  # sort the storage now: the sort's kernel loads before the first frame, not as a
         sim.hood.order.apply()  # pause of a tenth of a second or more at its first use mid-interaction
-    history, stroking = UndoRing(), False
     save_path = quick_save_path(sim)
     shown, fps, last = 0, 0.0, time.perf_counter()
     clock = FrameClock(timings)
@@ -125,17 +119,7 @@ def run_window(
                 state.handle_key(event.key)
         if state.quit:
             break
-        if state.reset:
-            sim.reset()
-            state.reset = False
-        apply_requests(sim, state, history, save_path)
-        if state.integrator != sim.integrator.name:
-            sim.set_integrator(state.integrator)
-        if sim.dim == 2 and g_norm > 0 and state.gravity_angle:  # the panel's slider turns gravity
-            a = np.radians(state.gravity_angle)
-            sim.model.gravity[None] = g_norm * np.array([np.sin(a), -np.cos(a)]) * state.gravity_on
-        else:
-            sim.model.gravity[None] = gravity if state.gravity_on else 0 * gravity
+        apply_requests(control, state, save_path)
         resized = resize.settled(window.get_window_shape() if show else shape, state.recording)
         if state.full_screen != full_screen:  # x: the window opened again at the screen's size, or back
             screen = screen_size() if state.full_screen else None
@@ -165,12 +149,10 @@ def run_window(
             potential_shown = (False, 1.0, 1.0)  # ... and the pair-force panel
             if not resized:
                 state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
-        if sim.scene.world.substeps != "auto":
-            sim.dt = base_dt * state.dt_scale
         if sim.terms.pair is not None:
             shown_law = (state.potential, state.attraction, state.repulsion)
             if shown_law != potential_shown:
-                sim.terms.pair.set_scale(state.attraction, state.repulsion)
+                control.set_pair_scale(state.attraction, state.repulsion)
                 r, force = sim.terms.pair.curve()
                 renderer.set_potential(force if state.potential else None, (float(r[0]), float(r[-1])))
                 potential_shown = shown_law
@@ -179,33 +161,22 @@ def run_window(
             renderer.set_chart(wanted)
             chart_series = wanted
         u, v = window.get_cursor_pos() if show else (0.5, 0.5)
-        stroke = show and bool(state.tool) and window.is_pressed(ti.ui.LMB)
-        stroke = stroke and (sim.dim == 2 or window.is_pressed(ti.ui.SHIFT))
-        if stroke and not stroking:  # a tool stroke starts: keep the state before it for undo
-            history.push(sim)
-        stroking = stroke
-        if orbit is not None and show:  # left drag orbits, right drag zooms, middle drag pans
+        held = show and bool(state.tool) and window.is_pressed(ti.ui.LMB)
+        if orbit is not None and show:  # left drag orbits, right drag zooms, middle drag pans; shift: the tool
             buttons = [window.is_pressed(b) for b in (ti.ui.LMB, ti.ui.RMB, ti.ui.MMB)]
-            if buttons[0] and window.is_pressed(ti.ui.SHIFT):  # shift: the tool, not the camera
-                buttons[0] = False
-                centre = renderer.pick(u, v)
-                if state.tool and centre is not None:
-                    tools.apply(
-                        state.tool, centre, state.radius, sim.dt * state.substeps, material=state.material or None
-                    )
+            shifted = buttons[0] and window.is_pressed(ti.ui.SHIFT)
+            buttons[0] = buttons[0] and not shifted
             if last_cursor is not None and any(buttons):
-                du, dv = u - last_cursor[0], v - last_cursor[1]
-                if buttons[0]:
-                    orbit.orbit(du, dv)
-                elif buttons[1]:
-                    orbit.zoom(dv)
-                else:
-                    orbit.pan(du, dv)
+                orbit.drag(buttons, u - last_cursor[0], v - last_cursor[1])
                 renderer.set_camera(orbit.eye(), orbit.target, renderer.painter.fov)
             last_cursor = (u, v)
-        if show and state.tool and window.is_pressed(ti.ui.LMB) and sim.dim == 2:
-            pos = renderer.world_point(u, v)
-            tools.apply(state.tool, pos, state.radius, sim.dt * state.substeps, material=state.material or None)
+            centre = renderer.pick(u, v) if held and shifted else None
+        else:
+            centre = renderer.world_point(u, v) if held else None
+        if centre is not None:  # the tool acts where the cursor is, for as long as the button is held
+            control.press(state.tool, centre, state.radius, state.material or None)
+        else:
+            control.release()
         clock.lap("events")
         renderer.begin_frame()
         state.frame_substeps = pacer.choose(state.substeps) if steady else state.substeps
@@ -213,11 +184,7 @@ def run_window(
             timings.setdefault("substeps", []).append(state.frame_substeps)
             timings.setdefault("wanted_substeps", []).append(state.substeps)
         sim_start = time.perf_counter()
-        if not state.paused:
-            sim.advance_frame(state.frame_substeps, renderer.mid_frame)
-        elif state.single_step:
-            sim.step(1)
-        state.single_step = False
+        control.advance(state.frame_substeps, renderer.mid_frame)
         ti.sync()
         sim_end = time.perf_counter()
         clock.lap("simulation")
@@ -243,7 +210,7 @@ def run_window(
         fps = 0.9 * fps + 0.1 / max(now - last, 1e-6)
         last = now
         state.pace = 0.0 if state.paused else fps * state.frame_substeps * sim.dt  # simulated s per wall s
-        draw_panel(gui, sim, state, stats, fps, shape[0])
+        draw_panel(gui, control, state, stats, fps, shape[0])
         if not state.paused:
             rest = (sim_start - frame_start) + (time.perf_counter() - sim_end)  # the frame's work besides stepping
             pacer.record(state.frame_substeps, sim_end - sim_start, rest)

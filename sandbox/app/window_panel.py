@@ -6,7 +6,6 @@ import textwrap
 
 from ..config.resources import shipped_scenes
 from ..measure.units import length_unit
-from . import panel
 from .window_state import HELP, WindowState, lesson_text, pace_text, panel_characters, pick_scene
 
 PANEL_WIDTH = 0.28  # of the window's width: the panel's column, full height; the renderer draws right of it
@@ -18,11 +17,12 @@ def say(gui, chars: int, text: str) -> None:
         gui.text(line)
 
 
-def draw_panel(gui, sim, state: WindowState, stats, fps: float, window_width: int = 1280) -> None:
+def draw_panel(gui, control, state: WindowState, stats, fps: float, window_width: int = 1280) -> None:
     """The panel for this frame: reads `stats`, and sets `state` from its widgets. While the lesson is open the
     panel shows the lesson and the readouts; closing it (button or l) shows the controls, so that either page fits
     a window 720 pixels tall."""
     chars = panel_characters(window_width, PANEL_WIDTH)
+    sim = control.sim
     with gui.sub_window(sim.scene.name.replace("_", " "), 0.0, 0.0, PANEL_WIDTH, 1.0):
         lesson = lesson_text(sim.scene.lesson, chars)
         if lesson and state.show_lesson:
@@ -30,11 +30,11 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float, window_width: in
                 gui.text(line)
             if gui.button("close the lesson: controls (l)"):
                 state.show_lesson = False
-        readouts(gui, chars, sim, state, stats, fps)
+        readouts(gui, chars, control, state, stats, fps)
         if not (lesson and state.show_lesson):
             if lesson and gui.button("the lesson (l)"):
                 state.show_lesson = True
-            controls(gui, chars, sim, state)
+            controls(gui, chars, control, state)
         if state.log:
             say(gui, chars, state.log[-1])
     if state.show_help:
@@ -43,11 +43,11 @@ def draw_panel(gui, sim, state: WindowState, stats, fps: float, window_width: in
                 say(gui, chars, line)
 
 
-def readouts(gui, chars: int, sim, state: WindowState, stats, fps: float) -> None:
+def readouts(gui, chars: int, control, state: WindowState, stats, fps: float) -> None:
     """The shared description's measurements (panel.py), packed into as few lines as the panel's width allows, then
     the probe and the integrator. ASCII only: GGUI's font has no degree sign."""
     line = "PAUSED" if state.paused else ""
-    for item in panel.readouts(sim, stats, fps):
+    for item in control.readouts(stats, fps):
         text = f"{item.words} {item.text()}"
         if line and len(line) + 3 + len(text) > chars:
             say(gui, chars, line)
@@ -59,21 +59,19 @@ def readouts(gui, chars: int, sim, state: WindowState, stats, fps: float) -> Non
     say(gui, chars, f"integrator {state.integrator} (i)   {pace_text(state)}")
 
 
-def setting_sliders(gui, sim) -> None:
-    """A slider for each setting the shared description offers (panel.py): air, heat sources (gravity has the
-    window's own angle slider and g key, which set it every frame)."""
-    for item in panel.settings(sim):
-        if item.key == "gravity":
-            continue
+def setting_sliders(gui, control) -> None:
+    """A slider for each setting the controller offers (the page offers the same ones)."""
+    for item in control.settings():
         value = gui.slider_float(
             f"{item.words} ({item.unit})" if item.unit else item.words, item.value, item.lo, item.hi
         )
         if value != item.value:
-            panel.apply_setting(sim, item.key, value)
+            control.set(item.key, value)
 
 
-def controls(gui, chars: int, sim, state: WindowState) -> None:
+def controls(gui, chars: int, control, state: WindowState) -> None:
     """Tools, run controls and settings: one widget per row (GGUI's panel has no rows of several)."""
+    sim = control.sim
     if state.tools_available:
         tools = state.tools_available
         spawn = f" {state.material} (m)" if state.tool == "spawn" else ""
@@ -86,16 +84,12 @@ def controls(gui, chars: int, sim, state: WindowState) -> None:
             state.undo = True
     if gui.button("reset to the start (r)"):
         state.reset = True
-    if gui.button("leave full screen (x)" if state.full_screen else "full screen (x)"):
-        state.full_screen = not state.full_screen
     state.paused = gui.checkbox("paused (space)", state.paused)
-    setting_sliders(gui, sim)
+    setting_sliders(gui, control)
     if sim.scene.world.substeps != "auto":
         state.dt_scale = gui.slider_float("time step x", state.dt_scale, 0.1, 2.0)
         stable = f", springs stable below {state.stable_dt:.2g} s" if sim.state.springs else ""
         say(gui, chars, f"time step {sim.dt:.2g} s{stable}")
-    if sim.dim == 2 and any(sim.scene.world.gravity):
-        state.gravity_angle = gui.slider_float("gravity angle", state.gravity_angle, -180.0, 180.0)
     state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
     if sim.terms.pair is not None:
         state.potential = gui.checkbox("pair force (f)", state.potential)

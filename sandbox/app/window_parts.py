@@ -150,6 +150,16 @@ class OrbitCamera:
         up = np.cross(right, fwd)
         self.target = self.target - self.distance * (du * right + dv * up)
 
+    def drag(self, buttons, du: float, dv: float) -> None:
+        """A mouse drag of (du, dv) window fractions with `buttons` (left, right, middle) held: the left orbits,
+        the right zooms, the middle pans."""
+        if buttons[0]:
+            self.orbit(du, dv)
+        elif buttons[1]:
+            self.zoom(dv)
+        elif buttons[2]:
+            self.pan(du, dv)
+
 
 class Recorder:
     """Starts, feeds and stops MP4 recordings of the window's pictures through the headless video writer."""

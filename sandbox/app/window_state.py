@@ -11,7 +11,6 @@ from pathlib import Path
 
 from ..config.arguments import file_stem
 from ..errors import SandboxError
-from ..files.persist import load_into, save_state
 from ..integrators import REGISTRY
 from .tools import TOOLS
 
@@ -69,7 +68,6 @@ class WindowState:
     material: str = ""
     recording: bool = False  # v: writing the window's frames to an MP4
     energy_plot: bool = False  # e: a live plot of kinetic, potential and total energy
-    gravity_angle: float = 0.0  # degrees from straight down (2D), set by the panel's slider
     potential: bool = False  # f: show the pair-force law against distance, with attraction/repulsion sliders
     attraction: float = 1.0  # scale of every pair's alpha (the panel's slider)
     repulsion: float = 1.0  # scale of every pair's beta
@@ -231,28 +229,42 @@ def quick_save_path(sim) -> Path:
     return Path("out") / f"{file_stem(sim.scene.name)}.state.npz"
 
 
-def apply_requests(sim, state: WindowState, history, path: Path) -> None:
-    """Carry out the undo, save and load keys pressed this frame on `sim` (history: an UndoRing; path: the
-    quick-save file), each leaving a line in the panel's log."""
-
+def apply_requests(control, state: WindowState, path: Path) -> None:
+    """Carry out on `control` (a Controller) what the keys and panel asked for this frame: reset, pause and single
+    step, the integrator, gravity on or off, the time step's scale, the pair-force sliders, undo, save and load
+    (`path`: the quick-save file), each file action leaving a line in the panel's log."""
+    if state.reset:
+        state.reset = False
+        control.reset()
+    if state.single_step:
+        state.single_step, state.paused = False, True
+        control.step_once()
+    if state.paused != control.paused:
+        control.pause() if state.paused else control.play()
+    if state.integrator != control.sim.integrator.name:
+        control.set_integrator(state.integrator)
+    if state.gravity_on != control.gravity_on:
+        control.steer_gravity(on=state.gravity_on)
+    if state.dt_scale != control.dt_scale:
+        control.set_dt_scale(state.dt_scale)
     if state.undo:
         state.undo = False
-        state.log.append("undone" if history.undo(sim) else "nothing to undo")
+        state.log.append(control.undo().text)
     if state.save:
         state.save = False
         try:
-            state.log.append(f"saved {save_state(sim, path)}")
-        except OSError as exc:
-            state.log.append(f"cannot save {path}: {exc.strerror or exc}")
+            state.log.append(f"saved {control.save(path)}")
+        except (OSError, SandboxError) as exc:
+            state.log.append(f"cannot save {path}: {getattr(exc, 'strerror', None) or exc}")
     if state.load:
         state.load = False
         if not path.exists():
             state.log.append(f"no saved state yet ({path}): press w first")
         else:
             try:
-                load_into(sim, path)
-                state.integrator = sim.integrator.name
-                state.log.append(f"loaded {path} (t = {sim.time:.2f} s)")
+                control.load(path)
+                state.integrator = control.sim.integrator.name
+                state.log.append(f"loaded {path} (t = {control.sim.time:.2f} s)")
             except SandboxError as exc:
                 state.log.append(str(exc))
 

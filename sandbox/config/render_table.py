@@ -6,24 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .arguments import MAX_FRAMES, MAX_SIDE
+from .quantities import CHART_SERIES
 from .schema import between, non_negative, one_of, positive, spec, unit_interval, unknown
 
 COLOR_BY = ("temperature", "material", "speed", "phase")
-CHART_SERIES = (  # Stats fields a render.chart can plot (render/chart.py)
-    "mean_temperature",
-    "kinetic_temperature",
-    "molten_fraction",
-    "gas_fraction",
-    "heat_content",
-    "kinetic_energy",
-    "potential_energy",
-    "total_energy",
-    "max_speed",
-    "pressure",
-    "wall_pressure",
-    "phase_diagram",  # not a measurement: the phase diagram's panel with the state's dot (render/phase_plot.py)
-)
-PHASE_DIAGRAM = "phase_diagram"
 
 
 def _view(box: tuple[float, ...]) -> str | None:

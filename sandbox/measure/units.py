@@ -8,6 +8,8 @@ the project has (the window's and the pictures'): "mm^2", "eps", "sigma", and th
 
 from __future__ import annotations
 
+from ..config.quantities import PHASE_DIAGRAM, QUANTITIES
+
 
 def reduced(material_names) -> bool:
     """Whether a scene of these materials is in reduced Lennard-Jones units (every material "lj")."""
@@ -34,21 +36,9 @@ def pressure_unit(material_names, dim: int) -> str:
     return f"{energy_unit(material_names)}/{length_unit(material_names)}^{dim}"
 
 
-# Each chart series' words and unit ("energy", "heat" and "speed" stand for the scene's units of them).
-SERIES = {
-    "mean_temperature": ("mean temperature", "°C"),
-    "kinetic_temperature": ("temperature of the motion", "°C"),
-    "molten_fraction": ("molten", "%"),
-    "gas_fraction": ("boiled", "%"),
-    "heat_content": ("heat content", "heat"),
-    "kinetic_energy": ("kinetic energy", "energy"),
-    "potential_energy": ("potential energy", "energy"),
-    "total_energy": ("total energy", "energy"),
-    "max_speed": ("fastest particle", "speed"),
-    "pressure": ("pressure", "pressure"),
-    "wall_pressure": ("pressure on the walls", "pressure"),
-    "phase_diagram": ("phase diagram", ""),
-}
+# Each chart series' words and unit kind, from the declared quantities ("energy", "heat", "speed" and "pressure"
+# stand for the scene's units of them)
+SERIES = {q.name: (q.words, q.unit) for q in QUANTITIES if q.chart} | {PHASE_DIAGRAM: ("phase diagram", "")}
 
 
 def series_words(name: str, material_names, dim: int = 2) -> tuple[str, str]:

@@ -14,13 +14,14 @@ import math
 import numpy as np
 from PIL import Image, ImageDraw
 
+from ..config.quantities import QUANTITIES
 from ..measure.units import length_unit, series_words
 from .layout import side_by_side
 from .text import GREY, dim, draw_text, line_height, text_width
 
 COLORS = ((255, 110, 70), (90, 170, 255), (130, 230, 100), (240, 215, 80))
 HISTORY = 4096  # samples kept; past it every other one is dropped and the sampling stride doubles
-FRACTIONS = ("molten_fraction", "gas_fraction")  # drawn in percent on a fixed 0 to 100 scale
+FRACTIONS = tuple(q.name for q in QUANTITIES if q.unit == "%")  # drawn in percent on a fixed 0 to 100 scale
 
 
 def nice_range(lo: float, hi: float) -> tuple[float, float]:

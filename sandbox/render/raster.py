@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config.render_table import PHASE_DIAGRAM
+from ..config.quantities import PHASE_DIAGRAM
 from ..core import transfer
 from ..core.taichi_compat import field_info
 from ..measure.phase_map import phase_map_of

@@ -266,7 +266,7 @@ function speak(text) {
 }
 
 function settingLabel(s) {
-  return (s.key.startsWith("source") ? t("s_source", { words: named("source", s.words) }) : t("s_" + s.key)) + (s.unit ? ` (${s.unit.replace(/^C$/, "°C")})` : "");
+  return (s.key.startsWith("source") ? t("s_source", { words: named("source", s.words) }) : t("s_" + s.key)) + (s.unit ? ` (${s.unit.replace(/^C$/, "°C").replace(/^deg$/, "°")})` : "");
 }
 
 function fillSettings(settings) {

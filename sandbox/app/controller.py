@@ -1,0 +1,265 @@
+"""One simulation's interactive life, whatever shows it: the desktop window (window.py), a classroom tab
+(serve_session.py) and scripts drive it through this one object, so a tool, a setting or a run control is written
+once.
+
+Events go in as calls (press and release a tool stroke, pause, step, reset, undo, move a slider, save, load, switch
+scene); the frame goes out through `advance` (the stroke applied, then the frame's steps); the readouts, settings and
+the screen reader's summary come from `readouts`, `settings` and `summary` (panel.py describes them). What a view
+decides for itself is only how it shows them: GGUI widgets, or HTML and JPEG pictures.
+
+A call that fails for a reason the user should read returns or raises a `Notice`-worthy one line; nothing here prints.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SandboxError
+from ..files.persist import load_into, save_state
+from ..measure.units import length_unit
+from . import panel
+from .history import UndoRing
+from .tools import Tools
+from .window_state import first_tool, tools_for
+
+SUMMARY_EVERY = 2.0  # seconds of simulated time the summary's trend looks back over
+
+
+@dataclass(frozen=True)
+class Notice:
+    """A line for the user: `key` names it for the page's catalogue, `text` says it in English."""
+
+    key: str
+    text: str
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """The tool held down now: `tool` (one of TOOLS) at `centre` (scene units) over `radius`; `material` for spawn."""
+
+    tool: str
+    centre: tuple[float, ...]
+    radius: float
+    material: str | None = None
+
+
+class Controller:
+    """The run controls, tools, undo ring, live settings and readouts of one simulation (module docstring)."""
+
+    def __init__(self, sim) -> None:
+        self.paused = False
+        self.pending_steps = 0  # single steps asked for while paused
+        self.bind(sim)
+
+    def bind(self, sim) -> None:
+        """Control `sim` from now on (a new scene): a fresh undo ring, no stroke, gravity as the scene sets it."""
+        self.sim = sim
+        self.tools = Tools(sim)
+        self.history = UndoRing()
+        self.stroke: Stroke | None = None
+        self.trend = panel.Trend(SUMMARY_EVERY)
+        self.base_dt = sim.dt
+        self.dt_scale = 1.0
+        scene_gravity = np.asarray(sim.scene.world.gravity, dtype=float)
+        self.gravity_strength = float(np.linalg.norm(scene_gravity))
+        self.gravity_on = True
+        self.gravity_angle = 0.0  # degrees from the scene's direction (2D: turning it, as the window's slider does)
+
+    @classmethod
+    def open(cls, name: str, arch: str = "cpu") -> Controller:
+        """A controller of a fresh simulation of the shipped scene `name` (window.open_scene: Taichi restarted)."""
+        from .window import open_scene
+
+        return cls(open_scene(name, arch))
+
+    def switch(self, name: str, arch: str = "cpu") -> None:
+        """Open the shipped scene `name` in place of this one (its fields freed with Taichi's restart)."""
+        from .window import open_scene
+
+        self.bind(open_scene(name, arch))
+
+    # ------------------------------------------------------------------ what the scene offers
+    def tool_names(self) -> list[str]:
+        """The tools this scene offers (no heat tools without heat)."""
+        return tools_for(self.sim)
+
+    def first_tool(self) -> str:
+        """The tool a view starts with (window_state.first_tool)."""
+        return first_tool(self.sim.scene)
+
+    # ------------------------------------------------------------------ time
+    def pause(self) -> None:
+        self.paused = True
+
+    def play(self) -> None:
+        self.paused = False
+
+    def step_once(self) -> None:
+        """One step, then stay paused."""
+        self.paused, self.pending_steps = True, self.pending_steps + 1
+
+    def reset(self) -> None:
+        """The scene as it started (the undo ring emptied: its states are of another history)."""
+        self.sim.reset()
+        self.history = UndoRing()
+        self.stroke = None
+        self.apply_gravity()
+
+    def advance(self, substeps: int | None = None, midway=None) -> int:
+        """One frame: the held stroke acts for the frame's time (paused or not: a paused scene can still be heated,
+        erased or spawned into), then `substeps` steps (None: the scene's) unless paused, or one pending single step.
+        `midway`: called halfway through (the renderer's mid_frame). Returns the steps taken; SimulationError
+        (the blow-up guard) propagates: the view decides whether to stop or start again."""
+        n = substeps if substeps is not None else self.sim.frame_substeps()[0]
+        if self.stroke is not None:
+            s = self.stroke
+            self.tools.apply(s.tool, s.centre, s.radius, self.sim.dt * n, material=s.material)
+        if not self.paused:
+            return self.sim.advance_frame(substeps, midway)
+        if self.pending_steps:
+            self.pending_steps -= 1
+            self.sim.step(1)
+            return 1
+        return 0
+
+    # ------------------------------------------------------------------ tools
+    def press(self, tool: str, centre, radius: float, material: str | None = None) -> None:
+        """The tool is held at `centre` (scene units) with `radius`: the first press of a stroke keeps the state
+        before it for undo. SandboxError (one line) for a tool or material the scene does not have."""
+        if tool not in self.tool_names():
+            raise SandboxError(f"this scene has no {tool} tool")
+        if material is not None and material not in self.sim.material_names:
+            raise SandboxError(f"this scene has no material {material!r}")
+        if self.stroke is None:
+            self.history.push(self.sim)
+        self.stroke = Stroke(tool, tuple(float(c) for c in centre), float(radius), material)
+
+    def release(self) -> None:
+        """The tool is let go: the stroke ends (the next press starts a new one, undone on its own)."""
+        self.stroke = None
+
+    def undo(self) -> Notice:
+        """Put back the state before the last stroke."""
+        self.stroke = None
+        if self.history.undo(self.sim):
+            return Notice("undone", "undone")
+        return Notice("nothing_to_undo", "nothing to undo")
+
+    # ------------------------------------------------------------------ live settings
+    def settings(self) -> list[panel.Setting]:
+        """The sliders a lesson asks students to move, each with what it does: the room's temperature, each heat
+        source's temperature or power (the first two), and gravity's strength and (2D) direction in scenes that
+        have it. A new setting is one entry here; the window, the page and the teacher's broadcast all offer it."""
+        out = []
+        heat = self.sim.terms.heat
+        if heat is not None:
+            sources = heat.sources
+
+            def air(value: float) -> None:
+                sources.ambient[None] = value
+
+            out.append(
+                panel.Setting("air", "air temperature", float(sources.ambient[None]), -50.0, 300.0, "C", 1.0, air)
+            )
+            for k, src in enumerate(sources.specs[:2]):
+                hold = functools.partial(sources.hold, k)
+                if src.mode == "power":
+                    top = 2.0 * max([abs(src.power), *map(abs, src.schedule_values)]) or 1.0
+                    out.append(
+                        panel.Setting(f"source{k}", src.name, sources.value(k), -top, top, "mJ/s", top / 100, hold)
+                    )
+                else:
+                    out.append(panel.Setting(f"source{k}", src.name, sources.value(k), -100.0, 1500.0, "C", 1.0, hold))
+        if any(self.sim.scene.world.gravity):
+            top = 4.0 * float(np.linalg.norm(self.sim.scene.world.gravity))
+            unit = f"{length_unit(self.sim.material_names)}/s^2"
+            out.append(
+                panel.Setting("gravity", "gravity", self.gravity_strength, 0.0, top, unit, top / 100, self._strength)
+            )
+            if self.sim.dim == 2:
+                out.append(
+                    panel.Setting(
+                        "gravity_angle", "gravity angle", self.gravity_angle, -180.0, 180.0, "deg", 1.0, self._angle
+                    )
+                )
+        return out
+
+    def set(self, key: str, value: float) -> None:
+        """Move the slider `key` to `value`, clamped to its range; ValueError for a key the scene does not offer."""
+        offered = {s.key: s for s in self.settings()}
+        if key not in offered:
+            raise ValueError(f"this scene has no setting {key!r} (it has: {', '.join(offered) or 'none'})")
+        s = offered[key]
+        s.apply(min(max(float(value), s.lo), s.hi))
+
+    def _strength(self, value: float) -> None:
+        self.gravity_strength = value
+        self.apply_gravity()
+
+    def _angle(self, value: float) -> None:
+        self.gravity_angle = value
+        self.apply_gravity()
+
+    def steer_gravity(self, on: bool | None = None, angle: float | None = None) -> None:
+        """Gravity on or off, and (2D) turned `angle` degrees from straight down; its strength stays."""
+        if on is not None:
+            self.gravity_on = bool(on)
+        if angle is not None:
+            self.gravity_angle = float(angle)
+        self.apply_gravity()
+
+    def apply_gravity(self) -> None:
+        """Gravity as the controls say: the scene's direction (2D: turned by gravity_angle), at gravity_strength,
+        or none while it is off."""
+        scene_gravity = np.asarray(self.sim.scene.world.gravity, dtype=float)
+        norm = float(np.linalg.norm(scene_gravity))
+        if self.sim.dim == 2 and norm > 0 and self.gravity_angle:
+            a = math.radians(self.gravity_angle)
+            g = self.gravity_strength * np.array([math.sin(a), -math.cos(a)])
+        else:
+            g = scene_gravity * (self.gravity_strength / norm) if norm > 0 else scene_gravity
+        self.sim.model.gravity[None] = g if self.gravity_on else 0.0 * g
+
+    def set_dt_scale(self, scale: float) -> None:
+        """The time step as `scale` times the scene's (scenes with fixed substeps; "auto" picks its own)."""
+        self.dt_scale = float(scale)
+        if self.sim.scene.world.substeps != "auto":
+            self.sim.dt = self.base_dt * self.dt_scale
+
+    def set_integrator(self, name: str) -> None:
+        """Switch the time integrator, keeping the state."""
+        self.sim.set_integrator(name)
+
+    def set_pair_scale(self, attraction: float, repulsion: float) -> None:
+        """Scale every pair's attraction and repulsion from the materials' values (scenes with a pair force)."""
+        if self.sim.terms.pair is not None:
+            self.sim.terms.pair.set_scale(attraction, repulsion)
+
+    # ------------------------------------------------------------------ readouts
+    def readouts(self, stats, fps: float | None = None) -> list[panel.Readout]:
+        """The panel's measurements now (`stats`: the simulation's Stats; `fps`: frames a wall second, if shown)."""
+        return panel.readouts(self.sim, stats, fps)
+
+    def summary(self, stats) -> dict:
+        """What the scene is doing, for a screen reader (panel.summary), with its temperature's trend."""
+        previous = self.trend.add(self.sim.time, stats.mean_temperature)
+        return panel.summary(self.sim, stats, previous)
+
+    # ------------------------------------------------------------------ state files
+    def save(self, path: Path) -> Path:
+        """Write the state to `path`; returns the path written (OutputError, SimulationError: one line)."""
+        return save_state(self.sim, path)
+
+    def load(self, path: Path) -> None:
+        """Put back a state file of this scene (checked before anything changes; SandboxError with one line); the
+        gravity controls follow the file's gravity."""
+        load_into(self.sim, path)
+        self.stroke = None
+        g = self.sim.model.gravity.to_numpy()
+        if np.any(g):
+            self.gravity_on, self.gravity_strength = True, float(np.linalg.norm(g))

@@ -1,0 +1,147 @@
+"""Every quantity a simulation reports, declared once: its name (the CSV column, the `Stats` attribute, the chart
+series), its unit, its words, and how it follows from the measuring kernel's sums.
+
+The terms declare the sums they feed (physics/term.py's `measures`: "ke", "tsum", ...; the reduction and what it
+runs over); this table turns them into the quantities people read. Everything else is derived from it: the
+measurements CSV's columns (measure/stats.STAT_COLUMNS), the `Stats` record, the series a scene's `render.chart` may
+plot and their axis labels (measure/units.series_words), and the table in docs/physics.md (`python -m
+sandbox.config.quantities` prints it; a test keeps the two equal). It sits in config, the lowest layer, because the
+scene schema checks and documents chart names with it, and the CSV must have the same columns for every scene.
+
+A new readout is one `Quantity(...)` here (and, where it needs a new sum, a `Measure` in its term).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+NAN = float("nan")
+
+
+@dataclass(frozen=True)
+class Sums:
+    """What a quantity is computed from: the kernel's named sums and counts `m` (physics/term.py's measures), the
+    clock, the dimension, the box's volume (area in 2D), the walls' gauge, whether the scene has heat and springs;
+    `of(name)` is another quantity's value (computed once, whatever the declaration order)."""
+
+    m: dict
+    time: float
+    dim: int
+    volume: float
+    wall_pressure: float
+    heat: bool
+    springs: bool
+    done: dict
+
+    def of(self, name: str) -> float:
+        """The quantity `name`'s value."""
+        if name not in self.done:
+            q = BY_NAME[name]
+            value = q.value(self)
+            self.done[name] = int(value) if q.integer else float(value)
+        return self.done[name]
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One reported quantity (module docstring). `unit`: one of UNIT_KINDS, read in the scene's units
+    (measure/units.py); `words`: a few words for labels; `doc`: one sentence for docs/physics.md; `value`: from Sums
+    (nan where the scene has nothing to measure); `chart`: whether render.chart may plot it; `integer`: a count."""
+
+    name: str
+    unit: str
+    words: str
+    doc: str
+    value: Callable[[Sums], float]
+    chart: bool = True
+    integer: bool = False
+
+
+UNIT_KINDS = ("s", "energy", "energy per particle", "pressure", "°C", "%", "heat", "speed", "count")
+
+
+def _per_particle(name: str) -> Callable[[Sums], float]:
+    return lambda s: s.of(name) / s.of("particles") if s.of("particles") else NAN
+
+
+def _share(total: str, count: str) -> Callable[[Sums], float]:
+    return lambda s: s.m[total] / s.m[count] if s.m.get(count) else 0.0
+
+
+QUANTITIES: tuple[Quantity, ...] = (
+    Quantity("time", "s", "time", "simulated time", lambda s: s.time, chart=False),
+    Quantity("kinetic_energy", "energy", "kinetic energy", "sum of m v^2 / 2", lambda s: s.m["ke"]),
+    Quantity("potential_energy", "energy", "potential energy", "spring + pair + gravity energy",
+             lambda s: s.of("spring_energy") + s.of("pair_energy") + s.of("gravity_energy")),
+    Quantity("total_energy", "energy", "total energy", "kinetic + potential energy",
+             lambda s: s.of("kinetic_energy") + s.of("potential_energy")),
+    Quantity("spring_energy", "energy", "spring energy", "elastic energy of the live springs",
+             lambda s: s.m.get("spring", 0.0), chart=False),
+    Quantity("pair_energy", "energy", "pair energy", "pair potential energy, shifted to zero at the cutoff "
+             "unless pair.shift = false", lambda s: s.m.get("pair", 0.0), chart=False),
+    Quantity("gravity_energy", "energy", "gravity energy", "m g h against the scene's gravity",
+             lambda s: s.m.get("grav", 0.0), chart=False),
+    Quantity("kinetic_energy_per_particle", "energy per particle", "kinetic energy per particle",
+             "kinetic energy / particles", _per_particle("kinetic_energy"), chart=False),
+    Quantity("potential_energy_per_particle", "energy per particle", "potential energy per particle",
+             "potential energy / particles", _per_particle("potential_energy"), chart=False),
+    Quantity("total_energy_per_particle", "energy per particle", "total energy per particle",
+             "total energy / particles", _per_particle("total_energy"), chart=False),
+    Quantity("pressure", "pressure", "pressure", "virial pressure (sum m v^2 + sum r_ij . F_ij) / (dim V), V the "
+             "box's volume (area in 2D)",
+             lambda s: (2.0 * s.m["ke"] + s.m.get("pair_virial", 0.0) + s.m.get("spring_virial", 0.0))
+             / (s.dim * s.volume)),
+    Quantity("wall_pressure", "pressure", "pressure on the walls", "momentum the walls took per unit time and wall "
+             "area since the frame began; nan without walls", lambda s: s.wall_pressure),
+    Quantity("mean_temperature", "°C", "mean temperature", "mean particle temperature; nan without heat",
+             lambda s: s.m["tsum"] / s.m["n"] if (s.heat and s.m["n"]) else NAN),
+    Quantity("kinetic_temperature", "°C", "temperature of the motion", "the temperature the molten particles' "
+             "motion relative to the local flow says (heat.agitation_time); nan without it",
+             lambda s: s.m["agitation"] / (s.dim * s.m["free"]) - 273.15 if s.m.get("free") else NAN),
+    Quantity("molten_fraction", "%", "molten", "mean melt fraction of the particles of meltable materials",
+             _share("phi", "meltable")),
+    Quantity("gas_fraction", "%", "boiled", "mean vapour fraction of the particles of materials that boil",
+             _share("psi", "boilable")),
+    Quantity("heat_content", "heat", "heat content", "sum of m h: the enthalpy in the particles, conserved without "
+             "sources; nan without heat", lambda s: s.m["heat"] if s.heat else NAN),
+    Quantity("broken_springs", "count", "broken bonds", "springs created minus springs alive",
+             lambda s: int(s.m["created"]) - int(s.m["alive"]) if s.springs else 0, chart=False, integer=True),
+    Quantity("max_speed", "speed", "fastest particle", "the largest particle speed", lambda s: s.m["vmax"]),
+    Quantity("particles", "count", "particles", "particles alive", lambda s: s.m["n"], chart=False, integer=True),
+)  # fmt: skip
+
+PHASE_DIAGRAM = "phase_diagram"  # a chart that is not a measurement: the phase diagram with the state's dot
+
+
+def _checked(quantities: tuple[Quantity, ...]) -> dict[str, Quantity]:
+    """The quantities by name; ValueError at import for a name declared twice or an unknown unit kind."""
+    by_name: dict[str, Quantity] = {}
+    for q in quantities:
+        if q.name in by_name or q.name == PHASE_DIAGRAM:
+            raise ValueError(f"quantity {q.name!r} is declared twice; expected one declaration per name")
+        if q.unit not in UNIT_KINDS:
+            raise ValueError(f"quantity {q.name!r} has unit {q.unit!r}; expected one of {', '.join(UNIT_KINDS)}")
+        by_name[q.name] = q
+    return by_name
+
+
+BY_NAME = _checked(QUANTITIES)
+CHART_SERIES = tuple(q.name for q in QUANTITIES if q.chart) + (PHASE_DIAGRAM,)
+
+
+def compute(m: dict, time: float, dim: int, volume: float, wall_pressure: float, heat: bool, springs: bool) -> dict:
+    """Every quantity by name from the kernel's sums `m` (see Sums), in declaration order."""
+    sums = Sums(m, time, dim, volume, wall_pressure, heat, springs, {})
+    return {q.name: sums.of(q.name) for q in QUANTITIES}
+
+
+def markdown_table() -> str:
+    """The quantities as docs/physics.md's table: name, unit, meaning."""
+    rows = ["| quantity | unit | meaning |", "|---|---|---|"]
+    rows += [f"| `{q.name}` | {q.unit} | {q.doc} |" for q in QUANTITIES]
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":  # python -m sandbox.config.quantities: the table for docs/physics.md
+    print(markdown_table())

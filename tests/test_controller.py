@@ -1,0 +1,97 @@
+"""The one controller every front-end drives (app/controller.py): strokes and undo, run controls, live settings,
+gravity, state files and readouts, measured on a small simulation without a screen or a browser."""
+
+import math
+
+import numpy as np
+import pytest
+
+from sandbox.app.controller import Controller
+from sandbox.config.scene import load_scene
+from sandbox.errors import SandboxError
+from sandbox.simulation import Simulation
+
+from .conftest import SCENES
+
+
+def _block() -> Simulation:
+    """A small wax block on the hot plate (springs, heat and gravity)."""
+    return Simulation(load_scene(SCENES / "melting_block.toml", ["bodies.0.hi=[50.0, 6.0]", "world.precision=f64"]))
+
+
+def _same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+def test_a_stroke_acts_while_held_paused_or_not_and_undoes_as_one():
+    control = Controller(_block())
+    sim = control.sim
+    before = sim.snapshot()
+    centre = sim.positions().mean(axis=0)
+    control.pause()
+    t0 = sim.time
+    for _ in range(3):  # one stroke over three frames: the state before it is kept once
+        control.press("heat", centre, 4.0)
+        assert control.advance() == 0  # paused: no steps, yet the heat goes in
+    control.release()
+    assert sim.time == t0 and len(control.history) == 1
+    assert sim.stats().mean_temperature > Simulation(sim.scene).stats().mean_temperature + 0.5
+    assert control.undo().key == "undone" and _same(sim.snapshot(), before)
+    assert control.undo().key == "nothing_to_undo"
+    with pytest.raises(SandboxError, match="no material .lava."):
+        control.press("spawn", centre, 2.0, material="lava")
+    with pytest.raises(SandboxError, match="no teleport tool"):
+        control.press("teleport", centre, 2.0)
+
+
+def test_single_steps_pause_and_play_resumes_the_frames():
+    control = Controller(_block())
+    sim = control.sim
+    control.step_once()
+    control.step_once()
+    assert control.paused
+    assert [control.advance() for _ in range(3)] == [1, 1, 0] and sim.step_count == 2
+    control.play()
+    substeps = sim.frame_substeps()[0]
+    assert control.advance() == substeps and sim.step_count == 2 + substeps
+    control.reset()
+    assert sim.step_count == 0 and len(control.history) == 0
+
+
+def test_settings_are_declared_once_clamped_and_refused_by_name():
+    control = Controller(_block())
+    sim = control.sim
+    keys = [s.key for s in control.settings()]
+    assert keys == ["air", "source0", "gravity", "gravity_angle"]
+    control.set("air", 1e6)  # clamped to the slider's top
+    assert sim.terms.heat.sources.ambient[None] == 300.0
+    with pytest.raises(ValueError, match="no setting 'wind'"):
+        control.set("wind", 1.0)
+    g = float(np.linalg.norm(sim.scene.world.gravity))
+    control.set("gravity_angle", 90.0)  # turned a quarter: it pulls along +x at the same strength
+    assert sim.model.gravity.to_numpy() == pytest.approx([g, 0.0], abs=1e-9)
+    control.set("gravity", 2 * g)
+    assert sim.model.gravity.to_numpy() == pytest.approx([2 * g, 0.0], abs=1e-9)
+    control.steer_gravity(on=False)
+    assert not np.any(sim.model.gravity.to_numpy())
+    control.steer_gravity(on=True, angle=0.0)
+    assert sim.model.gravity.to_numpy() == pytest.approx([0.0, -2 * g], abs=1e-9)
+    shown = {s.key: s.value for s in control.settings()}
+    assert shown["gravity"] == pytest.approx(2 * g) and shown["gravity_angle"] == 0.0
+
+
+def test_a_loaded_state_brings_its_gravity_and_the_readouts_follow(tmp_path):
+    control = Controller(_block())
+    sim = control.sim
+    g = float(np.linalg.norm(sim.scene.world.gravity))
+    control.set("gravity", 3 * g)
+    sim.step(10)
+    path = control.save(tmp_path / "s.npz")
+    other = Controller(Simulation(sim.scene))
+    other.load(path)
+    assert other.gravity_strength == pytest.approx(3 * g) and other.sim.step_count == 10
+    readouts = {r.key: r for r in other.readouts(other.sim.stats())}
+    assert readouts["time"].value == pytest.approx(sim.time) and readouts["particles"].value == sim.particles.n[None]
+    summary = other.summary(other.sim.stats())
+    assert summary["key"] == "summary_heat" and summary["trend"] == "steady"
+    assert math.isfinite(summary["temperature"])
