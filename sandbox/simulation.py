@@ -25,6 +25,7 @@ from . import scripting
 from .assembly import assemble
 from .config.arguments import MAX_SUBSTEPS
 from .config.scene_tables import Scene
+from .core import controls as live_controls
 from .core import runtime
 from .errors import SandboxError, SimulationError
 from .files.persist import save_state
@@ -38,6 +39,22 @@ from .step.plan import StepPlan
 from .step.rates import Rates
 
 
+class ParticleView:
+    """`sim.particles`: the particle fields by attribute (x, v, T, n, ...) and, called, the particle table. The
+    facade makes it, so the core's particle record never calls back up into the simulation."""
+
+    __slots__ = ("_fields", "_table")
+
+    def __init__(self, fields, table: Callable[[], dict]):
+        self._fields, self._table = fields, table
+
+    def __getattr__(self, name: str):
+        return getattr(self._fields, name)
+
+    def __call__(self) -> dict:
+        return self._table()
+
+
 class Simulation:
     """A running scene: its model, state and terms, stepped by a plan, measured by its diagnostics."""
 
@@ -48,7 +65,6 @@ class Simulation:
         built = assemble(scene, arch, half_lists)
         self.model, self.state, self.hood = built.model, built.state, built.hood
         self.terms = TermList(built.terms)
-        self.state.particles.table_of = self.particle_table
         self.runtime_generation = runtime.generation()
         self.rates = Rates(self.model, self.state, list(self.terms), self.hood)
         self.integrator = make_integrator(scene.world.integrator, self.rates, self.state)
@@ -67,7 +83,10 @@ class Simulation:
     arch = property(lambda self: self.model.arch)
     capacity = property(lambda self: self.model.capacity)
     material_names = property(lambda self: self.model.material_names)
-    particles = property(lambda self: self.state.particles, doc="the particle fields; calling it: particle_table()")
+    particles = property(
+        lambda self: ParticleView(self.state.particles, self.particle_table),
+        doc="the particle fields (sim.particles.x, ...); calling it, sim.particles(): particle_table()",
+    )
     time = property(lambda self: self.state.time, doc="simulated time")
     step_count = property(lambda self: self.state.step, doc="steps taken")
     frames_done = property(lambda self: self.state.frames, doc="frames advanced")
@@ -147,6 +166,23 @@ class Simulation:
             if v > 0:
                 limits.append(0.5 * r / v)
         return min(limits)
+
+    # ------------------------------------------------------------------ live controls
+    def controls(self) -> dict:
+        """The live controls by namespaced name (core/controls.py): {"world.gravity": [0, -9.81], "world.drag": 0,
+        "heat.ambient": 20.0, "pair.scale": [1, 1], ...}, in the scene's units."""
+        return live_controls.gather(self.model, self.terms)
+
+    def set_controls(self, values: dict) -> None:
+        """Set some live controls by name (as controls() names them); SandboxError naming an unknown one or a value
+        of the wrong shape, before anything changes."""
+        current = self.controls()
+        for key, value in values.items():
+            if key not in current:
+                raise SandboxError(f"no live control {key!r}; this scene has {', '.join(current)}")
+            if np.shape(value) != np.shape(current[key]) or not np.all(np.isfinite(value)):
+                raise SandboxError(f"control {key} = {value!r}; expected finite numbers shaped like {current[key]!r}")
+        live_controls.apply(self.model, self.terms, values)
 
     # ------------------------------------------------------------------ measuring
     def stats(self, pair_energy: bool = True) -> Stats:

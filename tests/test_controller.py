@@ -1,11 +1,13 @@
 """The one controller every front-end drives (app/controller.py): strokes and undo, run controls, live settings,
 gravity, state files and readouts, measured on a small simulation without a screen or a browser."""
 
+import json
 import math
 
 import numpy as np
 import pytest
 
+from sandbox.app import panel
 from sandbox.app.controller import Controller
 from sandbox.config.scene import load_scene
 from sandbox.errors import SandboxError
@@ -76,8 +78,10 @@ def test_settings_are_declared_once_clamped_and_refused_by_name():
     assert not np.any(sim.model.gravity.to_numpy())
     control.steer_gravity(on=True, angle=0.0)
     assert sim.model.gravity.to_numpy() == pytest.approx([0.0, -2 * g], abs=1e-9)
-    shown = {s.key: s.value for s in control.settings()}
-    assert shown["gravity"] == pytest.approx(2 * g) and shown["gravity_angle"] == 0.0
+    shown = {s["key"]: s for s in json.loads(json.dumps(panel.as_json(control.settings())))}  # as the page gets it
+    assert shown["gravity"]["value"] == pytest.approx(2 * g) and shown["gravity_angle"]["value"] == 0.0
+    assert shown["air"] == {"key": "air", "words": "air temperature", "value": 300.0, "lo": -50.0, "hi": 300.0,
+                            "unit": "C", "step": 1.0}  # fmt: skip
 
 
 def test_a_loaded_state_brings_its_gravity_and_the_readouts_follow(tmp_path):
@@ -95,3 +99,48 @@ def test_a_loaded_state_brings_its_gravity_and_the_readouts_follow(tmp_path):
     summary = other.summary(other.sim.stats())
     assert summary["key"] == "summary_heat" and summary["trend"] == "steady"
     assert math.isfinite(summary["temperature"])
+
+
+def test_live_controls_are_namespaced_refused_by_name_and_never_collide():
+    from sandbox.core import controls
+
+    sim = _block()
+    assert sim.controls() == {
+        "world.gravity": pytest.approx([0.0, -9.8]),
+        "world.drag": 0.0,
+        "pair.scale": [1.0, 1.0],
+        "heat.ambient": 20.0,
+    }
+    sim.set_controls({"heat.ambient": 35.0, "pair.scale": [2.0, 1.0]})
+    assert sim.terms.heat.sources.ambient[None] == 35.0 and sim.terms.pair.scale == (2.0, 1.0)
+    before = sim.controls()
+    for bad, words in (({"ambient": 1.0}, "no live control 'ambient'"), ({"world.gravity": 1.0}, "shaped like")):
+        with pytest.raises(SandboxError, match=words):
+            sim.set_controls({"heat.ambient": 99.0, **bad})  # checked whole before anything changes
+        assert sim.controls() == before
+    twin = type("Twin", (), {"key": "heat", "controls": lambda self: {}})()
+    with pytest.raises(ValueError, match="named 'heat'"):
+        controls.gather(sim.model, [*sim.terms, twin])
+
+
+def test_the_quantities_are_declared_once_and_everything_is_derived_from_them():
+    """The CSV columns, the Stats record, the chart series and docs/physics.md's table come from
+    config/quantities.py; a name declared twice is refused when the table is built."""
+    import dataclasses
+
+    from sandbox.config.quantities import CHART_SERIES, QUANTITIES, Quantity, _checked, markdown_table
+    from sandbox.measure.stats import STAT_COLUMNS, Stats
+
+    from .conftest import ROOT
+
+    names = [q.name for q in QUANTITIES]
+    assert STAT_COLUMNS == ("frame", *names, "step_seconds")
+    assert [f.name for f in dataclasses.fields(Stats)] == names
+    assert set(CHART_SERIES) - {"phase_diagram"} <= set(names)
+    assert markdown_table() in (ROOT / "docs" / "physics.md").read_text()
+    twice = Quantity("pressure", "pressure", "pressure again", "a second declaration", lambda s: 0.0)
+    with pytest.raises(ValueError, match="'pressure' is declared twice"):
+        _checked((*QUANTITIES, twice))
+    stats = _block().stats()
+    assert stats.total_energy == pytest.approx(stats.kinetic_energy + stats.potential_energy)
+    assert stats.potential_energy == pytest.approx(stats.spring_energy + stats.pair_energy + stats.gravity_energy)

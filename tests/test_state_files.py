@@ -82,7 +82,7 @@ def edited(saved, tmp_path, arrays=None, meta=None, host=None):
         (lambda a, m, h: {"meta": {"step": "ten"}}, "step"),
         (lambda a, m, h: {"meta": {"integrator": None}}, "integrator"),
         (lambda a, m, h: {"meta": {"controls": {}}}, "controls"),  # found by the campaign: a KeyError
-        (lambda a, m, h: {"meta": {"controls": {**m["controls"], "gravity": 1.0}}}, "control gravity"),
+        (lambda a, m, h: {"meta": {"controls": {**m["controls"], "world.gravity": 1.0}}}, "control world.gravity"),
         (lambda a, m, h: {"meta": {"scene": {"world": {"dim": 7}}}}, "dim"),
         (lambda a, m, h: {"host": {"clock.frames": -1}}, "clock.frames"),
         (lambda a, m, h: {"host": {"clock.dt": 0.0}}, "clock.dt"),

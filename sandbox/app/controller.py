@@ -161,7 +161,7 @@ class Controller:
             sources = heat.sources
 
             def air(value: float) -> None:
-                sources.ambient[None] = value
+                self.sim.set_controls({"heat.ambient": value})
 
             out.append(
                 panel.Setting("air", "air temperature", float(sources.ambient[None]), -50.0, 300.0, "C", 1.0, air)
@@ -223,7 +223,7 @@ class Controller:
             g = self.gravity_strength * np.array([math.sin(a), -math.cos(a)])
         else:
             g = scene_gravity * (self.gravity_strength / norm) if norm > 0 else scene_gravity
-        self.sim.model.gravity[None] = g if self.gravity_on else 0.0 * g
+        self.sim.set_controls({"world.gravity": [float(c) for c in (g if self.gravity_on else 0.0 * g)]})
 
     def set_dt_scale(self, scale: float) -> None:
         """The time step as `scale` times the scene's (scenes with fixed substeps; "auto" picks its own)."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -152,8 +152,7 @@ def as_json(items) -> list[dict]:
     """Readouts or settings as plain dicts (nan as None) for the page."""
     out = []
     for item in items:
-        d = asdict(item)
-        d.pop("apply", None)  # what a slider does stays here
+        d = {f.name: getattr(item, f.name) for f in fields(item) if f.name != "apply"}  # what a slider does stays
         d["value"] = d["value"] if math.isfinite(d["value"]) else None
         out.append(d)
     return out

@@ -29,7 +29,7 @@ class Tools:
 
     def __init__(self, sim):
         self.sim = sim
-        self.p = sim.particles
+        self.p = sim.state.particles
         self.dim = sim.dim
         self.centre = ti.Vector.field(sim.dim, float, shape=())  # the brush centre (a field: no recompiles)
 

@@ -31,7 +31,7 @@ from .scene_tables import (
     heat_support,
     particle_spacing,
 )
-from .schema import celsius, parse_table, unknown
+from .schema import celsius, check_lengths, parse_table, unknown
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -134,8 +134,8 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     materials = resolve_materials(raw.materials or {}, file)
     world: World = raw.world
     dim = world.dim
-    _check_vec(file, "world.lo", world.lo, dim)
-    _check_vec(file, "world.hi", world.hi, dim)
+    check_lengths(raw, dim, file)  # every vector declared with a length: world.lo, bodies[0].velocity, ...
+    _check_box(file, "world", world.lo, world.hi, dim)
     if any(h <= l for l, h in zip(world.lo, world.hi)):
         raise SceneError(file, "world.hi", f"expected every component above world.lo {list(world.lo)}")
     if world.substeps == "auto" and world.frame_time / world.dt > MAX_SUBSTEPS:
@@ -145,9 +145,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
             f"{world.frame_time:g} is over {MAX_SUBSTEPS:,} steps of dt {world.dt:g}; expected a shorter frame or a "
             "longer step",
         )
-    if world.gravity:
-        _check_vec(file, "world.gravity", world.gravity, dim)
-    else:
+    if not world.gravity:
         world = _replace(world, gravity=(0.0,) * dim)
     if raw.pair is not None and raw.pair.b <= raw.pair.a:
         raise SceneError(file, "pair.b", f"expected the repulsion exponent b above a = {raw.pair.a}")
@@ -168,8 +166,6 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     if raw.smoke is not None:
         for i, src in enumerate(raw.smoke.sources):
             _check_box(file, f"smoke.sources[{i}]", src.lo, src.hi, dim)
-            if src.velocity:
-                _check_vec(file, f"smoke.sources[{i}].velocity", src.velocity, dim)
     bodies = [_check_body(file, f"bodies[{i}]", b, i, dim, materials, path) for i, b in enumerate(raw.bodies)]
     for i, body in enumerate(bodies):
         lo, hi = _body_bounds(body)
@@ -277,9 +273,8 @@ def _check_field(file: str, key: str, element: FieldElement, dim: int) -> None:
             raise SceneError(file, f"{key}.center", f"missing; expected {dim} numbers for a {element.kind}")
         _check_vec(file, f"{key}.center", element.center, dim)
     if element.kind == "wind":
-        _check_vec(file, f"{key}.velocity", element.velocity, dim)
+        _check_vec(file, f"{key}.velocity", element.velocity, dim)  # required for wind
     if element.axis:
-        _check_vec(file, f"{key}.axis", element.axis, 3)
         if not any(element.axis):
             raise SceneError(file, f"{key}.axis", "expected a non-zero direction")
 
@@ -306,9 +301,7 @@ def _check_emitter(file: str, key: str, e: Emitter, index: int, dim: int, materi
             raise SceneError(file, f"{key}.size", f"expected the {e.shape}'s radius > 0")
     if e.surface and e.shape == "point":
         raise SceneError(file, f"{key}.surface", "a point has no surface; expected a box, disk or sphere")
-    if e.velocity:
-        _check_vec(file, f"{key}.velocity", e.velocity, dim)
-    else:
+    if not e.velocity:
         changes["velocity"] = (0.0,) * dim
     if e.draw == "sphere" and dim == 2:
         raise SceneError(file, f"{key}.draw", "'sphere' is a 3D drawing; expected splat or dot in 2D")
@@ -362,9 +355,7 @@ def _check_body(file: str, key: str, body: Body, index: int, dim: int, materials
         if dim != 2:
             raise SceneError(file, f"{key}.shape", "a PNG mask shapes 2D bodies only")
         changes["mask"] = str(resolve_png(file, f"{key}.mask", body.mask, scene_path))
-    if body.velocity:
-        _check_vec(file, f"{key}.velocity", body.velocity, dim)
-    else:
+    if not body.velocity:
         changes["velocity"] = (0.0,) * dim
     return _replace(body, **changes)
 
@@ -411,13 +402,7 @@ def resolve_png(file: str, key: str, name: str, scene_path: Path) -> Path:
 def _check_render(file: str, render: Render, dim: int) -> None:
     if len(render.temperature_range) != 2 or render.temperature_range[1] <= render.temperature_range[0]:
         raise SceneError(file, "render.temperature_range", "expected [cold, hot] with hot > cold")
-    if len(render.background) != 3:
+    if not render.background:
         raise SceneError(file, "render.background", "expected [r, g, b]")
-    if dim == 3:
-        if render.camera_position:
-            _check_vec(file, "render.camera_position", render.camera_position, 3)
-        if render.camera_target:
-            _check_vec(file, "render.camera_target", render.camera_target, 3)
-        _check_vec(file, "render.light_direction", render.light_direction, 3)
     if not math.isfinite(render.fps):
         raise SceneError(file, "render.fps", "expected a finite number")

@@ -65,9 +65,9 @@ class SceneInfo:
 @dataclass(frozen=True, kw_only=True)
 class World:
     dim: int = spec(2, doc="2 or 3 dimensions", check=lambda d: None if d in (2, 3) else f"expected 2 or 3, got {d}")
-    lo: tuple[float, ...] = spec(doc="lower corner of the domain box")
-    hi: tuple[float, ...] = spec(doc="upper corner of the domain box")
-    gravity: tuple[float, ...] = spec((), doc="gravitational acceleration vector (default zero)")
+    lo: tuple[float, ...] = spec(doc="lower corner of the domain box", length="dim")
+    hi: tuple[float, ...] = spec(doc="upper corner of the domain box", length="dim")
+    gravity: tuple[float, ...] = spec((), doc="gravitational acceleration vector (default zero)", length="dim")
     dt: float = spec(0.002, doc="time step (simulation seconds)", check=positive)
     substeps: int | str = spec(
         10,
@@ -139,8 +139,8 @@ class PairForce:
 @dataclass(frozen=True, kw_only=True)
 class HeatSource:
     name: str = spec("plate", doc="label shown in the picture")
-    lo: tuple[float, ...] = spec(doc="lower corner of the source region")
-    hi: tuple[float, ...] = spec(doc="upper corner of the source region")
+    lo: tuple[float, ...] = spec(doc="lower corner of the source region", length="dim")
+    hi: tuple[float, ...] = spec(doc="upper corner of the source region", length="dim")
     mode: str = spec(
         "exchange",
         doc="exchange (each particle inside receives conductance x (temperature - T)), fixed (particles inside are "
@@ -216,9 +216,11 @@ class FieldElement:
     kind: str = spec(
         doc="wind, vortex, source (negative strength: a sink), explosion or noise", check=one_of(*FIELD_KINDS)
     )
-    center: tuple[float, ...] = spec((), doc="vortex/source/explosion: centre (a point on the axis for a 3D vortex)")
-    axis: tuple[float, ...] = spec((), doc="3D vortex: axis direction (default +z)")
-    velocity: tuple[float, ...] = spec((), doc="wind: the uniform velocity")
+    center: tuple[float, ...] = spec(
+        (), doc="vortex/source/explosion: centre (a point on the axis for a 3D vortex)", length="dim"
+    )
+    axis: tuple[float, ...] = spec((), doc="3D vortex: axis direction (default +z)", length=3)
+    velocity: tuple[float, ...] = spec((), doc="wind: the uniform velocity", length="dim")
     strength: float = spec(
         0.0,
         doc="vortex: circulation (length^2/time); source: volume rate; explosion: peak speed; noise: typical speed",
@@ -248,10 +250,12 @@ class FieldCoupling:
 
 @dataclass(frozen=True, kw_only=True)
 class SmokeSource:
-    lo: tuple[float, ...] = spec(doc="lower corner of the region")
-    hi: tuple[float, ...] = spec(doc="upper corner of the region")
+    lo: tuple[float, ...] = spec(doc="lower corner of the region", length="dim")
+    hi: tuple[float, ...] = spec(doc="upper corner of the region", length="dim")
     temperature: float = spec(doc="cells inside are held at this temperature (degrees)", check=celsius)
-    velocity: tuple[float, ...] = spec((), doc="inflow velocity imposed on the region's faces (default none)")
+    velocity: tuple[float, ...] = spec(
+        (), doc="inflow velocity imposed on the region's faces (default none)", length="dim"
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -281,9 +285,9 @@ class Emitter(FieldCoupling):
     )
     mask: str = spec("", doc="mask: PNG file (inside the scene's folder or assets/); opaque/bright pixels are inside")
     surface: bool = spec(False, doc="box/disk/sphere: seed on the boundary (uniform by length/area), not inside")
-    center: tuple[float, ...] = spec((), doc="point/disk/sphere: centre")
-    lo: tuple[float, ...] = spec((), doc="box: lower corner")
-    hi: tuple[float, ...] = spec((), doc="box: upper corner")
+    center: tuple[float, ...] = spec((), doc="point/disk/sphere: centre", length="dim")
+    lo: tuple[float, ...] = spec((), doc="box: lower corner", length="dim")
+    hi: tuple[float, ...] = spec((), doc="box: upper corner", length="dim")
     size: float = spec(0.0, doc="disk/sphere: radius of the region (length)", check=non_negative)
     count: int = spec(0, doc="particles emitted at the start", check=at_least(0))
     rate: float = spec(0.0, doc="particles per second (fractions carry over between steps)", check=non_negative)
@@ -297,7 +301,7 @@ class Emitter(FieldCoupling):
         "(volume) where it has fewer (counted on a grid of cells holding 4 each); 0: off",
         check=non_negative,
     )
-    velocity: tuple[float, ...] = spec((), doc="base velocity (default zero)")
+    velocity: tuple[float, ...] = spec((), doc="base velocity (default zero)", length="dim")
     cone: float = spec(
         0.0, doc="random direction within this full cone angle (degrees) around velocity", check=non_negative
     )
@@ -327,9 +331,9 @@ class Body(FieldCoupling):
     name: str = spec("", doc="label (default body<N>)")
     material: str = spec(doc="material name from the library or [materials]")
     shape: str = spec("box", doc="box, disk (2D), sphere (3D) or mask (2D, a PNG)", check=one_of(*SHAPES))
-    lo: tuple[float, ...] = spec((), doc="box/mask: lower corner")
-    hi: tuple[float, ...] = spec((), doc="box/mask: upper corner")
-    center: tuple[float, ...] = spec((), doc="disk/sphere: centre")
+    lo: tuple[float, ...] = spec((), doc="box/mask: lower corner", length="dim")
+    hi: tuple[float, ...] = spec((), doc="box/mask: upper corner", length="dim")
+    center: tuple[float, ...] = spec((), doc="disk/sphere: centre", length="dim")
     radius: float = spec(0.0, doc="disk/sphere: radius", check=non_negative)
     mask: str = spec("", doc="mask: PNG file (inside the scene's folder or assets/); opaque/bright pixels are inside")
     lattice: str = spec(
@@ -339,7 +343,7 @@ class Body(FieldCoupling):
     springs: bool = spec(True, doc="join neighbours by springs (a solid); false: a liquid from the start")
     spring_radius: float = spec(1.5, doc="join lattice neighbours closer than this many spacings", check=at_least(1.0))
     temperature: float | None = spec(None, doc="initial temperature (default: the ambient)", check=celsius)
-    velocity: tuple[float, ...] = spec((), doc="initial velocity")
+    velocity: tuple[float, ...] = spec((), doc="initial velocity", length="dim")
     random_velocity: float = spec(0.0, doc="std. dev. of random initial velocity per component", check=non_negative)
     jitter: float = spec(0.0, doc="random displacement of lattice sites, as a fraction of spacing", check=unit_interval)
     seed: int = spec(0, doc="random seed for velocity and jitter", check=at_least(0))

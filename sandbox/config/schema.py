@@ -39,11 +39,19 @@ def unknown(what: str, word, choices) -> str:
 
 
 def spec(
-    default: Any = dataclasses.MISSING, *, doc: str, check: Check | None = None, factory: Any = None, infinite=False
+    default: Any = dataclasses.MISSING,
+    *,
+    doc: str,
+    check: Check | None = None,
+    factory: Any = None,
+    infinite=False,
+    length: int | str | None = None,
 ):
-    """Declare a scene field: its default (omit for a required key), its one-line meaning, an optional check, and
-    whether a number may be infinite (`inf` in TOML: never, for ever); every other number must be finite."""
-    meta = {"doc": doc, "check": check, "infinite": infinite}
+    """Declare a scene field: its default (omit for a required key), its one-line meaning, an optional check,
+    whether a number may be infinite (`inf` in TOML: never, for ever; every other number must be finite), and for a
+    vector its `length`: a number, or "dim" for the scene's dimension (checked by check_lengths once world.dim is
+    known; an empty vector is a default's "none" and passes)."""
+    meta = {"doc": doc, "check": check, "infinite": infinite, "length": length}
     if factory is not None:
         return dataclasses.field(default_factory=factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -197,6 +205,25 @@ def parse_table(cls: type, data: Any, file: str, key: str = "") -> Any:
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
             raise SceneError(file, sub, f"missing; expected {_type_name(hints[name])}: {f.metadata.get('doc', '')}")
     return cls(**values)
+
+
+def check_lengths(table: Any, dim: int, file: str, key: str = "") -> None:
+    """Every vector field of `table` (a parsed dataclass, its sub-tables and lists of them) declared with a
+    `length` holds that many numbers ("dim": `dim`), or none; SceneError naming the first that does not."""
+    for f in dataclasses.fields(table):
+        value, sub = getattr(table, f.name), _join(key, f.name)
+        want = f.metadata.get("length")
+        if want is not None and isinstance(value, tuple) and value:
+            n = dim if want == "dim" else want
+            if len(value) != n:
+                said = f" (world.dim = {dim})" if want == "dim" else ""
+                raise SceneError(file, sub, f"expected {n} numbers{said}, got {len(value)}")
+        if dataclasses.is_dataclass(value):
+            check_lengths(value, dim, file, sub)
+        elif isinstance(value, list):
+            for i, item in enumerate(value):
+                if dataclasses.is_dataclass(item):
+                    check_lengths(item, dim, file, f"{sub}[{i}]")
 
 
 def out_of_range(value: Any) -> str | None:

@@ -82,7 +82,9 @@ class Model:
 
     def apply_controls(self, values: dict) -> None:
         """Set the live controls from `controls()`'s numbers."""
-        transfer.upload([(self.gravity, np.asarray(values["gravity"], float)), (self.drag, values["drag"])])
+        pairs = [(self.gravity, np.asarray(values["gravity"], float))] if "gravity" in values else []
+        pairs += [(self.drag, values["drag"])] if "drag" in values else []
+        transfer.upload(pairs)
 
     def column(self, name: str, material_ids: np.ndarray) -> np.ndarray:
         """Material property `name` of particles with `material_ids` (NumPy, infinities held at 1e30)."""

@@ -40,7 +40,6 @@ class Particles:
         # (stable when storage is reordered or compacted; never reused)
         self.ident = ti.field(ti.i32, shape=capacity)
         self.next_ident = 0  # the id the next added particle gets
-        self.table_of = None  # what calling this object returns (set by the Simulation)
         if heat:
             self.h = ti.field(float, shape=capacity)  # specific enthalpy (heat / mass): the heat state, (C,)
             self.T = ti.field(float, shape=capacity)  # temperature (degrees), derived from h (physics/phase.py), (C,)
@@ -49,10 +48,6 @@ class Particles:
         if lifetimes:
             self.age = ti.field(float, shape=capacity)  # time since birth, (C,)
             self.lifetime = ti.field(float, shape=capacity)  # retired when age reaches it; 0: for ever, (C,)
-
-    def __call__(self) -> dict:
-        """The live particles as NumPy arrays keyed by name, sorted by id (see Simulation.particle_table)."""
-        return self.table_of()
 
     def names(self) -> list[str]:
         """Names of the per-particle fields allocated, in a fixed order (what moves with a particle)."""

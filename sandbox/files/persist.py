@@ -26,6 +26,7 @@ import taichi as ti
 
 from .. import __version__
 from ..config.scene import scene_from_dict
+from ..core import controls as live_controls
 from ..core import runtime, taichi_compat, transfer
 from ..core.state import FIELD, NDARRAY, VALUE
 from ..errors import OutputError, SandboxError, SimulationError
@@ -35,7 +36,7 @@ from .claim import partial_name
 from .state_check import check_meta, check_state
 
 FORMAT = "sandbox-state"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3  # 3: the live controls are namespaced ("world.gravity")
 MAX_META_BYTES = 16 << 20  # the meta table (the scene, the outputs' records) and the host values, each
 
 
@@ -54,11 +55,8 @@ def _download(entries: list) -> dict[str, np.ndarray]:
 
 
 def controls(sim) -> dict:
-    """The live controls of the model and the terms (gravity, pair scale, ambient ...), as plain numbers."""
-    values = dict(sim.model.controls())
-    for term in sim.terms:
-        values.update(term.controls())
-    return values
+    """The live controls of the model and the terms ("world.gravity", "pair.scale", "heat.ambient" ...)."""
+    return live_controls.gather(sim.model, sim.terms)
 
 
 def save_state(sim, path: str | Path, frame: int | None = None, outputs: dict | None = None) -> Path:
@@ -202,9 +200,7 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
         sim.set_integrator(before)  # nothing of the file reached the simulation
         raise
     _put_back(sim.state, saved, host)
-    sim.model.apply_controls(meta["controls"])
-    for term in sim.terms:
-        term.apply_controls(meta["controls"])
+    live_controls.apply(sim.model, sim.terms, meta["controls"])
     for part in sim.parts:
         part.after_restore(sim.state)
 

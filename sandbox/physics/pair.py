@@ -129,11 +129,11 @@ class PairForce(Term):
         return [f"pair force (a={self.a:g}, b={self.b:g}, cutoff {self.cutoff:g})"] if where == "rates" else []
 
     def controls(self) -> dict:
-        return {"pair_scale": list(self.scale)}
+        return {"scale": list(self.scale)}
 
     def apply_controls(self, values: dict) -> None:
-        if "pair_scale" in values:
-            self.set_scale(*values["pair_scale"])
+        if "scale" in values:
+            self.set_scale(*values["scale"])
 
     def set_scale(self, attraction: float, repulsion: float) -> None:
         """Scale every pair's alpha (attraction) and beta (repulsion) from the materials' values, live (the window's

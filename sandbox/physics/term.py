@@ -1,7 +1,7 @@
 """The shape of a physics term, and the registry a scene's term list is built from.
 
 A term is one piece of physics a scene can name (the pair force, springs, heat, walls, gravity, emitters, smoke, ...).
-It is one class, registered with `@register`, that says when a scene has it (`wanted`), is built from the scene's
+It is one class, registered with `@register`, that says when a scene has it (`wanted(parts)`), is built from the scene's
 `Parts`, and declares what it provides by the flags and methods below. The rates (step/rates.py), the stepping plan
 (step/plan.py), the measurements (measure/diagnostics.py), the stability bounds and the state file are all derived
 from the list: a new term is a new class in a new module imported by physics/__init__.py, and every way of stepping
@@ -96,8 +96,10 @@ class Term:
     measures: tuple = ()
 
     @staticmethod
-    def wanted(scene) -> bool:
-        """Whether `scene` has this term."""
+    def wanted(parts) -> bool:
+        """Whether the scene being built has this term: `parts` (Parts) holds the scene (parts.scene), the model,
+        the state and the terms built before this one (parts.terms, by key), since some terms exist only beside
+        others (the drag of a velocity field only with the field)."""
         return False
 
     @staticmethod
