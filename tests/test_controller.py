@@ -144,3 +144,64 @@ def test_the_quantities_are_declared_once_and_everything_is_derived_from_them():
     stats = _block().stats()
     assert stats.total_energy == pytest.approx(stats.kinetic_energy + stats.potential_energy)
     assert stats.potential_energy == pytest.approx(stats.spring_energy + stats.pair_energy + stats.gravity_energy)
+
+
+def test_a_tool_added_in_one_place_reaches_every_front_end_and_turns_the_fluid():
+    """examples/stir_tool.py registers a tool: the controller offers and applies it (angular momentum about the
+    cursor grows), the classroom accepts its name, the window's help lists it."""
+    import importlib.util
+
+    from sandbox.app import serve_protocol, tool_table
+    from sandbox.app.window_state import help_lines
+
+    from .conftest import ROOT
+
+    spec = importlib.util.spec_from_file_location("stir_tool", ROOT / "examples" / "stir_tool.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    try:
+        sim = Simulation(load_scene(SCENES / "lj_box.toml", ["world.precision=f64"]))
+        control = Controller(sim)
+        assert "stir" in control.tool_names() and "stir" in help_lines()[3]
+        message = '{"t": "tool", "tool": "stir", "x": 0.5, "y": 0.5, "radius": 4, "down": true}'
+        assert serve_protocol.parse(message, ["lj_box"])["tool"] == "stir"
+        x0 = sim.positions()
+        centre = (np.asarray(sim.scene.world.lo) + np.asarray(sim.scene.world.hi)) / 2
+        r = x0 - centre
+        mass = sim.particles.mass.to_numpy()[: len(x0)]
+
+        def spin() -> float:
+            v = sim.velocities()
+            return float(np.sum(mass * (r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0])))
+
+        before = spin()
+        control.pause()
+        control.press("stir", centre, 0.4 * float(np.min(np.subtract(sim.scene.world.hi, sim.scene.world.lo))))
+        control.advance()
+        control.release()
+        assert spin() - before > 0  # counter-clockwise
+        assert np.array_equal(sim.positions(), x0)  # paused: it changed velocities only
+    finally:
+        tool_table.unregister("stir")
+    assert "stir" not in tool_table.names()
+
+
+def test_the_centre_of_mass_height_falls_as_a_free_body_does():
+    """The readout added in one place (config/quantities.py, from the mass-weighted height every simulation sums):
+    a springy block falling freely drops by g t^2 / 2 whatever its springs do inside it (velocity Verlet is exact for
+    constant acceleration; the internal forces cancel pairwise)."""
+    sim = Simulation(
+        load_scene(
+            SCENES / "melting_block.toml",
+            ["bodies.0.hi=[50.0, 6.0]", "bodies.0.lo=[30.0, 40.0]", "bodies.0.hi=[40.0, 46.0]",
+             "world.precision=f64", "world.integrator=velocity_verlet", "heat.sources=[]"],
+        )
+    )  # fmt: skip
+    g = float(np.linalg.norm(sim.scene.world.gravity))
+    h0 = sim.stats().centre_of_mass_height
+    assert h0 == pytest.approx(43.0, abs=0.6)
+    sim.step(200)
+    t = sim.time
+    stats = sim.stats()
+    assert stats.centre_of_mass_height == pytest.approx(h0 - 0.5 * g * t * t, abs=1e-9 * h0)
+    assert 0.5 * g * t * t > 0.05

@@ -549,9 +549,9 @@ GGUI_KEYS |= {"space", "Shift", "Control", "Alt", "Esc"}
 
 
 def test_every_key_the_help_lists_is_one_the_window_can_receive():
-    from sandbox.app.window_state import HELP
+    from sandbox.app.window_state import help_lines
 
-    for line in HELP:
+    for line in help_lines():
         keys = line.split("  ")[0].replace(",", " ").split()
         if keys[0] in ("left", "3D:"):
             continue  # mouse lines

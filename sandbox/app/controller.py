@@ -40,7 +40,8 @@ class Notice:
 
 @dataclass(frozen=True)
 class Stroke:
-    """The tool held down now: `tool` (one of TOOLS) at `centre` (scene units) over `radius`; `material` for spawn."""
+    """The tool held down now: `tool` (a name in tool_table.py) at `centre` (scene units) over `radius`;
+    `material` for spawn."""
 
     tool: str
     centre: tuple[float, ...]

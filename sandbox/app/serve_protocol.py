@@ -8,11 +8,12 @@ import json
 import math
 import time
 
+from . import tool_table
+
 MAX_MESSAGE = 2048  # bytes of one message from the page
 MAX_RATE = 120.0  # messages per second a tab may send (a pointer stroke sends ~60)
 BURST = 240.0  # messages a tab may send at once before the rate applies
 ACTIONS = ("pause", "play", "step", "reset", "undo")
-TOOLS = ("heat", "cool", "drag", "attract", "repel", "impulse", "erase", "spawn")
 LANGUAGES = ("en", "fr", "ar")
 
 
@@ -58,7 +59,7 @@ def parse(text: str | bytes, scenes) -> dict:
             raise ProtocolError("tool: down must be true or false")
         out = {
             "t": "tool",
-            "tool": _choice(msg, "tool", TOOLS),
+            "tool": _choice(msg, "tool", tool_table.names()),
             "x": _number(msg, "x", 0, 1),
             "y": _number(msg, "y", 0, 1),
             "radius": _number(msg, "radius", 0.5, 30.0),

@@ -19,8 +19,7 @@ from ..config.schema import ABSOLUTE_ZERO
 from ..core.oriented import data_oriented
 from ..errors import SandboxError
 from ..physics.phase import LIQUID, initial_enthalpy
-
-TOOLS = ("heat", "cool", "drag", "attract", "repel", "impulse", "erase", "spawn")  # keys 1-8 in the window
+from . import tool_table
 
 
 @data_oriented
@@ -187,24 +186,11 @@ class Tools:
     def apply(
         self, tool: str, centre, radius: float, dt: float, strength: float = 1.0, material: str | None = None
     ) -> None:
-        """Apply `tool` (one of TOOLS) for one frame of `dt` seconds: what the mouse does while held. The blow-up
-        guard takes the energy and heat a tool puts in by hand as part of the scene from then on."""
+        """Apply `tool` (a name in tool_table.py) for one frame of `dt` seconds: what the mouse does while held. The
+        blow-up guard takes the energy and heat a tool puts in by hand as part of the scene from then on."""
+        try:
+            use = tool_table.by_name(tool).use
+        except KeyError:
+            raise SandboxError(f"unknown tool {tool!r}; expected one of {', '.join(tool_table.names())}") from None
         self.sim.guard.accept_current_state()
-        if tool == "heat":
-            self.heat(centre, radius, 400.0 * strength, dt)
-        elif tool == "cool":
-            self.heat(centre, radius, -400.0 * strength, dt)
-        elif tool == "attract":
-            self.push(centre, radius, 60.0 * strength, dt)
-        elif tool == "repel":
-            self.push(centre, radius, -60.0 * strength, dt)
-        elif tool == "drag":
-            self.drag(centre, radius, 400.0 * strength, dt)
-        elif tool == "impulse":
-            self.impulse(centre, radius, 30.0 * strength)
-        elif tool == "erase":
-            self.erase(centre, radius)
-        elif tool == "spawn":
-            self.spawn(material or self.sim.material_names[0], centre, radius)
-        else:
-            raise SandboxError(f"unknown tool {tool!r}; expected one of {', '.join(TOOLS)}")
+        use(self, centre, radius, dt, strength, material or self.sim.material_names[0])

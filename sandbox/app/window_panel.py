@@ -6,7 +6,7 @@ import textwrap
 
 from ..config.resources import shipped_scenes
 from ..measure.units import length_unit
-from .window_state import HELP, WindowState, lesson_text, pace_text, panel_characters, pick_scene
+from .window_state import WindowState, help_lines, lesson_text, pace_text, panel_characters, pick_scene
 
 PANEL_WIDTH = 0.28  # of the window's width: the panel's column, full height; the renderer draws right of it
 
@@ -39,7 +39,7 @@ def draw_panel(gui, control, state: WindowState, stats, fps: float, window_width
             say(gui, chars, state.log[-1])
     if state.show_help:
         with gui.sub_window("keys", 0.3, 0.05, 0.4, 0.9):
-            for line in HELP:
+            for line in help_lines():
                 say(gui, chars, line)
 
 

@@ -12,16 +12,25 @@ from pathlib import Path
 from ..config.arguments import file_stem
 from ..errors import SandboxError
 from ..integrators import REGISTRY
-from .tools import TOOLS
+from . import tool_table
 
-TOOL_KEYS = {str(k + 1): name for k, name in enumerate(TOOLS)}  # for a GGUI that reports digits (1.7 does not)
+
 # GGUI (Taichi 1.7) reports letters and named keys only (Escape, Return, Tab, arrows, space, Shift, ...): digits,
 # brackets, + and - and the F keys never arrive, so every key the help lists is one of those.
+def help_lines() -> list[str]:
+    """The help overlay's lines (the tools as the table holds them now)."""
+    return [
+        HELP[0],
+        HELP[1],
+        HELP[2],
+        "Tab    next tool: " + ", ".join(tool_table.names()) + " (or the panel's slider)",
+    ] + HELP[3:]
+
+
 HELP = [
     "space  pause / resume",
     "s      single step (paused)",
     "r      reset to the start",
-    "Tab    next tool: " + ", ".join(TOOLS) + " (or the panel's slider)",
     "Up Down     brush radius",
     "Right Left  substeps per frame",
     "g      gravity on / off",
@@ -105,11 +114,12 @@ class WindowState:
             self.single_step = True
         elif key == "r":
             self.reset = True
-        elif key in TOOL_KEYS:
-            if TOOL_KEYS[key] in self.tools_available:
-                self.tool = TOOL_KEYS[key]
+        elif key.isdigit() and 1 <= int(key) <= len(tool_table.names()):  # a GGUI that reports digits (1.7 not)
+            picked = tool_table.names()[int(key) - 1]
+            if picked in self.tools_available:
+                self.tool = picked
             else:
-                self.log.append(f"{TOOL_KEYS[key]} is not available in this scene")
+                self.log.append(f"{picked} is not available in this scene")
         elif key == "Tab" and self.tools_available:
             k = self.tools_available.index(self.tool) if self.tool in self.tools_available else -1
             self.tool = self.tools_available[(k + 1) % len(self.tools_available)]
@@ -161,13 +171,13 @@ class WindowState:
 def tools_for(sim) -> list[str]:
     """The tools that make sense in this scene: no heat tools without heat (in 3D they act with shift held, at the
     depth of the particle under the cursor)."""
-    return [t for t in TOOLS if sim.terms.heat is not None or t not in ("heat", "cool")]
+    return tool_table.offered(sim.terms.heat is not None)
 
 
 def first_tool(scene) -> str:
     """The tool a scene starts with, in the window and the page alike: spawning in an empty scene (no bodies or
     emitters: nothing to heat or push), else the first tool it offers (the heat tools only with heat)."""
-    tools = [t for t in TOOLS if scene.heat is not None or t not in ("heat", "cool")]
+    tools = tool_table.offered(scene.heat is not None)
     empty = not scene.bodies and not scene.emitters
     return "spawn" if empty and "spawn" in tools else (tools[0] if tools else "")
 

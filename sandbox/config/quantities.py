@@ -58,7 +58,7 @@ class Quantity:
     integer: bool = False
 
 
-UNIT_KINDS = ("s", "energy", "energy per particle", "pressure", "°C", "%", "heat", "speed", "count")
+UNIT_KINDS = ("s", "length", "energy", "energy per particle", "pressure", "°C", "%", "heat", "speed", "count")
 
 
 def _per_particle(name: str) -> Callable[[Sums], float]:
@@ -108,6 +108,9 @@ QUANTITIES: tuple[Quantity, ...] = (
     Quantity("broken_springs", "count", "broken bonds", "springs created minus springs alive",
              lambda s: int(s.m["created"]) - int(s.m["alive"]) if s.springs else 0, chart=False, integer=True),
     Quantity("max_speed", "speed", "fastest particle", "the largest particle speed", lambda s: s.m["vmax"]),
+    Quantity("centre_of_mass_height", "length", "centre of mass height", "the particles' centre of mass along y "
+             "(the axis of every shipped scene's gravity): sum m y / sum m; nan without particles",
+             lambda s: s.m["mass_height"] / s.m["mass"] if s.m.get("mass") else NAN),
     Quantity("particles", "count", "particles", "particles alive", lambda s: s.m["n"], chart=False, integer=True),
 )  # fmt: skip
 

@@ -18,13 +18,15 @@ from ..physics.term import Measure
 
 @data_oriented
 class Motion:
-    """The measures every simulation has: kinetic energy, mass, the largest speed, non-finite particles."""
+    """The measures every simulation has: kinetic energy, mass, the largest speed, non-finite particles, and the
+    mass-weighted height (y, the axis every scene's gravity runs along)."""
 
     measures = (
         Measure("ke", "sum", "particles"),  # kinetic energy, sum of m v^2 / 2
         Measure("mass", "sum", "particles"),
         Measure("vmax", "max", "particles"),  # the largest speed
         Measure("bad", "count", "particles"),  # particles with a non-finite or huge coordinate
+        Measure("mass_height", "sum", "particles"),  # sum of m y: the centre of mass's height times the mass
     )
 
     def __init__(self, particles, dim: int):
@@ -32,14 +34,14 @@ class Motion:
 
     @ti.func
     def measure_particle(self, i):
-        """(m v^2 / 2, m, |v|, 1 if not finite) of particle i."""
+        """(m v^2 / 2, m, |v|, 1 if not finite, m y) of particle i."""
         p = self.p
         v2 = p.v[i].dot(p.v[i])
         finite = 1
         for a in ti.static(range(self.dim)):
             if not (ti.abs(p.x[i][a]) < 1e30 and ti.abs(p.v[i][a]) < 1e30):
                 finite = 0
-        return 0.5 * p.mass[i] * v2, p.mass[i], ti.sqrt(v2), 1 - finite
+        return 0.5 * p.mass[i] * v2, p.mass[i], ti.sqrt(v2), 1 - finite, p.mass[i] * p.x[i][1]
 
 
 @data_oriented

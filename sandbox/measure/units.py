@@ -44,7 +44,9 @@ SERIES = {q.name: (q.words, q.unit) for q in QUANTITIES if q.chart} | {PHASE_DIA
 def series_words(name: str, material_names, dim: int = 2) -> tuple[str, str]:
     """(words, unit) of the measurement `name` for a `dim`-D scene of these materials."""
     words, unit = SERIES.get(name, (name.replace("_", " "), ""))
-    if unit == "energy":
+    if unit == "length":
+        unit = length_unit(material_names)
+    elif unit == "energy":
         unit = energy_unit(material_names)
     elif unit == "heat":  # mass (mg) times enthalpy (kJ/kg)
         unit = "eps" if reduced(material_names) else "mJ"

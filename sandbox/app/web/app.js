@@ -150,7 +150,7 @@ function fillTools(start) {
   const select = $("tool");
   const offered = ["none", ...tools];
   const current = select.value;
-  select.replaceChildren(...offered.map((name) => new Option(t("tool_" + name), name)));
+  select.replaceChildren(...offered.map((name) => new Option(named("tool", name), name)));
   // a new scene starts with its own tool (the one its lesson speaks of); a new language keeps the tool in hand
   if (start && offered.includes(start)) select.value = start;
   else select.value = offered.includes(current) ? current : tools[0] || "none";
