@@ -38,7 +38,7 @@ class Domain:
         (they are wrapped at every step's end; an integrator's stage moves them by far less)."""
         d = xj - xi
         if ti.static(self.periodic):
-            # Compare and shift rather than round(d / box): a rounding per pair cost 10% of the pair pass. One
+            # Compare and shift rather than round(d / box): a rounding per pair is dear in the pair pass. One
             # test first for all axes: almost every pair lies well inside the box.
             far = False
             for a in ti.static(range(self.dim)):

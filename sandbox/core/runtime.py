@@ -175,8 +175,8 @@ def cpu_model() -> str:
 @functools.cache
 def vector_gathers_pay() -> bool:
     """Whether loops that gather from scattered particles run faster vectorized on this CPU (Rates.blocked_rows).
-    Measured on W1-3D's step: the pass 13% faster on an Intel CPU with AVX-512, the step 12% slower on an AMD EPYC
-    with AVX-512 as well (its gathers are slower); unknown elsewhere, so no. SANDBOX_PAIR_BLOCKS=1 or 0 decides."""
+    They paid on an Intel CPU with AVX-512 and cost on an AMD EPYC with AVX-512 as well (its gathers are slower;
+    docs/performance.md, "Why the code is shaped so"); unknown elsewhere, so no. SANDBOX_PAIR_BLOCKS=1 or 0 decides."""
     chosen = os.environ.get("SANDBOX_PAIR_BLOCKS", "")
     if chosen in ("0", "1"):
         return chosen == "1"

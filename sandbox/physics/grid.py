@@ -34,8 +34,8 @@ class CellGrid:
         # whatever its length, so narrower cells there trim the candidates a scan tests at no cost in ranges.
         self.row_span = ROW_SPAN
         # In 3D a list build trims each row of cells to those within reach of the particle (row_base's gap2,
-        # row_cells): a quarter fewer candidates, build 26% faster; in 2D the bound's square root and floors cost more
-        # than the few candidates they save (build 15% slower), so 2D rows keep their full span.
+        # row_cells): a quarter fewer candidates; in 2D the bound's square root and floors cost more than the few
+        # candidates they save, so 2D rows keep their full span (docs/performance.md, "Why the code is shaped so").
         self.trims_rows = self.dim >= 3
         per_reach = np.array([1] * (len(extent) - 1) + [ROW_SPAN])
         if periodic:  # enough cells that the cells around one are each visited once

@@ -30,7 +30,8 @@ from ..core.state import COUNT, Range
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
 # The type of the lists as a kernel argument (see the docstring): one flat array, row i of width w at [i w, (i + 1) w).
 # Flat rather than (capacity, width): a 2D ndarray's row stride is reloaded from memory at every entry the pair pass
-# reads (the compiler cannot tell the pass's stores leave it alone), and the pass ran 12% slower.
+# reads (the compiler cannot tell the pass's stores leave it alone). Measured: docs/performance.md, "Why the code
+# is shaped so".
 LIST_ARRAY = ti.types.ndarray(dtype=ti.i32, ndim=1)
 
 
@@ -42,8 +43,8 @@ def no_lists():
 def list_width(widest: int) -> int:
     """Entries per row for lists whose widest row holds `widest` neighbours: 1.5 times that plus 8 (at least 16), and
     never a multiple of 32. Rows a multiple of 32 entries (128 bytes) apart start on a fraction of the cache's sets
-    (at 128 entries, 8 of 64): W1-3D's lists at width 128 made its step 20% slower than at 129, and its half lists,
-    once sized from full rows, were exactly that wide."""
+    (at 128 entries, 8 of 64), and W1-3D's half lists, once sized from full rows, were exactly that wide (measured:
+    docs/performance.md, "Why the code is shaped so")."""
     width = max(16, int(math.ceil(1.5 * widest)) + 8)
     return width + 4 if width % 32 == 0 else width
 
@@ -326,8 +327,8 @@ class NeighbourList:
         if ti.static(half and store and grid.trims_rows):
             # The CPU's 3D half rows: every row's ranges first, then the scans. A range's bounds hang on a chain of
             # latencies (the trim's square root, the cell_start loads) that a scan long enough to fill the core's
-            # window would hold back; unrolled ahead of the scans, the rows' chains overlap (3D build 21% faster, at
-            # 0.7 s more compile a kernel; a loop over the rows' bounds first gained nothing).
+            # window would hold back; unrolled ahead of the scans, the rows' chains overlap (a faster 3D build for a
+            # longer compile; docs/performance.md, "Why the code is shaped so").
             # Range 2q is row q's cells inside the box, 2q + 1 those past a periodic box's end along the last axis.
             starts = ti.Vector.zero(ti.i32, 2 * rows)
             ends = ti.Vector.zero(ti.i32, 2 * rows)

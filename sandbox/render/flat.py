@@ -238,7 +238,7 @@ class Flat2D:
                     dirty = True
             if dirty:
                 canvas.dirty[ti.atomic_add(canvas.n_dirty[None], 1)] = tx + ty * canvas.tiles_x
-        # A tile row per iteration: 2x faster than a pixel per iteration, and enough iterations for every thread
+        # A tile row per iteration: faster than a pixel per iteration, and enough iterations for every thread
         # (Taichi's CPU loops hand out blocks of hundreds of iterations: a loop over tiles would run on one thread)
         for m in range(canvas.n_dirty[None] * TILE):
             tile = canvas.dirty[m // TILE]

@@ -71,7 +71,7 @@ def spring_heat_lattice_sim(arch: str):
     """W2: a 100 x 100 lattice of a stiff gel (jelly with 20,000 stiffness: it holds its shape under its own weight,
     sagging and rebounding a little) on a 100 C plate, under gravity. Jelly itself is too soft for 100 layers: the
     block collapsed into a pile while it was being measured, its neighbour lists widening tenfold, so its cost grew
-    with the time it had run (before 2026-11-23 afternoon)."""
+    with the time it had run."""
 
     data = {
         "world": {"dim": 2, "lo": [0, 0], "hi": [140, 110], "dt": 0.002, "gravity": [0, -9.8]},

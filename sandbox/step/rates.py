@@ -64,7 +64,7 @@ class Rates:
         self.no_lists = hood.no_lists if hood is not None else no_lists()
         # 3D rows of pair forces alone (no heat flows, no bonded pairs marked) are computed in vectorized blocks
         # where the CPU's gathers pay (runtime.vector_gathers_pay); W1's rows in 2D (10 pairs a row, against 38) ran
-        # 5% slower in blocks even there, so 2D keeps the plain loop
+        # slower in blocks even there, so 2D keeps the plain loop
         self.blocked_rows = (
             self.dim == 3 and not self.heat_pair_terms and not self.marks_bonds and runtime.vector_gathers_pay()
         )
