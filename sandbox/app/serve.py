@@ -23,14 +23,12 @@ import ipaddress
 import json
 import multiprocessing
 import secrets
-import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import urlsplit
 
 from ..config.resources import shipped_scenes
-from .serve_protocol import ProtocolError, RateLimit, parse
 from .serve_session import scratch_dir, session_main
 
 WEB = Path(__file__).resolve().parent / "web"
@@ -234,215 +232,11 @@ def is_loopback(host: str) -> bool:
 
 
 def make_app(classroom: Classroom):
-    """The Starlette application of `classroom`: the page, its assets, the WebSocket, state files, the teacher."""
-    from starlette.applications import Starlette
-    from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response
-    from starlette.routing import Mount, Route, WebSocketRoute
-    from starlette.staticfiles import StaticFiles
-    from starlette.websockets import WebSocketDisconnect
+    """The Starlette application of `classroom`: the page, its assets, the WebSocket, state files, the teacher
+    (serve_routes.py; Starlette is imported only here, with the serve extra)."""
+    from .serve_routes import ClassroomRoutes
 
-    def page(name: str, teacher: bool = False):
-        async def endpoint(request):
-            if not classroom.allowed(request):
-                return PlainTextResponse("403: this classroom needs its token (the address the server printed)", 403)
-            if teacher and not classroom.is_teacher(request):
-                return PlainTextResponse("403: the teacher's page needs the teacher's address (printed second)", 403)
-            response = FileResponse(WEB / name, headers={"Cache-Control": "no-store"})
-            if classroom.token:
-                response.set_cookie("sandbox_token", classroom.token, httponly=True, samesite="strict")
-            if teacher:
-                response.set_cookie("sandbox_teacher", classroom.teacher, httponly=True, samesite="strict")
-            return response
-
-        return endpoint
-
-    async def scenes(request):
-        return JSONResponse({"scenes": classroom.scenes, "default": classroom.scene})
-
-    def gated(endpoint, role: str = "class"):
-        """The endpoint for requests allowed in `role`: "class" (the class token), "teacher" (the teacher's secret),
-        or "owner" (a session named by `sid`, for the teacher or the socket that opened it, given its handle)."""
-
-        async def checked(request):
-            if not classroom.allowed(request):
-                return PlainTextResponse("403", 403)
-            if role == "teacher" and not classroom.is_teacher(request):
-                return PlainTextResponse("403: for the teacher", 403)
-            if role != "owner":
-                return await endpoint(request)
-            handle = classroom.sessions.get(request.query_params.get("sid", ""))
-            if not (classroom.is_teacher(request) or classroom.owns(request, handle)):
-                return PlainTextResponse("403: not your session", 403)  # said alike whether it exists or not
-            if handle is None:
-                return PlainTextResponse("no such session", 404)
-            return await endpoint(request, handle)
-
-        return checked
-
-    async def bounded_body(request, limit: int) -> bytes | None:
-        """The request's body, or None as soon as it is (or says it will be) longer than `limit` bytes."""
-        declared = request.headers.get("content-length", "")
-        if declared.isdigit() and int(declared) > limit:
-            return None
-        body = bytearray()
-        async for chunk in request.stream():
-            body += chunk
-            if len(body) > limit:
-                return None
-        return bytes(body)
-
-    async def ask(handle: Handle, kind: str, message: dict, seconds: float):
-        """Send the session `message` and wait for its answer of type `kind` (None after `seconds`)."""
-        answer = handle.expect(kind)
-        handle.send(message)
-        try:
-            return await asyncio.wait_for(answer, seconds)
-        except asyncio.TimeoutError:
-            return None
-
-    async def state(request, handle: Handle):
-        path = classroom.scratch / f"{secrets.token_hex(8)}.npz"
-        if request.method == "GET":  # download: the session saves, the file goes to the tab, then away
-            if await ask(handle, "saved", {"t": "save", "path": str(path)}, 30) is None:
-                return PlainTextResponse("the session did not save in time", 504)
-            data = path.read_bytes()
-            path.unlink(missing_ok=True)
-            name = f"{handle.scene}.npz"
-            return Response(
-                data,
-                media_type="application/octet-stream",
-                headers={"Content-Disposition": f'attachment; filename="{name}"'},
-            )
-        body = await bounded_body(request, MAX_UPLOAD)
-        if body is None:
-            return PlainTextResponse(f"state file refused: larger than {MAX_UPLOAD // 2**20} MB", 413)
-        path.write_bytes(body)
-        handle.send({"t": "upload", "path": str(path)})  # checked by the session; its answer comes by WebSocket
-        return PlainTextResponse("checking", 202)
-
-    async def sessions(request):
-        now = time.monotonic()
-        rows = [
-            {
-                "sid": h.sid,
-                "scene": h.scene,
-                "frames": h.frames,
-                "time": h.info.get("time", 0.0),
-                "fps": h.frames / max(now - h.started, 1e-9),
-            }
-            for h in classroom.sessions.values()
-        ]
-        ready = sum(1 for h in classroom.warm if h.frames > 0)
-        return JSONResponse({"sessions": rows, "max": classroom.max_sessions, "warm": ready})
-
-    async def thumb(request):
-        handle = classroom.sessions.get(request.query_params.get("sid", ""))
-        if handle is None:
-            return PlainTextResponse("no such session", 404)
-        data = await ask(handle, "thumb", {"t": "thumb"}, 10)
-        if data is None:
-            return PlainTextResponse("no picture in time", 504)
-        return Response(data, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
-
-    async def broadcast(request):
-        body = await bounded_body(request, MAX_BROADCAST)
-        if body is None:
-            return PlainTextResponse(f"broadcast: larger than {MAX_BROADCAST} bytes; expected one message", 413)
-        try:
-            message = parse(body, classroom.scenes)
-        except ProtocolError as exc:
-            return PlainTextResponse(str(exc), 400)
-        if message["t"] not in ("action", "scene", "set"):
-            return PlainTextResponse("broadcast: expected an action, a scene or a setting", 400)
-        for handle in list(classroom.sessions.values()):
-            handle.send(message)
-            if message["t"] == "scene":
-                handle.scene = message["name"]
-        return JSONResponse({"sent": len(classroom.sessions)})
-
-    async def socket(websocket):
-        if not classroom.allowed(websocket) or not classroom.same_origin(websocket):
-            await websocket.close(code=1008)
-            return
-        await websocket.accept()
-        if len(classroom.sessions) >= classroom.max_sessions:
-            text = f"the classroom is full ({classroom.max_sessions} sessions): try again later"
-            await websocket.send_text(json.dumps({"t": "error", "key": "full", "text": text}))
-            await websocket.close(code=1013)
-            return
-        scene = websocket.query_params.get("scene", classroom.scene)
-        if scene not in classroom.scenes:
-            scene = classroom.scene
-        ahead = classroom.starting()
-        handle = classroom.open(scene)
-        hello = {"t": "hello", "sid": handle.sid, "key": handle.key, "scenes": classroom.scenes}
-        await websocket.send_text(json.dumps(hello))
-        if handle.frames == 0:  # not a warm one: say so, and how many are starting before it
-            text = json.dumps({"t": "notice", "key": "starting", "text": str(ahead)})
-            await websocket.send_text(text)
-        limit, warned = RateLimit(), -WARN_SECONDS
-
-        async def pump():
-            while (item := await handle.outbox.get()) is not None:
-                kind, body = item
-                await (websocket.send_bytes(body) if kind == "bytes" else websocket.send_text(body))
-
-        sender = asyncio.create_task(pump())
-        try:
-            while True:
-                received = await websocket.receive()
-                if received["type"] == "websocket.disconnect":
-                    break
-                handle.last_seen = time.monotonic()
-                if not limit.allow():
-                    if handle.last_seen - warned > WARN_SECONDS:  # said once a burst, not once a message
-                        warned = handle.last_seen
-                        slow = {"t": "error", "key": "too_many", "text": "too many messages: slow down"}
-                        await websocket.send_text(json.dumps(slow))
-                    continue
-                text = received.get("text")
-                if text is None:
-                    said = {"t": "error", "key": "not_text", "text": "expected text (JSON), not bytes"}
-                    await websocket.send_text(json.dumps(said))
-                    continue
-                try:
-                    message = parse(text, classroom.scenes)
-                except ProtocolError as exc:
-                    await websocket.send_text(json.dumps({"t": "error", "text": str(exc)}))
-                    continue
-                if message["t"] == "scene":
-                    handle.scene = message["name"]
-                handle.send(message)
-        except (WebSocketDisconnect, RuntimeError, OSError):
-            pass
-        finally:
-            classroom.close(handle)
-            sender.cancel()
-
-    @contextlib.asynccontextmanager
-    async def lifespan(app):
-        tasks = [asyncio.create_task(classroom.reap_idle()), asyncio.create_task(classroom.keep_warm())]
-        yield
-        for task in tasks:
-            task.cancel()
-        for handle in [*classroom.sessions.values(), *classroom.warm]:
-            classroom.close(handle)
-        shutil.rmtree(classroom.scratch, ignore_errors=True)
-
-    return Starlette(
-        routes=[
-            Route("/", page("index.html")),
-            Route("/teacher", page("teacher.html", teacher=True)),
-            Route("/api/scenes", gated(scenes)),
-            Route("/api/state", gated(state, "owner"), methods=["GET", "POST"]),
-            Route("/api/sessions", gated(sessions, "teacher")),
-            Route("/api/thumb", gated(thumb, "teacher")),
-            Route("/api/broadcast", gated(broadcast, "teacher"), methods=["POST"]),
-            WebSocketRoute("/ws", socket),
-            Mount("/static", app=TokenGate(StaticFiles(directory=WEB), classroom)),
-        ],
-        lifespan=lifespan,
-    )
+    return ClassroomRoutes(classroom).app()
 
 
 class TokenGate:
