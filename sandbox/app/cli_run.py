@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import signal
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..api import resumed
@@ -128,7 +129,48 @@ def _resumed_scene(args):
     return saved_scene(meta, args.resume), int(meta["frame"]), meta
 
 
+@dataclass
+class RunPlan:
+    """What `sandbox run` will do, decided from its arguments before anything is built: the scene (resumed or
+    loaded), the frames (from `first_frame`, of the saved state's meta `saved`), window or headless, the output and
+    its picture size, frame rate and frame stride (a GIF keeps every `every`-th frame)."""
+
+    scene: object
+    first_frame: int
+    saved: dict | None
+    frames: int
+    headless: bool
+    out: str | None
+    width: int
+    height: int
+    fps: float
+    every: int = 1
+
+
 def cmd_run(args) -> int:
+    """`sandbox run`: the scene in a window where one can open, else headless into its outputs."""
+    plan = _plan_run(args)
+    runtime.require(args.arch, plan.scene.world.precision)
+    _check_run_outputs(args, plan.out, plan.scene)
+    if args.resume:
+        sim = resumed(args.resume, args.arch, plan.saved, plan.scene)
+    else:
+        sim = Simulation(plan.scene, arch=args.arch)
+    for line in stability_warnings(sim):
+        print(f"warning: {line}; expect the blow-up guard to stop the run", file=sys.stderr)
+    if not plan.headless:
+        try:
+            return _in_window(args, sim)
+        except WindowUnavailable as exc:
+            print(f"{exc}: running headless", file=sys.stderr)
+            plan.out = plan.out or f"out/{file_stem(plan.scene.name)}.mp4"
+            check_picture(plan.width, plan.height, plan.out)
+            _check_run_outputs(args, plan.out, plan.scene)
+    return _headless(args, sim, plan)
+
+
+def _plan_run(args) -> RunPlan:
+    """The run's plan, every argument checked against the scene (SandboxError with one line)."""
     _check_run_numbers(args)
     scene, first_frame, saved_meta = _resumed_scene(args) if args.resume else (_load(args), 0, None)
     frames = args.frames or scene.render.frames
@@ -139,7 +181,6 @@ def cmd_run(args) -> int:
         args.checkpoint = f"out/{file_stem(scene.name)}.state.npz"
     if args.still_frame is not None:
         check_count("--still-frame", args.still_frame, 0, frames - 1)
-    substeps = args.substeps  # None: the scene's (an integer, or "auto")
     headless = args.headless
     if not headless and (args.dump or args.checkpoint_every or args.cache):
         print("--dump, --cache and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
@@ -157,52 +198,49 @@ def cmd_run(args) -> int:
         except SandboxError:
             out = f"out/{file_stem(scene.name)}"
             print(f"imageio-ffmpeg is not installed: writing PNG frames to {out}/ instead of an MP4", file=sys.stderr)
-    width, height = args.width or scene.render.width, args.height or scene.render.height
-    fps, every = args.fps or scene.render.fps, 1
+    plan = RunPlan(
+        scene, first_frame, saved_meta, frames, headless, out,
+        args.width or scene.render.width, args.height or scene.render.height, args.fps or scene.render.fps,
+    )  # fmt: skip
     if out is not None and Path(out).suffix.lower() == ".gif":
         sized = args.width is not None or args.height is not None
         # planned for the whole run, so that a resumed run keeps the frames the uninterrupted one keeps
-        width, height, every, size = gif_plan(width, height, fps, frames, sized)
+        plan.width, plan.height, plan.every, size = gif_plan(plan.width, plan.height, plan.fps, frames, sized)
         if size > GIF_WARN:
-            print(f"warning: {gif_warning(out, width, height, fps / every, size)}", file=sys.stderr)
-    check_picture(width, height, out)
-    runtime.require(args.arch, scene.world.precision)
-    _check_run_outputs(args, out, scene)
+            print(f"warning: {gif_warning(out, plan.width, plan.height, plan.fps / plan.every, size)}", file=sys.stderr)
+    check_picture(plan.width, plan.height, out)
+    return plan
 
-    if args.resume:
-        sim = resumed(args.resume, args.arch, saved_meta, scene)
-    else:
-        sim = Simulation(scene, arch=args.arch)
-    for line in stability_warnings(sim):
-        print(f"warning: {line}; expect the blow-up guard to stop the run", file=sys.stderr)
-    if not headless:
-        try:
-            window = (args.width or scene.render.width, args.height or scene.render.height)
-            ran = run_window(
-                sim, frames=args.frames, screenshot=args.screenshot, substeps=substeps, record=args.record, size=window
-            )
-            while ran.next_scene:  # the panel's scene picker: the same process opens the next scene
-                sim = open_scene(ran.next_scene, args.arch)
-                ran = run_window(sim, size=ran.size)
-            return 0
-        except WindowUnavailable as exc:
-            print(f"{exc}: running headless", file=sys.stderr)
-            out = out or f"out/{file_stem(scene.name)}.mp4"
-            check_picture(width, height, out)
-            _check_run_outputs(args, out, scene)
 
+def _in_window(args, sim) -> int:
+    """The window, then each scene its picker opens, in this process."""
+    scene = sim.scene
+    window = (args.width or scene.render.width, args.height or scene.render.height)
+    ran = run_window(
+        sim, frames=args.frames, screenshot=args.screenshot, substeps=args.substeps, record=args.record, size=window
+    )
+    while ran.next_scene:  # the panel's scene picker: the same process opens the next scene
+        sim = open_scene(ran.next_scene, args.arch)
+        ran = run_window(sim, size=ran.size)
+    return 0
+
+
+def _headless(args, sim, plan: RunPlan) -> int:
+    """The frames written to the run's outputs; the exit status (EXIT_STOPPED after a blow-up, 128 + the signal
+    after an interruption)."""
+    scene, first_frame, frames, out = plan.scene, plan.first_frame, plan.frames, plan.out
     outputs = RunOutputs(
         sim,
         out,
         args.stats,
-        size=(width, height, fps),
-        every=every,
+        size=(plan.width, plan.height, plan.fps),
+        every=plan.every,
         still_frame=args.still_frame,
         dump=args.dump,
         dump_every=args.dump_every or 1,
         checkpoint=args.checkpoint,
         checkpoint_every=args.checkpoint_every,
-        resume=(Path(args.resume), saved_meta) if args.resume else None,
+        resume=(Path(args.resume), plan.saved) if args.resume else None,
         restart=args.restart_outputs,
         cache=args.cache,
         cache_every=args.cache_every or 1,
@@ -213,22 +251,28 @@ def cmd_run(args) -> int:
         start = f"no frames (the outputs of the {frames} saved are finished)"
     print(
         f"{scene.name}: {sim.model.built.count} particles, {sim.model.built.spring_count} springs, {start} x "
-        f"{substeps or scene.world.substeps} steps on {sim.arch} -> {out}",
+        f"{args.substeps or scene.world.substeps} steps on {sim.arch} -> {out}",
         file=sys.stderr,
     )
     result = run_headless(
         sim,
         frames - first_frame,
-        substeps,
+        args.substeps,
         out,
-        width=width,
-        height=height,
+        width=plan.width,
+        height=plan.height,
         fps=args.fps,
         progress=not args.quiet,
         first_frame=first_frame,
         outputs=outputs,
         overlays=not args.no_overlays,
     )
+    return _said(args, sim, plan, result)
+
+
+def _said(args, sim, plan: RunPlan, result) -> int:
+    """What a headless run says when it ends, and its exit status."""
+    out, first_frame = plan.out, plan.first_frame
     if result.stopped:
         print(f"error: the blow-up guard stopped the run: {result.stopped}", file=sys.stderr)
         if result.frames and out:
