@@ -194,7 +194,7 @@ class Simulation:
         heat = self.terms.heat is not None
         problem = self.guard.problem(m, m["bad"], self.state.dt, heat)
         if problem:
-            self.broken = explain_blowup(self, *problem)
+            self.broken = explain_blowup(self.state, self.terms, self.integrator, *problem)
             raise SimulationError(self.broken)
         world = self.scene.world
         volume = float(np.prod(np.subtract(world.hi, world.lo)))  # the pressure's V (area in 2D)

@@ -20,6 +20,7 @@ import os
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 import taichi as ti
@@ -54,12 +55,27 @@ def _download(entries: list) -> dict[str, np.ndarray]:
         return dict(zip((e.name for e in entries), transfer.download_all([e.get() for e in entries])))
 
 
-def controls(sim) -> dict:
+class Saveable(Protocol):
+    """What state files read and set of a simulation (the facade passes itself; nothing else of it is used): its
+    model, state and terms, what a restore refreshes (`parts`), and its integrator, switched by name."""
+
+    model: Any
+    state: Any
+    terms: Any
+    parts: list
+    integrator: Any
+    scene: Any
+    arch: str
+
+    def set_integrator(self, name: str) -> None: ...
+
+
+def controls(sim: Saveable) -> dict:
     """The live controls of the model and the terms ("world.gravity", "pair.scale", "heat.ambient" ...)."""
     return live_controls.gather(sim.model, sim.terms)
 
 
-def save_state(sim, path: str | Path, frame: int | None = None, outputs: dict | None = None) -> Path:
+def save_state(sim: Saveable, path: str | Path, frame: int | None = None, outputs: dict | None = None) -> Path:
     """Write `sim`'s whole state to `path` (.npz added when missing) atomically: written under a temporary name in
     the same folder and renamed, so a crash while writing never leaves a broken file under `path`. `frame`: the
     frame count to record (default: the frames the simulation has advanced); `outputs`: what a headless run's files
@@ -93,7 +109,7 @@ def save_state(sim, path: str | Path, frame: int | None = None, outputs: dict | 
     if outputs is not None:
         meta["outputs"] = outputs
     try:
-        check_state(sim, arrays, host, path)  # what would not load back is not written
+        check_state(sim.model, sim.state, arrays, host, path)  # what would not load back is not written
     except SandboxError as exc:
         raise SimulationError(f"not saved: {exc}") from None
     partial = partial_name(path)
@@ -162,7 +178,7 @@ def _check_controls(saved: dict, current: dict, path: Path) -> None:
             raise SandboxError(f"{path}: control {key} is {saved[key]!r}; expected the shape of {value!r}")
 
 
-def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
+def load_into(sim: Saveable, path: str | Path, meta: dict | None = None) -> None:
     """Put a state file saved from `sim`'s own scene back into `sim` (the window's load key, and resume): the state,
     clock, controls and integrator as saved. SandboxError when the file is of another scene, backend or thread count
     (checked before anything in `sim` changes) or does not fit it."""
@@ -195,7 +211,7 @@ def load_into(sim, path: str | Path, meta: dict | None = None) -> None:
     before = sim.integrator.name
     sim.set_integrator(meta["integrator"])  # before checking: its own entries are part of the state
     try:
-        check_state(sim, saved, host, path)
+        check_state(sim.model, sim.state, saved, host, path)
     except SandboxError:
         sim.set_integrator(before)  # nothing of the file reached the simulation
         raise

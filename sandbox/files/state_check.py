@@ -59,12 +59,11 @@ def check_meta(meta: dict, path: Path) -> None:
             raise SandboxError(f"{path}: control {key} is {value!r}; expected finite numbers")
 
 
-def check_state(sim, saved: dict, host: dict, path: Path) -> None:
-    """Every declared entry of `sim`'s state in the file's arrays `saved` and host values `host`: raise SandboxError
-    for the first one that is missing or does not fit."""
-    entries = sim.state.entries()
-    model = sim.model
-    springs = sim.state.springs
+def check_state(model, state, saved: dict, host: dict, path: Path) -> None:
+    """Every declared entry of `state` (of `model`'s scene) in the file's arrays `saved` and host values `host`:
+    raise SandboxError for the first one that is missing or does not fit."""
+    entries = state.entries()
+    springs = state.springs
     env = {
         "capacity": model.capacity,
         "materials": len(model.material_names),

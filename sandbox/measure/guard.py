@@ -182,17 +182,18 @@ class BlowupGuard:
         return None
 
 
-def explain_blowup(sim, kind: str, what: str) -> str:
-    """blowup_message() for the simulation `sim` (its particles, clock, integrator and the terms' step limits)."""
-    n = sim.state.live_count()
-    p = sim.state.particles
+def explain_blowup(state, terms, integrator, kind: str, what: str) -> str:
+    """blowup_message() for `state` (its particles and clock) stepped by `integrator` through `terms` (a TermList:
+    the springs' and heat's step limits)."""
+    n = state.live_count()
+    p = state.particles
     x, v = p.x.to_numpy()[:n], p.v.to_numpy()[:n]
     temperatures = p.T.to_numpy()[:n] if p.heat else None
-    springs, heat = sim.terms.springs, sim.terms.heat
-    spring_limit = springs.stable_dt_initial(sim.integrator) if springs is not None else math.inf
-    heat_limit = heat.stable_dt(sim.integrator) if heat is not None else math.inf
-    clock = (sim.state.step, sim.state.time, sim.state.dt)
-    integrator = (sim.integrator.name, sim.integrator.stable_h_omega)
+    springs, heat = terms.springs, terms.heat
+    spring_limit = springs.stable_dt_initial(integrator) if springs is not None else math.inf
+    heat_limit = heat.stable_dt(integrator) if heat is not None else math.inf
+    clock = (state.step, state.time, state.dt)
+    integrator = (integrator.name, integrator.stable_h_omega)
     return blowup_message(kind, what, x, v, temperatures, clock, integrator, (spring_limit, heat_limit))
 
 
