@@ -25,6 +25,7 @@ from .physics.grid import CellGrid
 from .physics.neighbours import Neighbourhood, NeighbourList
 from .physics.phase import Phase, initial_enthalpy
 from .physics.reorder import CellOrder
+from .physics.term import hook_order
 from .step.plan import can_step_as_a_team
 
 
@@ -69,7 +70,7 @@ def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None) ->
             springs = SpringState(built, capacity, spare, bonds)
         state = State(particles, springs, world.dt)
         parts = Parts(model, state, None)
-        for cls in sorted(TERMS, key=lambda c: c.order):
+        for cls in sorted(TERMS, key=lambda c: hook_order(c, "build")):
             if cls.wanted(parts):
                 parts.terms[cls.key] = cls(parts)
     terms = list(parts.terms.values())

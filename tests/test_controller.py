@@ -205,3 +205,17 @@ def test_the_centre_of_mass_height_falls_as_a_free_body_does():
     stats = sim.stats()
     assert stats.centre_of_mass_height == pytest.approx(h0 - 0.5 * g * t * t, abs=1e-9 * h0)
     assert 0.5 * g * t * t > 0.05
+
+
+def test_terms_run_in_named_stages_and_an_unknown_stage_is_refused():
+    """The term protocol: build and hook order come from named stages (physics/term.py's STAGES), in the order the
+    plan shows; a term naming a stage that does not exist is refused when it registers."""
+    from sandbox.physics.term import STAGES, Term, register
+
+    sim = Simulation(load_scene(SCENES / "candle.toml"))
+    built = [STAGES.index(t.stage) for t in sim.terms]
+    assert built == sorted(built)
+    before = [STAGES.index(getattr(t, "before_stage", t.stage)) for t in sim.plan.before]
+    assert len(before) >= 2 and before == sorted(before)
+    with pytest.raises(ValueError, match="'breeze': after_stage 'afterwards'"):
+        register(type("Breeze", (Term,), {"key": "breeze", "after_stage": "afterwards"}))

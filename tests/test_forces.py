@@ -284,7 +284,7 @@ def _harmonic_trap(centre):
     @data_oriented
     class Trap(Term):
         key = "trap"
-        order = 12.0  # summed after gravity and field drag
+        stage = "forces"  # summed after gravity and field drag (registered after them)
         particle_force = True
 
         @staticmethod

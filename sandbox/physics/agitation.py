@@ -46,7 +46,7 @@ class Agitation(Term):
     """The Langevin thermostat of free particles' motion to their temperature (module docstring)."""
 
     key = "agitation"
-    order = 85.0  # after the heat update, before refreezing
+    stage = "thermostat"
     measures = (Measure("agitation", "sum", "particles"), Measure("free", "count", "particles"))
 
     @staticmethod

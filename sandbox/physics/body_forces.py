@@ -19,7 +19,7 @@ class GravityAndDrag(Term):
     (model.gravity, model.drag), which the window changes while it runs. Measures the gravitational energy -m g.x."""
 
     key = "gravity"
-    order = 10.0
+    stage = "forces"
     particle_force = True
     measures = (Measure("grav", "sum", "particles"),)
 
@@ -56,9 +56,9 @@ class FieldDrag(Term):
     F = m k (v_field(x) - v), with v_field sampled at the step's start (before_step)."""
 
     key = "field_drag"
-    order = 48.0  # built after the velocity field
-    particle_force_order = 11.0  # summed right after gravity
-    before_order = 50.0  # sampled after the smoke grid has stepped
+    stage = "coupling"  # built after the velocity field
+    particle_force_stage = "forces"  # summed with gravity, after it
+    before_stage = "coupling"  # sampled after the smoke grid has stepped
     particle_force = True
 
     @staticmethod

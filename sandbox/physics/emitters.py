@@ -34,8 +34,8 @@ class Emitters(Term):
     """The scene's emitters as a term: parameter fields, the emit kernel, and the seeding due before each step."""
 
     key = "emitters"
-    order = 47.0  # built after the velocity field, which an emitter's particles may inherit
-    before_order = 40.0  # seeded before the smoke grid steps
+    stage = "emitters"  # built after the velocity field, which an emitter's particles may inherit
+    before_stage = "seeding"  # seeded before the smoke grid steps
 
     @staticmethod
     def wanted(parts) -> bool:

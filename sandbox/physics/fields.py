@@ -94,7 +94,7 @@ class VelocityField(Term):
     follow it (kinematic) or are dragged toward it (drag): their velocity there, sampled at each step's start."""
 
     key = "fields"
-    order = 46.0  # built after the smoke grid, whose velocity it adds
+    stage = "fields"  # built after the smoke grid, whose velocity it adds
 
     @staticmethod
     def wanted(parts) -> bool:

@@ -66,8 +66,8 @@ class Heat(Term):
     the temperatures and heat content it measures, and its explicit stability limit."""
 
     key = "heat"
-    order = 35.0
-    finish_order = 70.0  # after the walls and kinematic particles have moved: fixed sources hold by position
+    stage = "heat"
+    finish_stage = "heat_update"  # after the walls and kinematic particles have moved: fixed sources hold by position
     measures = (
         Measure("tsum", "sum", "particles"),
         Measure("tcold", "max", "particles", -1e30),  # the largest -T: the coldest

@@ -27,7 +27,7 @@ class ImplicitHeat(Term):
     """Backward-Euler heat stepper over the neighbourhood (lists or grid), after each step."""
 
     key = "implicit_heat"
-    order = 80.0
+    stage = "solve"
 
     @staticmethod
     def wanted(parts) -> bool:

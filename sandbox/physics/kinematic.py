@@ -17,8 +17,8 @@ class Kinematic(Term):
     update at the step's end, then advect through the field."""
 
     key = "kinematic"
-    order = 55.0
-    after_order = 85.0  # after the implicit heat solve, as its positions were the step's
+    stage = "moving"
+    after_stage = "advect"  # after the implicit heat solve, as its positions were the step's
     adjusts_force = True
     finishes = True
 

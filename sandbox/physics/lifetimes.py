@@ -17,7 +17,7 @@ class Lifetimes(Term):
     """Ageing after each step and retirement of the dead after each Simulation.step call."""
 
     key = "lifetimes"
-    order = 95.0
+    stage = "ageing"
 
     @staticmethod
     def wanted(parts) -> bool:

@@ -77,7 +77,7 @@ class PairForce(Term):
     rates (each neighbour pair's force, excluding pairs joined by a live spring) and its pair energy and virial."""
 
     key = "pair"
-    order = 20.0
+    stage = "pairs"
     pair_channel = "force"
     excludes_bonded = True
     measures = (Measure("pair", "sum", "pairs"), Measure("pair_virial", "sum", "pairs"))

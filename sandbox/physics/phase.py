@@ -177,7 +177,7 @@ class Refreeze(Term):
     particles where at least one end was liquid."""
 
     key = "refreeze"
-    order = 90.0
+    stage = "refreeze"
 
     @staticmethod
     def wanted(parts) -> bool:

@@ -224,7 +224,7 @@ class Smoke(Term):
     """The smoke grid as a term: it steps every smoke.interval particle steps, before the particles' step."""
 
     key = "smoke"
-    order = 45.0
+    stage = "flow"
 
     @staticmethod
     def wanted(parts) -> bool:

@@ -44,7 +44,7 @@ class Springs(Term):
     bond list, their energy, virial and count, and the stable step they allow each integrator."""
 
     key = "springs"
-    order = 30.0
+    stage = "bonds"
     prestep = True
     bonded = True
     BREAK_STRETCH = 100.0  # a spring stretched beyond 100x its rest length breaks (documented clamp)

@@ -22,8 +22,9 @@ Its part of the rates, each a Taichi func inlined into the kernels of every way 
 Its host work (the long way runs it around each step; a scene with any never runs steps many to a launch):
     before_step(state), after_step(state), after_steps(state) (after each Simulation.step call),
     at_step(state, done) (at a step boundary, after fused batches too: refreezing)
-and `host_work(scene)` says why in words. The order of each kind of hook is the terms' `order`, or `<hook>_order`
-where a term's hook must run elsewhere among the others (the heat update after the walls have moved a particle).
+and `host_work(scene)` says why in words. Terms are built, and each kind of hook runs, in the order of their named
+stage (STAGES below: `stage`, or `<hook>_stage` where a term's hook must run elsewhere among the others: the heat
+update after the walls have moved a particle), and within a stage in registration order.
 
 Its other parts: `start(state)` (once the simulation is built), `stable_dt(integrator)`, `auto_dt(integrator)` (its
 bounds on the step), `measures` with `measure_particle(i)`, `measure_spring(s)`, `measure_pairs(i)`,
@@ -41,15 +42,49 @@ TERMS: list[type] = []  # every term class, in registration order
 
 
 def register(cls: type) -> type:
-    """Class decorator: make `cls` a term a scene can have (see the module docstring)."""
+    """Class decorator: make `cls` a term a scene can have (see the module docstring); ValueError for a stage that
+    is not one of STAGES."""
+    for name in dir(cls):
+        said = getattr(cls, name) if name == "stage" or name.endswith("_stage") else STAGES[0]
+        if said not in STAGES:
+            raise ValueError(f"term {cls.key!r}: {name} {said!r}; expected one of {', '.join(STAGES)}")
     if cls not in TERMS:
         TERMS.append(cls)
     return cls
 
 
-def hook_order(term, hook: str) -> float:
-    """Where `term`'s hook of kind `hook` runs among the others: its `<hook>_order`, else its `order`."""
-    return getattr(term, f"{hook}_order", term.order)
+# The named stages of a step, in the order terms are built and their hooks run (module docstring). A term names its
+# stage (`stage`), and where one of its hooks runs elsewhere, that hook's (`before_stage`, `after_stage`,
+# `finish_stage`, `particle_force_stage`, ...); terms in the same stage run in the order they were registered.
+STAGES = (
+    "forces",  # body forces (gravity, then what is summed after it)
+    "pairs",  # pair forces and flows
+    "bonds",  # springs
+    "heat",  # conduction, sources, the phase law
+    "seeding",  # emitters seed new particles (before the smoke grid steps)
+    "flow",  # the smoke grid
+    "fields",  # velocity fields (after the smoke grid, whose velocity they add)
+    "emitters",  # emitters (after the velocity field, which their particles may inherit)
+    "coupling",  # drag towards a velocity field, sampled after the smoke grid has stepped
+    "boundaries",  # walls
+    "moving",  # kinematic bodies
+    "heat_update",  # the heat update, after walls and kinematic particles have moved
+    "solve",  # the implicit heat solve
+    "advect",  # kinematic bodies carried on after the solve
+    "thermostat",  # temperature as motion
+    "refreeze",  # melts freezing into springs
+    "ageing",  # lifetimes
+)
+
+
+def hook_order(term, hook: str) -> tuple[int, int]:
+    """Where `term`'s hook of kind `hook` ("build", "before", "after", "finish", "particle_force", ...) runs among
+    the others: its `<hook>_stage`, else its `stage`, in STAGES' order; within a stage, in registration order."""
+    stage = getattr(term, f"{hook}_stage", term.stage)
+    if stage not in STAGES:
+        raise ValueError(f"term {term.key!r}: stage {stage!r}; expected one of {', '.join(STAGES)}")
+    cls = term if isinstance(term, type) else type(term)
+    return STAGES.index(stage), TERMS.index(cls) if cls in TERMS else len(TERMS)
 
 
 @dataclass(frozen=True)
@@ -83,7 +118,7 @@ class Term:
     """A term with nothing to add: every hook off. Subclasses set the flags of what they provide."""
 
     key = ""  # its name in the term list (sim.terms.<key>)
-    order = 50.0  # where its hooks run among the others' (and the order terms are built in)
+    stage = "coupling"  # where it is built and its hooks run among the others' (STAGES)
 
     pair_channel = ""
     excludes_bonded = False

@@ -15,7 +15,7 @@ class Walls(Term):
     restarted (`impulse`)."""
 
     key = "walls"
-    order = 52.0
+    stage = "boundaries"
     finishes = True
     measures = (Measure("impulse", "sum", "value"),)
 
