@@ -84,8 +84,8 @@ class Simulation:
     capacity = property(lambda self: self.model.capacity)
     material_names = property(lambda self: self.model.material_names)
     particles = property(
-        lambda self: ParticleView(self.state.particles, self.particle_table),
-        doc="the particle fields (sim.particles.x, ...); calling it, sim.particles(): particle_table()",
+        lambda self: ParticleView(self.state.particles, lambda: scripting.particle_table(self)),
+        doc="the particle fields (sim.particles.x, ...); calling it, sim.particles(): scripting.particle_table",
     )
     time = property(lambda self: self.state.time, doc="simulated time")
     step_count = property(lambda self: self.state.step, doc="steps taken")
@@ -167,22 +167,10 @@ class Simulation:
                 limits.append(0.5 * r / v)
         return min(limits)
 
-    # ------------------------------------------------------------------ live controls
-    def controls(self) -> dict:
-        """The live controls by namespaced name (core/controls.py): {"world.gravity": [0, -9.81], "world.drag": 0,
-        "heat.ambient": 20.0, "pair.scale": [1, 1], ...}, in the scene's units."""
-        return live_controls.gather(self.model, self.terms)
-
-    def set_controls(self, values: dict) -> None:
-        """Set some live controls by name (as controls() names them); SandboxError naming an unknown one or a value
-        of the wrong shape, before anything changes."""
-        current = self.controls()
-        for key, value in values.items():
-            if key not in current:
-                raise SandboxError(f"no live control {key!r}; this scene has {', '.join(current)}")
-            if np.shape(value) != np.shape(current[key]) or not np.all(np.isfinite(value)):
-                raise SandboxError(f"control {key} = {value!r}; expected finite numbers shaped like {current[key]!r}")
-        live_controls.apply(self.model, self.terms, values)
+    controls = property(
+        lambda self: live_controls.Controls(self.model, self.terms),
+        doc="the live controls by namespaced name: controls.values(), controls.set({...}) (core/controls.py)",
+    )
 
     # ------------------------------------------------------------------ measuring
     def stats(self, pair_energy: bool = True) -> Stats:
@@ -253,10 +241,6 @@ class Simulation:
     def picture(self, width: int | None = None, height: int | None = None, **render) -> np.ndarray:
         """The scene drawn now as a new (height, width, 3) uint8 RGB array (see scripting.picture)."""
         return scripting.picture(self, width, height, **render)
-
-    def particle_table(self) -> dict[str, np.ndarray]:
-        """What `sim.particles()` returns: the live particles by id (see scripting.particle_table)."""
-        return scripting.particle_table(self)
 
     def write_extxyz(self, path: str | Path, append: bool = True, bonds: bool = False) -> None:
         """Write the particles as one extended-XYZ frame (ASE, OVITO) to `path` (see scripting.write_extxyz)."""

@@ -105,19 +105,19 @@ def test_live_controls_are_namespaced_refused_by_name_and_never_collide():
     from sandbox.core import controls
 
     sim = _block()
-    assert sim.controls() == {
+    assert sim.controls.values() == {
         "world.gravity": pytest.approx([0.0, -9.8]),
         "world.drag": 0.0,
         "pair.scale": [1.0, 1.0],
         "heat.ambient": 20.0,
     }
-    sim.set_controls({"heat.ambient": 35.0, "pair.scale": [2.0, 1.0]})
+    sim.controls.set({"heat.ambient": 35.0, "pair.scale": [2.0, 1.0]})
     assert sim.terms.heat.sources.ambient[None] == 35.0 and sim.terms.pair.scale == (2.0, 1.0)
-    before = sim.controls()
+    before = sim.controls.values()
     for bad, words in (({"ambient": 1.0}, "no live control 'ambient'"), ({"world.gravity": 1.0}, "shaped like")):
         with pytest.raises(SandboxError, match=words):
-            sim.set_controls({"heat.ambient": 99.0, **bad})  # checked whole before anything changes
-        assert sim.controls() == before
+            sim.controls.set({"heat.ambient": 99.0, **bad})  # checked whole before anything changes
+        assert sim.controls.values() == before
     twin = type("Twin", (), {"key": "heat", "controls": lambda self: {}})()
     with pytest.raises(ValueError, match="named 'heat'"):
         controls.gather(sim.model, [*sim.terms, twin])

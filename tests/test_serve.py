@@ -529,6 +529,7 @@ def test_the_teachers_page_follows_lang(classroom):
         page.goto(address.rstrip("/") + f"/teacher?{teacher}&lang=ar")
         page.wait_for_function("document.documentElement.dir === 'rtl'", timeout=15000)
         assert page.inner_text("h1") == "واجهة المعلم"
-        assert "مكعب ثلج" in page.inner_text("#scene")
+        # the scene list arrives after the words (its own request): wait for it rather than race it
+        page.wait_for_function("document.getElementById('scene').textContent.includes('مكعب ثلج')", timeout=15000)
     finally:
         page.close()

@@ -24,8 +24,9 @@ pytest.importorskip("httpx")
 
 from starlette.testclient import TestClient  # noqa: E402
 
-from sandbox.app.serve import MAX_BROADCAST, Classroom, Handle, make_app  # noqa: E402
+from sandbox.app.serve import MAX_BROADCAST, Classroom, Handle  # noqa: E402
 from sandbox.app.serve_protocol import ProtocolError, parse  # noqa: E402
+from sandbox.app.serve_routes import make_app  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("serve")
 TOKEN, TEACHER = "class-token-123", "teacher-secret-456"

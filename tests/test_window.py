@@ -382,7 +382,7 @@ def test_switching_scenes_frees_the_last_one_and_costs_the_same_every_time(compi
     the same (a runtime that kept every scene's fields would run out of field trees)."""
     import resource
 
-    from sandbox.app.window import open_scene
+    from sandbox.app.controller import open_scene
     from sandbox.app.window_state import pick_scene
 
     s = state()

@@ -22,7 +22,8 @@ FRAMES = 3
 
 SCRIPT = """
 import sys
-from sandbox.app.window import open_scene, run_window
+from sandbox.app.controller import open_scene
+from sandbox.app.window import run_window
 out, frames = sys.argv[1], int(sys.argv[2])
 for name in sys.argv[3].split(","):
     for size in sys.argv[4].split(","):

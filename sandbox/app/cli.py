@@ -454,7 +454,7 @@ def cmd_serve(args) -> int:
     if args.token is not None and args.token == args.teacher_token:
         raise SandboxError("--teacher-token: the same as --token; expected a secret of the teacher's own")
     try:
-        from .serve import serve
+        from .serve_routes import serve
     except ImportError as exc:
         missing = f"sandbox serve needs the serve extra: pip install -e '.[serve]' ({exc.name} is missing)"
         raise SandboxError(missing) from None

@@ -36,9 +36,10 @@ from ..render.surface import EXPORT_HINT
 from ..render.video import check_output
 from ..simulation import Simulation
 from .cli_common import EXIT_STOPPED, _load, stability_warnings
+from .controller import open_scene
 from .run_outputs import RunOutputs
 from .runner import run_headless
-from .window import WindowUnavailable, open_scene, run_window, window_unavailable_reason
+from .window import WindowUnavailable, run_window, window_unavailable_reason
 
 
 def _check_run_numbers(args) -> None:

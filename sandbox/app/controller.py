@@ -19,9 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.resources import shipped_scene
+from ..config.scene import load_scene
+from ..core import runtime
 from ..errors import SandboxError
 from ..files.persist import load_into, save_state
 from ..measure.units import length_unit
+from ..simulation import Simulation
 from . import panel
 from .history import UndoRing
 from .tools import Tools
@@ -73,15 +77,11 @@ class Controller:
 
     @classmethod
     def open(cls, name: str, arch: str = "cpu") -> Controller:
-        """A controller of a fresh simulation of the shipped scene `name` (window.open_scene: Taichi restarted)."""
-        from .window import open_scene
-
+        """A controller of a fresh simulation of the shipped scene `name` (open_scene: Taichi restarted)."""
         return cls(open_scene(name, arch))
 
     def switch(self, name: str, arch: str = "cpu") -> None:
         """Open the shipped scene `name` in place of this one (its fields freed with Taichi's restart)."""
-        from .window import open_scene
-
         self.bind(open_scene(name, arch))
 
     # ------------------------------------------------------------------ what the scene offers
@@ -162,7 +162,7 @@ class Controller:
             sources = heat.sources
 
             def air(value: float) -> None:
-                self.sim.set_controls({"heat.ambient": value})
+                self.sim.controls.set({"heat.ambient": value})
 
             out.append(
                 panel.Setting("air", "air temperature", float(sources.ambient[None]), -50.0, 300.0, "C", 1.0, air)
@@ -224,7 +224,7 @@ class Controller:
             g = self.gravity_strength * np.array([math.sin(a), -math.cos(a)])
         else:
             g = scene_gravity * (self.gravity_strength / norm) if norm > 0 else scene_gravity
-        self.sim.set_controls({"world.gravity": [float(c) for c in (g if self.gravity_on else 0.0 * g)]})
+        self.sim.controls.set({"world.gravity": [float(c) for c in (g if self.gravity_on else 0.0 * g)]})
 
     def set_dt_scale(self, scale: float) -> None:
         """The time step as `scale` times the scene's (scenes with fixed substeps; "auto" picks its own)."""
@@ -264,3 +264,16 @@ class Controller:
         g = self.sim.model.gravity.to_numpy()
         if np.any(g):
             self.gravity_on, self.gravity_strength = True, float(np.linalg.norm(g))
+
+
+def open_scene(name: str, arch: str = "cpu"):
+    """A fresh Simulation of the shipped scene `name` (the window's scene picker, a classroom tab's scene): Taichi
+    is restarted first, so the last scene's fields and compiled kernels are freed (a runtime holds at most ~512
+    field trees, so switching without it would run out), and started again at the new scene's precision."""
+    path = shipped_scene(name)
+    if path is None:
+        raise SandboxError(f"no shipped scene {name!r}")
+    scene = load_scene(path)
+    runtime.reset()
+    runtime.require(arch, scene.world.precision)
+    return Simulation(scene, arch=arch)

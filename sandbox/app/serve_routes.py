@@ -1,7 +1,8 @@
 """The classroom server's routes (Starlette): the pages, the WebSocket each tab talks through, state files in and
 out, and the teacher's list, pictures and broadcasts. Who may call what is decided here, before anything reaches a
 session: the class token for everything, the teacher's secret for the teacher's routes, and a session's own key (or
-the teacher's secret) for its state file. serve.py holds the classroom these routes serve."""
+the teacher's secret) for its state file. serve.py holds the classroom these routes serve; `serve()` runs them
+(Starlette and uvicorn come with the serve extra)."""
 
 from __future__ import annotations
 
@@ -13,12 +14,13 @@ import shutil
 import time
 
 from starlette.applications import Starlette
+from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocketDisconnect
 
-from .serve import MAX_BROADCAST, MAX_UPLOAD, WARN_SECONDS, WEB, Classroom, Handle, TokenGate
+from .serve import MAX_BROADCAST, MAX_UPLOAD, WARN_SECONDS, WEB, Classroom, Handle, is_loopback, lan_address
 from .serve_protocol import ProtocolError, RateLimit, parse
 
 
@@ -256,3 +258,47 @@ class ClassroomRoutes:
         for handle in [*classroom.sessions.values(), *classroom.warm]:
             classroom.close(handle)
         shutil.rmtree(classroom.scratch, ignore_errors=True)
+
+
+class TokenGate:
+    """ASGI middleware: the wrapped app only for requests that carry the classroom's token."""
+
+    def __init__(self, app, classroom: Classroom):
+        self.app, self.classroom = app, classroom
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] == "http" and not self.classroom.allowed(Request(scope)):
+            await PlainTextResponse("403", 403)(scope, receive, send)
+            return
+        await self.app(scope, receive, send)
+
+
+def make_app(classroom: Classroom) -> Starlette:
+    """The Starlette application of `classroom`: the page, its assets, the WebSocket, state files, the teacher."""
+    return ClassroomRoutes(classroom).app()
+
+
+def serve(
+    scene: str,
+    host: str,
+    port: int,
+    token: str | None,
+    max_sessions: int,
+    max_fps: float = 30.0,
+    teacher: str | None = None,
+    warm: int | None = None,
+) -> int:
+    """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed) and
+    the teacher's (with the teacher's secret, made up when not given)."""
+    import uvicorn
+
+    if token is None and not is_loopback(host):
+        token = secrets.token_urlsafe(12)
+    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps, teacher=teacher, warm=warm)
+    query = f"?token={token}" if token else ""
+    shown = lan_address() if host in ("0.0.0.0", "::") else host
+    print(f"the classroom: http://{shown}:{port}/{query}", flush=True)
+    teacher_query = f"?teacher={classroom.teacher}" + (f"&token={token}" if token else "")
+    print(f"the teacher's view (yours alone): http://{shown}:{port}/teacher{teacher_query}", flush=True)
+    uvicorn.run(make_app(classroom), host=host, port=port, log_level="warning", ws_max_size=64 * 1024)
+    return 0

@@ -17,19 +17,16 @@ from dataclasses import dataclass
 
 import taichi as ti
 
-from ..config.resources import shipped_scene
-from ..config.scene import load_scene
 from ..core import runtime, taichi_compat
 from ..errors import SandboxError
 from ..render.raster import Renderer
-from ..simulation import Simulation
 from .controller import Controller
 from .probe import particle_at, probe
 from .window_panel import PANEL_WIDTH, draw_panel
 from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder, ResizeWatch, screen_size
 from .window_state import apply_requests, make_state, quick_save_path, view_config
 
-__all__ = ["FRAME_PARTS", "WindowRun", "WindowUnavailable", "open_scene", "run_window", "window_unavailable_reason"]
+__all__ = ["FRAME_PARTS", "WindowRun", "WindowUnavailable", "run_window", "window_unavailable_reason"]
 
 
 class WindowUnavailable(SandboxError):
@@ -302,20 +299,6 @@ class WindowRun:
     frames: int
     next_scene: str | None = None
     size: tuple[int, int] | None = None  # the window's last (width, height): the next scene opens at it
-
-
-def open_scene(name: str, arch: str = "cpu"):
-    """A fresh Simulation of the shipped scene `name` for the window's scene picker: Taichi is restarted first, so
-    the last scene's fields and compiled kernels are freed (a runtime holds at most ~512 field trees, so switching
-    without it would run out), and started again at the new scene's precision."""
-
-    path = shipped_scene(name)
-    if path is None:
-        raise SandboxError(f"no shipped scene {name!r}")
-    scene = load_scene(path)
-    runtime.reset()
-    runtime.require(arch, scene.world.precision)
-    return Simulation(scene, arch=arch)
 
 
 ENERGY_SERIES = ("kinetic_energy", "potential_energy", "total_energy")

@@ -6,6 +6,10 @@ silently overwrite each other's names (a plain dict.update would)."""
 
 from __future__ import annotations
 
+import numpy as np
+
+from ..errors import SandboxError
+
 
 def owners(model, terms) -> list[tuple[str, object]]:
     """(namespace, owner) for the model ("world") and each term (its key); ValueError for a namespace twice."""
@@ -34,3 +38,27 @@ def apply(model, terms, values: dict) -> None:
         mine = {key[len(prefix) :]: value for key, value in values.items() if key.startswith(prefix)}
         if mine:
             owner.apply_controls(mine)
+
+
+class Controls:
+    """The live controls of a model and its terms (`sim.controls`): `values()` reads them all by namespaced name,
+    `set(values)` changes some, each name and shape checked before anything changes."""
+
+    def __init__(self, model, terms) -> None:
+        self.model, self.terms = model, terms
+
+    def values(self) -> dict:
+        """Every live control by name: {"world.gravity": [0, -9.81], "world.drag": 0, "heat.ambient": 20.0, ...},
+        in the scene's units."""
+        return gather(self.model, self.terms)
+
+    def set(self, values: dict) -> None:
+        """Set some live controls by name (as values() names them); SandboxError naming an unknown one or a value
+        of the wrong shape, before anything changes."""
+        current = self.values()
+        for key, value in values.items():
+            if key not in current:
+                raise SandboxError(f"no live control {key!r}; this scene has {', '.join(current)}")
+            if np.shape(value) != np.shape(current[key]) or not np.all(np.isfinite(value)):
+                raise SandboxError(f"control {key} = {value!r}; expected finite numbers shaped like {current[key]!r}")
+        apply(self.model, self.terms, values)
