@@ -72,9 +72,7 @@ def run_headless(
     width, height, fps = width or cfg.width, height or cfg.height, fps or cfg.fps
     if outputs is None:
         outputs = RunOutputs(sim, out, stats_path, size=(width, height, fps), still_frame=still_frame)
-    renderer = Renderer(sim.model, sim.state, width, height, cfg, output="picture") if outputs.pictures else None
-    if renderer is not None:
-        sim.state.carry(renderer.tails)  # its motion-blur tails move with the particles
+    renderer = _renderer(sim, width, height, cfg) if outputs.pictures else None
 
     def picture():
         renderer.record(last)
@@ -89,14 +87,7 @@ def run_headless(
     with Stopper() as stopper:
         try:
             for frame in range(first_frame, first_frame + frames):
-                ti.sync()
-                t0 = time.perf_counter()
-                if renderer is not None:
-                    renderer.begin_frame()
-                taken = sim.advance_frame(substeps, renderer.mid_frame if renderer is not None else None)
-                ti.sync()
-                step_seconds = (time.perf_counter() - t0) / taken
-                last = sim.stats()
+                last, step_seconds = _advance(sim, substeps, renderer)
                 with stopper.held():
                     outputs.frame(frame, last, step_seconds, picture if renderer is not None else None)
                     done += 1  # its row and picture are written
@@ -126,3 +117,24 @@ def run_headless(
         if stopper.pending is not None and not interrupted:
             interrupted, signum = True, stopper.pending
     return RunResult(done, sim.time, time.perf_counter() - start, last, interrupted, stopped, signum)
+
+
+def _renderer(sim: Simulation, width: int, height: int, cfg) -> Renderer:
+    """The pictures' renderer at `width` x `height` with the render table `cfg`; its motion-blur tails move with the
+    particles."""
+    renderer = Renderer(sim.model, sim.state, width, height, cfg, output="picture")
+    sim.state.carry(renderer.tails)
+    return renderer
+
+
+def _advance(sim: Simulation, substeps: int | None, renderer: Renderer | None) -> tuple[Stats, float]:
+    """One frame's steps (the renderer told where its middle is, for curved streaks), then its measurements (the
+    blow-up guard's check among them): (Stats, wall seconds per step)."""
+    ti.sync()
+    t0 = time.perf_counter()
+    if renderer is not None:
+        renderer.begin_frame()
+    taken = sim.advance_frame(substeps, renderer.mid_frame if renderer is not None else None)
+    ti.sync()
+    step_seconds = (time.perf_counter() - t0) / taken
+    return sim.stats(), step_seconds

@@ -135,18 +135,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     world: World = raw.world
     dim = world.dim
     check_lengths(raw, dim, file)  # every vector declared with a length: world.lo, bodies[0].velocity, ...
-    _check_box(file, "world", world.lo, world.hi, dim)
-    if any(h <= l for l, h in zip(world.lo, world.hi)):
-        raise SceneError(file, "world.hi", f"expected every component above world.lo {list(world.lo)}")
-    if world.substeps == "auto" and world.frame_time / world.dt > MAX_SUBSTEPS:
-        raise SceneError(
-            file,
-            "world.frame_time",
-            f"{world.frame_time:g} is over {MAX_SUBSTEPS:,} steps of dt {world.dt:g}; expected a shorter frame or a "
-            "longer step",
-        )
-    if not world.gravity:
-        world = _replace(world, gravity=(0.0,) * dim)
+    world = _check_world(file, world)
     if raw.pair is not None and raw.pair.b <= raw.pair.a:
         raise SceneError(file, "pair.b", f"expected the repulsion exponent b above a = {raw.pair.a}")
     for i, name in enumerate(raw.scene.palette):
@@ -178,21 +167,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
             )
     spacing = particle_spacing(bodies, emitters)
     heat = raw.heat
-    if heat is not None:
-        for i, src in enumerate(heat.sources):
-            _check_source(file, f"heat.sources[{i}]", src, dim)
-        reach = max(heat_support(heat, spacing), raw.pair.cutoff if raw.pair else 0.0)
-        if heat.refreeze and heat.refreeze_radius * spacing > reach + 1e-12:
-            raise SceneError(
-                file,
-                "heat.refreeze_radius",
-                f"{heat.refreeze_radius:g} spacings is {heat.refreeze_radius * spacing:g} long; expected at most the "
-                f"neighbour reach {reach:g} (the heat radius, pair.cutoff)",
-            )
-    if world.periodic:
-        reach = max(raw.pair.cutoff if raw.pair else 0.0, heat_support(heat, spacing) if heat else 0.0)
-        if any((h - l) < 3 * reach for l, h in zip(world.lo, world.hi)):
-            raise SceneError(file, "world.periodic", f"expected every side of a periodic domain >= 3 x {reach}")
+    _check_reach(file, world, heat, raw.pair, spacing)
     render = raw.render
     _check_render(file, render, dim)
     reach = raw.pair.cutoff if raw.pair else 1.0
@@ -218,6 +193,38 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         spacing=spacing,
         source=copy.deepcopy(data),
     )
+
+
+def _check_world(file: str, world: World) -> World:
+    """The box (hi above lo), the frame's step count under "auto", and gravity zero where none is given."""
+    _check_box(file, "world", world.lo, world.hi, world.dim)
+    if world.substeps == "auto" and world.frame_time / world.dt > MAX_SUBSTEPS:
+        raise SceneError(
+            file,
+            "world.frame_time",
+            f"{world.frame_time:g} is over {MAX_SUBSTEPS:,} steps of dt {world.dt:g}; expected a shorter frame or a "
+            "longer step",
+        )
+    return world if world.gravity else _replace(world, gravity=(0.0,) * world.dim)
+
+
+def _check_reach(file: str, world: World, heat, pair, spacing: float) -> None:
+    """The heat sources, refreezing within the neighbour reach, and a periodic box at least three reaches wide."""
+    if heat is not None:
+        for i, src in enumerate(heat.sources):
+            _check_source(file, f"heat.sources[{i}]", src, world.dim)
+        reach = max(heat_support(heat, spacing), pair.cutoff if pair else 0.0)
+        if heat.refreeze and heat.refreeze_radius * spacing > reach + 1e-12:
+            raise SceneError(
+                file,
+                "heat.refreeze_radius",
+                f"{heat.refreeze_radius:g} spacings is {heat.refreeze_radius * spacing:g} long; expected at most the "
+                f"neighbour reach {reach:g} (the heat radius, pair.cutoff)",
+            )
+    if world.periodic:
+        reach = max(pair.cutoff if pair else 0.0, heat_support(heat, spacing) if heat else 0.0)
+        if any((h - l) < 3 * reach for l, h in zip(world.lo, world.hi)):
+            raise SceneError(file, "world.periodic", f"expected every side of a periodic domain >= 3 x {reach}")
 
 
 def _replace(obj, **changes):
