@@ -67,3 +67,35 @@ def test_the_pair_rate_counts_each_pair_within_the_cutoff_once_and_the_ideal_loo
     expected = (24.0 * inv6 * (2.0 * inv6 - 1.0) / r2)[:, :, None] * d
     assert np.allclose(force, expected.sum(1), rtol=1e-3, atol=1e-3)
     assert loop.pairs == int(np.triu(r2 < 6.25, k=1).sum())  # each pair once, in a half list
+
+
+def test_lammps_is_tried_in_every_configuration_and_the_fastest_is_kept(monkeypatch):
+    """The peer is LAMMPS at its best on these cores: each configuration (plain, -sf opt, -sf omp as 1 x 2 and 2 x 1)
+    is run with the suffix, package and thread count it names, the fastest is kept, and in.lj's own list policy
+    (every 20 steps, unchecked) is passed as variables. LAMMPS itself is stood in for by its output's last line."""
+    import types
+
+    seconds = {"plain": 1.0, "opt": 0.8, "omp": 0.9}
+    calls = []
+
+    def fake_run(cmd, capture_output, text, cwd, env):
+        calls.append((cmd, env["OMP_NUM_THREADS"]))
+        accel = cmd[cmd.index("-sf") + 1] if "-sf" in cmd else "plain"
+        loop = f"Loop time of {seconds[accel]} on 2 procs for 500 steps with 10082 atoms"
+        return types.SimpleNamespace(stdout=f"...\n{loop}\n")
+
+    monkeypatch.setattr(bench.shutil, "which", lambda name: f"/usr/bin/{name}")
+    monkeypatch.setattr(bench.subprocess, "run", fake_run)
+    run, found = bench.lammps_at_its_best(100, 2, 500)
+    assert found["config"] == "opt, 2 processes x 1 thread"
+    assert list(found["rates"]) == [
+        "plain, 2 processes x 1 thread", "opt, 2 processes x 1 thread", "omp, 1 process x 2 threads",
+        "omp, 2 processes x 1 thread",
+    ]  # fmt: skip
+    omp_one = calls[2][0]
+    assert omp_one[:3] != ["/usr/bin/mpirun", "-np", "2"] and calls[2][1] == "2"  # one process, two threads
+    assert omp_one[omp_one.index("-pk") : omp_one.index("-pk") + 3] == ["-pk", "omp", "2"]
+    own = run("in.lj")
+    cmd = calls[-1][0]
+    assert own["policy"] == "in.lj" and own["particle_steps_per_second"] == 10082 * 500 / 0.8
+    assert cmd[cmd.index("every") + 1] == "20" and cmd[cmd.index("check") + 1] == "no"

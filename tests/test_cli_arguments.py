@@ -67,6 +67,8 @@ def test_bad_values_give_one_line_and_exit_2_writing_nothing(extra, expected, tm
         (["bench", "--side", "50"], "--side: only with --3d or --contended"),
         (["bench", "--3d", "--side", "101"], "--side 101: expected an integer from 8 to 100"),
         (["bench", "--contended", "--side", "4"], "--side 4: expected an integer from 8 to 1,000"),
+        (["bench", "--contended", "0"], "--contended 0: expected an integer from 1 to 16"),
+        (["bench", "--contended", "40"], "--contended 40: expected an integer from 1 to 16"),
         (["serve", "{tmp}/plain"], "unknown scene"),
         (["serve", "--port", "70000"], "--port: expected 1 to 65535"),
         (["serve", "--max-sessions", "0"], "--max-sessions: expected at least 1"),
@@ -123,4 +125,5 @@ def test_a_plain_bench_runs_the_workloads_not_one_of_its_only_modes():
     args = build_parser().parse_args(["bench"])
     assert args.serve is None and not (args.three_d or args.contended or args.window or args.scaling)
     args = build_parser().parse_args(["bench", "--lammps", "--3d", "--contended"])
-    assert args.three_d and args.contended and args.lammps
+    assert args.three_d and args.contended == 1 and args.lammps  # one hog unless told how many
+    assert build_parser().parse_args(["bench", "--contended", "3"]).contended == 3

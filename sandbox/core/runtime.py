@@ -12,6 +12,7 @@ import io
 import os
 import platform
 import weakref
+from pathlib import Path
 
 import taichi as ti
 
@@ -170,6 +171,29 @@ def cpu_model() -> str:
         if line.startswith("model name"):
             return line.split(":", 1)[1].strip()
     return platform.processor() or platform.machine() or "unknown CPU"
+
+
+VECTOR_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512vl", "avx512_vnni", "amx_tile", "asimd", "sve")
+
+
+def cpu_features() -> dict:
+    """What a benchmark figure depends on beside the model: the CPU's vector extensions (those of VECTOR_FLAGS it
+    has) and its data caches by level ({"L1d": "48K", "L2": "2048K", "L3": "...": one core's view, from sysfs)."""
+    flags = set()
+    for line in _cpuinfo().splitlines():
+        if line.startswith(("flags", "Features")):
+            flags = set(line.split(":", 1)[1].split())
+            break
+    caches = {}
+    for index in sorted(Path("/sys/devices/system/cpu/cpu0/cache").glob("index*")):
+        try:
+            level, kind = (index / "level").read_text().strip(), (index / "type").read_text().strip()
+            size = (index / "size").read_text().strip()
+        except OSError:
+            continue
+        if kind in ("Data", "Unified"):
+            caches[f"L{level}{'d' if kind == 'Data' else ''}"] = size
+    return {"vectors": [f for f in VECTOR_FLAGS if f in flags], "caches": caches}
 
 
 @functools.cache

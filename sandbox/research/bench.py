@@ -31,7 +31,7 @@ from ..integrators import REGISTRY
 from ..render.raster import Renderer
 from ..simulation import Simulation, timed_steps
 from .launch_count import count_launches
-from .peer_bench import write_lammps_input
+from .peer_bench import LAMMPS_CONFIGS, LAMMPS_POLICIES, write_lammps_input
 
 SCENES = SCENES_DIR
 
@@ -175,9 +175,19 @@ def against_lammps(sim, run_lammps, repeats: int, rounds: int, integrators=(LIKE
     return out
 
 
-def lammps_w1(n_side: int, procs: int = 2, steps: int = 500, dim: int = 2) -> dict | None:
+def lammps_w1(
+    n_side: int,
+    procs: int = 2,
+    steps: int = 500,
+    dim: int = 2,
+    accel: str = "plain",
+    threads: int = 1,
+    policy: str = "strict",
+) -> dict | None:
     """LAMMPS on W1 (2D: sq2 lattice, 2 atoms per cell, so n_side / sqrt(2) cells per axis; 3D: n_side^3 atoms on
-    a simple cubic lattice), or None when LAMMPS is not installed."""
+    a simple cubic lattice) on `procs` MPI processes of `threads` OpenMP threads, with the accelerator suffix `accel`
+    ("plain", "opt", "omp") and the neighbour-list `policy` (peer_bench.LAMMPS_POLICIES); None when LAMMPS is not
+    installed, {"error": its output's end} when it fails."""
     lmp = os.environ.get("LAMMPS_BIN") or shutil.which("lmp") or _beside_python("lmp")
     mpirun = shutil.which("mpirun") or _beside_python("mpirun")
     if not lmp:
@@ -188,12 +198,19 @@ def lammps_w1(n_side: int, procs: int = 2, steps: int = 500, dim: int = 2) -> di
         args = ["-in", str(script), "-var", "nx", str(cells), "-var", "ny", str(cells)]
     else:
         args = ["-in", str(script), "-var", "n", str(n_side)]
+    every, check = LAMMPS_POLICIES[policy]
+    args += ["-var", "every", every, "-var", "check", check]
+    if accel == "opt":
+        args += ["-sf", "opt"]
+    elif accel == "omp":
+        args += ["-sf", "omp", "-pk", "omp", str(threads)]
     cmd = [lmp, *args, "-var", "steps", str(steps), "-log", "none"]
     if procs > 1 and mpirun:
         cmd = [mpirun, "-np", str(procs)] + cmd
     elif procs > 1:
         procs = 1
-    out = subprocess.run(cmd, capture_output=True, text=True, cwd=tempfile.gettempdir()).stdout
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads))
+    out = subprocess.run(cmd, capture_output=True, text=True, cwd=tempfile.gettempdir(), env=env).stdout
     loops = re.findall(r"Loop time of ([\d.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms", out)
     if not loops:
         return {"error": out[-500:]}
@@ -201,10 +218,48 @@ def lammps_w1(n_side: int, procs: int = 2, steps: int = 500, dim: int = 2) -> di
     seconds, nsteps, atoms = float(seconds), int(nsteps), int(atoms)
     return {
         "particles": atoms,
-        "procs": int(nprocs),
+        "procs": procs,
+        "cores": int(nprocs),  # LAMMPS counts processes x threads
+        "threads": threads,
+        "accel": accel,
+        "policy": policy,
         "seconds_per_step": seconds / nsteps,
         "particle_steps_per_second": atoms * nsteps / seconds,
     }
+
+
+def lammps_config_name(accel: str, procs: int, threads: int) -> str:
+    """A LAMMPS configuration in words: "opt, 2 processes x 1 thread"."""
+    return f"{accel}, {procs} process{'es' if procs > 1 else ''} x {threads} thread{'s' if threads > 1 else ''}"
+
+
+def best_lammps(n_side: int, dim: int = 2, steps: int = 500) -> tuple[tuple, dict] | None:
+    """LAMMPS's fastest way of running W1 on this machine: each of peer_bench.LAMMPS_CONFIGS once (the strict
+    list policy); ((accel, procs, threads), {config name: particle-steps per second}), or None without LAMMPS."""
+    rates, best, best_rate = {}, None, 0.0
+    for accel, procs, threads in LAMMPS_CONFIGS:
+        res = lammps_w1(n_side, procs, steps, dim, accel, threads)
+        if res is None:
+            return None
+        if "error" in res:
+            continue
+        rates[lammps_config_name(accel, procs, threads)] = res["particle_steps_per_second"]
+        if res["particle_steps_per_second"] > best_rate:
+            best, best_rate = (accel, procs, threads), res["particle_steps_per_second"]
+    return (best, rates) if best is not None else None
+
+
+def lammps_at_its_best(n_side: int, dim: int, steps: int) -> tuple:
+    """(a function running LAMMPS's fastest configuration here on W1, what was found: {"config": its name, "rates":
+    every configuration's particle-steps per second}); (a function returning None, {}) without LAMMPS."""
+    found = best_lammps(n_side, dim, steps)
+    if found is None:
+        return (lambda: None), {}
+    (accel, procs, threads), rates = found
+    return (
+        lambda policy="strict": lammps_w1(n_side, procs, steps, dim, accel, threads, policy),
+        {"config": lammps_config_name(accel, procs, threads), "rates": rates},
+    )
 
 
 def _beside_python(name: str) -> str | None:

@@ -23,6 +23,13 @@ import taichi as ti
 from ..core.loops import SPREAD_STRIDE, spread_item
 from ..step.rates import CHUNKS_PER_THREAD
 
+# LAMMPS's ways of running on two cores (its accelerator suffix, MPI processes, OpenMP threads each): the bench runs
+# each and compares the sandbox with the fastest on the machine at hand
+LAMMPS_CONFIGS = (("plain", 2, 1), ("opt", 2, 1), ("omp", 1, 2), ("omp", 2, 1))
+# neighbour-list policies: the sandbox's (checked every step, rebuilt at half the skin) and in.lj's own (rebuilt
+# every 20 steps, unchecked: faster, and wrong for a particle that moves more than half the skin in 20 steps)
+LAMMPS_POLICIES = {"strict": ("1", "yes"), "in.lj": ("20", "no")}
+
 SETTINGS = {  # LAMMPS's bench/in.lj liquid, and its 2D twin (the W1 box); both sides use these
     2: {"density": 0.8, "temperature": 1.0, "cutoff": 2.5, "skin": 0.3, "dt": 0.005, "lattice": "sq2"},
     3: {"density": 0.8442, "temperature": 1.44, "cutoff": 2.5, "skin": 0.3, "dt": 0.005, "lattice": "sc"},
@@ -40,7 +47,9 @@ velocity        all create {temperature} 87287 loop geom
 pair_style      lj/cut {cutoff}
 pair_coeff      1 1 1.0 1.0 {cutoff}
 neighbor        {skin} bin
-neigh_modify    every 1 delay 0 check yes
+variable        every index 1
+variable        check index yes
+neigh_modify    every ${{every}} delay 0 check ${{check}}
 fix             1 all nve
 {enforce}timestep        {dt}
 thermo          500
@@ -106,20 +115,25 @@ def _spin(stop) -> None:
 
 
 class CpuHog:
-    """One other CPU-bound process for as long as the `with` block lasts (bench --contended)."""
+    """`count` other CPU-bound processes for as long as the `with` block lasts (bench --contended [N])."""
+
+    def __init__(self, count: int = 1) -> None:
+        self.count = count
 
     def __enter__(self):
         context = multiprocessing.get_context("spawn")
         self.stop = context.Event()
-        self.process = context.Process(target=_spin, args=(self.stop,), daemon=True)
-        self.process.start()
+        self.processes = [context.Process(target=_spin, args=(self.stop,), daemon=True) for _ in range(self.count)]
+        for process in self.processes:
+            process.start()
         return self
 
     def __exit__(self, *exc):
         self.stop.set()
-        self.process.join(5)
-        if self.process.is_alive():
-            self.process.kill()
+        for process in self.processes:
+            process.join(5)
+            if process.is_alive():
+                process.kill()
 
 
 def pair_count(sim) -> int:
