@@ -87,11 +87,8 @@ def test_lammps_is_tried_in_every_configuration_and_the_fastest_is_kept(monkeypa
     monkeypatch.setattr(bench.shutil, "which", lambda name: f"/usr/bin/{name}")
     monkeypatch.setattr(bench.subprocess, "run", fake_run)
     run, found = bench.lammps_at_its_best(100, 2, 500)
-    assert found["config"] == "opt, 2 processes x 1 thread"
-    assert list(found["rates"]) == [
-        "plain, 2 processes x 1 thread", "opt, 2 processes x 1 thread", "omp, 1 process x 2 threads",
-        "omp, 2 processes x 1 thread",
-    ]  # fmt: skip
+    assert found["config"] == "opt 2x1"
+    assert list(found["rates"]) == ["plain 2x1", "opt 2x1", "omp 1x2", "omp 2x1"]
     omp_one = calls[2][0]
     assert omp_one[:3] != ["/usr/bin/mpirun", "-np", "2"] and calls[2][1] == "2"  # one process, two threads
     assert omp_one[omp_one.index("-pk") : omp_one.index("-pk") + 3] == ["-pk", "omp", "2"]

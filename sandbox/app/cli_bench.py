@@ -259,13 +259,16 @@ def print_peer_comparison(results: dict, conditions: list, dim: int, script: Pat
     """The comparison's lines: the settings, the machine, LAMMPS's configurations, each condition's rates."""
     from ..research.peer_bench import describe
 
-    print(describe(dim, results["quiet"]["particles"], 2))
+    print(describe(dim, results["quiet"]["particles"], (results.get("lammps_configs") or {}).get("config")))
     print(machine_line(results["machine"]))
     print(f"LAMMPS input written to {script}")
     found = results.get("lammps_configs") or {}
     if found:
-        tried = ", ".join(f"{name} {rate / 1e6:.2f}" for name, rate in found["rates"].items())
-        print(f"LAMMPS at its best here: {found['config']} (tried, M particle-steps/s: {tried})")
+        tried = "; ".join(f"{name} {rate / 1e6:.2f}" for name, rate in found["rates"].items())
+        print(
+            f"LAMMPS at its best here: {found['config']} (suffix, processes x threads; tried, M particle-steps/s: "
+            f"{tried})"
+        )
     for name, _ in conditions:
         res = results[name]
         ideal = res["ideal_pairs_per_second"]

@@ -229,8 +229,8 @@ def lammps_w1(
 
 
 def lammps_config_name(accel: str, procs: int, threads: int) -> str:
-    """A LAMMPS configuration in words: "opt, 2 processes x 1 thread"."""
-    return f"{accel}, {procs} process{'es' if procs > 1 else ''} x {threads} thread{'s' if threads > 1 else ''}"
+    """A LAMMPS configuration in short: "opt 2x1" (its accelerator suffix, MPI processes x OpenMP threads)."""
+    return f"{accel} {procs}x{threads}"
 
 
 def best_lammps(n_side: int, dim: int = 2, steps: int = 500) -> tuple[tuple, dict] | None:

@@ -97,13 +97,13 @@ def write_lammps_input(dim: int, folder: Path) -> Path:
     return path
 
 
-def describe(dim: int, particles: int, procs: int) -> str:
-    """The settings both sides run with, in one line."""
+def describe(dim: int, particles: int, lammps: str | None = None) -> str:
+    """The settings both sides run with, in one line (`lammps`: the LAMMPS configuration compared with)."""
     s = SETTINGS[dim]
     return (
         f"{dim}D LJ liquid, N = {particles}, density {s['density']}, T {s['temperature']}, cutoff {s['cutoff']}, "
         f"skin {s['skin']} (checked every step, rebuilt at half the skin), velocity Verlet, dt {s['dt']}; "
-        f"LAMMPS on {procs} MPI processes, the sandbox on the same cores"
+        f"LAMMPS ({lammps or 'not run'}) and the sandbox on the same cores"
     )
 
 
