@@ -17,6 +17,9 @@ SCENES = ROOT / "scenes"
 # evicted from their own halfway through a run.
 os.environ.setdefault("TI_OFFLINE_CACHE_FILE_PATH", str(ROOT / ".cache" / "taichi"))
 os.environ.setdefault("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES", str(1 << 30))
+# The suite crowds the machine on purpose (a worker per core): tests that check which way a step ran keep the team
+# of threads whatever the load; tests/test_fast_paths.py checks the crowded plan's way with a LoadWatch of its own.
+os.environ.setdefault("SANDBOX_TEAM", "always")
 
 
 def scene_dict(dim: int = 2, **sections) -> dict:

@@ -693,3 +693,33 @@ def test_a_list_that_overflows_between_the_stages_of_a_step_is_widened_and_the_s
     assert any(stage > 0 for stage in stopped_at), stopped_at  # the overflow came between stages
     assert fast.plan.pending_stage == 0 and fast.step_count == long_way.step_count == 301
     assert_same_states(_state(long_way), _state(fast))
+
+
+def test_a_crowded_machine_steps_the_long_way_with_the_teams_trajectory(tmp_path):
+    """With other work on every core the team's spinning workers would wait on each other (each descheduled in
+    turn): the plan steps the long way while LoadWatch says the machine is crowded, and the team again once it
+    clears, bit for bit the trajectory of a run that kept the team throughout."""
+    from sandbox.core.threads import LoadWatch
+
+    loadavg = tmp_path / "loadavg"
+    watch = LoadWatch(2, str(loadavg))
+    # the runnable count includes the reader: 1 is a quiet machine; each read moves the estimate halfway
+    for running, busy in ((1, False), (1, False), (4, True), (9, True), (1, True), (1, False)):
+        loadavg.write_text(f"0.5 0.5 0.5 {running}/80 1234\n")
+        watch.last = -1.0  # read now
+        assert watch.busy() is busy, (running, watch.others)
+    assert not LoadWatch(1, str(loadavg)).busy() and not LoadWatch(2, str(tmp_path / "none")).busy()
+    kept, crowded = team_box(), team_box()
+    crowded.plan.load = watch
+    loadavg.write_text("0.5 0.5 0.5 9/80 1234\n")
+    watch.others, watch.last = 9.0, -1.0
+    crowded.step(40)  # crowded throughout: the long way
+    assert crowded.plan.crowded_steps == 40 and crowded.plan.fused_batches == 0
+    loadavg.write_text("0.5 0.5 0.5 1/80 1234\n")
+    watch.others, watch.last = 0.0, -1.0
+    crowded.step(60)  # clear again: the team
+    kept.step(40)
+    kept.step(60)
+    assert crowded.plan.fused_batches > 0 and crowded.plan.crowded_steps == 40
+    assert_same_states(_state(kept), _state(crowded))
+    assert (kept.time, kept.step_count) == (crowded.time, crowded.step_count)

@@ -86,3 +86,39 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
             break
         pinned.append((tid, core))
     return list(pinned)
+
+
+class LoadWatch:
+    """Whether other runnable work crowds this process's cores now: a team of spinning workers (step/team.py) needs
+    every one of its threads on a core at once, and when others want the cores a worker is descheduled while the
+    rest spin at a barrier. Reads the machine's runnable count (/proc/loadavg) at most every PERIOD seconds, smoothed
+    over a few reads; `busy()` is True once the others need as many cores as the team has threads."""
+
+    PERIOD = 0.05  # seconds between reads of /proc/loadavg
+    SMOOTHING = 0.5  # each read's share of the running estimate
+
+    def __init__(self, threads: int, path: str = "/proc/loadavg") -> None:
+        self.threads, self.path = threads, path
+        self.others = 0.0  # runnable tasks besides this one, smoothed
+        self.last = -1.0
+        self.readable = True  # until a read fails (no /proc: never crowded)
+
+    def busy(self, now: float | None = None) -> bool:
+        """True while the other runnable tasks would leave fewer free cores than the team has threads."""
+        if not self.readable or self.threads < 2:
+            return False
+        now = time.monotonic() if now is None else now
+        if now - self.last >= self.PERIOD:
+            self.last = now
+            self.others += self.SMOOTHING * (self.runnable_others() - self.others)
+        return self.others >= self.threads - 0.5
+
+    def runnable_others(self) -> int:
+        """Runnable tasks on the machine now besides the one reading (its workers sleep between launches)."""
+        try:
+            with open(self.path, encoding="ascii") as load:
+                running = int(load.read().split()[3].split("/")[0])
+        except (OSError, ValueError, IndexError):
+            self.readable = False
+            return 0
+        return max(running - 1, 0)

@@ -13,6 +13,9 @@ out team stepping says so in `team_blocker(scene)`. pipeline() prints this plan 
 
 from __future__ import annotations
 
+import os
+
+from ..core.threads import LoadWatch
 from ..integrators import REGISTRY
 from ..physics import TERMS
 from ..physics.term import Term, hook_order
@@ -59,12 +62,18 @@ class StepPlan:
         self.reasons = host_work_reasons(model.scene)
         loops = model.loops
         self.team = Team(rates, model.threads) if loops.team and rates.half else None  # it steps half lists
+        # on a crowded machine the team's spinning workers wait on each other: step the long way (Taichi's pool,
+        # whose workers sleep) until it clears; both give the same trajectory bit for bit
+        self.load = (
+            LoadWatch(model.threads) if self.team is not None and os.environ.get("SANDBOX_TEAM") != "always" else None
+        )
         one_launch = loops.serial_pairs and loops.serial_light or self.team is not None
         self.fuses = one_launch and not self.reasons
         self.fused = FusedSteps(rates, state, self.team)
         self.long_way = LongWay(self)
         self.integrator = integrator
         self.pending_stage = 0  # the stage the current step goes on from (0: at a step boundary)
+        self.crowded_steps = 0  # steps taken the long way because the machine was crowded (LoadWatch)
 
     def use_team(self, team) -> None:
         """Run the fused batches by `team` (None: on one thread)."""
@@ -109,6 +118,9 @@ class StepPlan:
     def _fused_batch(self, n: int) -> int:
         """How many of the next n steps to run in one fused launch (0: step the long way)."""
         if not (self.fuses and self.integrator.stages):
+            return 0
+        if self.load is not None and self.team is not None and self.load.busy():
+            self.crowded_steps += 1
             return 0
         if self.lists is not None and not (self.lists.usable or self.lists.must_rebuild()):
             return 0  # lists too wide to allocate: the long way scans the grid
