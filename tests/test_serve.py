@@ -55,6 +55,8 @@ def test_messages_are_checked_before_anything_acts_on_them():
     scenes = ["melting_block"]
     assert parse('{"t": "ready"}', scenes) == {"t": "ready"}
     assert parse('{"t": "tool", "tool": "heat", "x": 0.5, "y": 0.2, "radius": 4, "down": true}', scenes)["x"] == 0.5
+    view = parse('{"t": "view", "move": "pan", "dx": -0.25, "dy": 0.5, "extra": 1}', scenes)
+    assert view == {"t": "view", "move": "pan", "dx": -0.25, "dy": 0.5}  # only what the session reads goes on
     bad = {
         "x" * 3000: "at most 2048",
         "not json": "expected a JSON object",
@@ -66,6 +68,8 @@ def test_messages_are_checked_before_anything_acts_on_them():
         '{"t": "scene", "name": "../../etc/passwd"}': "name must be one of melting_block",
         '{"t": "action", "name": "format"}': "name must be one of pause",
         '{"t": "set", "key": "__class__.x", "value": 1}': "key must be a setting",
+        '{"t": "view", "move": "spin", "dx": 0.1, "dy": 0}': "move must be one of orbit, zoom, pan",
+        '{"t": "view", "move": "orbit", "dx": 5, "dy": 0}': "dx must be between -1 and 1",
     }
     for text, expected in bad.items():
         with pytest.raises(ProtocolError, match=re.escape(expected)):
@@ -531,5 +535,58 @@ def test_the_teachers_page_follows_lang(classroom):
         assert page.inner_text("h1") == "واجهة المعلم"
         # the scene list arrives after the words (its own request): wait for it rather than race it
         page.wait_for_function("document.getElementById('scene').textContent.includes('مكعب ثلج')", timeout=15000)
+    finally:
+        page.close()
+
+
+def test_a_3d_scene_turns_zooms_and_pans_in_the_page():
+    """A classroom tab of a 3D scene: the scene message says so, and view messages turn the session's camera as
+    the window's mouse does (orbiting keeps the distance to the target, zooming changes it, panning moves the
+    target), so the next picture shows the scene from there; a 2D scene ignores them."""
+    from multiprocessing import Pipe
+
+    import numpy as np
+
+    from sandbox.app.serve_session import Session
+
+    page, session_end = Pipe()
+    session = Session(session_end, "melting_block_3d", 160, 90)
+    scene = json.loads(page.recv_bytes()[1:])
+    assert scene["t"] == "scene" and scene["dim"] == 3 and scene["tools"] == []
+    painter = session.renderer.painter
+    eye, target = painter.eye_np.copy(), painter.target_np.copy()
+    before = session.draw().copy()
+    session.handle({"t": "view", "move": "orbit", "dx": 0.25, "dy": 0.0})
+    turned = painter.eye_np.copy()
+    assert np.linalg.norm(turned - target) == pytest.approx(np.linalg.norm(eye - target), rel=1e-6)
+    assert not np.allclose(turned, eye) and np.array_equal(painter.target_np, target)
+    assert not np.array_equal(session.draw(), before)
+    session.handle({"t": "view", "move": "zoom", "dx": 0.0, "dy": 0.2})
+    assert np.linalg.norm(painter.eye_np - target) < 0.8 * np.linalg.norm(turned - target)
+    session.handle({"t": "view", "move": "pan", "dx": 0.1, "dy": 0.0})
+    assert not np.allclose(painter.target_np, target)
+    session.load("melting_block")
+    assert session.orbit is None
+    session.handle({"t": "view", "move": "orbit", "dx": 0.5, "dy": 0.5})  # 2D: nothing to turn, nothing fails
+
+
+def test_a_drag_on_a_3d_picture_turns_it(classroom):
+    """In the page: a 3D scene's picture turns under a mouse drag (and says how in its hint)."""
+    page = open_page(classroom, "?scene=melting_block_3d")
+    try:
+        page.wait_for_function("document.getElementById('hint').dataset.i18n === 'canvas_hint_3d'", timeout=10000)
+        page.click("#pause")  # the scene holds still: only the camera changes the picture
+        page.wait_for_function("document.getElementById('pause').textContent === 'Play'", timeout=10000)
+        page.wait_for_timeout(500)
+        still = picture(page)[1]
+        box = page.locator("#picture").bounding_box()
+        page.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
+        page.mouse.down()
+        for k in range(10):
+            page.mouse.move(box["x"] + box["width"] * (0.4 + 0.02 * k), box["y"] + box["height"] * 0.5)
+            page.wait_for_timeout(30)
+        page.mouse.up()
+        page.wait_for_timeout(800)
+        assert picture(page)[1] != still
     finally:
         page.close()

@@ -14,6 +14,11 @@ MAX_MESSAGE = 2048  # bytes of one message from the page
 MAX_RATE = 120.0  # messages per second a tab may send (a pointer stroke sends ~60)
 BURST = 240.0  # messages a tab may send at once before the rate applies
 ACTIONS = ("pause", "play", "step", "reset", "undo")
+VIEW_MOVES = (
+    "orbit",
+    "zoom",
+    "pan",
+)  # a 3D picture's camera: a drag turns it, zooms or pans (window_parts.OrbitCamera)
 LANGUAGES = ("en", "fr", "ar")
 
 
@@ -81,9 +86,12 @@ def parse(text: str | bytes, scenes) -> dict:
         return out
     if kind == "action":
         return {"t": "action", "name": _choice(msg, "name", ACTIONS)}
+    if kind == "view":  # dx, dy: the drag in fractions of the picture
+        move = _choice(msg, "move", VIEW_MOVES)
+        return {"t": "view", "move": move, "dx": _number(msg, "dx", -1, 1), "dy": _number(msg, "dy", -1, 1)}
     if kind == "scene":
         return {"t": "scene", "name": _choice(msg, "name", tuple(scenes))}
-    raise ProtocolError(f"message type {kind!r} refused: expected ready, pointer, tool, set, action or scene")
+    raise ProtocolError(f"message type {kind!r} refused: expected ready, pointer, tool, set, action, view or scene")
 
 
 class RateLimit:

@@ -59,6 +59,7 @@ class Session:
         from ..render.overlays import Overlays
         from ..render.raster import Renderer
         from .controller import Controller
+        from .window_parts import OrbitCamera
 
         if self.control is None:
             self.control = Controller.open(scene)
@@ -73,6 +74,8 @@ class Session:
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
         self.sim.state.carry(self.renderer.tails)
+        painter = self.renderer.painter
+        self.orbit = OrbitCamera(painter.eye_np, painter.target_np) if self.sim.dim == 3 else None
         self.tell(
             {
                 "t": "scene",
@@ -81,6 +84,7 @@ class Session:
                 "tools": self.tool_names(),
                 "tool": self.first_tool(),
                 "materials": list(self.sim.material_names),
+                "dim": self.sim.dim,  # 3: a drag turns, zooms or pans the picture's camera
             }
         )
 
@@ -132,6 +136,8 @@ class Session:
                 self.tell({"t": "error", "text": str(exc)})
         elif kind == "action":
             self.action(msg["name"])
+        elif kind == "view":
+            self.view(msg["move"], msg["dx"], msg["dy"])
         elif kind == "scene":
             self.load(msg["name"])
         elif kind == "save":
@@ -157,6 +163,15 @@ class Session:
         elif name == "undo":
             self.tell({"t": "notice", "key": control.undo().key})
         self.tell({"t": "paused", "paused": control.paused})
+
+    def view(self, move: str, dx: float, dy: float) -> None:
+        """Turn (orbit), zoom or pan a 3D picture's camera by a drag of (dx, dy) picture fractions, as the window's
+        mouse does; nothing in 2D."""
+        if self.orbit is None:
+            return
+        buttons = [move == "orbit", move == "zoom", move == "pan"]
+        self.orbit.drag(buttons, dx, dy)
+        self.renderer.set_camera(self.orbit.eye(), self.orbit.target, self.renderer.painter.fov)
 
     # ------------------------------------------------------------------ tools
     def world_at(self, fx: float, fy: float):

@@ -134,7 +134,11 @@ function onText(msg) {
   else if (msg.t === "notice") say(t(msg.key, { text: msg.text || "" }));
 }
 
+let sceneDim = 2;  // 3: a drag on the picture turns its camera (shift: pans), the wheel zooms
 function onScene(msg) {
+  sceneDim = msg.dim || 2;
+  $("hint").dataset.i18n = sceneDim === 3 ? "canvas_hint_3d" : "canvas_hint";  // kept across a change of language
+  $("hint").textContent = t($("hint").dataset.i18n);
   $("scene").value = msg.scene;
   currentScene = msg.scene;
   lessonOf = msg.lesson || {};
@@ -310,9 +314,19 @@ function toolMessage(point, down) {
   if (message.tool === "spawn" && $("material").value) message.material = $("material").value;
   return message;
 }
+let turning = null;  // a 3D drag: where the pointer was, and whether it pans
+function viewMessage(move, dx, dy) {
+  const clamp = (v) => Math.min(Math.max(v, -1), 1);
+  return { t: "view", move, dx: clamp(dx), dy: clamp(dy) };
+}
 function setupPicture() {
   const canvas = $("picture");
   canvas.addEventListener("pointerdown", (e) => {
+    if (sceneDim === 3) {
+      turning = { ...fraction(e), pan: e.shiftKey || e.button === 1 };
+      canvas.setPointerCapture(e.pointerId);
+      return;
+    }
     if ($("tool").value === "none") return;
     stroking = true;
     canvas.setPointerCapture(e.pointerId);
@@ -320,16 +334,34 @@ function setupPicture() {
   });
   canvas.addEventListener("pointermove", (e) => {
     const p = fraction(e);
+    if (turning) {
+      send(viewMessage(turning.pan ? "pan" : "orbit", p.x - turning.x, p.y - turning.y));
+      turning.x = p.x;
+      turning.y = p.y;
+      return;
+    }
     send({ t: "pointer", x: p.x, y: p.y });
     if (stroking) send(toolMessage(p, true));
   });
-  const end = (e) => { if (stroking) { stroking = false; send(toolMessage(fraction(e), false)); } };
+  canvas.addEventListener("wheel", (e) => {
+    if (sceneDim !== 3) return;
+    send(viewMessage("zoom", 0, -e.deltaY / 1000));
+    e.preventDefault();
+  }, { passive: false });
+  const end = (e) => {
+    turning = null;
+    if (stroking) { stroking = false; send(toolMessage(fraction(e), false)); }
+  };
   canvas.addEventListener("pointerup", end);
   canvas.addEventListener("pointercancel", end);
   canvas.addEventListener("keydown", (e) => {  // the keyboard's pointer: arrows move it, Enter held uses the tool
     const step = e.shiftKey ? 0.1 : 0.02;
     const moves = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, -step], ArrowDown: [0, step] };
-    if (moves[e.key]) {
+    if (sceneDim === 3 && (moves[e.key] || e.key === "+" || e.key === "-")) {  // 3D: arrows turn, + and - zoom
+      if (moves[e.key]) send(viewMessage("orbit", 2 * moves[e.key][0], 2 * moves[e.key][1]));
+      else send(viewMessage("zoom", 0, e.key === "+" ? 0.1 : -0.1));
+      e.preventDefault();
+    } else if (moves[e.key]) {
       keyboardPoint.x = Math.min(Math.max(keyboardPoint.x + moves[e.key][0], 0), 1);
       keyboardPoint.y = Math.min(Math.max(keyboardPoint.y + moves[e.key][1], 0), 1);
       send({ t: "pointer", ...keyboardPoint });
