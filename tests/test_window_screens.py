@@ -26,9 +26,10 @@ from sandbox.app.controller import open_scene
 from sandbox.app.window import run_window
 out, frames = sys.argv[1], int(sys.argv[2])
 for name in sys.argv[3].split(","):
+    sim = open_scene(name)  # a fresh runtime per scene, as the scene picker does
     for size in sys.argv[4].split(","):
         w, h = map(int, size.split("x"))
-        sim = open_scene(name)  # a fresh runtime per scene, as the scene picker does
+        sim.reset()  # each window from the scene's start
         run_window(sim, frames=frames, screenshot=f"{out}/{name}_{w}x{h}.png", show=False, steady=False, size=(w, h))
 print("done")
 """
