@@ -219,3 +219,26 @@ def test_terms_run_in_named_stages_and_an_unknown_stage_is_refused():
     assert len(before) >= 2 and before == sorted(before)
     with pytest.raises(ValueError, match="'breeze': after_stage 'afterwards'"):
         register(type("Breeze", (Term,), {"key": "breeze", "after_stage": "afterwards"}))
+
+
+def test_a_scene_key_is_one_declaration_checked_against_the_scenes_dimension():
+    """docs/architecture.md's "Adding a scene key": a table field declared with spec() is parsed, range-checked,
+    refused by name when unknown and, declared with length="dim", checked against world.dim by one walker."""
+    import dataclasses
+
+    from sandbox.config.schema import check_lengths, parse_table, spec
+    from sandbox.errors import SceneError
+
+    @dataclasses.dataclass(frozen=True)
+    class Breeze:  # what a new [breeze] table would declare
+        velocity: tuple[float, ...] = spec((), doc="the air's velocity", length="dim")
+        gust: float = spec(0.0, doc="gust strength (1/s)")
+
+    table = parse_table(Breeze, {"velocity": [1.0, 0.5]}, "scene.toml", "breeze")
+    check_lengths(table, 2, "scene.toml", "breeze")
+    with pytest.raises(SceneError, match=r"breeze.velocity.*expected 3 numbers \(world.dim = 3\), got 2"):
+        check_lengths(table, 3, "scene.toml", "breeze")
+    with pytest.raises(SceneError, match="breeze.gust.*expected 0 or a number of magnitude"):
+        parse_table(Breeze, {"gust": 1e300}, "scene.toml", "breeze")
+    with pytest.raises(SceneError, match="did you mean 'gust'"):
+        parse_table(Breeze, {"gusts": 1.0}, "scene.toml", "breeze")
