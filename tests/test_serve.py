@@ -590,3 +590,46 @@ def test_a_drag_on_a_3d_picture_turns_it(classroom):
         assert picture(page)[1] != still
     finally:
         page.close()
+
+
+CHART_SAMPLES = 6  # pictures drawn before the words are read: the charts need a few samples to draw lines
+
+
+def test_the_pictures_charts_speak_the_pages_language(monkeypatch):
+    """A French page's picture draws its charts' words in French (series, the phase diagram's regions and title,
+    the material's name; accents left off, which the picture's font lacks), keeping the charts' history; an Arabic
+    page's stays in English, which the picture's font can draw (its own chart and legend are Arabic); English again
+    on the page's word."""
+    from multiprocessing import Pipe
+
+    from sandbox.app.serve_session import Session
+    from sandbox.render import chart, phase_plot
+
+    drawn: list[str] = []
+
+    def record(img, text, *args, **kwargs):
+        drawn.append(text)
+
+    monkeypatch.setattr(chart, "draw_text", record)
+    monkeypatch.setattr(phase_plot, "draw_text", record)
+    page, session_end = Pipe()
+    session = Session(session_end, "states_of_matter", 960, 540)
+
+    def words_after(lang: str) -> str:
+        session.handle({"t": "lang", "lang": lang})
+        for _ in range(CHART_SAMPLES):
+            session.frames += 1
+            session.draw()
+        drawn.clear()
+        session.draw()
+        return " | ".join(drawn)
+
+    french = words_after("fr")
+    assert "temperature moyenne" in french and "vaporise" in french
+    assert "solide" in french and "liquide" in french and "gaz" in french
+    assert "eau" in french and "pression" in french and "mean temperature" not in french and "water" not in french
+    samples = len(session.renderer.chart.times)
+    arabic = words_after("ar")
+    assert len(session.renderer.chart.times) > samples > 0  # the new language's charts carry the history on
+    assert "mean temperature" in arabic and not any("\u0600" <= c <= "\u06ff" for c in arabic)
+    assert "mean temperature" in words_after("en") and "solid" in drawn

@@ -86,12 +86,16 @@ def parse(text: str | bytes, scenes) -> dict:
         return out
     if kind == "action":
         return {"t": "action", "name": _choice(msg, "name", ACTIONS)}
+    if kind == "lang":  # the page's language: the picture's chart words follow it
+        return {"t": "lang", "lang": _choice(msg, "lang", LANGUAGES)}
     if kind == "view":  # dx, dy: the drag in fractions of the picture
         move = _choice(msg, "move", VIEW_MOVES)
         return {"t": "view", "move": move, "dx": _number(msg, "dx", -1, 1), "dy": _number(msg, "dy", -1, 1)}
     if kind == "scene":
         return {"t": "scene", "name": _choice(msg, "name", tuple(scenes))}
-    raise ProtocolError(f"message type {kind!r} refused: expected ready, pointer, tool, set, action, view or scene")
+    raise ProtocolError(
+        f"message type {kind!r} refused: expected ready, pointer, tool, set, action, view, lang or scene"
+    )
 
 
 class RateLimit:

@@ -47,6 +47,7 @@ class Session:
         self.width, self.height = width, height
         self.credits = FIRST_CREDITS
         self.control = None  # the Controller: the simulation's tools, run controls, settings and readouts
+        self.lang = "en"  # the page's language, which the picture's chart words follow
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
         self.frames = 0
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
@@ -74,6 +75,7 @@ class Session:
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
         self.sim.state.carry(self.renderer.tails)
+        self.renderer.set_words(chart_words(self.lang))
         painter = self.renderer.painter
         self.orbit = OrbitCamera(painter.eye_np, painter.target_np) if self.sim.dim == 3 else None
         self.tell(
@@ -138,6 +140,9 @@ class Session:
             self.action(msg["name"])
         elif kind == "view":
             self.view(msg["move"], msg["dx"], msg["dy"])
+        elif kind == "lang":
+            self.lang = msg["lang"]
+            self.renderer.set_words(chart_words(self.lang))
         elif kind == "scene":
             self.load(msg["name"])
         elif kind == "save":
@@ -310,3 +315,13 @@ def scratch_dir() -> Path:
     """The server's own new folder for state files in transit (never a name a client chose; made with a name no
     one else can have picked; removed when the server stops)."""
     return Path(tempfile.mkdtemp(prefix="sandbox-serve-"))
+
+
+def chart_words(lang: str):
+    """The picture's chart words in `lang` (render/words.py), from the page's catalogue; None for English."""
+    from ..render.words import Words
+
+    if lang == "en":
+        return None
+    path = Path(__file__).resolve().parent / "web" / "i18n" / f"{lang}.json"
+    return Words(json.loads(path.read_text(encoding="utf-8")))

@@ -18,6 +18,7 @@ from ..config.quantities import QUANTITIES
 from ..measure.units import length_unit, series_words
 from .layout import side_by_side
 from .text import GREY, dim, draw_text, line_height, text_width
+from .words import Words
 
 COLORS = ((255, 110, 70), (90, 170, 255), (130, 230, 100), (240, 215, 80))
 HISTORY = 4096  # samples kept; past it every other one is dropped and the sampling stride doubles
@@ -88,10 +89,23 @@ class Chart:
     row1; rows from the top) at font size `size`; record() each frame, label() draws it on an (H, W, 3) frame.
     `material_names` and `dim` choose the units (measure/units.py)."""
 
-    def __init__(self, series: tuple[str, ...], rect: tuple[int, int, int, int], size: int, material_names=(), dim=2):
+    def __init__(
+        self,
+        series: tuple[str, ...],
+        rect: tuple[int, int, int, int],
+        size: int,
+        material_names=(),
+        dim=2,
+        words: Words | None = None,
+    ):
         self.series = tuple(series)
         self.size = size
-        self.words = [series_words(name, material_names, dim) for name in self.series]
+        self.translated = words is not None and any(words.series(n, "") for n in self.series)
+        words = words or Words()
+        self.words = [
+            (words.series(name, english), unit)
+            for name, (english, unit) in ((n, series_words(n, material_names, dim)) for n in self.series)
+        ]
         by_unit: dict[str, list[int]] = {}
         for k, (_, unit) in enumerate(self.words):
             by_unit.setdefault(unit, []).append(k)
@@ -203,7 +217,8 @@ class Chart:
         # left out, where the panel is too narrow for them
         latest = [next((v for v in reversed(self.history[k]) if math.isfinite(v)), math.nan) for k in panel.names]
         unit = f"({panel.unit})" if panel.unit else ""
-        for words in (lambda k: self.words[k][0], lambda k: short_words(self.series[k]), lambda k: ""):
+        shorter = (lambda k: self.words[k][0]) if self.translated else (lambda k: short_words(self.series[k]))
+        for words in (lambda k: self.words[k][0], shorter, lambda k: ""):
             texts = [f"{words(k)} {value_text(v, panel.unit)}".strip() for k, v in zip(panel.names, latest)]
             if sum(text_width(t + "   ", size) for t in texts) + text_width(unit, size) <= rect[1] - rect[0] - 4:
                 break

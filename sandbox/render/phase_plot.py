@@ -13,6 +13,7 @@ from ..measure.phase_map import BOILING, PhaseMap
 from ..measure.units import pressure_unit
 from .chart import pen_on, value_ticks
 from .text import GREY, dim, draw_text, line_height, text_width
+from .words import Words
 
 REGION_FILL = {"solid": (60, 90, 120), "liquid": (40, 60, 130), "gas": (75, 75, 75)}
 CURVE = (235, 235, 235)
@@ -25,9 +26,18 @@ class PhasePlot:
     """The diagram of `phase_map` in the rectangle rect (x0, x1, row0, row1; rows from the top) at font size `size`;
     record() each frame, label() draws it on an (H, W, 3) uint8 frame. Pressures in the scene's unit (dim-D)."""
 
-    def __init__(self, phase_map: PhaseMap, rect: tuple[int, int, int, int], size: int, material_names=(), dim=2):
+    def __init__(
+        self,
+        phase_map: PhaseMap,
+        rect: tuple[int, int, int, int],
+        size: int,
+        material_names=(),
+        dim=2,
+        words: Words | None = None,
+    ):
         self.map = phase_map
         self.size = size
+        self.words = words or Words()
         self.unit = pressure_unit(material_names, dim)
         self.set_axes()
         self.trail: list[tuple[float, float]] = []  # (°C, pressure) of the dot, oldest first
@@ -129,10 +139,10 @@ class PhasePlot:
             "gas": (pmap.boil + 0.3 * (self.t_hi - pmap.boil), 0.8),
         }.items():
             x = bx0 + int(self.to_pixels(box, t, 1.0)[0]) + 4
-            draw_text(img, name, x, br0 + int(frac * (br1 - br0)), size, (220, 220, 220))
-        title = f"phase diagram of {pmap.material}: pressure ({self.unit}, log) against temperature"
+            draw_text(img, self.words.phase(name), x, br0 + int(frac * (br1 - br0)), size, (220, 220, 220))
+        title = self.words.phase_title(pmap.material, self.unit)
         if text_width(title, size) > self.rect[1] - self.rect[0] - 4:
-            title = f"{pmap.material}: pressure ({self.unit})"
+            title = self.words.phase_title(pmap.material, self.unit, short=True)
         draw_text(img, title, self.rect[0] + 2, self.rect[2], size, DOT)
         middle = (self.log_lo + self.log_hi) / 2
         middle_text = f"1e{middle:g}" if middle == int(middle) else ""

@@ -29,6 +29,7 @@ from .look import Look
 from .phase_plot import PhasePlot
 from .plan import plan_picture
 from .spheres import Spheres3D
+from .words import Words
 
 
 class Renderer:
@@ -75,6 +76,7 @@ class Renderer:
                     self.canvas, self.footprint, self.look, model, state, render_cfg, axis, self.view_box
                 )
             self.brush: tuple[float, float, float] | None = None  # see set_brush
+            self.words: Words | None = None  # the charts' words (set_words; None: English)
             self.chart = None
             self.potential = None  # the window's potential panel (a CurvePlot), when shown
             self.phase_plot = None  # the phase diagram (render.chart names "phase_diagram")
@@ -228,15 +230,29 @@ class Renderer:
         series "phase_diagram" is the phase diagram's panel (render/phase_plot.py)."""
         model, size = self.model, self.layout.size
         measured = tuple(name for name in series if name != PHASE_DIAGRAM)
-        self.chart = Chart(measured, (0, 0, 0, 0), size, model.material_names, model.dim) if measured else None
+        words = self.words
+        self.chart = Chart(measured, (0, 0, 0, 0), size, model.material_names, model.dim, words) if measured else None
         phase_map = phase_map_of(model) if PHASE_DIAGRAM in series else None
         self.phase_plot = None
         if phase_map is not None:
-            self.phase_plot = PhasePlot(phase_map, (0, 0, 0, 0), size, model.material_names, model.dim)
+            self.phase_plot = PhasePlot(phase_map, (0, 0, 0, 0), size, model.material_names, model.dim, words)
         if place:
             self._place_plots()
         else:
             self._share_band()
+
+    def set_words(self, words: Words | None) -> None:
+        """Draw the charts' words in another language (render/words.py; None: English), keeping their history."""
+        self.words = words
+        series = (self.chart.series if self.chart is not None else ()) + (
+            (PHASE_DIAGRAM,) if self.phase_plot is not None else ()
+        )
+        if series:
+            old_chart, old_phase = self.chart, self.phase_plot
+            self.set_chart(series)
+            for mine, theirs in ((self.chart, old_chart), (self.phase_plot, old_phase)):
+                if mine is not None and theirs is not None:
+                    mine.adopt(theirs)
 
     def adopt_plots(self, other: Renderer) -> None:
         """Take over the charts' history from `other` (the renderer this one replaces at a new size)."""

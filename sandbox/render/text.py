@@ -28,6 +28,15 @@ def font(size: int) -> ImageFont.FreeTypeFont:
     return ImageFont.load_default(size=size)
 
 
+@lru_cache(maxsize=1024)
+def has_glyph(char: str) -> bool:
+    """Whether the picture's font draws `char` (its missing-glyph box is what it draws for the others)."""
+    face = font(18)
+    mask = face.getmask(char)
+    missing = face.getmask("\uffff")
+    return char.isspace() or (bytes(mask), mask.size) != (bytes(missing), missing.size)
+
+
 @lru_cache(maxsize=4096)
 def text_width(text: str, size: int) -> int:
     """Pixels `text` takes across at font size `size`."""

@@ -41,6 +41,7 @@ async function setLanguage(lang) {
   document.documentElement.dir = RIGHT_TO_LEFT.includes(lang) ? "rtl" : "ltr";  // the layout mirrored
   localStorage.setItem("sandbox-lang", lang);
   $("lang").value = lang;
+  send({ t: "lang", lang });  // the picture's charts speak it too
   for (const el of document.querySelectorAll("[data-i18n]")) el.textContent = t(el.dataset.i18n);
   for (const el of document.querySelectorAll("[data-i18n-label]:not(canvas)")) el.ariaLabel = t(el.dataset.i18nLabel);
   $("pause").textContent = t(paused ? "play" : "pause");
@@ -123,7 +124,7 @@ async function onPicture(blob) {
 }
 
 function onText(msg) {
-  if (msg.t === "hello") { sid = msg.sid; sessionKey = msg.key || ""; }
+  if (msg.t === "hello") { sid = msg.sid; sessionKey = msg.key || ""; send({ t: "lang", lang: $("lang").value || "en" }); }
   else if (msg.t === "scene") onScene(msg);
   else if (msg.t === "info") onInfo(msg);
   else if (msg.t === "paused") { paused = msg.paused; $("pause").textContent = t(paused ? "play" : "pause"); }
