@@ -14,7 +14,6 @@ from ..config.arguments import (
     MAX_FRAMES,
     MAX_SIDE,
     check_count,
-    check_file_output,
     check_folder_output,
     check_names,
     check_pool_arguments,
@@ -44,7 +43,7 @@ from ..render.video import check_output
 from ..research.phase_study import run_phase_study
 from ..research.study import INTEGRATORS, PROBLEMS, run_study
 from ..simulation import Simulation
-from .cli_bench import run_bench
+from .cli_bench import cmd_bench
 from .cli_common import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -218,26 +217,6 @@ def cmd_sweep(args) -> int:
     summary = ", ".join(f"{n} {o}" for o, n in counts.items() if n)
     print(f"wrote {out}/manifest.csv ({summary})" + (f" and {plot.name}" if plot else ""), file=sys.stderr)
     return 0 if counts["pending"] == 0 else EXIT_STOPPED
-
-
-def cmd_bench(args) -> int:
-    check_count("--repeats", args.repeats, 1, 1000)
-    if args.contended is not None:
-        check_count("--contended", args.contended, 1, 16)
-    if args.side is not None:
-        if not (args.three_d or args.contended):
-            raise SandboxError("--side: only with --3d or --contended (the comparison against LAMMPS)")
-        check_count("--side", args.side, 8, 100 if args.three_d else 1000)
-    if args.json is not None:
-        check_file_output("--json", args.json, (".json",))
-    if args.scaling:
-        check_folder_output("--out", args.out)
-    if args.cache is not None:
-        check_count("--cache", args.cache, 1, 100_000_000)
-        check_count("--cache-frames", args.cache_frames, 1, 100_000)
-    runtime.require(args.arch, "f32")
-
-    return run_bench(args)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -9,6 +9,7 @@ import platform
 import tempfile
 from pathlib import Path
 
+from ..config.arguments import check_count, check_file_output, check_folder_output
 from ..core import runtime
 from ..errors import SandboxError
 from ..research.bench import (
@@ -30,6 +31,27 @@ from ..research.bench import (
 )
 from ..research.peer_bench import ideal_pair_rate, pair_rate
 from .bench_window import interactive_frame, print_window_rates, window_rates
+
+
+def cmd_bench(args) -> int:
+    """`sandbox bench`: its arguments checked (one line for a bad one), then run_bench."""
+    check_count("--repeats", args.repeats, 1, 1000)
+    if args.contended is not None:
+        check_count("--contended", args.contended, 1, 16)
+    if args.side is not None:
+        if not (args.three_d or args.contended):
+            raise SandboxError("--side: only with --3d or --contended (the comparison against LAMMPS)")
+        check_count("--side", args.side, 8, 100 if args.three_d else 1000)
+    if args.json is not None:
+        check_file_output("--json", args.json, (".json",))
+    if args.scaling:
+        check_folder_output("--out", args.out)
+    if args.cache is not None:
+        check_count("--cache", args.cache, 1, 100_000_000)
+        check_count("--cache-frames", args.cache_frames, 1, 100_000)
+    runtime.require(args.arch, "f32")
+
+    return run_bench(args)
 
 
 def run_bench(args) -> int:

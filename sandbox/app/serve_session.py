@@ -75,7 +75,7 @@ class Session:
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
         self.sim.state.carry(self.renderer.tails)
-        self.renderer.set_words(chart_words(self.lang))
+        self.set_words()
         painter = self.renderer.painter
         self.orbit = OrbitCamera(painter.eye_np, painter.target_np) if self.sim.dim == 3 else None
         self.tell(
@@ -142,7 +142,7 @@ class Session:
             self.view(msg["move"], msg["dx"], msg["dy"])
         elif kind == "lang":
             self.lang = msg["lang"]
-            self.renderer.set_words(chart_words(self.lang))
+            self.set_words()
         elif kind == "scene":
             self.load(msg["name"])
         elif kind == "save":
@@ -168,6 +168,11 @@ class Session:
         elif name == "undo":
             self.tell({"t": "notice", "key": control.undo().key})
         self.tell({"t": "paused", "paused": control.paused})
+
+    def set_words(self) -> None:
+        """The picture's charts in the page's language, their history kept."""
+        self.renderer.words = chart_words(self.lang)
+        self.renderer.set_chart(tuple(self.renderer.cfg.chart), keep_history=True)
 
     def view(self, move: str, dx: float, dy: float) -> None:
         """Turn (orbit), zoom or pan a 3D picture's camera by a drag of (dx, dy) picture fractions, as the window's

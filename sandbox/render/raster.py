@@ -225,9 +225,11 @@ class Renderer:
             if plot is not None:
                 plot.record(stats)
 
-    def set_chart(self, series: tuple[str, ...], place: bool = True) -> None:
-        """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh. The
-        series "phase_diagram" is the phase diagram's panel (render/phase_plot.py)."""
+    def set_chart(self, series: tuple[str, ...], place: bool = True, keep_history: bool = False) -> None:
+        """Replace the chart (empty: none), e.g. the window's energy plot toggle; its history starts afresh unless
+        `keep_history` (the same series in other words: `self.words`, render/words.py). The series
+        "phase_diagram" is the phase diagram's panel (render/phase_plot.py)."""
+        old_chart, old_phase = self.chart, self.phase_plot
         model, size = self.model, self.layout.size
         measured = tuple(name for name in series if name != PHASE_DIAGRAM)
         words = self.words
@@ -236,23 +238,14 @@ class Renderer:
         self.phase_plot = None
         if phase_map is not None:
             self.phase_plot = PhasePlot(phase_map, (0, 0, 0, 0), size, model.material_names, model.dim, words)
+        if keep_history:
+            for mine, theirs in ((self.chart, old_chart), (self.phase_plot, old_phase)):
+                if mine is not None and theirs is not None:
+                    mine.adopt(theirs)
         if place:
             self._place_plots()
         else:
             self._share_band()
-
-    def set_words(self, words: Words | None) -> None:
-        """Draw the charts' words in another language (render/words.py; None: English), keeping their history."""
-        self.words = words
-        series = (self.chart.series if self.chart is not None else ()) + (
-            (PHASE_DIAGRAM,) if self.phase_plot is not None else ()
-        )
-        if series:
-            old_chart, old_phase = self.chart, self.phase_plot
-            self.set_chart(series)
-            for mine, theirs in ((self.chart, old_chart), (self.phase_plot, old_phase)):
-                if mine is not None and theirs is not None:
-                    mine.adopt(theirs)
 
     def adopt_plots(self, other: Renderer) -> None:
         """Take over the charts' history from `other` (the renderer this one replaces at a new size)."""
