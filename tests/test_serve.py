@@ -552,7 +552,7 @@ def test_a_3d_scene_turns_zooms_and_pans_in_the_page():
     page, session_end = Pipe()
     session = Session(session_end, "melting_block_3d", 160, 90)
     scene = json.loads(page.recv_bytes()[1:])
-    assert scene["t"] == "scene" and scene["dim"] == 3 and scene["tools"] == []
+    assert scene["t"] == "scene" and scene["dim"] == 3 and "heat" in scene["tools"] and scene["tool"] == "none"
     painter = session.renderer.painter
     eye, target = painter.eye_np.copy(), painter.target_np.copy()
     before = session.draw().copy()
@@ -565,6 +565,19 @@ def test_a_3d_scene_turns_zooms_and_pans_in_the_page():
     assert np.linalg.norm(painter.eye_np - target) < 0.8 * np.linalg.norm(turned - target)
     session.handle({"t": "view", "move": "pan", "dx": 0.1, "dy": 0.0})
     assert not np.allclose(painter.target_np, target)
+    # a tool acts at the particle under the pointer, as the window's Shift + left button does
+    sim = session.sim
+    spot = session.world_at(0.5, 0.5)
+    assert spot is not None
+    near = np.linalg.norm(sim.positions() - spot, axis=1) < 2.0
+    before = sim.particles.T.to_numpy()[: len(near)][near].mean()
+    session.handle({"t": "tool", "tool": "heat", "x": 0.5, "y": 0.5, "radius": 3.0, "down": True})
+    session.control.pause()  # the heat goes in while paused: only the tool changes the temperatures
+    for _ in range(5):
+        session.control.advance()
+    session.handle({"t": "tool", "tool": "heat", "x": 0.5, "y": 0.5, "radius": 3.0, "down": False})
+    assert sim.particles.T.to_numpy()[: len(near)][near].mean() > before + 5.0
+    assert session.control.undo().key == "undone"
     session.load("melting_block")
     assert session.orbit is None
     session.handle({"t": "view", "move": "orbit", "dx": 0.5, "dy": 0.5})  # 2D: nothing to turn, nothing fails

@@ -98,12 +98,12 @@ class Session:
         return page_lesson(self.sim.scene.lesson)
 
     def tool_names(self) -> list[str]:
-        """The scene's tools, where the page can aim them (2D pictures)."""
-        return self.control.tool_names() if self.sim.dim == 2 else []
+        """The scene's tools (in 3D they act at the particle under the pointer)."""
+        return self.control.tool_names()
 
     def first_tool(self) -> str:
-        """The tool the page starts with: the window's, where the page has tools."""
-        return self.control.first_tool() if self.tool_names() else "none"
+        """The tool the page starts with: the window's in 2D; none in 3D, where a drag first turns the picture."""
+        return self.control.first_tool() if self.sim.dim == 2 and self.tool_names() else "none"
 
     # ------------------------------------------------------------------ the pipe
     def tell(self, message: dict) -> None:
@@ -185,9 +185,10 @@ class Session:
 
     # ------------------------------------------------------------------ tools
     def world_at(self, fx: float, fy: float):
-        """The world point (2D) under the picture fraction (fx, fy), rows from the top; None outside a 2D view."""
-        if self.sim.dim != 2:
-            return None
+        """The world point under the picture fraction (fx, fy), rows from the top: in 2D the view's point, in 3D the
+        nearest particle drawn within a few pixels of it (None where there is none)."""
+        if self.sim.dim == 3:
+            return self.renderer.pick(fx, 1.0 - fy)
         scale, offset = self.renderer.plan.view
         column, row_up = fx * self.width, (1.0 - fy) * self.height
         return ((column - offset[0]) / scale, (row_up - offset[1]) / scale)

@@ -323,7 +323,7 @@ function viewMessage(move, dx, dy) {
 function setupPicture() {
   const canvas = $("picture");
   canvas.addEventListener("pointerdown", (e) => {
-    if (sceneDim === 3) {
+    if (sceneDim === 3 && $("tool").value === "none") {  // 3D without a tool: the drag turns the picture
       turning = { ...fraction(e), pan: e.shiftKey || e.button === 1 };
       canvas.setPointerCapture(e.pointerId);
       return;
@@ -358,7 +358,8 @@ function setupPicture() {
   canvas.addEventListener("keydown", (e) => {  // the keyboard's pointer: arrows move it, Enter held uses the tool
     const step = e.shiftKey ? 0.1 : 0.02;
     const moves = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, -step], ArrowDown: [0, step] };
-    if (sceneDim === 3 && (moves[e.key] || e.key === "+" || e.key === "-")) {  // 3D: arrows turn, + and - zoom
+    const turns = sceneDim === 3 && $("tool").value === "none";
+    if (turns && (moves[e.key] || e.key === "+" || e.key === "-")) {  // 3D without a tool: arrows turn, + - zoom
       if (moves[e.key]) send(viewMessage("orbit", 2 * moves[e.key][0], 2 * moves[e.key][1]));
       else send(viewMessage("zoom", 0, e.key === "+" ? 0.1 : -0.1));
       e.preventDefault();
