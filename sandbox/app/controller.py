@@ -179,13 +179,18 @@ class Controller:
         if any(self.sim.scene.world.gravity):
             top = 4.0 * float(np.linalg.norm(self.sim.scene.world.gravity))
             unit = f"{length_unit(self.sim.material_names)}/s^2"
-            out.append(
-                panel.Setting("gravity", "gravity", self.gravity_strength, 0.0, top, unit, top / 100, self._strength)
-            )
+
+            def strength(value: float) -> None:
+                self.steer_gravity(strength=value)
+
+            def angle(value: float) -> None:
+                self.steer_gravity(angle=value)
+
+            out.append(panel.Setting("gravity", "gravity", self.gravity_strength, 0.0, top, unit, top / 100, strength))
             if self.sim.dim == 2:
                 out.append(
                     panel.Setting(
-                        "gravity_angle", "gravity angle", self.gravity_angle, -180.0, 180.0, "deg", 1.0, self._angle
+                        "gravity_angle", "gravity angle", self.gravity_angle, -180.0, 180.0, "deg", 1.0, angle
                     )
                 )
         return out
@@ -198,20 +203,15 @@ class Controller:
         s = offered[key]
         s.apply(min(max(float(value), s.lo), s.hi))
 
-    def _strength(self, value: float) -> None:
-        self.gravity_strength = value
-        self.apply_gravity()
-
-    def _angle(self, value: float) -> None:
-        self.gravity_angle = value
-        self.apply_gravity()
-
-    def steer_gravity(self, on: bool | None = None, angle: float | None = None) -> None:
-        """Gravity on or off, and (2D) turned `angle` degrees from straight down; its strength stays."""
+    def steer_gravity(self, on: bool | None = None, angle: float | None = None, strength: float | None = None) -> None:
+        """Gravity on or off, (2D) turned `angle` degrees from straight down, at `strength` (length / s^2); what is
+        not given stays."""
         if on is not None:
             self.gravity_on = bool(on)
         if angle is not None:
             self.gravity_angle = float(angle)
+        if strength is not None:
+            self.gravity_strength = float(strength)
         self.apply_gravity()
 
     def apply_gravity(self) -> None:

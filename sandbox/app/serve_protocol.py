@@ -14,11 +14,8 @@ MAX_MESSAGE = 2048  # bytes of one message from the page
 MAX_RATE = 120.0  # messages per second a tab may send (a pointer stroke sends ~60)
 BURST = 240.0  # messages a tab may send at once before the rate applies
 ACTIONS = ("pause", "play", "step", "reset", "undo")
-VIEW_MOVES = (
-    "orbit",
-    "zoom",
-    "pan",
-)  # a 3D picture's camera: a drag turns it, zooms or pans (window_parts.OrbitCamera)
+# a 3D picture's camera: a drag turns it, zooms or pans (window_parts.OrbitCamera)
+VIEW_MOVES = ("orbit", "zoom", "pan")
 LANGUAGES = ("en", "fr", "ar")
 
 

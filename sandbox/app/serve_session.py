@@ -11,6 +11,7 @@ session runs in slow motion rather than dropping pictures.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import io
 import json
 import os
@@ -323,6 +324,7 @@ def scratch_dir() -> Path:
     return Path(tempfile.mkdtemp(prefix="sandbox-serve-"))
 
 
+@functools.cache  # a catalogue read once per language, not at every scene or language change
 def chart_words(lang: str):
     """The picture's chart words in `lang` (render/words.py), from the page's catalogue; None for English."""
     from ..render.words import Words

@@ -15,18 +15,14 @@ from ..integrators import REGISTRY
 from . import tool_table
 
 
-# GGUI (Taichi 1.7) reports letters and named keys only (Escape, Return, Tab, arrows, space, Shift, ...): digits,
-# brackets, + and - and the F keys never arrive, so every key the help lists is one of those.
 def help_lines() -> list[str]:
     """The help overlay's lines (the tools as the table holds them now)."""
-    return [
-        HELP[0],
-        HELP[1],
-        HELP[2],
-        "Tab    next tool: " + ", ".join(tool_table.names()) + " (or the panel's slider)",
-    ] + HELP[3:]
+    tools = "Tab    next tool: " + ", ".join(tool_table.names()) + " (or the panel's slider)"
+    return HELP[:3] + [tools] + HELP[3:]
 
 
+# GGUI (Taichi 1.7) reports letters and named keys only (Escape, Return, Tab, arrows, space, Shift, ...): digits,
+# brackets, + and - and the F keys never arrive, so every key the help lists is one of those.
 HELP = [
     "space  pause / resume",
     "s      single step (paused)",

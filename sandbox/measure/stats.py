@@ -3,7 +3,7 @@ the quantities declared once in config/quantities.py."""
 
 from __future__ import annotations
 
-from dataclasses import fields, make_dataclass
+from dataclasses import make_dataclass
 
 from ..config.quantities import QUANTITIES, compute
 
@@ -33,10 +33,6 @@ class _Measured:
         """The Stats of the named sums and counts `m` (measure/diagnostics.py) at `time`: the pressure over the box's
         volume `volume` (area in 2D)."""
         return cls(**compute(m, time, dim, volume, wall_pressure, heat, springs))
-
-    def as_dict(self) -> dict:
-        """Every quantity by name."""
-        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 Stats = make_dataclass(

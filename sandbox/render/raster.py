@@ -76,7 +76,7 @@ class Renderer:
                     self.canvas, self.footprint, self.look, model, state, render_cfg, axis, self.view_box
                 )
             self.brush: tuple[float, float, float] | None = None  # see set_brush
-            self.words: Words | None = None  # the charts' words (set_words; None: English)
+            self.words: Words | None = None  # the charts' words (render/words.py; None: English)
             self.chart = None
             self.potential = None  # the window's potential panel (a CurvePlot), when shown
             self.phase_plot = None  # the phase diagram (render.chart names "phase_diagram")
@@ -239,9 +239,7 @@ class Renderer:
         if phase_map is not None:
             self.phase_plot = PhasePlot(phase_map, (0, 0, 0, 0), size, model.material_names, model.dim, words)
         if keep_history:
-            for mine, theirs in ((self.chart, old_chart), (self.phase_plot, old_phase)):
-                if mine is not None and theirs is not None:
-                    mine.adopt(theirs)
+            carry_history(((self.chart, old_chart), (self.phase_plot, old_phase)))
         if place:
             self._place_plots()
         else:
@@ -249,9 +247,7 @@ class Renderer:
 
     def adopt_plots(self, other: Renderer) -> None:
         """Take over the charts' history from `other` (the renderer this one replaces at a new size)."""
-        for mine, theirs in ((self.chart, other.chart), (self.phase_plot, other.phase_plot)):
-            if mine is not None and theirs is not None:
-                mine.adopt(theirs)
+        carry_history(((self.chart, other.chart), (self.phase_plot, other.phase_plot)))
 
     def plots(self) -> list:
         """The charts shown: the measurements', the phase diagram and the pair-force panel."""
@@ -291,3 +287,10 @@ class Renderer:
     def legend_colors(self, n: int) -> np.ndarray:
         """The active colour map sampled at n points, (n, 3) floats."""
         return self.overlays.legend_colors(n)
+
+
+def carry_history(pairs) -> None:
+    """Each (new plot, old plot) pair: the new one takes the old one's history, where both are shown."""
+    for mine, theirs in pairs:
+        if mine is not None and theirs is not None:
+            mine.adopt(theirs)
