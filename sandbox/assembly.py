@@ -61,7 +61,14 @@ def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None) ->
         phase = Phase(table) if heat else None
         model = Model(scene, running, built, capacity, materials, table, phase, loops, domain, threads)
         lifetimes = any(e.lifetime > 0 for e in scene.emitters)
-        particles = Particles(scene.dim, capacity, heat=heat is not None, refreeze=can_refreeze, lifetimes=lifetimes)
+        particles = Particles(
+            scene.dim,
+            capacity,
+            heat=heat is not None,
+            refreeze=can_refreeze,
+            lifetimes=lifetimes,
+            structure=scene.molecular is not None,
+        )
         _load_particles(particles, built, table.colors, materials)
         springs = None
         if built.spring_count or can_refreeze:

@@ -98,6 +98,11 @@ def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
             out.append(measured("melted", "molten_fraction", sim, stats, 0))
         if math.isfinite(stats.kinetic_temperature):
             out.append(measured("motion", "kinetic_temperature", sim, stats, 0))
+    if sim.terms.structure is not None:  # the molecular model: temperature from motion, phases from structure
+        out.append(measured("motion", "motion_temperature", sim, stats, 3))
+        out += [measured(kind, f"structure_{kind}", sim, stats, 0) for kind in ("solid", "liquid", "gas")]
+        if sim.terms.thermal_walls is not None:
+            out.append(measured("wall_heat", "wall_heat", sim, stats, 1))
     out.append(measured("energy", "total_energy", sim, stats, 1))
     out.append(measured("pressure", "pressure", sim, stats, 3))
     if sim.model.domain.wall_area:

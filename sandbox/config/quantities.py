@@ -69,6 +69,18 @@ def _share(total: str, count: str) -> Callable[[Sums], float]:
     return lambda s: s.m[total] / s.m[count] if s.m.get(count) else 0.0
 
 
+def _motion_temperature(s: Sums) -> float:
+    """kT of the atoms' motion about their centre of mass (k = 1), from the kinetic energy, momentum and mass sums."""
+    if "momentum_x" not in s.m or s.m["n"] < 2 or not s.m["mass"]:
+        return NAN
+    p2 = sum(s.m[f"momentum_{a}"] ** 2 for a in "xyz")
+    return (2.0 * s.m["ke"] - p2 / s.m["mass"]) / (s.dim * (s.m["n"] - 1))
+
+
+def _structure_share(kind: str) -> Callable[[Sums], float]:
+    return lambda s: s.m[kind] / s.m["n"] if kind in s.m and s.m["n"] else NAN
+
+
 QUANTITIES: tuple[Quantity, ...] = (
     Quantity("time", "s", "time", "simulated time", lambda s: s.time, chart=False),
     Quantity("kinetic_energy", "energy", "kinetic energy", "sum of m v^2 / 2", lambda s: s.m["ke"]),
@@ -99,6 +111,17 @@ QUANTITIES: tuple[Quantity, ...] = (
     Quantity("kinetic_temperature", "°C", "temperature of the motion", "the temperature the molten particles' "
              "motion relative to the local flow says (heat.agitation_time); nan without it",
              lambda s: s.m["agitation"] / (s.dim * s.m["free"]) - 273.15 if s.m.get("free") else NAN),
+    Quantity("motion_temperature", "energy", "temperature (kT)", "the atoms' kinetic temperature kT (k = 1): "
+             "(sum m v^2 - |sum m v|^2 / sum m) / (dim (N - 1)); nan outside the molecular model",
+             _motion_temperature),
+    Quantity("structure_solid", "%", "solid (by structure)", "share of the atoms whose neighbours sit in order "
+             "(physics/structure.py); nan outside the molecular model", _structure_share("solid")),
+    Quantity("structure_liquid", "%", "liquid (by structure)", "share of the atoms that are dense but not in "
+             "order; nan outside the molecular model", _structure_share("liquid")),
+    Quantity("structure_gas", "%", "gas (by structure)", "share of the atoms with almost no neighbours; nan "
+             "outside the molecular model", _structure_share("gas")),
+    Quantity("wall_heat", "energy", "heat through the walls", "energy the thermal walls have given the atoms "
+             "(negative: taken) since the start; 0 without them", lambda s: s.m.get("wall_heat", 0.0)),
     Quantity("molten_fraction", "%", "molten", "mean melt fraction of the particles of meltable materials",
              _share("phi", "meltable")),
     Quantity("gas_fraction", "%", "boiled", "mean vapour fraction of the particles of materials that boil",

@@ -23,6 +23,7 @@ from .scene_tables import (
     Body,
     Emitter,
     FieldElement,
+    WALL_SIDES,
     HeatSource,
     Render,
     Scene,
@@ -138,6 +139,8 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     world = _check_world(file, world)
     if raw.pair is not None and raw.pair.b <= raw.pair.a:
         raise SceneError(file, "pair.b", f"expected the repulsion exponent b above a = {raw.pair.a}")
+    if raw.pair is not None and raw.pair.force_shift and raw.heat is not None:
+        raise SceneError(file, "pair.force_shift", "expected no [heat] table with it: the force shift is for atoms")
     for i, name in enumerate(raw.scene.palette):
         if name not in materials:
             raise SceneError(
@@ -167,6 +170,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
             )
     spacing = particle_spacing(bodies, emitters)
     heat = raw.heat
+    _check_molecular(file, raw)
     _check_reach(file, world, heat, raw.pair, spacing)
     render = raw.render
     _check_render(file, render, dim)
@@ -190,9 +194,40 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         emitters=emitters,
         fields=list(raw.fields),
         smoke=raw.smoke,
+        molecular=raw.molecular,
         spacing=spacing,
         source=copy.deepcopy(data),
     )
+
+
+def _check_molecular(file: str, raw) -> None:
+    """The molecular model needs a pair force and no heat field (its temperature is the atoms' motion); each thermal
+    wall is a wall of this box, named once, and the box has walls."""
+    molecular = raw.molecular
+    if molecular is None:
+        return
+    if raw.pair is None:
+        raise SceneError(file, "molecular", "the molecular model needs a [pair] table: the atoms' force")
+    if raw.heat is not None:
+        raise SceneError(
+            file, "heat", "expected no [heat] table with [molecular]: its temperature is measured from the motion"
+        )
+    if molecular.phase_radius > raw.pair.cutoff:
+        raise SceneError(
+            file, "molecular.phase_radius", f"expected at most the pair cutoff {raw.pair.cutoff:g} (its neighbour reach)"
+        )
+    seen = set()
+    for i, wall in enumerate(molecular.walls):
+        axis, _ = WALL_SIDES[wall.side]
+        if axis >= raw.world.dim:
+            raise SceneError(file, f"molecular.walls[{i}].side", f"{wall.side!r} is a wall of a 3D box only")
+        if wall.side in seen:
+            raise SceneError(file, f"molecular.walls[{i}].side", f"the {wall.side} wall is named twice")
+        seen.add(wall.side)
+        if raw.world.periodic:
+            raise SceneError(
+                file, f"molecular.walls[{i}]", "a periodic box has no walls; expected world.periodic = false"
+            )
 
 
 def _check_world(file: str, world: World) -> World:

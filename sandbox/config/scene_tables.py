@@ -134,6 +134,11 @@ class PairForce:
         doc="shift the pair energy to zero at the cutoff (false: the plain potential, as LAMMPS's lj/cut); "
         "forces are the same",
     )
+    force_shift: bool = spec(
+        False,
+        doc="subtract the force at the cutoff, so that it falls continuously to zero there (the linear-force-shifted "
+        "potential of NIST's Lennard-Jones tables; its energy is zero at the cutoff whatever shift says)",
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -209,6 +214,40 @@ class Heat:
         "sqrt(kT / m) = 1.9 mm/s per direction",
         check=positive,
     )
+
+
+# The walls of the box a thermal wall can be, by axis and end: (axis, +1 for the upper end)
+WALL_SIDES = {"left": (0, -1), "right": (0, 1), "bottom": (1, -1), "top": (1, 1), "back": (2, -1), "front": (2, 1)}
+
+
+@dataclass(frozen=True, kw_only=True)
+class ThermalWall:
+    name: str = spec("heater", doc="label of the wall's temperature slider and readout")
+    side: str = spec(doc="which wall of the box: left, right, bottom, top (and back, front in 3D)",
+                     check=one_of(*WALL_SIDES))
+    temperature: float = spec(
+        doc="the wall's temperature as kT (energy units: eps in reduced units); an atom that hits it leaves with a "
+        "velocity drawn from the Maxwell distribution at this temperature",
+        check=positive,
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Molecular:
+    phase_radius: float = spec(
+        1.5, doc="neighbours nearer than this (length) count toward an atom's coordination and bond order",
+        check=positive,
+    )
+    gas_below: int = spec(
+        0, doc="an atom with fewer neighbours than this is counted as gas (0: 3 in 2D, 5 in 3D)", check=at_least(0)
+    )
+    solid_bonds: int = spec(
+        0,
+        doc="an atom with at least this many ordered bonds (neighbours whose bond order matches its own) is counted "
+        "as solid (0: 4 in 2D, 7 in 3D)",
+        check=at_least(0),
+    )
+    walls: list[ThermalWall] = spec(doc="thermal walls: heaters and coolers that keep momentum", factory=list)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -367,6 +406,7 @@ class _SceneFile:
     world: World = spec(doc="[world]")
     pair: PairForce | None = spec(None, doc="[pair]")
     heat: Heat | None = spec(None, doc="[heat]")
+    molecular: Molecular | None = spec(None, doc="[molecular]")
     bodies: list[Body] = spec(doc="[[bodies]]", factory=list)
     emitters: list[Emitter] = spec(doc="[[emitters]]", factory=list)
     fields: list[FieldElement] = spec(doc="[[fields]]", factory=list)
@@ -391,6 +431,7 @@ class Scene:
     emitters: list[Emitter] = field(default_factory=list)
     fields: list[FieldElement] = field(default_factory=list)
     smoke: Smoke | None = None
+    molecular: Molecular | None = None  # the molecular model: atoms, temperature from motion, phases from structure
 
     @property
     def dim(self) -> int:

@@ -22,12 +22,21 @@ class Particles:
     """Per-particle fields: capacity C slots, the first n[None] live; D = dim. `sim.particles()` (calling this
     object) returns the live particles as NumPy arrays by id (simulation.py's particle_table)."""
 
-    def __init__(self, dim: int, capacity: int, heat: bool, refreeze: bool = False, lifetimes: bool = False):
+    def __init__(
+        self,
+        dim: int,
+        capacity: int,
+        heat: bool,
+        refreeze: bool = False,
+        lifetimes: bool = False,
+        structure: bool = False,
+    ):
         self.dim = dim
         self.capacity = capacity
         self.heat = heat
         self.refreeze = refreeze
         self.lifetimes = lifetimes
+        self.structure = structure
         self.n = ti.field(ti.i32, shape=())  # live particle count
         self.x = ti.Vector.field(dim, float, shape=capacity)  # position (length), (C, D)
         self.v = ti.Vector.field(dim, float, shape=capacity)  # velocity (length / time), (C, D)
@@ -48,6 +57,8 @@ class Particles:
         if lifetimes:
             self.age = ti.field(float, shape=capacity)  # time since birth, (C,)
             self.lifetime = ti.field(float, shape=capacity)  # retired when age reaches it; 0: for ever, (C,)
+        if structure:
+            self.kind = ti.field(ti.i32, shape=capacity)  # phase from structure: 0 gas, 1 liquid, 2 solid, (C,)
 
     def names(self) -> list[str]:
         """Names of the per-particle fields allocated, in a fixed order (what moves with a particle)."""
@@ -58,6 +69,8 @@ class Particles:
             names.append("liquid")
         if self.lifetimes:
             names += ["age", "lifetime"]
+        if self.structure:
+            names.append("kind")
         return names
 
     def fields(self) -> list:
@@ -68,7 +81,7 @@ class Particles:
         """Bytes held by these fields."""
         real = 8 if self.x.dtype == ti.f64 else 4
         floats = 2 * self.dim + 2 + (2 if self.heat else 0) + (2 if self.lifetimes else 0)
-        ints = 3 + (1 if self.refreeze else 0)  # material, group, ident, (liquid)
+        ints = 3 + (1 if self.refreeze else 0) + (1 if self.structure else 0)  # material, group, ident, (liquid, kind)
         return self.capacity * (floats * real + 4 * ints + 12)  # + f32 colour
 
 

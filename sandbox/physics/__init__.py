@@ -15,6 +15,8 @@ from . import (  # noqa: F401 - each registers its terms
     phase,
     smoke,
     springs,
+    structure,
+    thermal_walls,
     walls,
 )
 from .term import TERMS, Measure, Parts, Term, TermList, register

@@ -9,7 +9,9 @@ Below r_core = core * r_eq (r_eq: where the force vanishes) the force keeps its 
 at (almost) the same point get a large but finite push; at r = 0 exactly the push is along the first axis, in
 opposite directions for i and j (by index order). The energy is continued linearly there, so dU/dr still equals the
 force. Energy is shifted to zero at the cutoff unless pair.shift = false (then U is the plain potential, as in
-LAMMPS's lj/cut without pair_modify shift yes); the forces are the same either way.
+LAMMPS's lj/cut without pair_modify shift yes); the forces are the same either way. With pair.force_shift the force
+at the cutoff, F_c = g(r_c) r_c, is subtracted from every pair's force magnitude, so the force falls continuously to
+zero there (the linear-force-shifted potential U(r) - U(r_c) + F_c (r - r_c) of NIST's Lennard-Jones tables).
 
 A viscous term -gamma ((v_i - v_j) . n) n w(r), w = 1 - r/cutoff, gives the melt its viscosity; it is antisymmetric,
 so momentum is conserved. Materials mix by geometric means of alpha and beta, arithmetic means of eps and gamma.
@@ -96,7 +98,9 @@ class PairForce(Term):
         self.domain = model.domain
         self.loops = model.loops
         n = len(materials)
-        self.shifted = bool(pair.shift)  # the energy shifted to zero at the cutoff (forces are the same either way)
+        self.force_shifted = bool(pair.force_shift)  # the force at the cutoff subtracted (linear force shift)
+        # the energy shifted to zero at the cutoff (forces are the same either way; always with the force shift)
+        self.shifted = bool(pair.shift) or self.force_shifted
         self.dim = model.dim
         self.a, self.b = float(pair.a), float(pair.b)
         self.int_exponents = self.a.is_integer() and self.b.is_integer()
@@ -115,6 +119,7 @@ class PairForce(Term):
         # eps and visc are filled here; the other tables by set_scale (one copy kernel each time)
         self.eps, self.visc = real_fields(self.eps_np, self.visc_np)
         self.alpha, self.beta, self.r_core, self.shift, self.f_core = (ti.field(float, shape=(n, n)) for _ in range(5))
+        self.f_cut = ti.field(float, shape=(n, n))  # g(cutoff) cutoff: the force shift (zero without it)
         self.shift_att = ti.field(float, shape=(n, n))  # the attraction's part of the shift (vapour scales it)
         self.set_scale(1.0, 1.0)
         self.single_material = n == 1
@@ -164,6 +169,9 @@ class PairForce(Term):
         # Force magnitude at the core radius, g(r_core) r_core per unit mass product (held below the core).
         rc = self.r_core_np
         g_core = self.alpha_np / (rc + self.eps_np) ** self.a - self.beta_np / rc**self.b
+        cut = self.cutoff
+        g_cut = self.alpha_np / (cut + self.eps_np) ** self.a - self.beta_np / cut**self.b
+        self.f_cut_np = g_cut * cut if self.force_shifted else np.zeros_like(g_cut)
         transfer.upload(
             [
                 (self.alpha, self.alpha_np),
@@ -172,6 +180,7 @@ class PairForce(Term):
                 (self.shift, self.shift_np),
                 (self.shift_att, self.shift_att_np),
                 (self.f_core, g_core * rc),
+                (self.f_cut, self.f_cut_np),
             ]
         )
 
@@ -181,7 +190,7 @@ class PairForce(Term):
         r = np.linspace(0.5 * self.r_core_np[p, q], self.cutoff, samples)
         held = np.maximum(r, self.r_core_np[p, q])
         g = radial_force(held, self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q], self.a, self.b)
-        return r, g * held
+        return r, g * held - self.f_cut_np[p, q]
 
     def _u(self, r, p, q):
         """Unshifted potential per unit mass product at r (NumPy side; used for the cutoff shift)."""
@@ -275,6 +284,9 @@ class PairForce(Term):
                 n = ti.Vector.zero(float, self.dim)
                 n[0] = 1.0 if j > i else -1.0
             f = f_core * n
+        if ti.static(self.force_shifted):  # the force at the cutoff subtracted: continuous to zero there
+            p, q = self._pair_ids(i, j)
+            f -= self.f_cut[p, q] / ti.max(ti.sqrt(r2), 1e-12) * d
         return f
 
     @ti.func
@@ -319,6 +331,8 @@ class PairForce(Term):
                 alpha *= s
             g = alpha * self._powneg(rc + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(rc, self.b)
             u += g * rc * (r - rc)
+        if ti.static(self.force_shifted):
+            u -= self.f_cut[p, q] * (r - self.cutoff)
         return self.mass[i] * self.mass[j] * u
 
     @ti.func

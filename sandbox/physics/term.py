@@ -66,6 +66,7 @@ STAGES = (
     "fields",  # velocity fields (after the smoke grid, whose velocity they add)
     "emitters",  # emitters (after the velocity field, which their particles may inherit)
     "coupling",  # drag towards a velocity field, sampled after the smoke grid has stepped
+    "thermal_walls",  # heaters and coolers of the molecular model (before the walls, which they take over)
     "boundaries",  # walls
     "moving",  # kinematic bodies
     "heat_update",  # the heat update, after walls and kinematic particles have moved

@@ -16,6 +16,9 @@ from .colormaps import speed_map, temperature_map
 from .style import BLEND, COLOR_MODES, DRAW
 
 VAPOUR_COLOR = (0.9, 0.9, 0.9)  # drawing by phase: a boiling material's vapour
+# drawing by phase in the molecular model: gas, liquid, solid as physics/structure.py counts them
+STRUCTURE_COLORS = ((0.85, 0.85, 0.85), (0.2, 0.5, 0.95), (0.95, 0.75, 0.3))
+STRUCTURE_WORDS = ("gas", "liquid", "solid")
 
 
 @data_oriented
@@ -54,6 +57,7 @@ class Look:
         transfer.upload([(self.t_lo, t_lo), (self.t_hi, t_hi), (self.speed_hi, cfg.speed_range)])
         self.particle_scale = float(cfg.particle_scale)
         self.boils = self.has_heat and any(m.boils for m in model.material_list)
+        self.has_structure = self.p.structure  # the molecular model: phases measured from structure
 
     @ti.func
     def life_left(self, i):
@@ -109,4 +113,11 @@ class Look:
             if ti.static(self.boils):  # vapour: pale grey, mixed in by the gas fraction
                 psi = self.model.phase.gas(p.h[i], p.material[i])
                 c = (1.0 - psi) * c + psi * ti.Vector(VAPOUR_COLOR)
+        elif ti.static(self.color_mode == 3 and self.has_structure):
+            kind = p.kind[i]
+            c = ti.Vector(STRUCTURE_COLORS[0])
+            if kind == 1:
+                c = ti.Vector(STRUCTURE_COLORS[1])
+            elif kind == 2:
+                c = ti.Vector(STRUCTURE_COLORS[2])
         return c

@@ -8,7 +8,7 @@ import numpy as np
 from ..measure.units import speed_unit
 from .colormaps import SPEED_STOPS, TEMPERATURE_STOPS, ramp_np_many
 from .layout import Layout, title_size
-from .look import VAPOUR_COLOR
+from .look import STRUCTURE_COLORS, STRUCTURE_WORDS, VAPOUR_COLOR
 from .text import GREY, dim, draw_text, line_height, text_width
 
 CLOCK_ROOM = "t = 000.00 s"  # the clock the left column keeps room for (longer runs' clocks run on to the right)
@@ -29,6 +29,8 @@ def swatches(model, color_by: str, has_heat: bool) -> list[tuple[str, tuple[floa
     temperature without heat), or by phase with heat: each material solid and melted."""
     names = model.material_names
     materials = model.material_list
+    if color_by == "phase" and model.scene.molecular is not None:  # phases measured from structure
+        return [(word, colour) for word, colour in zip(STRUCTURE_WORDS, STRUCTURE_COLORS)][::-1]
     if color_by == "phase" and has_heat:
         out = []
         for material_name, m in zip(names, materials):
