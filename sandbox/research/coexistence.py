@@ -1,0 +1,249 @@
+"""Liquid-vapour coexistence of the molecular model, measured by slab simulations and set beside NIST's tables.
+
+A periodic 3D box, W x W x Lz with Lz = 4 W, holds a slab of liquid across its middle; atoms evaporate from both
+faces until the vapour on either side is saturated. The run holds the temperature with Bussi, Donadio and
+Parrinello's stochastic velocity rescaling (canonical, and it keeps the momentum: the velocities about the centre of
+mass are scaled together), applied between short batches of velocity-Verlet steps. From snapshots of the production
+part it measures, in reduced units (epsilon = sigma = m = k = 1):
+
+    rho_l, rho_v   the mean density of the slab's middle and of the vapour far from it (the density profile about the
+                   slab's centre of mass, |z| < D / 4 and |z| > D / 2 + 3 with D the slab's width)
+    p_sat          the normal pressure P_zz = (sum m v_z^2 + sum_pairs z_ij F_ij,z) / V: across a flat interface at
+                   equilibrium it is the saturated vapour's pressure
+    dH_vap         the enthalpy of vaporisation per atom, (u_v - u_l) + p_sat (1 / rho_v - 1 / rho_l), u the mean pair
+                   energy per atom of each bulk region (the kinetic energy is the same on both sides)
+
+each with its standard error from block averages (five blocks). The pair force is the linear-force-shifted 12-6
+Lennard-Jones force at 2.5 sigma, the truncation of NIST's tables (Standard Reference Simulation Website, "LJ
+fluid, linear-force shifted at 2.5 sigma", grand-canonical transition-matrix Monte Carlo): NIST_LFS_PSAT holds its
+saturation pressures. The pair analysis runs on SciPy's cKDTree.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config.scene import scene_from_dict
+from ..simulation import Simulation
+from .study_runs import STUDY_PATH
+
+CUTOFF = 2.5
+# NIST SRSW, linear-force-shifted LJ at 2.5 sigma (TMMC, V = 512 sigma^3): saturation pressure p* by T*
+NIST_LFS_PSAT = {0.65: 6.71090e-03, 0.70: 1.18932e-02, 0.75: 1.95405e-02, 0.80: 3.02538e-02, 0.85: 4.47539e-02,
+                 0.90: 6.39698e-02}  # fmt: skip
+# The argon the reduced units stand for: epsilon / k (K), sigma (nm), m (u); the pressure unit epsilon / sigma^3
+ARGON = {"epsilon_over_k": 119.8, "sigma_nm": 0.3405, "mass_u": 39.95}
+BOLTZMANN = 1.380649e-23  # J/K
+AVOGADRO = 6.02214076e23
+
+
+def argon_pressure_kpa(p_reduced: float) -> float:
+    """A reduced pressure p* in kPa for argon (epsilon / sigma^3 = 41.9 MPa)."""
+    unit = ARGON["epsilon_over_k"] * BOLTZMANN / (ARGON["sigma_nm"] * 1e-9) ** 3
+    return p_reduced * unit / 1e3
+
+
+def lfs_force_factor(r: np.ndarray) -> np.ndarray:
+    """g(r) with F_i = g(r) (x_j - x_i) for the force-shifted LJ pair (unit masses): (F(r) - F(rc)) / r."""
+    f_cut = 24.0 / CUTOFF**7 - 48.0 / CUTOFF**13
+    return 24.0 / r**8 - 48.0 / r**14 - f_cut / r
+
+
+def lfs_energy(r: np.ndarray) -> np.ndarray:
+    """The force-shifted pair energy: U(r) - U(rc) - F(rc) (r - rc) with F the attraction along x_j - x_i."""
+    u = lambda s: 4.0 * (s**-12.0 - s**-6.0)  # noqa: E731
+    f_cut = 24.0 / CUTOFF**7 - 48.0 / CUTOFF**13
+    return u(r) - u(CUTOFF) - f_cut * (r - CUTOFF)
+
+
+@dataclass
+class SlabPoint:
+    """One temperature's measured coexistence, reduced units, each with its standard error."""
+
+    temperature: float
+    temperature_err: float
+    rho_liquid: float
+    rho_liquid_err: float
+    rho_vapour: float
+    rho_vapour_err: float
+    p_sat: float
+    p_sat_err: float
+    dh_vap: float
+    dh_vap_err: float
+    atoms: int
+    steps: int
+    seconds: float
+
+
+def slab_scene(temperature: float, width: float, rho: float = 0.8, thickness: float = 12.0) -> dict:
+    """The scene table of a liquid slab (simple cubic at density `rho`, `thickness` thick) across a periodic box."""
+    lz = 4.0 * width
+    spacing = rho ** (-1.0 / 3.0)
+    return {
+        "scene": {"name": f"slab_{temperature:g}"},
+        "world": {
+            "dim": 3, "lo": [0.0, 0.0, 0.0], "hi": [width, width, lz], "dt": 0.005, "periodic": True,
+            "precision": "f64", "integrator": "velocity_verlet",
+        },
+        "pair": {"a": 8.0, "b": 14.0, "cutoff": CUTOFF, "force_shift": True},
+        "molecular": {},
+        "bodies": [{
+            "material": "lj", "shape": "box", "lattice": "cubic", "lo": [0.0, 0.0, 0.5 * (lz - thickness)],
+            "hi": [width, width, 0.5 * (lz + thickness)], "spacing": spacing, "springs": False,
+            "random_velocity": math.sqrt(temperature), "seed": 1 + int(1000 * temperature),
+        }],
+    }  # fmt: skip
+
+
+class Rescaler:
+    """Bussi-Donadio-Parrinello stochastic velocity rescaling of `sim`'s atoms toward kT = `temperature` with
+    coupling time `tau`, about the centre of mass (so momentum is kept)."""
+
+    def __init__(self, sim: Simulation, temperature: float, tau: float, seed: int) -> None:
+        self.sim, self.kt, self.tau = sim, temperature, tau
+        self.rng = np.random.default_rng(seed)
+        self.dof = sim.dim * (sim.state.live_count() - 1)
+
+    def apply(self, elapsed: float) -> None:
+        """Rescale after `elapsed` time units of dynamics."""
+        field = self.sim.state.particles.v
+        full = field.to_numpy()
+        n = self.sim.state.live_count()
+        v = full[:n]
+        drift = v.mean(axis=0)
+        ke = 0.5 * ((v - drift) ** 2).sum()
+        target = 0.5 * self.dof * self.kt
+        c = math.exp(-elapsed / self.tau)
+        r1 = self.rng.normal()
+        chi = self.rng.chisquare(self.dof - 1)
+        new = ke * c + target / self.dof * (1 - c) * (r1 * r1 + chi) + 2 * r1 * math.sqrt(c * (1 - c) * ke * target / self.dof)
+        full[:n] = drift + (v - drift) * math.sqrt(max(new, 0.0) / ke)
+        field.from_numpy(full)
+
+
+def measure_snapshot(x: np.ndarray, v: np.ndarray, box: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """(z about the slab's centre of mass, each atom's pair energy, P_zz) of one snapshot (unit masses)."""
+    from scipy.spatial import cKDTree
+
+    lz = box[2]
+    angle = 2 * math.pi * x[:, 2] / lz  # the centre of mass of a periodic coordinate, by its mean direction
+    centre = (math.atan2(np.sin(angle).mean(), np.cos(angle).mean()) % (2 * math.pi)) * lz / (2 * math.pi)
+    z = (x[:, 2] - centre + 0.5 * lz) % lz - 0.5 * lz
+    tree = cKDTree(x % box, boxsize=box)
+    pairs = tree.query_pairs(CUTOFF, output_type="ndarray")
+    d = x[pairs[:, 1]] - x[pairs[:, 0]]
+    d -= box * np.round(d / box)
+    r = np.linalg.norm(d, axis=1)
+    u = lfs_energy(r)
+    energy = np.zeros(len(x))
+    np.add.at(energy, pairs[:, 0], 0.5 * u)
+    np.add.at(energy, pairs[:, 1], 0.5 * u)
+    virial_zz = -(lfs_force_factor(r) * d[:, 2] ** 2).sum()
+    p_zz = ((v[:, 2] ** 2).sum() + virial_zz) / box.prod()
+    return z, energy, p_zz
+
+
+def _blocks(values: np.ndarray, count: int = 5) -> tuple[float, float]:
+    """(mean, standard error from `count` block means)."""
+    blocks = np.array([b.mean() for b in np.array_split(np.asarray(values), count)])
+    return float(blocks.mean()), float(blocks.std(ddof=1) / math.sqrt(count))
+
+
+def run_slab(temperature: float, width: float = 9.0, equilibrate: int = 20000, produce: int = 40000,
+             every: int = 100, log=None) -> SlabPoint:  # fmt: skip
+    """One slab run at reduced temperature `temperature` (steps of dt 0.005; a snapshot every `every` steps)."""
+    started = time.perf_counter()
+    sim = Simulation(scene_from_dict(slab_scene(temperature, width), STUDY_PATH))
+    box = np.array(sim.scene.world.hi) - np.array(sim.scene.world.lo)
+    rescale = Rescaler(sim, temperature, tau=0.5, seed=int(1000 * temperature))
+    batch = 10
+    dt = sim.state.dt
+    for _ in range(equilibrate // batch):
+        sim.step(batch)
+        rescale.apply(batch * dt)
+    rows = []  # per snapshot: (kT, rho_l, rho_v, p_zz, u_l, u_v)
+    thickness = None
+    n = sim.state.live_count()
+    for k in range(produce // batch):
+        sim.step(batch)
+        rescale.apply(batch * dt)
+        if (k + 1) * batch % every:
+            continue
+        x, v = sim.positions(), sim.velocities()
+        z, energy, p_zz = measure_snapshot(x, v, box)
+        area = box[0] * box[1]
+        if thickness is None:  # the slab's width from its own density profile at the start of production
+            hist, edges = np.histogram(z, bins=int(box[2] / 0.5), range=(-0.5 * box[2], 0.5 * box[2]))
+            dens = hist / (area * 0.5)
+            dense = edges[:-1][dens > 0.5 * dens.max()]
+            thickness = float(dense.max() - dense.min() + 0.5)
+        liquid = np.abs(z) < 0.25 * thickness
+        vapour = np.abs(z) > 0.5 * thickness + 3.0
+        vapour_volume = area * (box[2] - 2 * (0.5 * thickness + 3.0))
+        drift = v.mean(axis=0)
+        kt = ((v - drift) ** 2).sum() / (3 * (n - 1))
+        rows.append(
+            (
+                kt,
+                liquid.sum() / (area * 0.5 * thickness),
+                vapour.sum() / vapour_volume,
+                p_zz,
+                energy[liquid].mean(),
+                energy[vapour].mean() if vapour.any() else np.nan,
+            )
+        )
+    data = np.array(rows)
+    kt, kt_err = _blocks(data[:, 0])
+    rho_l, rho_l_err = _blocks(data[:, 1])
+    rho_v, rho_v_err = _blocks(data[:, 2])
+    p, p_err = _blocks(data[:, 3])
+    u_v_all = data[:, 5][np.isfinite(data[:, 5])]
+    u_l, u_l_err = _blocks(data[:, 4])
+    u_v, u_v_err = _blocks(u_v_all) if len(u_v_all) >= 5 else (float("nan"), float("nan"))
+    dh = (u_v - u_l) + p * (1.0 / rho_v - 1.0 / rho_l)
+    dh_err = math.sqrt(u_v_err**2 + u_l_err**2 + (p_err / rho_v) ** 2 + (p * rho_v_err / rho_v**2) ** 2)
+    point = SlabPoint(kt, kt_err, rho_l, rho_l_err, rho_v, rho_v_err, p, p_err, dh, dh_err, n,
+                      equilibrate + produce, time.perf_counter() - started)  # fmt: skip
+    if log:
+        log(f"T* {temperature:g}: rho_l {rho_l:.4f}, rho_v {rho_v:.5f}, p_sat {p:.5f}, dH_vap {dh:.3f} "
+            f"({n} atoms, {point.seconds:.0f} s)")  # fmt: skip
+    return point
+
+
+def run_coexistence(out: Path, temperatures: list[float], quick: bool = False, log=None) -> list[SlabPoint]:
+    """Slab runs at `temperatures` (reduced), written to out/coexistence.csv and out/coexistence.md (beside NIST's
+    saturation pressures and in argon's units); `quick`: short runs (a minute in all, wide error bars)."""
+    steps = (4000, 6000) if quick else (20000, 40000)
+    points = [run_slab(t, equilibrate=steps[0], produce=steps[1], log=log) for t in temperatures]
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "coexistence.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(asdict(points[0])))
+        writer.writeheader()
+        for p in points:
+            writer.writerow(asdict(p))
+    (out / "coexistence.md").write_text(report(points))
+    return points
+
+
+def report(points: list[SlabPoint]) -> str:
+    """The table of measured points beside NIST's saturation pressures, in reduced units and as argon."""
+    lines = [
+        "| T* | rho_l* | rho_v* | p_sat* | NIST p_sat* | p_sat / NIST | dH_vap / eps | T (K, argon) | p_sat (kPa, argon) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for p in points:
+        nist = NIST_LFS_PSAT.get(round(p.temperature, 2)) or NIST_LFS_PSAT.get(round(p.temperature * 20) / 20)
+        ratio = f"{p.p_sat / nist:.3f}" if nist else "-"
+        lines.append(
+            f"| {p.temperature:.3f} ± {p.temperature_err:.3f} | {p.rho_liquid:.4f} ± {p.rho_liquid_err:.4f} "
+            f"| {p.rho_vapour:.5f} ± {p.rho_vapour_err:.5f} | {p.p_sat:.5f} ± {p.p_sat_err:.5f} "
+            f"| {nist if nist else '-'} | {ratio} | {p.dh_vap:.3f} ± {p.dh_vap_err:.3f} "
+            f"| {p.temperature * ARGON['epsilon_over_k']:.1f} | {argon_pressure_kpa(p.p_sat):.0f} |"
+        )
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,205 @@
+"""The molecular model (scenes with [molecular]): temperature is the atoms' motion and obeys equipartition and the
+Maxwell distribution with the pair forces on; momentum is kept; thermal walls bring a gas to their temperature and
+the energy they move closes the energy balance; phases are counted from structure; the linear-force-shifted pair
+force falls continuously to zero at the cutoff."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats as scistats
+
+from sandbox.errors import SceneError
+from sandbox.physics.structure import LEGENDRE6
+from sandbox.simulation import Simulation
+
+from .conftest import make_scene
+
+CUTOFF = 2.5
+
+
+def atoms(dim: int, side: float, lo, hi, spacing: float, kt: float, lattice: str = "square", periodic=True, **more):
+    """A [molecular] Lennard-Jones scene (reduced units, velocity Verlet, double precision) with one block of atoms."""
+    data = {
+        "world": {
+            "dim": dim, "lo": [0.0] * dim, "hi": [side] * dim, "dt": 0.005, "substeps": 10, "periodic": periodic,
+            "precision": "f64", "integrator": "velocity_verlet", "restitution": 1.0, "friction": 0.0,
+        },
+        "pair": {"a": 8.0, "b": 14.0, "cutoff": CUTOFF, "force_shift": True},
+        "molecular": more.pop("molecular", {}),
+        "bodies": [
+            {
+                "material": "lj", "shape": "box", "lattice": lattice, "lo": list(lo), "hi": list(hi),
+                "spacing": spacing, "springs": False, "random_velocity": kt, "seed": 11,
+            }
+        ],
+    }  # fmt: skip
+    data["world"].update(more)
+    return Simulation(make_scene(data))
+
+
+def set_velocities(sim: Simulation, v: np.ndarray) -> None:
+    full = sim.state.particles.v.to_numpy()
+    full[: len(v)] = v
+    sim.state.particles.v.from_numpy(full)
+
+
+def lj_liquid_2d() -> Simulation:
+    """400 atoms of a periodic 2D liquid (density 0.69, kT about 1), all starting at one speed in random directions: a
+    distribution far from Maxwell's, which only the pair forces can make Maxwellian (there is no thermostat)."""
+    side = 24.0
+    sim = atoms(2, side, (0, 0), (side, side), 1.2, 0.0)
+    n = sim.state.live_count()
+    angle = np.random.default_rng(3).uniform(0, 2 * math.pi, n)
+    v = 1.5 * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    set_velocities(sim, v - v.mean(axis=0))
+    return sim
+
+
+def test_with_the_pair_forces_on_the_motion_becomes_maxwellian_with_equipartition_and_momentum_is_kept():
+    sim = lj_liquid_2d()
+    start = sim.velocities()
+    p0 = start.sum(axis=0)
+    kt0 = (start**2).mean()
+    # the start is one speed: far from Maxwell (its KS distance from a Gaussian of its own variance is large)
+    assert scistats.kstest(start[:, 0] / math.sqrt(kt0), "norm").statistic > 0.05
+    sim.step(2000)  # 10 time units: many collisions per atom
+    samples, temps = [], []
+    for _ in range(20):
+        sim.step(100)
+        samples.append(sim.velocities())
+        temps.append(sim.stats().motion_temperature)
+    v = np.concatenate(samples)
+    kt = float(np.mean(temps))
+    # equipartition: each direction carries kT / 2 per atom (unit masses), as the kinetic temperature says
+    assert (v[:, 0] ** 2).mean() == pytest.approx(kt, rel=0.04)
+    assert (v[:, 1] ** 2).mean() == pytest.approx(kt, rel=0.04)
+    # Maxwell: each component normal with variance kT / m; speeds follow the 2D (Rayleigh) law
+    assert scistats.kstest(v.ravel() / math.sqrt(kt), "norm").statistic < 0.02
+    speed = np.linalg.norm(v, axis=1)
+    assert scistats.kstest(speed / math.sqrt(kt), "rayleigh").statistic < 0.025
+    # no thermostat and periodic walls: momentum is kept to round-off
+    p = sim.velocities().sum(axis=0)
+    assert np.abs(p - p0).max() < 1e-9 * len(v)
+    assert 0.5 < kt < 1.5  # part of the start's kinetic energy went into the pair energy
+
+
+def test_thermal_walls_bring_a_gas_to_their_temperature_and_the_energy_they_move_closes_the_balance():
+    side = 20.0
+    walls = [{"name": f"w{k}", "side": s, "temperature": 0.8} for k, s in enumerate(["left", "right", "bottom", "top"])]
+    # dt 0.0025: a wall re-draws the half-step velocity of the leapfrog form of velocity Verlet, which costs the
+    # balance an error that falls with dt as the integrator's own drift does (2.8% of the heat moved at dt 0.005)
+    sim = atoms(2, side, (1, 1), (19, 19), 2.2, 0.3, periodic=False, molecular={"walls": walls}, dt=0.0025)
+    e0 = sim.stats().total_energy
+    assert sim.stats().motion_temperature < 0.4  # cool at the start
+    sim.step(40000)  # 100 time units: each atom has met the walls several times
+    temps = []
+    for _ in range(100):
+        sim.step(400)
+        temps.append(sim.stats().motion_temperature)
+    assert np.mean(temps) == pytest.approx(0.8, rel=0.05)
+    s = sim.stats()
+    moved = sum(sim.terms.thermal_walls.energy_moved())
+    assert s.wall_heat == pytest.approx(moved)
+    assert moved > 0  # the walls warmed the gas
+    assert s.total_energy - e0 == pytest.approx(moved, rel=0.02)
+
+
+def test_a_hot_floor_and_a_cold_lid_carry_heat_through_the_atoms_and_are_set_live():
+    walls = [{"name": "floor", "side": "bottom", "temperature": 1.5}, {"name": "lid", "side": "top", "temperature": 0.1}]
+    sim = atoms(2, 16.0, (0.6, 0.6), (15.4, 15.4), 1.12, 0.6, periodic=False, molecular={"walls": walls})  # fills the box
+    sim.step(6000)
+    floor0, lid0 = sim.terms.thermal_walls.energy_moved()
+    sim.step(6000)
+    floor, lid = sim.terms.thermal_walls.energy_moved()
+    assert floor - floor0 > 0 > lid - lid0  # in steady flow: heat in at the floor, out at the lid
+    sim.controls.set({"thermal_walls.floor": 2.0})
+    assert sim.terms.thermal_walls.temperatures() == [2.0, 0.1]
+    with pytest.raises(ValueError):
+        sim.terms.thermal_walls.set_temperatures([-1.0, 0.1])
+
+
+@pytest.mark.parametrize(
+    "dim, side, lo, hi, spacing, kt, lattice, periodic, expected",
+    [
+        (2, 40.0, (10, 10), (30, 30), 1.09, 0.1, "hex", False, "solid"),  # a cold crystal
+        (2, 24.0, (0, 0), (24, 24), 1.2, 1.4, "square", True, "liquid"),  # hot, dense and disordered
+        (2, 60.0, (0, 0), (60, 60), 5.0, 1.0, "square", False, "gas"),  # far apart (density 0.04)
+        (3, 16.0, (4, 4, 4), (12, 12, 12), 1.09, 0.1, "fcc", False, "solid"),
+        (3, 9.5, (0, 0, 0), (9.5, 9.5, 9.5), 1.077, 1.6, "cubic", True, "liquid"),
+    ],
+)
+def test_phases_are_counted_from_structure(dim, side, lo, hi, spacing, kt, lattice, periodic, expected):
+    sim = atoms(dim, side, lo, hi, spacing, kt, lattice, periodic)
+    sim.step(1000)
+    s = sim.stats()
+    shares = {"solid": s.structure_solid, "liquid": s.structure_liquid, "gas": s.structure_gas}
+    assert sum(shares.values()) == pytest.approx(1.0)
+    least = {"solid": 0.85, "liquid": 0.85, "gas": 0.95}[expected]  # a cluster's surface atoms are not in order
+    assert shares[expected] >= least, shares
+    kinds = sim.state.particles.kind.to_numpy()[: s.particles]
+    assert np.mean(kinds == {"gas": 0, "liquid": 1, "solid": 2}[expected]) == pytest.approx(shares[expected])
+
+
+def test_the_3d_bond_order_is_steinhardts_q6():
+    """q_i . q_j from the stored harmonics equals the addition theorem's (4 pi / 13) sum_m Y6m(a) Y6m*(b)."""
+    special = pytest.importorskip("scipy.special")
+    rng = np.random.default_rng(1)
+    d = rng.normal(size=(6, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+
+    def stored(v):
+        w = complex(v[0], v[1])
+        out = [np.polyval(poly, v[2]) * weight * w**m for m, (weight, poly) in enumerate(LEGENDRE6)]
+        return np.array([out[0].real] + [part for c in out[1:] for part in (c.real, c.imag)])
+
+    theta, phi = np.arccos(d[:, 2]), np.arctan2(d[:, 1], d[:, 0])
+    for a in range(6):
+        for b in range(6):
+            ya = special.sph_harm_y(6, np.arange(-6, 7), theta[a], phi[a])
+            yb = special.sph_harm_y(6, np.arange(-6, 7), theta[b], phi[b])
+            expected = 4 * math.pi / 13 * (ya * np.conj(yb)).sum().real
+            assert stored(d[a]) @ stored(d[b]) == pytest.approx(expected, abs=1e-9)
+
+
+def test_the_force_shifted_pair_force_falls_to_zero_at_the_cutoff_and_its_energy_is_its_integral():
+    sim = atoms(2, 20.0, (5, 5), (9, 7), 2.0, 0.0, periodic=False)  # two atoms
+    assert sim.state.live_count() == 2
+
+    def lj_force(r):  # magnitude along d (attraction positive): 24 / r^7 - 48 / r^13
+        return 24.0 / r**7 - 48.0 / r**13
+
+    def lfs_energy(r):
+        u = lambda s: 4.0 * (s**-12 - s**-6)  # noqa: E731
+        return u(r) - u(CUTOFF) - lj_force(CUTOFF) * (r - CUTOFF)
+
+    r_curve, f_curve = sim.terms.pair.curve()
+    assert f_curve[-1] == pytest.approx(0.0, abs=1e-12) and r_curve[-1] == CUTOFF
+    for r in (1.0, 1.5, 2.2, 2.49):
+        x = sim.state.particles.x.to_numpy()
+        x[1] = x[0] + np.array([r, 0.0])
+        sim.state.particles.x.from_numpy(x)
+        assert sim.stats().pair_energy == pytest.approx(lfs_energy(r), rel=1e-9, abs=1e-12)
+    assert lfs_energy(CUTOFF - 1e-9) == pytest.approx(0.0, abs=1e-8)
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"heat": {}}, "expected no [heat] table"),
+        ({"molecular": {"walls": [{"side": "front", "temperature": 1.0}]}}, "3D box only"),
+        ({"molecular": {"walls": [{"side": "top", "temperature": 1.0}] * 2}}, "named twice"),
+        ({"molecular": {"phase_radius": 3.0}}, "at most the pair cutoff"),
+        ({"molecular": {"walls": [{"side": "top", "temperature": 0.0}]}}, "temperature"),
+    ],
+)
+def test_a_molecular_scene_that_cannot_be_built_is_refused_with_the_key_named(change, message):
+    data = {
+        "world": {"dim": 2, "lo": [0, 0], "hi": [10, 10]},
+        "pair": {"a": 8.0, "b": 14.0, "cutoff": CUTOFF},
+        "molecular": {},
+        "bodies": [{"material": "lj", "shape": "box", "lo": [2, 2], "hi": [5, 5], "springs": False}],
+    }
+    data.update(change)
+    with pytest.raises(SceneError, match=message.replace("[", r"\[")):
+        make_scene(data)
