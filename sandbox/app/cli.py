@@ -40,6 +40,7 @@ from ..config.schema import describe, unknown
 from ..core import runtime
 from ..errors import OutputError, SandboxError, SimulationError
 from ..render.video import check_output
+from ..research.coexistence import parse_temperatures, run_coexistence
 from ..research.phase_study import run_phase_study
 from ..research.study import INTEGRATORS, PROBLEMS, run_study
 from ..simulation import Simulation
@@ -145,6 +146,11 @@ def cmd_study(args) -> int:
     integrators = check_names("--integrators", args.integrators, INTEGRATORS)
     problems = check_names("--problems", args.problems, PROBLEMS)
     out = check_folder_output("--out", args.out)
+    if args.coexistence:
+        temperatures = parse_temperatures(args.temperatures)
+        run_coexistence(out, temperatures, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+        print(f"wrote {out}/coexistence.md and coexistence.csv")
+        return 0
     if args.phase:
         run_phase_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
         print(
@@ -310,6 +316,14 @@ def _study_arguments(sub) -> None:
     study.add_argument("--quick", action="store_true", help="reduced ladders (under a minute)")
     study.add_argument(
         "--phase", action="store_true", help="instead: phase change (Stefan problem, heating curve) validation"
+    )
+    study.add_argument(
+        "--coexistence",
+        action="store_true",
+        help="instead: liquid-vapour coexistence of the molecular model (3D slabs) beside NIST's Lennard-Jones tables",
+    )
+    study.add_argument(
+        "--temperatures", help="with --coexistence: comma-separated reduced temperatures (default 0.7,0.75,0.8,0.85)"
     )
     study.add_argument("--integrators", help="comma-separated integrators to study (default: all)")
     study.add_argument("--problems", help="comma-separated problems to run (default: all)")

@@ -8,8 +8,10 @@ part it measures, in reduced units (epsilon = sigma = m = k = 1):
 
     rho_l, rho_v   the mean density of the slab's middle and of the vapour far from it (the density profile about the
                    slab's centre of mass, |z| < D / 4 and |z| > D / 2 + 3 with D the slab's width)
-    p_sat          the normal pressure P_zz = (sum m v_z^2 + sum_pairs z_ij F_ij,z) / V: across a flat interface at
-                   equilibrium it is the saturated vapour's pressure
+    p_sat          the pressure of the bulk vapour, (sum m v_z^2 + sum_pairs z_ij F_ij,z) / V over its atoms and the
+                   pairs whose midpoint lies in it (the Irving-Kirkwood normal pressure of that region); across a flat
+                   interface at equilibrium the normal pressure is the same everywhere, and the whole box's P_zz
+                   (reported beside it as p_zz) agrees within its much larger noise
     dH_vap         the enthalpy of vaporisation per atom, (u_v - u_l) + p_sat (1 / rho_v - 1 / rho_l), u the mean pair
                    energy per atom of each bulk region (the kinetic energy is the same on both sides)
 
@@ -30,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.scene import scene_from_dict
+from ..errors import SandboxError
 from ..simulation import Simulation
 from .study_runs import STUDY_PATH
 
@@ -74,6 +77,8 @@ class SlabPoint:
     rho_vapour_err: float
     p_sat: float
     p_sat_err: float
+    p_zz: float
+    p_zz_err: float
     dh_vap: float
     dh_vap_err: float
     atoms: int
@@ -127,9 +132,15 @@ class Rescaler:
         field.from_numpy(full)
 
 
-def measure_snapshot(x: np.ndarray, v: np.ndarray, box: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """(z about the slab's centre of mass, each atom's pair energy, P_zz) of one snapshot (unit masses)."""
-    from scipy.spatial import cKDTree
+def measure_snapshot(
+    x: np.ndarray, v: np.ndarray, box: np.ndarray, vapour_from: float = np.inf
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(z about the slab's centre of mass, each atom's pair energy, the whole box's P_zz, and the normal pressure of
+    the region |z| > vapour_from) of one snapshot (unit masses)."""
+    try:
+        from scipy.spatial import cKDTree
+    except ImportError as missing:
+        raise SandboxError("the coexistence study needs SciPy: pip install -e '.[study]'") from missing
 
     lz = box[2]
     angle = 2 * math.pi * x[:, 2] / lz  # the centre of mass of a periodic coordinate, by its mean direction
@@ -144,9 +155,15 @@ def measure_snapshot(x: np.ndarray, v: np.ndarray, box: np.ndarray) -> tuple[np.
     energy = np.zeros(len(x))
     np.add.at(energy, pairs[:, 0], 0.5 * u)
     np.add.at(energy, pairs[:, 1], 0.5 * u)
-    virial_zz = -(lfs_force_factor(r) * d[:, 2] ** 2).sum()
-    p_zz = ((v[:, 2] ** 2).sum() + virial_zz) / box.prod()
-    return z, energy, p_zz
+    pair_zz = -lfs_force_factor(r) * d[:, 2] ** 2
+    p_zz = ((v[:, 2] ** 2).sum() + pair_zz.sum()) / box.prod()
+    mid = (z[pairs[:, 0]] + 0.5 * d[:, 2] + 0.5 * box[2]) % box[2] - 0.5 * box[2]
+    volume = box[0] * box[1] * (box[2] - 2 * vapour_from)
+    p_vapour = math.nan
+    if volume > 0:
+        atoms, kept = np.abs(z) > vapour_from, np.abs(mid) > vapour_from
+        p_vapour = float(((v[atoms, 2] ** 2).sum() + pair_zz[kept].sum()) / volume)
+    return z, energy, p_zz, p_vapour
 
 
 def _blocks(values: np.ndarray, count: int = 5) -> tuple[float, float]:
@@ -167,7 +184,7 @@ def run_slab(temperature: float, width: float = 9.0, equilibrate: int = 20000, p
     for _ in range(equilibrate // batch):
         sim.step(batch)
         rescale.apply(batch * dt)
-    rows = []  # per snapshot: (kT, rho_l, rho_v, p_zz, u_l, u_v)
+    rows = []  # per snapshot: (kT, rho_l, rho_v, p_vapour, u_l, u_v, p_zz)
     thickness = None
     n = sim.state.live_count()
     for k in range(produce // batch):
@@ -176,13 +193,14 @@ def run_slab(temperature: float, width: float = 9.0, equilibrate: int = 20000, p
         if (k + 1) * batch % every:
             continue
         x, v = sim.positions(), sim.velocities()
-        z, energy, p_zz = measure_snapshot(x, v, box)
         area = box[0] * box[1]
         if thickness is None:  # the slab's width from its own density profile at the start of production
+            z, _, _, _ = measure_snapshot(x, v, box)
             hist, edges = np.histogram(z, bins=int(box[2] / 0.5), range=(-0.5 * box[2], 0.5 * box[2]))
             dens = hist / (area * 0.5)
             dense = edges[:-1][dens > 0.5 * dens.max()]
             thickness = float(dense.max() - dense.min() + 0.5)
+        z, energy, p_zz, p_vapour = measure_snapshot(x, v, box, 0.5 * thickness + 3.0)
         liquid = np.abs(z) < 0.25 * thickness
         vapour = np.abs(z) > 0.5 * thickness + 3.0
         vapour_volume = area * (box[2] - 2 * (0.5 * thickness + 3.0))
@@ -193,9 +211,10 @@ def run_slab(temperature: float, width: float = 9.0, equilibrate: int = 20000, p
                 kt,
                 liquid.sum() / (area * 0.5 * thickness),
                 vapour.sum() / vapour_volume,
-                p_zz,
+                p_vapour,
                 energy[liquid].mean(),
                 energy[vapour].mean() if vapour.any() else np.nan,
+                p_zz,
             )
         )
     data = np.array(rows)
@@ -203,17 +222,40 @@ def run_slab(temperature: float, width: float = 9.0, equilibrate: int = 20000, p
     rho_l, rho_l_err = _blocks(data[:, 1])
     rho_v, rho_v_err = _blocks(data[:, 2])
     p, p_err = _blocks(data[:, 3])
+    p_zz, p_zz_err = _blocks(data[:, 6])
     u_v_all = data[:, 5][np.isfinite(data[:, 5])]
     u_l, u_l_err = _blocks(data[:, 4])
     u_v, u_v_err = _blocks(u_v_all) if len(u_v_all) >= 5 else (float("nan"), float("nan"))
     dh = (u_v - u_l) + p * (1.0 / rho_v - 1.0 / rho_l)
     dh_err = math.sqrt(u_v_err**2 + u_l_err**2 + (p_err / rho_v) ** 2 + (p * rho_v_err / rho_v**2) ** 2)
-    point = SlabPoint(kt, kt_err, rho_l, rho_l_err, rho_v, rho_v_err, p, p_err, dh, dh_err, n,
+    point = SlabPoint(kt, kt_err, rho_l, rho_l_err, rho_v, rho_v_err, p, p_err, p_zz, p_zz_err, dh, dh_err, n,
                       equilibrate + produce, time.perf_counter() - started)  # fmt: skip
     if log:
         log(f"T* {temperature:g}: rho_l {rho_l:.4f}, rho_v {rho_v:.5f}, p_sat {p:.5f}, dH_vap {dh:.3f} "
             f"({n} atoms, {point.seconds:.0f} s)")  # fmt: skip
     return point
+
+
+DEFAULT_TEMPERATURES = (0.70, 0.75, 0.80, 0.85)
+
+
+def parse_temperatures(text: str | None) -> list[float]:
+    """--temperatures: comma-separated reduced temperatures in [0.5, 1.0] (the liquid's range below the critical
+    point, 0.94 for this truncation); ArgumentError-free: SandboxError naming the option for anything else."""
+    if not text:
+        return list(DEFAULT_TEMPERATURES)
+    out = []
+    for word in text.split(","):
+        try:
+            value = float(word)
+        except ValueError:
+            value = math.nan
+        if not 0.5 <= value <= 1.0:
+            raise SandboxError(f"--temperatures: {word.strip()!r}; expected reduced temperatures from 0.5 to 1.0")
+        out.append(value)
+    if len(out) > 12:
+        raise SandboxError(f"--temperatures: {len(out)} of them; expected at most 12")
+    return out
 
 
 def run_coexistence(out: Path, temperatures: list[float], quick: bool = False, log=None) -> list[SlabPoint]:
@@ -234,8 +276,9 @@ def run_coexistence(out: Path, temperatures: list[float], quick: bool = False, l
 def report(points: list[SlabPoint]) -> str:
     """The table of measured points beside NIST's saturation pressures, in reduced units and as argon."""
     lines = [
-        "| T* | rho_l* | rho_v* | p_sat* | NIST p_sat* | p_sat / NIST | dH_vap / eps | T (K, argon) | p_sat (kPa, argon) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| T* | rho_l* | rho_v* | p_sat* | NIST p_sat* | p_sat / NIST | P_zz* (whole box) | dH_vap / eps "
+        "| T (K, argon) | p_sat (kPa, argon) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for p in points:
         nist = NIST_LFS_PSAT.get(round(p.temperature, 2)) or NIST_LFS_PSAT.get(round(p.temperature * 20) / 20)
@@ -243,7 +286,7 @@ def report(points: list[SlabPoint]) -> str:
         lines.append(
             f"| {p.temperature:.3f} ± {p.temperature_err:.3f} | {p.rho_liquid:.4f} ± {p.rho_liquid_err:.4f} "
             f"| {p.rho_vapour:.5f} ± {p.rho_vapour_err:.5f} | {p.p_sat:.5f} ± {p.p_sat_err:.5f} "
-            f"| {nist if nist else '-'} | {ratio} | {p.dh_vap:.3f} ± {p.dh_vap_err:.3f} "
+            f"| {nist if nist else '-'} | {ratio} | {p.p_zz:.4f} ± {p.p_zz_err:.4f} | {p.dh_vap:.3f} ± {p.dh_vap_err:.3f} "
             f"| {p.temperature * ARGON['epsilon_over_k']:.1f} | {argon_pressure_kpa(p.p_sat):.0f} |"
         )
     return "\n".join(lines) + "\n"
