@@ -203,3 +203,17 @@ def test_a_molecular_scene_that_cannot_be_built_is_refused_with_the_key_named(ch
     data.update(change)
     with pytest.raises(SceneError, match=message.replace("[", r"\[")):
         make_scene(data)
+
+
+def test_the_atoms_scene_offers_its_floor_temperature_as_a_setting_and_its_phases_in_the_panel():
+    from sandbox.app.controller import Controller, open_scene
+    from sandbox.app.panel import readouts
+
+    control = Controller(open_scene("atoms", "cpu"))
+    keys = {s.key: s for s in control.settings()}
+    assert "wall0" in keys and keys["wall0"].words == "floor temperature"
+    control.set("wall0", 0.9)
+    assert control.sim.terms.thermal_walls.temperatures() == [pytest.approx(0.9, rel=1e-6)]  # f32 scene
+    rows = {r.key: r for r in readouts(control.sim, control.sim.stats())}
+    assert {"motion", "solid", "liquid", "gas", "wall_heat"} <= set(rows)
+    assert rows["solid"].value > 90  # it starts as a crystal, measured so

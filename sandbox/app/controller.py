@@ -24,7 +24,7 @@ from ..config.scene import load_scene
 from ..core import runtime
 from ..errors import SandboxError
 from ..files.persist import load_into, save_state
-from ..measure.units import length_unit
+from ..measure.units import energy_unit, length_unit
 from ..simulation import Simulation
 from . import panel
 from .history import UndoRing
@@ -176,6 +176,16 @@ class Controller:
                     )
                 else:
                     out.append(panel.Setting(f"source{k}", src.name, sources.value(k), -100.0, 1500.0, "C", 1.0, hold))
+        walls = self.sim.terms.thermal_walls
+        if walls is not None:  # the molecular model's heaters and coolers: each wall's kT
+            unit = energy_unit(self.sim.material_names)
+            for k, (name, kt) in enumerate(zip(walls.names[:2], walls.temperatures())):
+
+                def set_wall(value: float, name: str = name) -> None:
+                    self.sim.controls.set({f"thermal_walls.{name}": value})
+
+                top = max(2.0, 2.0 * kt)
+                out.append(panel.Setting(f"wall{k}", f"{name} temperature", kt, 0.02, top, unit, 0.01, set_wall))
         if any(self.sim.scene.world.gravity):
             top = 4.0 * float(np.linalg.norm(self.sim.scene.world.gravity))
             unit = f"{length_unit(self.sim.material_names)}/s^2"
