@@ -17,9 +17,11 @@ state: the same hit draws the same numbers in any thread order, in fused batches
 
 import math
 
+import numpy as np
 import taichi as ti
 
 from ..config.scene_tables import WALL_SIDES
+from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.state import COUNT
 from .agitation import normal
@@ -66,11 +68,11 @@ class ThermalWalls(Term):
         for k, value in enumerate(values):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"thermal wall {self.names[k]!r}: temperature {value!r}; expected a number above 0")
-            self.kT[k] = float(value)
+        transfer.upload([(self.kT, np.array(values, dtype=float))])  # one copy, not a kernel per element
 
     def temperatures(self) -> list[float]:
         """Each wall's temperature (kT, energy units)."""
-        return [float(self.kT[k]) for k in range(len(self.walls))]
+        return [float(t) for t in self.kT.to_numpy()]
 
     def energy_moved(self) -> list[float]:
         """The energy each wall has given the atoms so far (negative: taken), in [[molecular.walls]] order."""
