@@ -273,6 +273,33 @@ def run_coexistence(out: Path, temperatures: list[float], quick: bool = False, l
     return points
 
 
+BETA = 0.325  # the 3D Ising critical exponent of rho_l - rho_v
+ATMOSPHERE_KPA = 101.325
+
+
+def critical_point(points: list[SlabPoint]) -> tuple[float, float]:
+    """(T_c, rho_c) from the scaling law rho_l - rho_v = A (T_c - T)^BETA and the law of rectilinear diameters
+    (rho_l + rho_v) / 2 = rho_c + B (T - T_c), fitted by least squares (reduced units; nan below two points)."""
+    if len(points) < 2:
+        return math.nan, math.nan
+    t = np.array([p.temperature for p in points])
+    rl, rv = np.array([p.rho_liquid for p in points]), np.array([p.rho_vapour for p in points])
+    slope, intercept = np.polyfit(t, (rl - rv) ** (1.0 / BETA), 1)
+    tc = -intercept / slope
+    d_slope, d_intercept = np.polyfit(t, 0.5 * (rl + rv), 1)
+    return float(tc), float(d_slope * tc + d_intercept)
+
+
+def boiling_temperature(points: list[SlabPoint], pressure: float) -> float:
+    """The temperature at which the fitted vapour curve ln p = a - b / T reaches `pressure` (reduced units; an
+    extrapolation outside the measured range)."""
+    if len(points) < 2:
+        return math.nan
+    t = np.array([p.temperature for p in points])
+    slope, intercept = np.polyfit(1.0 / t, np.log([p.p_sat for p in points]), 1)
+    return float(slope / (math.log(pressure) - intercept))
+
+
 def report(points: list[SlabPoint]) -> str:
     """The table of measured points beside NIST's saturation pressures, in reduced units and as argon."""
     lines = [
@@ -289,4 +316,14 @@ def report(points: list[SlabPoint]) -> str:
             f"| {nist if nist else '-'} | {ratio} | {p.p_zz:.4f} ± {p.p_zz_err:.4f} | {p.dh_vap:.3f} ± {p.dh_vap_err:.3f} "
             f"| {p.temperature * ARGON['epsilon_over_k']:.1f} | {argon_pressure_kpa(p.p_sat):.0f} |"
         )
+    tc, rho_c = critical_point(points)
+    boil = boiling_temperature(points, ATMOSPHERE_KPA / argon_pressure_kpa(1.0))
+    eps = ARGON["epsilon_over_k"]
+    lines += [
+        "",
+        f"Critical point (fit of (rho_l - rho_v)^(1/{BETA}) and the rectilinear diameter): T_c* = {tc:.3f} "
+        f"({tc * eps:.0f} K as argon; argon 150.7 K), rho_c* = {rho_c:.3f}.",
+        f"Normal boiling point (the fitted vapour curve ln p = a - b / T at 101.325 kPa, extrapolated): "
+        f"T* = {boil:.3f} ({boil * eps:.1f} K as argon; argon 87.3 K).",
+    ]
     return "\n".join(lines) + "\n"
