@@ -217,3 +217,43 @@ def test_the_atoms_scene_offers_its_floor_temperature_as_a_setting_and_its_phase
     rows = {r.key: r for r in readouts(control.sim, control.sim.stats())}
     assert {"motion", "solid", "liquid", "gas", "wall_heat"} <= set(rows)
     assert rows["solid"].value > 90  # it starts as a crystal, measured so
+
+
+@pytest.mark.parametrize("pressure", [0.06, 0.12])
+def test_a_lid_under_an_outside_pressure_finds_the_height_of_the_ideal_gas_law(pressure):
+    """A dilute gas in a box of thermal walls under a lid: the lid settles where the gas pushes on it with the outside
+    pressure. For atoms of radius r between the floor and the lid, P L (h - 2 r) = N kT (2D): doubling P halves the
+    gas's height (the gas is dilute: its non-ideality is a few %)."""
+    walls = [{"name": side, "side": side, "temperature": 1.0} for side in ("bottom", "left", "right")]
+    lid = {"pressure": pressure, "mass": 20.0, "height": 3.0 + 80 / (pressure * 50.0) * 1.2}  # 20% above its rest
+    sim = atoms(2, 50.0, (1, 1), (49, 18), 3.0, 1.0, periodic=False, molecular={"walls": walls, "lid": lid})
+    n = sim.state.live_count()
+    assert n == 80
+    radius = float(sim.state.particles.radius.to_numpy()[0])
+    sim.step(30000)
+    heights, temps = [], []
+    for _ in range(150):
+        sim.step(200)
+        heights.append(sim.stats().lid_height)
+        temps.append(sim.stats().motion_temperature)
+    assert 0.85 < np.mean(temps) < 1.15  # about the walls' temperature (80 atoms: slow swings of a few %)
+    assert np.mean(heights) - 2 * radius == pytest.approx(n * np.mean(temps) / (pressure * 50.0), rel=0.08)
+
+
+def test_the_lid_keeps_the_energy_of_atoms_and_lid_with_the_work_of_the_outside_pressure():
+    """Without thermal walls, E_atoms + M u^2 / 2 + P A h is conserved (the lid's hits are elastic collisions)."""
+    lid = {"pressure": 0.08, "mass": 20.0, "height": 30.0}
+    sim = atoms(2, 50.0, (1, 1), (49, 20), 4.0, 1.0, periodic=False, molecular={"lid": lid})
+    term = sim.terms.lid
+
+    def enthalpy():
+        u, h = float(term.speed.to_numpy()), float(term.height.to_numpy())
+        return sim.stats().total_energy + 0.5 * term.mass * u * u + 0.08 * 50.0 * h
+
+    start = enthalpy()
+    kinetic = sim.stats().kinetic_energy
+    sim.step(20000)
+    assert enthalpy() - start == pytest.approx(0.0, abs=0.01 * kinetic)
+    assert abs(float(term.height.to_numpy()) - 30.0) > 1.0  # it moved
+    sim.controls.set({"lid.pressure": 0.02})
+    assert term.pressure == 0.02

@@ -122,6 +122,8 @@ QUANTITIES: tuple[Quantity, ...] = (
              "outside the molecular model", _structure_share("gas")),
     Quantity("wall_heat", "energy", "heat through the walls", "energy the thermal walls have given the atoms "
              "(negative: taken) since the start; 0 without them", lambda s: s.m.get("wall_heat", 0.0)),
+    Quantity("lid_height", "length", "lid height", "the molecular model's lid's height along y; nan without a lid",
+             lambda s: s.m.get("lid_height", NAN)),
     Quantity("molten_fraction", "%", "molten", "mean melt fraction of the particles of meltable materials",
              _share("phi", "meltable")),
     Quantity("gas_fraction", "%", "boiled", "mean vapour fraction of the particles of materials that boil",

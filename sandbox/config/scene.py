@@ -216,6 +216,18 @@ def _check_molecular(file: str, raw) -> None:
         raise SceneError(
             file, "molecular.phase_radius", f"expected at most the pair cutoff {raw.pair.cutoff:g} (its neighbour reach)"
         )
+    lid = molecular.lid
+    if lid is not None:
+        lo, hi = raw.world.lo[1], raw.world.hi[1]
+        if raw.world.periodic:
+            raise SceneError(file, "molecular.lid", "a periodic box has no top for a lid; expected world.periodic = false")
+        if not lo < lid.height <= hi:
+            raise SceneError(file, "molecular.lid.height", f"expected a height in ({lo:g}, {hi:g}], got {lid.height:g}")
+        for i, body in enumerate(raw.bodies):
+            if body.shape == "box" and body.hi[1] > lid.height:
+                raise SceneError(file, f"bodies[{i}]", f"the body reaches above the lid (at {lid.height:g}); expected it below")
+        if any(w.side == "top" for w in molecular.walls):
+            raise SceneError(file, "molecular.lid", "the top wall is a thermal wall; expected the lid or the wall")
     seen = set()
     for i, wall in enumerate(molecular.walls):
         axis, _ = WALL_SIDES[wall.side]

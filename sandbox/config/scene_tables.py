@@ -233,6 +233,17 @@ class ThermalWall:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Lid:
+    pressure: float = spec(
+        doc="the pressure that weighs on the lid from outside (energy per length^dim: eps / sigma^2 in 2D, eps / sigma^3 "
+        "in 3D): the atoms below must push it up with as much",
+        check=non_negative,
+    )
+    mass: float = spec(100.0, doc="the lid's mass (in atoms' masses): heavier, slower to follow", check=positive)
+    height: float = spec(doc="the lid's starting height along y (length)", check=positive)
+
+
+@dataclass(frozen=True, kw_only=True)
 class Molecular:
     phase_radius: float = spec(
         1.5, doc="neighbours nearer than this (length) count toward an atom's coordination and bond order",
@@ -248,6 +259,9 @@ class Molecular:
         check=at_least(0),
     )
     walls: list[ThermalWall] = spec(doc="thermal walls: heaters and coolers that keep momentum", factory=list)
+    lid: Lid | None = spec(
+        None, doc="a lid across the box that moves up and down under a set outside pressure (a piston)"
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -10,6 +10,7 @@ from . import (  # noqa: F401 - each registers its terms
     heat,
     heat_implicit,
     kinematic,
+    lid,
     lifetimes,
     pair,
     phase,

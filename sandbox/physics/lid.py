@@ -1,0 +1,113 @@
+"""A lid (piston) for the molecular model: a horizontal wall across the box at height h that the atoms push up and an
+outside pressure P pushes down ([molecular.lid]: pressure, mass M, starting height).
+
+An atom that crosses the lid bounces off it as in an elastic collision of masses m and M (the relative speed
+v_y - u reverses about their centre of mass, u the lid's speed at the step's start), and the momentum it gives the
+lid, J_i = 2 m M / (m + M) (v_y - u), is summed over the step; with at most one hit a step this keeps the energy of
+atoms and lid exactly. After each step the lid moves by the symplectic Euler step of
+
+    M du/dt = J / dt - P A - M g,    dh/dt = u
+
+(J the momentum the atoms gave it that step, A its area: the box's width in 2D, width times depth in 3D, g the
+scene's gravity along y). At rest on average, the atoms press on it with exactly P: a sealed pot is a lid held in
+place, an open pot a light lid at one atmosphere, a pressure cooker a heavy one. The lid stops at the top of the box
+and cannot go below a tenth of the box's height. Its height and speed are part of the state (saved, undone, reset).
+The lid's update runs between steps (the long way)."""
+
+import taichi as ti
+
+from ..core import transfer
+from ..core.oriented import data_oriented
+from .term import Measure, Term, register
+
+
+@register
+@data_oriented
+class Lid(Term):
+    """The molecular model's lid (module docstring); its outside pressure is a live control (`lid.pressure`)."""
+
+    key = "lid"
+    stage = "thermal_walls"
+    finishes = True
+    measures = (Measure("lid_height", "sum", "value"),)
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        molecular = parts.scene.molecular
+        return bool(molecular and molecular.lid)
+
+    @staticmethod
+    def host_work(scene) -> str | None:
+        if scene.molecular and scene.molecular.lid:
+            return "the lid moves between steps by the momentum the atoms gave it"
+        return None
+
+    def __init__(self, parts):
+        spec = parts.scene.molecular.lid
+        world = parts.scene.world
+        self.p = parts.state.particles
+        self.dim = parts.model.dim
+        self.mass = float(spec.mass)
+        box = [h - l for l, h in zip(world.lo, world.hi)]
+        self.area = box[0] * (box[2] if self.dim == 3 else 1.0)
+        self.gravity = float(world.gravity[1]) if world.gravity else 0.0
+        self.lowest = world.lo[1] + 0.1 * box[1]
+        self.highest = float(world.hi[1])
+        self.height = ti.field(float, shape=())  # h (length)
+        self.speed = ti.field(float, shape=())  # u (length / time)
+        self.pushed = ti.field(float, shape=())  # momentum the atoms gave the lid this step
+        self.pressure = float(spec.pressure)
+        transfer.upload([(self.height, float(spec.height))])
+
+    def declare(self, state) -> None:
+        state.declare("lid", self, ("height", "speed"))
+        state.declare("lid", self, ("pushed",), physical=False)
+
+    def controls(self) -> dict:
+        return {"pressure": self.pressure}
+
+    def apply_controls(self, values: dict) -> None:
+        if "pressure" in values:
+            value = float(values["pressure"])
+            if not value >= 0.0:
+                raise ValueError(f"lid pressure {value!r}; expected a number of at least 0")
+            self.pressure = value
+
+    def words(self, where: str) -> list[str]:
+        if where == "finish":
+            return [f"lid: atoms bounce off it (outside pressure {self.pressure:g}, mass {self.mass:g})"]
+        if where == "after":
+            return ["lid: moves by the momentum the atoms gave it"]
+        return []
+
+    def after_step(self, state) -> None:
+        self._move(state.dt, self.pressure * self.area)
+
+    @ti.kernel
+    def _move(self, dt: float, load: float):
+        for _ in range(1):
+            u = self.speed[None] + (self.pushed[None] - (load + self.mass * -self.gravity) * dt) / self.mass
+            h = self.height[None] + u * dt
+            if h > self.highest:
+                h, u = self.highest, ti.min(u, 0.0)
+            elif h < self.lowest:
+                h, u = self.lowest, ti.max(u, 0.0)
+            self.height[None], self.speed[None], self.pushed[None] = h, u, 0.0
+
+    @ti.func
+    def finish(self, i, dt, rates: ti.template()):
+        p = self.p
+        top = self.height[None] - p.radius[i]
+        if p.x[i][1] > top and p.mass[i] > 0.0:
+            u = self.speed[None]
+            x, v = p.x[i], p.v[i]
+            x[1] = ti.max(2.0 * top - x[1], top - 1.0)
+            if v[1] > u:  # an elastic hit of masses m and M: the relative speed reverses about their centre of mass
+                hit = 2.0 * p.mass[i] * self.mass / (p.mass[i] + self.mass) * (v[1] - u)
+                self.pushed[None] += hit
+                v[1] -= hit / p.mass[i]
+            p.x[i], p.v[i] = x, v
+
+    @ti.func
+    def measure_value(self):
+        return (self.height[None],)
