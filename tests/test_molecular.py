@@ -257,3 +257,24 @@ def test_the_lid_keeps_the_energy_of_atoms_and_lid_with_the_work_of_the_outside_
     assert abs(float(term.height.to_numpy()) - 30.0) > 1.0  # it moved
     sim.controls.set({"lid.pressure": 0.02})
     assert term.pressure == 0.02
+
+
+def test_melting_takes_latent_heat_the_temperature_rises_slower_per_heat_while_the_crystal_melts():
+    """A 2D crystal on a hot floor: the temperature rise per unit of heat taken in (dT / dQ, both measured: the
+    atoms' kinetic temperature and the floor's energy sum) is several times smaller while the measured solid share
+    falls than while it is still a crystal: the heat goes into breaking the order (latent heat), which nothing
+    assigns."""
+    walls = [{"name": "floor", "side": "bottom", "temperature": 0.7}]
+    sim = atoms(2, 30.0, (3, 0.6), (27, 10), 1.09, 0.1, lattice="hex", periodic=False, molecular={"walls": walls},
+                gravity=[0.0, -0.02])  # fmt: skip
+    rows = []
+    for _ in range(120):
+        sim.step(500)
+        s = sim.stats()
+        rows.append((s.wall_heat, s.motion_temperature, s.structure_solid))
+    q, t, solid = np.array(rows).T
+    crystal, melting = solid >= 0.85, (solid >= 0.15) & (solid <= 0.7)
+    assert crystal.sum() >= 6 and melting.sum() >= 20
+    slope_crystal = np.polyfit(q[crystal], t[crystal], 1)[0]
+    slope_melting = np.polyfit(q[melting], t[melting], 1)[0]
+    assert slope_crystal > 0 and slope_melting < 0.5 * slope_crystal
