@@ -278,3 +278,21 @@ def test_melting_takes_latent_heat_the_temperature_rises_slower_per_heat_while_t
     slope_crystal = np.polyfit(q[crystal], t[crystal], 1)[0]
     slope_melting = np.polyfit(q[melting], t[melting], 1)[0]
     assert slope_crystal > 0 and slope_melting < 0.5 * slope_crystal
+
+
+def test_a_drop_cools_as_its_fastest_atoms_evaporate_while_the_total_energy_is_kept():
+    """A hot 3D drop in a large empty periodic box, no thermostat: atoms leave it, the vapour they make is hotter
+    than the drop (the fast ones escape), and the drop's own temperature falls while the total energy stays."""
+    sim = atoms(3, 30.0, (11, 11, 11), (19, 19, 19), 1.09, 1.6, lattice="fcc", periodic=True)
+    sim.step(2000)  # the crystal melts at once; the drop settles
+    e0 = sim.stats().total_energy
+    rows = []
+    for _ in range(18):
+        sim.step(1000)
+        s = sim.stats()
+        rows.append((s.total_energy, s.condensed_temperature, s.gas_temperature, s.structure_gas, s.kinetic_energy))
+    energy, drop, vapour, gas, kinetic = np.array(rows).T
+    assert np.abs(energy - e0).max() < 0.02 * kinetic.mean()
+    assert drop[-5:].mean() < 0.92 * drop[:5].mean()  # evaporative cooling, measured
+    assert vapour.mean() > drop.mean()
+    assert gas[-5:].mean() > gas[:5].mean()

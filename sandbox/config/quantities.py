@@ -77,6 +77,14 @@ def _motion_temperature(s: Sums) -> float:
     return (2.0 * s.m["ke"] - p2 / s.m["mass"]) / (s.dim * (s.m["n"] - 1))
 
 
+def _phase_temperature(energy: str, kinds: tuple[str, ...]) -> Callable[[Sums], float]:
+    def value(s: Sums) -> float:
+        count = sum(s.m.get(kind, 0) for kind in kinds)
+        return 2.0 * s.m[energy] / (s.dim * count) if energy in s.m and count else NAN
+
+    return value
+
+
 def _structure_share(kind: str) -> Callable[[Sums], float]:
     return lambda s: s.m[kind] / s.m["n"] if kind in s.m and s.m["n"] else NAN
 
@@ -114,6 +122,11 @@ QUANTITIES: tuple[Quantity, ...] = (
     Quantity("motion_temperature", "energy", "temperature (kT)", "the atoms' kinetic temperature kT (k = 1): "
              "(sum m v^2 - |sum m v|^2 / sum m) / (dim (N - 1)); nan outside the molecular model",
              _motion_temperature),
+    Quantity("condensed_temperature", "energy", "temperature of solid and liquid (kT)", "kT of the atoms counted "
+             "solid or liquid: sum m v^2 / (dim N) over them (a drop at rest); nan when there are none",
+             _phase_temperature("ke_condensed", ("solid", "liquid"))),
+    Quantity("gas_temperature", "energy", "temperature of the gas (kT)", "kT of the atoms counted gas: sum m v^2 / "
+             "(dim N) over them; nan when there are none", _phase_temperature("ke_gas", ("gas",))),
     Quantity("structure_solid", "%", "solid (by structure)", "share of the atoms whose neighbours sit in order "
              "(physics/structure.py); nan outside the molecular model", _structure_share("solid")),
     Quantity("structure_liquid", "%", "liquid (by structure)", "share of the atoms that are dense but not in "

@@ -67,6 +67,8 @@ class Structure(Term):
         Measure("momentum_x", "sum", "particles"),
         Measure("momentum_y", "sum", "particles"),
         Measure("momentum_z", "sum", "particles"),
+        Measure("ke_condensed", "sum", "particles"),  # kinetic energy of the atoms counted solid or liquid
+        Measure("ke_gas", "sum", "particles"),  # ... and of those counted gas
     )
 
     @staticmethod
@@ -176,10 +178,13 @@ class Structure(Term):
 
     @ti.func
     def measure_particle(self, i):
-        """(solid, liquid, gas) as 0/1 by the atom's kind, and its momentum m v (three components, z 0 in 2D)."""
+        """(solid, liquid, gas) as 0/1 by the atom's kind, its momentum m v (three components, z 0 in 2D), and its
+        kinetic energy as a condensed (solid or liquid) atom or as a gas atom."""
         kind = self.p.kind[i]
         mv = self.p.mass[i] * self.p.v[i]
         z = 0.0
         if ti.static(self.dim == 3):
             z = mv[2]
-        return int(kind == SOLID), int(kind == LIQUID), int(kind == GAS), mv[0], mv[1], z
+        ke = 0.5 * mv.dot(self.p.v[i])
+        gas = kind == GAS
+        return int(kind == SOLID), int(kind == LIQUID), int(gas), mv[0], mv[1], z, ti.select(gas, 0.0, ke), ti.select(gas, ke, 0.0)
