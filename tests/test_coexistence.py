@@ -42,7 +42,7 @@ def test_argon_units_and_the_nist_table():
     assert all(a < b for a, b in zip(NIST_LFS_PSAT.values(), list(NIST_LFS_PSAT.values())[1:]))
 
 
-@pytest.mark.parametrize("text", ["0.8,hot", "0.3", "2.0", "nan"])
+@pytest.mark.parametrize("text", ["0.8,hot", "0.1", "2.0", "nan"])
 def test_bad_temperatures_get_one_line_and_a_nonzero_exit(text, tmp_path, capsys):
     code = main(["study", "--coexistence", "--temperatures", text, "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err

@@ -34,7 +34,10 @@ def atoms(dim: int, side: float, lo, hi, spacing: float, kt: float, lattice: str
             }
         ],
     }  # fmt: skip
+    box = more.pop("box", None)
     data["world"].update(more)
+    if box is not None:  # a box that is not a cube
+        data["world"]["hi"] = list(box)
     return Simulation(make_scene(data))
 
 

@@ -147,8 +147,10 @@ def cmd_study(args) -> int:
     problems = check_names("--problems", args.problems, PROBLEMS)
     out = check_folder_output("--out", args.out)
     if args.coexistence:
-        temperatures = parse_temperatures(args.temperatures)
-        run_coexistence(out, temperatures, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+        temperatures = parse_temperatures(args.temperatures, args.dim)
+        run_coexistence(
+            out, temperatures, quick=args.quick, log=lambda line: print(line, file=sys.stderr), dim=args.dim
+        )
         print(f"wrote {out}/coexistence.md and coexistence.csv")
         return 0
     if args.phase:
@@ -323,7 +325,12 @@ def _study_arguments(sub) -> None:
         help="instead: liquid-vapour coexistence of the molecular model (3D slabs) beside NIST's Lennard-Jones tables",
     )
     study.add_argument(
-        "--temperatures", help="with --coexistence: comma-separated reduced temperatures (default 0.7,0.75,0.8,0.85)"
+        "--temperatures",
+        help="with --coexistence: comma-separated reduced temperatures (default 0.7,0.75,0.8,0.85 in 3D, "
+        "0.3,0.33,0.36,0.39 in 2D)",
+    )
+    study.add_argument(
+        "--dim", type=int, choices=(2, 3), default=3, help="with --coexistence: slabs in 2 or 3 dimensions (default 3)"
     )
     study.add_argument("--integrators", help="comma-separated integrators to study (default: all)")
     study.add_argument("--problems", help="comma-separated problems to run (default: all)")

@@ -24,7 +24,7 @@ from ..config.scene import load_scene
 from ..core import runtime
 from ..errors import SandboxError
 from ..files.persist import load_into, save_state
-from ..measure.units import energy_unit, length_unit
+from ..measure.units import energy_unit, length_unit, pressure_unit
 from ..simulation import Simulation
 from . import panel
 from .history import UndoRing
@@ -186,6 +186,15 @@ class Controller:
 
                 top = max(2.0, 2.0 * kt)
                 out.append(panel.Setting(f"wall{k}", f"{name} temperature", kt, 0.02, top, unit, 0.01, set_wall))
+        lid = self.sim.terms.lid
+        if lid is not None:  # the weight on the molecular model's lid, as the outside pressure
+
+            def press(value: float) -> None:
+                self.sim.controls.set({"lid.pressure": value})
+
+            unit = pressure_unit(self.sim.material_names, self.sim.dim)
+            top = max(0.2, 4.0 * lid.pressure)
+            out.append(panel.Setting("lid", "lid pressure", lid.pressure, 0.0, top, unit, top / 200, press))
         if any(self.sim.scene.world.gravity):
             top = 4.0 * float(np.linalg.norm(self.sim.scene.world.gravity))
             unit = f"{length_unit(self.sim.material_names)}/s^2"

@@ -86,21 +86,24 @@ class SlabPoint:
     seconds: float
 
 
-def slab_scene(temperature: float, width: float, rho: float = 0.8, thickness: float = 12.0) -> dict:
-    """The scene table of a liquid slab (simple cubic at density `rho`, `thickness` thick) across a periodic box."""
+def slab_scene(temperature: float, width: float, rho: float = 0.8, thickness: float = 12.0, dim: int = 3) -> dict:
+    """The scene table of a liquid slab (a square or cubic lattice at density `rho`, `thickness` thick) across a
+    periodic box `width` wide and 4 `width` long along the last axis (the slab's normal), in `dim` dimensions."""
     lz = 4.0 * width
-    spacing = rho ** (-1.0 / 3.0)
+    spacing = rho ** (-1.0 / dim)
+    across = [width] * (dim - 1)
     return {
         "scene": {"name": f"slab_{temperature:g}"},
         "world": {
-            "dim": 3, "lo": [0.0, 0.0, 0.0], "hi": [width, width, lz], "dt": 0.005, "periodic": True,
+            "dim": dim, "lo": [0.0] * dim, "hi": [*across, lz], "dt": 0.005, "periodic": True,
             "precision": "f64", "integrator": "velocity_verlet",
         },
         "pair": {"a": 8.0, "b": 14.0, "cutoff": CUTOFF, "force_shift": True},
         "molecular": {},
         "bodies": [{
-            "material": "lj", "shape": "box", "lattice": "cubic", "lo": [0.0, 0.0, 0.5 * (lz - thickness)],
-            "hi": [width, width, 0.5 * (lz + thickness)], "spacing": spacing, "springs": False,
+            "material": "lj", "shape": "box", "lattice": "cubic" if dim == 3 else "square",
+            "lo": [0.0] * (dim - 1) + [0.5 * (lz - thickness)], "hi": [*across, 0.5 * (lz + thickness)],
+            "spacing": spacing, "springs": False,
             "random_velocity": math.sqrt(temperature), "seed": 1 + int(1000 * temperature),
         }],
     }  # fmt: skip
@@ -136,16 +139,17 @@ def measure_snapshot(
     x: np.ndarray, v: np.ndarray, box: np.ndarray, vapour_from: float = np.inf
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """(z about the slab's centre of mass, each atom's pair energy, the whole box's P_zz, and the normal pressure of
-    the region |z| > vapour_from) of one snapshot (unit masses)."""
+    the region |z| > vapour_from) of one snapshot (unit masses); z is the last axis (y in 2D)."""
     try:
         from scipy.spatial import cKDTree
     except ImportError as missing:
         raise SandboxError("the coexistence study needs SciPy: pip install -e '.[study]'") from missing
 
-    lz = box[2]
-    angle = 2 * math.pi * x[:, 2] / lz  # the centre of mass of a periodic coordinate, by its mean direction
+    axis = len(box) - 1
+    lz = box[axis]
+    angle = 2 * math.pi * x[:, axis] / lz  # the centre of mass of a periodic coordinate, by its mean direction
     centre = (math.atan2(np.sin(angle).mean(), np.cos(angle).mean()) % (2 * math.pi)) * lz / (2 * math.pi)
-    z = (x[:, 2] - centre + 0.5 * lz) % lz - 0.5 * lz
+    z = (x[:, axis] - centre + 0.5 * lz) % lz - 0.5 * lz
     tree = cKDTree(x % box, boxsize=box)
     pairs = tree.query_pairs(CUTOFF, output_type="ndarray")
     d = x[pairs[:, 1]] - x[pairs[:, 0]]
@@ -155,14 +159,14 @@ def measure_snapshot(
     energy = np.zeros(len(x))
     np.add.at(energy, pairs[:, 0], 0.5 * u)
     np.add.at(energy, pairs[:, 1], 0.5 * u)
-    pair_zz = -lfs_force_factor(r) * d[:, 2] ** 2
-    p_zz = ((v[:, 2] ** 2).sum() + pair_zz.sum()) / box.prod()
-    mid = (z[pairs[:, 0]] + 0.5 * d[:, 2] + 0.5 * box[2]) % box[2] - 0.5 * box[2]
-    volume = box[0] * box[1] * (box[2] - 2 * vapour_from)
+    pair_zz = -lfs_force_factor(r) * d[:, axis] ** 2
+    p_zz = ((v[:, axis] ** 2).sum() + pair_zz.sum()) / box.prod()
+    mid = (z[pairs[:, 0]] + 0.5 * d[:, axis] + 0.5 * lz) % lz - 0.5 * lz
+    volume = box[:axis].prod() * (lz - 2 * vapour_from)
     p_vapour = math.nan
     if volume > 0:
         atoms, kept = np.abs(z) > vapour_from, np.abs(mid) > vapour_from
-        p_vapour = float(((v[atoms, 2] ** 2).sum() + pair_zz[kept].sum()) / volume)
+        p_vapour = float(((v[atoms, axis] ** 2).sum() + pair_zz[kept].sum()) / volume)
     return z, energy, p_zz, p_vapour
 
 
@@ -172,11 +176,13 @@ def _blocks(values: np.ndarray, count: int = 5) -> tuple[float, float]:
     return float(blocks.mean()), float(blocks.std(ddof=1) / math.sqrt(count))
 
 
-def run_slab(temperature: float, width: float = 9.0, equilibrate: int = 20000, produce: int = 40000,
-             every: int = 100, log=None) -> SlabPoint:  # fmt: skip
-    """One slab run at reduced temperature `temperature` (steps of dt 0.005; a snapshot every `every` steps)."""
+def run_slab(temperature: float, width: float | None = None, equilibrate: int = 20000, produce: int = 40000,
+             every: int = 100, log=None, dim: int = 3) -> SlabPoint:  # fmt: skip
+    """One slab run at reduced temperature `temperature` in `dim` dimensions (steps of dt 0.005; a snapshot every
+    `every` steps); `width` across the slab (default 9 sigma in 3D, 30 in 2D)."""
     started = time.perf_counter()
-    sim = Simulation(scene_from_dict(slab_scene(temperature, width), STUDY_PATH))
+    width = width or (9.0 if dim == 3 else 30.0)
+    sim = Simulation(scene_from_dict(slab_scene(temperature, width, dim=dim), STUDY_PATH))
     box = np.array(sim.scene.world.hi) - np.array(sim.scene.world.lo)
     rescale = Rescaler(sim, temperature, tau=0.5, seed=int(1000 * temperature))
     batch = 10
@@ -193,19 +199,20 @@ def run_slab(temperature: float, width: float = 9.0, equilibrate: int = 20000, p
         if (k + 1) * batch % every:
             continue
         x, v = sim.positions(), sim.velocities()
-        area = box[0] * box[1]
+        axis = dim - 1
+        area = box[:axis].prod()
         if thickness is None:  # the slab's width from its own density profile at the start of production
             z, _, _, _ = measure_snapshot(x, v, box)
-            hist, edges = np.histogram(z, bins=int(box[2] / 0.5), range=(-0.5 * box[2], 0.5 * box[2]))
+            hist, edges = np.histogram(z, bins=int(box[axis] / 0.5), range=(-0.5 * box[axis], 0.5 * box[axis]))
             dens = hist / (area * 0.5)
             dense = edges[:-1][dens > 0.5 * dens.max()]
             thickness = float(dense.max() - dense.min() + 0.5)
         z, energy, p_zz, p_vapour = measure_snapshot(x, v, box, 0.5 * thickness + 3.0)
         liquid = np.abs(z) < 0.25 * thickness
         vapour = np.abs(z) > 0.5 * thickness + 3.0
-        vapour_volume = area * (box[2] - 2 * (0.5 * thickness + 3.0))
+        vapour_volume = area * (box[axis] - 2 * (0.5 * thickness + 3.0))
         drift = v.mean(axis=0)
-        kt = ((v - drift) ** 2).sum() / (3 * (n - 1))
+        kt = ((v - drift) ** 2).sum() / (dim * (n - 1))
         rows.append(
             (
                 kt,
@@ -236,55 +243,59 @@ def run_slab(temperature: float, width: float = 9.0, equilibrate: int = 20000, p
     return point
 
 
-DEFAULT_TEMPERATURES = (0.70, 0.75, 0.80, 0.85)
+DEFAULT_TEMPERATURES = {3: (0.70, 0.75, 0.80, 0.85), 2: (0.30, 0.33, 0.36, 0.39)}
 
 
-def parse_temperatures(text: str | None) -> list[float]:
-    """--temperatures: comma-separated reduced temperatures in [0.5, 1.0] (the liquid's range below the critical
-    point, 0.94 for this truncation); ArgumentError-free: SandboxError naming the option for anything else."""
+def parse_temperatures(text: str | None, dim: int = 3) -> list[float]:
+    """--temperatures: comma-separated reduced temperatures from 0.2 to 1.2 (default: DEFAULT_TEMPERATURES, below
+    the critical point of this truncation); SandboxError naming the option for anything else."""
     if not text:
-        return list(DEFAULT_TEMPERATURES)
+        return list(DEFAULT_TEMPERATURES[dim])
     out = []
     for word in text.split(","):
         try:
             value = float(word)
         except ValueError:
             value = math.nan
-        if not 0.5 <= value <= 1.0:
-            raise SandboxError(f"--temperatures: {word.strip()!r}; expected reduced temperatures from 0.5 to 1.0")
+        if not 0.2 <= value <= 1.2:
+            raise SandboxError(f"--temperatures: {word.strip()!r}; expected reduced temperatures from 0.2 to 1.2")
         out.append(value)
     if len(out) > 12:
         raise SandboxError(f"--temperatures: {len(out)} of them; expected at most 12")
     return out
 
 
-def run_coexistence(out: Path, temperatures: list[float], quick: bool = False, log=None) -> list[SlabPoint]:
-    """Slab runs at `temperatures` (reduced), written to out/coexistence.csv and out/coexistence.md (beside NIST's
-    saturation pressures and in argon's units); `quick`: short runs (a minute in all, wide error bars)."""
-    steps = (4000, 6000) if quick else (20000, 40000)
-    points = [run_slab(t, equilibrate=steps[0], produce=steps[1], log=log) for t in temperatures]
+def run_coexistence(
+    out: Path, temperatures: list[float], quick: bool = False, log=None, dim: int = 3
+) -> list[SlabPoint]:
+    """Slab runs at `temperatures` (reduced) in `dim` dimensions, written to out/coexistence.csv and
+    out/coexistence.md (3D: beside NIST's saturation pressures and in argon's units); `quick`: short runs (under a
+    minute each, wide error bars)."""
+    steps = (4000, 6000) if quick else (20000, 60000)
+    points = [run_slab(t, equilibrate=steps[0], produce=steps[1], log=log, dim=dim) for t in temperatures]
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "coexistence.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(asdict(points[0])))
         writer.writeheader()
         for p in points:
             writer.writerow(asdict(p))
-    (out / "coexistence.md").write_text(report(points))
+    (out / "coexistence.md").write_text(report(points, dim))
     return points
 
 
-BETA = 0.325  # the 3D Ising critical exponent of rho_l - rho_v
+BETA = {3: 0.325, 2: 0.125}  # the Ising critical exponent of rho_l - rho_v, by dimension
 ATMOSPHERE_KPA = 101.325
 
 
-def critical_point(points: list[SlabPoint]) -> tuple[float, float]:
-    """(T_c, rho_c) from the scaling law rho_l - rho_v = A (T_c - T)^BETA and the law of rectilinear diameters
+def critical_point(points: list[SlabPoint], dim: int = 3) -> tuple[float, float]:
+    """(T_c, rho_c) from the scaling law rho_l - rho_v = A (T_c - T)^beta (BETA[dim]) and the law of rectilinear
+    diameters
     (rho_l + rho_v) / 2 = rho_c + B (T - T_c), fitted by least squares (reduced units; nan below two points)."""
     if len(points) < 2:
         return math.nan, math.nan
     t = np.array([p.temperature for p in points])
     rl, rv = np.array([p.rho_liquid for p in points]), np.array([p.rho_vapour for p in points])
-    slope, intercept = np.polyfit(t, (rl - rv) ** (1.0 / BETA), 1)
+    slope, intercept = np.polyfit(t, (rl - rv) ** (1.0 / BETA[dim]), 1)
     tc = -intercept / slope
     d_slope, d_intercept = np.polyfit(t, 0.5 * (rl + rv), 1)
     return float(tc), float(d_slope * tc + d_intercept)
@@ -300,8 +311,20 @@ def boiling_temperature(points: list[SlabPoint], pressure: float) -> float:
     return float(slope / (math.log(pressure) - intercept))
 
 
-def report(points: list[SlabPoint]) -> str:
-    """The table of measured points beside NIST's saturation pressures, in reduced units and as argon."""
+def report(points: list[SlabPoint], dim: int = 3) -> str:
+    """The table of measured points beside NIST's saturation pressures, in reduced units and as argon (3D); in 2D
+    the measured points and the fitted critical temperature alone."""
+    if dim == 2:
+        lines = ["| T* | rho_l* | rho_v* | p_sat* (2D: eps / sigma^2) | dH_vap / eps |", "|---|---|---|---|---|"]
+        lines += [
+            f"| {p.temperature:.3f} ± {p.temperature_err:.3f} | {p.rho_liquid:.4f} ± {p.rho_liquid_err:.4f} "
+            f"| {p.rho_vapour:.5f} ± {p.rho_vapour_err:.5f} | {p.p_sat:.5f} ± {p.p_sat_err:.5f} "
+            f"| {p.dh_vap:.3f} ± {p.dh_vap_err:.3f} |"
+            for p in points
+        ]
+        tc, rho_c = critical_point(points, 2)
+        lines += ["", f"Critical point (fit with the 2D Ising exponent 1/8): T_c* = {tc:.3f}, rho_c* = {rho_c:.3f}."]
+        return "\n".join(lines) + "\n"
     lines = [
         "| T* | rho_l* | rho_v* | p_sat* | NIST p_sat* | p_sat / NIST | P_zz* (whole box) | dH_vap / eps "
         "| T (K, argon) | p_sat (kPa, argon) |",
@@ -316,12 +339,12 @@ def report(points: list[SlabPoint]) -> str:
             f"| {nist if nist else '-'} | {ratio} | {p.p_zz:.4f} ± {p.p_zz_err:.4f} | {p.dh_vap:.3f} ± {p.dh_vap_err:.3f} "
             f"| {p.temperature * ARGON['epsilon_over_k']:.1f} | {argon_pressure_kpa(p.p_sat):.0f} |"
         )
-    tc, rho_c = critical_point(points)
+    tc, rho_c = critical_point(points, 3)
     boil = boiling_temperature(points, ATMOSPHERE_KPA / argon_pressure_kpa(1.0))
     eps = ARGON["epsilon_over_k"]
     lines += [
         "",
-        f"Critical point (fit of (rho_l - rho_v)^(1/{BETA}) and the rectilinear diameter): T_c* = {tc:.3f} "
+        f"Critical point (fit of (rho_l - rho_v)^(1/{BETA[3]}) and the rectilinear diameter): T_c* = {tc:.3f} "
         f"({tc * eps:.0f} K as argon; argon 150.7 K), rho_c* = {rho_c:.3f}.",
         f"Normal boiling point (the fitted vapour curve ln p = a - b / T at 101.325 kPa, extrapolated): "
         f"T* = {boil:.3f} ({boil * eps:.1f} K as argon; argon 87.3 K).",
