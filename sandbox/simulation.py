@@ -135,11 +135,14 @@ class Simulation:
     def advance_frame(self, substeps: int | None = None, midway: Callable[[], None] | None = None) -> int:
         """Advance one frame (the scene's substeps, or `substeps` steps of dt); returns the steps taken. `midway` is
         called after half of them, rounded down (the renderer's mid_frame: the bend of curved motion-blur streaks);
-        not for a single step, which has no middle. The walls' gauge (stats().wall_pressure) restarts with it."""
+        not for a single step, which has no middle. The walls' and the lid's gauges (stats().wall_pressure,
+        lid_pressure) restart with it."""
         self.check_alive()
         if substeps is None:
             substeps, self.state.dt = self.frame_substeps()
-        self.terms.walls.restart_gauge(self.time)
+        for term in self.terms:  # the walls' and the lid's pressure gauges
+            if hasattr(term, "restart_gauge"):
+                term.restart_gauge(self.time)
         if midway is None or substeps < 2:
             self.step(substeps)
         else:

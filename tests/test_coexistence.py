@@ -15,6 +15,8 @@ from sandbox.research.coexistence import (
 from sandbox.research.study_runs import STUDY_PATH
 from sandbox.simulation import Simulation
 
+from .conftest import ROOT
+
 
 def test_the_slab_analysis_agrees_with_the_engine_and_the_rescaler_holds_the_temperature_and_momentum():
     sim = Simulation(scene_from_dict(slab_scene(0.8, width=7.5, thickness=6.0), STUDY_PATH))
@@ -81,3 +83,41 @@ def test_a_dilute_gas_matches_nists_equation_of_state_for_the_same_truncation(kt
     assert np.mean(pressures) - ideal == pytest.approx(p_nist - ideal, rel=0.25)  # the non-ideal part
     assert np.mean(pressures) == pytest.approx(p_nist, rel=0.01)
     assert np.mean(energies) == pytest.approx(u_nist, rel=0.1)
+
+
+def test_the_measured_phase_diagram_places_its_dot_at_the_measured_state_on_the_studys_own_curve():
+    from types import SimpleNamespace
+
+    from sandbox.config.scene import load_scene
+    from sandbox.measure.coexistence_curve import curve_of
+    from sandbox.render.measured_phase_plot import MeasuredPhasePlot
+    from sandbox.simulation import Simulation as Sim
+
+    sim = Sim(load_scene(ROOT / "scenes" / "pressure_cooker.toml"))
+    curve = curve_of(sim.model)
+    assert curve is not None
+    # the fitted line passes through the study's points within 10% and ends at the fitted critical point
+    for t, p in zip(curve.temperatures, curve.pressures):
+        assert float(curve.vapour_pressure(t)) == pytest.approx(p, rel=0.1)
+    assert 0.85 < curve.critical_temperature < 1.0 and np.isnan(curve.vapour_pressure(1.2))
+    assert curve.region(0.7, 0.05) == "liquid" and curve.region(0.8, 0.01) == "gas" and curve.region(1.1, 0.1) == "fluid"
+    plot = MeasuredPhasePlot(curve, (0, 600, 0, 200), 14)
+    states = [(0.70 + 0.01 * k, 0.02 + 0.001 * k) for k in range(10)]
+    for t, p in states:
+        plot.record(SimpleNamespace(motion_temperature=t, lid_pressure=p, wall_pressure=float("nan"), pressure=9.0))
+    t, p = plot.dot()
+    assert (t, p) == pytest.approx(tuple(np.mean(states, axis=0)))  # the measured means, the lid's gauge first
+    assert plot.dot_region() == curve.region(t, p)
+    image = np.zeros((200, 600, 3), np.uint8)
+    plot.label(image)
+    assert (image == [255, 70, 40]).all(axis=2).any()  # the dot is drawn
+
+
+def test_a_scene_of_another_pair_law_has_no_measured_curve():
+    from sandbox.measure.coexistence_curve import curve_of
+
+    data = slab_scene(0.8, width=9.5, thickness=6.0)
+    data["pair"]["cutoff"] = 3.0
+    assert curve_of(Simulation(scene_from_dict(data, STUDY_PATH)).model) is None
+    data["pair"]["cutoff"] = 2.5
+    assert curve_of(Simulation(scene_from_dict(data, STUDY_PATH)).model) is not None

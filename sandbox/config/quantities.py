@@ -137,6 +137,10 @@ QUANTITIES: tuple[Quantity, ...] = (
              "(negative: taken) since the start; 0 without them", lambda s: s.m.get("wall_heat", 0.0)),
     Quantity("lid_height", "length", "lid height", "the molecular model's lid's height along y; nan without a lid",
              lambda s: s.m.get("lid_height", NAN)),
+    Quantity("lid_pressure", "pressure", "pressure on the lid", "momentum the atoms gave the lid per unit time and "
+             "lid area since the frame began (its outside pressure and weight, on average, once it rests); nan without "
+             "a lid", lambda s: s.m["lid_impulse"] / (s.time - s.m["lid_since"])
+             if "lid_impulse" in s.m and s.time > s.m["lid_since"] else NAN),
     Quantity("molten_fraction", "%", "molten", "mean melt fraction of the particles of meltable materials",
              _share("phi", "meltable")),
     Quantity("gas_fraction", "%", "boiled", "mean vapour fraction of the particles of materials that boil",

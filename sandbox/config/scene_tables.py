@@ -250,7 +250,7 @@ class Molecular:
         check=positive,
     )
     gas_below: int = spec(
-        0, doc="an atom with fewer neighbours than this is counted as gas (0: 3 in 2D, 5 in 3D)", check=at_least(0)
+        0, doc="an atom with fewer neighbours than this is counted as gas (0: 3)", check=at_least(0)
     )
     solid_bonds: int = spec(
         0,

@@ -29,7 +29,11 @@ class Lid(Term):
     key = "lid"
     stage = "thermal_walls"
     finishes = True
-    measures = (Measure("lid_height", "sum", "value"),)
+    measures = (
+        Measure("lid_height", "sum", "value"),
+        Measure("lid_impulse", "sum", "value"),  # momentum per area the atoms gave the lid since the gauge restarted
+        Measure("lid_since", "sum", "value"),  # the time the gauge restarted
+    )
 
     @staticmethod
     def wanted(parts) -> bool:
@@ -56,12 +60,21 @@ class Lid(Term):
         self.height = ti.field(float, shape=())  # h (length)
         self.speed = ti.field(float, shape=())  # u (length / time)
         self.pushed = ti.field(float, shape=())  # momentum the atoms gave the lid this step
+        self.gauge = ti.field(ti.f64, shape=())  # momentum per area the atoms gave it since the gauge restarted
+        self.since = ti.field(ti.f64, shape=())  # ... and when it restarted (time)
         self.pressure = float(spec.pressure)
         transfer.upload([(self.height, float(spec.height))])
 
     def declare(self, state) -> None:
         state.declare("lid", self, ("height", "speed"))
-        state.declare("lid", self, ("pushed",), physical=False)
+        state.declare("lid", self, ("pushed", "gauge", "since"), physical=False)
+
+    def restart_gauge(self, time: float) -> None:
+        """Zero the lid's pressure gauge at `time` (Simulation.advance_frame restarts it every frame)."""
+        transfer.upload([(self.gauge, 0.0), (self.since, float(time))])
+
+    def after_restore(self, state) -> None:
+        self.restart_gauge(state.time)
 
     def controls(self) -> dict:
         return {"pressure": self.pressure}
@@ -92,6 +105,7 @@ class Lid(Term):
                 h, u = self.highest, ti.min(u, 0.0)
             elif h < self.lowest:
                 h, u = self.lowest, ti.max(u, 0.0)
+            self.gauge[None] += ti.cast(self.pushed[None] / self.area, ti.f64)
             self.height[None], self.speed[None], self.pushed[None] = h, u, 0.0
 
     @ti.func
@@ -110,4 +124,4 @@ class Lid(Term):
 
     @ti.func
     def measure_value(self):
-        return (self.height[None],)
+        return self.height[None], self.gauge[None], self.since[None]

@@ -8,7 +8,8 @@ harmonics averaged over its bonds: in 2D psi6 = <exp(6 i theta_ij)> (two numbers
 A bond i-j is ordered when q_i . q_j exceeds ORDERED (the two atoms' neighbourhoods have the same orientation, as
 in a crystal). Then:
 
-    gas     n_i < molecular.gas_below                   (default 3 in 2D, 5 in 3D: an atom almost alone)
+    gas     n_i < molecular.gas_below                   (default 3: an atom almost alone; a liquid's surface atom has
+                                                        about 4 in 2D and 6 in 3D)
     solid   at least molecular.solid_bonds ordered bonds (default 4 in 2D, 7 in 3D)
     liquid  otherwise (dense, but its neighbours' orientations disagree)
 
@@ -26,7 +27,7 @@ from .term import Measure, Term, register
 
 GAS, LIQUID, SOLID = 0, 1, 2
 ORDERED = {2: 0.9, 3: 0.6}  # q_i . q_j above which a bond is ordered, by dimension (calibrated: tests/test_molecular)
-DEFAULT_GAS_BELOW = {2: 3, 3: 5}
+DEFAULT_GAS_BELOW = {2: 3, 3: 3}
 DEFAULT_SOLID_BONDS = {2: 4, 3: 7}
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config.quantities import PHASE_DIAGRAM
+from ..measure.coexistence_curve import curve_of
 from ..core import transfer
 from ..core.taichi_compat import field_info
 from ..measure.phase_map import phase_map_of
@@ -27,6 +28,7 @@ from .flat import Flat2D
 from .footprint import Footprint
 from .look import Look
 from .phase_plot import PhasePlot
+from .measured_phase_plot import MeasuredPhasePlot
 from .plan import plan_picture
 from .spheres import Spheres3D
 from .words import Words
@@ -235,9 +237,12 @@ class Renderer:
         words = self.words
         self.chart = Chart(measured, (0, 0, 0, 0), size, model.material_names, model.dim, words) if measured else None
         phase_map = phase_map_of(model) if PHASE_DIAGRAM in series else None
+        curve = curve_of(model) if PHASE_DIAGRAM in series else None  # the molecular model's measured curve
         self.phase_plot = None
         if phase_map is not None:
             self.phase_plot = PhasePlot(phase_map, (0, 0, 0, 0), size, model.material_names, model.dim, words)
+        elif curve is not None:
+            self.phase_plot = MeasuredPhasePlot(curve, (0, 0, 0, 0), size, model.material_names, model.dim, words)
         if keep_history:
             carry_history(((self.chart, old_chart), (self.phase_plot, old_phase)))
         if place:

@@ -1,0 +1,81 @@
+"""The molecular model's liquid-vapour curve, as measured by `sandbox study --coexistence` and shipped with the
+assets (assets/coexistence_lj_lfs25.csv in 3D, assets/coexistence_lj_lfs25_2d.csv in 2D), in reduced units.
+
+Between the measured points the vapour pressure follows the fitted Clausius-Clapeyron line ln p = a - b / T (a
+straight line of ln p against 1/T, as the measured points are within their errors); it ends at the critical point
+fitted from the coexisting densities (research/coexistence.py), above which there is one fluid. The curve belongs to
+one model only: the 12-6 Lennard-Jones force, force-shifted at 2.5 sigma, in one material of unit mass; a scene of
+any other pair law has no measured curve (curve_of returns None), never a borrowed one.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config.resources import ASSETS_DIR
+
+CURVES = {3: "coexistence_lj_lfs25.csv", 2: "coexistence_lj_lfs25_2d.csv"}
+BETA = {3: 0.325, 2: 0.125}  # the Ising critical exponents of rho_l - rho_v
+
+
+@dataclass(frozen=True)
+class CoexistenceCurve:
+    """The measured points (T, p_sat with its error; reduced units), the fitted line and critical point."""
+
+    temperatures: tuple[float, ...]
+    pressures: tuple[float, ...]
+    errors: tuple[float, ...]
+    a: float  # ln p = a - b / T
+    b: float
+    critical_temperature: float
+    critical_pressure: float
+
+    def vapour_pressure(self, temperature):
+        """The fitted saturation pressure at `temperature` (scalar or array; nan above the critical point)."""
+        t = np.asarray(temperature, float)
+        p = np.exp(self.a - self.b / np.maximum(t, 1e-6))
+        return np.where(t <= self.critical_temperature, p, np.nan)
+
+    def region(self, temperature: float, pressure: float) -> str:
+        """"gas" below the curve, "liquid" above it, "fluid" above the critical temperature."""
+        if temperature > self.critical_temperature:
+            return "fluid"
+        return "gas" if pressure < float(self.vapour_pressure(temperature)) else "liquid"
+
+
+def load_curve(rows: list[dict], dim: int) -> CoexistenceCurve:
+    """The curve from a study's CSV rows (research/coexistence.py's SlabPoint fields)."""
+    t = np.array([float(r["temperature"]) for r in rows])
+    p = np.array([float(r["p_sat"]) for r in rows])
+    err = np.array([float(r["p_sat_err"]) for r in rows])
+    rl = np.array([float(r["rho_liquid"]) for r in rows])
+    rv = np.array([float(r["rho_vapour"]) for r in rows])
+    slope, intercept = np.polyfit(1.0 / t, np.log(p), 1)
+    s, c = np.polyfit(t, (rl - rv) ** (1.0 / BETA[dim]), 1)
+    tc = -c / s
+    return CoexistenceCurve(
+        tuple(t), tuple(p), tuple(err), float(intercept), float(-slope), float(tc), float(math.exp(intercept + slope / tc))
+    )
+
+
+def curve_of(model) -> CoexistenceCurve | None:
+    """The measured curve of `model`'s scene when it is the molecular model with the force-shifted 12-6 LJ force at
+    2.5 sigma in one material of unit mass (else None), from the shipped CSV of its dimension."""
+    scene = model.scene
+    pair = scene.pair
+    if scene.molecular is None or pair is None or len(model.material_list) != 1:
+        return None
+    material = model.material_list[0]
+    if not (pair.a == 8.0 and pair.b == 14.0 and pair.cutoff == 2.5 and pair.force_shift):
+        return None
+    if not (material.pair_alpha == 24.0 and material.pair_beta == 48.0 and material.particle_mass == 1.0):
+        return None
+    path = ASSETS_DIR / CURVES[scene.dim]
+    if not path.exists():
+        return None
+    with open(path, newline="") as f:
+        return load_curve(list(csv.DictReader(f)), scene.dim)

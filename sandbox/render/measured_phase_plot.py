@@ -1,0 +1,150 @@
+"""The molecular model's phase diagram: the liquid-vapour curve its own study measured (measure/coexistence_curve.py)
+with the state as a dot at the measured kinetic temperature and pressure, and the dot's uncertainty as a bar.
+
+Nothing places the dot by rule: its temperature is `motion_temperature`, its pressure the lid's gauge (the momentum
+the atoms give the lid), else the walls' gauge, else the virial pressure, each the mean of the last SAMPLES frames, the bar the standard error of that mean. The curve's
+measured points are drawn as small marks on the fitted line, which ends at the fitted critical point (a ring)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..measure.coexistence_curve import CoexistenceCurve
+from ..measure.units import pressure_unit
+from .chart import pen_on, value_ticks
+from .phase_plot import CURVE, DOT, REGION_FILL, TRAIL
+from .text import GREY, dim, draw_text, line_height, text_width
+from .words import Words
+
+SAMPLES = 40  # frames averaged for the dot
+
+
+class MeasuredPhasePlot:
+    """The measured diagram of `curve` in the rectangle rect (x0, x1, row0, row1; rows from the top) at font size
+    `size`; record() each frame, label() draws it on an (H, W, 3) uint8 frame (PhasePlot's interface)."""
+
+    def __init__(self, curve: CoexistenceCurve, rect, size: int, material_names=(), dim=2, words: Words | None = None):
+        self.curve = curve
+        self.size = size
+        self.words = words or Words()
+        self.unit = pressure_unit(material_names, dim)
+        tc = curve.critical_temperature
+        self.t_lo, self.t_hi = 0.8 * min(curve.temperatures), 1.25 * tc
+        p_lo = float(curve.vapour_pressure(self.t_lo))
+        self.log_lo = math.floor(math.log10(p_lo))
+        self.log_hi = math.ceil(math.log10(4.0 * curve.critical_pressure))
+        self.samples: list[tuple[float, float]] = []  # (kT, pressure) of the last SAMPLES frames
+        self.trail: list[tuple[float, float]] = []
+        self.place(rect)
+
+    def min_width(self) -> int:
+        return 10 * self.size
+
+    def place(self, rect) -> None:
+        self.rect = rect
+        x0, x1, r0, r1 = rect
+        self.fits = x1 - x0 >= self.min_width() and r1 - r0 >= 5 * line_height(self.size)
+
+    def drawn_rect(self):
+        return self.rect
+
+    def record(self, stats) -> None:
+        """Add this frame's measured (kT, pressure) and move the dot to the mean of the last SAMPLES."""
+        pressure = next(
+            (p for p in (stats.lid_pressure, stats.wall_pressure, stats.pressure) if math.isfinite(p)), math.nan
+        )
+        kt = stats.motion_temperature
+        if not (math.isfinite(kt) and math.isfinite(pressure)):
+            return
+        self.samples.append((kt, pressure))
+        del self.samples[:-SAMPLES]
+        self.trail.append(self.dot())
+        del self.trail[:-TRAIL]
+
+    def dot(self) -> tuple[float, float]:
+        """(kT, pressure): the means of the recent samples."""
+        t, p = np.asarray(self.samples, float).T
+        return float(t.mean()), float(p.mean())
+
+    def error(self) -> tuple[float, float]:
+        """The standard errors of the dot's two means (0 with one sample)."""
+        if len(self.samples) < 2:
+            return 0.0, 0.0
+        t, p = np.asarray(self.samples, float).T
+        return float(t.std(ddof=1) / math.sqrt(len(t))), float(p.std(ddof=1) / math.sqrt(len(p)))
+
+    def adopt(self, other) -> None:
+        if isinstance(other, MeasuredPhasePlot):
+            self.samples, self.trail = list(other.samples), list(other.trail)
+
+    def dot_region(self) -> str | None:
+        """The region of the diagram the dot lies in ("gas", "liquid", "fluid"; None before the first record)."""
+        return self.curve.region(*self.trail[-1]) if self.trail else None
+
+    def to_pixels(self, box, temperature, pressure):
+        bx0, bx1, br0, br1 = box
+        t = (np.asarray(temperature, float) - self.t_lo) / (self.t_hi - self.t_lo)
+        logp = np.log10(np.maximum(np.asarray(pressure, float), 1e-300))
+        p = (logp - self.log_lo) / (self.log_hi - self.log_lo)
+        return np.clip(t, 0, 1) * (bx1 - bx0), (1.0 - np.clip(p, 0, 1)) * (br1 - br0)
+
+    def plot_box(self):
+        x0, x1, r0, r1 = self.rect
+        lh = line_height(self.size)
+        left = text_width(f"1e{self.log_lo}", self.size) + 8
+        return x0 + left, x1 - self.size, r0 + lh + 2, r1 - lh - 6
+
+    def label(self, img: np.ndarray) -> None:
+        """Draw the regions, the measured curve and points, the critical point, the trail and the dot with its bar."""
+        if not self.fits:
+            return
+        size, curve = self.size, self.curve
+        dim(img, self.rect, 0.3)
+        box = bx0, bx1, br0, br1 = self.plot_box()
+        tc = curve.critical_temperature
+        temps = np.linspace(self.t_lo, tc, 160)
+        xs, rows = self.to_pixels(box, temps, curve.vapour_pressure(temps))
+        cx, cr = self.to_pixels(box, tc, curve.critical_pressure)
+        with pen_on(img, box) as (pen, w, h):
+            line = list(zip(xs.tolist(), rows.tolist()))
+            pen.polygon([(0, h), *line, (float(cx), h)], fill=REGION_FILL["gas"])
+            pen.polygon([(0, 0), (float(cx), 0), *reversed(line)], fill=REGION_FILL["liquid"])
+            pen.line(line, fill=CURVE, width=2)
+            pen.ellipse([cx - 4, cr - 4, cx + 4, cr + 4], outline=CURVE, width=2)  # the critical point
+            px, pr = self.to_pixels(box, np.asarray(curve.temperatures), np.asarray(curve.pressures))
+            for x, r in zip(px.tolist(), pr.tolist()):
+                pen.rectangle([x - 2, r - 2, x + 2, r + 2], fill=(255, 255, 255))
+            pen.rectangle([0, 0, w, h], outline=(160, 160, 160))
+            if self.trail:
+                tx, tr = self.to_pixels(box, *np.asarray(self.trail, float).T)
+                if len(tx) > 1:
+                    pen.line(list(zip(tx.tolist(), tr.tolist())), fill=(255, 170, 150), width=1)
+                t, p = self.trail[-1]
+                dt, dp = self.error()
+                (x0, x1), (r_hi, r_lo) = (
+                    self.to_pixels(box, [t - dt, t + dt], p)[0],
+                    self.to_pixels(box, t, [max(p + dp, 1e-300), max(p - dp, 1e-300)])[1],
+                )
+                x, r = float(tx[-1]), float(tr[-1])
+                pen.line([(x, float(r_hi)), (x, float(r_lo))], fill=DOT, width=2)  # the uncertainty
+                pen.line([(float(x0), r), (float(x1), r)], fill=DOT, width=2)
+                radius = max(3, size // 3)
+                pen.ellipse([x - radius, r - radius, x + radius, r + radius], fill=DOT, outline=(255, 255, 255))
+        for name, (t, frac) in {"liquid": (self.t_lo, 0.08), "gas": (0.5 * (self.t_lo + tc), 0.8)}.items():
+            x = bx0 + int(self.to_pixels(box, t, 1.0)[0]) + 4
+            draw_text(img, self.words.phase(name), x, br0 + int(frac * (br1 - br0)), size, (220, 220, 220))
+        title = self.words.phase_title("atoms", self.unit)
+        if text_width(title, size) > self.rect[1] - self.rect[0] - 4:
+            title = self.words.phase_title("atoms", self.unit, short=True)
+        draw_text(img, title, self.rect[0] + 2, self.rect[2], size, DOT)
+        middle = (self.log_lo + self.log_hi) / 2
+        middle_text = f"1e{middle:g}" if middle == int(middle) else ""
+        value_ticks(img, box, (f"1e{self.log_hi}", middle_text, f"1e{self.log_lo}"), size)
+        for t in (min(curve.temperatures), tc):
+            text = f"{t:.2f}"
+            x = bx0 + int(self.to_pixels(box, t, 1.0)[0]) - text_width(text, size) // 2
+            draw_text(img, text, x, br1 + 3, size, GREY)
+        end = "kT"
+        draw_text(img, end, bx1 - text_width(end, size), br1 + 3, size, GREY)
