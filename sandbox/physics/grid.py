@@ -21,9 +21,12 @@ BOUND_SLACK = 1e-3  # cell widths a scan bound is widened by, against rounding i
 class CellGrid:
     """Neighbour grid over the box lo..hi for particles x (a Vector field), interaction radius `reach`."""
 
-    def __init__(self, x, n_active, lo, hi, reach: float, periodic: bool, capacity: int, loops):
-        """Grid for positions `x` (first n_active[None] entries) in the box lo..hi; cells at least `reach` wide.
-        `loops`: the LoopPolicy that decides which loops run in parallel."""
+    def __init__(
+        self, x, n_active, lo, hi, reach: float, periodic: bool, capacity: int, loops, cells_per_particle: int = 4
+    ):
+        """Grid for positions `x` (first n_active[None] entries) in the box lo..hi; cells at least `reach` wide, at
+        most `cells_per_particle` per particle slot (at least 65,536) in a box with walls. `loops`: the LoopPolicy
+        that decides which loops run in parallel."""
         self.loops = loops
         self.dim = len(lo)
         self.periodic = periodic
@@ -44,7 +47,7 @@ class CellGrid:
             counts = np.maximum(np.floor(extent * per_reach / reach).astype(int), 1)
         # Bound the cell count so a tiny radius in a huge domain cannot allocate gigabytes.
         # Python integers: the product of a huge domain's counts overflows int64 (and wrapped past this bound)
-        while math.prod(int(c) for c in counts) > max(4 * capacity, 1 << 16) and not periodic:
+        while math.prod(int(c) for c in counts) > max(cells_per_particle * capacity, 1 << 16) and not periodic:
             counts = np.maximum(counts // 2, 1)
         self.counts = tuple(int(c) for c in counts)
         self.cell_size = tuple(float(e / c) for e, c in zip(extent, counts))

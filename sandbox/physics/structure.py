@@ -23,6 +23,7 @@ import math
 import taichi as ti
 
 from ..core.oriented import data_oriented
+from .grid import CellGrid
 from .term import Measure, Term, register
 
 GAS, LIQUID, SOLID = 0, 1, 2
@@ -77,7 +78,6 @@ class Structure(Term):
         return parts.scene.molecular is not None
 
     def __init__(self, parts):
-        self.parts = parts  # its grid is built after the terms
         self.p = parts.state.particles
         self.dim = dim = parts.model.dim
         molecular = parts.scene.molecular
@@ -89,6 +89,11 @@ class Structure(Term):
         capacity = parts.model.capacity
         self.order = ti.Vector.field(self.width, float, shape=capacity)  # unit bond-order vector q_i
         self.count = ti.field(ti.i32, shape=capacity)  # neighbours within the phase radius
+        # a grid of its own, its cells the phase radius wide: the pair force's (cutoff plus skin wide) would offer
+        # each atom some 40 candidates per neighbour within the phase radius in 3D
+        world = parts.scene.world
+        self.grid = CellGrid(self.p.x, self.p.n, world.lo, world.hi, self.radius, world.periodic, capacity,
+                             parts.model.loops, cells_per_particle=16)  # fmt: skip
 
     def words(self, where: str) -> list[str]:
         if where != "after":
@@ -96,7 +101,8 @@ class Structure(Term):
         return [f"phases from structure: neighbours within {self.radius:g}, bond order q{6} ({self.dim}D)"]
 
     def nbytes(self) -> int:
-        return self.count.shape[0] * (4 + 8 * self.width)
+        grid = self.grid.n_cells * 8 + self.count.shape[0] * (12 + 8 * self.dim)  # cells; ids, slots, sorted x
+        return self.count.shape[0] * (4 + 8 * self.width) + grid
 
     def start(self, state) -> None:
         self.classify()
@@ -110,10 +116,9 @@ class Structure(Term):
     def classify(self) -> None:
         """Write each live atom's phase (0 gas, 1 liquid, 2 solid) to particles.kind from where its neighbours are
         now."""
-        grid = self.parts.neighbours.grid
-        grid.rebuild()
-        self._order(grid)
-        self._kind(grid)
+        self.grid.rebuild()
+        self._order(self.grid)
+        self._kind(self.grid)
 
     @ti.func
     def _harmonics(self, d, r):
