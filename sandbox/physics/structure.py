@@ -30,6 +30,7 @@ GAS, LIQUID, SOLID = 0, 1, 2
 ORDERED = {2: 0.9, 3: 0.6}  # q_i . q_j above which a bond is ordered, by dimension (calibrated: tests/test_molecular)
 DEFAULT_GAS_BELOW = {2: 3, 3: 3}
 DEFAULT_SOLID_BONDS = {2: 4, 3: 7}
+KEPT = 24  # neighbours within the phase radius kept per atom for the second pass (a dense liquid has about 14 in 3D)
 
 
 def _legendre6() -> list[tuple[float, list[float]]]:
@@ -89,6 +90,7 @@ class Structure(Term):
         capacity = parts.model.capacity
         self.order = ti.Vector.field(self.width, float, shape=capacity)  # unit bond-order vector q_i
         self.count = ti.field(ti.i32, shape=capacity)  # neighbours within the phase radius
+        self.near = ti.field(ti.i32, shape=(capacity, KEPT))  # the first KEPT of them, for the second pass
         # a grid of its own, its cells the phase radius wide: the pair force's (cutoff plus skin wide) would offer
         # each atom some 40 candidates per neighbour within the phase radius in 3D
         world = parts.scene.world
@@ -102,7 +104,7 @@ class Structure(Term):
 
     def nbytes(self) -> int:
         grid = self.grid.n_cells * 8 + self.count.shape[0] * (12 + 8 * self.dim)  # cells; ids, slots, sorted x
-        return self.count.shape[0] * (4 + 8 * self.width) + grid
+        return self.count.shape[0] * (4 + 8 * self.width + 4 * KEPT) + grid
 
     def start(self, state) -> None:
         self.classify()
@@ -150,18 +152,15 @@ class Structure(Term):
     @ti.func
     def _add_bond(self, acc, j, d, k, extra: ti.template()):
         r2 = d.dot(d)
-        if j != extra[0] and r2 < self.radius**2 and r2 > 0.0:
+        i = extra[0]
+        if j != i and r2 < self.radius**2 and r2 > 0.0:
             h = self._harmonics(d, ti.sqrt(r2))
             for a in ti.static(range(self.width)):
                 acc[a] += h[a]
+            kept = ti.cast(acc[self.width], ti.i32)
+            if kept < KEPT:
+                self.near[i, kept] = j
             acc[self.width] += 1.0
-        return acc
-
-    @ti.func
-    def _count_ordered(self, acc, j, d, k, extra: ti.template()):
-        r2 = d.dot(d)
-        if j != extra[0] and r2 < self.radius**2 and self.order[extra[0]].dot(self.order[j]) > self.ordered:
-            acc += 1
         return acc
 
     @ti.kernel
@@ -178,7 +177,10 @@ class Structure(Term):
         for i in range(self.p.n[None]):
             kind = GAS
             if self.count[i] >= self.gas_below:
-                bonds = grid.fold(self.p.x[i], 0, self._count_ordered, (i,))
+                bonds = 0
+                for k in range(ti.min(self.count[i], KEPT)):
+                    if self.order[i].dot(self.order[self.near[i, k]]) > self.ordered:
+                        bonds += 1
                 kind = SOLID if bonds >= self.solid_bonds else LIQUID
             self.p.kind[i] = kind
 
