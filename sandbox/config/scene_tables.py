@@ -258,6 +258,12 @@ class Molecular:
         "as solid (0: 4 in 2D, 7 in 3D)",
         check=at_least(0),
     )
+    phase_every: int = spec(
+        1,
+        doc="steps between classifications of the atoms' phases at most (1: whenever they are read after a step; "
+        "more: a large scene's window spends less on it, its phase readouts and colours up to this many steps old)",
+        check=between(1, 1000),
+    )
     walls: list[ThermalWall] = spec(doc="thermal walls: heaters and coolers that keep momentum", factory=list)
     lid: Lid | None = spec(
         None, doc="a lid across the box that moves up and down under a set outside pressure (a piston)"

@@ -77,6 +77,9 @@ class State:
         self.dt = dt  # the step size (changes with substeps = "auto" and the window's slider)
         self.layout = 0  # moves on whenever particles are added, removed or moved in storage
         self.passengers: tuple = ()  # per-particle fields others keep, moved with the particles
+        # what brings fields derived from the state up to date before they are read (the atoms' phases from their
+        # structure): called by refresh_derived(), from the measurements and the renderer
+        self.refreshers: list = []
         self.mover = Mover(particles, springs)
         self._entries: list[Entry] = []
         self.declare("clock", self, ("time", "step", "frames"), kind=VALUE, valid=COUNT)
@@ -192,6 +195,11 @@ class State:
         if count:
             self.mover.fill_holes(hole, filler, count, self.movable)
         self.particles_moved()
+
+    def refresh_derived(self) -> None:
+        """Bring the fields derived from the state up to date (each refresher does nothing when it is)."""
+        for refresh in self.refreshers:
+            refresh()
 
     def live_count(self) -> int:
         """The number of live particles (a host read)."""

@@ -84,6 +84,7 @@ class Diagnostics:
     def measure(self, pairs: bool = True) -> dict:
         """Every measure now, by name (and `n`: the particle count). `pairs` False skips the pair measures' scan and
         reports the last ones taken."""
+        self.state.refresh_derived()
         pairs = pairs or self._last_pairs is None
         if pairs and self.has_pairs and self.hood is not None:
             self.hood.grid.rebuild()

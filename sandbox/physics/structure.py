@@ -13,8 +13,9 @@ in a crystal). Then:
     solid   at least molecular.solid_bonds ordered bonds (default 4 in 2D, 7 in 3D)
     liquid  otherwise (dense, but its neighbours' orientations disagree)
 
-The class is written to the atoms' `kind` field (0 gas, 1 liquid, 2 solid) after each step call and on any restore,
-so the readouts count it and the renderer colours by it. The term also sums the atoms' momentum, from which the
+The class is written to the atoms' `kind` field (0 gas, 1 liquid, 2 solid) when it is read after the atoms moved:
+the measurements and the renderer ask for it (State.refresh_derived), so a frame split in two step calls (the
+window's motion blur) classifies once. The term also sums the atoms' momentum, from which the
 kinetic temperature (config/quantities.py) removes the centre-of-mass motion.
 """
 
@@ -94,6 +95,11 @@ class Structure(Term):
         # a grid of its own, its cells the phase radius wide: the pair force's (cutoff plus skin wide) would offer
         # each atom some 40 candidates per neighbour within the phase radius in 3D
         world = parts.scene.world
+        self.stale = True  # the atoms moved since the last classification
+        self.every = int(molecular.phase_every)  # ... and it is redone once they have taken this many steps
+        self.classified_at = -(1 << 30)  # the step of the last classification
+        self.state = parts.state
+        parts.state.refreshers.append(self.refresh)
         self.grid = CellGrid(self.p.x, self.p.n, world.lo, world.hi, self.radius, world.periodic, capacity,
                              parts.model.loops, cells_per_particle=16)  # fmt: skip
 
@@ -106,14 +112,20 @@ class Structure(Term):
         grid = self.grid.n_cells * 8 + self.count.shape[0] * (12 + 8 * self.dim)  # cells; ids, slots, sorted x
         return self.count.shape[0] * (4 + 8 * self.width + 4 * KEPT) + grid
 
-    def start(self, state) -> None:
-        self.classify()
-
     def after_steps(self, state) -> None:
-        self.classify()
+        self.stale = True
 
     def after_restore(self, state) -> None:
-        self.classify()
+        self.stale = True
+        self.classified_at = -(1 << 30)  # a restored state is classified when next read, whatever molecular.phase_every
+
+    def refresh(self) -> None:
+        """Classify the atoms if they moved since the last time, and at least molecular.phase_every steps ago
+        (State.refresh_derived)."""
+        step = self.state.step
+        if self.stale and step - self.classified_at >= self.every:
+            self.classify()
+            self.stale, self.classified_at = False, step
 
     def classify(self) -> None:
         """Write each live atom's phase (0 gas, 1 liquid, 2 solid) to particles.kind from where its neighbours are

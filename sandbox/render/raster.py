@@ -154,6 +154,7 @@ class Renderer:
 
     def render(self) -> None:
         """Draw the current state into the canvas."""
+        self.state.refresh_derived()  # the atoms' phases, when drawn by phase
         self.footprint.before_drawing()
         self.painter.draw()
         if self.dim == 2:  # one pass over the dirty tiles paints the backdrop, composites the layers, zeroes them
