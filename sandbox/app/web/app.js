@@ -271,7 +271,10 @@ function speak(text) {
 }
 
 function settingLabel(s) {
-  return (s.key.startsWith("source") ? t("s_source", { words: named("source", s.words) }) : t("s_" + s.key)) + (s.unit ? ` (${s.unit.replace(/^C$/, "°C").replace(/^deg$/, "°")})` : "");
+  const label = s.key.startsWith("source") ? t("s_source", { words: named("source", s.words) })
+    : s.key.startsWith("wall") ? t("s_wall", { words: named("wall", s.words.replace(/ temperature$/, "")) })
+    : t("s_" + s.key);
+  return label + (s.unit ? ` (${s.unit.replace(/^C$/, "°C").replace(/^deg$/, "°")})` : "");
 }
 
 function fillSettings(settings) {
