@@ -103,12 +103,12 @@ def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
         out += [measured(kind, f"structure_{kind}", sim, stats, 0) for kind in ("solid", "liquid", "gas")]
         if sim.terms.thermal_walls is not None:
             out.append(measured("wall_heat", "wall_heat", sim, stats, 1))
-        if sim.terms.lid is not None:
-            out.append(measured("lid_height", "lid_height", sim, stats, 1))
+        if sim.terms.lid is not None:  # (its height is a chart series: the panel fits 768 pixels)
             out.append(measured("lid_pressure", "lid_pressure", sim, stats, 4))
     out.append(measured("energy", "total_energy", sim, stats, 1))
-    out.append(measured("pressure", "pressure", sim, stats, 3))
-    if sim.model.domain.wall_area:
+    if sim.terms.structure is None or not sim.model.domain.wall_area:  # atoms in a box: the walls' gauge says it
+        out.append(measured("pressure", "pressure", sim, stats, 3))
+    if sim.model.domain.wall_area and sim.terms.lid is None:  # under a lid, the lid's gauge is the pressure
         out.append(measured("wall_pressure", "wall_pressure", sim, stats, 3))
     return out
 
