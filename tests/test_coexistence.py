@@ -100,7 +100,9 @@ def test_the_measured_phase_diagram_places_its_dot_at_the_measured_state_on_the_
     for t, p in zip(curve.temperatures, curve.pressures):
         assert float(curve.vapour_pressure(t)) == pytest.approx(p, rel=0.1)
     assert 0.85 < curve.critical_temperature < 1.0 and np.isnan(curve.vapour_pressure(1.2))
-    assert curve.region(0.7, 0.05) == "liquid" and curve.region(0.8, 0.01) == "gas" and curve.region(1.1, 0.1) == "fluid"
+    assert (
+        curve.region(0.7, 0.05) == "liquid" and curve.region(0.8, 0.01) == "gas" and curve.region(1.1, 0.1) == "fluid"
+    )
     plot = MeasuredPhasePlot(curve, (0, 600, 0, 200), 14)
     states = [(0.70 + 0.01 * k, 0.02 + 0.001 * k) for k in range(10)]
     for t, p in states:

@@ -109,8 +109,13 @@ def test_thermal_walls_bring_a_gas_to_their_temperature_and_the_energy_they_move
 
 
 def test_a_hot_floor_and_a_cold_lid_carry_heat_through_the_atoms_and_are_set_live():
-    walls = [{"name": "floor", "side": "bottom", "temperature": 1.5}, {"name": "lid", "side": "top", "temperature": 0.1}]
-    sim = atoms(2, 16.0, (0.6, 0.6), (15.4, 15.4), 1.12, 0.6, periodic=False, molecular={"walls": walls})  # fills the box
+    walls = [
+        {"name": "floor", "side": "bottom", "temperature": 1.5},
+        {"name": "lid", "side": "top", "temperature": 0.1},
+    ]
+    sim = atoms(
+        2, 16.0, (0.6, 0.6), (15.4, 15.4), 1.12, 0.6, periodic=False, molecular={"walls": walls}
+    )  # fills the box
     sim.step(6000)
     floor0, lid0 = sim.terms.thermal_walls.energy_moved()
     sim.step(6000)

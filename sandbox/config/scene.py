@@ -20,10 +20,10 @@ from .budget import check_size
 from .materials import ASSETS_DIR, resolve_materials
 from .resources import read_small_text
 from .scene_tables import (
+    WALL_SIDES,
     Body,
     Emitter,
     FieldElement,
-    WALL_SIDES,
     HeatSource,
     Render,
     Scene,
@@ -214,18 +214,24 @@ def _check_molecular(file: str, raw) -> None:
         )
     if molecular.phase_radius > raw.pair.cutoff:
         raise SceneError(
-            file, "molecular.phase_radius", f"expected at most the pair cutoff {raw.pair.cutoff:g} (its neighbour reach)"
+            file,
+            "molecular.phase_radius",
+            f"expected at most the pair cutoff {raw.pair.cutoff:g} (its neighbour reach)",
         )
     lid = molecular.lid
     if lid is not None:
         lo, hi = raw.world.lo[1], raw.world.hi[1]
         if raw.world.periodic:
-            raise SceneError(file, "molecular.lid", "a periodic box has no top for a lid; expected world.periodic = false")
+            raise SceneError(
+                file, "molecular.lid", "a periodic box has no top for a lid; expected world.periodic = false"
+            )
         if not lo < lid.height <= hi:
             raise SceneError(file, "molecular.lid.height", f"expected a height in ({lo:g}, {hi:g}], got {lid.height:g}")
         for i, body in enumerate(raw.bodies):
             if body.shape == "box" and body.hi[1] > lid.height:
-                raise SceneError(file, f"bodies[{i}]", f"the body reaches above the lid (at {lid.height:g}); expected it below")
+                raise SceneError(
+                    file, f"bodies[{i}]", f"the body reaches above the lid (at {lid.height:g}); expected it below"
+                )
         if any(w.side == "top" for w in molecular.walls):
             raise SceneError(file, "molecular.lid", "the top wall is a thermal wall; expected the lid or the wall")
     seen = set()

@@ -223,8 +223,9 @@ WALL_SIDES = {"left": (0, -1), "right": (0, 1), "bottom": (1, -1), "top": (1, 1)
 @dataclass(frozen=True, kw_only=True)
 class ThermalWall:
     name: str = spec("heater", doc="label of the wall's temperature slider and readout")
-    side: str = spec(doc="which wall of the box: left, right, bottom, top (and back, front in 3D)",
-                     check=one_of(*WALL_SIDES))
+    side: str = spec(
+        doc="which wall of the box: left, right, bottom, top (and back, front in 3D)", check=one_of(*WALL_SIDES)
+    )
     temperature: float = spec(
         doc="the wall's temperature as kT (energy units: eps in reduced units); an atom that hits it leaves with a "
         "velocity drawn from the Maxwell distribution at this temperature",
@@ -235,8 +236,8 @@ class ThermalWall:
 @dataclass(frozen=True, kw_only=True)
 class Lid:
     pressure: float = spec(
-        doc="the pressure that weighs on the lid from outside (energy per length^dim: eps / sigma^2 in 2D, eps / sigma^3 "
-        "in 3D): the atoms below must push it up with as much",
+        doc="the pressure that weighs on the lid from outside (energy per length^dim: eps / sigma^2 in 2D, "
+        "eps / sigma^3 in 3D): the atoms below must push it up with as much",
         check=non_negative,
     )
     mass: float = spec(100.0, doc="the lid's mass (in atoms' masses): heavier, slower to follow", check=positive)
@@ -246,12 +247,11 @@ class Lid:
 @dataclass(frozen=True, kw_only=True)
 class Molecular:
     phase_radius: float = spec(
-        1.5, doc="neighbours nearer than this (length) count toward an atom's coordination and bond order",
+        1.5,
+        doc="neighbours nearer than this (length) count toward an atom's coordination and bond order",
         check=positive,
     )
-    gas_below: int = spec(
-        0, doc="an atom with fewer neighbours than this is counted as gas (0: 3)", check=at_least(0)
-    )
+    gas_below: int = spec(0, doc="an atom with fewer neighbours than this is counted as gas (0: 3)", check=at_least(0))
     solid_bonds: int = spec(
         0,
         doc="an atom with at least this many ordered bonds (neighbours whose bond order matches its own) is counted "

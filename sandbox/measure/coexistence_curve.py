@@ -41,7 +41,7 @@ class CoexistenceCurve:
         return np.where(t <= self.critical_temperature, p, np.nan)
 
     def region(self, temperature: float, pressure: float) -> str:
-        """"gas" below the curve, "liquid" above it, "fluid" above the critical temperature."""
+        """ "gas" below the curve, "liquid" above it, "fluid" above the critical temperature."""
         if temperature > self.critical_temperature:
             return "fluid"
         return "gas" if pressure < float(self.vapour_pressure(temperature)) else "liquid"
@@ -58,7 +58,13 @@ def load_curve(rows: list[dict], dim: int) -> CoexistenceCurve:
     s, c = np.polyfit(t, (rl - rv) ** (1.0 / BETA[dim]), 1)
     tc = -c / s
     return CoexistenceCurve(
-        tuple(t), tuple(p), tuple(err), float(intercept), float(-slope), float(tc), float(math.exp(intercept + slope / tc))
+        tuple(t),
+        tuple(p),
+        tuple(err),
+        float(intercept),
+        float(-slope),
+        float(tc),
+        float(math.exp(intercept + slope / tc)),
     )
 
 

@@ -207,4 +207,13 @@ class Structure(Term):
             z = mv[2]
         ke = 0.5 * mv.dot(self.p.v[i])
         gas = kind == GAS
-        return int(kind == SOLID), int(kind == LIQUID), int(gas), mv[0], mv[1], z, ti.select(gas, 0.0, ke), ti.select(gas, ke, 0.0)
+        return (
+            int(kind == SOLID),
+            int(kind == LIQUID),
+            int(gas),
+            mv[0],
+            mv[1],
+            z,
+            ti.select(gas, 0.0, ke),
+            ti.select(gas, ke, 0.0),
+        )

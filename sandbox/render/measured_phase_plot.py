@@ -2,8 +2,9 @@
 with the state as a dot at the measured kinetic temperature and pressure, and the dot's uncertainty as a bar.
 
 Nothing places the dot by rule: its temperature is `motion_temperature`, its pressure the lid's gauge (the momentum
-the atoms give the lid), else the walls' gauge, else the virial pressure, each the mean of the last SAMPLES frames, the bar the standard error of that mean. The curve's
-measured points are drawn as small marks on the fitted line, which ends at the fitted critical point (a ring)."""
+the atoms give the lid), else the walls' gauge, else the virial pressure, each the mean of the last SAMPLES frames,
+the bar the standard error of that mean. The curve's measured points are drawn as small marks on the fitted line,
+which ends at the fitted critical point (a ring)."""
 
 from __future__ import annotations
 

@@ -18,17 +18,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..config.quantities import PHASE_DIAGRAM
-from ..measure.coexistence_curve import curve_of
 from ..core import transfer
 from ..core.taichi_compat import field_info
+from ..measure.coexistence_curve import curve_of
 from ..measure.phase_map import phase_map_of
 from .canvas import Canvas
 from .chart import Chart, CurvePlot
 from .flat import Flat2D
 from .footprint import Footprint
 from .look import Look
-from .phase_plot import PhasePlot
 from .measured_phase_plot import MeasuredPhasePlot
+from .phase_plot import PhasePlot
 from .plan import plan_picture
 from .spheres import Spheres3D
 from .words import Words

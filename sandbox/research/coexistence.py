@@ -130,7 +130,11 @@ class Rescaler:
         c = math.exp(-elapsed / self.tau)
         r1 = self.rng.normal()
         chi = self.rng.chisquare(self.dof - 1)
-        new = ke * c + target / self.dof * (1 - c) * (r1 * r1 + chi) + 2 * r1 * math.sqrt(c * (1 - c) * ke * target / self.dof)
+        new = (
+            ke * c
+            + target / self.dof * (1 - c) * (r1 * r1 + chi)
+            + 2 * r1 * math.sqrt(c * (1 - c) * ke * target / self.dof)
+        )
         full[:n] = drift + (v - drift) * math.sqrt(max(new, 0.0) / ke)
         field.from_numpy(full)
 
@@ -336,7 +340,8 @@ def report(points: list[SlabPoint], dim: int = 3) -> str:
         lines.append(
             f"| {p.temperature:.3f} ± {p.temperature_err:.3f} | {p.rho_liquid:.4f} ± {p.rho_liquid_err:.4f} "
             f"| {p.rho_vapour:.5f} ± {p.rho_vapour_err:.5f} | {p.p_sat:.5f} ± {p.p_sat_err:.5f} "
-            f"| {nist if nist else '-'} | {ratio} | {p.p_zz:.4f} ± {p.p_zz_err:.4f} | {p.dh_vap:.3f} ± {p.dh_vap_err:.3f} "
+            f"| {nist if nist else '-'} | {ratio} | {p.p_zz:.4f} ± {p.p_zz_err:.4f} "
+            f"| {p.dh_vap:.3f} ± {p.dh_vap_err:.3f} "
             f"| {p.temperature * ARGON['epsilon_over_k']:.1f} | {argon_pressure_kpa(p.p_sat):.0f} |"
         )
     tc, rho_c = critical_point(points, 3)
