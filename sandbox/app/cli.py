@@ -15,7 +15,6 @@ from ..config.arguments import (
     MAX_SIDE,
     check_count,
     check_folder_output,
-    check_names,
     check_pool_arguments,
     pool_arguments,
 )
@@ -29,25 +28,24 @@ from ..config.scene_tables import (
     Heat,
     HeatSource,
     Lesson,
+    Lid,
+    Molecular,
     PairForce,
     Render,
     SceneInfo,
     Smoke,
     SmokeSource,
+    ThermalWall,
     World,
 )
 from ..config.schema import describe, unknown
 from ..core import runtime
 from ..errors import OutputError, SandboxError, SimulationError
 from ..render.video import check_output
-from ..research.coexistence import parse_temperatures, run_coexistence
-from ..research.phase_study import run_phase_study
-from ..research.study import INTEGRATORS, PROBLEMS, run_study
 from ..simulation import Simulation
 from .cli_bench import cmd_bench
 from .cli_common import (
     EXIT_BAD_INPUT,
-    EXIT_INTERRUPTED,
     EXIT_STOPPED,
     EXIT_WRITE_FAILED,
     _load,
@@ -55,6 +53,7 @@ from .cli_common import (
     stability_warnings,
 )
 from .cli_run import cmd_run
+from .cli_study import study_arguments
 from .signals import Stopper, exit_code
 from .sweep import METRICS, check_keys, parse_vary, plan_runs, plot_sweep, run_sweep
 
@@ -116,6 +115,9 @@ def cmd_list(args) -> int:
     return 0
 
 
+LISTED_APART = {("heat", "sources"), ("smoke", "sources"), ("molecular", "walls"), ("molecular", "lid")}
+
+
 def cmd_keys(args) -> int:
     sections = [
         ("scene", SceneInfo),
@@ -124,6 +126,9 @@ def cmd_keys(args) -> int:
         ("pair", PairForce),
         ("heat", Heat),
         ("heat.sources[]", HeatSource),
+        ("molecular", Molecular),
+        ("molecular.walls[]", ThermalWall),
+        ("molecular.lid", Lid),
         ("bodies[]", Body),
         ("emitters[]", Emitter),
         ("fields[]", FieldElement),
@@ -135,49 +140,9 @@ def cmd_keys(args) -> int:
     for prefix, cls in sections:
         print(f"[{prefix}]")
         for key, default, doc in describe(cls):
-            if prefix in ("heat", "smoke") and key.startswith("sources"):  # listed in their own section
+            if (prefix, key.split(".")[0].split("[")[0]) in LISTED_APART:  # listed in their own section
                 continue
             print(f"  {key:22s} {default:24s} {doc}")
-    return 0
-
-
-def cmd_study(args) -> int:
-    check_pool_arguments(args)
-    integrators = check_names("--integrators", args.integrators, INTEGRATORS)
-    problems = check_names("--problems", args.problems, PROBLEMS)
-    out = check_folder_output("--out", args.out)
-    if args.coexistence:
-        temperatures = parse_temperatures(args.temperatures, args.dim)
-        run_coexistence(
-            out, temperatures, quick=args.quick, log=lambda line: print(line, file=sys.stderr), dim=args.dim
-        )
-        print(f"wrote {out}/coexistence.md and coexistence.csv")
-        return 0
-    if args.phase:
-        run_phase_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
-        print(
-            f"wrote {out}/phase.md, stefan.csv, heating_curve.csv"
-            + (" and plots" if (out / "stefan.png").exists() else "")
-        )
-        return 0
-    try:
-        run_study(
-            out,
-            quick=args.quick,
-            integrators=integrators,
-            problems_to_run=problems,
-            scheduler=args.scheduler,
-            workers=args.workers,
-            threads=args.threads,
-            log=lambda line: print(line, file=sys.stderr),
-        )
-    except KeyboardInterrupt:
-        print("interrupted: the study writes its files only when every task is done", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    print(
-        f"wrote {out}/report.md, runs.csv, stability.csv, stiff.csv"
-        + ("" if not list(out.glob("*.png")) else " and plots")
-    )
     return 0
 
 
@@ -237,7 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
     _check_arguments(sub)
     sub.add_parser("list", help="list shipped scenes and materials").set_defaults(func=cmd_list)
     sub.add_parser("keys", help="reference of every scene key").set_defaults(func=cmd_keys)
-    _study_arguments(sub)
+    study_arguments(sub)
     _sweep_arguments(sub)
     _bench_arguments(sub)
     _serve_arguments(sub)
@@ -309,33 +274,6 @@ def _check_arguments(sub) -> None:
     check = sub.add_parser("check", help="validate a scene and print the pipeline it will run")
     scene_args(check)
     check.set_defaults(func=cmd_check)
-
-
-def _study_arguments(sub) -> None:
-    """`sandbox study`'s arguments."""
-    study = sub.add_parser("study", help="integrators: error against run time, convergence orders, stability")
-    study.add_argument("--out", required=True, help="folder for runs.csv, report.md and plots")
-    study.add_argument("--quick", action="store_true", help="reduced ladders (under a minute)")
-    study.add_argument(
-        "--phase", action="store_true", help="instead: phase change (Stefan problem, heating curve) validation"
-    )
-    study.add_argument(
-        "--coexistence",
-        action="store_true",
-        help="instead: liquid-vapour coexistence of the molecular model (3D slabs) beside NIST's Lennard-Jones tables",
-    )
-    study.add_argument(
-        "--temperatures",
-        help="with --coexistence: comma-separated reduced temperatures (default 0.7,0.75,0.8,0.85 in 3D, "
-        "0.3,0.33,0.36,0.39 in 2D)",
-    )
-    study.add_argument(
-        "--dim", type=int, choices=(2, 3), default=3, help="with --coexistence: slabs in 2 or 3 dimensions (default 3)"
-    )
-    study.add_argument("--integrators", help="comma-separated integrators to study (default: all)")
-    study.add_argument("--problems", help="comma-separated problems to run (default: all)")
-    pool_arguments(study, "task")
-    study.set_defaults(func=cmd_study)
 
 
 def _sweep_arguments(sub) -> None:

@@ -1,0 +1,78 @@
+"""`sandbox study`: the integrator study, the phase-change validation and the molecular model's coexistence study."""
+
+from __future__ import annotations
+
+import sys
+
+from ..config.arguments import check_folder_output, check_names, check_pool_arguments, pool_arguments
+from ..research.coexistence import parse_temperatures, run_coexistence
+from ..research.phase_study import run_phase_study
+from ..research.study import INTEGRATORS, PROBLEMS, run_study
+from .cli_common import EXIT_INTERRUPTED
+
+
+def cmd_study(args) -> int:
+    check_pool_arguments(args)
+    integrators = check_names("--integrators", args.integrators, INTEGRATORS)
+    problems = check_names("--problems", args.problems, PROBLEMS)
+    out = check_folder_output("--out", args.out)
+    if args.coexistence:
+        temperatures = parse_temperatures(args.temperatures, args.dim)
+        run_coexistence(
+            out, temperatures, quick=args.quick, log=lambda line: print(line, file=sys.stderr), dim=args.dim
+        )
+        print(f"wrote {out}/coexistence.md and coexistence.csv")
+        return 0
+    if args.phase:
+        run_phase_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+        print(
+            f"wrote {out}/phase.md, stefan.csv, heating_curve.csv"
+            + (" and plots" if (out / "stefan.png").exists() else "")
+        )
+        return 0
+    try:
+        run_study(
+            out,
+            quick=args.quick,
+            integrators=integrators,
+            problems_to_run=problems,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            threads=args.threads,
+            log=lambda line: print(line, file=sys.stderr),
+        )
+    except KeyboardInterrupt:
+        print("interrupted: the study writes its files only when every task is done", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    print(
+        f"wrote {out}/report.md, runs.csv, stability.csv, stiff.csv"
+        + ("" if not list(out.glob("*.png")) else " and plots")
+    )
+    return 0
+
+
+def study_arguments(sub) -> None:
+    """`sandbox study`'s arguments."""
+    study = sub.add_parser("study", help="integrators: error against run time, convergence orders, stability")
+    study.add_argument("--out", required=True, help="folder for runs.csv, report.md and plots")
+    study.add_argument("--quick", action="store_true", help="reduced ladders (under a minute)")
+    study.add_argument(
+        "--phase", action="store_true", help="instead: phase change (Stefan problem, heating curve) validation"
+    )
+    study.add_argument(
+        "--coexistence",
+        action="store_true",
+        help="instead: liquid-vapour coexistence of the molecular model (3D slabs) beside NIST's Lennard-Jones tables",
+    )
+    study.add_argument(
+        "--temperatures",
+        help="with --coexistence: comma-separated reduced temperatures (default 0.7,0.75,0.8,0.85 in 3D, "
+        "0.3,0.33,0.36,0.39 in 2D)",
+    )
+    study.add_argument(
+        "--dim", type=int, choices=(2, 3), default=3, help="with --coexistence: slabs in 2 or 3 dimensions (default 3)"
+    )
+    study.add_argument("--integrators", help="comma-separated integrators to study (default: all)")
+    study.add_argument("--problems", help="comma-separated problems to run (default: all)")
+    pool_arguments(study, "task")
+    study.set_defaults(func=cmd_study)
