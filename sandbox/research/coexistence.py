@@ -34,6 +34,7 @@ import numpy as np
 from ..config.scene import scene_from_dict
 from ..errors import SandboxError
 from ..simulation import Simulation
+from .figures import pyplot, save
 from .study_runs import STUDY_PATH
 
 CUTOFF = 2.5
@@ -284,7 +285,36 @@ def run_coexistence(
         for p in points:
             writer.writerow(asdict(p))
     (out / "coexistence.md").write_text(report(points, dim))
+    plot(out / "coexistence.png", points, dim)
     return points
+
+
+def plot(path: Path, points: list[SlabPoint], dim: int = 3) -> None:
+    """Two panels: the coexisting densities against temperature (with the fitted critical point), and the
+    saturation pressure against 1 / T on a log axis beside NIST's (3D); nothing where matplotlib is missing."""
+    plt = pyplot()
+    if plt is None:
+        return
+    t = np.array([p.temperature for p in points])
+    fig, (left, right) = plt.subplots(1, 2, figsize=(9, 3.6), layout="constrained")
+    for values, errors, label in (
+        ([p.rho_liquid for p in points], [p.rho_liquid_err for p in points], "liquid"),
+        ([p.rho_vapour for p in points], [p.rho_vapour_err for p in points], "vapour"),
+    ):
+        left.errorbar(values, t, xerr=errors, fmt="o", label=label)
+    tc, rho_c = critical_point(points, dim)
+    if math.isfinite(tc):
+        left.plot([rho_c], [tc], "k*", label=f"critical point (fit), T* = {tc:.3f}")
+    left.set(xlabel="density (reduced)", ylabel="temperature T* (reduced)", title="Coexisting densities")
+    left.legend(fontsize=8)
+    right.errorbar(1 / t, [p.p_sat for p in points], yerr=[p.p_sat_err for p in points], fmt="o", label="measured")
+    if dim == 3:
+        nist_t = np.array(sorted(NIST_LFS_PSAT))
+        right.plot(1 / nist_t, [NIST_LFS_PSAT[k] for k in nist_t], "k+", markersize=10, label="NIST (TMMC, same cut)")
+    right.set_yscale("log")
+    right.set(xlabel="1 / T*", ylabel="saturation pressure (reduced)", title="Vapour pressure")
+    right.legend(fontsize=8)
+    save(fig, path)
 
 
 BETA = {3: 0.325, 2: 0.125}  # the Ising critical exponent of rho_l - rho_v, by dimension
