@@ -304,3 +304,25 @@ def test_a_drop_cools_as_its_fastest_atoms_evaporate_while_the_total_energy_is_k
     assert drop[-5:].mean() < 0.92 * drop[:5].mean()  # evaporative cooling, measured
     assert vapour.mean() > drop.mean()
     assert gas[-5:].mean() > gas[:5].mean()
+
+
+@pytest.mark.parametrize("pressure, boils", [(0.015, True), (0.045, False)])
+def test_a_heavier_lid_raises_the_boiling_point_along_the_measured_curve(pressure, boils):
+    """A pressure cooker: 384 atoms of liquid in a box of thermal walls at kT 0.79 under a lid. The measured curve
+    (assets/coexistence_lj_lfs25.csv) boils the liquid at 0.724 under a lid pressure of 0.015 and at 0.849 under
+    0.045: at 0.79 the light lid is pushed up by the vapour the liquid makes (it boils away), the heavy one stays on
+    the liquid."""
+    from sandbox.measure.coexistence_curve import curve_of
+
+    walls = [{"name": s, "side": s, "temperature": 0.79} for s in ("bottom", "left", "right", "back", "front")]
+    molecular = {"walls": walls, "lid": {"pressure": pressure, "mass": 20.0, "height": 9.0}}
+    sim = atoms(3, 9.0, (0, 0.6, 0), (9, 7.5, 9), 1.10, 0.89, lattice="cubic", periodic=False, molecular=molecular,
+                box=(9.0, 90.0, 9.0))  # fmt: skip
+    curve = curve_of(sim.model)
+    boiling_point = curve.b / (curve.a - np.log(pressure))  # where the fitted ln p = a - b / T reaches the pressure
+    assert (boiling_point < 0.79) == boils
+    sim.step(36000)
+    if boils:
+        assert sim.stats().lid_height > 35.0  # the light lid rose: the liquid is boiling away
+    else:
+        assert sim.stats().lid_height < 26.0  # the heavy lid stayed on the liquid (which started 7 sigma deep)
