@@ -225,6 +225,8 @@ def test_the_atoms_scene_offers_its_floor_temperature_as_a_setting_and_its_phase
     rows = {r.key: r for r in readouts(control.sim, control.sim.stats())}
     assert {"motion", "solid", "liquid", "gas", "wall_heat"} <= set(rows)
     assert rows["solid"].value > 90  # it starts as a crystal, measured so
+    said = control.summary(control.sim.stats())  # the screen reader's sentence: the measured shares and kT
+    assert said["key"] == "summary_atoms" and said["solid"] > 90 and said["solid"] + said["molten"] + said["gas"] >= 99
 
 
 def test_a_lid_under_an_outside_pressure_finds_the_height_of_the_ideal_gas_law(pressure=0.06):

@@ -267,7 +267,8 @@ class Controller:
 
     def summary(self, stats) -> dict:
         """What the scene is doing, for a screen reader (panel.summary), with its temperature's trend."""
-        previous = self.trend.add(self.sim.time, stats.mean_temperature)
+        molecular = self.sim.terms.structure is not None  # the atoms' temperature is their motion's
+        previous = self.trend.add(self.sim.time, stats.motion_temperature if molecular else stats.mean_temperature)
         return panel.summary(self.sim, stats, previous)
 
     # ------------------------------------------------------------------ state files

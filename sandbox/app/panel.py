@@ -115,7 +115,17 @@ def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
 
 def summary(sim, stats, previous: float | None) -> dict:
     """What the scene is doing, for a screen reader: {"key": sentence key, values...}; e.g. ("the block is 40%
-    molten, mean temperature 58 C, rising"). `previous`: the mean temperature a few seconds ago (None: unknown)."""
+    molten, mean temperature 58 C, rising"). `previous`: the mean temperature a few seconds ago (None: unknown; the
+    kinetic temperature kT in the molecular model)."""
+    if sim.terms.structure is not None and math.isfinite(stats.motion_temperature):  # atoms: phases by structure
+        return {
+            "key": "summary_atoms",
+            "solid": round(100 * stats.structure_solid),
+            "molten": round(100 * stats.structure_liquid),  # (the page speaks again when a share moves by a quarter)
+            "gas": round(100 * stats.structure_gas),
+            "temperature": round(stats.motion_temperature, 3),
+            "trend": trend_word(stats.motion_temperature, previous, 0.01),
+        }
     if sim.terms.heat is None or not math.isfinite(stats.mean_temperature):
         return {"key": "summary_motion", "particles": stats.particles, "speed": round(stats.max_speed, 2)}
     trend = trend_word(stats.mean_temperature, previous)
@@ -129,12 +139,13 @@ def summary(sim, stats, previous: float | None) -> dict:
     }
 
 
-def trend_word(now: float, previous: float | None) -> str:
-    """ "rising", "falling" or "steady": `now` (degrees) against `previous`, the value a trend window ago."""
+def trend_word(now: float, previous: float | None, step: float = 0.5) -> str:
+    """ "rising", "falling" or "steady": `now` against `previous`, the value a trend window ago, by more than `step`
+    (degrees; a hundredth of the well depth for the atoms' kT)."""
     if previous is None or not math.isfinite(previous) or not math.isfinite(now):
         return "steady"
     change = now - previous
-    return "rising" if change > 0.5 else "falling" if change < -0.5 else "steady"
+    return "rising" if change > step else "falling" if change < -step else "steady"
 
 
 class Trend:
