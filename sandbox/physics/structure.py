@@ -132,7 +132,7 @@ class Structure(Term):
         now."""
         self.grid.rebuild()
         self._order(self.grid)
-        self._kind(self.grid)
+        self._kind()
 
     @ti.func
     def _harmonics(self, d, r):
@@ -185,7 +185,7 @@ class Structure(Term):
             self.count[i] = ti.cast(acc[self.width], ti.i32)
 
     @ti.kernel
-    def _kind(self, grid: ti.template()):
+    def _kind(self):
         for i in range(self.p.n[None]):
             kind = GAS
             if self.count[i] >= self.gas_below:
