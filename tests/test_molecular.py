@@ -328,3 +328,24 @@ def test_a_heavier_lid_raises_the_boiling_point_along_the_measured_curve(pressur
         assert sim.stats().lid_height > 35.0  # the light lid rose: the liquid is boiling away
     else:
         assert sim.stats().lid_height < 26.0  # the heavy lid stayed on the liquid (which started 7 sigma deep)
+
+
+def test_the_lid_is_drawn_at_its_height_in_3d():
+    """The pressure cooker's picture shows the lid's outline (a light grey line) where the lid is, and moves it with
+    the lid: raised by 10 sigma, the outline's rows move up the picture."""
+    from sandbox.app.controller import open_scene
+    from sandbox.render.raster import Renderer
+
+    sim = open_scene("pressure_cooker", "cpu")
+    renderer = Renderer(sim.model, sim.state, 640, 360, sim.scene.render, output="picture")
+
+    def outline_rows():
+        renderer.render()
+        picture = renderer.frame()
+        lid = np.all(np.abs(picture.astype(int) - [217, 217, 230]) <= 2, axis=2)  # the outline's colour
+        return np.flatnonzero(lid.any(axis=1))
+
+    low = outline_rows()
+    sim.terms.lid.height.from_numpy(np.array(22.0, dtype=np.float32))
+    high = outline_rows()
+    assert len(low) and len(high) and high.mean() < low.mean() - 5  # picture rows count down from the top

@@ -57,6 +57,10 @@ class Spheres3D:
         table = source_table(cfg, sources, [[s.lo[0], s.lo[2]] for s in sources], [[s.hi[0], s.hi[2]] for s in sources])
         (self.src_lo, _), (self.src_hi, _), (self.src_t, _) = table
         transfer.upload(table)
+        # the molecular model's lid (physics/lid.py): its outline drawn at its height, in front of what lies behind it
+        lid = {e.name: e for e in state.entries()}.get("lid.height")
+        self.lid_height = lid.owner.height if lid is not None else None
+        self.has_lid = lid is not None
         if canvas.has_alpha:
             self.order = ti.field(ti.i32, shape=model.capacity)  # translucent particles, back to front
             self.n_order = ti.field(ti.i32, shape=())
@@ -149,10 +153,37 @@ class Spheres3D:
                                     self.look.t_hi[None] - self.look.t_lo[None]
                                 )
                                 c = c * 0.6 + 0.3 * (temperature_map(ti.math.clamp(t, 0.0, 1.0)))
+            depth = 2147483647
+            if ti.static(self.has_lid):
+                c, depth = self._lid(x, y, c, depth)
             canvas.image[x, y] = c
-            canvas.depth[x, y] = 2147483647
+            canvas.depth[x, y] = depth
             if ti.static(canvas.has_additive):
                 canvas.light[x, y] = ti.Vector([0.0, 0.0, 0.0])
+
+    @ti.func
+    def _lid(self, x, y, c, depth):
+        """Pixel (x, y) of the lid at its height: a faint tint over the box's cross-section and its outline, which
+        keeps the depth of the lid (an atom behind the lid's edge is hidden by it, one in front draws over it)."""
+        ray = (
+            self.camera[3] * self.focal_field[None]
+            + self.camera[1] * (x + 0.5 - self.cx)
+            + self.camera[2] * (y + 0.5 - self.cy)
+        ).normalized()
+        height = ti.cast(self.lid_height[None], ti.f32)
+        if ti.abs(ray[1]) > 1e-6:
+            s = (height - self.camera[0][1]) / ray[1]
+            if s > 0.0:
+                hit = self.camera[0] + s * ray
+                u = ti.Vector([hit[0], hit[2]])
+                if (u >= self.floor_lo).all() and (u <= self.floor_hi).all():
+                    edge = ti.min((u - self.floor_lo).min(), (self.floor_hi - u).min())
+                    pixel_size = s / self.focal_field[None]
+                    c = c * 0.85 + 0.1
+                    if edge < 1.5 * pixel_size:
+                        c = ti.Vector([0.85, 0.85, 0.9])
+                        depth = ti.bit_cast(s * ray.dot(self.camera[3]), ti.i32)
+        return c, depth
 
     @ti.func
     def _sphere_disc(self, i, z):
