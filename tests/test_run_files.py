@@ -196,3 +196,22 @@ def test_partial_names_are_the_runs_own():
     assert name.startswith(".m.mp4.") and name.endswith(".partial.mp4") and RUN_TOKEN in name
     assert str(os.getpid()) in RUN_TOKEN
     assert np.unique([partial_name(Path("a.csv"), f"seg{k}").name for k in range(3)]).size == 3
+
+
+def test_a_signal_whose_exception_is_lost_still_stops_the_run_at_the_next_frame():
+    """A signal's exception raised while Python runs a finalizer or a callback is printed and dropped; the stopper
+    keeps the signal, and the next frame's held() block stops the run with it (a serial sweep once ran on for
+    minutes after a SIGTERM that came at such a moment)."""
+    import signal as signals
+
+    from sandbox.app.signals import Signalled, Stopper
+
+    with Stopper() as stopper:
+        try:
+            signals.raise_signal(signals.SIGTERM)
+        except KeyboardInterrupt:
+            pass  # lost, as in a finalizer
+        with pytest.raises(Signalled) as stopped:
+            with stopper.held():
+                pass  # the next frame's outputs
+    assert stopped.value.signum == signals.SIGTERM

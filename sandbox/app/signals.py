@@ -26,7 +26,7 @@ class Stopper:
     def __init__(self) -> None:
         self._previous: dict[int, object] = {}
         self._holding = False
-        self.pending: int | None = None  # a signal that came while held
+        self.pending: int | None = None  # the signal that came (while held, or raised and maybe lost)
 
     def __enter__(self) -> Stopper:
         if threading.current_thread() is threading.main_thread():
@@ -42,9 +42,10 @@ class Stopper:
         self._previous.clear()
 
     def _handle(self, signum, _frame) -> None:
-        if self._holding:
-            self.pending = signum
-        else:
+        # kept whether or not the exception below gets through: one raised while Python runs a finalizer or a
+        # callback is printed and dropped, and the next held() block then stops the run all the same
+        self.pending = signum
+        if not self._holding:
             raise Signalled(signum)
 
     @contextmanager
