@@ -33,6 +33,12 @@ class CoexistenceCurve:
     b: float
     critical_temperature: float
     critical_pressure: float
+    critical_density: float  # from the law of rectilinear diameters
+
+    def boiling_temperature(self, pressure: float) -> float:
+        """The temperature at which the fitted line ln p = a - b / T reaches `pressure` (an extrapolation outside
+        the measured points)."""
+        return self.b / (self.a - math.log(pressure))
 
     def vapour_pressure(self, temperature):
         """The fitted saturation pressure at `temperature` (scalar or array; nan above the critical point)."""
@@ -47,25 +53,34 @@ class CoexistenceCurve:
         return "gas" if pressure < float(self.vapour_pressure(temperature)) else "liquid"
 
 
-def load_curve(rows: list[dict], dim: int) -> CoexistenceCurve:
-    """The curve from a study's CSV rows (research/coexistence.py's SlabPoint fields)."""
-    t = np.array([float(r["temperature"]) for r in rows])
-    p = np.array([float(r["p_sat"]) for r in rows])
-    err = np.array([float(r["p_sat_err"]) for r in rows])
-    rl = np.array([float(r["rho_liquid"]) for r in rows])
-    rv = np.array([float(r["rho_vapour"]) for r in rows])
+def fit_curve(temperatures, pressures, errors, rho_liquid, rho_vapour, dim: int) -> CoexistenceCurve:
+    """The curve through measured points (at least two; reduced units): the line ln p = a - b / T by least squares,
+    and the critical point from the scaling law rho_l - rho_v = A (T_c - T)^beta (BETA[dim]) and the law of
+    rectilinear diameters (rho_l + rho_v) / 2 = rho_c + B (T - T_c)."""
+    t, p = np.asarray(temperatures, float), np.asarray(pressures, float)
+    rl, rv = np.asarray(rho_liquid, float), np.asarray(rho_vapour, float)
     slope, intercept = np.polyfit(1.0 / t, np.log(p), 1)
     s, c = np.polyfit(t, (rl - rv) ** (1.0 / BETA[dim]), 1)
     tc = -c / s
+    d_slope, d_intercept = np.polyfit(t, 0.5 * (rl + rv), 1)
     return CoexistenceCurve(
         tuple(t),
         tuple(p),
-        tuple(err),
+        tuple(np.asarray(errors, float)),
         float(intercept),
         float(-slope),
         float(tc),
         float(math.exp(intercept + slope / tc)),
+        float(d_slope * tc + d_intercept),
     )
+
+
+def load_curve(rows: list[dict], dim: int) -> CoexistenceCurve:
+    """The curve from a study's CSV rows (research/coexistence.py's SlabPoint fields)."""
+    column = {
+        key: [float(r[key]) for r in rows] for key in ("temperature", "p_sat", "p_sat_err", "rho_liquid", "rho_vapour")
+    }
+    return fit_curve(*column.values(), dim)
 
 
 def curve_of(model) -> CoexistenceCurve | None:

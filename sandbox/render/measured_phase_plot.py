@@ -15,14 +15,14 @@ import numpy as np
 from ..measure.coexistence_curve import CoexistenceCurve
 from ..measure.units import pressure_unit
 from .chart import pen_on, value_ticks
-from .phase_plot import CURVE, DOT, REGION_FILL, TRAIL
-from .text import GREY, dim, draw_text, line_height, text_width
+from .phase_plot import CURVE, DOT, REGION_FILL, TRAIL, PressureTemperaturePanel
+from .text import GREY, dim, draw_text, text_width
 from .words import Words
 
 SAMPLES = 40  # frames averaged for the dot
 
 
-class MeasuredPhasePlot:
+class MeasuredPhasePlot(PressureTemperaturePanel):
     """The measured diagram of `curve` in the rectangle rect (x0, x1, row0, row1; rows from the top) at font size
     `size`; record() each frame, label() draws it on an (H, W, 3) uint8 frame (PhasePlot's interface)."""
 
@@ -39,17 +39,6 @@ class MeasuredPhasePlot:
         self.samples: list[tuple[float, float]] = []  # (kT, pressure) of the last SAMPLES frames
         self.trail: list[tuple[float, float]] = []
         self.place(rect)
-
-    def min_width(self) -> int:
-        return 10 * self.size
-
-    def place(self, rect) -> None:
-        self.rect = rect
-        x0, x1, r0, r1 = rect
-        self.fits = x1 - x0 >= self.min_width() and r1 - r0 >= 5 * line_height(self.size)
-
-    def drawn_rect(self):
-        return self.rect
 
     def record(self, stats) -> None:
         """Add this frame's measured (kT, pressure) and move the dot to the mean of the last SAMPLES."""
@@ -83,19 +72,6 @@ class MeasuredPhasePlot:
     def dot_region(self) -> str | None:
         """The region of the diagram the dot lies in ("gas", "liquid", "fluid"; None before the first record)."""
         return self.curve.region(*self.trail[-1]) if self.trail else None
-
-    def to_pixels(self, box, temperature, pressure):
-        bx0, bx1, br0, br1 = box
-        t = (np.asarray(temperature, float) - self.t_lo) / (self.t_hi - self.t_lo)
-        logp = np.log10(np.maximum(np.asarray(pressure, float), 1e-300))
-        p = (logp - self.log_lo) / (self.log_hi - self.log_lo)
-        return np.clip(t, 0, 1) * (bx1 - bx0), (1.0 - np.clip(p, 0, 1)) * (br1 - br0)
-
-    def plot_box(self):
-        x0, x1, r0, r1 = self.rect
-        lh = line_height(self.size)
-        left = text_width(f"1e{self.log_lo}", self.size) + 8
-        return x0 + left, x1 - self.size, r0 + lh + 2, r1 - lh - 6
 
     def label(self, img: np.ndarray) -> None:
         """Draw the regions, the measured curve and points, the critical point, the trail and the dot with its bar."""

@@ -22,7 +22,41 @@ TRAIL = 240  # positions kept for the trail
 SMOOTHING = 0.1  # each frame's share of the gauge's running mean (the wall gauge of a few particles is noisy)
 
 
-class PhasePlot:
+class PressureTemperaturePanel:
+    """What both phase diagrams share: their place in the top band, and their axes (temperature t_lo..t_hi across,
+    pressure on a log scale from 1e log_lo to 1e log_hi up), which a subclass sets along with `size` and `rect`."""
+
+    def min_width(self) -> int:
+        """Pixels across it needs to be legible."""
+        return 10 * self.size
+
+    def place(self, rect: tuple[int, int, int, int]) -> None:
+        """Draw into rect from now on; `fits` says whether it has room."""
+        self.rect = rect
+        x0, x1, r0, r1 = rect
+        self.fits = x1 - x0 >= self.min_width() and r1 - r0 >= 5 * line_height(self.size)
+
+    def drawn_rect(self) -> tuple[int, int, int, int]:
+        return self.rect
+
+    def plot_box(self) -> tuple[int, int, int, int]:
+        """The axes' box inside the rectangle: room above for the title, left for the pressure ticks, below for the
+        temperature ticks."""
+        x0, x1, r0, r1 = self.rect
+        lh = line_height(self.size)
+        left = text_width(f"1e{self.log_lo}", self.size) + 8
+        return x0 + left, x1 - self.size, r0 + lh + 2, r1 - lh - 6
+
+    def to_pixels(self, box, temperature, pressure) -> tuple[np.ndarray, np.ndarray]:
+        """(x, row) relative to the plot box of points at `temperature` (°C, or kT) and `pressure` (arrays alike)."""
+        bx0, bx1, br0, br1 = box
+        t = (np.asarray(temperature, float) - self.t_lo) / (self.t_hi - self.t_lo)
+        logp = np.log10(np.maximum(np.asarray(pressure, float), 1e-300))
+        p = (logp - self.log_lo) / (self.log_hi - self.log_lo)
+        return np.clip(t, 0, 1) * (bx1 - bx0), (1.0 - np.clip(p, 0, 1)) * (br1 - br0)
+
+
+class PhasePlot(PressureTemperaturePanel):
     """The diagram of `phase_map` in the rectangle rect (x0, x1, row0, row1; rows from the top) at font size `size`;
     record() each frame, label() draws it on an (H, W, 3) uint8 frame. Pressures in the scene's unit (dim-D)."""
 
@@ -50,19 +84,6 @@ class PhasePlot:
         (self.t_lo, self.t_hi), (p_lo, p_hi) = self.map.axes()
         self.log_lo, self.log_hi = math.floor(math.log10(p_lo)), math.ceil(math.log10(p_hi))
 
-    def min_width(self) -> int:
-        """Pixels across it needs to be legible."""
-        return 10 * self.size
-
-    def place(self, rect: tuple[int, int, int, int]) -> None:
-        """Draw into rect from now on; `fits` says whether it has room."""
-        self.rect = rect
-        x0, x1, r0, r1 = rect
-        self.fits = x1 - x0 >= self.min_width() and r1 - r0 >= 5 * line_height(self.size)
-
-    def drawn_rect(self) -> tuple[int, int, int, int]:
-        return self.rect
-
     def record(self, stats) -> None:
         """Place the dot from this frame's measurements (mean temperature, gauge pressure, gas fraction). Once the
         material has boiled, the vapour curve passes through the mean pressure the gauge read while it boiled: that
@@ -86,22 +107,6 @@ class PhasePlot:
             self.trail, self.boiling = list(other.trail), list(other.boiling)
             self.pressure, self.map = other.pressure, other.map
             self.set_axes()
-
-    def plot_box(self) -> tuple[int, int, int, int]:
-        """The axes' box inside the rectangle: room above for the title, left for the pressure ticks, below for the
-        temperature ticks."""
-        x0, x1, r0, r1 = self.rect
-        lh = line_height(self.size)
-        left = text_width(f"1e{self.log_lo}", self.size) + 8
-        return x0 + left, x1 - self.size, r0 + lh + 2, r1 - lh - 6
-
-    def to_pixels(self, box, temperature, pressure) -> tuple[np.ndarray, np.ndarray]:
-        """(x, row) relative to the plot box of points at `temperature` °C and `pressure` (arrays alike)."""
-        bx0, bx1, br0, br1 = box
-        t = (np.asarray(temperature, float) - self.t_lo) / (self.t_hi - self.t_lo)
-        logp = np.log10(np.maximum(np.asarray(pressure, float), 1e-300))
-        p = (logp - self.log_lo) / (self.log_hi - self.log_lo)
-        return np.clip(t, 0, 1) * (bx1 - bx0), (1.0 - np.clip(p, 0, 1)) * (br1 - br0)
 
     def label(self, img: np.ndarray) -> None:
         """Draw the regions, curves, ticks, labels, trail and dot on an (H, W, 3) uint8 frame."""

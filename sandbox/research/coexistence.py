@@ -33,6 +33,7 @@ import numpy as np
 
 from ..config.scene import scene_from_dict
 from ..errors import SandboxError
+from ..measure.coexistence_curve import BETA, CoexistenceCurve, fit_curve
 from ..simulation import Simulation
 from .figures import pyplot, save
 from .study_runs import STUDY_PATH
@@ -44,7 +45,7 @@ NIST_LFS_PSAT = {0.65: 6.71090e-03, 0.70: 1.18932e-02, 0.75: 1.95405e-02, 0.80: 
 # The argon the reduced units stand for: epsilon / k (K), sigma (nm), m (u); the pressure unit epsilon / sigma^3
 ARGON = {"epsilon_over_k": 119.8, "sigma_nm": 0.3405, "mass_u": 39.95}
 BOLTZMANN = 1.380649e-23  # J/K
-AVOGADRO = 6.02214076e23
+F_CUT = 24.0 / CUTOFF**7 - 48.0 / CUTOFF**13  # the 12-6 force's attraction at the cutoff (unit masses)
 
 
 def argon_pressure_kpa(p_reduced: float) -> float:
@@ -55,15 +56,13 @@ def argon_pressure_kpa(p_reduced: float) -> float:
 
 def lfs_force_factor(r: np.ndarray) -> np.ndarray:
     """g(r) with F_i = g(r) (x_j - x_i) for the force-shifted LJ pair (unit masses): (F(r) - F(rc)) / r."""
-    f_cut = 24.0 / CUTOFF**7 - 48.0 / CUTOFF**13
-    return 24.0 / r**8 - 48.0 / r**14 - f_cut / r
+    return 24.0 / r**8 - 48.0 / r**14 - F_CUT / r
 
 
 def lfs_energy(r: np.ndarray) -> np.ndarray:
     """The force-shifted pair energy: U(r) - U(rc) - F(rc) (r - rc) with F the attraction along x_j - x_i."""
     u = lambda s: 4.0 * (s**-12.0 - s**-6.0)  # noqa: E731
-    f_cut = 24.0 / CUTOFF**7 - 48.0 / CUTOFF**13
-    return u(r) - u(CUTOFF) - f_cut * (r - CUTOFF)
+    return u(r) - u(CUTOFF) - F_CUT * (r - CUTOFF)
 
 
 @dataclass
@@ -317,32 +316,22 @@ def plot(path: Path, points: list[SlabPoint], dim: int = 3) -> None:
     save(fig, path)
 
 
-BETA = {3: 0.325, 2: 0.125}  # the Ising critical exponent of rho_l - rho_v, by dimension
 ATMOSPHERE_KPA = 101.325
 
 
+def curve(points: list[SlabPoint], dim: int = 3) -> CoexistenceCurve | None:
+    """The fitted curve and critical point of the measured points (measure/coexistence_curve.py's fit, the one the
+    phase diagram draws); None below two points."""
+    if len(points) < 2:
+        return None
+    columns = zip(*((p.temperature, p.p_sat, p.p_sat_err, p.rho_liquid, p.rho_vapour) for p in points))
+    return fit_curve(*columns, dim)
+
+
 def critical_point(points: list[SlabPoint], dim: int = 3) -> tuple[float, float]:
-    """(T_c, rho_c) from the scaling law rho_l - rho_v = A (T_c - T)^beta (BETA[dim]) and the law of rectilinear
-    diameters
-    (rho_l + rho_v) / 2 = rho_c + B (T - T_c), fitted by least squares (reduced units; nan below two points)."""
-    if len(points) < 2:
-        return math.nan, math.nan
-    t = np.array([p.temperature for p in points])
-    rl, rv = np.array([p.rho_liquid for p in points]), np.array([p.rho_vapour for p in points])
-    slope, intercept = np.polyfit(t, (rl - rv) ** (1.0 / BETA[dim]), 1)
-    tc = -intercept / slope
-    d_slope, d_intercept = np.polyfit(t, 0.5 * (rl + rv), 1)
-    return float(tc), float(d_slope * tc + d_intercept)
-
-
-def boiling_temperature(points: list[SlabPoint], pressure: float) -> float:
-    """The temperature at which the fitted vapour curve ln p = a - b / T reaches `pressure` (reduced units; an
-    extrapolation outside the measured range)."""
-    if len(points) < 2:
-        return math.nan
-    t = np.array([p.temperature for p in points])
-    slope, intercept = np.polyfit(1.0 / t, np.log([p.p_sat for p in points]), 1)
-    return float(slope / (math.log(pressure) - intercept))
+    """(T_c, rho_c) of the fitted curve (reduced units; nan below two points)."""
+    fitted = curve(points, dim)
+    return (fitted.critical_temperature, fitted.critical_density) if fitted else (math.nan, math.nan)
 
 
 def report(points: list[SlabPoint], dim: int = 3) -> str:
@@ -375,7 +364,8 @@ def report(points: list[SlabPoint], dim: int = 3) -> str:
             f"| {p.temperature * ARGON['epsilon_over_k']:.1f} | {argon_pressure_kpa(p.p_sat):.0f} |"
         )
     tc, rho_c = critical_point(points, 3)
-    boil = boiling_temperature(points, ATMOSPHERE_KPA / argon_pressure_kpa(1.0))
+    fitted = curve(points, 3)
+    boil = fitted.boiling_temperature(ATMOSPHERE_KPA / argon_pressure_kpa(1.0)) if fitted else math.nan
     eps = ARGON["epsilon_over_k"]
     lines += [
         "",
