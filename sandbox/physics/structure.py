@@ -103,11 +103,6 @@ class Structure(Term):
         self.grid = CellGrid(self.p.x, self.p.n, world.lo, world.hi, self.radius, world.periodic, capacity,
                              parts.model.loops, cells_per_particle=16)  # fmt: skip
 
-    def words(self, where: str) -> list[str]:
-        if where != "after":
-            return []
-        return [f"phases from structure: neighbours within {self.radius:g}, bond order q{6} ({self.dim}D)"]
-
     def nbytes(self) -> int:
         grid = self.grid.n_cells * 8 + self.count.shape[0] * (12 + 8 * self.dim)  # cells; ids, slots, sorted x
         return self.count.shape[0] * (4 + 8 * self.width + 4 * KEPT) + grid

@@ -139,6 +139,16 @@ class Rescaler:
         field.from_numpy(full)
 
 
+def slab_coordinate(x: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """Each atom's coordinate along the last axis about the slab's centre of mass, in (-L/2, L/2]: the centre of a
+    periodic coordinate taken by its mean direction."""
+    axis = len(box) - 1
+    lz = box[axis]
+    angle = 2 * math.pi * x[:, axis] / lz
+    centre = (math.atan2(np.sin(angle).mean(), np.cos(angle).mean()) % (2 * math.pi)) * lz / (2 * math.pi)
+    return (x[:, axis] - centre + 0.5 * lz) % lz - 0.5 * lz
+
+
 def measure_snapshot(
     x: np.ndarray, v: np.ndarray, box: np.ndarray, vapour_from: float = np.inf
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -151,9 +161,7 @@ def measure_snapshot(
 
     axis = len(box) - 1
     lz = box[axis]
-    angle = 2 * math.pi * x[:, axis] / lz  # the centre of mass of a periodic coordinate, by its mean direction
-    centre = (math.atan2(np.sin(angle).mean(), np.cos(angle).mean()) % (2 * math.pi)) * lz / (2 * math.pi)
-    z = (x[:, axis] - centre + 0.5 * lz) % lz - 0.5 * lz
+    z = slab_coordinate(x, box)
     tree = cKDTree(x % box, boxsize=box)
     pairs = tree.query_pairs(CUTOFF, output_type="ndarray")
     d = x[pairs[:, 1]] - x[pairs[:, 0]]
@@ -206,7 +214,7 @@ def run_slab(temperature: float, width: float | None = None, equilibrate: int = 
         axis = dim - 1
         area = box[:axis].prod()
         if thickness is None:  # the slab's width from its own density profile at the start of production
-            z, _, _, _ = measure_snapshot(x, v, box)
+            z = slab_coordinate(x, box)
             hist, edges = np.histogram(z, bins=int(box[axis] / 0.5), range=(-0.5 * box[axis], 0.5 * box[axis]))
             dens = hist / (area * 0.5)
             dense = edges[:-1][dens > 0.5 * dens.max()]
