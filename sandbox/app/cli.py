@@ -332,7 +332,7 @@ def _bench_arguments(sub) -> None:
         default=None,
         metavar="N",
         help="only the LAMMPS comparison (2D, or 3D with --3d), quiet and then beside N other CPU-bound processes "
-        "(default 1)",
+        "(default 1); with --serve, the classroom measured the same way",
     )
     bench.add_argument(
         "--scaling", action="store_true", help="only W1 against N from 1k to 1M: scaling.json/.csv/.png in --out"
@@ -355,7 +355,14 @@ def _bench_arguments(sub) -> None:
         type=int,
         metavar="N",
         default=None,
-        help="only the classroom server: N simulated browser tabs over loopback (frame rate, latency, CPU, memory)",
+        help="only the classroom server: N simulated browser tabs over loopback (frame rate, latency, CPU, memory); "
+        "with --contended K, measured again beside K CPU-bound processes",
+    )
+    bench.add_argument(
+        "--draw",
+        choices=("page", "server"),
+        default="page",
+        help="with --serve: who draws a 2D scene's particles (as sandbox serve --draw)",
     )
     bench.set_defaults(func=cmd_bench)
 
@@ -378,6 +385,12 @@ def _serve_arguments(sub) -> None:
         help="sessions of the scene kept started ahead of the tabs, so a class joins at once (default: --max-sessions)",
     )
     serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
+    serve.add_argument(
+        "--draw",
+        choices=("page", "server"),
+        default="page",
+        help="who draws a 2D scene's particles: the page (particle frames: light on the server) or the server (JPEG)",
+    )
     serve.set_defaults(func=cmd_serve)
 
 
@@ -404,7 +417,15 @@ def cmd_serve(args) -> int:
         missing = f"sandbox serve needs the serve extra: pip install -e '.[serve]' ({exc.name} is missing)"
         raise SandboxError(missing) from None
     return serve(
-        args.scene, args.host, args.port, args.token, args.max_sessions, args.max_fps, args.teacher_token, args.warm
+        args.scene,
+        args.host,
+        args.port,
+        args.token,
+        args.max_sessions,
+        args.max_fps,
+        args.teacher_token,
+        args.warm,
+        args.draw,
     )
 
 

@@ -67,7 +67,7 @@ def run_bench(args) -> int:
 
         if args.serve < 1:
             raise SandboxError(f"--serve: expected a number of sessions of at least 1, got {args.serve}")
-        result = bench_serve(args.serve)
+        result = bench_serve(args.serve, draw=args.draw, hogs=args.contended or 0)
         print(report(result))
         write_json(args.json, result)
         return 0

@@ -38,6 +38,7 @@ MAX_BROADCAST = 2048  # bytes of a teacher's broadcast message
 WARN_SECONDS = 2.0  # "too many messages" is said at most once in this long
 IDLE_SECONDS = 300.0  # a tab silent this long (closed, asleep) loses its session
 START_SECONDS = 60.0  # a session that has not drawn its first picture by then is given up
+PICTURES = (b"F", b"P", b"B", b"C")  # a JPEG picture, a particle frame, a backdrop, a band (serve_session.py)
 
 
 @dataclass
@@ -84,7 +85,9 @@ class Classroom:
         max_fps: float = 30.0,
         teacher: str | None = None,
         warm: int | None = None,
+        draw: str = "page",
     ):
+        self.draw = draw  # who draws a 2D scene's particles (serve_session.DRAWS)
         self.scene, self.token, self.max_sessions, self.idle, self.max_fps = scene, token, max_sessions, idle, max_fps
         self.teacher = teacher or secrets.token_urlsafe(12)
         self.warm_target = max_sessions if warm is None else min(warm, max_sessions)
@@ -128,7 +131,7 @@ class Classroom:
     def spawn(self, scene: str) -> Handle:
         """Start a session process of `scene`; its messages wait in its handle's outbox until a tab takes it."""
         parent, child = self.context.Pipe()
-        args = (child, scene, *PICTURE, self.max_fps)
+        args = (child, scene, *PICTURE, self.max_fps, 1, self.draw)
         process = self.context.Process(target=session_main, args=args, daemon=True)
         process.start()
         child.close()
@@ -159,9 +162,9 @@ class Classroom:
             self.close(handle)
             return
         kind, body = data[:1], data[1:]
-        if kind == b"F":
-            handle.frames += 1
-            handle.outbox.put_nowait(("bytes", body))
+        if kind in PICTURES:  # to the page as they are: it reads the kind from the first byte
+            handle.frames += kind in (b"F", b"P")
+            handle.outbox.put_nowait(("bytes", data))
         elif kind == b"T":
             handle.answer("thumb", body)
         else:

@@ -287,6 +287,7 @@ def serve(
     max_fps: float = 30.0,
     teacher: str | None = None,
     warm: int | None = None,
+    draw: str = "page",
 ) -> int:
     """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed) and
     the teacher's (with the teacher's secret, made up when not given)."""
@@ -294,11 +295,20 @@ def serve(
 
     if token is None and not is_loopback(host):
         token = secrets.token_urlsafe(12)
-    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps, teacher=teacher, warm=warm)
+    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps, teacher=teacher, warm=warm, draw=draw)
     query = f"?token={token}" if token else ""
     shown = lan_address() if host in ("0.0.0.0", "::") else host
     print(f"the classroom: http://{shown}:{port}/{query}", flush=True)
     teacher_query = f"?teacher={classroom.teacher}" + (f"&token={token}" if token else "")
     print(f"the teacher's view (yours alone): http://{shown}:{port}/teacher{teacher_query}", flush=True)
-    uvicorn.run(make_app(classroom), host=host, port=port, log_level="warning", ws_max_size=64 * 1024)
+    # no per-message deflate: pictures and particle frames hardly compress, and deflating each costs the server a
+    # fifth of a millisecond
+    uvicorn.run(
+        make_app(classroom),
+        host=host,
+        port=port,
+        log_level="warning",
+        ws_max_size=64 * 1024,
+        ws_per_message_deflate=False,
+    )
     return 0

@@ -2,10 +2,17 @@
 in one tab never touches another, and closing the tab frees its memory with the process).
 
 The server (serve.py) and the session talk over a multiprocessing pipe in bytes: the server sends JSON commands
-(already validated by serve_protocol.py); the session answers b"F" + a JPEG picture, or b"J" + JSON (readouts,
-messages). It draws a frame only when the page has asked for one (a "ready" credit), so the frame rate follows what
-the network and the server's load allow; the simulation advances one frame per picture delivered, so under load a
-session runs in slow motion rather than dropping pictures.
+(already validated by serve_protocol.py); the session answers b"J" + JSON (readouts, messages) or a picture, which
+the server passes to the page as it is:
+
+- where the page draws (`draw="page"`, a 2D scene of discs: render/particle_frame.py): b"B" + a PNG of the picture
+  without its particles (the domain, walls, heat sources and charts) when a scene opens, b"C" + the charts' band
+  (x0, row0: two u16, then a PNG) a few times a second, and b"P" + a particle frame (a few kB) a picture;
+- else (3D, motion blur, springs drawn, additive light, or `draw="server"`): b"F" + the renderer's picture as a JPEG.
+
+It draws a frame only when the page has asked for one (a "ready" credit), so the frame rate follows what the network
+and the server's load allow; the simulation advances one frame per picture delivered, so under load a session runs
+in slow motion rather than dropping pictures.
 """
 
 from __future__ import annotations
@@ -14,7 +21,9 @@ import dataclasses
 import functools
 import io
 import json
+import math
 import os
+import struct
 import tempfile
 import time
 from pathlib import Path
@@ -24,17 +33,24 @@ import numpy as np
 FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
 MAX_FPS = 30.0  # pictures a second at most (serve --max-fps): more shows a class nothing new, and takes a core
 JPEG_QUALITY = 80
-READOUTS_EVERY = 6  # pictures between the readouts sent with them
+READOUTS_EVERY = 6  # pictures between the readouts sent with them (JPEG pictures)
+READOUT_SECONDS = 0.3  # seconds between the readouts sent with particle frames
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
+BAND_SECONDS = 1.0  # seconds between the charts' bands sent to a page that draws the particles
+SMOOTH_FPS = 20.0  # pictures a second a session keeps, where the machine is short of CPU, by stepping less a picture
+DRAWS = ("page", "server")  # who draws a 2D scene's particles: the page (particle frames) or the session (JPEG)
 
 
-def session_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, threads: int = 1) -> None:
-    """Run one tab's simulation of the shipped scene `scene`, drawing `width` x `height` pictures (at most `max_fps`
-    a second), until the server closes the pipe. Never raises: what goes wrong is reported to the page."""
+def session_main(
+    conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, threads: int = 1, draw: str = "page"
+) -> None:
+    """Run one tab's simulation of the shipped scene `scene`, with `width` x `height` pictures (at most `max_fps`
+    a second; `draw`: who draws a 2D scene's particles, DRAWS), until the server closes the pipe. Never raises: what
+    goes wrong is reported to the page."""
     os.environ.setdefault("SANDBOX_CPU_THREADS", str(threads))  # sessions share the cores: one thread each
     os.environ.setdefault("TI_LOG_LEVEL", "error")
     try:
-        Session(conn, scene, width, height, max_fps).loop()
+        Session(conn, scene, width, height, max_fps, draw).loop()
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
 
@@ -42,8 +58,13 @@ def session_main(conn, scene: str, width: int, height: int, max_fps: float = MAX
 class Session:
     """The simulation, its tools and its undo ring, driven by the server's commands (module docstring)."""
 
-    def __init__(self, conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS):
+    def __init__(self, conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, draw: str = "page"):
+        if draw not in DRAWS:
+            raise ValueError(f"draw: expected one of {', '.join(DRAWS)}, got {draw!r}")
         self.conn = conn
+        self.draw_by = draw
+        self.particle_frames = None  # the ParticleFrame packer where the page draws the particles
+        self.base = None  # the picture without particles or charts, (H, W, 3) uint8, where the page draws
         self.interval = 1.0 / max_fps
         self.width, self.height = width, height
         self.credits = FIRST_CREDITS
@@ -51,6 +72,9 @@ class Session:
         self.lang = "en"  # the page's language, which the picture's chart words follow
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
         self.frames = 0
+        self.band_due = False  # the charts' band goes with the next picture (a page that draws the particles)
+        self.pace = Pace()  # the steps a picture shows, fewer where the machine is short of CPU
+        self.last_readouts = self.last_band = -1e9  # when they were last sent (wall seconds)
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
         self.load(scene)
 
@@ -59,6 +83,7 @@ class Session:
         """Open the shipped scene `scene` as the window's scene picker does (Taichi restarted, so switching scenes
         frees the last one's fields), with this session's own renderer at its picture size."""
         from ..render.overlays import Overlays
+        from ..render.particle_frame import ParticleFrame, backdrop_picture, unsupported
         from ..render.raster import Renderer
         from .controller import Controller
         from .window_parts import OrbitCamera
@@ -76,6 +101,9 @@ class Session:
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
         self.sim.state.carry(self.renderer.tails)
+        self.particle_frames = None
+        if self.draw_by == "page" and unsupported(self.renderer) is None:
+            self.particle_frames = ParticleFrame(self.renderer)
         self.set_words()
         painter = self.renderer.painter
         self.orbit = OrbitCamera(painter.eye_np, painter.target_np) if self.sim.dim == 3 else None
@@ -88,8 +116,14 @@ class Session:
                 "tool": self.first_tool(),
                 "materials": list(self.sim.material_names),
                 "dim": self.sim.dim,  # 3: a drag turns, zooms or pans the picture's camera
+                "draw": "page" if self.particle_frames else "server",
             }
         )
+        if self.particle_frames:  # what does not move with the particles, once
+            self.base = backdrop_picture(self.renderer, with_charts=False)
+            picture = self.base.copy()
+            self.renderer.draw_text_overlays(picture)
+            self.conn.send_bytes(b"B" + png(picture))
 
     @property
     def sim(self):
@@ -171,9 +205,11 @@ class Session:
         self.tell({"t": "paused", "paused": control.paused})
 
     def set_words(self) -> None:
-        """The picture's charts in the page's language, their history kept."""
+        """The picture's charts in the page's language, their history kept (a page that draws the particles gets
+        the charts' band again with the next picture)."""
         self.renderer.words = chart_words(self.lang)
         self.renderer.set_chart(tuple(self.renderer.cfg.chart), keep_history=True)
+        self.band_due = True
 
     def view(self, move: str, dx: float, dy: float) -> None:
         """Turn (orbit), zoom or pan a 3D picture's camera by a drag of (dx, dy) picture fractions, as the window's
@@ -214,24 +250,66 @@ class Session:
         from ..errors import SimulationError
 
         sim = self.sim
+        wall, cpu = time.perf_counter(), time.process_time()
         try:
-            self.control.advance()
+            self.control.advance(self.pace.steps(sim))
         except SimulationError as exc:  # a blow-up: say so and start the scene again
             self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
             self.control.reset()
-        picture = self.draw()
         self.frames += 1
+        if self.particle_frames:
+            self.send_particle_frame(wall)
+        else:
+            self.send_picture()
+        self.pace.picture(time.perf_counter() - wall, time.process_time() - cpu)
+
+    def send_particle_frame(self, now: float) -> None:
+        """The particle frame (it carries the clock), and at their own rates the readouts and the charts' band."""
+        sim = self.sim
+        self.record_charts()
+        if now - self.last_readouts >= READOUT_SECONDS:
+            self.last_readouts = now
+            self.tell({"t": "info", "time": sim.time, "frame": self.frames, "seq": self.seq, **self.readouts()})
+        if self.band_due or (now - self.last_band >= BAND_SECONDS and self.renderer.plots()):
+            self.last_band = now
+            self.send_band()
+        self.conn.send_bytes(self.particle_frames.encode(self.frames, self.seq, sim.time))
+
+    def send_picture(self) -> None:
+        """The renderer's picture as a JPEG, with the clock (and every few pictures the readouts)."""
+        sim = self.sim
+        picture = self.draw()
         info = {"t": "info", "time": sim.time, "frame": self.frames, "seq": self.seq}
         if self.frames % READOUTS_EVERY == 1:  # the page shows readouts a few times a second, not every frame
             info.update(self.readouts())
         self.tell(info)
         self.conn.send_bytes(b"F" + self.jpeg(picture, JPEG_QUALITY))
 
-    def draw(self):
-        """This moment's picture: the renderer's own buffer, encoded before the next frame (no copy)."""
+    def record_charts(self) -> None:
+        """A sample of the charts' series every CHART_EVERY pictures."""
         if self.renderer.plots() and self.frames % CHART_EVERY == 0:
             self.renderer.record(self.sim.stats(pair_energy=False))
+
+    def draw(self):
+        """This moment's whole picture: the renderer's own buffer, encoded before the next frame (no copy)."""
+        self.record_charts()
+        if self.particle_frames:  # the renderer has not drawn the frames the page drew: every tile again
+            self.renderer.full_refresh = True
         return self.renderer.frame()
+
+    def send_band(self) -> None:
+        """The charts' band as the picture draws it (over the backdrop), for a page that draws the particles."""
+        from ..render.particle_frame import band_rect
+
+        self.band_due = False
+        rect = band_rect(self.renderer)
+        if rect is None:
+            return
+        x0, x1, r0, r1 = rect
+        picture = self.base.copy()
+        self.renderer.draw_text_overlays(picture)
+        crop = np.ascontiguousarray(picture[r0 : r1 + 1, x0 : x1 + 1])
+        self.conn.send_bytes(b"C" + struct.pack("<HH", x0, r0) + png(crop))
 
     def readouts(self) -> dict:
         """The panel's description now (panel.py) and the sentence for screen readers."""
@@ -303,6 +381,58 @@ class Session:
             self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
         finally:
             path.unlink(missing_ok=True)
+
+
+class Pace:
+    """How many of a frame's steps a picture shows. A session shows a whole frame a picture; where the machine is short
+    of CPU (its pictures come slower than SMOOTH_FPS and the session got under 70% of a core while it worked: other
+    processes were running) it shows about a quarter fewer steps a picture each second, down to one, so the class
+    sees smooth motion in slow motion rather than jerky motion in slow motion: the simulation gets the CPU it got
+    before, spent on nearly the same steps, in more pictures. With room again (pictures 20% above SMOOTH_FPS and the
+    session not held back) it shows more. Scenes whose steps are sized a frame at a time (substeps = "auto") always
+    show whole frames."""
+
+    def __init__(self):
+        self.steps_now: int | None = None  # steps a picture (None: the scene's whole frame)
+        self.window_start = time.perf_counter()
+        self.pictures = 0
+        self.wall = self.cpu = 0.0  # seconds spent making pictures in this window, and of CPU while at it
+        self.full = 0  # the scene's steps a frame (0: "auto")
+
+    def steps(self, sim) -> int | None:
+        """The steps for the next picture (None: the scene's own frame)."""
+        substeps = sim.scene.world.substeps
+        self.full = 0 if substeps == "auto" else int(substeps)
+        if self.steps_now is None or not self.full:
+            return None
+        return min(self.steps_now, self.full)
+
+    def picture(self, wall: float, cpu: float) -> None:
+        """A picture was made in `wall` seconds using `cpu` seconds of this process's CPU; every second, decide."""
+        self.pictures += 1
+        self.wall += wall
+        self.cpu += cpu
+        now = time.perf_counter()
+        span = now - self.window_start
+        if span < 1.0:
+            return
+        rate, got = self.pictures / span, self.cpu / max(self.wall, 1e-9)
+        steps = self.full if self.steps_now is None else self.steps_now
+        if rate < SMOOTH_FPS and got < 0.7 and steps > 1:
+            self.steps_now = max(1, int(steps * 0.75))
+        elif rate > 1.2 * SMOOTH_FPS and got > 0.85 and self.steps_now is not None:
+            more = math.ceil(steps / 0.75)
+            self.steps_now = None if more >= self.full else more
+        self.window_start, self.pictures, self.wall, self.cpu = now, 0, 0.0, 0.0
+
+
+def png(picture) -> bytes:
+    """An (H, W, 3) uint8 picture as a PNG (exact colours and crisp text; fast rather than small)."""
+    from PIL import Image
+
+    out = io.BytesIO()
+    Image.fromarray(picture).save(out, "PNG", compress_level=1)
+    return out.getvalue()
 
 
 def page_lesson(lesson) -> dict:

@@ -3,8 +3,9 @@
 Each client does what the page does: draws nothing, but answers every picture with "ready" at once, and twice a
 second moves the air-temperature slider with a sequence number. It reports each session's delivered frame rate, the
 input-to-picture latency (from sending a slider move to receiving the first picture drawn after the session applied
-it: the readouts that come with each picture echo the last number applied), the slow-motion factor (simulated
-seconds per wall second against the scene's own pace), and the server's CPU and memory per session (psutil).
+it: a particle frame, or the readouts that come with a JPEG picture, echo the last number applied), the slow-motion
+factor (simulated seconds per wall second against the scene's own pace), and the server's CPU and memory per
+session (psutil); with `--contended K`, the same class measured again beside K CPU-bound processes.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import time
 import urllib.request
 
 from ..errors import SandboxError
+from ..render.particle_frame import HEADER
 
 WARMUP = 8.0  # seconds after every session has drawn its first picture
 MEASURE = 15.0  # seconds measured
@@ -32,11 +34,12 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-async def _client(url: str, start: float, stop: float, out: dict) -> None:
+async def _client(url: str, stop: float, out: dict) -> None:
+    """One simulated tab until `stop` (monotonic seconds): answers every picture with "ready" at once, moves a slider
+    twice a second; records in `out` when each picture came, each input's latency and the simulated clock."""
     import websockets
 
-    frames, latencies, seq, sent, acked = 0, [], 0, {}, 0
-    times: list[float] = []
+    pictures, latencies, clock, seq, sent, acked = [], [], [], 0, {}, 0
     async with websockets.connect(url, max_size=None) as ws:
         next_input = 0.0
         while True:
@@ -48,84 +51,127 @@ async def _client(url: str, start: float, stop: float, out: dict) -> None:
             except asyncio.TimeoutError:
                 break
             now = time.monotonic()
-            if isinstance(message, bytes):
-                if start <= now:
-                    frames += 1
-                    if acked in sent:  # the first picture after the session applied input `acked`
-                        latencies.append(now - sent.pop(acked))
-                    if now >= next_input:
-                        seq += 1
-                        sent[seq] = now
-                        next_input = now + 0.5
-                        await ws.send(json.dumps({"t": "set", "key": "air", "value": 20.0 + seq % 5, "seq": seq}))
+            if isinstance(message, bytes) and message[:1] == b"P":  # a particle frame carries its own clock
+                _, _, acked, sim_time, _ = HEADER.unpack_from(message)
+                clock.append((now, sim_time))
+            if isinstance(message, bytes) and message[:1] in (b"F", b"P"):  # a picture (not a backdrop or band)
+                pictures.append(now)
+                if acked in sent:  # the first picture after the session applied input `acked`
+                    latencies.append((now, now - sent.pop(acked)))
+                if now >= next_input:
+                    seq += 1
+                    sent[seq] = now
+                    next_input = now + 0.5
+                    await ws.send(json.dumps({"t": "set", "key": "air", "value": 20.0 + seq % 5, "seq": seq}))
                 await ws.send('{"t": "ready"}')
-            else:
+            elif not isinstance(message, bytes):
                 info = json.loads(message)
                 if info.get("t") == "info":
                     acked = info.get("seq", 0)
-                    if start <= now:
-                        times.append(info["time"])
-    out.update(frames=frames, latencies=latencies, sim_seconds=(times[-1] - times[0]) if len(times) > 1 else 0.0)
+                    clock.append((now, info["time"]))
+    out.update(pictures=pictures, latencies=latencies, clock=clock)
 
 
-def bench_serve(clients: int, scene: str = "melting_block") -> dict:
-    """Run the server with `clients` tabs of `scene` for WARMUP + MEASURE seconds; the figures described above."""
+def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", hogs: int = 0) -> dict:
+    """Run the server with `clients` tabs of `scene` (`draw`: who draws the particles, serve_session.DRAWS) for
+    WARMUP + MEASURE seconds quiet, then (with `hogs`) MEASURE more beside that many CPU-bound processes; the
+    figures described in the module docstring, per condition."""
     import psutil
 
     from ..config.resources import shipped_scene
     from ..config.scene import load_scene
+    from .peer_bench import CpuHog
 
     port, teacher = _free_port(), secrets.token_urlsafe(12)
     server = subprocess.Popen(
         [sys.executable, "-m", "sandbox", "serve", scene, "--port", str(port), "--max-sessions", str(clients)]
-        + ["--teacher-token", teacher],
+        + ["--teacher-token", teacher, "--draw", draw],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
     )
+    windows = []
     try:
         _wait_until_warm(server, port, teacher, clients)  # the class arrives when its sessions are ready
         url = f"ws://127.0.0.1:{port}/ws?scene={scene}"
         t0 = time.monotonic()
-        start = t0 + WARMUP
-        stop = start + MEASURE
+        windows.append(("quiet", t0 + WARMUP, t0 + WARMUP + MEASURE))
+        if hogs:
+            start = windows[-1][2] + 2.0  # the hogs start between the windows, and settle
+            windows.append((f"{hogs} hog{'s' if hogs > 1 else ''}", start, start + MEASURE))
+        stop = windows[-1][2]
         results = [{} for _ in range(clients)]
 
         async def everyone():
-            await asyncio.gather(*(_client(url, start, stop, r) for r in results))
+            await asyncio.gather(*(_client(url, stop, r) for r in results))
 
-        sampler = _Sampler(psutil.Process(server.pid), start, stop)
-        sampler.start()
+        process = psutil.Process(server.pid)
+        samplers = [_Sampler(process, w_start, w_stop) for _, w_start, w_stop in windows]
+        for sampler in samplers:
+            sampler.start()
+        hog = CpuHog(hogs) if hogs else None
+        timer = None
+        if hog:
+            import threading
+
+            timer = threading.Timer(windows[-1][1] - 2.0 - time.monotonic(), hog.__enter__)
+            timer.start()
         before = os.times()
-        asyncio.run(everyone())
+        try:
+            asyncio.run(everyone())
+        finally:
+            if timer:
+                timer.cancel()
+                if hasattr(hog, "stop"):
+                    hog.__exit__(None, None, None)
         after = os.times()
-        sampler.join()
+        for sampler in samplers:
+            sampler.join()
     finally:
         server.terminate()
         server.wait(10)
-    silent = sum(1 for r in results if not r.get("frames"))
+    silent = sum(1 for r in results if not r.get("pictures"))
     if silent:
         raise SandboxError(
-            f"serve bench: {silent} of {clients} tabs received no picture in {MEASURE:.0f} s; expected every tab to "
-            "be served (the machine is too busy, or the server failed)"
+            f"serve bench: {silent} of {clients} tabs received no picture; expected every tab to be served (the "
+            "machine is too busy, or the server failed)"
         )
     scene_cfg = load_scene(shipped_scene(scene))
     world = scene_cfg.world
     pace = (world.dt * world.substeps if world.substeps != "auto" else world.frame_time) * scene_cfg.render.fps
-    fps = [r.get("frames", 0) / MEASURE for r in results]
-    latencies = [x for r in results for x in r.get("latencies", [])]
+    conditions = [
+        _condition(name, w_start, w_stop, results, sampler, clients, pace)
+        for (name, w_start, w_stop), sampler in zip(windows, samplers)
+    ]
     return {
         "clients": clients,
         "scene": scene,
-        "picture": "960 x 540 JPEG",
-        "fps_per_session": fps,
-        "fps_median": statistics.median(fps) if fps else 0.0,
-        "latency_median_ms": 1000 * statistics.median(latencies) if latencies else float("nan"),
-        "slow_motion": [r.get("sim_seconds", 0.0) / MEASURE / pace for r in results],
-        "cpu_percent_per_session": sampler.cpu / max(clients, 1),
-        "memory_mb_per_session": sampler.memory / max(clients, 1) / 2**20,
+        "picture": "particle frames drawn by the page" if draw == "page" else "960 x 540 JPEG",
+        "draw": draw,
+        "conditions": conditions,
+        **conditions[0],  # the quiet figures, under their names of old
         # the simulated tabs share the machine with the server: their CPU (over the whole run) is not the server's
         "clients_cpu_percent": 100 * (after.user + after.system - before.user - before.system) / (stop - t0),
+    }
+
+
+def _condition(name, start, stop, results, sampler, clients, pace) -> dict:
+    """One measured window's figures over every tab."""
+    span = stop - start
+    fps = [sum(1 for t in r["pictures"] if start <= t < stop) / span for r in results]
+    latencies = [x for r in results for t, x in r["latencies"] if start <= t < stop]
+    slow = []
+    for r in results:
+        clock = [c for t, c in r["clock"] if start <= t < stop]
+        slow.append((clock[-1] - clock[0]) / span / pace if len(clock) > 1 else 0.0)
+    return {
+        "condition": name,
+        "fps_per_session": fps,
+        "fps_median": statistics.median(fps),
+        "latency_median_ms": 1000 * statistics.median(latencies) if latencies else float("nan"),
+        "slow_motion": slow,
+        "cpu_percent_per_session": sampler.cpu / max(clients, 1),
+        "memory_mb_per_session": sampler.memory / max(clients, 1) / 2**20,
     }
 
 
@@ -188,16 +234,20 @@ class _Sampler:
 
 def report(result: dict) -> str:
     """The benchmark's lines for the terminal."""
-    fps = ", ".join(f"{f:.1f}" for f in result["fps_per_session"])
-    slow = statistics.median(result["slow_motion"]) if result["slow_motion"] else float("nan")
-    return "\n".join(
-        [
-            f"serve: {result['clients']} sessions of {result['scene']} over loopback, {result['picture']} pictures",
-            f"  frames per second per session: median {result['fps_median']:.1f} (each: {fps})",
-            f"  input-to-picture latency: median {result['latency_median_ms']:.0f} ms",
-            f"  simulated time runs at {slow:.2f} of the scene's own pace (1: real time as in its video)",
-            f"  server per session: {result['cpu_percent_per_session']:.0f}% of a core, "
-            f"{result['memory_mb_per_session']:.0f} MB resident; the simulated tabs took "
-            f"{result['clients_cpu_percent']:.0f}% of a core",
+    lines = [f"serve: {result['clients']} sessions of {result['scene']} over loopback, {result['picture']}"]
+    quiet = result["conditions"][0]
+    for condition in result["conditions"]:
+        fps = ", ".join(f"{f:.1f}" for f in condition["fps_per_session"])
+        slow = statistics.median(condition["slow_motion"])
+        lines += [
+            f"  {condition['condition']}: pictures per second per session: median {condition['fps_median']:.1f} "
+            f"(each: {fps})",
+            f"    input-to-picture latency: median {condition['latency_median_ms']:.0f} ms; simulated time at "
+            f"{slow:.2f} of the scene's own pace (1: real time as in its video)",
+            f"    server per session: {condition['cpu_percent_per_session']:.0f}% of a core, "
+            f"{condition['memory_mb_per_session']:.0f} MB resident",
         ]
-    )
+        if condition is not quiet and quiet["fps_median"] > 0:
+            lines.append(f"    kept {100 * condition['fps_median'] / quiet['fps_median']:.0f}% of the quiet rate")
+    lines.append(f"  the simulated tabs took {result['clients_cpu_percent']:.0f}% of a core")
+    return "\n".join(lines)

@@ -1,6 +1,7 @@
-// The classroom page: shows this tab's session (pictures drawn by the sandbox's renderer, streamed over a
-// WebSocket one at a time: the page asks for the next picture when it has drawn the last, so the frame rate follows
-// the network and the server), and its panel from the shared description (sandbox/app/panel.py). Every string the
+// The classroom page: shows this tab's session (in 2D the page draws the particles from the session's particle
+// frames over the picture the sandbox's renderer draws without them; in 3D it shows the renderer's pictures;
+// streamed over a WebSocket one at a time: the page asks for the next when it has drawn the last, so the frame rate
+// follows the network and the server), and its panel from the shared description (sandbox/app/panel.py). Every string the
 // page shows comes from a message catalogue (static/i18n/*.json).
 "use strict";
 
@@ -94,19 +95,75 @@ function connect(scene) {
   const query = new URLSearchParams({ scene: scene || "" });
   if (token) query.set("token", token);
   socket = new WebSocket(`${proto}//${location.host}/ws?${query}`);
-  socket.binaryType = "blob";
+  socket.binaryType = "arraybuffer";
   say(t("connecting"));
-  socket.onmessage = (event) => (typeof event.data === "string" ? onText(JSON.parse(event.data)) : onPicture(event.data));
+  socket.onmessage = (event) => (typeof event.data === "string" ? onText(JSON.parse(event.data)) : onBinary(event.data));
   socket.onclose = () => { if (!refused) say(t("disconnected")); };  // "full" and other refusals stay on screen
 }
 
-async function onPicture(blob) {
-  const bitmap = await createImageBitmap(blob);
+// What the session sends as bytes, told apart by the first byte (sandbox/app/serve_session.py): "F" a JPEG picture;
+// where the page draws the particles, "B" the picture without them (PNG), "C" the charts' band (x0, row0, PNG) and
+// "P" a particle frame (sandbox/render/particle_frame.py). They are handled in order, one at a time.
+let pictures = Promise.resolve();
+function onBinary(buffer) { pictures = pictures.then(() => onBytes(buffer)).catch(() => {}); }
+
+const base = document.createElement("canvas");  // the picture without its particles, where the page draws them
+async function bitmapOf(bytes, type) { return createImageBitmap(new Blob([bytes], { type })); }
+
+async function onBytes(buffer) {
+  const kind = String.fromCharCode(new Uint8Array(buffer, 0, 1)[0]);
+  if (kind === "F") {
+    const bitmap = await bitmapOf(buffer.slice(1), "image/jpeg");
+    const context = pictureContext(bitmap.width, bitmap.height);
+    context.drawImage(bitmap, 0, 0);
+    bitmap.close();
+    shown(context);
+  } else if (kind === "B") {
+    const bitmap = await bitmapOf(buffer.slice(1), "image/png");
+    base.width = bitmap.width; base.height = bitmap.height;
+    base.getContext("2d").drawImage(bitmap, 0, 0);
+    bitmap.close();
+  } else if (kind === "C") {
+    const at = new DataView(buffer, 1, 4);
+    const bitmap = await bitmapOf(buffer.slice(5), "image/png");
+    base.getContext("2d").drawImage(bitmap, at.getUint16(0, true), at.getUint16(2, true));
+    bitmap.close();
+  } else if (kind === "P") {
+    const context = pictureContext(base.width, base.height);
+    context.drawImage(base, 0, 0);
+    drawParticles(context, buffer);
+    shown(context);
+  }
+}
+
+function pictureContext(width, height) {
   const canvas = $("picture");
-  if (canvas.width !== bitmap.width) { canvas.width = bitmap.width; canvas.height = bitmap.height; }
-  const context = canvas.getContext("2d");
-  context.drawImage(bitmap, 0, 0);
-  bitmap.close();
+  if (canvas.width !== width) { canvas.width = width; canvas.height = height; }
+  return canvas.getContext("2d");
+}
+
+// a particle frame: a 21-byte header (kind, frame, seq, time, n), then three u32 a particle: x | y << 16 (pixels
+// x 16, rows from the top), r | kind << 16 (pixels x 16), R | G << 8 | B << 16 | A << 24; drawn as the renderer's
+// discs (opaque ones with their coverage, translucent ones with their opacity), in order
+function drawParticles(context, buffer) {
+  const view = new DataView(buffer);
+  const n = view.getUint32(17, true);
+  const records = new Uint32Array(buffer.slice(21, 21 + 12 * n));
+  for (let i = 0; i < n; i++) {
+    const place = records[3 * i], size = records[3 * i + 1], colour = records[3 * i + 2];
+    const alpha = (colour >>> 24) / 255;
+    context.fillStyle = `rgba(${colour & 255},${(colour >>> 8) & 255},${(colour >>> 16) & 255},${alpha.toFixed(3)})`;
+    context.beginPath();
+    context.arc((place & 0xffff) / 16, (place >>> 16) / 16, Math.max((size & 0xffff) / 16, 0.5), 0, 2 * Math.PI);
+    context.fill();
+  }
+  const canvas = $("picture");
+  canvas.dataset.particles = String(n);
+  canvas.dataset.time = String(view.getFloat64(9, true));
+}
+
+function shown(context) {
+  const canvas = $("picture");
   if (document.activeElement === canvas) {  // the keyboard's pointer, where the arrows have put it
     const x = keyboardPoint.x * canvas.width, y = keyboardPoint.y * canvas.height;
     context.lineWidth = 3;

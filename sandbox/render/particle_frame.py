@@ -1,0 +1,131 @@
+"""A 2D picture as data for a page to draw: the particles' places, sizes and colours (a "particle frame", a few kB)
+and, apart, what does not move with them (the backdrop, the charts' band). The browser classroom sends these
+instead of a JPEG a picture (app/serve_session.py), so the server does not draw or encode every picture.
+
+The colours are the renderer's own (Look: the colour bar's map, the materials' and phases' colours), the places are
+the renderer's view (plan.py), so the page's picture is the window's and the videos': the same colour maps, legend
+and charts; the page draws each particle as the renderer's disc (coverage 1 within r, falling to 0 half a pixel
+beyond: footprint.py) in painter's order, where the renderer averages overlapping opaque discs by coverage.
+
+A particle frame, little-endian:
+
+    b"P", then frame (u32), seq (u32: the last setting applied), time (f64: simulated seconds), n (u32),
+    then n records of three u32: x | y << 16 (pixels x 16, rows from the top), r | kind << 16 (the drawn radius in
+    pixels x 16; kind 0 opaque, 1 translucent), and R | G << 8 | B << 16 | A << 24 (A: the drawn opacity, 0 to 255).
+
+Scenes this cannot show as the renderer does (3D, motion blur, springs drawn as lines, additive light) have
+`unsupported(...)` say why; the classroom sends them as pictures.
+"""
+
+import struct
+
+import numpy as np
+import taichi as ti
+
+from ..core.oriented import data_oriented
+from .style import BLEND, MIN_FADE, R_MIN
+
+HEADER = struct.Struct("<cIIdI")  # b"P", frame, seq, time, n
+FIXED = 16.0  # sub-pixel steps per pixel in a frame's places and radii
+
+
+def unsupported(renderer) -> str | None:
+    """Why `renderer`'s pictures cannot be sent as particle frames (None where they can)."""
+    cfg = renderer.cfg
+    if renderer.dim != 2:
+        return "a 3D scene (shaded spheres)"
+    if cfg.motion_blur:
+        return "motion blur"
+    if renderer.painter.draw_springs:
+        return "springs drawn as lines"
+    if "additive" in renderer.look.blends:
+        return "additive light"
+    return None
+
+
+@data_oriented
+class ParticleFrame:
+    """Packs the particles of a 2D `renderer`'s state into particle frames (module docstring)."""
+
+    def __init__(self, renderer):
+        why = unsupported(renderer)
+        if why is not None:
+            raise ValueError(f"particle frames: this scene's picture has {why}; expected a 2D scene drawn as discs")
+        self.renderer = renderer
+        painter = renderer.painter
+        self.look, self.p = renderer.look, renderer.state.particles
+        self.scale = float(painter.px_per_unit)
+        self.offset = painter.offset  # pixels (y up) of the world's origin
+        self.height = renderer.height
+        # on the CPU the kernel writes straight into this host array (no copy; elsewhere Taichi copies it back)
+        self.records = np.zeros((max(renderer.model.capacity, 1), 3), np.uint32)
+
+    @ti.kernel
+    def _pack(self, n: ti.i32, records: ti.types.ndarray()):
+        look, p = self.look, self.p
+        for i in range(n):
+            head = ti.cast(p.x[i], ti.f32) * self.scale + self.offset
+            r_true = look.drawn_radius(i) * self.scale
+            if look.g_draw[p.group[i]] == 0:  # a dot: one pixel
+                r_true = 0.5
+            r = ti.max(r_true, R_MIN)
+            alpha = ti.max((r_true / r) ** 2, MIN_FADE)  # a particle smaller than R_MIN is drawn fainter
+            kind = 0
+            if look.g_blend[p.group[i]] == BLEND["alpha"]:
+                alpha = ti.min(alpha * look.opacity(i), 0.999)
+                kind = 1
+            c = ti.math.clamp(look.color(i), 0.0, 1.0)
+            col = ti.cast(c * 255.0 + 0.5, ti.u32)
+            a = ti.cast(ti.math.clamp(alpha, 0.0, 1.0) * 255.0 + 0.5, ti.u32)
+            x = ti.cast(ti.math.clamp(head[0] * FIXED + 0.5, 0.0, 65535.0), ti.u32)
+            y = ti.cast(ti.math.clamp((self.height - head[1]) * FIXED + 0.5, 0.0, 65535.0), ti.u32)
+            records[i, 0] = x | (y << 16)
+            records[i, 1] = ti.cast(ti.min(r * FIXED + 0.5, 65535.0), ti.u32) | (ti.cast(kind, ti.u32) << 16)
+            records[i, 2] = col[0] | (col[1] << 8) | (col[2] << 16) | (a << 24)
+
+    def encode(self, frame: int, seq: int, time: float) -> bytes:
+        """The particle frame of the state now (the module docstring's layout)."""
+        self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
+        n = min(int(self.p.n[None]), len(self.records))
+        if n:
+            self._pack(n, self.records)
+        body = self.records[:n].tobytes()
+        return HEADER.pack(b"P", frame & 0xFFFFFFFF, seq & 0xFFFFFFFF, float(time), n) + body
+
+
+def decode(data: bytes) -> dict:
+    """A particle frame read back: frame, seq, time, and per particle x, y (pixels, rows from the top), r (pixels),
+    kind, rgba (uint8, (n, 4)). For tests and tools; the page reads the same layout."""
+    _, frame, seq, time, n = HEADER.unpack_from(data)
+    records = np.frombuffer(data, np.uint32, count=3 * n, offset=HEADER.size).reshape(n, 3)
+    return {
+        "frame": frame,
+        "seq": seq,
+        "time": time,
+        "x": (records[:, 0] & 0xFFFF) / FIXED,
+        "y": (records[:, 0] >> 16) / FIXED,
+        "r": (records[:, 1] & 0xFFFF) / FIXED,
+        "kind": records[:, 1] >> 16,
+        "rgba": np.ascontiguousarray(records[:, 2]).view(np.uint8).reshape(n, 4),
+    }
+
+
+def backdrop_picture(renderer, with_charts: bool = True) -> np.ndarray:
+    """The 2D picture without its particles, (H, W, 3) uint8, top row first: the domain, walls and heat sources, and
+    the charts drawn on them as the picture draws them (`with_charts`)."""
+    layer = renderer.painter.backdrop.to_numpy()  # (W, H, 3), y up
+    img = np.ascontiguousarray((np.clip(layer, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8).transpose(1, 0, 2)[::-1])
+    if with_charts:
+        renderer.draw_text_overlays(img)
+    return img
+
+
+def band_rect(renderer) -> tuple[int, int, int, int] | None:
+    """(x0, x1, row0, row1) of the rectangle that holds the picture's charts and text (None where it has none): what
+    changes in the backdrop from one moment to the next."""
+    rects = [plot.drawn_rect() for plot in renderer.plots() if plot.fits] + list(renderer.overlays.rects())
+    if not rects:
+        return None
+    x0, x1 = min(r[0] for r in rects), max(r[1] for r in rects)
+    r0, r1 = min(r[2] for r in rects), max(r[3] for r in rects)
+    return max(x0, 0), min(x1, renderer.width - 1), max(r0, 0), min(r1, renderer.height - 1)

@@ -1,0 +1,204 @@
+"""The classroom's pictures drawn by the page (issue 56, item 4): a 2D session sends the picture without its
+particles once, the charts' band a few times a second and a particle frame (places, sizes, colours) a picture; what
+the page composes from them is the renderer's picture. 3D scenes, and `draw="server"`, still send JPEG pictures."""
+
+import io
+import json
+from multiprocessing import Pipe
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from sandbox.render.particle_frame import decode
+
+pytestmark = pytest.mark.xdist_group("serve")
+
+
+def messages(page) -> list[bytes]:
+    """Everything the session has sent so far."""
+    out = []
+    while page.poll(0):
+        out.append(page.recv_bytes())
+    return out
+
+
+def composed(backdrop: bytes, bands: list[bytes]) -> np.ndarray:
+    """The page's picture under its particles: the backdrop with the last bands pasted where they belong."""
+    picture = np.array(Image.open(io.BytesIO(backdrop)).convert("RGB"))
+    for band in bands:
+        x0, r0 = np.frombuffer(band[:4], np.uint16)
+        crop = np.array(Image.open(io.BytesIO(band[4:])).convert("RGB"))
+        picture[r0 : r0 + crop.shape[0], x0 : x0 + crop.shape[1]] = crop
+    return picture
+
+
+@pytest.fixture
+def session_2d():
+    """A melting_block session whose page draws the particles (Taichi starts afresh for each test: one each)."""
+    from sandbox.app.serve_session import Session
+
+    page, end = Pipe()
+    session = Session(end, "melting_block", 960, 540, draw="page")
+    yield session, page
+    end.close()
+
+
+def test_a_2d_session_sends_particle_frames_that_make_the_renderers_picture(session_2d):
+    """Composed as the page composes it, the backdrop and band are the renderer's picture wherever no particle is
+    drawn (to the byte), each particle sits where the renderer puts it (within 1/32 pixel and f32 rounding) with
+    the colour the renderer gives its centre, and the frame carries the session's clock and the last setting
+    applied."""
+    session, page = session_2d
+    sent = messages(page)
+    scene = json.loads([m for m in sent if m[:1] == b"J" and b'"scene"' in m][0][1:])
+    assert scene["draw"] == "page"
+    backdrops = [m[1:] for m in sent if m[:1] == b"B"]
+    assert len(backdrops) == 1 and backdrops[0][:4] == b"\x89PNG"
+    session.handle({"t": "set", "key": "air", "value": 25.0, "seq": 7})
+    sent = []
+    for _ in range(14):
+        session.frame()
+        sent += messages(page)  # read as they come: a pipe holds only so much
+    session.send_band()  # the charts as they are now (they go every BAND_SECONDS)
+    sent += messages(page)
+    kinds = [m[:1] for m in sent]
+    assert kinds.count(b"P") == 14 and b"F" not in kinds
+    bands = [m[1:] for m in sent if m[:1] == b"C"]
+    frame = decode([m for m in sent if m[:1] == b"P"][-1])
+    sim = session.sim
+    assert (frame["frame"], frame["seq"], frame["time"]) == (session.frames, 7, sim.time)
+    places = session.renderer.plan.pixels(sim.positions())
+    assert len(frame["x"]) == len(places) == 1200
+    reach = 1 / 32 + 1e-3  # half a step of 1/16 pixel, and the renderer's single-precision arithmetic
+    assert np.abs(frame["x"] - places[:, 0]).max() <= reach and np.abs(frame["y"] - places[:, 1]).max() <= reach
+    session.renderer.full_refresh = True
+    picture = session.renderer.frame().copy()
+    under = composed(backdrops[0], bands)
+    clear = np.ones(picture.shape[:2], bool)  # pixels no particle reaches
+    for x, y, r in zip(frame["x"], frame["y"], frame["r"]):
+        clear[max(int(y - r - 2), 0) : int(y + r + 3), max(int(x - r - 2), 0) : int(x + r + 3)] = False
+    assert clear.mean() > 0.5 and np.array_equal(under[clear], picture[clear])
+    centres = picture[frame["y"].astype(int), frame["x"].astype(int)]
+    same = np.all(centres == frame["rgba"][:, :3], axis=1)
+    assert same.mean() > 0.99, same.mean()
+    assert np.all(frame["rgba"][:, 3] == 255) and np.all(frame["kind"] == 0)  # opaque discs
+    assert np.allclose(frame["r"], frame["r"][0]) and 4.0 < frame["r"][0] < 6.0  # half a spacing, in pixels
+
+
+def test_the_page_draws_a_particle_frame_as_the_renderer_draws_the_picture(session_2d):
+    """The page's own drawing code (app.js, in Chromium) turns the session's backdrop, band and particle frame into
+    the renderer's picture: the same colours at every particle's centre, and on average within a few levels where
+    the discs' anti-aliased edges are drawn by the browser instead."""
+    import shutil
+
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.skip("no Chromium (apt-get install chromium)")
+    playwright = pytest.importorskip("playwright.sync_api")
+    from pathlib import Path
+
+    session, page = session_2d
+    messages(page)
+    session.frame()
+    sent = messages(page)
+    session.send_band()
+    sent += messages(page)
+    frame_bytes = [m for m in sent if m[:1] == b"P"][-1]
+    band = [m[1:] for m in sent if m[:1] == b"C"][-1]
+    backdrop = composed(session_png_backdrop(session), [band])
+    session.renderer.full_refresh = True
+    picture = session.renderer.frame().copy()
+    app = (Path(__file__).resolve().parents[1] / "sandbox" / "app" / "web" / "app.js").read_text()
+    app = app.replace("\nstart();", "\n")  # the page's functions, without connecting anywhere
+    out = io.BytesIO()
+    Image.fromarray(backdrop).save(out, "PNG")
+    with playwright.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
+        try:
+            tab = browser.new_page()
+            tab.set_content('<canvas id="picture"></canvas><div id="status"></div>')
+            tab.add_script_tag(content=app)
+            drawn = tab.evaluate(
+                """async ([png, frame]) => {
+                  const bytes = (text) => Uint8Array.from(atob(text), (c) => c.charCodeAt(0)).buffer;
+                  const bitmap = await bitmapOf(bytes(png), "image/png");
+                  const context = pictureContext(bitmap.width, bitmap.height);
+                  context.drawImage(bitmap, 0, 0);
+                  drawParticles(context, bytes(frame));
+                  return Array.from(context.getImageData(0, 0, bitmap.width, bitmap.height).data);
+                }""",
+                [b64(out.getvalue()), b64(frame_bytes)],
+            )
+        finally:
+            browser.close()
+    drawn = np.array(drawn, np.uint8).reshape(picture.shape[0], picture.shape[1], 4)[:, :, :3]
+    frame = decode(frame_bytes)
+    centres = np.s_[frame["y"].astype(int), frame["x"].astype(int)]
+    assert np.mean(np.all(drawn[centres] == picture[centres], axis=1)) > 0.99
+    difference = np.abs(drawn.astype(int) - picture.astype(int))
+    assert difference.mean() < 1.0 and np.percentile(difference, 99) < 40, difference.mean()
+
+
+def session_png_backdrop(session) -> bytes:
+    from sandbox.render.particle_frame import backdrop_picture
+
+    out = io.BytesIO()
+    Image.fromarray(backdrop_picture(session.renderer, with_charts=False)).save(out, "PNG")
+    return out.getvalue()
+
+
+def b64(data: bytes) -> str:
+    import base64
+
+    return base64.b64encode(data).decode()
+
+
+def test_3d_scenes_and_server_drawing_send_jpeg_pictures():
+    """A 3D scene (shaded spheres) cannot be drawn by the page from a particle frame: its session sends the
+    renderer's JPEG pictures, as a 2D session does when the server draws (`draw="server"`)."""
+    from sandbox.app.serve_session import Session
+
+    for scene, draw in (("melting_block_3d", "page"), ("lj_box", "server")):
+        page, end = Pipe()
+        session = Session(end, scene, 160, 90, draw=draw)
+        session.frame()
+        sent = messages(page)
+        said = json.loads([m for m in sent if m[:1] == b"J" and b'"scene"' in m][0][1:])
+        assert said["draw"] == "server"
+        pictures = [m for m in sent if m[:1] in (b"F", b"P", b"B", b"C")]
+        assert [m[:1] for m in pictures] == [b"F"] and pictures[0][1:3] == b"\xff\xd8"  # one JPEG picture
+        end.close()
+    with pytest.raises(ValueError, match="draw: expected one of page, server"):
+        Session(end, "lj_box", 160, 90, draw="browser")
+
+
+def test_a_session_short_of_cpu_shows_fewer_steps_a_picture_and_more_when_there_is_room():
+    """Pace: pictures slower than 20 a second while the session got under 70% of a core (other processes had the
+    CPU) take about a quarter fewer steps each second, down to one; a slow page alone (the session had its core)
+    changes nothing; with room again they go back up to the scene's whole frame. "auto" scenes show whole frames."""
+    import time
+    from types import SimpleNamespace
+
+    from sandbox.app.serve_session import Pace
+
+    def scene(substeps):
+        return SimpleNamespace(scene=SimpleNamespace(world=SimpleNamespace(substeps=substeps)))
+
+    def second(pace, pictures, got):
+        """`pictures` pictures in one second, each made with `got` of a core."""
+        pace.window_start = time.perf_counter()
+        for _ in range(pictures - 1):
+            pace.picture(0.01, 0.01 * got)
+        pace.window_start = time.perf_counter() - 1.0  # the second is over: the last picture decides
+        pace.picture(0.01, 0.01 * got)
+        return pace.steps(scene(8))
+
+    pace = Pace()
+    assert pace.steps(scene(8)) is None  # the scene's own frame
+    assert second(pace, 12, 0.95) is None  # a slow page, a session that had its core: nothing changes
+    starved = [second(pace, 12, 0.4) for _ in range(6)]
+    assert starved == [6, 4, 3, 2, 1, 1]
+    assert [second(pace, 30, 0.95) for _ in range(6)] == [2, 3, 4, 6, None, None]
+    second(pace, 12, 0.4)
+    assert pace.steps(scene("auto")) is None
