@@ -1,19 +1,26 @@
 """Text on the 8-bit pictures (titles, clocks, legends, chart labels) in a real, anti-aliased font.
 
 The font is Pillow's built-in scalable one (`ImageFont.load_default(size)`, FreeType), so no font file has to be
-found on the machine. Text is drawn with a dark outline, so it reads over any colour of the scene.
+found on the machine. It has ASCII and a few signs only: a text with other letters (accents, Arabic: a classroom
+page's language) is drawn in DejaVu Sans where one is found (matplotlib's copy, else the system's), laid out by
+Pillow's Raqm engine (right-to-left scripts shaped and ordered) where Pillow has it. Text is drawn with a dark
+outline, so it reads over any colour of the scene.
 """
 
 from __future__ import annotations
 
+import importlib.util
+import unicodedata
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
-from PIL import Image, ImageDraw, ImageFont
+from PIL import Image, ImageDraw, ImageFont, features
 
 LIGHT = (235, 235, 235)  # the text colour when none is given
 GREY = (190, 190, 190)
 PAD = 2  # pixels of margin around a text's glyphs (room for the outline)
+SYSTEM_FONTS = ("/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/TTF/DejaVuSans.ttf")
 
 
 def text_size(height: int) -> int:
@@ -28,19 +35,63 @@ def font(size: int) -> ImageFont.FreeTypeFont:
     return ImageFont.load_default(size=size)
 
 
+@lru_cache(maxsize=1)
+def wide_font_path() -> Path | None:
+    """DejaVu Sans (Latin with accents, Greek, Cyrillic, Arabic): matplotlib's copy where it is installed (found
+    without importing it), else the system's; None where there is neither."""
+    spec = importlib.util.find_spec("matplotlib")
+    places = []
+    if spec and spec.origin:
+        places.append(Path(spec.origin).parent / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf")
+    places += [Path(p) for p in SYSTEM_FONTS]
+    return next((p for p in places if p.is_file()), None)
+
+
+@lru_cache(maxsize=32)
+def wide_font(size: int) -> ImageFont.FreeTypeFont | None:
+    """The wide font at `size` pixels, laid out by Raqm where Pillow has it; None without the font."""
+    path = wide_font_path()
+    if path is None:
+        return None
+    layout = ImageFont.Layout.RAQM if features.check("raqm") else ImageFont.Layout.BASIC
+    return ImageFont.truetype(str(path), size, layout_engine=layout)
+
+
+def _draws(face: ImageFont.FreeTypeFont, char: str) -> bool:
+    """Whether `face` has a glyph for `char` (not its missing-glyph box)."""
+    mask, missing = face.getmask(char), face.getmask("\uffff")
+    return (bytes(mask), mask.size) != (bytes(missing), missing.size)
+
+
+@lru_cache(maxsize=1024)
+def in_default_font(char: str) -> bool:
+    """Whether Pillow's built-in font draws `char`."""
+    return char.isspace() or _draws(font(18), char)
+
+
 @lru_cache(maxsize=1024)
 def has_glyph(char: str) -> bool:
-    """Whether the picture's font draws `char` (its missing-glyph box is what it draws for the others)."""
-    face = font(18)
-    mask = face.getmask(char)
-    missing = face.getmask("\uffff")
-    return char.isspace() or (bytes(mask), mask.size) != (bytes(missing), missing.size)
+    """Whether the picture can draw `char`: the built-in font has it, or the wide font does (a right-to-left letter
+    only where Raqm can order and shape it)."""
+    if in_default_font(char):
+        return True
+    wide = wide_font(18)
+    if wide is None or not _draws(wide, char):
+        return False
+    return unicodedata.bidirectional(char) not in ("R", "AL") or features.check("raqm")
+
+
+def face_for(text: str, size: int) -> ImageFont.FreeTypeFont:
+    """The font `text` is drawn in at `size` pixels: the built-in one where it has every letter, else the wide one."""
+    if all(in_default_font(c) for c in text):
+        return font(size)
+    return wide_font(size) or font(size)
 
 
 @lru_cache(maxsize=4096)
 def text_width(text: str, size: int) -> int:
     """Pixels `text` takes across at font size `size`."""
-    return int(np.ceil(font(size).getlength(text)))
+    return int(np.ceil(face_for(text, size).getlength(text)))
 
 
 def line_height(size: int) -> int:
@@ -52,7 +103,7 @@ def line_height(size: int) -> int:
 def _masks(text: str, size: int, outline: bool) -> tuple[np.ndarray, np.ndarray | None]:
     """The coverage of `text`'s glyphs and of its outline, (h, w, 1) floats in [0, 1] with a 2-pixel margin: drawn
     by Pillow once per text and size, then reused (a picture's labels repeat from frame to frame)."""
-    face = font(size)
+    face = face_for(text, size)
     w, h = text_width(text, size) + 2 * PAD, line_height(size) + 2 * PAD
     glyphs = Image.new("L", (w, h))
     ImageDraw.Draw(glyphs).text((PAD, PAD), text, font=face, fill=255)

@@ -1,8 +1,9 @@
 """The words the picture's charts draw (series names, the phase diagram's regions and title), in a language other
 than English where one is given: a classroom tab's picture speaks its page's language. The words come from the
-page's catalogue (app/web/i18n/*.json) as a plain mapping. The picture's font (Pillow's built-in one, render/text.py)
-has ASCII and a few signs only: accented letters are drawn without their accents ("temperature moyenne"), and a
-word in another script (Arabic) stays in English there (the page's own chart and legend carry the language)."""
+page's catalogue (app/web/i18n/*.json) as a plain mapping. The picture draws other letters than ASCII in DejaVu Sans
+where one is found (render/text.py): accents and Arabic as they are. Without it, accented letters are drawn without
+their accents ("temperature moyenne") and a word in another script stays in English (the page's own chart and
+legend carry the language)."""
 
 from __future__ import annotations
 
