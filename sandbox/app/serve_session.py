@@ -251,8 +251,9 @@ class Session:
 
         sim = self.sim
         wall, cpu = time.perf_counter(), time.process_time()
+        paced = self.particle_frames is not None  # where the steps are most of a picture's cost (not a JPEG's)
         try:
-            self.control.advance(self.pace.steps(sim))
+            self.control.advance(self.pace.steps(sim) if paced else None)
         except SimulationError as exc:  # a blow-up: say so and start the scene again
             self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
             self.control.reset()
@@ -261,7 +262,8 @@ class Session:
             self.send_particle_frame(wall)
         else:
             self.send_picture()
-        self.pace.picture(time.perf_counter() - wall, time.process_time() - cpu)
+        if paced:
+            self.pace.picture(time.perf_counter() - wall, time.process_time() - cpu)
 
     def send_particle_frame(self, now: float) -> None:
         """The particle frame (it carries the clock), and at their own rates the readouts and the charts' band."""
@@ -388,9 +390,9 @@ class Pace:
     of CPU (its pictures come slower than SMOOTH_FPS and the session got under 70% of a core while it worked: other
     processes were running) it shows about a quarter fewer steps a picture each second, down to one, so the class
     sees smooth motion in slow motion rather than jerky motion in slow motion: the simulation gets the CPU it got
-    before, spent on nearly the same steps, in more pictures. With room again (pictures 20% above SMOOTH_FPS and the
-    session not held back) it shows more. Scenes whose steps are sized a frame at a time (substeps = "auto") always
-    show whole frames."""
+    before, spent on nearly the same steps, in more pictures. With room again (pictures a quarter above SMOOTH_FPS) it
+    shows more: a session settles at the most steps a picture that keep SMOOTH_FPS. Scenes whose steps are sized a frame at a time (substeps = "auto") always
+    show whole frames, and so do sessions that send JPEG pictures, whose cost is mostly the drawing."""
 
     def __init__(self):
         self.steps_now: int | None = None  # steps a picture (None: the scene's whole frame)
@@ -420,7 +422,7 @@ class Pace:
         steps = self.full if self.steps_now is None else self.steps_now
         if rate < SMOOTH_FPS and got < 0.7 and steps > 1:
             self.steps_now = max(1, int(steps * 0.75))
-        elif rate > 1.2 * SMOOTH_FPS and got > 0.85 and self.steps_now is not None:
+        elif rate > 1.25 * SMOOTH_FPS and self.steps_now is not None:
             more = math.ceil(steps / 0.75)
             self.steps_now = None if more >= self.full else more
         self.window_start, self.pictures, self.wall, self.cpu = now, 0, 0.0, 0.0
