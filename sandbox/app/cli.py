@@ -377,7 +377,9 @@ def _serve_arguments(sub) -> None:
     serve.add_argument(
         "--teacher-token", help="the teacher's secret, for /teacher and its routes (made up and printed when not given)"
     )
-    serve.add_argument("--max-sessions", type=int, default=8, help="browser tabs served at once")
+    serve.add_argument(
+        "--max-sessions", type=int, default=30, help="browser tabs served at once (a class; about 200 MB each)"
+    )
     serve.add_argument(
         "--warm",
         type=int,

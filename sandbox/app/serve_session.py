@@ -391,8 +391,9 @@ class Pace:
     processes were running) it shows about a quarter fewer steps a picture each second, down to one, so the class
     sees smooth motion in slow motion rather than jerky motion in slow motion: the simulation gets the CPU it got
     before, spent on nearly the same steps, in more pictures. With room again (pictures a quarter above SMOOTH_FPS) it
-    shows more: a session settles at the most steps a picture that keep SMOOTH_FPS. Scenes whose steps are sized a frame at a time (substeps = "auto") always
-    show whole frames, and so do sessions that send JPEG pictures, whose cost is mostly the drawing."""
+    shows more: a session settles at the most steps a picture that keep SMOOTH_FPS. Scenes whose steps are sized a
+    frame at a time (substeps = "auto") always show whole frames, and so do sessions that send JPEG pictures, whose
+    cost is mostly the drawing."""
 
     def __init__(self):
         self.steps_now: int | None = None  # steps a picture (None: the scene's whole frame)
