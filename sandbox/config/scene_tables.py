@@ -205,7 +205,7 @@ class Heat:
     agitation_time: float = spec(
         0.0,
         doc="temperature as motion: the time (s) in which a molten particle's motion relaxes to its temperature "
-        "(a Langevin thermostat about the local flow; 0: off, the motion does not follow the temperature)",
+        "(a pairwise thermostat that keeps momentum; 0: off, the motion does not follow the temperature)",
         check=non_negative,
     )
     agitation_scale: float = spec(
