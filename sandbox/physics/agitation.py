@@ -65,6 +65,15 @@ def normal(a, b, k):
     return ti.sqrt(-2.0 * ti.log(u1)) * ti.cos(2.0 * math.pi * u2)
 
 
+@ti.func
+def unit_noise(a, b, k):
+    """A number of mean 0 and variance 1 from the counters (a, b, k), uniform on [-sqrt 3, sqrt 3]: the pairs' noise
+    (a pair's kick needs only the right variance, the velocities' Maxwell shape comes from many kicks; a uniform
+    number costs a hash where a normal one costs two and a logarithm and a cosine)."""
+    u = random_uniform(ti.cast(b, ti.u32), ti.cast(a, ti.u32), ti.cast(k, ti.u32))
+    return (2.0 * u - 1.0) * ti.sqrt(3.0)
+
+
 @register
 @data_oriented
 class Agitation(Term):
@@ -99,6 +108,7 @@ class Agitation(Term):
         self.is_free = ti.field(ti.i32, shape=parts.model.capacity)  # free() of each particle, for the flow's scan
         self.weight = ti.field(float, shape=parts.model.capacity)  # each free particle's sum of w^2 over neighbours
         self.wsum = ti.field(float, shape=parts.model.capacity)  # and its sum of w
+        self.kt = ti.field(float, shape=parts.model.capacity)  # each free particle's kT (pJ), for its pairs
         self.visc_sum = ti.field(float, shape=parts.model.capacity)  # and its sum of the viscosity's gamma w
         self.v_new = ti.Vector.field(self.dim, float, shape=parts.model.capacity)  # velocities after the pair kicks
         # the melt's viscosity (pair.py's viscous force, materials mixed by arithmetic means), whose noise the kicks add
@@ -117,7 +127,7 @@ class Agitation(Term):
         ]
 
     def nbytes(self) -> int:
-        return self.flow.shape[0] * (2 * self.dim * 8 + 4 + 16)
+        return self.flow.shape[0] * (2 * self.dim * 8 + 4 + 32)
 
     def after_step(self, state) -> None:
         """One thermostat step over the step just taken: the local flow, then each free particle's new velocity."""
@@ -155,7 +165,9 @@ class Agitation(Term):
     @ti.kernel
     def _flow_near(self, grid: ti.template()):
         for i in range(self.p.n[None]):  # once per particle, not once per pair the scan visits
-            self.is_free[i] = int(self.free(i))
+            t, phi = self.phase.state(self.p.h[i], self.p.material[i])
+            self.is_free[i] = int(phi >= FREE)
+            self.kt[i] = self.scale * ti.max(t + KELVIN, 0.0)
         for i in range(self.p.n[None]):
             self.weight[i] = 0.0
             self.wsum[i] = 0.0
@@ -204,9 +216,7 @@ class Agitation(Term):
             w = 1.0 - r / self.reach
             mu = p.mass[i] * p.mass[j] / (p.mass[i] + p.mass[j])
             gamma_dt = 2.0 * mu * share / ti.max(0.5 * (self.weight[i] + self.weight[j]), GAS_WEIGHT)
-            ti_, _ = self.phase.state(p.h[i], p.material[i])
-            tj, _ = self.phase.state(p.h[j], p.material[j])
-            kt = self.scale * ti.max(0.5 * (ti_ + tj) + KELVIN, 0.0)
+            kt = 0.5 * (self.kt[i] + self.kt[j])
             lo, hi = ti.min(p.ident[i], p.ident[j]), ti.max(p.ident[i], p.ident[j])
             pair = ti.cast(lo, ti.u32) ^ (ti.cast(hi, ti.u32) * ti.u32(0x85EBCA6B))
             sign = 1.0 if p.ident[i] == lo else -1.0  # the pair's noise pushes its two ends apart alike
@@ -220,10 +230,10 @@ class Agitation(Term):
             kick = ti.sqrt(2.0 * gamma_dt * kt * keep) * w
             acc += -gamma_dt * w * w * (p.v[i] - p.v[j])
             for a in ti.static(range(self.dim)):
-                acc[a] += sign * kick * normal(pair, step, PAIR_STREAM + a)
+                acc[a] += sign * kick * unit_noise(pair, step, PAIR_STREAM + a)
             if ti.static(self.viscous):  # the viscous force's partner: its noise along the line of centres
                 visc = self.visc[p.material[i], p.material[j]]
-                along = ti.sqrt(2.0 * visc * kt * dt * w * keep) * normal(pair, step, PAIR_STREAM + self.dim)
+                along = ti.sqrt(2.0 * visc * kt * dt * w * keep) * unit_noise(pair, step, PAIR_STREAM + self.dim)
                 acc += along * (-d / r)  # e from j to i turns with the pair: no sign needed
         return acc
 
