@@ -194,7 +194,7 @@ def test_the_force_shifted_pair_force_falls_to_zero_at_the_cutoff_and_its_energy
 @pytest.mark.parametrize(
     "change, message",
     [
-        ({"heat": {}}, "expected no [heat] table"),
+        ({"heat": {}}, "expected [molecular] or [heat], not both"),
         ({"molecular": {"walls": [{"side": "front", "temperature": 1.0}]}}, "3D box only"),
         ({"molecular": {"walls": [{"side": "top", "temperature": 1.0}] * 2}}, "named twice"),
         ({"molecular": {"phase_radius": 3.0}}, "at most the pair cutoff"),

@@ -209,8 +209,10 @@ def _check_molecular(file: str, raw) -> None:
     if raw.pair is None:
         raise SceneError(file, "molecular", "the molecular model needs a [pair] table: the atoms' force")
     if raw.heat is not None:
-        raise SceneError(
-            file, "heat", "expected no [heat] table with [molecular]: its temperature is measured from the motion"
+        raise SceneError(  # named as [molecular]: a --set of a molecular key on a heat scene is what adds it
+            file,
+            "molecular",
+            "expected [molecular] or [heat], not both: a molecular scene's temperature is measured from the motion",
         )
     if molecular.phase_radius > raw.pair.cutoff:
         raise SceneError(
