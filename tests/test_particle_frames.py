@@ -203,3 +203,20 @@ def test_a_session_short_of_cpu_shows_fewer_steps_a_picture_and_more_when_there_
     assert [second(pace, 30, 0.4) for _ in range(6)] == [2, 3, 4, 6, None, None]
     second(pace, 12, 0.4)
     assert pace.steps(scene("auto")) is None
+
+
+def test_the_teachers_thumbnail_comes_from_the_particle_frame_and_looks_like_the_picture(session_2d):
+    """Where the page draws, the teacher's thumbnail is made from the particle frame over the picture without its
+    particles (no whole picture drawn for it): 240 x 135, within a few levels on average of the renderer's picture
+    made small (measured 6.7), and far nearer it than the picture without its particles."""
+    session, page = session_2d
+    for _ in range(10):
+        session.frame()
+        messages(page)
+    small = session.thumbnail()
+    assert small.shape == (135, 240, 3)
+    session.renderer.full_refresh = True
+    reference = np.asarray(Image.fromarray(session.renderer.frame()).resize((240, 135), Image.Resampling.BILINEAR))
+    empty = np.asarray(Image.fromarray(session.under).resize((240, 135), Image.Resampling.BILINEAR))
+    difference = np.abs(small.astype(int) - reference.astype(int)).mean()
+    assert difference < 8.0 and difference < 0.5 * np.abs(empty.astype(int) - reference.astype(int)).mean()

@@ -65,6 +65,7 @@ class Session:
         self.draw_by = draw
         self.particle_frames = None  # the ParticleFrame packer where the page draws the particles
         self.base = None  # the picture without particles or charts, (H, W, 3) uint8, where the page draws
+        self.under = None  # and with the charts: what the page has under its particles
         self.interval = 1.0 / max_fps
         self.width, self.height = width, height
         self.credits = FIRST_CREDITS
@@ -123,6 +124,7 @@ class Session:
             self.base = backdrop_picture(self.renderer, with_charts=False)
             picture = self.base.copy()
             self.renderer.draw_text_overlays(picture)
+            self.under = picture  # what the page has under its particles (the teacher's thumbnails start from it)
             self.conn.send_bytes(b"B" + png(picture))
 
     @property
@@ -185,10 +187,7 @@ class Session:
         elif kind == "upload":
             self.upload(Path(msg["path"]))
         elif kind == "thumb":
-            from PIL import Image
-
-            small = Image.fromarray(self.draw()).resize((240, 135), Image.Resampling.BILINEAR)
-            self.conn.send_bytes(b"T" + self.jpeg(np.asarray(small), 70))
+            self.conn.send_bytes(b"T" + self.jpeg(self.thumbnail(), 70))
 
     def action(self, name: str) -> None:
         control = self.control
@@ -299,6 +298,19 @@ class Session:
             self.renderer.full_refresh = True
         return self.renderer.frame()
 
+    def thumbnail(self) -> np.ndarray:
+        """The teacher's small picture of this session (240 x 135): from the particle frame where the page draws (a
+        few milliseconds), else the renderer's picture made small."""
+        from PIL import Image
+
+        from ..render.particle_frame import small_picture
+
+        if self.particle_frames:
+            self.particle_frames.encode(self.frames, self.seq, self.sim.time)  # the records as they are now
+            n = min(int(self.sim.state.particles.n[None]), len(self.particle_frames.records))
+            return small_picture(self.under, self.particle_frames.records[:n], 240, 135)
+        return np.asarray(Image.fromarray(self.draw()).resize((240, 135), Image.Resampling.BILINEAR))
+
     def send_band(self) -> None:
         """The charts' band as the picture draws it (over the backdrop), for a page that draws the particles."""
         from ..render.particle_frame import band_rect
@@ -310,6 +322,7 @@ class Session:
         x0, x1, r0, r1 = rect
         picture = self.base.copy()
         self.renderer.draw_text_overlays(picture)
+        self.under = picture
         crop = np.ascontiguousarray(picture[r0 : r1 + 1, x0 : x1 + 1])
         self.conn.send_bytes(b"C" + struct.pack("<HH", x0, r0) + png(crop))
 

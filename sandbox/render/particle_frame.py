@@ -129,3 +129,23 @@ def band_rect(renderer) -> tuple[int, int, int, int] | None:
     x0, x1 = min(r[0] for r in rects), max(r[1] for r in rects)
     r0, r1 = min(r[2] for r in rects), max(r[3] for r in rects)
     return max(x0, 0), min(x1, renderer.width - 1), max(r0, 0), min(r1, renderer.height - 1)
+
+
+def small_picture(under: np.ndarray, records: np.ndarray, width: int, height: int) -> np.ndarray:
+    """A `width` x `height` picture (uint8, top row first) of a particle frame's `records` ((n, 3) uint32, the
+    module docstring's layout) over `under`, the full-size picture without its particles: the teacher's thumbnails,
+    without the renderer drawing a whole picture for each (discs at least a pixel across, in painter's order)."""
+    from PIL import Image, ImageDraw
+
+    full_h, full_w = under.shape[:2]
+    picture = Image.fromarray(under).resize((width, height), Image.Resampling.BILINEAR)
+    if len(records):
+        sx, sy = width / full_w, height / full_h
+        x = (records[:, 0] & 0xFFFF) / FIXED * sx
+        y = (records[:, 0] >> 16) / FIXED * sy
+        r = np.maximum((records[:, 1] & 0xFFFF) / FIXED * sx, 0.5)
+        colours = records[:, 2].astype("<u4").view(np.uint8).reshape(-1, 4)[:, :3]
+        pen = ImageDraw.Draw(picture)
+        for xi, yi, ri, c in zip(x.tolist(), y.tolist(), r.tolist(), colours.tolist()):
+            pen.ellipse((xi - ri, yi - ri, xi + ri, yi + ri), fill=tuple(c))
+    return np.asarray(picture)
