@@ -177,3 +177,32 @@ def test_the_pair_force_panel_shares_the_band_and_goes_away():
     assert ink_at(shown, "pair force (+ attracts)", x0 + 2, r0, ren.layout.size, tuple(COLORS[0]))
     ren.set_potential(None)
     assert np.array_equal(ren.frame(), plain)
+
+
+def test_right_to_left_words_are_laid_out_right_to_left_with_their_latin_runs():
+    """An Arabic chart title with a unit in parentheses is laid out as an Arabic reader expects: right to left as a
+    paragraph, so the Latin unit, which ends the text, stands at its left end with both parentheses (laid out left to
+    right it split as "(pJ/mm^2" at the right). Latin-first words keep the default direction."""
+    from PIL import ImageFont
+
+    from sandbox.render.text import direction_of, wide_font_path
+
+    if wide_font_path() is None:
+        pytest.skip("no DejaVu Sans (matplotlib or the system's)")
+    assert direction_of("ماء: الضغط (pJ/mm^2)") in ("rtl", None) and direction_of("température (°C)") is None
+    if direction_of("ماء") is None:
+        pytest.skip("Pillow without Raqm lays out no right-to-left text")
+    face = ImageFont.truetype(str(wide_font_path()), 18, layout_engine=ImageFont.Layout.RAQM)
+    title, unit = "ماء: الضغط (pJ/mm^2)", "(pJ/mm^2)"
+    whole = face.getmask(title, direction="rtl")
+    left = face.getmask(unit)
+    # the whole title's first columns are the unit's own glyphs, parentheses and all: their ink column by column
+    # follows the unit's drawn alone (laid out left to right, the title begins with its Arabic instead)
+
+    def start_likeness(mask) -> float:
+        ink = np.array(mask).reshape(mask.size[1], mask.size[0]).sum(axis=0)[: left.size[0]].astype(float)
+        alone = np.array(left).reshape(left.size[1], left.size[0]).sum(axis=0).astype(float)
+        return float(np.corrcoef(ink[: len(alone)], alone[: len(ink)])[0, 1])
+
+    assert start_likeness(whole) > 0.9
+    assert start_likeness(face.getmask(title, direction="ltr")) < 0.5

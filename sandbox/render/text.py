@@ -81,6 +81,18 @@ def has_glyph(char: str) -> bool:
     return unicodedata.bidirectional(char) not in ("R", "AL") or features.check("raqm")
 
 
+def direction_of(text: str) -> str | None:
+    """ "rtl" for a text whose first strong letter is right-to-left (Arabic, Hebrew) where Raqm lays it out, so that
+    its parentheses and numbers sit as a reader of that script expects; else None (Pillow's default)."""
+    for c in text:
+        kind = unicodedata.bidirectional(c)
+        if kind in ("R", "AL"):
+            return "rtl" if features.check("raqm") else None
+        if kind == "L":
+            return None
+    return None
+
+
 def face_for(text: str, size: int) -> ImageFont.FreeTypeFont:
     """The font `text` is drawn in at `size` pixels: the built-in one where it has every letter, else the wide one."""
     if all(in_default_font(c) for c in text):
@@ -91,7 +103,7 @@ def face_for(text: str, size: int) -> ImageFont.FreeTypeFont:
 @lru_cache(maxsize=4096)
 def text_width(text: str, size: int) -> int:
     """Pixels `text` takes across at font size `size`."""
-    return int(np.ceil(face_for(text, size).getlength(text)))
+    return int(np.ceil(face_for(text, size).getlength(text, direction=direction_of(text))))
 
 
 def line_height(size: int) -> int:
@@ -106,12 +118,15 @@ def _masks(text: str, size: int, outline: bool) -> tuple[np.ndarray, np.ndarray 
     face = face_for(text, size)
     w, h = text_width(text, size) + 2 * PAD, line_height(size) + 2 * PAD
     glyphs = Image.new("L", (w, h))
-    ImageDraw.Draw(glyphs).text((PAD, PAD), text, font=face, fill=255)
+    direction = direction_of(text)
+    ImageDraw.Draw(glyphs).text((PAD, PAD), text, font=face, fill=255, direction=direction)
     cover = np.asarray(glyphs, np.float32)[:, :, None] / 255.0
     shade = None
     if outline:
         halo = Image.new("L", (w, h))
-        ImageDraw.Draw(halo).text((PAD, PAD), text, font=face, fill=255, stroke_width=max(1, size // 10))
+        ImageDraw.Draw(halo).text(
+            (PAD, PAD), text, font=face, fill=255, stroke_width=max(1, size // 10), direction=direction
+        )
         shade = np.asarray(halo, np.float32)[:, :, None] / 255.0 * 0.75
     return cover, shade
 
