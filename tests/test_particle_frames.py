@@ -145,7 +145,7 @@ def session_png_backdrop(session) -> bytes:
     from sandbox.render.particle_frame import backdrop_picture
 
     out = io.BytesIO()
-    Image.fromarray(backdrop_picture(session.renderer, with_charts=False)).save(out, "PNG")
+    Image.fromarray(backdrop_picture(session.renderer)).save(out, "PNG")
     return out.getvalue()
 
 

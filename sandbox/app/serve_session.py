@@ -121,11 +121,8 @@ class Session:
             }
         )
         if self.particle_frames:  # what does not move with the particles, once
-            self.base = backdrop_picture(self.renderer, with_charts=False)
-            picture = self.base.copy()
-            self.renderer.draw_text_overlays(picture)
-            self.under = picture  # what the page has under its particles (the teacher's thumbnails start from it)
-            self.conn.send_bytes(b"B" + png(picture))
+            self.base = backdrop_picture(self.renderer)
+            self.conn.send_bytes(b"B" + png(self.draw_under()))
 
     @property
     def sim(self):
@@ -306,10 +303,15 @@ class Session:
         from ..render.particle_frame import small_picture
 
         if self.particle_frames:
-            self.particle_frames.encode(self.frames, self.seq, self.sim.time)  # the records as they are now
-            n = min(int(self.sim.state.particles.n[None]), len(self.particle_frames.records))
-            return small_picture(self.under, self.particle_frames.records[:n], 240, 135)
+            return small_picture(self.under, self.particle_frames.pack(), 240, 135)
         return np.asarray(Image.fromarray(self.draw()).resize((240, 135), Image.Resampling.BILINEAR))
+
+    def draw_under(self) -> np.ndarray:
+        """The picture under the particles now: the backdrop with the charts drawn on it, kept as `under` (the
+        teacher's thumbnails start from it)."""
+        self.under = self.base.copy()
+        self.renderer.draw_text_overlays(self.under)
+        return self.under
 
     def send_band(self) -> None:
         """The charts' band as the picture draws it (over the backdrop), for a page that draws the particles."""
@@ -320,10 +322,7 @@ class Session:
         if rect is None:
             return
         x0, x1, r0, r1 = rect
-        picture = self.base.copy()
-        self.renderer.draw_text_overlays(picture)
-        self.under = picture
-        crop = np.ascontiguousarray(picture[r0 : r1 + 1, x0 : x1 + 1])
+        crop = np.ascontiguousarray(self.draw_under()[r0 : r1 + 1, x0 : x1 + 1])
         self.conn.send_bytes(b"C" + struct.pack("<HH", x0, r0) + png(crop))
 
     def readouts(self) -> dict:

@@ -83,41 +83,46 @@ class ParticleFrame:
             records[i, 1] = ti.cast(ti.min(r * FIXED + 0.5, 65535.0), ti.u32) | (ti.cast(kind, ti.u32) << 16)
             records[i, 2] = col[0] | (col[1] << 8) | (col[2] << 16) | (a << 24)
 
-    def encode(self, frame: int, seq: int, time: float) -> bytes:
-        """The particle frame of the state now (the module docstring's layout)."""
+    def pack(self) -> np.ndarray:
+        """The live particles' records now, (n, 3) uint32 (the module docstring's layout): a view of this packer's
+        array, valid until the next pack."""
         self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
         n = min(int(self.p.n[None]), len(self.records))
         if n:
             self._pack(n, self.records)
-        body = self.records[:n].tobytes()
-        return HEADER.pack(b"P", frame & 0xFFFFFFFF, seq & 0xFFFFFFFF, float(time), n) + body
+        return self.records[:n]
+
+    def encode(self, frame: int, seq: int, time: float) -> bytes:
+        """The particle frame of the state now (the module docstring's layout)."""
+        records = self.pack()
+        return HEADER.pack(b"P", frame & 0xFFFFFFFF, seq & 0xFFFFFFFF, float(time), len(records)) + records.tobytes()
 
 
-def decode(data: bytes) -> dict:
-    """A particle frame read back: frame, seq, time, and per particle x, y (pixels, rows from the top), r (pixels),
-    kind, rgba (uint8, (n, 4)). For tests and tools; the page reads the same layout."""
-    _, frame, seq, time, n = HEADER.unpack_from(data)
-    records = np.frombuffer(data, np.uint32, count=3 * n, offset=HEADER.size).reshape(n, 3)
+def unpack(records: np.ndarray) -> dict:
+    """Records ((n, 3) uint32) read back: per particle x, y (pixels, rows from the top), r (pixels), kind, rgba
+    (uint8, (n, 4))."""
     return {
-        "frame": frame,
-        "seq": seq,
-        "time": time,
         "x": (records[:, 0] & 0xFFFF) / FIXED,
         "y": (records[:, 0] >> 16) / FIXED,
         "r": (records[:, 1] & 0xFFFF) / FIXED,
         "kind": records[:, 1] >> 16,
-        "rgba": np.ascontiguousarray(records[:, 2]).view(np.uint8).reshape(n, 4),
+        "rgba": records[:, 2].astype("<u4").view(np.uint8).reshape(-1, 4),  # a contiguous little-endian copy
     }
 
 
-def backdrop_picture(renderer, with_charts: bool = True) -> np.ndarray:
-    """The 2D picture without its particles, (H, W, 3) uint8, top row first: the domain, walls and heat sources, and
-    the charts drawn on them as the picture draws them (`with_charts`)."""
+def decode(data: bytes) -> dict:
+    """A particle frame read back: frame, seq, time and unpack()'s fields. For tests and tools; the page reads the
+    same layout."""
+    _, frame, seq, time, n = HEADER.unpack_from(data)
+    records = np.frombuffer(data, np.uint32, count=3 * n, offset=HEADER.size).reshape(n, 3)
+    return {"frame": frame, "seq": seq, "time": time, **unpack(records)}
+
+
+def backdrop_picture(renderer) -> np.ndarray:
+    """The 2D picture without its particles or its text, (H, W, 3) uint8, top row first: the domain, walls and heat
+    sources (the charts are drawn on a copy: Renderer.draw_text_overlays)."""
     layer = renderer.painter.backdrop.to_numpy()  # (W, H, 3), y up
-    img = np.ascontiguousarray((np.clip(layer, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8).transpose(1, 0, 2)[::-1])
-    if with_charts:
-        renderer.draw_text_overlays(img)
-    return img
+    return np.ascontiguousarray((np.clip(layer, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8).transpose(1, 0, 2)[::-1])
 
 
 def band_rect(renderer) -> tuple[int, int, int, int] | None:
@@ -141,10 +146,9 @@ def small_picture(under: np.ndarray, records: np.ndarray, width: int, height: in
     picture = Image.fromarray(under).resize((width, height), Image.Resampling.BILINEAR)
     if len(records):
         sx, sy = width / full_w, height / full_h
-        x = (records[:, 0] & 0xFFFF) / FIXED * sx
-        y = (records[:, 0] >> 16) / FIXED * sy
-        r = np.maximum((records[:, 1] & 0xFFFF) / FIXED * sx, 0.5)
-        colours = records[:, 2].astype("<u4").view(np.uint8).reshape(-1, 4)[:, :3]
+        fields = unpack(records)
+        x, y, r = fields["x"] * sx, fields["y"] * sy, np.maximum(fields["r"] * sx, 0.5)
+        colours = fields["rgba"][:, :3]
         pen = ImageDraw.Draw(picture)
         for xi, yi, ri, c in zip(x.tolist(), y.tolist(), r.tolist(), colours.tolist()):
             pen.ellipse((xi - ri, yi - ri, xi + ri, yi + ri), fill=tuple(c))

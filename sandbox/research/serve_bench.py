@@ -103,27 +103,20 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
         results = [{} for _ in range(clients)]
 
         async def everyone():
-            await asyncio.gather(*(_client(url, stop, r) for r in results))
+            tabs = asyncio.gather(*(_client(url, stop, r) for r in results))
+            if not hogs:
+                await tabs
+                return
+            await asyncio.sleep(max(windows[-1][1] - 2.0 - time.monotonic(), 0.0))  # the quiet window is over
+            with CpuHog(hogs):
+                await tabs
 
         process = psutil.Process(server.pid)
         samplers = [_Sampler(process, w_start, w_stop) for _, w_start, w_stop in windows]
         for sampler in samplers:
             sampler.start()
-        hog = CpuHog(hogs) if hogs else None
-        timer = None
-        if hog:
-            import threading
-
-            timer = threading.Timer(windows[-1][1] - 2.0 - time.monotonic(), hog.__enter__)
-            timer.start()
         before = os.times()
-        try:
-            asyncio.run(everyone())
-        finally:
-            if timer:
-                timer.cancel()
-                if hasattr(hog, "stop"):
-                    hog.__exit__(None, None, None)
+        asyncio.run(everyone())
         after = os.times()
         for sampler in samplers:
             sampler.join()
