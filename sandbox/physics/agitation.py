@@ -10,17 +10,18 @@ relative velocity v_ij exchanges the impulse
     dp_ij = -gamma_ij w^2 v_ij dt + sqrt(2 gamma_ij kT_ij dt) w theta_ij,    dp_ji = -dp_ij
 
 with kT_ij = heat.agitation_scale (pJ per kelvin) x the mean of the two absolute temperatures, theta_ij a vector of
-standard normal numbers shared by the pair, and gamma_ij dt = 2 mu_ij s / S_ij (mu the pair's reduced mass, S_ij the
-mean of the two particles' sums of w^2, at least GAS_WEIGHT): a particle's motion relative to its neighbours loses
-the share s = 1 - exp(-dim dt / tau) a step, so it relaxes in about heat.agitation_time = tau (s at most MAX_SHARE:
-with a step longer than a few tenths of tau the coupling is slower than asked, and stable). The noise's variance is 2
-gamma_ij kT_ij dt (1 - s / 2): what an explicit step of share s needs to keep kT (without the factor a step of 0.4
-tau ran 1.7 times too hot). The impulses are equal and opposite: a drop, a puddle or a flow keeps its momentum (to
-round-off), and only the motion relative to the neighbours is thermostatted (fluctuation-dissipation: each pair at
-kT_ij). The melt's viscous pair force (pair.py) gets its noise partner too, sqrt(2 gamma_visc kT_ij w dt) along the
-line of centres (without it the viscosity is a second thermostat, at absolute zero). A particle with few neighbours
-(a gas: its sum of w^2 under GAS_WEIGHT) is held about its local flow u_i (below; rest for a lone particle, as a gas
-is held by the walls it strikes) for the share it lacks, by the exact Ornstein-Uhlenbeck step over dt
+numbers of unit variance shared by the pair (unit_noise), and gamma_ij dt = 2 mu_ij s / S_ij (mu the pair's reduced
+mass, S_ij the mean of the two particles' sums of w^2, at least GAS_WEIGHT): a particle's motion relative to its
+neighbours loses the share s = 1 - exp(-dim dt / tau) a step, so it relaxes in about heat.agitation_time = tau (s at
+most MAX_SHARE: with a step longer than a few tenths of tau the coupling is slower than asked, and stable). The
+noise's variance is 2 gamma_ij kT_ij dt (1 - s / 2): what an explicit step of share s needs to keep kT (without the
+factor a step of 0.4 tau ran 1.7 times too hot). The impulses are equal and opposite: a drop, a puddle or a flow
+keeps its momentum (to round-off), and only the motion relative to the neighbours is thermostatted
+(fluctuation-dissipation: each pair at kT_ij). The melt's viscous pair force (pair.py) gets its noise partner too,
+sqrt(2 gamma_visc kT_ij w dt) along the line of centres (without it the viscosity is a second thermostat, at absolute
+zero). A particle with few neighbours (a gas: its sum of w^2 under GAS_WEIGHT) is held about its local flow u_i
+(below; rest for a lone particle, as a gas is held by the walls it strikes) for the share it lacks, by the exact
+Ornstein-Uhlenbeck step over dt
 
     v_i <- u_i + c1 (v_i - u_i) + c2 sqrt(kT_i / m_i) xi,   c1 = exp(-a dt / tau),  c2 = sqrt(1 - c1^2),
     a = 1 - S_i / GAS_WEIGHT
