@@ -54,6 +54,7 @@ from .cli_common import (
 )
 from .cli_run import cmd_run
 from .cli_study import study_arguments
+from .serve_session import DRAWS
 from .signals import Stopper, exit_code
 from .sweep import METRICS, check_keys, parse_vary, plan_runs, plot_sweep, run_sweep
 
@@ -360,7 +361,7 @@ def _bench_arguments(sub) -> None:
     )
     bench.add_argument(
         "--draw",
-        choices=("page", "server"),
+        choices=DRAWS,
         default="page",
         help="with --serve: who draws a 2D scene's particles (as sandbox serve --draw)",
     )
@@ -389,7 +390,7 @@ def _serve_arguments(sub) -> None:
     serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
     serve.add_argument(
         "--draw",
-        choices=("page", "server"),
+        choices=DRAWS,
         default="page",
         help="who draws a 2D scene's particles: the page (particle frames: light on the server) or the server (JPEG)",
     )

@@ -1,8 +1,8 @@
 // The classroom page: shows this tab's session (in 2D the page draws the particles from the session's particle
 // frames over the picture the sandbox's renderer draws without them; in 3D it shows the renderer's pictures;
 // streamed over a WebSocket one at a time: the page asks for the next when it has drawn the last, so the frame rate
-// follows the network and the server), and its panel from the shared description (sandbox/app/panel.py). Every string the
-// page shows comes from a message catalogue (static/i18n/*.json).
+// follows the network and the server), and its panel from the shared description (sandbox/app/panel.py). Every
+// string the page shows comes from a message catalogue (static/i18n/*.json).
 "use strict";
 
 const params = new URLSearchParams(location.search);
