@@ -195,8 +195,8 @@ def particle_phases(sim, table: dict[str, np.ndarray]) -> np.ndarray:
     p, live = sim.particles, sim.state.live_count()
     order = np.argsort(p.ident.to_numpy()[:live], kind="stable")
     ids = table["material"]
-    c, _, liquidus, latent, boil, vapor = (sim.model.column(name, ids) for name in ENTHALPY_LAW)
-    gas = gas_fraction_np(p.h.to_numpy()[:live][order], c, liquidus, latent, boil, vapor)
+    c, _, liquidus, latent, boil, vapor, liquid_c, _ = (sim.model.column(name, ids) for name in ENTHALPY_LAW)
+    gas = gas_fraction_np(p.h.to_numpy()[:live][order], c, liquidus, latent, boil, vapor, liquid_c)
     return np.where(gas >= 0.5, 2, np.where(table["melt_fraction"] >= 0.5, 1, 0)).astype(np.int32)
 
 

@@ -91,3 +91,40 @@ def test_the_pair_energy_counts_only_the_liquid_shares_attraction(temperature, a
                 expected += mass[i] * mass[j] * pair_energy(r, alpha, beta, eps, pair.a, pair.b, pair.cutoff)
     assert sim.stats().gas_fraction == (1.0 if temperature > 100 else 0.0)
     assert sim.stats().pair_energy == pytest.approx(expected, rel=1e-4, abs=1e-6)
+
+
+def test_ice_water_and_steam_each_warm_at_their_own_specific_heat():
+    """Heated evenly at constant power P, a phase warms at dT/dt = P / (M c) with its own c: ice 2.1, liquid water
+    4.18, steam 2.0 kJ/kg K (handbook values; before, one c served all three), measured from the run's mean
+    temperature while the whole mass is in that phase."""
+    power = 20_000.0
+    sim = sandbox.load(
+        {
+            "world": {"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.001, "substeps": 20, "gravity": [0, 0]},
+            "heat": {
+                "ambient": 20.0,
+                "refreeze": False,
+                "sources": [{"mode": "power", "power": power, "lo": [0, 0], "hi": [30, 30], "visible": False}],
+            },
+            "bodies": [
+                {
+                    "material": "ice",
+                    "shape": "box",
+                    "lo": [10, 10],
+                    "hi": [20, 20],
+                    "springs": False,
+                    "temperature": -50,
+                }
+            ],
+        }
+    )
+    mass = float(sim.state.particles.mass.to_numpy()[: sim.model.built.count].sum())
+    rows = sim.run(760)  # 15.2 s: 3.3 kJ/kg into 92 mg of ice at -50 C, about 190 C at the end
+    t, temperature, melt, gas = (
+        np.asarray(rows[k], float) for k in ("time", "mean_temperature", "molten_fraction", "gas_fraction")
+    )
+    phases = {"ice": (melt == 0.0, 2.1), "water": ((melt == 1.0) & (gas == 0.0), 4.18), "steam": (gas == 1.0, 2.0)}
+    for name, (inside, c) in phases.items():
+        assert inside.sum() >= 10, name
+        slope = np.polyfit(t[inside], temperature[inside], 1)[0]
+        assert slope == pytest.approx(power / (mass * c), rel=0.01), name

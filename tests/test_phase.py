@@ -6,7 +6,7 @@ from sandbox.app.tools import Tools
 from sandbox.config.materials import load_library
 from sandbox.config.scene import load_scene
 from sandbox.core import runtime
-from sandbox.physics.phase import enthalpy_np, melt_fraction_np, temperature_np
+from sandbox.physics.phase import ENTHALPY_LAW, enthalpy_np, melt_fraction_np, temperature_np
 from sandbox.research.phase_study import heating_curve_run, stefan_lambda, stefan_run
 from sandbox.simulation import Simulation
 
@@ -17,8 +17,8 @@ def test_enthalpy_law_inverts_and_holds_the_temperature_while_melting():
     lib = load_library()
     for name in ("ice", "wax", "glass", "lava", "solder", "chocolate", "butter"):
         m = lib[name]
-        args = (m.specific_heat, m.melt_temperature, m.liquidus_temperature, m.latent_heat)
-        T = np.linspace(m.melt_temperature - 50, m.liquidus_temperature + 50, 401)
+        args = [getattr(m, key) for key in ENTHALPY_LAW]  # ice: its own specific heat in each phase
+        T = np.linspace(m.melt_temperature - 50, m.liquidus_temperature + 150, 801)
         h = enthalpy_np(T, *args)
         assert np.all(np.diff(h) > 0)  # enthalpy rises with temperature
         back, phi = temperature_np(h, *args)
@@ -27,11 +27,35 @@ def test_enthalpy_law_inverts_and_holds_the_temperature_while_melting():
         # across the band (just below the solidus to just above the liquidus) h gains the latent heat beyond c dT
         lo, hi = m.melt_temperature - 1e-6, m.liquidus_temperature + 1e-6
         band = enthalpy_np(hi, *args) - enthalpy_np(lo, *args)
-        assert np.isclose(band, m.specific_heat * (hi - lo) + m.latent_heat, rtol=1e-12, atol=1e-9)
+        warming = m.specific_heat * (m.liquidus_temperature - lo) + m.liquid_specific_heat * (
+            hi - m.liquidus_temperature
+        )
+        assert np.isclose(band, warming + m.latent_heat, rtol=1e-12, atol=1e-9)
+        if m.boils:  # and across the boiling point the vaporization heat beyond the liquid's and vapour's warming
+            lo, hi = m.boil_temperature - 1.0, m.boil_temperature + 1.0
+            band = enthalpy_np(hi, *args) - enthalpy_np(lo, *args)
+            warming = m.liquid_specific_heat + m.gas_specific_heat
+            assert np.isclose(band, warming + m.vaporization_heat, rtol=1e-12)
     ice = lib["ice"]
     plateau = np.linspace(0.0, ice.latent_heat, 11)  # every enthalpy across the latent heat is at 0 C
     T, phi = temperature_np(plateau, ice.specific_heat, 0.0, 0.0, ice.latent_heat)
     assert np.all(T == 0.0) and np.allclose(phi, np.linspace(0, 1, 11))
+
+
+def test_a_material_based_on_another_keeps_one_specific_heat_or_its_phases_own():
+    """A material with one specific heat for every phase keeps one when a scene changes it; ice's liquid and vapour
+    keep their own (water 4.18, steam 2.0) when a scene changes the ice's."""
+    from sandbox.config.materials import resolve_materials
+
+    made = resolve_materials(
+        {"warm_wax": {"based_on": "wax", "specific_heat": 3.0}, "warm_ice": {"based_on": "ice", "specific_heat": 2.2}},
+        "scene.toml",
+    )
+    wax, ice = made["warm_wax"], made["warm_ice"]
+    assert (wax.specific_heat, wax.liquid_specific_heat, wax.gas_specific_heat) == (3.0, 3.0, 3.0)
+    assert (ice.specific_heat, ice.liquid_specific_heat, ice.gas_specific_heat) == (2.2, 4.18, 2.0)
+    steam = resolve_materials({"s": {"based_on": "wax", "liquid_specific_heat": 4.0}}, "scene.toml")["s"]
+    assert (steam.specific_heat, steam.liquid_specific_heat, steam.gas_specific_heat) == (2.5, 4.0, 4.0)
 
 
 def test_every_library_material_has_a_source_note_and_melts_sensibly():
@@ -49,12 +73,12 @@ def test_heating_curve_plateau_lasts_latent_heat_times_mass_over_power():
     curve = heating_curve_run()
     start, end = curve.plateau
     assert abs((end - start) - curve.expected_plateau) < 0.015 * curve.expected_plateau
-    rate = curve.power / (curve.mass * curve.specific_heat)  # degrees per second when not melting
+    rate = curve.power / curve.mass  # degrees per second when not melting, times the phase's specific heat
     t, T = curve.times, curve.mean_temperature
     before = t < start - 0.02
     after = t > end + 0.02
-    assert np.allclose(np.diff(T[before]) / np.diff(t[before]), rate, rtol=1e-3)
-    assert np.allclose(np.diff(T[after]) / np.diff(t[after]), rate, rtol=1e-3)
+    assert np.allclose(np.diff(T[before]) / np.diff(t[before]), rate / curve.specific_heat, rtol=1e-3)  # ice
+    assert np.allclose(np.diff(T[after]) / np.diff(t[after]), rate / curve.liquid_specific_heat, rtol=1e-3)  # water
     melting = (t > start + 0.02) & (t < end - 0.02)
     assert melting.sum() > 100 and np.all(np.abs(T[melting] - curve.melt_temperature) < 1e-9)
 

@@ -51,7 +51,7 @@ class Tools:
             w = 1.0 - (self.p.x[i] - c).norm() / radius
             if w > 0.0:  # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
                 m = self.p.material[i]
-                cap = self.sim.model.materials.specific_heat[m]
+                cap = self.sim.model.phase.capacity(self.p.h[i], m)
                 coldest = self.sim.model.phase.enthalpy(ABSOLUTE_ZERO, m)
                 self.sim.terms.heat.set_enthalpy(i, ti.max(self.p.h[i] + cap * amount * w, coldest))
 

@@ -34,7 +34,15 @@ class Material:
     """One material's properties (scaled units)."""
 
     density: float = spec(1.0, doc="mass per unit volume (per unit area in 2D)", check=positive)
-    specific_heat: float = spec(1.0, doc="heat per unit mass per degree", check=positive)
+    specific_heat: float = spec(
+        1.0, doc="heat per unit mass per degree (of the solid, and of every phase unless set)", check=positive
+    )
+    liquid_specific_heat: float | None = spec(
+        None, doc="heat per unit mass per degree of the liquid (default: specific_heat)", check=positive
+    )
+    gas_specific_heat: float | None = spec(
+        None, doc="heat per unit mass per degree of the vapour (default: liquid_specific_heat)", check=positive
+    )
     conductivity: float = spec(1.0, doc="thermal conductivity", check=non_negative)
     stiffness: float = spec(
         1000.0, doc="spring stiffness k_s of bonds in this material (force per length)", check=positive
@@ -109,6 +117,10 @@ class Material:
             object.__setattr__(self, "soften_temperature", self.melt_temperature)
         if self.liquidus_temperature is None:
             object.__setattr__(self, "liquidus_temperature", self.melt_temperature)
+        if self.liquid_specific_heat is None:
+            object.__setattr__(self, "liquid_specific_heat", self.specific_heat)
+        if self.gas_specific_heat is None:
+            object.__setattr__(self, "gas_specific_heat", self.liquid_specific_heat)
 
     @property
     def melts(self) -> bool:
@@ -117,6 +129,14 @@ class Material:
     @property
     def boils(self) -> bool:
         return math.isfinite(self.boil_temperature)
+
+
+# (key, the key it defaults to): the order matters, a follower may lead the next
+FOLLOWERS = (
+    ("liquidus_temperature", "melt_temperature"),
+    ("liquid_specific_heat", "specific_heat"),
+    ("gas_specific_heat", "liquid_specific_heat"),
+)
 
 
 def check_material(material: Material, file: str, key: str) -> Material:
@@ -172,8 +192,11 @@ def resolve_materials(scene_tables: dict, file: str) -> dict[str, Material]:
             merged = {f.name: getattr(result[base_name], f.name) for f in dataclasses.fields(Material)}
             merged["based_on"] = ""
             base = result[base_name]
-            if "melt_temperature" in table and base.liquidus_temperature == base.melt_temperature:
-                merged.pop("liquidus_temperature")  # a pure substance stays pure at its new melting point
+            # a key that follows another in the base (a pure substance's liquidus, one specific heat for every
+            # phase) goes on following it when the table sets the other
+            for follower, leader in FOLLOWERS:
+                if getattr(base, follower) == getattr(base, leader) and (leader in table or leader not in merged):
+                    merged.pop(follower)
             merged.update(table)
             merged = {k: list(v) if isinstance(v, tuple) else v for k, v in merged.items() if v is not None}
             table = merged

@@ -29,7 +29,9 @@ class MaterialTable:
         # of the same numbers are kept for host-side set-up (heat conductance tables).
         self.host = {
             "density": [m.density for m in materials],  # mass / volume
-            "specific_heat": [m.specific_heat for m in materials],  # heat / (mass degree)
+            "specific_heat": [m.specific_heat for m in materials],  # heat / (mass degree), of the solid
+            "liquid_heat": [m.liquid_specific_heat for m in materials],  # heat / (mass degree), of the liquid
+            "gas_heat": [m.gas_specific_heat for m in materials],  # heat / (mass degree), of the vapour
             "conductivity": [m.conductivity for m in materials],  # heat / (time length degree)
             "soften": [min(m.soften_temperature, 1e30) for m in materials],  # degrees
             "melt": [min(m.melt_temperature, 1e30) for m in materials],  # solidus (degrees)

@@ -275,7 +275,8 @@ def _explicit_limit(model, support: float, correction: float) -> float:
     if b.count < 2:
         return math.inf
     rho = model.column("density", b.material)
-    cap = model.column("specific_heat", b.material) * b.mass
+    heats = ("specific_heat", "liquid_specific_heat", "gas_specific_heat")
+    cap = np.min([model.column(name, b.material) for name in heats], axis=0) * b.mass  # the least of its phases
     k = model.column("conductivity", b.material)
     probe = np.linspace(0, b.count - 1, num=min(b.count, 64)).astype(int)
     worst = 0.0

@@ -44,7 +44,7 @@ class ImplicitHeat(Term):
         self.parts = parts  # the neighbourhood it sums over is built after the terms
         self.p = parts.state.particles
         self.heat = parts.terms["heat"]
-        self.materials = parts.model.materials
+        self.phase = parts.model.phase  # each phase's specific heat: the solve's heat capacity
         self.domain = parts.model.domain
         self.tolerance, self.max_iterations = tolerance, max_iterations
         cap = parts.model.capacity
@@ -114,7 +114,7 @@ class ImplicitHeat(Term):
     def _assemble(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
         self.sums.clear_for_assembly()
         for i in range(self.p.n[None]):
-            cap = self.p.mass[i] * self.materials.specific_heat[self.p.material[i]]
+            cap = self.p.mass[i] * self.phase.capacity(self.p.h[i], self.p.material[i])
             g, gt = self.heat.sources.terms(i)
             gsum, lap = self._laplacian(i, self.p.T, use_list, ids)
             # Solve for the change dT = T' - T: A dT = h (G T_s - G T - sum_j G_ij (T_i - T_j)), starting at 0.
@@ -132,7 +132,7 @@ class ImplicitHeat(Term):
     def _matvec(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
         self.sums.p_ap[None] = 0.0
         for i in range(self.p.n[None]):
-            cap = self.p.mass[i] * self.materials.specific_heat[self.p.material[i]]
+            cap = self.p.mass[i] * self.phase.capacity(self.p.h[i], self.p.material[i])
             g, _ = self.heat.sources.terms(i)
             _, lap = self._laplacian(i, self.d, use_list, ids)
             self.ad[i] = (cap + h * g) * self.d[i] + h * lap
@@ -157,5 +157,5 @@ class ImplicitHeat(Term):
     def apply(self):
         """h += c dT (dT accumulated by the solve); T follows from h."""
         for i in range(self.p.n[None]):
-            c = self.materials.specific_heat[self.p.material[i]]
+            c = self.phase.capacity(self.p.h[i], self.p.material[i])
             self.heat.set_enthalpy(i, self.p.h[i] + c * self.dT[i])

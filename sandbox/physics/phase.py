@@ -7,8 +7,11 @@ Tl and latent heat L:
     h(T) = c T + L phi(T),    phi(T) = clamp((T - Ts) / (Tl - Ts), 0, 1)    (a step at Ts when Tl = Ts)
 
 so between h_s = c Ts and h_l = c Tl + L, added heat goes into phi rather than T (for a pure substance T holds at Ts
-while the solid melts). Heat flows between particles are antisymmetric, so the total sum m h is conserved to
-round-off without sources, through melting and freezing alike.
+while the solid melts). Above the liquidus the liquid's own specific heat c_l takes over, h = h_l + c_l (T - Tl), up
+to the boiling point Tb (h_b = h_l + c_l (Tb - Tl)); the temperature holds at Tb while the vaporization heat L_v is
+taken, and the vapour warms with its own c_g: h = h_b + L_v + c_g (T - Tb). A material with one specific heat for every
+phase (c_l = c_g = c) keeps the closed forms c T + L phi + L_v psi, bit for bit. Heat flows between particles are
+antisymmetric, so the total sum m h is conserved to round-off without sources, through melting and freezing alike.
 
 Refreezing: a particle whose melt fraction reached its material's break_melt_fraction is flagged liquid. Every few
 steps (heat.refreeze_interval) a pass bonds pairs of the same material that are both cold (phi = 0 and
@@ -41,37 +44,70 @@ def melt_fraction_np(T: np.ndarray, solidus: np.ndarray, liquidus: np.ndarray) -
     return np.clip(ramp, 0.0, 1.0)
 
 
-def enthalpy_np(T, c, solidus, liquidus, latent, boil=np.inf, vapor=0.0) -> np.ndarray:
-    """Specific enthalpy h = c T + L phi(T) + L_v psi(T) (heat per unit mass) of particles at temperature T
-    (degrees); psi, the gas fraction, is a step at the boiling point (a particle set at it starts as liquid)."""
+def _phase_heats(c, liquid_c, gas_c) -> tuple[np.ndarray, np.ndarray]:
+    """The liquid's and the vapour's specific heats, defaulting to the solid's and the liquid's."""
+    liquid_c = np.asarray(c if liquid_c is None else liquid_c, dtype=np.float64)
+    gas_c = np.asarray(liquid_c if gas_c is None else gas_c, dtype=np.float64)
+    return liquid_c, gas_c
+
+
+def enthalpy_np(T, c, solidus, liquidus, latent, boil=np.inf, vapor=0.0, liquid_c=None, gas_c=None) -> np.ndarray:
+    """Specific enthalpy (heat per unit mass) of particles at temperature T (degrees): c T + L phi(T) + L_v psi(T)
+    with one specific heat c, else each phase warming with its own (liquid_c, gas_c); psi, the gas fraction, is a
+    step at the boiling point (a particle set at it starts as liquid)."""
     T = np.asarray(T, dtype=np.float64)
-    gas = np.where(T > np.asarray(boil), np.asarray(vapor, dtype=np.float64), 0.0)
-    return np.asarray(c) * T + np.asarray(latent) * melt_fraction_np(T, solidus, liquidus) + gas
+    c, liquidus, boil = (np.asarray(a, dtype=np.float64) for a in (c, liquidus, boil))
+    liquid_c, gas_c = _phase_heats(c, liquid_c, gas_c)
+    gas = np.where(T > boil, np.asarray(vapor, dtype=np.float64), 0.0)
+    one = c * T + np.asarray(latent) * melt_fraction_np(T, solidus, liquidus) + gas
+    with np.errstate(invalid="ignore"):
+        rise = np.where(T > liquidus, liquid_c * (np.minimum(T, boil) - liquidus), 0.0)
+        rise = rise + np.where(T > boil, gas_c * (T - boil), 0.0)
+        per_phase = c * np.minimum(T, liquidus) + np.asarray(latent) * melt_fraction_np(T, solidus, liquidus)
+    return np.where((liquid_c == c) & (gas_c == c), one, per_phase + gas + rise)
 
 
-def gas_fraction_np(h, c, liquidus, latent, boil=np.inf, vapor=0.0) -> np.ndarray:
+def _boiling_enthalpy_np(c, liquidus, latent, boil, liquid_c) -> np.ndarray:
+    """h_b: the liquid at its boiling point (boil held at 1e30 for a material that never boils)."""
+    boil = np.minimum(boil, 1e30)
+    with np.errstate(invalid="ignore"):
+        per_phase = np.asarray(c) * liquidus + latent + liquid_c * (boil - liquidus)
+    return np.where(liquid_c == c, np.asarray(c) * boil + latent, per_phase)
+
+
+def gas_fraction_np(h, c, liquidus, latent, boil=np.inf, vapor=0.0, liquid_c=None) -> np.ndarray:
     """psi in [0, 1] (NumPy twin of Phase.gas): the share of the vaporization heat taken above the enthalpy at which
     the liquid reaches its boiling point."""
     h = np.asarray(h, dtype=np.float64)
-    hb = np.asarray(c) * np.minimum(boil, 1e30) + np.asarray(latent)
+    liquid_c, _ = _phase_heats(c, liquid_c, None)
+    hb = _boiling_enthalpy_np(c, liquidus, latent, boil, liquid_c)
     vapor = np.asarray(vapor, dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         psi = np.where(vapor > 0, (h - hb) / np.where(vapor > 0, vapor, 1.0), np.where(h > hb, 1.0, 0.0))
     return np.clip(psi, 0.0, 1.0)
 
 
-def temperature_np(h, c, solidus, liquidus, latent, boil=np.inf, vapor=0.0) -> tuple[np.ndarray, np.ndarray]:
+def temperature_np(
+    h, c, solidus, liquidus, latent, boil=np.inf, vapor=0.0, liquid_c=None, gas_c=None
+) -> tuple[np.ndarray, np.ndarray]:
     """(T, phi) from specific enthalpy h (NumPy twin of Phase.state, for tests and initial states)."""
     h = np.asarray(h, dtype=np.float64)
-    boil, vapor = (np.broadcast_to(np.asarray(a, dtype=np.float64), h.shape) for a in (boil, vapor))
+    liquid_c, gas_c = _phase_heats(c, liquid_c, gas_c)
+    boil, vapor, liquid_c, gas_c = (
+        np.broadcast_to(np.asarray(a, dtype=np.float64), h.shape) for a in (boil, vapor, liquid_c, gas_c)
+    )
     c, ts, tl, lat = (np.broadcast_to(np.asarray(a, dtype=np.float64), h.shape) for a in (c, solidus, liquidus, latent))
     hs, hl = c * ts, c * tl + lat
     T = h / c
     phi = np.zeros_like(h)
     above = h >= hl
-    T = np.where(above, (h - lat) / c, T)
-    hb = c * np.minimum(boil, 1e30) + lat  # the liquid at its boiling point
-    T = np.where(above & (h > hb), np.where(h < hb + vapor, boil, (h - lat - vapor) / c), T)
+    one = (liquid_c == c) & (gas_c == c)
+    hb = _boiling_enthalpy_np(c, tl, lat, boil, liquid_c)  # the liquid at its boiling point
+    with np.errstate(invalid="ignore", over="ignore"):
+        liquid_t = np.where(one, (h - lat) / c, tl + (h - hl) / liquid_c)
+        gas_t = np.where(one, (h - lat - vapor) / c, np.minimum(boil, 1e30) + (h - hb - vapor) / gas_c)
+    T = np.where(above, liquid_t, T)
+    T = np.where(above & (h > hb), np.where(h < hb + vapor, boil, gas_t), T)
     phi = np.where(above, 1.0, phi)
     mushy = (h > hs) & ~above
     wide = mushy & (tl > ts)
@@ -93,14 +129,16 @@ ENTHALPY_LAW = (
     "latent_heat",
     "boil_temperature",
     "vaporization_heat",
+    "liquid_specific_heat",
+    "gas_specific_heat",
 )
 
 
 def initial_enthalpy(temperature: np.ndarray, material: np.ndarray, materials: list) -> tuple[np.ndarray, np.ndarray]:
     """(specific enthalpy, melt fraction) of particles at `temperature` (degrees) of `material` ids (into the
     `materials` records)."""
-    c, ts, tl, latent, boil, vapor = (material_column(materials, material, name) for name in ENTHALPY_LAW)
-    return enthalpy_np(temperature, c, ts, tl, latent, boil, vapor), melt_fraction_np(temperature, ts, tl)
+    law = [material_column(materials, material, name) for name in ENTHALPY_LAW]
+    return enthalpy_np(temperature, *law), melt_fraction_np(temperature, law[1], law[2])
 
 
 @data_oriented
@@ -109,6 +147,22 @@ class Phase:
 
     def __init__(self, materials):
         self.mats = materials
+
+    @ti.func
+    def one_heat(self, mat):
+        """Whether material mat has one specific heat for every phase (then the closed forms hold bit for bit)."""
+        c = self.mats.specific_heat[mat]
+        return self.mats.liquid_heat[mat] == c and self.mats.gas_heat[mat] == c
+
+    @ti.func
+    def boiling_enthalpy(self, mat):
+        """h_b: the liquid of material mat at its boiling point (about 1e30 c for one that never boils)."""
+        c = self.mats.specific_heat[mat]
+        hb = c * self.mats.boil[mat] + self.mats.latent[mat]
+        if not self.one_heat(mat):
+            tl = self.mats.liquidus[mat]
+            hb = c * tl + self.mats.latent[mat] + self.mats.liquid_heat[mat] * (self.mats.boil[mat] - tl)
+        return hb
 
     @ti.func
     def state(self, h, mat):
@@ -122,12 +176,17 @@ class Phase:
         if h <= hs:
             t = h / c
         elif h >= hl:
-            t = (h - lat) / c
             phi = 1.0
-            hb = c * self.mats.boil[mat] + lat  # the liquid at its boiling point (never reached: boil = 1e30)
-            if h > hb:
-                lv = self.mats.vaporize[mat]
-                t = self.mats.boil[mat] if h < hb + lv else (h - lat - lv) / c
+            boil, lv = self.mats.boil[mat], self.mats.vaporize[mat]
+            hb = self.boiling_enthalpy(mat)  # never reached by a material that does not boil (boil = 1e30)
+            if self.one_heat(mat):
+                t = (h - lat) / c
+                if h > hb:
+                    t = boil if h < hb + lv else (h - lat - lv) / c
+            else:
+                t = tl + (h - hl) / self.mats.liquid_heat[mat]
+                if h > hb:
+                    t = boil if h < hb + lv else boil + (h - hb - lv) / self.mats.gas_heat[mat]
         elif tl > ts:
             t = ts + (h - hs) / (c + lat / (tl - ts))
             phi = (t - ts) / (tl - ts)
@@ -145,16 +204,36 @@ class Phase:
             phi = ti.min(ti.max((t - ts) / (tl - ts), 0.0), 1.0)
         elif t > ts:
             phi = 1.0
-        h = self.mats.specific_heat[mat] * t + self.mats.latent[mat] * phi
-        if t > self.mats.boil[mat]:
-            h += self.mats.vaporize[mat]
+        c, boil = self.mats.specific_heat[mat], self.mats.boil[mat]
+        h = 0.0
+        if self.one_heat(mat):
+            h = c * t + self.mats.latent[mat] * phi
+            if t > boil:
+                h += self.mats.vaporize[mat]
+        else:
+            h = c * ti.min(t, tl) + self.mats.latent[mat] * phi
+            if t > tl:
+                h += self.mats.liquid_heat[mat] * (ti.min(t, boil) - tl)
+            if t > boil:
+                h += self.mats.vaporize[mat] + self.mats.gas_heat[mat] * (t - boil)
         return h
+
+    @ti.func
+    def capacity(self, h, mat):
+        """dh/dT away from a phase change: the specific heat of the phase that specific enthalpy h is in (the
+        solid's up to the liquidus, the liquid's up to the end of boiling, then the vapour's)."""
+        c = self.mats.specific_heat[mat]
+        if h >= c * self.mats.liquidus[mat] + self.mats.latent[mat]:
+            c = self.mats.liquid_heat[mat]
+            if h >= self.boiling_enthalpy(mat) + self.mats.vaporize[mat]:
+                c = self.mats.gas_heat[mat]
+        return c
 
     @ti.func
     def gas(self, h, mat):
         """Gas fraction psi in [0, 1] of specific enthalpy h in material mat: the share of its vaporization heat
         taken (0 for a material that never boils)."""
-        hb = self.mats.specific_heat[mat] * self.mats.boil[mat] + self.mats.latent[mat]
+        hb = self.boiling_enthalpy(mat)
         lv = self.mats.vaporize[mat]
         psi = 0.0
         if h > hb:

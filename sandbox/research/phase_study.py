@@ -152,6 +152,7 @@ class HeatingCurve:
     specific_heat: float
     latent_heat: float
     melt_temperature: float
+    liquid_specific_heat: float | None = None  # None: the solid's
 
     @property
     def plateau(self) -> tuple[float, float]:
@@ -199,6 +200,7 @@ def heating_curve_run(
         mat.specific_heat,
         mat.latent_heat,
         mat.melt_temperature,
+        mat.liquid_specific_heat,
     )
 
 
