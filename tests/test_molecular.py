@@ -348,3 +348,28 @@ def test_the_lid_is_drawn_at_its_height_in_3d():
     sim.terms.lid.height.from_numpy(np.array(22.0, dtype=np.float32))
     high = outline_rows()
     assert len(low) and len(high) and high.mean() < low.mean() - 5  # picture rows count down from the top
+
+
+def test_the_lid_is_drawn_at_its_height_in_2d_and_the_page_gets_pictures():
+    """In 2D the lid's underside is a light line across the box at its height, with the box above it tinted: raised
+    by 4 sigma, the line moves up 4 sigma's pixels (the whole picture is composited while a lid moves). A classroom
+    page cannot draw it from particle frames, so such a scene is sent as pictures."""
+    from sandbox.render.particle_frame import unsupported
+    from sandbox.render.raster import Renderer
+    from sandbox.render.style import LID_COLOR
+
+    lid = {"pressure": 0.06, "mass": 20.0, "height": 21.0}
+    sim = atoms(2, 50.0, (1, 1), (49, 18), 3.0, 1.0, periodic=False, molecular={"lid": lid})
+    renderer = Renderer(sim.model, sim.state, 640, 400, sim.scene.render, output="picture")
+    colour = np.round(np.asarray(LID_COLOR) * 255)
+
+    def line_rows():
+        picture = renderer.frame()
+        return np.flatnonzero(np.all(np.abs(picture.astype(int) - colour) <= 1, axis=2).sum(axis=1) > 500)
+
+    low = line_rows()
+    sim.terms.lid.height[None] = 25.0
+    high = line_rows()
+    assert len(low) == len(high) >= 2  # a line 2 to 3 pixels thick across the box
+    assert low.mean() - high.mean() == pytest.approx(4.0 * renderer.painter.px_per_unit, abs=1.0)
+    assert unsupported(renderer) == "a moving lid"

@@ -18,7 +18,18 @@ from ..core.oriented import data_oriented
 from .colormaps import temperature_map
 from .pixels import get_pixel, put_pixel
 from .strips import StripBins
-from .style import BLEND, BRUSH_COLOR, BRUSH_OPACITY, MIN_FADE, R_MIN, SPRING_COLOR, SPRING_OPACITY, TILE, _add
+from .style import (
+    BLEND,
+    BRUSH_COLOR,
+    BRUSH_OPACITY,
+    LID_COLOR,
+    MIN_FADE,
+    R_MIN,
+    SPRING_COLOR,
+    SPRING_OPACITY,
+    TILE,
+    _add,
+)
 
 
 def source_table(cfg, sources: list, lows: list, highs: list) -> list:
@@ -65,6 +76,12 @@ class Flat2D:
         (self.src_lo, _), (self.src_hi, _), (self.src_t, _) = table
         transfer.upload(table)
         self.strips = StripBins(width, model.capacity)
+        # the molecular model's lid (physics/lid.py): drawn at its height, so the picture is composited whole while
+        # it moves (the backdrop is not static there)
+        lid = {e.name: e for e in state.entries()}.get("lid.height")
+        self.has_lid = lid is not None
+        self.lid_height = lid.owner.height if lid is not None else None
+        self.backdrop_moves = self.has_lid
         # the walls and heat sources do not move: painted once (refresh_backdrop() after changing a source)
         self.backdrop = canvas.layer(3)
         if self.draw_springs:
@@ -255,6 +272,8 @@ class Flat2D:
         to the 8-bit picture."""
         canvas = self.canvas
         c = self.backdrop[x, y]
+        if ti.static(self.has_lid):
+            c = self._lid(x, y, c)
         if ti.static(self.draw_springs):
             log_t = self.spring_log[x, y]
             if log_t < 0.0:
@@ -277,6 +296,18 @@ class Flat2D:
             canvas.image[x, y] = c  # the window shows it; picture() packs it to 8 bits only when asked
         else:
             canvas.put_out(out, x, y, c)
+
+    @ti.func
+    def _lid(self, x, y, c):
+        """Pixel (x, y) of the lid: its underside a light line at its height across the box, the box above it
+        tinted (the weight that presses on the atoms)."""
+        under = self.offset[1] + self.px_per_unit * ti.cast(self.lid_height[None], ti.f32)
+        py = y + 0.5
+        if x + 0.5 >= self.px_lo[0] and x + 0.5 <= self.px_hi[0] and py >= under and py <= self.px_hi[1]:
+            c = c * 0.85 + 0.1
+            if py <= under + 2.0:
+                c = ti.Vector(LID_COLOR)
+        return c
 
     @ti.kernel
     def ring(self, cx: ti.f32, cy: ti.f32, r: ti.f32, out: ti.types.ndarray()):

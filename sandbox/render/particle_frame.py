@@ -40,6 +40,8 @@ def unsupported(renderer) -> str | None:
         return "springs drawn as lines"
     if "additive" in renderer.look.blends:
         return "additive light"
+    if renderer.painter.backdrop_moves:
+        return "a moving lid"
     return None
 
 

@@ -158,7 +158,7 @@ class Renderer:
         self.footprint.before_drawing()
         self.painter.draw()
         if self.dim == 2:  # one pass over the dirty tiles paints the backdrop, composites the layers, zeroes them
-            self.painter.composite(int(self.full_refresh), self.canvas.out)
+            self.painter.composite(int(self.full_refresh or self.painter.backdrop_moves), self.canvas.out)
             self.full_refresh = False
         out = self.canvas.out
         if self.dim == 2 and self.brush is not None:

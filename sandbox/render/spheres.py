@@ -17,7 +17,7 @@ from ..core import transfer
 from ..core.oriented import data_oriented
 from .colormaps import temperature_map
 from .flat import source_table
-from .style import BLEND, R_MIN
+from .style import BLEND, LID_COLOR, R_MIN
 
 
 @data_oriented
@@ -181,7 +181,7 @@ class Spheres3D:
                     pixel_size = s / self.focal_field[None]
                     c = c * 0.85 + 0.1
                     if edge < 1.5 * pixel_size:
-                        c = ti.Vector([0.85, 0.85, 0.9])
+                        c = ti.Vector(LID_COLOR)
                         depth = ti.bit_cast(s * ray.dot(self.camera[3]), ti.i32)
         return c, depth
 

@@ -15,6 +15,7 @@ MAX_OVERLAYS = 4  # 2D: rectangles redrawn every frame whatever moved (chart, po
 SPRING_COLOR = (0.55, 0.6, 0.7)
 SPRING_OPACITY = 0.6
 BRUSH_COLOR = (0.92, 0.92, 0.92)  # the window's tool outline
+LID_COLOR = (0.85, 0.85, 0.9)  # the molecular model's lid, 2D and 3D
 BRUSH_OPACITY = 0.85
 
 
