@@ -186,6 +186,15 @@ class Controller:
 
                 top = max(2.0, 2.0 * kt)
                 out.append(panel.Setting(f"wall{k}", f"{name} temperature", kt, 0.02, top, unit, 0.01, set_wall))
+        heater = self.sim.terms.heater
+        if heater is not None:  # the molecular model's even heater: positive heats, negative cools
+
+            def power(value: float) -> None:
+                self.sim.controls.set({"heater.power": value})
+
+            unit = f"{energy_unit(self.sim.material_names)}/s"
+            top = max(2.0 * abs(heater.power), 1.0)
+            out.append(panel.Setting("heater", "heater power", heater.power, -top, top, unit, top / 200, power))
         lid = self.sim.terms.lid
         if lid is not None:  # the weight on the molecular model's lid, as the outside pressure
 

@@ -103,6 +103,8 @@ def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
         out += [measured(kind, f"structure_{kind}", sim, stats, 0) for kind in ("solid", "liquid", "gas")]
         if sim.terms.thermal_walls is not None:
             out.append(measured("wall_heat", "wall_heat", sim, stats, 1))
+        if sim.terms.heater is not None:
+            out.append(measured("heater_heat", "heater_heat", sim, stats, 1))
         if sim.terms.lid is not None:  # (its height is a chart series: the panel fits 768 pixels)
             out.append(measured("lid_pressure", "lid_pressure", sim, stats, 4))
     out.append(measured("energy", "total_energy", sim, stats, 1))

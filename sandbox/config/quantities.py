@@ -135,6 +135,8 @@ QUANTITIES: tuple[Quantity, ...] = (
              "outside the molecular model", _structure_share("gas")),
     Quantity("wall_heat", "energy", "heat through the walls", "energy the thermal walls have given the atoms "
              "(negative: taken) since the start; 0 without them", lambda s: s.m.get("wall_heat", 0.0)),
+    Quantity("heater_heat", "energy", "heat from the heater", "energy the molecular heater has shared among the "
+             "atoms (negative: taken) since the start; 0 without it", lambda s: s.m.get("heater_heat", 0.0)),
     Quantity("lid_height", "length", "lid height", "the molecular model's lid's height along y; nan without a lid",
              lambda s: s.m.get("lid_height", NAN)),
     Quantity("lid_pressure", "pressure", "pressure on the lid", "momentum the atoms gave the lid per unit time and "

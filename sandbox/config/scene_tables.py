@@ -245,6 +245,15 @@ class Lid:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Heater:
+    power: float = spec(
+        0.0,
+        doc="energy per time shared evenly among the atoms by scaling their motion about their centre of mass "
+        "(momentum kept); negative cools, down to rest at most",
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class Molecular:
     phase_radius: float = spec(
         1.5,
@@ -268,6 +277,7 @@ class Molecular:
     lid: Lid | None = spec(
         None, doc="a lid across the box that moves up and down under a set outside pressure (a piston)"
     )
+    heater: Heater | None = spec(None, doc="heat shared evenly among the atoms at a set power (a stove under the pot)")
 
 
 @dataclass(frozen=True, kw_only=True)

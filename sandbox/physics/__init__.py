@@ -9,6 +9,7 @@ from . import (  # noqa: F401 - each registers its terms
     fields,
     heat,
     heat_implicit,
+    heater,
     kinematic,
     lid,
     lifetimes,

@@ -1,0 +1,111 @@
+"""The molecular model's heater: heat shared evenly among the atoms at a set power, keeping momentum.
+
+`[molecular.heater]` (power P, energy per time; negative cools) gives the atoms P dt of kinetic energy after each
+step, as a stove under a whole pot would, by scaling every atom's velocity about the atoms' centre-of-mass velocity u:
+
+    v_i <- u + lambda (v_i - u),    lambda^2 = 1 + P dt / K,    K = sum_i m_i |v_i - u|^2 / 2
+
+so the total momentum M u is untouched and the kinetic energy changes by exactly (lambda^2 - 1) K = P dt. Each atom's
+motion relative to the others grows (or shrinks) in proportion: nothing stirs a flow, and the pair forces share the
+heat out from there. The heat it moved is summed (`heater_heat`), so the total energy of the atoms changes by that sum
+and the thermal walls' (within the integrator's drift). Cooling stops at rest: where -P dt would take more than K,
+lambda is 0 and only K is taken (the sum records what was taken). The sums run in double precision in one fixed
+order, so a run repeats bit for bit in any thread order. The power is a live setting (`heater.power`, the heater
+slider). PhET's States of Matter heats the same way (by scaling velocities), without keeping momentum.
+"""
+
+import math
+
+import taichi as ti
+
+from ..core import transfer
+from ..core.oriented import data_oriented
+from .term import Measure, Term, register
+
+
+@register
+@data_oriented
+class Heater(Term):
+    """The molecular model's even heater (module docstring); `moved`: the energy it has given the atoms."""
+
+    key = "heater"
+    stage = "thermal_walls"
+    measures = (Measure("heater_heat", "sum", "value"),)
+
+    @staticmethod
+    def wanted(parts) -> bool:
+        molecular = parts.scene.molecular
+        return bool(molecular and molecular.heater)
+
+    @staticmethod
+    def host_work(scene) -> str | None:
+        if scene.molecular and scene.molecular.heater:
+            return "the heater shares its energy among the atoms after each step"
+        return None
+
+    def __init__(self, parts):
+        self.p = parts.state.particles
+        self.dim = parts.model.dim
+        self.power = 0.0
+        self.moved = ti.field(ti.f64, shape=())  # energy the heater has given the atoms (energy)
+        self.centre = ti.Vector.field(self.dim, ti.f64, shape=())  # u of the last step (length / time)
+        self.scale = ti.field(ti.f64, shape=())  # lambda of the last step
+        self.apply_controls({"power": parts.scene.molecular.heater.power})
+
+    def declare(self, state) -> None:
+        state.declare("heater", self, ("moved",))
+
+    def controls(self) -> dict:
+        return {"power": self.power}
+
+    def apply_controls(self, values: dict) -> None:
+        if "power" in values:
+            value = float(values["power"])
+            if not math.isfinite(value):
+                raise ValueError(f"heater power {value!r}; expected a finite number (negative cools)")
+            self.power = value
+
+    def words(self, where: str) -> list[str]:
+        if where == "after":
+            return [f"heater: {self.power:g} energy per time shared among the atoms, keeping momentum"]
+        return []
+
+    def after_step(self, state) -> None:
+        if self.power != 0.0:
+            self._heat(self.power * state.dt)
+
+    def energy_moved(self) -> float:
+        """The energy the heater has given the atoms so far (negative: taken)."""
+        return float(self.moved.to_numpy())
+
+    @ti.func
+    def measure_value(self):
+        return (self.moved[None],)
+
+    @ti.kernel
+    def _heat(self, energy: ti.f64):
+        p = self.p
+        n = p.n[None]
+        for _ in range(1):  # the sums in one fixed order (double precision): repeatable in any thread order
+            mass = ti.cast(0.0, ti.f64)
+            momentum = ti.Vector.zero(ti.f64, self.dim)
+            for i in range(n):
+                if p.mass[i] > 0.0:
+                    mass += ti.cast(p.mass[i], ti.f64)
+                    momentum += ti.cast(p.mass[i], ti.f64) * ti.cast(p.v[i], ti.f64)
+            u = momentum / ti.max(mass, 1e-300)
+            kinetic = ti.cast(0.0, ti.f64)
+            for i in range(n):
+                if p.mass[i] > 0.0:
+                    d = ti.cast(p.v[i], ti.f64) - u
+                    kinetic += 0.5 * ti.cast(p.mass[i], ti.f64) * d.dot(d)
+            gain = ti.max(energy, -kinetic)  # cooling stops at rest
+            scale = ti.cast(1.0, ti.f64)
+            if kinetic > 0.0:
+                scale = ti.sqrt(1.0 + gain / kinetic)
+                self.moved[None] += gain
+            self.centre[None], self.scale[None] = u, scale
+        for i in range(n):
+            if p.mass[i] > 0.0:
+                u = self.centre[None]
+                p.v[i] = ti.cast(u + self.scale[None] * (ti.cast(p.v[i], ti.f64) - u), p.v.dtype)
