@@ -18,7 +18,6 @@ import math
 
 import taichi as ti
 
-from ..core import transfer
 from ..core.oriented import data_oriented
 from .term import Measure, Term, register
 
