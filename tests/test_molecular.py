@@ -375,10 +375,10 @@ def test_the_lid_is_drawn_at_its_height_in_2d_and_the_page_gets_pictures():
     assert unsupported(renderer) == "a moving lid"
 
 
-def heated_liquid(power: float) -> Simulation:
+def heated_liquid(power: float, **schedule) -> Simulation:
     """400 atoms of a periodic 2D liquid at kT about 1 under the molecular heater at `power` (energy per time)."""
     side = 24.0
-    sim = atoms(2, side, (0, 0), (side, side), 1.2, 0.0, molecular={"heater": {"power": power}})
+    sim = atoms(2, side, (0, 0), (side, side), 1.2, 0.0, molecular={"heater": {"power": power, **schedule}})
     v = np.random.default_rng(3).normal(0.0, 1.0, (sim.state.live_count(), 2))
     set_velocities(sim, v - v.mean(axis=0))
     return sim
@@ -413,3 +413,25 @@ def test_the_heater_shares_its_power_among_the_atoms_keeping_momentum_and_the_en
     assert -stats.heater_heat < 0.5 * 400.0 * 500 * frozen.dt  # it took what there was (446), not what was asked
     with pytest.raises(SandboxError, match="heater.power"):
         frozen.controls.set({"heater.power": float("nan")})
+
+
+def test_the_heater_follows_its_schedule_until_set_by_hand_and_a_state_keeps_it():
+    """A heater scheduled to heat at 4 for 5 time units then cool at -4 has given the atoms 4 x 5 after 1,000 steps
+    and nothing net after 2,000; its state saved mid-schedule and put back follows the schedule on; set by hand (the
+    slider) it keeps the hand's power."""
+    sim = heated_liquid(0.0, schedule_times=[0.0, 5.0], schedule_values=[4.0, -4.0])
+    sim.step(1000)
+    assert sim.stats().heater_heat == pytest.approx(20.0, rel=1e-9)
+    saved = sim.controls.values()
+    assert saved["heater.scheduled"] == 1.0
+    sim.step(1000)
+    # the clock adds dt step by step, so the change may land a step late (a step at 4 and one fewer at -4)
+    step = 4.0 * sim.dt
+    assert sim.stats().heater_heat == pytest.approx(0.0, abs=2 * step + 1e-9)
+    after_schedule = sim.stats().heater_heat
+    sim.controls.set({"heater.power": 1.0})  # by hand: the schedule stops
+    sim.step(1000)
+    assert sim.stats().heater_heat - after_schedule == pytest.approx(5.0, rel=1e-9)
+    sim.controls.set(saved)  # a state's record: the schedule applies again (at this time, -4)
+    sim.step(200)
+    assert sim.stats().heater_heat - after_schedule == pytest.approx(5.0 - 200 * step, rel=1e-9)

@@ -237,6 +237,8 @@ def _check_molecular(file: str, raw) -> None:
         if any(w.side == "top" for w in molecular.walls):
             raise SceneError(file, "molecular.lid", "the top wall is a thermal wall; expected the lid or the wall")
     seen = set()
+    if molecular.heater is not None:
+        check_schedule(file, "molecular.heater", molecular.heater)
     for i, wall in enumerate(molecular.walls):
         axis, _ = WALL_SIDES[wall.side]
         if axis >= raw.world.dim:
@@ -309,21 +311,27 @@ def _check_source(file: str, key: str, src: HeatSource, dim: int) -> None:
     _check_box(file, key, src.lo, src.hi, dim)
     if src.mode != "power" and src.temperature is None:
         raise SceneError(file, f"{key}.temperature", f"missing; expected a number (degrees) for a {src.mode} source")
-    times, values = src.schedule_times, src.schedule_values
+    check_schedule(file, key, src)
+    if src.mode != "power":
+        for k, value in enumerate(src.schedule_values):
+            problem = celsius(value)
+            if problem:
+                raise SceneError(file, f"{key}.schedule_values[{k}]", problem)
+
+
+def check_schedule(file: str, key: str, table) -> None:
+    """A schedule's keys (`schedule_times`, `schedule_values`, `schedule_period` of a heat source or the molecular
+    heater): as many values as times, the times increasing from 0, the period longer than the last time."""
+    times, values = table.schedule_times, table.schedule_values
     if len(times) != len(values):
         raise SceneError(
             file,
             f"{key}.schedule_values",
             f"expected as many values as schedule_times ({len(times)}), got {len(values)}",
         )
-    if src.mode != "power":
-        for k, value in enumerate(values):
-            problem = celsius(value)
-            if problem:
-                raise SceneError(file, f"{key}.schedule_values[{k}]", problem)
     if times and (times[0] != 0 or any(b <= a for a, b in zip(times, times[1:]))):
         raise SceneError(file, f"{key}.schedule_times", f"expected increasing times starting at 0, got {list(times)}")
-    if src.schedule_period and times and src.schedule_period <= times[-1]:
+    if table.schedule_period and times and table.schedule_period <= times[-1]:
         raise SceneError(
             file, f"{key}.schedule_period", f"expected a period longer than the last schedule time {times[-1]:g}"
         )

@@ -251,6 +251,11 @@ class Heater:
         doc="energy per time shared evenly among the atoms by scaling their motion about their centre of mass "
         "(momentum kept); negative cools, down to rest at most",
     )
+    schedule_times: tuple[float, ...] = spec((), doc="times (increasing, from 0) at which the power changes")
+    schedule_values: tuple[float, ...] = spec((), doc="the power from each of schedule_times on")
+    schedule_period: float = spec(
+        0.0, doc="repeat the schedule with this period (0: hold the last value)", check=non_negative
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -128,11 +128,16 @@ class HeatSources:
 
 def source_value(src, t: float) -> float:
     """A source's temperature (or power) at time t: its schedule's value in force at t, else its fixed value."""
-    base = src.power if src.mode == "power" else src.temperature
-    if not src.schedule_times:
+    return scheduled_value(src, src.power if src.mode == "power" else src.temperature, t)
+
+
+def scheduled_value(table, base: float, t: float) -> float:
+    """The value in force at time t of a table with a schedule (`schedule_times`, `schedule_values`,
+    `schedule_period`: a heat source, the molecular heater): its schedule's, else `base`."""
+    if not table.schedule_times:
         return float(base)
-    times = src.schedule_times
-    if src.schedule_period > 0:
-        t = t % src.schedule_period
+    times = table.schedule_times
+    if table.schedule_period > 0:
+        t = t % table.schedule_period
     k = int(np.searchsorted(times, t, side="right")) - 1
-    return float(src.schedule_values[k]) if k >= 0 else float(base)
+    return float(table.schedule_values[k]) if k >= 0 else float(base)

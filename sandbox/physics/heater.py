@@ -11,7 +11,8 @@ heat out from there. The heat it moved is summed (`heater_heat`), so the total e
 and the thermal walls' (within the integrator's drift). Cooling stops at rest: where -P dt would take more than K,
 lambda is 0 and only K is taken (the sum records what was taken). The sums run in double precision in one fixed
 order, so a run repeats bit for bit in any thread order. The power is a live setting (`heater.power`, the heater
-slider). PhET's States of Matter heats the same way (by scaling velocities), without keeping momentum.
+slider); it may follow a schedule (`schedule_times`, `schedule_values`, `schedule_period`, as a heat source's) until
+it is set by hand. PhET's States of Matter heats the same way (by scaling velocities), without keeping momentum.
 """
 
 import math
@@ -19,6 +20,7 @@ import math
 import taichi as ti
 
 from ..core.oriented import data_oriented
+from .heat_sources import scheduled_value
 from .term import Measure, Term, register
 
 
@@ -45,24 +47,28 @@ class Heater(Term):
     def __init__(self, parts):
         self.p = parts.state.particles
         self.dim = parts.model.dim
-        self.power = 0.0
+        self.spec = parts.scene.molecular.heater
+        self.power = scheduled_value(self.spec, self.spec.power, 0.0)
+        self.by_hand = not self.spec.schedule_times  # set by hand (or never scheduled): the schedule no longer applies
         self.moved = ti.field(ti.f64, shape=())  # energy the heater has given the atoms (energy)
         self.centre = ti.Vector.field(self.dim, ti.f64, shape=())  # u of the last step (length / time)
         self.scale = ti.field(ti.f64, shape=())  # lambda of the last step
-        self.apply_controls({"power": parts.scene.molecular.heater.power})
 
     def declare(self, state) -> None:
         state.declare("heater", self, ("moved",))
 
     def controls(self) -> dict:
-        return {"power": self.power}
+        """The power, and whether it still follows the scene's schedule (1) or was set by hand (0)."""
+        return {"power": self.power, "scheduled": 0.0 if self.by_hand else 1.0}
 
     def apply_controls(self, values: dict) -> None:
+        """Set the power; without "scheduled": 1 (a state file's record) it is set by hand and the schedule stops."""
         if "power" in values:
             value = float(values["power"])
             if not math.isfinite(value):
                 raise ValueError(f"heater power {value!r}; expected a finite number (negative cools)")
             self.power = value
+        self.by_hand = not self.spec.schedule_times or values.get("scheduled", 0.0) == 0.0
 
     def words(self, where: str) -> list[str]:
         if where == "after":
@@ -70,6 +76,8 @@ class Heater(Term):
         return []
 
     def after_step(self, state) -> None:
+        if not self.by_hand:  # the power in force at the start of the step just taken (the clock moves on after)
+            self.power = scheduled_value(self.spec, self.spec.power, state.time)
         if self.power != 0.0:
             self._heat(self.power * state.dt)
 
