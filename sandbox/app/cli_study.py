@@ -1,4 +1,5 @@
-"""`sandbox study`: the integrator study, the phase-change validation and the molecular model's coexistence study."""
+"""`sandbox study`: the integrator study, the phase-change validation and the molecular model's coexistence study and
+heating curve."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import sys
 
 from ..config.arguments import check_folder_output, check_names, check_pool_arguments, pool_arguments
 from ..research.coexistence import parse_temperatures, run_coexistence
+from ..research.heating_curve import run_heating_study
 from ..research.phase_study import run_phase_study
 from ..research.study import INTEGRATORS, PROBLEMS, run_study
 from .cli_common import EXIT_INTERRUPTED
@@ -22,6 +24,13 @@ def cmd_study(args) -> int:
             out, temperatures, quick=args.quick, log=lambda line: print(line, file=sys.stderr), dim=args.dim
         )
         print(f"wrote {out}/coexistence.md and coexistence.csv")
+        return 0
+    if args.heating:
+        run_heating_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+        print(
+            f"wrote {out}/heating_curve.md and heating_curve.csv"
+            + (" and plot" if (out / "heating_curve.png").exists() else "")
+        )
         return 0
     if args.phase:
         run_phase_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
@@ -63,6 +72,12 @@ def study_arguments(sub) -> None:
         "--coexistence",
         action="store_true",
         help="instead: liquid-vapour coexistence of the molecular model (3D slabs) beside NIST's Lennard-Jones tables",
+    )
+    study.add_argument(
+        "--heating",
+        action="store_true",
+        help="instead: the molecular model's heating curve (a crystal under a lid heated at constant power, two lid "
+        "pressures: about 5 minutes)",
     )
     study.add_argument(
         "--temperatures",
