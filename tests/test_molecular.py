@@ -435,3 +435,33 @@ def test_the_heater_follows_its_schedule_until_set_by_hand_and_a_state_keeps_it(
     sim.controls.set(saved)  # a state's record: the schedule applies again (at this time, -4)
     sim.step(200)
     assert sim.stats().heater_heat - after_schedule == pytest.approx(5.0 - 200 * step, rel=1e-9)
+
+
+def test_an_argon_scene_computes_as_reduced_units_and_is_shown_in_kelvin_and_kilopascals():
+    """The material "argon" is the reduced Lennard-Jones atom shown in argon's units (epsilon / k = 119.8 K,
+    sigma = 0.3405 nm, m = 39.95 u): the same trajectory bit for bit as "lj", its readouts, chart and sliders in K,
+    kPa, zJ and ps, and a slider moved in kPa sets the reduced pressure it stands for."""
+    from sandbox.api import load
+    from sandbox.app.controller import Controller
+    from sandbox.app.panel import readouts
+    from sandbox.render.chart import Chart
+
+    sims = {m: load("pressure_cooker", set={"bodies.0.material": m}) for m in ("lj", "argon")}
+    for sim in sims.values():
+        sim.step(100)
+    assert np.array_equal(sims["lj"].positions(), sims["argon"].positions())
+    rows = {m: {r.key: r for r in readouts(sim, sim.stats())} for m, sim in sims.items()}
+    kt, kelvin = rows["lj"]["motion"], rows["argon"]["motion"]
+    assert (kt.unit, kelvin.unit) == ("eps", "K") and kelvin.value == pytest.approx(119.8 * kt.value, rel=1e-12)
+    assert rows["argon"]["energy"].unit == "zJ" and rows["argon"]["time"].unit == "ps"
+    # epsilon = 119.8 k = 1.654 zJ, epsilon / sigma^3 = 41.9 MPa, tau = sigma sqrt(m / epsilon) = 2.156 ps
+    assert rows["argon"]["energy"].value == pytest.approx(1.6540 * rows["lj"]["energy"].value, rel=1e-4)
+    assert rows["argon"]["time"].value == pytest.approx(2.1564 * rows["lj"]["time"].value, rel=1e-4)
+    control = Controller(sims["argon"])
+    lid = {s.key: s for s in control.settings()}["lid"]
+    assert lid.unit == "kPa" and lid.value == pytest.approx(0.03 * 41897.6, rel=1e-5)
+    control.set("lid", 2513.85)  # kPa
+    assert sims["argon"].terms.lid.pressure == pytest.approx(0.06, rel=1e-5)
+    chart = Chart(("motion_temperature",), (0, 400, 0, 120), 12, ["argon"], 3)
+    chart.record(sims["argon"].stats())
+    assert chart.words[0][1] == "K" and chart.history[0][0] == pytest.approx(kelvin.value, rel=1e-9)

@@ -24,7 +24,7 @@ from ..config.scene import load_scene
 from ..core import runtime
 from ..errors import SandboxError
 from ..files.persist import load_into, save_state
-from ..measure.units import energy_unit, length_unit, pressure_unit
+from ..measure.units import shown
 from ..simulation import Simulation
 from . import panel
 from .history import UndoRing
@@ -178,35 +178,31 @@ class Controller:
                     out.append(panel.Setting(f"source{k}", src.name, sources.value(k), -100.0, 1500.0, "C", 1.0, hold))
         walls = self.sim.terms.thermal_walls
         if walls is not None:  # the molecular model's heaters and coolers: each wall's kT
-            unit = energy_unit(self.sim.material_names)
             for k, (name, kt) in enumerate(zip(walls.names[:2], walls.temperatures())):
 
                 def set_wall(value: float, name: str = name) -> None:
                     self.sim.controls.set({f"thermal_walls.{name}": value})
 
                 top = max(2.0, 2.0 * kt)
-                out.append(panel.Setting(f"wall{k}", f"{name} temperature", kt, 0.02, top, unit, 0.01, set_wall))
+                out.append(self._shown(f"wall{k}", f"{name} temperature", kt, 0.02, top, "kT", 0.01, set_wall))
         heater = self.sim.terms.heater
         if heater is not None:  # the molecular model's even heater: positive heats, negative cools
 
             def power(value: float) -> None:
                 self.sim.controls.set({"heater.power": value})
 
-            unit = f"{energy_unit(self.sim.material_names)}/s"
             top = max(2.0 * abs(heater.power), 1.0)
-            out.append(panel.Setting("heater", "heater power", heater.power, -top, top, unit, top / 200, power))
+            out.append(self._shown("heater", "heater power", heater.power, -top, top, "power", top / 200, power))
         lid = self.sim.terms.lid
         if lid is not None:  # the weight on the molecular model's lid, as the outside pressure
 
             def press(value: float) -> None:
                 self.sim.controls.set({"lid.pressure": value})
 
-            unit = pressure_unit(self.sim.material_names, self.sim.dim)
             top = max(0.2, 4.0 * lid.pressure)
-            out.append(panel.Setting("lid", "lid pressure", lid.pressure, 0.0, top, unit, top / 200, press))
+            out.append(self._shown("lid", "lid pressure", lid.pressure, 0.0, top, "pressure", top / 200, press))
         if any(self.sim.scene.world.gravity):
             top = 4.0 * float(np.linalg.norm(self.sim.scene.world.gravity))
-            unit = f"{length_unit(self.sim.material_names)}/s^2"
 
             def strength(value: float) -> None:
                 self.steer_gravity(strength=value)
@@ -214,7 +210,9 @@ class Controller:
             def angle(value: float) -> None:
                 self.steer_gravity(angle=value)
 
-            out.append(panel.Setting("gravity", "gravity", self.gravity_strength, 0.0, top, unit, top / 100, strength))
+            out.append(
+                self._shown("gravity", "gravity", self.gravity_strength, 0.0, top, "acceleration", top / 100, strength)
+            )
             if self.sim.dim == 2:
                 out.append(
                     panel.Setting(
@@ -222,6 +220,13 @@ class Controller:
                     )
                 )
         return out
+
+    def _shown(self, key, words, value, lo, hi, kind: str, step, apply) -> panel.Setting:
+        """A slider over a computed value of unit kind `kind`, shown and moved in the scene's units (a real
+        substance's scene: its own, measure/units.py)."""
+        scale, unit = shown(kind, self.sim.material_names, self.sim.dim)
+        return panel.Setting(key, words, value * scale, lo * scale, hi * scale, unit, step * scale,
+                             lambda v: apply(v / scale))  # fmt: skip
 
     def set(self, key: str, value: float) -> None:
         """Move the slider `key` to `value`, clamped to its range; ValueError for a key the scene does not offer."""

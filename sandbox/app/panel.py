@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from ..config.quantities import BY_NAME
-from ..measure.units import energy_unit, series_words
+from ..measure.units import shown
 
 
 @dataclass(frozen=True)
@@ -66,11 +66,11 @@ def measured(key: str, name: str, sim, stats, digits: int = 1) -> Readout:
     """The panel's row `key` for the declared quantity `name` (config/quantities.py): its words, its value in the
     scene's units (fractions in percent; temperatures as "C": the window's font has no degree sign)."""
     q = BY_NAME[name]
-    value = float(getattr(stats, name))
-    unit = series_words(name, sim.material_names, sim.dim)[1] if q.chart else q.unit
+    scale, unit = shown(q.unit, sim.material_names, sim.dim)  # a real substance's scene: in its units
+    value = float(getattr(stats, name)) * scale
     if unit == "%":
         value *= 100.0
-    unit = {"°C": "C", "count": "", "energy": energy_unit(sim.material_names)}.get(unit, unit)
+    unit = {"°C": "C", "count": ""}.get(unit, unit)
     return Readout(key, q.words, value, unit, digits)
 
 

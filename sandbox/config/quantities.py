@@ -58,7 +58,7 @@ class Quantity:
     integer: bool = False
 
 
-UNIT_KINDS = ("s", "length", "energy", "energy per particle", "pressure", "°C", "%", "heat", "speed", "count")
+UNIT_KINDS = ("s", "length", "energy", "kT", "energy per particle", "pressure", "°C", "%", "heat", "speed", "count")
 
 
 def _per_particle(name: str) -> Callable[[Sums], float]:
@@ -119,13 +119,13 @@ QUANTITIES: tuple[Quantity, ...] = (
     Quantity("kinetic_temperature", "°C", "temperature of the motion", "the temperature the molten particles' "
              "motion relative to the local flow says (heat.agitation_time); nan without it",
              lambda s: s.m["agitation"] / (s.dim * s.m["free"]) - 273.15 if s.m.get("free") else NAN),
-    Quantity("motion_temperature", "energy", "temperature (kT)", "the atoms' kinetic temperature kT (k = 1): "
+    Quantity("motion_temperature", "kT", "temperature (kT)", "the atoms' kinetic temperature kT (k = 1): "
              "(sum m v^2 - |sum m v|^2 / sum m) / (dim (N - 1)); nan outside the molecular model",
              _motion_temperature),
-    Quantity("condensed_temperature", "energy", "temperature of solid and liquid (kT)", "kT of the atoms counted "
+    Quantity("condensed_temperature", "kT", "temperature of solid and liquid (kT)", "kT of the atoms counted "
              "solid or liquid: sum m v^2 / (dim N) over them (a drop at rest); nan when there are none",
              _phase_temperature("ke_condensed", ("solid", "liquid"))),
-    Quantity("gas_temperature", "energy", "temperature of the gas (kT)", "kT of the atoms counted gas: sum m v^2 / "
+    Quantity("gas_temperature", "kT", "temperature of the gas (kT)", "kT of the atoms counted gas: sum m v^2 / "
              "(dim N) over them; nan when there are none", _phase_temperature("ke_gas", ("gas",))),
     Quantity("structure_solid", "%", "solid (by structure)", "share of the atoms whose neighbours sit in order "
              "(physics/structure.py); nan outside the molecular model", _structure_share("solid")),

@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from ..config.quantities import QUANTITIES
-from ..measure.units import length_unit, series_words
+from ..measure.units import length_unit, series_scale, series_words, shown
 from .layout import side_by_side
 from .text import GREY, dim, draw_text, line_height, text_width
 from .words import Words
@@ -114,6 +114,9 @@ class Chart:
             title = ", ".join(self.words[k][0] for k in ks)
             fixed = (0.0, 100.0) if all(self.series[k] in FRACTIONS for k in ks) else None
             self.panels.append(Panel(ks, title, unit, fixed))
+        # a real substance's scene is shown in its units (measure/units.py): the factors, and the clock's unit
+        self.scales = [series_scale(n, material_names, dim) for n in self.series]
+        self.time_scale, self.time_unit = shown("time", material_names, dim)
         self.history: list[list[float]] = [[] for _ in self.series]
         self.times: list[float] = []
         self.frames = 0  # frames offered to record()
@@ -136,9 +139,9 @@ class Chart:
         if (self.frames - 1) % self.stride:
             return
         for k, name in enumerate(self.series):
-            value = float(getattr(stats, name)) * (100.0 if name in FRACTIONS else 1.0)
+            value = float(getattr(stats, name)) * (100.0 if name in FRACTIONS else self.scales[k])
             self.history[k].append(value if math.isfinite(value) else math.nan)
-        self.times.append(float(stats.time))
+        self.times.append(float(stats.time) * self.time_scale)
         if len(self.times) > HISTORY:  # bounded work per frame on a long run
             self.history = [h[::2] for h in self.history]
             self.times = self.times[::2]
@@ -229,9 +232,10 @@ class Chart:
         draw_text(img, unit, x, rect[2], size, GREY)
         value_ticks(img, box, (tick_text(hi), tick_text(0.5 * (lo + hi)), tick_text(lo)), size)
         t_end = self.times[-1]
-        middle_fits = text_width(tick_text(t_end) + " s  " + tick_text(t_end / 2), size) < w / 2
+        unit = f" {self.time_unit}"
+        middle_fits = text_width(tick_text(t_end) + unit + "  " + tick_text(t_end / 2), size) < w / 2
         for frac in (0.0, 0.5, 1.0) if middle_fits else (0.0, 1.0):
-            text = tick_text(frac * t_end) + (" s" if frac == 1.0 else "")
+            text = tick_text(frac * t_end) + (unit if frac == 1.0 else "")
             x = bx0 + round(frac * w) - text_width(text, size) * (frac if frac < 1 else 1.0)
             draw_text(img, text, round(x) if frac < 1 else bx1 - text_width(text, size), br1 + 3, size, GREY)
 

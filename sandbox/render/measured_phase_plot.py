@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ..measure.coexistence_curve import CoexistenceCurve
-from ..measure.units import pressure_unit
+from ..measure.units import pressure_unit, shown
 from .chart import pen_on, value_ticks
 from .phase_plot import CURVE, DOT, REGION_FILL, TRAIL, PressureTemperaturePanel
 from .text import GREY, dim, draw_text, text_width
@@ -31,6 +31,9 @@ class MeasuredPhasePlot(PressureTemperaturePanel):
         self.size = size
         self.words = words or Words()
         self.unit = pressure_unit(material_names, dim)
+        # a real substance's scene labels the axes in its units (K, kPa); the plot itself stays in reduced units
+        self.t_scale, self.t_unit = shown("kT", material_names, dim)
+        self.p_scale = shown("pressure", material_names, dim)[0]
         tc = curve.critical_temperature
         self.t_lo, self.t_hi = 0.8 * min(curve.temperatures), 1.25 * tc
         p_lo = float(curve.vapour_pressure(self.t_lo))
@@ -117,11 +120,18 @@ class MeasuredPhasePlot(PressureTemperaturePanel):
             title = self.words.phase_title("atoms", self.unit, short=True)
         draw_text(img, title, self.rect[0] + 2, self.rect[2], size, DOT)
         middle = (self.log_lo + self.log_hi) / 2
-        middle_text = f"1e{middle:g}" if middle == int(middle) else ""
-        value_ticks(img, box, (f"1e{self.log_hi}", middle_text, f"1e{self.log_lo}"), size)
+        decade = (lambda e: f"1e{e:g}") if self.p_scale == 1.0 else (lambda e: _short(10.0**e * self.p_scale))
+        middle_text = decade(middle) if middle == int(middle) else ""
+        value_ticks(img, box, (decade(self.log_hi), middle_text, decade(self.log_lo)), size)
         for t in (min(curve.temperatures), tc):
-            text = f"{t:.2f}"
+            text = f"{t:.2f}" if self.t_scale == 1.0 else f"{t * self.t_scale:.0f}"
             x = bx0 + int(self.to_pixels(box, t, 1.0)[0]) - text_width(text, size) // 2
             draw_text(img, text, x, br1 + 3, size, GREY)
-        end = "kT"
+        end = "kT" if self.t_scale == 1.0 else self.t_unit
         draw_text(img, end, bx1 - text_width(end, size), br1 + 3, size, GREY)
+
+
+def _short(value: float) -> str:
+    """A pressure tick in two digits, its exponent without the sign and zeros ("42", "4.2e4")."""
+    text = f"{value:.2g}"
+    return text.replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")

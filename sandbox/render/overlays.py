@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..measure.units import speed_unit
+from ..measure.units import shown, speed_unit
 from .colormaps import SPEED_STOPS, TEMPERATURE_STOPS, ramp_np_many
 from .layout import Layout, title_size
 from .look import STRUCTURE_COLORS, STRUCTURE_WORDS, VAPOUR_COLOR
@@ -118,7 +118,8 @@ class Overlays:
             draw_text(img, self.title, x, row, title_size(size))
             row += line_height(title_size(size))
         if self.cfg.clock:
-            draw_text(img, f"t = {self.state.time:.2f} s", x, row, size)
+            scale, unit = shown("time", self.material_names)
+            draw_text(img, f"t = {self.state.time * scale:.2f} {unit}", x, row, size)
         if self.legend_shown():
             self.draw_bar(img) if self.kind == "bar" else self.draw_swatches(img)
 

@@ -34,6 +34,7 @@ import numpy as np
 from ..config.scene import scene_from_dict
 from ..errors import SandboxError
 from ..measure.coexistence_curve import BETA, CoexistenceCurve, fit_curve
+from ..measure.units import REAL_SUBSTANCES, shown
 from ..simulation import Simulation
 from .figures import pyplot, save
 from .study_runs import STUDY_PATH
@@ -42,16 +43,13 @@ CUTOFF = 2.5
 # NIST SRSW, linear-force-shifted LJ at 2.5 sigma (TMMC, V = 512 sigma^3): saturation pressure p* by T*
 NIST_LFS_PSAT = {0.65: 6.71090e-03, 0.70: 1.18932e-02, 0.75: 1.95405e-02, 0.80: 3.02538e-02, 0.85: 4.47539e-02,
                  0.90: 6.39698e-02}  # fmt: skip
-# The argon the reduced units stand for: epsilon / k (K), sigma (nm), m (u); the pressure unit epsilon / sigma^3
-ARGON = {"epsilon_over_k": 119.8, "sigma_nm": 0.3405, "mass_u": 39.95}
-BOLTZMANN = 1.380649e-23  # J/K
+ARGON = REAL_SUBSTANCES["argon"]  # the argon the reduced units stand for (measure/units.py)
 F_CUT = 24.0 / CUTOFF**7 - 48.0 / CUTOFF**13  # the 12-6 force's attraction at the cutoff (unit masses)
 
 
 def argon_pressure_kpa(p_reduced: float) -> float:
     """A reduced pressure p* in kPa for argon (epsilon / sigma^3 = 41.9 MPa)."""
-    unit = ARGON["epsilon_over_k"] * BOLTZMANN / (ARGON["sigma_nm"] * 1e-9) ** 3
-    return p_reduced * unit / 1e3
+    return p_reduced * shown("pressure", ["argon"], 3)[0]
 
 
 def lfs_force_factor(r: np.ndarray) -> np.ndarray:
