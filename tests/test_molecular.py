@@ -465,3 +465,23 @@ def test_an_argon_scene_computes_as_reduced_units_and_is_shown_in_kelvin_and_kil
     chart = Chart(("motion_temperature",), (0, 400, 0, 120), 12, ["argon"], 3)
     chart.record(sims["argon"].stats())
     assert chart.words[0][1] == "K" and chart.history[0][0] == pytest.approx(kelvin.value, rel=1e-9)
+
+
+def test_the_heated_crystal_lesson_offers_its_heater_and_lid_and_follows_its_schedule():
+    """states_of_matter_atoms: a crystal (measured so) under a lid, with the heater and the lid's weight as sliders;
+    its heater follows the scene's schedule (3 eps per time unit at first) until the slider takes it over, and the
+    panel shows the heat it has given."""
+    from sandbox.app.controller import Controller, open_scene
+    from sandbox.app.panel import readouts
+
+    control = Controller(open_scene("states_of_matter_atoms", "cpu"))
+    sim = control.sim
+    keys = {s.key: s for s in control.settings()}
+    assert keys["heater"].value == 3.0 and keys["heater"].unit == "eps/s" and "lid" in keys
+    assert sim.stats().structure_solid > 0.8
+    sim.step(200)
+    rows = {r.key: r for r in readouts(sim, sim.stats())}
+    assert rows["heater_heat"].value == pytest.approx(3.0 * 200 * sim.dt, rel=1e-9)
+    control.set("heater", -1.0)  # by hand: the schedule stops
+    sim.step(200)
+    assert sim.stats().heater_heat == pytest.approx((3.0 - 1.0) * 200 * sim.dt, rel=1e-9)
