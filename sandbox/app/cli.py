@@ -19,6 +19,7 @@ from ..config.arguments import (
     pool_arguments,
 )
 from ..config.materials import Material, load_library
+from ..config.molecular_table import Heater, Lid, Molecular, ThermalWall
 from ..config.resources import shipped_scenes
 from ..config.scene import load_scene, read_scene_table
 from ..config.scene_tables import (
@@ -28,14 +29,11 @@ from ..config.scene_tables import (
     Heat,
     HeatSource,
     Lesson,
-    Lid,
-    Molecular,
     PairForce,
     Render,
     SceneInfo,
     Smoke,
     SmokeSource,
-    ThermalWall,
     World,
 )
 from ..config.schema import describe, unknown
@@ -116,7 +114,13 @@ def cmd_list(args) -> int:
     return 0
 
 
-LISTED_APART = {("heat", "sources"), ("smoke", "sources"), ("molecular", "walls"), ("molecular", "lid")}
+LISTED_APART = {
+    ("heat", "sources"),
+    ("smoke", "sources"),
+    ("molecular", "walls"),
+    ("molecular", "lid"),
+    ("molecular", "heater"),
+}
 
 
 def cmd_keys(args) -> int:
@@ -130,6 +134,7 @@ def cmd_keys(args) -> int:
         ("molecular", Molecular),
         ("molecular.walls[]", ThermalWall),
         ("molecular.lid", Lid),
+        ("molecular.heater", Heater),
         ("bodies[]", Body),
         ("emitters[]", Emitter),
         ("fields[]", FieldElement),

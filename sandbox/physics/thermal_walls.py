@@ -20,7 +20,7 @@ import math
 import numpy as np
 import taichi as ti
 
-from ..config.scene_tables import WALL_SIDES
+from ..config.molecular_table import WALL_SIDES
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.state import COUNT
