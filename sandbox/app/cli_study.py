@@ -25,20 +25,15 @@ def cmd_study(args) -> int:
         )
         print(f"wrote {out}/coexistence.md and coexistence.csv")
         return 0
-    if args.heating:
-        run_heating_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
-        print(
-            f"wrote {out}/heating_curve.md and heating_curve.csv"
-            + (" and plot" if (out / "heating_curve.png").exists() else "")
-        )
-        return 0
-    if args.phase:
-        run_phase_study(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
-        print(
-            f"wrote {out}/phase.md, stefan.csv, heating_curve.csv"
-            + (" and plots" if (out / "stefan.png").exists() else "")
-        )
-        return 0
+    validation = {  # flag: (runner, what it writes, the plot it adds where matplotlib is installed)
+        "heating": (run_heating_study, "heating_curve.md and heating_curve.csv", "heating_curve.png"),
+        "phase": (run_phase_study, "phase.md, stefan.csv, heating_curve.csv", "stefan.png"),
+    }
+    for flag, (runner, files, plot) in validation.items():
+        if getattr(args, flag):
+            runner(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+            print(f"wrote {out}/{files}" + (" and plots" if (out / plot).exists() else ""))
+            return 0
     try:
         run_study(
             out,
