@@ -18,11 +18,10 @@ def cmd_study(args) -> int:
     integrators = check_names("--integrators", args.integrators, INTEGRATORS)
     problems = check_names("--problems", args.problems, PROBLEMS)
     out = check_folder_output("--out", args.out)
+    log = lambda line: print(line, file=sys.stderr)  # noqa: E731
     if args.coexistence:
         temperatures = parse_temperatures(args.temperatures, args.dim)
-        run_coexistence(
-            out, temperatures, quick=args.quick, log=lambda line: print(line, file=sys.stderr), dim=args.dim
-        )
+        run_coexistence(out, temperatures, args.quick, log, args.dim, args.scheduler, args.workers, args.threads)
         print(f"wrote {out}/coexistence.md and coexistence.csv")
         return 0
     validation = {  # flag: (runner, what it writes, the plot it adds where matplotlib is installed)
@@ -31,7 +30,7 @@ def cmd_study(args) -> int:
     }
     for flag, (runner, files, plot) in validation.items():
         if getattr(args, flag):
-            runner(out, quick=args.quick, log=lambda line: print(line, file=sys.stderr))
+            runner(out, quick=args.quick, log=log)
             print(f"wrote {out}/{files}" + (" and plots" if (out / plot).exists() else ""))
             return 0
     try:

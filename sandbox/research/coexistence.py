@@ -36,6 +36,7 @@ from ..errors import SandboxError
 from ..measure.coexistence_curve import BETA, CoexistenceCurve, fit_curve
 from ..measure.units import REAL_SUBSTANCES, shown
 from ..simulation import Simulation
+from .dask_pool import run_jobs
 from .figures import pyplot, save
 from .study_runs import STUDY_PATH
 
@@ -248,9 +249,16 @@ def run_slab(temperature: float, width: float | None = None, equilibrate: int = 
     point = SlabPoint(kt, kt_err, rho_l, rho_l_err, rho_v, rho_v_err, p, p_err, p_zz, p_zz_err, dh, dh_err, n,
                       equilibrate + produce, time.perf_counter() - started)  # fmt: skip
     if log:
-        log(f"T* {temperature:g}: rho_l {rho_l:.4f}, rho_v {rho_v:.5f}, p_sat {p:.5f}, dH_vap {dh:.3f} "
-            f"({n} atoms, {point.seconds:.0f} s)")  # fmt: skip
+        log(said(point))
     return point
+
+
+def said(point: SlabPoint) -> str:
+    """One slab run's result in a line."""
+    return (
+        f"T* {point.temperature:.3g}: rho_l {point.rho_liquid:.4f}, rho_v {point.rho_vapour:.5f}, p_sat "
+        f"{point.p_sat:.5f}, dH_vap {point.dh_vap:.3f} ({point.atoms} atoms, {point.seconds:.0f} s)"
+    )
 
 
 DEFAULT_TEMPERATURES = {3: (0.70, 0.75, 0.80, 0.85), 2: (0.30, 0.33, 0.36, 0.39)}
@@ -276,13 +284,17 @@ def parse_temperatures(text: str | None, dim: int = 3) -> list[float]:
 
 
 def run_coexistence(
-    out: Path, temperatures: list[float], quick: bool = False, log=None, dim: int = 3
-) -> list[SlabPoint]:
+    out: Path, temperatures: list[float], quick: bool = False, log=print, dim: int = 3, scheduler: str = "auto",
+    workers: int | None = None, threads: int | None = None,
+) -> list[SlabPoint]:  # fmt: skip
     """Slab runs at `temperatures` (reduced) in `dim` dimensions, written to out/coexistence.csv and
     out/coexistence.md (3D: beside NIST's saturation pressures and in argon's units); `quick`: short runs (under a
-    minute each, wide error bars)."""
+    minute each, wide error bars). The runs go to a Dask cluster where there is one (research/dask_pool.py)."""
     steps = (4000, 6000) if quick else (20000, 60000)
-    points = [run_slab(t, equilibrate=steps[0], produce=steps[1], log=log, dim=dim) for t in temperatures]
+    jobs = [(t, None, steps[0], steps[1], 100, None, dim) for t in temperatures]
+    points = run_jobs(run_slab, jobs, scheduler, workers, threads, log, "coexistence study")
+    for point in points:
+        log(said(point))
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "coexistence.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(asdict(points[0])))

@@ -11,7 +11,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from ..errors import SandboxError
 
@@ -100,3 +100,31 @@ def quiet_dask_logs() -> None:
     """Only Dask's critical log lines from now on (every logger under "distributed")."""
     for name in [n for n in logging.root.manager.loggerDict if n.startswith("distributed")] + ["distributed"]:
         logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
+def run_jobs(
+    fn: Callable, jobs: list[tuple], scheduler: str = "auto", workers: int | None = None, threads: int | None = None,
+    log=print, what: str = "study",
+) -> list:  # fmt: skip
+    """fn(*job) for each of `jobs` (independent: a study's temperatures or pressures), each in a fresh Taichi runtime
+    with its share of the cores: on a Dask cluster ("local", or a scheduler's address; "auto": local where dask is
+    installed), else one after another ("serial"). The results come back in the jobs' order."""
+    scheduler = choose_scheduler(scheduler, len(jobs), log, what)
+    workers, threads = local_shape(len(jobs), workers if scheduler != "serial" else 1, threads)
+    if scheduler == "serial":
+        return [fresh_job(fn, threads, job) for job in jobs]
+    with dask_client(scheduler, workers) as client:
+        futures = [client.submit(fresh_job, fn, threads, job, pure=False) for job in jobs]
+        return client.gather(futures)
+
+
+def fresh_job(fn: Callable, threads: int, job: tuple):
+    """fn(*job) with `threads` CPU threads in a fresh Taichi runtime (what a job sees wherever it runs)."""
+    from ..core import runtime
+
+    with cpu_threads(threads):
+        runtime.reset()
+        try:
+            return fn(*job)
+        finally:
+            runtime.reset()

@@ -34,6 +34,7 @@ import numpy as np
 from ..config.scene import scene_from_dict
 from ..measure.coexistence_curve import curve_of
 from ..simulation import Simulation
+from .dask_pool import run_jobs
 from .figures import legend_beside, pyplot, save
 from .study_runs import STUDY_PATH
 
@@ -126,17 +127,27 @@ def run_heating(pressure: float, power: float, cells: int = 5, steps: int = 600_
     run = HeatingRun(pressure, power, sim.state.live_count(), q, t, liquid, solid, gas, lid,
                      time.perf_counter() - started)  # fmt: skip
     if log:
-        log(f"lid pressure {pressure:g}: {run.atoms} atoms, boiling liquid's kT {run.plateau():.3f}, "
-            f"{len(q) * every} steps, {run.seconds:.0f} s")  # fmt: skip
+        log(said(run))
     return run
 
 
-def run_heating_study(out: Path, pressures=(0.015, 0.03), power: float = 2.0, quick: bool = False,
-                      log=None) -> list[HeatingRun]:  # fmt: skip
+def said(run: HeatingRun) -> str:
+    """One heating run's result in a line."""
+    return (f"lid pressure {run.pressure:g}: {run.atoms} atoms, boiling liquid's kT {run.plateau():.3f}, "
+            f"{len(run.heat)} rows, {run.seconds:.0f} s")  # fmt: skip
+
+
+def run_heating_study(out: Path, pressures=(0.015, 0.03), power: float = 2.0, quick: bool = False, log=print,
+                      scheduler: str = "auto", workers: int | None = None,
+                      threads: int | None = None) -> list[HeatingRun]:  # fmt: skip
     """Heating runs at each lid pressure, written to out/heating_curve.csv, .md and .png; `quick`: a smaller crystal
-    heated faster (a minute; the plateaus smeared)."""
+    heated faster (a minute; the plateaus smeared). The runs go to a Dask cluster where there is one."""
     cells, power = (3, 4.0 * power) if quick else (5, power)
-    runs = [run_heating(p, power, cells=cells, log=log) for p in pressures]
+    runs = run_jobs(
+        run_heating, [(p, power, cells) for p in pressures], scheduler, workers, threads, log, "heating study"
+    )
+    for run in runs:
+        log(said(run))
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "heating_curve.csv", "w", newline="") as f:
         writer = csv.writer(f)

@@ -15,11 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..config.scene_tables import INTEGRATORS as ALL_INTEGRATORS
-from ..core import runtime
 from ..errors import SandboxError
 from . import study_problems as problems
 from . import study_stability
-from .dask_pool import choose_scheduler, cpu_threads, dask_client, local_shape
+from .dask_pool import choose_scheduler, dask_client, fresh_job, local_shape
 from .heat_study import heat_runs
 from .study_report import write_outputs
 from .study_runs import StudyResult
@@ -100,12 +99,7 @@ def run_task(task: StudyTask, threads: int, reference=None) -> dict:
     """Run one task in a fresh Taichi runtime with `threads` CPU threads; `reference`: the result of the problem's
     reference task (for lattice and melting). Returns {"runs": [...], "stability": [...], "stiff": [...],
     "notes": {...}, "reference": ...}, each part present where the task makes it."""
-    with cpu_threads(threads):
-        runtime.reset()  # fields of earlier tasks go; shared kernels come back from the offline cache
-        try:
-            return _run_task(task, reference)
-        finally:
-            runtime.reset()
+    return fresh_job(_run_task, threads, (task, reference))  # shared kernels come back from the offline cache
 
 
 def _run_task(task: StudyTask, reference) -> dict:
