@@ -3,6 +3,7 @@ references computed once; bad study arguments end in one line."""
 
 import csv
 
+import numpy as np
 import pytest
 
 from sandbox.errors import SandboxError
@@ -83,3 +84,26 @@ def test_bad_study_arguments_end_in_one_line(tmp_path, capsys):
         "error: --workers 0: expected an integer from 1 to 1,024",
     ]
     assert not (tmp_path / "s").exists()  # nothing written
+
+
+def test_a_studys_jobs_on_a_local_cluster_equal_them_one_after_another_in_order():
+    """run_jobs (the coexistence and heating studies' temperatures and pressures): on two local Dask workers each job
+    runs in a fresh runtime with its share of the cores and returns what it returns one after another, in order."""
+    from sandbox.research.dask_pool import run_jobs
+
+    jobs = [(0.015, 8.0, 3), (0.03, -8.0, 3)]  # a small crystal under two lids, briefly heated or cooled
+    serial = run_jobs(_heated_positions, jobs, "serial")
+    parallel = run_jobs(_heated_positions, jobs, "local", workers=2)
+    assert len(parallel) == 2 and all(np.array_equal(a, b) for a, b in zip(serial, parallel))
+    assert not np.array_equal(serial[0], serial[1])  # each job its own
+
+
+def _heated_positions(pressure: float, power: float, cells: int):
+    from sandbox.config.scene import scene_from_dict
+    from sandbox.research.heating_curve import heating_scene
+    from sandbox.research.study_runs import STUDY_PATH
+    from sandbox.simulation import Simulation
+
+    sim = Simulation(scene_from_dict(heating_scene(pressure, power, cells, height=20.0), STUDY_PATH))
+    sim.step(300)
+    return sim.positions()
