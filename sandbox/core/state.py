@@ -143,6 +143,10 @@ class State:
         """Every declared entry in declaration order (only the physical ones with `physical_only`)."""
         return [e for e in self._entries if e.physical or not physical_only]
 
+    def entry(self, name: str) -> Entry | None:
+        """The declared entry `name` ("lid.height"), or None where nothing declared it."""
+        return next((e for e in self._entries if e.name == name), None)
+
     @property
     def movable(self) -> tuple:
         """The per-particle fields that move with a particle: the particles' own, then the passengers."""

@@ -95,8 +95,14 @@ def curve_of(model) -> CoexistenceCurve | None:
         return None
     if not (material.pair_alpha == 24.0 and material.pair_beta == 48.0 and material.particle_mass == 1.0):
         return None
-    path = ASSETS_DIR / CURVES[scene.dim]
+    return shipped_curve(scene.dim)
+
+
+def shipped_curve(dim: int) -> CoexistenceCurve | None:
+    """The measured curve of the force-shifted 12-6 LJ atom in `dim` dimensions as shipped (None where its CSV is
+    missing)."""
+    path = ASSETS_DIR / CURVES[dim]
     if not path.exists():
         return None
     with open(path, newline="") as f:
-        return load_curve(list(csv.DictReader(f)), scene.dim)
+        return load_curve(list(csv.DictReader(f)), dim)

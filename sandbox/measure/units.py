@@ -57,9 +57,9 @@ def shown(kind: str, material_names, dim: int = 2) -> tuple[float, str]:
     "pressure", "acceleration"; any other kind is shown as it is, in that unit) is shown as factor x value in unit."""
     kind = {"s": "time"}.get(kind, kind)  # the clock's declared unit
     real = substance(material_names)
-    if real is not None and kind in ("kT", "energy", "heat", "length", "time", "speed", "power", "pressure",
-                                     "acceleration"):  # fmt: skip
-        return _real_scales(real, dim)[kind]
+    scales = _real_scales(real, dim) if real is not None else {}
+    if kind in scales:
+        return scales[kind]
     lj = reduced(material_names) or real is not None
     length, energy = ("sigma", "eps") if lj else ("mm", "pJ")
     unit = {

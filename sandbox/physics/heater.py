@@ -81,10 +81,6 @@ class Heater(Term):
         if self.power != 0.0:
             self._heat(self.power * state.dt)
 
-    def energy_moved(self) -> float:
-        """The energy the heater has given the atoms so far (negative: taken)."""
-        return float(self.moved.to_numpy())
-
     @ti.func
     def measure_value(self):
         return (self.moved[None],)

@@ -78,7 +78,7 @@ class Flat2D:
         self.strips = StripBins(width, model.capacity)
         # the molecular model's lid (physics/lid.py): drawn at its height, so the picture is composited whole while
         # it moves (the backdrop is not static there)
-        lid = {e.name: e for e in state.entries()}.get("lid.height")
+        lid = state.entry("lid.height")
         self.has_lid = lid is not None
         self.lid_height = lid.owner.height if lid is not None else None
         self.backdrop_moves = self.has_lid

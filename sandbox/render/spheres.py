@@ -58,7 +58,7 @@ class Spheres3D:
         (self.src_lo, _), (self.src_hi, _), (self.src_t, _) = table
         transfer.upload(table)
         # the molecular model's lid (physics/lid.py): its outline drawn at its height, in front of what lies behind it
-        lid = {e.name: e for e in state.entries()}.get("lid.height")
+        lid = state.entry("lid.height")
         self.lid_height = lid.owner.height if lid is not None else None
         self.has_lid = lid is not None
         if canvas.has_alpha:
