@@ -695,31 +695,77 @@ def test_a_list_that_overflows_between_the_stages_of_a_step_is_widened_and_the_s
     assert_same_states(_state(long_way), _state(fast))
 
 
-def test_a_crowded_machine_steps_the_long_way_with_the_teams_trajectory(tmp_path):
-    """With other work on every core the team's spinning workers would wait on each other (each descheduled in
-    turn): the plan steps the long way while LoadWatch says the machine is crowded, and the team again once it
-    clears, bit for bit the trajectory of a run that kept the team throughout."""
+def test_load_watch_gives_the_team_up_once_another_task_wants_one_of_its_cores(tmp_path):
+    """A team of 2 spinning workers on 2 cores needs both: one other runnable task (beside one other CPU-bound
+    program the team ran at 10 M particle-steps/s against one thread's 25) makes the machine busy, after a few reads;
+    a brief one does not. Reads move the estimate by SMOOTHING; the reader itself is not another task."""
     from sandbox.core.threads import LoadWatch
 
     loadavg = tmp_path / "loadavg"
-    watch = LoadWatch(2, str(loadavg))
-    # the runnable count includes the reader: 1 is a quiet machine; each read moves the estimate halfway
-    for running, busy in ((1, False), (1, False), (4, True), (9, True), (1, True), (1, False)):
+    watch = LoadWatch(2, str(loadavg), cores=2, own=lambda: 1)
+    seen = []
+    for running in (1, 2, 1, 1, 2, 2, 2, 2, 1, 1, 1, 1):
         loadavg.write_text(f"0.5 0.5 0.5 {running}/80 1234\n")
         watch.last = -1.0  # read now
-        assert watch.busy() is busy, (running, watch.others)
+        seen.append(watch.busy())
+    assert seen == [False, False, False, False, False, True, True, True, True, False, False, False], seen
+    # on 4 cores two others leave the team's 2 threads a core each
+    roomy = LoadWatch(2, str(loadavg), cores=4, own=lambda: 1)
+    loadavg.write_text("0.5 0.5 0.5 3/80 1234\n")
+    for _ in range(10):
+        roomy.last = -1.0
+        assert not roomy.busy()
     assert not LoadWatch(1, str(loadavg)).busy() and not LoadWatch(2, str(tmp_path / "none")).busy()
+
+
+def test_crowded_ways_keep_the_faster_and_try_the_other_again():
+    """While crowded the plan times the long way and one thread in stints and keeps the faster; a way's first stint
+    (which compiles) is not timed; the slower is tried again every RETRY seconds."""
+    from sandbox.step.crowd import ALONE, LONG, RETRY, STINT, CrowdedWays
+
+    now = [0.0]
+    ways = CrowdedWays(clock=lambda: now[0])
+    cost = {ALONE: 1e-3, LONG: 2e-3}  # seconds a step
+    chosen = []
+    for _ in range(8):
+        way = ways.choose()
+        chosen.append(way)
+        now[0] += 0.1
+        ways.record(way, 5.0 if way not in ways.warmed else cost[way] * STINT, STINT)  # 5 s: the compile
+    assert chosen[:4] == [ALONE, ALONE, LONG, LONG] and set(chosen[4:]) == {ALONE}
+    assert ways.per_step == {ALONE: 1e-3, LONG: 2e-3}
+    now[0] += RETRY
+    assert ways.choose() == LONG
+    ways.record(LONG, 0.5e-3 * STINT, STINT)  # the other program has stopped sharing the same core
+    assert ways.choose() == ALONE  # the estimate moves by WEIGHT: 1.25 ms, still the slower
+    ways.record(LONG, 0.5e-3 * STINT, STINT)  # 0.875 ms: now the faster
+    assert ways.choose() == ALONE  # not run for RETRY seconds: tried again first
+    ways.record(ALONE, 1e-3 * STINT, STINT)
+    assert [ways.choose() for _ in range(3)] == [LONG] * 3
+
+
+def test_a_crowded_machine_steps_other_ways_with_the_teams_trajectory(tmp_path):
+    """While other work shares the cores the plan steps the long way or on one thread (each timed, the faster kept),
+    and the team again once the machine clears: bit for bit the trajectory of a run that kept the team throughout."""
+    from sandbox.core.threads import LoadWatch
+    from sandbox.step.crowd import ALONE, LONG
+
+    loadavg = tmp_path / "loadavg"
+    watch = LoadWatch(2, str(loadavg), cores=2)
     kept, crowded = team_box(), team_box()
     crowded.plan.load = watch
     loadavg.write_text("0.5 0.5 0.5 9/80 1234\n")
     watch.others, watch.last = 9.0, -1.0
-    crowded.step(40)  # crowded throughout: the long way
-    assert crowded.plan.crowded_steps == 40 and crowded.plan.fused_batches == 0
+    crowded.step(100)  # crowded throughout: stints of 20 steps, each way warmed and timed
+    assert crowded.plan.crowded_steps == 100
+    assert crowded.plan.crowd.stints[ALONE] >= 2 and crowded.plan.crowd.stints[LONG] >= 2
+    alone_batches = crowded.plan.fused_batches
+    assert alone_batches >= 2  # the one-thread stints ran fused launches
     loadavg.write_text("0.5 0.5 0.5 1/80 1234\n")
     watch.others, watch.last = 0.0, -1.0
     crowded.step(60)  # clear again: the team
-    kept.step(40)
+    kept.step(100)
     kept.step(60)
-    assert crowded.plan.fused_batches > 0 and crowded.plan.crowded_steps == 40
+    assert crowded.plan.fused_batches > alone_batches and crowded.plan.crowded_steps == 100
     assert_same_states(_state(kept), _state(crowded))
     assert (kept.time, kept.step_count) == (crowded.time, crowded.step_count)

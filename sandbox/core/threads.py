@@ -89,36 +89,66 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
 
 
 class LoadWatch:
-    """Whether other runnable work crowds this process's cores now: a team of spinning workers (step/team.py) needs
-    every one of its threads on a core at once, and when others want the cores a worker is descheduled while the
-    rest spin at a barrier. Reads the machine's runnable count (/proc/loadavg) at most every PERIOD seconds, smoothed
-    over a few reads; `busy()` is True once the others need as many cores as the team has threads."""
+    """Whether other runnable work shares this process's cores now. A team of spinning workers (step/team.py) needs
+    every one of its threads on a core of its own: when another task wants one of those cores, a worker is
+    descheduled while the rest spin at a barrier, and the team runs at a fraction of one thread's speed (W1 beside one
+    other CPU-bound program on 2 cores: 10 M particle-steps/s against 25 on one thread). Reads the machine's runnable
+    count (/proc/loadavg) at most every PERIOD seconds, less this process's own running threads, smoothed over a few
+    reads; `busy()` is True once the others would leave fewer free cores than the team has threads."""
 
     PERIOD = 0.05  # seconds between reads of /proc/loadavg
-    SMOOTHING = 0.5  # each read's share of the running estimate
+    SMOOTHING = 0.3  # each read's share of the running estimate: a lasting other task shows after 2-3 reads
 
-    def __init__(self, threads: int, path: str = "/proc/loadavg") -> None:
+    def __init__(self, threads: int, path: str = "/proc/loadavg", cores: int | None = None, own=None) -> None:
+        """`threads`: the team's; `path`: the load file; `cores`: those this process may use (default: its
+        affinity); `own`: counts this process's running threads (default: /proc/self/task)."""
         self.threads, self.path = threads, path
-        self.others = 0.0  # runnable tasks besides this one, smoothed
+        self.own_running = own or _own_running
+        self.cores = cores if cores is not None else _usable_cores()
+        self.others = 0.0  # runnable tasks of other processes, smoothed
         self.last = -1.0
         self.readable = True  # until a read fails (no /proc: never crowded)
 
     def busy(self, now: float | None = None) -> bool:
-        """True while the other runnable tasks would leave fewer free cores than the team has threads."""
+        """True while other runnable tasks would leave fewer free cores than the team has threads."""
         if not self.readable or self.threads < 2:
             return False
         now = time.monotonic() if now is None else now
         if now - self.last >= self.PERIOD:
             self.last = now
             self.others += self.SMOOTHING * (self.runnable_others() - self.others)
-        return self.others >= self.threads - 0.5
+        return self.cores - self.others < self.threads - 0.5
 
     def runnable_others(self) -> int:
-        """Runnable tasks on the machine now besides the one reading (its workers sleep between launches)."""
+        """Runnable tasks on the machine now, less this process's threads that are running (the reader, and pool
+        workers that have not yet gone back to sleep)."""
         try:
             with open(self.path, encoding="ascii") as load:
                 running = int(load.read().split()[3].split("/")[0])
         except (OSError, ValueError, IndexError):
             self.readable = False
             return 0
-        return max(running - 1, 0)
+        return max(running - max(self.own_running(), 1), 0)
+
+
+def _usable_cores() -> int:
+    """The cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def _own_running() -> int:
+    """This process's threads in the running state now (/proc/self/task/*/stat; 0 where unreadable)."""
+    count = 0
+    try:
+        tasks = os.listdir("/proc/self/task")
+    except OSError:
+        return 0
+    for tid in tasks:
+        try:
+            with open(f"/proc/self/task/{tid}/stat", encoding="ascii", errors="replace") as stat:
+                count += stat.read().rsplit(")", 1)[1].split()[0] == "R"
+        except (OSError, IndexError):
+            continue
+    return count

@@ -31,12 +31,13 @@ class FusedSteps:
         """The stage the last launch stopped before (after an overflow)."""
         return int(self.stopped_stage[None])
 
-    def run(self, steps: int, forced: int, first_stage: int, integrator, dt: float) -> int:
-        """Up to `steps` steps (the first from `first_stage` on), the lists built first if `forced`; returns the steps
-        done (fewer after an overflow), or -1 when the team could not start (nothing ran)."""
+    def run(self, steps: int, forced: int, first_stage: int, integrator, dt: float, alone: bool = False) -> int:
+        """Up to `steps` steps (the first from `first_stage` on), the lists built first if `forced`, by the team
+        unless `alone` (then on one thread: the same trajectory); returns the steps done (fewer after an overflow),
+        or -1 when the team could not start (nothing ran)."""
         ids = self.rates.ids(self.has_lists)
         with runtime.without_cfg_pass():  # a whole step in one kernel: see the function
-            if self.team is not None:
+            if self.team is not None and not alone:
                 done = self.team.run(steps, forced, first_stage, integrator, ids, dt, self.stopped_stage)
             else:
                 done = int(self._fused_steps(steps, forced, first_stage, integrator, ids, dt))

@@ -14,11 +14,13 @@ out team stepping says so in `team_blocker(scene)`. pipeline() prints this plan 
 from __future__ import annotations
 
 import os
+import time
 
 from ..core.threads import LoadWatch
 from ..integrators import REGISTRY
 from ..physics import TERMS
 from ..physics.term import Term, hook_order
+from .crowd import ALONE, STINT, CrowdedWays
 from .fused import REORDER_BATCH, FusedSteps
 from .host import LongWay
 from .team import Team
@@ -62,8 +64,8 @@ class StepPlan:
         self.reasons = host_work_reasons(model.scene)
         loops = model.loops
         self.team = Team(rates, model.threads) if loops.team and rates.half else None  # it steps half lists
-        # on a crowded machine the team's spinning workers wait on each other: step the long way (Taichi's pool,
-        # whose workers sleep) until it clears; both give the same trajectory bit for bit
+        # while other work shares the cores the team's spinning workers wait on each other: step the long way or on
+        # one thread, whichever is faster now (step/crowd.py), until it clears; all give the same trajectory
         self.load = (
             LoadWatch(model.threads) if self.team is not None and os.environ.get("SANDBOX_TEAM") != "always" else None
         )
@@ -73,7 +75,8 @@ class StepPlan:
         self.long_way = LongWay(self)
         self.integrator = integrator
         self.pending_stage = 0  # the stage the current step goes on from (0: at a step boundary)
-        self.crowded_steps = 0  # steps taken the long way because the machine was crowded (LoadWatch)
+        self.crowd = CrowdedWays()
+        self.crowded_steps = 0  # steps taken another way than the team's because the machine was crowded
 
     def use_team(self, team) -> None:
         """Run the fused batches by `team` (None: on one thread)."""
@@ -91,19 +94,44 @@ class StepPlan:
         state, integrator = self.state, self.integrator
         integrator.begin(state.dt)
         while n > 0:
-            if self.order is not None and self.fuses and self.order.due() and not self.pending_stage:
-                self.order.apply()  # between fused batches (the long way sorts at the start of its step)
-            batch = self._fused_batch(n)
-            done = self._run_fused(batch) if batch else 0
-            if done < batch and self.lists is not None and self.lists.forced:
-                pass  # a list build overflowed and the lists were widened: the next batch builds them again
-            elif done < max(batch, 1):  # not fusable now, or the lists cannot be widened: one step the long way
-                self.long_way.step_once()
-                done += 1
-            n -= done
+            if self.load is not None and self.team is not None and self.load.busy():
+                n -= self._crowded_stint(n)
+            else:
+                n -= self._batch(n)
         for term in self.after_calls:
             term.after_steps(state)
         integrator.end(state.dt)
+
+    def _batch(self, n: int, alone: bool = False) -> int:
+        """Up to n steps: a fused batch (by the team unless `alone`) where one can run now, else one step the long
+        way; returns the steps done (0 after a list build overflowed and the lists were widened)."""
+        if self.order is not None and self.fuses and self.order.due() and not self.pending_stage:
+            self.order.apply()  # between fused batches (the long way sorts at the start of its step)
+        batch = self._fused_batch(n)
+        done = self._run_fused(batch, alone) if batch else 0
+        if done < batch and self.lists is not None and self.lists.forced:
+            pass  # a list build overflowed and the lists were widened: the next batch builds them again
+        elif done < max(batch, 1):  # not fusable now, or the lists cannot be widened: one step the long way
+            self.long_way.step_once()
+            done += 1
+        return done
+
+    def _crowded_stint(self, n: int) -> int:
+        """Up to STINT of n steps the way the crowded machine steps fastest now (step/crowd.py); returns the steps
+        done."""
+        way = self.crowd.choose()
+        stint = min(n, STINT)
+        start = time.perf_counter()
+        done = 0
+        while done < stint:
+            if way == ALONE:
+                done += self._batch(stint - done, alone=True)
+            else:
+                self.long_way.step_once()
+                done += 1
+        self.crowd.record(way, time.perf_counter() - start, done)
+        self.crowded_steps += done
+        return done
 
     def count_steps(self, done: int) -> None:
         """Advance the clock by `done` steps and run what is due at a step boundary (refreezing)."""
@@ -119,9 +147,6 @@ class StepPlan:
         """How many of the next n steps to run in one fused launch (0: step the long way)."""
         if not (self.fuses and self.integrator.stages):
             return 0
-        if self.load is not None and self.team is not None and self.load.busy():
-            self.crowded_steps += 1
-            return 0
         if self.lists is not None and not (self.lists.usable or self.lists.must_rebuild()):
             return 0  # lists too wide to allocate: the long way scans the grid
         for term in self.boundary:  # end the batch where a boundary pass is due
@@ -130,16 +155,17 @@ class StepPlan:
             n = min(n, REORDER_BATCH)
         return n
 
-    def _run_fused(self, batch: int) -> int:
-        """Up to `batch` steps in one launch (the first from pending_stage on); returns the steps done: fewer when a
-        list build overflowed, which leaves pending_stage at the stage it stopped before."""
+    def _run_fused(self, batch: int, alone: bool = False) -> int:
+        """Up to `batch` steps in one launch (the first from pending_stage on; on one thread if `alone`, else by the
+        team where there is one); returns the steps done: fewer when a list build overflowed, which leaves
+        pending_stage at the stage it stopped before."""
         lists = self.lists
         forced = 0
         if lists is not None:
             forced = int(lists.must_rebuild())
             lists.mark_built()
             lists.fused = True
-        done = self.fused.run(batch, forced, self.pending_stage, self.integrator, self.state.dt)
+        done = self.fused.run(batch, forced, self.pending_stage, self.integrator, self.state.dt, alone)
         if done < 0:  # the team's thread pool did not start every worker: nothing ran; step the long way from now on
             if forced:
                 lists.invalidate()

@@ -1,0 +1,60 @@
+"""How a team-stepped scene steps while other work shares its cores: the way measured fastest now.
+
+A team's workers spin at barriers and need a core each (core/threads.py's LoadWatch says when they would not get
+one). Two ways of stepping give the team's trajectory bit for bit without needing every core:
+  LONG   the long way: each pass launched from the host onto Taichi's thread pool, whose workers sleep between
+         passes, so the process uses what share of every core the scheduler gives it;
+  ALONE  the fused launch on one thread: many steps with no wait on another thread at all.
+Which is faster depends on how the scheduler shares the cores, not on the CPU: beside other programs in sessions of
+their own (Linux's autogroup shares the cores between sessions first) one thread lost nothing to one other
+CPU-bound program and the long way 10% (W1 2D, 100k, 2 cores: 24.6 and 22 M particle-steps/s, the team 10); beside
+other work in the same session the long way led (25.5 against 24.5). So both are timed, in stints of STINT steps,
+and the faster kept, each tried again every RETRY seconds while the machine stays busy.
+"""
+
+from __future__ import annotations
+
+import time
+
+LONG, ALONE = "long way", "one thread"
+STINT = 20  # steps stepped one way before the choice is looked at again
+RETRY = 2.0  # seconds of crowded stepping between tries of the way not chosen
+WEIGHT = 0.5  # each stint's share of a way's running seconds-per-step estimate
+
+
+class CrowdedWays:
+    """Times LONG and ALONE while the machine is crowded and picks the faster (see the module docstring)."""
+
+    def __init__(self, clock=time.monotonic) -> None:
+        self.clock = clock
+        self.per_step: dict[str, float | None] = {LONG: None, ALONE: None}  # seconds a step, None: not yet timed
+        self.warmed: set[str] = set()  # ways whose first stint (compiles) has run
+        self.tried = {LONG: 0.0, ALONE: 0.0}  # when each way last ran
+        self.stints = {LONG: 0, ALONE: 0}
+
+    def choose(self) -> str:
+        """The way to step the next stint: one not yet timed, else the one due for another try, else the faster."""
+        for way in (ALONE, LONG):
+            if self.per_step[way] is None:
+                return way
+        best = min(self.per_step, key=lambda way: self.per_step[way])
+        other = LONG if best == ALONE else ALONE
+        return other if self.clock() - self.tried[other] >= RETRY else best
+
+    def record(self, way: str, seconds: float, steps: int) -> None:
+        """A stint of `steps` steps of `way` took `seconds` of wall time (a way's first stint compiles: not timed)."""
+        self.tried[way] = self.clock()
+        self.stints[way] += 1
+        if way not in self.warmed:
+            self.warmed.add(way)
+            return
+        if steps <= 0:
+            return
+        rate = seconds / steps
+        last = self.per_step[way]
+        self.per_step[way] = rate if last is None else last + WEIGHT * (rate - last)
+
+    def describe(self) -> str:
+        """The ways' timings in words."""
+        timed = [f"{way} {1e3 * s:.2f} ms a step" for way, s in self.per_step.items() if s is not None]
+        return ", ".join(timed) or "not timed yet"
