@@ -673,8 +673,8 @@ def test_a_list_that_overflows_between_the_stages_of_a_step_is_widened_and_the_s
     stopped_at = []
     run_fused = fast.plan._run_fused
 
-    def run_and_note(batch):
-        done = run_fused(batch)
+    def run_and_note(batch, *alone):
+        done = run_fused(batch, *alone)
         stopped_at.append(fast.plan.pending_stage)
         return done
 

@@ -197,7 +197,12 @@ class StepPlan:
             texts.append("launch: one launch per pass, one step at a time: " + "; ".join(self.reasons))
         if self.fuses:
             fused = "/".join(name for name, cls in REGISTRY.items() if cls.stages)
-            team = f", run by a team of {self.team.workers} threads meeting at barriers" if self.team else ""
+            team = (
+                f", run by a team of {self.team.workers} threads meeting at barriers (while other work wants their "
+                "cores: the long way or one thread, whichever is timed faster)"
+                if self.team
+                else ""
+            )
             texts.append(
                 "launch: every pass of a step, and many steps, in one kernel launch (the list rebuild decided on the "
                 f"device{team}) with {fused}; other integrators one launch per pass"
