@@ -96,3 +96,20 @@ def test_lammps_is_tried_in_every_configuration_and_the_fastest_is_kept(monkeypa
     cmd = calls[-1][0]
     assert own["policy"] == "in.lj" and own["particle_steps_per_second"] == 10082 * 500 / 0.8
     assert cmd[cmd.index("every") + 1] == "20" and cmd[cmd.index("check") + 1] == "no"
+
+
+def test_the_machine_line_says_whether_sessions_share_the_cores_first(tmp_path):
+    """Under load what each side gets depends on Linux's autogroup (mpirun gives LAMMPS a session of its own): the
+    bench records and prints it, and leaves it out where it is not known."""
+    from sandbox.app.cli_bench import _autogroup, machine_line
+
+    flag = tmp_path / "autogroup"
+    flag.write_text("1\n")
+    assert _autogroup(str(flag)) is True
+    flag.write_text("0\n")
+    assert _autogroup(str(flag)) is False
+    assert _autogroup(str(tmp_path / "none")) is None
+    base = {"cpu": "X", "cpus": 2, "vectors": ["avx2"], "caches": {"L1d": "48K"}}
+    assert machine_line({**base, "autogroup": True}).endswith("(cores shared between sessions first) on")
+    assert machine_line({**base, "autogroup": False}).endswith("(cores shared between sessions first) off")
+    assert machine_line({**base, "autogroup": None}) == "on X, 2 cores; vector extensions avx2; data caches L1d 48K"

@@ -224,15 +224,30 @@ def machine() -> dict:
         "python": platform.python_version(),
         "cpu": runtime.cpu_model(),
         "cpus": os.cpu_count(),
+        "autogroup": _autogroup(),
         **runtime.cpu_features(),
     }
+
+
+def _autogroup(path: str = "/proc/sys/kernel/sched_autogroup_enabled") -> bool | None:
+    """Whether Linux shares the cores between sessions before the tasks of each (None: not known here). Under load
+    it decides what each side gets: mpirun starts LAMMPS in a session of its own, and the bench's hogs start theirs."""
+    try:
+        with open(path, encoding="ascii") as flag:
+            return flag.read().strip() == "1"
+    except OSError:
+        return None
 
 
 def machine_line(machine_: dict) -> str:
     """The machine a figure was measured on, in one line: CPU, cores, vector extensions, data caches."""
     vectors = ", ".join(machine_.get("vectors", [])) or "none known"
     caches = ", ".join(f"{k} {v}" for k, v in machine_.get("caches", {}).items()) or "unknown"
-    return f"on {machine_['cpu']}, {machine_['cpus']} cores; vector extensions {vectors}; data caches {caches}"
+    line = f"on {machine_['cpu']}, {machine_['cpus']} cores; vector extensions {vectors}; data caches {caches}"
+    autogroup = {True: "on", False: "off"}.get(machine_.get("autogroup"))
+    if autogroup:
+        line += f"; the scheduler's autogroup (cores shared between sessions first) {autogroup}"
+    return line
 
 
 def peer_comparison(args, repeats: int) -> int:
