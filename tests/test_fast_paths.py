@@ -731,7 +731,7 @@ def test_crowded_ways_keep_the_faster_and_try_the_other_again():
         way = ways.choose()
         chosen.append(way)
         now[0] += 0.1
-        ways.record(way, 5.0 if way not in ways.warmed else cost[way] * STINT, STINT)  # 5 s: the compile
+        ways.record(way, 5.0 if ways.stints[way] == 0 else cost[way] * STINT, STINT)  # 5 s: the compile
     assert chosen[:4] == [ALONE, ALONE, LONG, LONG] and set(chosen[4:]) == {ALONE}
     assert ways.per_step == {ALONE: 1e-3, LONG: 2e-3}
     now[0] += RETRY

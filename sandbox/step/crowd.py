@@ -28,9 +28,8 @@ class CrowdedWays:
     def __init__(self, clock=time.monotonic) -> None:
         self.clock = clock
         self.per_step: dict[str, float | None] = {LONG: None, ALONE: None}  # seconds a step, None: not yet timed
-        self.warmed: set[str] = set()  # ways whose first stint (compiles) has run
         self.tried = {LONG: 0.0, ALONE: 0.0}  # when each way last ran
-        self.stints = {LONG: 0, ALONE: 0}
+        self.stints = {LONG: 0, ALONE: 0}  # stints run each way (the first of each compiles)
 
     def choose(self) -> str:
         """The way to step the next stint: one not yet timed, else the one due for another try, else the faster."""
@@ -45,16 +44,8 @@ class CrowdedWays:
         """A stint of `steps` steps of `way` took `seconds` of wall time (a way's first stint compiles: not timed)."""
         self.tried[way] = self.clock()
         self.stints[way] += 1
-        if way not in self.warmed:
-            self.warmed.add(way)
-            return
-        if steps <= 0:
+        if self.stints[way] == 1 or steps <= 0:
             return
         rate = seconds / steps
         last = self.per_step[way]
         self.per_step[way] = rate if last is None else last + WEIGHT * (rate - last)
-
-    def describe(self) -> str:
-        """The ways' timings in words."""
-        timed = [f"{way} {1e3 * s:.2f} ms a step" for way, s in self.per_step.items() if s is not None]
-        return ", ".join(timed) or "not timed yet"
