@@ -113,3 +113,5 @@ def test_the_machine_line_says_whether_sessions_share_the_cores_first(tmp_path):
     assert machine_line({**base, "autogroup": True}).endswith("(cores shared between sessions first) on")
     assert machine_line({**base, "autogroup": False}).endswith("(cores shared between sessions first) off")
     assert machine_line({**base, "autogroup": None}) == "on X, 2 cores; vector extensions avx2; data caches L1d 48K"
+    pinned = machine_line({**base, "cpus": 16, "usable_cpus": 2})  # taskset -c 0,1 on a 16-core machine
+    assert pinned.startswith("on X, 2 of its 16 cores;")

@@ -702,7 +702,7 @@ def test_load_watch_gives_the_team_up_once_another_task_wants_one_of_its_cores(t
     from sandbox.core.threads import LoadWatch
 
     loadavg = tmp_path / "loadavg"
-    watch = LoadWatch(2, str(loadavg), cores=2, own=lambda: 1)
+    watch = LoadWatch(2, str(loadavg), cores=2, own=lambda: 1, machine=2)
     seen = []
     for running in (1, 2, 1, 1, 2, 2, 2, 2, 1, 1, 1, 1):
         loadavg.write_text(f"0.5 0.5 0.5 {running}/80 1234\n")
@@ -710,11 +710,19 @@ def test_load_watch_gives_the_team_up_once_another_task_wants_one_of_its_cores(t
         seen.append(watch.busy())
     assert seen == [False, False, False, False, False, True, True, True, True, False, False, False], seen
     # on 4 cores two others leave the team's 2 threads a core each
-    roomy = LoadWatch(2, str(loadavg), cores=4, own=lambda: 1)
+    roomy = LoadWatch(2, str(loadavg), cores=4, own=lambda: 1, machine=4)
     loadavg.write_text("0.5 0.5 0.5 3/80 1234\n")
     for _ in range(10):
         roomy.last = -1.0
         assert not roomy.busy()
+    # pinned to 2 of 16 cores: 14 others fill the cores it may not use first; the 15th lands on one of its own
+    pinned = LoadWatch(2, str(loadavg), cores=2, own=lambda: 1, machine=16)
+    for running, busy_after in ((15, False), (16, True)):
+        loadavg.write_text(f"0.5 0.5 0.5 {running}/80 1234\n")
+        for _ in range(10):
+            pinned.last = -1.0
+            busy = pinned.busy()
+        assert busy == busy_after, running
     assert not LoadWatch(1, str(loadavg)).busy() and not LoadWatch(2, str(tmp_path / "none")).busy()
 
 
@@ -751,7 +759,7 @@ def test_a_crowded_machine_steps_other_ways_with_the_teams_trajectory(tmp_path):
     from sandbox.step.crowd import ALONE, LONG
 
     loadavg = tmp_path / "loadavg"
-    watch = LoadWatch(2, str(loadavg), cores=2)
+    watch = LoadWatch(2, str(loadavg), cores=2, machine=2)
     kept, crowded = team_box(), team_box()
     crowded.plan.load = watch
     loadavg.write_text("0.5 0.5 0.5 9/80 1234\n")

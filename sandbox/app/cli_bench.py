@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ..config.arguments import check_count, check_file_output, check_folder_output
 from ..core import runtime
+from ..core.cores import usable_cores
 from ..errors import SandboxError
 from ..research.bench import (
     LIKE_LAMMPS,
@@ -218,12 +219,14 @@ def print_whole_set(results: dict, rows: list) -> None:
 
 
 def machine() -> dict:
-    """What the figures were measured on: platform, Python, CPU model and core count."""
+    """What the figures were measured on: platform, Python, CPU model, the machine's cores and those the bench may
+    use (its affinity and cgroup quota: `taskset -c 0,1 sandbox bench ...` measures 2 cores of a larger machine)."""
     return {
         "platform": platform.platform(),
         "python": platform.python_version(),
         "cpu": runtime.cpu_model(),
         "cpus": os.cpu_count(),
+        "usable_cpus": usable_cores(),
         "autogroup": _autogroup(),
         **runtime.cpu_features(),
     }
@@ -243,7 +246,9 @@ def machine_line(machine_: dict) -> str:
     """The machine a figure was measured on, in one line: CPU, cores, vector extensions, data caches."""
     vectors = ", ".join(machine_.get("vectors", [])) or "none known"
     caches = ", ".join(f"{k} {v}" for k, v in machine_.get("caches", {}).items()) or "unknown"
-    line = f"on {machine_['cpu']}, {machine_['cpus']} cores; vector extensions {vectors}; data caches {caches}"
+    usable = machine_.get("usable_cpus", machine_["cpus"])
+    cores = f"{machine_['cpus']} cores" if usable == machine_["cpus"] else f"{usable} of its {machine_['cpus']} cores"
+    line = f"on {machine_['cpu']}, {cores}; vector extensions {vectors}; data caches {caches}"
     autogroup = {True: "on", False: "off"}.get(machine_.get("autogroup"))
     if autogroup:
         line += f"; the scheduler's autogroup (cores shared between sessions first) {autogroup}"

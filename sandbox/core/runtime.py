@@ -18,6 +18,7 @@ import taichi as ti
 
 from ..errors import SandboxError
 from . import taichi_compat
+from .cores import usable_cores
 from .threads import pin_workers
 
 ARCHES = ("auto", "cpu", "cuda", "vulkan", "metal")
@@ -68,9 +69,9 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
     kwargs = dict(default_fp=fp, offline_cache=True, kernel_profiler=profile)
     if "TI_LOG_LEVEL" not in os.environ:  # Taichi warns when ti.init overrides the variable
         kwargs["log_level"] = ti.ERROR
+    # Taichi's pool would have a worker for every core of the machine, also those this process may not use
     threads = os.environ.get("SANDBOX_CPU_THREADS")
-    if threads:
-        kwargs["cpu_max_num_threads"] = int(threads)
+    kwargs["cpu_max_num_threads"] = int(threads) if threads else usable_cores()
     if _current is not None:
         _forget_copiers()
         ti.reset()

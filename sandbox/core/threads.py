@@ -14,6 +14,8 @@ import time
 
 import taichi as ti
 
+from .cores import usable_cores
+
 _probe_field = None
 PROBE_ATTEMPTS = 10  # rounds of probe launches to find the pool's threads (see pin_workers)
 PROBE_ROUNDS = 300  # steps of the probe's busy chain per item: a launch keeps each worker busy ~0.1 ms
@@ -94,17 +96,23 @@ class LoadWatch:
     descheduled while the rest spin at a barrier, and the team runs at a fraction of one thread's speed (W1 beside one
     other CPU-bound program on 2 cores: 10 M particle-steps/s against 25 on one thread). Reads the machine's runnable
     count (/proc/loadavg) at most every PERIOD seconds, less this process's own running threads, smoothed over a few
-    reads; `busy()` is True once the others would leave fewer free cores than the team has threads."""
+    reads; `busy()` is True once the others would leave fewer free cores than the team has threads. Where the process
+    may use only some of the machine's cores (an affinity, a container's quota), others are taken to fill the cores
+    it may not use first, as Linux's load balancing places them."""
 
     PERIOD = 0.05  # seconds between reads of /proc/loadavg
     SMOOTHING = 0.3  # each read's share of the running estimate: a lasting other task shows after 2-3 reads
 
-    def __init__(self, threads: int, path: str = "/proc/loadavg", cores: int | None = None, own=None) -> None:
-        """`threads`: the team's; `path`: the load file; `cores`: those this process may use (default: its
-        affinity); `own`: counts this process's running threads (default: /proc/self/task)."""
+    def __init__(
+        self, threads: int, path: str = "/proc/loadavg", cores: int | None = None, own=None, machine: int | None = None
+    ) -> None:
+        """`threads`: the team's; `path`: the load file; `cores`: those this process may use (default:
+        cores.usable_cores()); `own`: counts this process's running threads (default: /proc/self/task); `machine`:
+        the machine's cores (default: os.cpu_count())."""
         self.threads, self.path = threads, path
         self.own_running = own or _own_running
-        self.cores = cores if cores is not None else _usable_cores()
+        self.cores = cores if cores is not None else usable_cores()
+        self.elsewhere = max((machine or os.cpu_count() or 1) - self.cores, 0)  # cores others may use, not this
         self.others = 0.0  # runnable tasks of other processes, smoothed
         self.last = -1.0
         self.readable = True  # until a read fails (no /proc: never crowded)
@@ -116,7 +124,8 @@ class LoadWatch:
         now = time.monotonic() if now is None else now
         if now - self.last >= self.PERIOD:
             self.last = now
-            self.others += self.SMOOTHING * (self.runnable_others() - self.others)
+            mine = max(self.runnable_others() - self.elsewhere, 0)  # the others that land on this process's cores
+            self.others += self.SMOOTHING * (mine - self.others)
         return self.cores - self.others < self.threads - 0.5
 
     def runnable_others(self) -> int:
@@ -129,13 +138,6 @@ class LoadWatch:
             self.readable = False
             return 0
         return max(running - max(self.own_running(), 1), 0)
-
-
-def _usable_cores() -> int:
-    """The cores this process may run on."""
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1
 
 
 def _own_running() -> int:

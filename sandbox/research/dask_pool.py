@@ -13,6 +13,7 @@ import logging
 import os
 from collections.abc import Callable, Iterator
 
+from ..core.cores import usable_cores
 from ..errors import SandboxError
 
 THREADS_VARIABLE = "SANDBOX_CPU_THREADS"
@@ -40,8 +41,8 @@ def choose_scheduler(scheduler: str, jobs: int, log, what: str) -> str:
 
 def local_shape(jobs: int, workers: int | None, threads: int | None) -> tuple[int, int]:
     """Local worker processes and Taichi threads per job: by default one worker per core (no more than the jobs)
-    and the cores shared among them, so workers x threads never exceeds the cores."""
-    cores = os.cpu_count() or 1
+    and the cores shared among them, so workers x threads never exceeds the cores this process may use."""
+    cores = usable_cores()
     workers = workers or max(1, min(cores, jobs))
     threads = threads or max(1, cores // workers)
     return workers, threads
