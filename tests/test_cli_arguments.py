@@ -117,6 +117,26 @@ def test_the_real_command_prints_no_traceback(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_bad_thread_count_in_the_environment_is_one_line(tmp_path):
+    """SANDBOX_CPU_THREADS=0 crashed Taichi (a floating-point exception), a word raised a traceback, and a huge count
+    would start that many threads: each is now one line and exit status 2, before anything runs."""
+    for value in ("0", "abc", "100000", "-2"):
+        done = subprocess.run(
+            [sys.executable, "-m", "sandbox", "check", str(ROOT / "scenes" / "lj_box.toml")],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "SANDBOX_CPU_THREADS": value},
+        )
+        assert done.returncode == 2, (value, done.returncode, done.stderr[-500:])
+        assert (
+            done.stderr.strip()
+            == f"error: SANDBOX_CPU_THREADS='{value}': expected a whole number of threads from 1 to 256"
+        )
+        assert done.stdout == ""
+
+
 def test_a_plain_bench_runs_the_workloads_not_one_of_its_only_modes():
     """`sandbox bench` with no mode flag is the whole bench: --serve, --3d, --contended, --window and --scaling are
     off (a default of 0 for --serve once sent every plain bench to the --serve check)."""

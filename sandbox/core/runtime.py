@@ -69,9 +69,7 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
     kwargs = dict(default_fp=fp, offline_cache=True, kernel_profiler=profile)
     if "TI_LOG_LEVEL" not in os.environ:  # Taichi warns when ti.init overrides the variable
         kwargs["log_level"] = ti.ERROR
-    # Taichi's pool would have a worker for every core of the machine, also those this process may not use
-    threads = os.environ.get("SANDBOX_CPU_THREADS")
-    kwargs["cpu_max_num_threads"] = int(threads) if threads else usable_cores()
+    kwargs["cpu_max_num_threads"] = cpu_threads_wanted()
     if _current is not None:
         _forget_copiers()
         ti.reset()
@@ -86,6 +84,22 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
 
 
 without_cfg_pass = taichi_compat.without_cfg_pass
+
+MAX_CPU_THREADS = 256
+
+
+def cpu_threads_wanted() -> int:
+    """Taichi's CPU worker threads: SANDBOX_CPU_THREADS where set (1 to MAX_CPU_THREADS; SandboxError otherwise: 0
+    crashed Taichi, a huge count would start that many threads), else a worker per core this process may use
+    (Taichi alone would start one per core of the machine, also those the process may not run on)."""
+    text = os.environ.get("SANDBOX_CPU_THREADS", "").strip()
+    if not text:
+        return usable_cores()
+    if not text.isdigit() or not 1 <= int(text) <= MAX_CPU_THREADS:
+        raise SandboxError(
+            f"SANDBOX_CPU_THREADS={text[:40]!r}: expected a whole number of threads from 1 to {MAX_CPU_THREADS}"
+        )
+    return int(text)
 
 
 def reset() -> None:
