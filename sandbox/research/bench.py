@@ -27,6 +27,7 @@ import taichi as ti
 from ..config.resources import SCENES_DIR
 from ..config.scene import load_scene, scene_from_dict
 from ..core import runtime
+from ..core.cores import usable_cores
 from ..integrators import REGISTRY
 from ..render.raster import Renderer
 from ..simulation import Simulation, timed_steps
@@ -410,7 +411,7 @@ def scaling(arch: str, repeats: int, out_dir: Path, sides=SCALING_SIDES, rounds:
     ax.set_xlabel("particles N")
     ax.set_ylabel("M particle-steps / s")
     ax.set_ylim(bottom=0)
-    ax.set_title(f"W1, 2D Lennard-Jones box ({runtime.running_arch()}, {os.cpu_count()} cores)")
+    ax.set_title(f"W1, 2D Lennard-Jones box ({runtime.running_arch()}, {usable_cores()} cores)")
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(out_dir / "scaling.png")
