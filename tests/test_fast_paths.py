@@ -431,6 +431,17 @@ def test_taichi_worker_threads_are_pinned_one_per_core():
         assert os.sched_getaffinity(tid) == {core}
 
 
+def test_workers_fewer_than_the_cores_are_left_to_the_scheduler(monkeypatch):
+    """Pinned round robin from the first core, every process with fewer workers than its cores (2 threads each of
+    several renders on 16 cores) would crowd cores 0 and 1 while the rest stayed idle: such pools are not pinned."""
+    from sandbox.core import runtime, threads
+
+    runtime.init("cpu", "f32")  # a running pool: before, its workers were found and pinned
+    monkeypatch.setattr(threads.os, "sched_getaffinity", lambda pid: set(range(16)), raising=False)
+    monkeypatch.setattr(threads.os, "sched_setaffinity", lambda pid, cores: pytest.fail("pinned"), raising=False)
+    assert threads.pin_workers(2) == [] and threads.pinned == []
+
+
 TEAM_SIDE = 65.0  # about 3,400 particles in 5,046 slots: a size that steps as a team of threads (loops.TEAM_FROM)
 
 

@@ -51,8 +51,8 @@ def _ran_between(earlier: dict[int, int], later: dict[int, int]) -> set[int]:
 
 def pin_workers(threads: int) -> list[tuple[int, int]]:
     """Give each of Taichi's `threads` CPU worker threads a core of its own; returns (thread id, core) pairs, empty
-    when nothing was pinned (not Linux, one core, one thread, disabled by SANDBOX_PIN_THREADS=0, or the workers not
-    found)."""
+    when nothing was pinned (not Linux, one core, one thread, fewer threads than the cores this process may run on,
+    disabled by SANDBOX_PIN_THREADS=0, or the workers not found)."""
     global _probe_field
     pinned.clear()
     if os.environ.get("SANDBOX_PIN_THREADS", "1") == "0" or threads < 2:
@@ -60,7 +60,9 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
     if not (hasattr(os, "sched_setaffinity") and os.path.isdir("/proc/self/task")):
         return []
     cores = sorted(os.sched_getaffinity(0))
-    if len(cores) < 2:
+    if len(cores) < 2 or threads < len(cores):
+        # With cores to spare the scheduler places the workers where the machine is idle; pinned, every such process
+        # (sweeps' workers, renders started side by side with SANDBOX_CPU_THREADS) would crowd the first cores.
         return []
     _probe_field = ti.field(ti.i32, shape=threads * 1024)  # enough items that the pool shares them out evenly
     _probe(_probe_field, 1)  # compiles
