@@ -120,7 +120,7 @@ def test_the_real_command_prints_no_traceback(tmp_path):
 def test_a_bad_thread_count_in_the_environment_is_one_line(tmp_path):
     """SANDBOX_CPU_THREADS=0 crashed Taichi (a floating-point exception), a word raised a traceback, and a huge count
     would start that many threads: each is now one line and exit status 2, before anything runs."""
-    for value in ("0", "abc", "100000", "-2"):
+    for value in ("0", "abc", "100000", "-2", "²"):
         done = subprocess.run(
             [sys.executable, "-m", "sandbox", "check", str(ROOT / "scenes" / "lj_box.toml")],
             cwd=tmp_path,

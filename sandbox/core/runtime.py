@@ -95,7 +95,7 @@ def cpu_threads_wanted() -> int:
     text = os.environ.get("SANDBOX_CPU_THREADS", "").strip()
     if not text:
         return usable_cores()
-    if not text.isdigit() or not 1 <= int(text) <= MAX_CPU_THREADS:
+    if not (text.isascii() and text.isdigit()) or not 1 <= int(text) <= MAX_CPU_THREADS:
         raise SandboxError(
             f"SANDBOX_CPU_THREADS={text[:40]!r}: expected a whole number of threads from 1 to {MAX_CPU_THREADS}"
         )
