@@ -69,6 +69,16 @@ def test_the_pair_rate_counts_each_pair_within_the_cutoff_once_and_the_ideal_loo
     assert loop.pairs == int(np.triu(r2 < 6.25, k=1).sum())  # each pair once, in a half list
 
 
+def test_lammps_is_tried_on_the_cores_the_sandbox_uses():
+    """LAMMPS gets the cores the sandbox's threads get: pinned to one core (taskset) it ran 2 processes there against
+    the sandbox's one thread; on 16 a process per core or 16 threads."""
+    from sandbox.research.peer_bench import lammps_configs
+
+    assert lammps_configs(1) == (("plain", 1, 1), ("opt", 1, 1), ("omp", 1, 1))
+    assert lammps_configs(2) == (("plain", 2, 1), ("opt", 2, 1), ("omp", 1, 2), ("omp", 2, 1))
+    assert lammps_configs(16) == (("plain", 16, 1), ("opt", 16, 1), ("omp", 1, 16), ("omp", 16, 1))
+
+
 def test_lammps_is_tried_in_every_configuration_and_the_fastest_is_kept(monkeypatch):
     """The peer is LAMMPS at its best on these cores: each configuration (plain, -sf opt, -sf omp as 1 x 2 and 2 x 1)
     is run with the suffix, package and thread count it names, the fastest is kept, and in.lj's own list policy
@@ -86,7 +96,7 @@ def test_lammps_is_tried_in_every_configuration_and_the_fastest_is_kept(monkeypa
 
     monkeypatch.setattr(bench.shutil, "which", lambda name: f"/usr/bin/{name}")
     monkeypatch.setattr(bench.subprocess, "run", fake_run)
-    run, found = bench.lammps_at_its_best(100, 2, 500)
+    run, found = bench.lammps_at_its_best(100, 2, 500, cores=2)
     assert found["config"] == "opt 2x1"
     assert list(found["rates"]) == ["plain 2x1", "opt 2x1", "omp 1x2", "omp 2x1"]
     omp_one = calls[2][0]

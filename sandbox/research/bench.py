@@ -32,7 +32,7 @@ from ..integrators import REGISTRY
 from ..render.raster import Renderer
 from ..simulation import Simulation, timed_steps
 from .launch_count import count_launches
-from .peer_bench import LAMMPS_CONFIGS, LAMMPS_POLICIES, write_lammps_input
+from .peer_bench import LAMMPS_POLICIES, lammps_configs, write_lammps_input
 
 SCENES = SCENES_DIR
 
@@ -234,11 +234,12 @@ def lammps_config_name(accel: str, procs: int, threads: int) -> str:
     return f"{accel} {procs}x{threads}"
 
 
-def best_lammps(n_side: int, dim: int = 2, steps: int = 500) -> tuple[tuple, dict] | None:
-    """LAMMPS's fastest way of running W1 on this machine: each of peer_bench.LAMMPS_CONFIGS once (the strict
-    list policy); ((accel, procs, threads), {config name: particle-steps per second}), or None without LAMMPS."""
+def best_lammps(n_side: int, dim: int = 2, steps: int = 500, cores: int | None = None) -> tuple[tuple, dict] | None:
+    """LAMMPS's fastest way of running W1 on `cores` cores (default: those this process may use, as the sandbox's
+    threads): each of peer_bench.lammps_configs(cores) once (the strict list policy); ((accel, procs, threads),
+    {config name: particle-steps per second}), or None without LAMMPS."""
     rates, best, best_rate = {}, None, 0.0
-    for accel, procs, threads in LAMMPS_CONFIGS:
+    for accel, procs, threads in lammps_configs(cores or usable_cores()):
         res = lammps_w1(n_side, procs, steps, dim, accel, threads)
         if res is None:
             return None
@@ -250,10 +251,11 @@ def best_lammps(n_side: int, dim: int = 2, steps: int = 500) -> tuple[tuple, dic
     return (best, rates) if best is not None else None
 
 
-def lammps_at_its_best(n_side: int, dim: int, steps: int) -> tuple:
-    """(a function running LAMMPS's fastest configuration here on W1, what was found: {"config": its name, "rates":
-    every configuration's particle-steps per second}); (a function returning None, {}) without LAMMPS."""
-    found = best_lammps(n_side, dim, steps)
+def lammps_at_its_best(n_side: int, dim: int, steps: int, cores: int | None = None) -> tuple:
+    """(a function running LAMMPS's fastest configuration on `cores` cores (default: the usable ones) on W1, what was
+    found: {"config": its name, "rates": every configuration's particle-steps per second}); (a function returning
+    None, {}) without LAMMPS."""
+    found = best_lammps(n_side, dim, steps, cores)
     if found is None:
         return (lambda: None), {}
     (accel, procs, threads), rates = found

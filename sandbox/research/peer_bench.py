@@ -27,7 +27,16 @@ from ..step.rates import CHUNKS_PER_THREAD
 
 # LAMMPS's ways of running on two cores (its accelerator suffix, MPI processes, OpenMP threads each): the bench runs
 # each and compares the sandbox with the fastest on the machine at hand
-LAMMPS_CONFIGS = (("plain", 2, 1), ("opt", 2, 1), ("omp", 1, 2), ("omp", 2, 1))
+
+
+def lammps_configs(cores: int) -> tuple[tuple[str, int, int], ...]:
+    """LAMMPS's configurations tried on `cores` cores, as (accelerator suffix, MPI processes, OpenMP threads): plain
+    and `-sf opt` with a process per core, `-sf omp` as one process of `cores` threads and as a process per core (the
+    duplicates dropped on one core)."""
+    configs = (("plain", cores, 1), ("opt", cores, 1), ("omp", 1, cores), ("omp", cores, 1))
+    return tuple(dict.fromkeys(configs))
+
+
 # neighbour-list policies: the sandbox's (checked every step, rebuilt at half the skin) and in.lj's own (rebuilt
 # every 20 steps, unchecked: faster, and wrong for a particle that moves more than half the skin in 20 steps)
 LAMMPS_POLICIES = {"strict": ("1", "yes"), "in.lj": ("20", "no")}
