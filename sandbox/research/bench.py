@@ -235,11 +235,12 @@ def lammps_config_name(accel: str, procs: int, threads: int) -> str:
 
 
 def best_lammps(n_side: int, dim: int = 2, steps: int = 500, cores: int | None = None) -> tuple[tuple, dict] | None:
-    """LAMMPS's fastest way of running W1 on `cores` cores (default: those this process may use, as the sandbox's
-    threads): each of peer_bench.lammps_configs(cores) once (the strict list policy); ((accel, procs, threads),
-    {config name: particle-steps per second}), or None without LAMMPS."""
+    """LAMMPS's fastest way of running W1 on `cores` cores (default: as many as the sandbox's CPU threads, the
+    cores this process may use unless SANDBOX_CPU_THREADS says otherwise): each of peer_bench.lammps_configs(cores)
+    once (the strict list policy); ((accel, procs, threads), {config name: particle-steps per second}), or None
+    without LAMMPS."""
     rates, best, best_rate = {}, None, 0.0
-    for accel, procs, threads in lammps_configs(cores or usable_cores()):
+    for accel, procs, threads in lammps_configs(cores or runtime.cpu_threads_wanted()):
         res = lammps_w1(n_side, procs, steps, dim, accel, threads)
         if res is None:
             return None
