@@ -765,6 +765,33 @@ def test_crowded_ways_keep_the_faster_and_try_the_other_again():
     assert [ways.choose() for _ in range(3)] == [LONG] * 3
 
 
+def test_the_slower_way_is_tried_less_often_each_time_it_proves_slower():
+    """A try of the slower way every RETRY seconds spends 9% of a long crowded run on it: each try that finds it
+    slower still doubles the wait before the next (up to MAX_RETRY); once it leads, both are tried at the first pace."""
+    from sandbox.step.crowd import ALONE, LONG, MAX_RETRY, RETRY, STINT, CrowdedWays
+
+    now = [0.0]
+    ways = CrowdedWays(clock=lambda: now[0])
+    cost = {ALONE: 1e-3, LONG: 1.5e-3}
+    tries_of_long = []
+    for _ in range(3000):  # 0.1 s a stint: 300 s of crowded stepping
+        way = ways.choose()
+        if way == LONG and ways.stints[LONG] >= 2:
+            tries_of_long.append(now[0])
+        now[0] += 0.1
+        ways.record(way, cost[way] * STINT, STINT)
+    gaps = [b - a for a, b in zip(tries_of_long, tries_of_long[1:])]  # a wait, and the stint (0.1 s) it follows
+    expected = [2 * RETRY, 4 * RETRY, 8 * RETRY] + [MAX_RETRY] * (len(gaps) - 3)
+    assert len(gaps) >= 8 and all(0 <= gap - wait < 0.25 for gap, wait in zip(gaps, expected)), gaps
+    assert ways.wait[LONG] == MAX_RETRY
+    cost[ALONE] = 2e-3  # the scheduler now favours the long way: one thread's stints slow down, the long way leads
+    for _ in range(10):
+        way = ways.choose()
+        now[0] += 0.1
+        ways.record(way, cost[way] * STINT, STINT)
+    assert ways.choose() == LONG and ways.wait == {LONG: RETRY, ALONE: RETRY}
+
+
 def test_a_crowded_machine_steps_other_ways_with_the_teams_trajectory(tmp_path):
     """While other work shares the cores the plan steps the long way or on one thread (each timed, the faster kept),
     and the team again once the machine clears: bit for bit the trajectory of a run that kept the team throughout."""
