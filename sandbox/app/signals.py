@@ -5,6 +5,7 @@ terminal sends. While a frame's outputs are written (`held()`), a signal waits u
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 
@@ -27,6 +28,7 @@ class Stopper:
         self._previous: dict[int, object] = {}
         self._holding = False
         self.pending: int | None = None  # the signal that came (while held, or raised and maybe lost)
+        self._previous_hook = None  # sys.unraisablehook before __enter__
 
     def __enter__(self) -> Stopper:
         if threading.current_thread() is threading.main_thread():
@@ -34,12 +36,24 @@ class Stopper:
                 if signal.getsignal(signum) is signal.SIG_IGN:
                     continue  # ignored by whoever started us (`nohup` ignores SIGHUP): it stays ignored
                 self._previous[signum] = signal.signal(signum, self._handle)
+            self._previous_hook = sys.unraisablehook
+            sys.unraisablehook = self._unraisable
         return self
 
     def __exit__(self, *exc) -> None:
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
         self._previous.clear()
+        if self._previous_hook is not None:
+            sys.unraisablehook = self._previous_hook
+            self._previous_hook = None
+
+    def _unraisable(self, unraisable) -> None:
+        """A Signalled raised while Python ran a finalizer or a weakref callback cannot stop the run there; Python
+        would print it with a traceback. `pending` keeps it for the next held() block: nothing is printed."""
+        if isinstance(unraisable.exc_value, Signalled):
+            return
+        self._previous_hook(unraisable)
 
     def _handle(self, signum, _frame) -> None:
         # kept whether or not the exception below gets through: one raised while Python runs a finalizer or a
