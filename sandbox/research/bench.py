@@ -253,7 +253,7 @@ def best_lammps(n_side: int, dim: int = 2, steps: int = 500, cores: int | None =
 
 
 def lammps_at_its_best(n_side: int, dim: int, steps: int, cores: int | None = None) -> tuple:
-    """(a function running LAMMPS's fastest configuration on `cores` cores (default: the usable ones) on W1, what was
+    """(a function running LAMMPS's fastest configuration on `cores` cores (default: see best_lammps) on W1, what was
     found: {"config": its name, "rates": every configuration's particle-steps per second}); (a function returning
     None, {}) without LAMMPS."""
     found = best_lammps(n_side, dim, steps, cores)

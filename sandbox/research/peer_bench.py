@@ -25,14 +25,11 @@ import taichi as ti
 from ..core.loops import SPREAD_STRIDE, spread_item
 from ..step.rates import CHUNKS_PER_THREAD
 
-# LAMMPS's ways of running on two cores (its accelerator suffix, MPI processes, OpenMP threads each): the bench runs
-# each and compares the sandbox with the fastest on the machine at hand
-
 
 def lammps_configs(cores: int) -> tuple[tuple[str, int, int], ...]:
     """LAMMPS's configurations tried on `cores` cores, as (accelerator suffix, MPI processes, OpenMP threads): plain
     and `-sf opt` with a process per core, `-sf omp` as one process of `cores` threads and as a process per core (the
-    duplicates dropped on one core)."""
+    duplicates dropped on one core). The bench runs each and compares the sandbox with the fastest."""
     configs = (("plain", cores, 1), ("opt", cores, 1), ("omp", 1, cores), ("omp", cores, 1))
     return tuple(dict.fromkeys(configs))
 
