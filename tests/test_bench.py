@@ -125,3 +125,6 @@ def test_the_machine_line_says_whether_sessions_share_the_cores_first(tmp_path):
     assert machine_line({**base, "autogroup": None}) == "on X, 2 cores; vector extensions avx2; data caches L1d 48K"
     pinned = machine_line({**base, "cpus": 16, "usable_cpus": 2})  # taskset -c 0,1 on a 16-core machine
     assert pinned.startswith("on X, 2 of its 16 cores;")
+    fewer = machine_line({**base, "cpus": 16, "usable_cpus": 16, "threads": 4})  # SANDBOX_CPU_THREADS=4
+    assert fewer.startswith("on X, 16 cores, 4 threads (SANDBOX_CPU_THREADS);")
+    assert machine_line({**base, "threads": 2}).startswith("on X, 2 cores;")

@@ -220,13 +220,15 @@ def print_whole_set(results: dict, rows: list) -> None:
 
 def machine() -> dict:
     """What the figures were measured on: platform, Python, CPU model, the machine's cores and those the bench may
-    use (its affinity and cgroup quota: `taskset -c 0,1 sandbox bench ...` measures 2 cores of a larger machine)."""
+    use (its affinity and cgroup quota: `taskset -c 0,1 sandbox bench ...` measures 2 cores of a larger machine),
+    and the threads the sandbox and LAMMPS run (SANDBOX_CPU_THREADS, else the usable cores)."""
     return {
         "platform": platform.platform(),
         "python": platform.python_version(),
         "cpu": runtime.cpu_model(),
         "cpus": os.cpu_count(),
         "usable_cpus": usable_cores(),
+        "threads": runtime.cpu_threads_wanted(),
         "autogroup": _autogroup(),
         **runtime.cpu_features(),
     }
@@ -243,11 +245,15 @@ def _autogroup(path: str = "/proc/sys/kernel/sched_autogroup_enabled") -> bool |
 
 
 def machine_line(machine_: dict) -> str:
-    """The machine a figure was measured on, in one line: CPU, cores, vector extensions, data caches."""
+    """The machine a figure was measured on, in one line: CPU, cores (and the threads both sides ran, where
+    SANDBOX_CPU_THREADS set another count), vector extensions, data caches."""
     vectors = ", ".join(machine_.get("vectors", [])) or "none known"
     caches = ", ".join(f"{k} {v}" for k, v in machine_.get("caches", {}).items()) or "unknown"
     usable = machine_.get("usable_cpus", machine_["cpus"])
     cores = f"{machine_['cpus']} cores" if usable == machine_["cpus"] else f"{usable} of its {machine_['cpus']} cores"
+    threads = machine_.get("threads", usable)
+    if threads != usable:  # SANDBOX_CPU_THREADS: the sandbox and LAMMPS both use this many
+        cores += f", {threads} thread{'s' if threads > 1 else ''} (SANDBOX_CPU_THREADS)"
     line = f"on {machine_['cpu']}, {cores}; vector extensions {vectors}; data caches {caches}"
     autogroup = {True: "on", False: "off"}.get(machine_.get("autogroup"))
     if autogroup:
