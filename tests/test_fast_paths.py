@@ -754,15 +754,37 @@ def test_crowded_ways_keep_the_faster_and_try_the_other_again():
         now[0] += 0.1
         ways.record(way, 5.0 if ways.stints[way] == 0 else cost[way] * STINT, STINT)  # 5 s: the compile
     assert chosen[:4] == [ALONE, ALONE, LONG, LONG] and set(chosen[4:]) == {ALONE}
-    assert ways.per_step == {ALONE: 1e-3, LONG: 2e-3}
+    assert ways.per_step == pytest.approx({ALONE: 1e-3, LONG: 2e-3})
     now[0] += RETRY
     assert ways.choose() == LONG
-    ways.record(LONG, 0.5e-3 * STINT, STINT)  # the other program has stopped sharing the same core
-    assert ways.choose() == ALONE  # the estimate moves by WEIGHT: 1.25 ms, still the slower
-    ways.record(LONG, 0.5e-3 * STINT, STINT)  # 0.875 ms: now the faster
+    ways.record(LONG, 0.6e-3 * STINT, STINT)  # the other program has stopped sharing the same core
+    assert ways.choose() == ALONE  # recent seconds over recent steps: (20 + 12) / 30 ms = 1.07 ms, still the slower
+    ways.record(LONG, 0.6e-3 * STINT, STINT)  # (16 + 12) / 35 ms = 0.8 ms: now the faster
     assert ways.choose() == ALONE  # not run for RETRY seconds: tried again first
     ways.record(ALONE, 1e-3 * STINT, STINT)
     assert [ways.choose() for _ in range(3)] == [LONG] * 3
+
+
+def test_a_short_stint_without_a_list_build_does_not_make_the_slower_way_look_faster():
+    """A stint is cut short where a call asks for fewer steps (a frame's substeps, a call's remainder); one of a few
+    steps that holds no list build reads faster than its way is. A way is timed by its recent seconds over its recent
+    steps, so such a stint counts for its few steps: averaged by stint, the long way looked a third faster than it was
+    beside 3 hogs (W1-3D) and was chosen while slower."""
+    from sandbox.step.crowd import ALONE, LONG, STINT, CrowdedWays
+
+    now = [0.0]
+    ways = CrowdedWays(clock=lambda: now[0])
+    for way in (ALONE, LONG):  # the first stints compile and are not timed
+        ways.record(way, 5.0, STINT)
+    ways.record(ALONE, 15e-3 * STINT, STINT)  # one thread: 15 ms a step, list builds included
+    ways.record(LONG, 20e-3 * STINT, STINT)  # the long way: 20 ms a step
+    for _ in range(2):
+        ways.record(LONG, 3 * 8e-3, 3)  # 3 steps between list builds: 8 ms each
+    assert ways.per_step[LONG] > ways.per_step[ALONE]
+    assert ways.choose() == ALONE
+    fade = 0.5 ** (3 / STINT)  # recent seconds and steps halve every STINT steps
+    recent = (fade * fade * 400 + fade * 24 + 24, fade * fade * 20 + fade * 3 + 3)  # ms, steps
+    assert ways.per_step[LONG] == pytest.approx(recent[0] / recent[1] * 1e-3)  # 16.9 ms
 
 
 def test_the_slower_way_is_tried_less_often_each_time_it_proves_slower():

@@ -14,6 +14,15 @@ slower still (up to MAX_RETRY). With a fixed 2 s a long crowded run spent a stin
 the slower way, which beside 3 other programs was 25% slower (W1 2D, 100k: 11.6 against 8.9 ms a step), about 2% of
 its throughput; backing off leaves a fraction of a percent. Measured over 30 s beside 3 hogs (three runs each,
 alternating): batch medians of 10.7-11.0 M particle-steps/s against 10.6-11.0 before, within the machine's noise.
+
+A way's seconds a step is its recent seconds over its recent steps (both halved every STINT steps it runs, so a
+short stint counts for its few steps), not an average of its stints' rates: a stint is cut short where a call asks
+for fewer steps (a frame's substeps, a call's remainder), and a short stint that happens to hold no list build (one
+in 6 steps of W1-3D, 4.5 ms each quiet, four times that beside 3 hogs) reads far faster than its way. Averaged by
+stint, such stints made the long way look a third faster than it was beside 3 hogs (13.2-13.6 against 18.8-20.7 ms
+a step over 250 steps; one thread 15.2-16.1 ms), so it was chosen while slower: W1-3D by `bench.measure` 1.60-1.85 M
+particle-steps/s with the chooser against 1.77-1.89 with one thread forced; timed by steps, 1.94-2.00 against
+1.97-1.99.
 """
 
 from __future__ import annotations
@@ -24,7 +33,7 @@ LONG, ALONE = "long way", "one thread"
 STINT = 20  # steps stepped one way before the choice is looked at again
 RETRY = 2.0  # seconds of crowded stepping before the way not chosen is tried again
 MAX_RETRY = 32.0  # the longest wait between tries, once the slower way has proved slower again and again
-WEIGHT = 0.5  # each stint's share of a way's running seconds-per-step estimate
+DECAY = 0.5  # a way's recent seconds and steps are scaled by this for every STINT steps it runs
 
 
 class CrowdedWays:
@@ -33,6 +42,8 @@ class CrowdedWays:
     def __init__(self, clock=time.monotonic) -> None:
         self.clock = clock
         self.per_step: dict[str, float | None] = {LONG: None, ALONE: None}  # seconds a step, None: not yet timed
+        self.seconds = {LONG: 0.0, ALONE: 0.0}  # each way's recent timed seconds and steps (see DECAY)
+        self.steps = {LONG: 0.0, ALONE: 0.0}
         self.tried = {LONG: 0.0, ALONE: 0.0}  # when each way last ran
         self.stints = {LONG: 0, ALONE: 0}  # stints run each way (the first of each compiles)
         self.wait = {LONG: RETRY, ALONE: RETRY}  # seconds before each way, when not chosen, is tried again
@@ -59,9 +70,10 @@ class CrowdedWays:
         if self.stints[way] == 1 or steps <= 0:
             return
         before = self._best()
-        rate = seconds / steps
-        last = self.per_step[way]
-        self.per_step[way] = rate if last is None else last + WEIGHT * (rate - last)
+        fade = DECAY ** (steps / STINT)
+        self.seconds[way] = fade * self.seconds[way] + seconds
+        self.steps[way] = fade * self.steps[way] + steps
+        self.per_step[way] = self.seconds[way] / self.steps[way]
         after = self._best()
         if before is not None and after != before:  # the other way leads now: both are tried at the first pace
             self.wait = {LONG: RETRY, ALONE: RETRY}
