@@ -128,3 +128,39 @@ def test_the_machine_line_says_whether_sessions_share_the_cores_first(tmp_path):
     fewer = machine_line({**base, "cpus": 16, "usable_cpus": 16, "threads": 4})  # SANDBOX_CPU_THREADS=4
     assert fewer.startswith("on X, 16 cores, 4 threads (SANDBOX_CPU_THREADS);")
     assert machine_line({**base, "threads": 2}).startswith("on X, 2 cores;")
+
+
+def test_under_load_the_sandbox_is_timed_in_batches_of_as_many_steps_as_quiet(monkeypatch, tmp_path):
+    """measure() sizes its batches to about 0.4 s, so beside hogs a batch held a quarter of the quiet batch's steps,
+    and a call's fixed cost (velocity Verlet's synchronising force evaluation) weighed four times as much, a cost
+    LAMMPS's runs of 500 steps do not pay. The loaded condition is timed in batches of the quiet condition's steps."""
+    import argparse
+    import contextlib
+
+    from sandbox.app import cli_bench
+    from sandbox.research import bench, peer_bench
+
+    loaded = [False]
+    batches: dict[bool, list[int]] = {False: [], True: []}
+    real = bench.timed_steps
+
+    def timed(sim, steps):  # under "load" every step reads four times as slow
+        batches[loaded[0]].append(steps)
+        return real(sim, steps) * (4 if loaded[0] else 1)
+
+    @contextlib.contextmanager
+    def hog(count):
+        loaded[0] = True
+        yield
+        loaded[0] = False
+
+    monkeypatch.setattr(bench, "timed_steps", timed)
+    monkeypatch.setattr(peer_bench, "CpuHog", hog)
+    monkeypatch.setattr(cli_bench, "ideal_pair_rate", lambda dim: 1e9)
+    args = argparse.Namespace(
+        three_d=True, side=8, quick=True, out=str(tmp_path), lammps=False, contended=1, arch="cpu", json=None
+    )
+    assert cli_bench.peer_comparison(args, repeats=1) == 0
+    quiet_batch = batches[False][-1]  # after the 20-step probe that sizes it
+    assert batches[False] == [20, quiet_batch] and quiet_batch > 100
+    assert batches[True] == [quiet_batch]  # no probe: the quiet batch's steps

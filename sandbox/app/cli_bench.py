@@ -264,8 +264,8 @@ def machine_line(machine_: dict) -> str:
 def peer_comparison(args, repeats: int) -> int:
     """`sandbox bench --lammps --3d` / `--contended [N]`: W1 (2D, 100k) or W1-3D (32,768) against LAMMPS at its best
     on these cores (each of its configurations tried first, the fastest kept) in alternating rounds, quiet and (with
-    --contended) beside N CPU hogs; each side's pair interactions per second as a fraction of the ideal in-cache
-    pair loop on the same cores."""
+    --contended) beside N CPU hogs, the sandbox under load in batches of as many steps as quiet; each side's pair
+    interactions per second as a fraction of the ideal in-cache pair loop on the same cores."""
     import contextlib
 
     from ..research.peer_bench import CpuHog, write_lammps_input
@@ -283,13 +283,15 @@ def peer_comparison(args, repeats: int) -> int:
     conditions = [("quiet", contextlib.nullcontext)]
     if hogs:
         conditions.append((f"{hogs} hog{'s' if hogs > 1 else ''}", lambda: CpuHog(hogs)))
+    batch = None  # steps a timed call: under load as many as quiet, so a call's fixed costs weigh the same
     for name, context in conditions:
         runtime.reset()
         sim = lj_box_3d_sim(n_side, args.arch) if dim == 3 else lj_box_sim(n_side, args.arch)
         with context():
-            res = against_lammps(sim, run_lammps, repeats, rounds if args.lammps else 0)
+            res = against_lammps(sim, run_lammps, repeats, rounds if args.lammps else 0, steps=batch)
             ideal = ideal_pair_rate(dim)  # under the same load
         res = res[LIKE_LAMMPS]
+        batch = batch or res["steps_per_batch"]
         res["pairs_per_second"] = pair_rate(sim, res["particle_steps_per_second"])
         res["ideal_pairs_per_second"] = ideal
         results[name] = res

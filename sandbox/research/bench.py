@@ -116,13 +116,15 @@ def measure_from_start(sim, repeats: int) -> dict:
     return _rates_of(sim, times, steps)
 
 
-def measure(sim, repeats: int, target_seconds: float = 0.4) -> dict:
-    """Median particle-steps per second over `repeats` timed batches (after a warm-up that compiles)."""
+def measure(sim, repeats: int, target_seconds: float = 0.4, steps: int | None = None) -> dict:
+    """Median particle-steps per second over `repeats` timed batches (after a warm-up that compiles) of `steps` steps
+    each (a call of Simulation.step each), or as many as take about `target_seconds`."""
 
     sim.step(2)
     sim.step(2)  # compiles what only a second call runs (velocity Verlet's restore of its half-step velocities)
-    probe = timed_steps(sim, 20) / 20  # 20 steps: a call's fixed costs (velocity Verlet's synchronisation) shared
-    steps = max(5, int(target_seconds / max(probe, 1e-6)))
+    if steps is None:
+        probe = timed_steps(sim, 20) / 20  # 20 steps: a call's fixed costs (velocity Verlet's synchronisation) shared
+        steps = max(5, int(target_seconds / max(probe, 1e-6)))
     times = [timed_steps(sim, steps) for _ in range(repeats)]
     return _rates_of(sim, times, steps)
 
@@ -144,17 +146,19 @@ def integrator_rates(sim, repeats: int) -> dict:
 PEER_ROUNDS = 3  # W1 against LAMMPS: this many alternating runs of each, medians compared
 
 
-def against_lammps(sim, run_lammps, repeats: int, rounds: int, integrators=(LIKE_LAMMPS,)) -> dict:
-    """Each of `integrators` in turn (`measure(sim)` from the scene's initial state) and LAMMPS (`run_lammps()`),
-    alternately, `rounds` times (0: no LAMMPS); {integrator: its median, with LAMMPS's median and their ratio for
-    LIKE_LAMMPS}. Alternating spreads the machine's changing load over every side."""
+def against_lammps(
+    sim, run_lammps, repeats: int, rounds: int, integrators=(LIKE_LAMMPS,), steps: int | None = None
+) -> dict:
+    """Each of `integrators` in turn (`measure(sim)` from the scene's initial state, batches of `steps` where given)
+    and LAMMPS (`run_lammps()`), alternately, `rounds` times (0: no LAMMPS); {integrator: its median, with LAMMPS's
+    median and their ratio for LIKE_LAMMPS}. Alternating spreads the machine's changing load over every side."""
     ours: dict = {name: [] for name in integrators}
     peer = []
     for _ in range(max(rounds, 1)):
         for name in integrators:
             sim.reset()
             sim.set_integrator(name)
-            ours[name].append(measure(sim, repeats))
+            ours[name].append(measure(sim, repeats, steps=steps))
         if rounds:
             lmp = run_lammps()
             if lmp is None or "error" in lmp:
