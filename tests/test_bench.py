@@ -158,9 +158,49 @@ def test_under_load_the_sandbox_is_timed_in_batches_of_as_many_steps_as_quiet(mo
     monkeypatch.setattr(peer_bench, "CpuHog", hog)
     monkeypatch.setattr(cli_bench, "ideal_pair_rate", lambda dim: 1e9)
     args = argparse.Namespace(
-        three_d=True, side=8, quick=True, out=str(tmp_path), lammps=False, contended=1, arch="cpu", json=None
+        three_d=True,
+        side=8,
+        quick=True,
+        out=str(tmp_path),
+        lammps=False,
+        contended=1,
+        arch="cpu",
+        json=None,
+        rounds=None,
     )
     assert cli_bench.peer_comparison(args, repeats=1) == 0
     quiet_batch = batches[False][-1]  # after the 20-step probe that sizes it
     assert batches[False] == [20, quiet_batch] and quiet_batch > 100
     assert batches[True] == [quiet_batch]  # no probe: the quiet batch's steps
+
+
+def test_the_rounds_against_lammps_are_as_many_as_asked(monkeypatch, tmp_path, capsys):
+    """`--rounds N` alternates N rounds of each side (3 by default) on a machine too noisy for three; the medians of
+    those rounds are compared."""
+    import argparse
+
+    from sandbox.app import cli_bench
+
+    runs = []
+
+    def fake_lammps(policy=None):
+        runs.append(policy)
+        return {"particle_steps_per_second": 1e6 * len(runs)}
+
+    found = {"config": "plain 1x1", "rates": {"plain 1x1": 1e6}}
+    monkeypatch.setattr(cli_bench, "lammps_at_its_best", lambda n_side, dim, steps: (fake_lammps, found))
+    monkeypatch.setattr(cli_bench, "ideal_pair_rate", lambda dim: 1e9)
+    args = argparse.Namespace(
+        three_d=True,
+        side=8,
+        quick=True,
+        out=str(tmp_path),
+        lammps=True,
+        contended=None,
+        arch="cpu",
+        json=None,
+        rounds=4,
+    )
+    assert cli_bench.peer_comparison(args, repeats=1) == 0
+    assert runs == [None] * 4 + ["in.lj"]  # four rounds, then LAMMPS's own list policy once
+    assert "LAMMPS   3.00 M particle-steps/s" in capsys.readouterr().out  # of rounds 1, 2, 3, 4: the upper middle

