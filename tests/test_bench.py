@@ -130,14 +130,23 @@ def test_the_machine_line_says_whether_sessions_share_the_cores_first(tmp_path):
     assert machine_line({**base, "threads": 2}).startswith("on X, 2 cores;")
 
 
+def _small_peer_comparison(monkeypatch, tmp_path, **options) -> int:
+    """`sandbox bench --3d --side 8 --quick` with `options` (lammps, contended, rounds), the ideal loop not run."""
+    import argparse
+
+    from sandbox.app import cli_bench
+
+    monkeypatch.setattr(cli_bench, "ideal_pair_rate", lambda dim: 1e9)
+    args = argparse.Namespace(three_d=True, side=8, quick=True, out=str(tmp_path), arch="cpu", json=None, **options)
+    return cli_bench.peer_comparison(args, repeats=1)
+
+
 def test_under_load_the_sandbox_is_timed_in_batches_of_as_many_steps_as_quiet(monkeypatch, tmp_path):
     """measure() sizes its batches to about 0.4 s, so beside hogs a batch held a quarter of the quiet batch's steps,
     and a call's fixed cost (velocity Verlet's synchronising force evaluation) weighed four times as much, a cost
     LAMMPS's runs of 500 steps do not pay. The loaded condition is timed in batches of the quiet condition's steps."""
-    import argparse
     import contextlib
 
-    from sandbox.app import cli_bench
     from sandbox.research import bench, peer_bench
 
     loaded = [False]
@@ -156,19 +165,7 @@ def test_under_load_the_sandbox_is_timed_in_batches_of_as_many_steps_as_quiet(mo
 
     monkeypatch.setattr(bench, "timed_steps", timed)
     monkeypatch.setattr(peer_bench, "CpuHog", hog)
-    monkeypatch.setattr(cli_bench, "ideal_pair_rate", lambda dim: 1e9)
-    args = argparse.Namespace(
-        three_d=True,
-        side=8,
-        quick=True,
-        out=str(tmp_path),
-        lammps=False,
-        contended=1,
-        arch="cpu",
-        json=None,
-        rounds=None,
-    )
-    assert cli_bench.peer_comparison(args, repeats=1) == 0
+    assert _small_peer_comparison(monkeypatch, tmp_path, lammps=False, contended=1, rounds=None) == 0
     quiet_batch = batches[False][-1]  # after the 20-step probe that sizes it
     assert batches[False] == [20, quiet_batch] and quiet_batch > 100
     assert batches[True] == [quiet_batch]  # no probe: the quiet batch's steps
@@ -177,8 +174,6 @@ def test_under_load_the_sandbox_is_timed_in_batches_of_as_many_steps_as_quiet(mo
 def test_the_rounds_against_lammps_are_as_many_as_asked(monkeypatch, tmp_path, capsys):
     """`--rounds N` alternates N rounds of each side (3 by default) on a machine too noisy for three; the medians of
     those rounds are compared."""
-    import argparse
-
     from sandbox.app import cli_bench
 
     runs = []
@@ -189,18 +184,6 @@ def test_the_rounds_against_lammps_are_as_many_as_asked(monkeypatch, tmp_path, c
 
     found = {"config": "plain 1x1", "rates": {"plain 1x1": 1e6}}
     monkeypatch.setattr(cli_bench, "lammps_at_its_best", lambda n_side, dim, steps: (fake_lammps, found))
-    monkeypatch.setattr(cli_bench, "ideal_pair_rate", lambda dim: 1e9)
-    args = argparse.Namespace(
-        three_d=True,
-        side=8,
-        quick=True,
-        out=str(tmp_path),
-        lammps=True,
-        contended=None,
-        arch="cpu",
-        json=None,
-        rounds=4,
-    )
-    assert cli_bench.peer_comparison(args, repeats=1) == 0
+    assert _small_peer_comparison(monkeypatch, tmp_path, lammps=True, contended=None, rounds=4) == 0
     assert runs == [None] * 4 + ["in.lj"]  # four rounds, then LAMMPS's own list policy once
     assert "LAMMPS   3.00 M particle-steps/s" in capsys.readouterr().out  # of rounds 1, 2, 3, 4: the upper middle
