@@ -814,6 +814,29 @@ def test_the_slower_way_is_tried_less_often_each_time_it_proves_slower():
     assert ways.choose() == LONG and ways.wait == {LONG: RETRY, ALONE: RETRY}
 
 
+def test_one_thread_on_a_crowded_machine_steps_springs_and_heat_as_the_team_does(tmp_path):
+    """The crowded machine's one-thread way runs the team's own kernel on one worker: a kernel of its own (the fused
+    one-thread launch) is compiled with Taichi's fast math, which let the compiler sum the melting block's forces in
+    another order (an ulp apart at the second step, 4 broken springs fewer by the end of its demo)."""
+    from sandbox.core.threads import LoadWatch
+    from sandbox.step.crowd import ALONE
+
+    team, alone = (Simulation(load_scene(SCENES / "melting_block.toml")) for _ in range(2))
+    if team.plan.team is None:
+        pytest.skip("team stepping needs two or more CPU threads")
+    loadavg = tmp_path / "loadavg"
+    loadavg.write_text("0.5 0.5 0.5 9/80 1234\n")
+    alone.plan.load = LoadWatch(2, str(loadavg), cores=2, machine=2)
+    alone.plan.load.others, alone.plan.load.last = 9.0, -1.0
+    alone.plan.crowd.choose = lambda: ALONE
+    for sim in (team, alone):
+        for _ in range(12):
+            sim.step(5)
+    assert alone.plan.crowded_steps == 60 and team.plan.crowded_steps == 0
+    assert np.array_equal(team.positions(), alone.positions())
+    assert np.array_equal(team.state.particles.v.to_numpy(), alone.state.particles.v.to_numpy())
+
+
 def test_a_crowded_machine_steps_other_ways_with_the_teams_trajectory(tmp_path):
     """While other work shares the cores the plan steps the long way or on one thread (each timed, the faster kept),
     and the team again once the machine clears: bit for bit the trajectory of a run that kept the team throughout."""

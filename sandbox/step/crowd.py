@@ -4,7 +4,8 @@ A team's workers spin at barriers and need a core each (core/threads.py's LoadWa
 one). Two ways of stepping give the team's trajectory bit for bit without needing every core:
   LONG   the long way: each pass launched from the host onto Taichi's thread pool, whose workers sleep between
          passes, so the process uses what share of every core the scheduler gives it;
-  ALONE  the fused launch on one thread: many steps with no wait on another thread at all.
+  ALONE  the team's launch with one worker: many steps with no wait on another thread at all (the team's own
+         kernel, so its sums and trajectory: step/fused.py).
 Which is faster depends on how the scheduler shares the cores, not on the CPU: beside other programs in sessions of
 their own (Linux's autogroup shares the cores between sessions first) one thread lost nothing to one other
 CPU-bound program and the long way 10% (W1 2D, 100k, 2 cores: 24.6 and 22 M particle-steps/s, the team 10); beside

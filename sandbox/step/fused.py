@@ -19,8 +19,12 @@ REORDER_BATCH = 20  # most steps per fused launch when the storage is sorted int
 class FusedSteps:
     """Batches of whole steps over `rates` in one launch (by `team` when it is given and starts)."""
 
-    def __init__(self, rates, state, team=None):
-        self.rates, self.state, self.team = rates, state, team
+    def __init__(self, rates, state, team=None, lone=None):
+        """`team`: the team that runs the batches; `lone`: a team of one worker, which runs them on one thread
+        (`alone`) where there is a team. Not the one-thread kernel below: that is another kernel, which the compiler
+        (with Taichi's fast math) may sum in another order, where the team's own kernel on one worker gives its
+        trajectory bit for bit (the melting block's forces parted by an ulp at the second step)."""
+        self.rates, self.state, self.team, self.lone = rates, state, team, lone
         self.lists = rates.hood.lists if rates.hood is not None else None
         self.has_lists = self.lists is not None
         self.has_grid = rates.has_grid
@@ -39,6 +43,8 @@ class FusedSteps:
         with runtime.without_cfg_pass():  # a whole step in one kernel: see the function
             if self.team is not None and not alone:
                 done = self.team.run(steps, forced, first_stage, integrator, ids, dt, self.stopped_stage)
+            elif self.team is not None and self.lone is not None:
+                done = self.lone.run(steps, forced, first_stage, integrator, ids, dt, self.stopped_stage)
             else:
                 done = int(self._fused_steps(steps, forced, first_stage, integrator, ids, dt))
         if done >= 0:

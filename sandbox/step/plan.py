@@ -71,7 +71,8 @@ class StepPlan:
         )
         one_launch = loops.serial_pairs and loops.serial_light or self.team is not None
         self.fuses = one_launch and not self.reasons
-        self.fused = FusedSteps(rates, state, self.team)
+        lone = Team(rates, 1) if self.team is not None else None  # the crowded machine's one-thread way
+        self.fused = FusedSteps(rates, state, self.team, lone)
         self.long_way = LongWay(self)
         self.integrator = integrator
         self.pending_stage = 0  # the stage the current step goes on from (0: at a step boundary)
