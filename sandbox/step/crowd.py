@@ -11,19 +11,13 @@ their own (Linux's autogroup shares the cores between sessions first) one thread
 CPU-bound program and the long way 10% (W1 2D, 100k, 2 cores: 24.6 and 22 M particle-steps/s, the team 10); beside
 other work in the same session the long way led (25.5 against 24.5). So both are timed, in stints of STINT steps,
 and the faster kept; the slower is tried again after RETRY seconds, and after twice as long each time it proves
-slower still (up to MAX_RETRY). With a fixed 2 s a long crowded run spent a stint of every 2.2 s (9% of its time) on
-the slower way, which beside 3 other programs was 25% slower (W1 2D, 100k: 11.6 against 8.9 ms a step), about 2% of
-its throughput; backing off leaves a fraction of a percent. Measured over 30 s beside 3 hogs (three runs each,
-alternating): batch medians of 10.7-11.0 M particle-steps/s against 10.6-11.0 before, within the machine's noise.
+slower still (up to MAX_RETRY): at a fixed RETRY a long crowded run spent 9% of its time on the slower way.
 
 A way's seconds a step is its recent seconds over its recent steps (both halved every STINT steps it runs, so a
 short stint counts for its few steps), not an average of its stints' rates: a stint is cut short where a call asks
-for fewer steps (a frame's substeps, a call's remainder), and a short stint that happens to hold no list build (one
-in 6 steps of W1-3D, 4.5 ms each quiet, four times that beside 3 hogs) reads far faster than its way. Averaged by
-stint, such stints made the long way look a third faster than it was beside 3 hogs (13.2-13.6 against 18.8-20.7 ms
-a step over 250 steps; one thread 15.2-16.1 ms), so it was chosen while slower: W1-3D by `bench.measure` 1.60-1.85 M
-particle-steps/s with the chooser against 1.77-1.89 with one thread forced; timed by steps, 1.94-2.00 against
-1.97-1.99.
+for fewer steps (a frame's substeps, a call's remainder), and a short stint that happens to hold no list build reads
+far faster than its way (beside 3 hogs, averaged by stint, the long way looked a third faster than it was and was
+chosen while slower; docs/performance.md, "Per CPU").
 """
 
 from __future__ import annotations
@@ -42,17 +36,21 @@ class CrowdedWays:
 
     def __init__(self, clock=time.monotonic) -> None:
         self.clock = clock
-        self.per_step: dict[str, float | None] = {LONG: None, ALONE: None}  # seconds a step, None: not yet timed
         self.seconds = {LONG: 0.0, ALONE: 0.0}  # each way's recent timed seconds and steps (see DECAY)
         self.steps = {LONG: 0.0, ALONE: 0.0}
         self.tried = {LONG: 0.0, ALONE: 0.0}  # when each way last ran
         self.stints = {LONG: 0, ALONE: 0}  # stints run each way (the first of each compiles)
         self.wait = {LONG: RETRY, ALONE: RETRY}  # seconds before each way, when not chosen, is tried again
 
+    @property
+    def per_step(self) -> dict[str, float | None]:
+        """Each way's seconds a step: its recent seconds over its recent steps (None: not yet timed)."""
+        return {way: self.seconds[way] / self.steps[way] if self.steps[way] else None for way in (LONG, ALONE)}
+
     def choose(self) -> str:
         """The way to step the next stint: one not yet timed, else the one due for another try, else the faster."""
         for way in (ALONE, LONG):
-            if self.per_step[way] is None:
+            if not self.steps[way]:
                 return way
         best = self._best()
         other = LONG if best == ALONE else ALONE
@@ -60,9 +58,10 @@ class CrowdedWays:
 
     def _best(self) -> str | None:
         """The way timed faster, None until both are timed."""
-        if None in self.per_step.values():
+        per_step = self.per_step
+        if None in per_step.values():
             return None
-        return min(self.per_step, key=lambda way: self.per_step[way])
+        return min(per_step, key=lambda way: per_step[way])
 
     def record(self, way: str, seconds: float, steps: int) -> None:
         """A stint of `steps` steps of `way` took `seconds` of wall time (a way's first stint compiles: not timed)."""
@@ -74,7 +73,6 @@ class CrowdedWays:
         fade = DECAY ** (steps / STINT)
         self.seconds[way] = fade * self.seconds[way] + seconds
         self.steps[way] = fade * self.steps[way] + steps
-        self.per_step[way] = self.seconds[way] / self.steps[way]
         after = self._best()
         if before is not None and after != before:  # the other way leads now: both are tried at the first pace
             self.wait = {LONG: RETRY, ALONE: RETRY}
