@@ -61,7 +61,9 @@ NIST_LFS_EOS = {(1.00, 0.010): (9.677e-03, 5.384e-07, -6.727e-02), (0.75, 0.010)
 def test_a_dilute_gas_matches_nists_equation_of_state_for_the_same_truncation(kt, density):
     """The pressure and pair energy per atom of the molecular model at a state point NIST tabulates for the same
     force-shifted potential; the gas's non-ideality (p / (rho kT) - 1: -3% at kT 1, -6% at kT 0.75) is what is
-    tested, so the tolerance is a small part of it."""
+    tested, so the tolerance is a small part of it. The pair energy of a dilute gas is its few dimers': one run's
+    mean wanders by about 5% (kT 1: -0.0598 to -0.0677 over four thermostat seeds, while its own block averages
+    claimed 2%), so three independent runs are averaged (each the thermostat's own seed, from the same start)."""
     spacing = density ** (-1 / 3)
     side = 8 * spacing  # 8^3 = 512 atoms on a simple cubic lattice filling the periodic box
     data = slab_scene(kt, width=side, thickness=side)
@@ -69,20 +71,26 @@ def test_a_dilute_gas_matches_nists_equation_of_state_for_the_same_truncation(kt
     data["bodies"][0].update(lo=[0.0] * 3, hi=[side] * 3, spacing=spacing)
     sim = Simulation(scene_from_dict(data, STUDY_PATH))
     assert sim.state.live_count() == 512
-    rescale = Rescaler(sim, kt, tau=0.5, seed=3)
-    pressures, energies = [], []
-    for k in range(3000):
-        sim.step(10)
-        rescale.apply(10 * sim.state.dt)
-        if k >= 500 and k % 5 == 0:
-            s = sim.stats()
-            pressures.append(s.pressure)
-            energies.append(s.pair_energy / s.particles)
+    runs = []
+    for seed in (3, 4, 5):
+        sim.reset()
+        rescale = Rescaler(sim, kt, tau=0.5, seed=seed)
+        pressures, energies = [], []
+        for k in range(2000):
+            sim.step(10)
+            rescale.apply(10 * sim.state.dt)
+            if k >= 400 and k % 5 == 0:
+                s = sim.stats()
+                pressures.append(s.pressure)
+                energies.append(s.pair_energy / s.particles)
+        runs.append((np.mean(pressures), np.mean(energies)))
+    pressure, energy = np.mean(runs, axis=0)
+    assert len({u for _, u in runs}) == 3  # three trajectories, not one thrice
     p_nist, _, u_nist = NIST_LFS_EOS[(kt, density)]
     ideal = density * kt
-    assert np.mean(pressures) - ideal == pytest.approx(p_nist - ideal, rel=0.25)  # the non-ideal part
-    assert np.mean(pressures) == pytest.approx(p_nist, rel=0.01)
-    assert np.mean(energies) == pytest.approx(u_nist, rel=0.1)
+    assert pressure - ideal == pytest.approx(p_nist - ideal, rel=0.25)  # the non-ideal part
+    assert pressure == pytest.approx(p_nist, rel=0.01)
+    assert energy == pytest.approx(u_nist, rel=0.1)
 
 
 def test_the_measured_phase_diagram_places_its_dot_at_the_measured_state_on_the_studys_own_curve():
