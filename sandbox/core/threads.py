@@ -7,6 +7,11 @@ with the workers free, 505-578 us with each pinned to its own core; the minimum 
 the same choice (OMP_PROC_BIND). After Taichi starts on the CPU, `pin_workers` finds the pool's threads (those that
 run a small parallel kernel: the calling thread only waits) and gives each a core of its own, round robin over the
 cores this process may use. Linux only; SANDBOX_PIN_THREADS=0 leaves the threads alone.
+
+While other programs share the cores (step/plan.py's crowded stepping, one worker at a time), `free_workers(True)`
+lets the pinned workers run on any of those cores, so the scheduler can move the one that works to the core less
+crowded now; `free_workers(False)` pins them again for the team. Beside 3 CPU-bound programs on 2 cores the one-thread
+way ran 13% faster freed in 3D and 6% in 2D (docs/performance.md, "Per CPU").
 """
 
 import os
@@ -21,6 +26,7 @@ PROBE_ATTEMPTS = 10  # rounds of probe launches to find the pool's threads (see 
 PROBE_ROUNDS = 300  # steps of the probe's busy chain per item: a launch keeps each worker busy ~0.1 ms
 IDLE_SECONDS = 0.003  # the pause in which threads other than the pool show themselves
 pinned: list[tuple[int, int]] = []  # (thread id, core) of the workers pinned by the last pin_workers()
+_freed = False  # whether free_workers(True) has let the pinned workers run on every usable core
 
 
 @ti.kernel
@@ -53,8 +59,9 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
     """Give each of Taichi's `threads` CPU worker threads a core of its own; returns (thread id, core) pairs, empty
     when nothing was pinned (not Linux, one core, one thread, fewer threads than the cores this process may run on,
     disabled by SANDBOX_PIN_THREADS=0, or the workers not found)."""
-    global _probe_field
+    global _probe_field, _freed
     pinned.clear()
+    _freed = False
     if os.environ.get("SANDBOX_PIN_THREADS", "1") == "0" or threads < 2:
         return []
     if not (hasattr(os, "sched_setaffinity") and os.path.isdir("/proc/self/task")):
@@ -90,6 +97,21 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
             break
         pinned.append((tid, core))
     return list(pinned)
+
+
+def free_workers(free: bool) -> None:
+    """Let the workers pin_workers() pinned run on every core this process may use (`free`), or pin each to its own
+    core again; does nothing when it is already so or nothing is pinned."""
+    global _freed
+    if free == _freed or not pinned:
+        return
+    _freed = free
+    everywhere = os.sched_getaffinity(0)
+    for tid, core in pinned:
+        try:
+            os.sched_setaffinity(tid, everywhere if free else {core})
+        except OSError:  # the thread is gone (Taichi restarted): the next start pins its own
+            continue
 
 
 class LoadWatch:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import os
 import time
 
-from ..core.threads import LoadWatch
+from ..core.threads import LoadWatch, free_workers
 from ..integrators import REGISTRY
 from ..physics import TERMS
 from ..physics.term import Term, hook_order
@@ -95,7 +95,10 @@ class StepPlan:
         state, integrator = self.state, self.integrator
         integrator.begin(state.dt)
         while n > 0:
-            if self.load is not None and self.team is not None and self.load.busy():
+            crowded = self.load is not None and self.team is not None and self.load.busy()
+            if self.load is not None:
+                free_workers(crowded)  # one worker at a time while crowded: the scheduler places it (threads.py)
+            if crowded:
                 n -= self._crowded_stint(n)
             else:
                 n -= self._batch(n)
