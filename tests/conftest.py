@@ -2,6 +2,7 @@
 
 import copy
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -31,6 +32,18 @@ def scene_dict(dim: int = 2, **sections) -> dict:
     base.update(copy.deepcopy(sections))
     return base
 
+
+def _ignored_here_only(_signum, _frame) -> None:
+    """A handler that does nothing: this process still ignores the signal, and the processes it starts do not."""
+
+
+# The tests stop the processes they start with SIGINT, SIGTERM and SIGHUP, as a person would. A signal ignored at a
+# process's start stays ignored in the programs it runs (and the sandbox leaves it so, as nohup asks: app/signals.py),
+# so a suite started in the background (SIGINT ignored) or under nohup (SIGHUP) failed those tests. A handler of the
+# suite's own keeps the signal away from the suite and lets its children start with the default.
+for _signum in (signal.SIGINT, signal.SIGHUP):
+    if signal.getsignal(_signum) is signal.SIG_IGN:
+        signal.signal(_signum, _ignored_here_only)
 
 runtime.own_process()  # the tests are the sandbox's own: pinned CPU workers, light compile-error excerpts (as the CLI)
 
