@@ -159,6 +159,8 @@ def _sweep_process(tmp_path, *extra: str):
 def _stop_when_running(proc, tmp_path, signum) -> list[str]:
     """Wait until a run writes its rows, send `signum` to the sweep's whole process group; its stderr lines."""
     import os
+    import signal
+    import subprocess
     import time
 
     end = time.monotonic() + 120
@@ -166,7 +168,12 @@ def _stop_when_running(proc, tmp_path, signum) -> list[str]:
         time.sleep(0.05)
     time.sleep(1.0)
     os.killpg(proc.pid, signum)
-    _, err = proc.communicate(timeout=120)
+    try:
+        _, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:  # not stopped: it would run its 500,000 frames on after the test
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        raise
     assert "Traceback" not in err, err
     return [line for line in err.splitlines() if line.strip()]
 
