@@ -294,7 +294,7 @@ def peer_comparison(args, repeats: int) -> int:
     if hogs:
         conditions.append((f"{hogs} hog{'s' if hogs > 1 else ''}", lambda: CpuHog(hogs)))
     batch = None  # steps a timed call: under load as many as quiet, so a call's fixed costs weigh the same
-    quiet_lammps = None
+    quiet_lammps = None  # LAMMPS at its best quiet, for its own list policy after the rounds
     for name, context in conditions:
         runtime.reset()
         sim = lj_box_3d_sim(n_side, args.arch) if dim == 3 else lj_box_sim(n_side, args.arch)
@@ -310,7 +310,8 @@ def peer_comparison(args, repeats: int) -> int:
         res["ideal_pairs_per_second"] = ideal
         res["lammps_configs"] = found
         results[name] = res
-        quiet_lammps = quiet_lammps or (run_lammps if found else None)
+        if name == "quiet" and found:
+            quiet_lammps = run_lammps
     if quiet_lammps is not None:
         results["lammps_own_policy"] = quiet_lammps("in.lj")
     print_peer_comparison(results, conditions, dim, script)
@@ -325,11 +326,11 @@ def print_peer_comparison(results: dict, conditions: list, dim: int, script: Pat
     from ..research.peer_bench import describe
 
     quiet = results["quiet"]
-    print(describe(dim, quiet["particles"], (quiet.get("lammps_configs") or {}).get("config")))
+    print(describe(dim, quiet["particles"], quiet["lammps_configs"].get("config")))
     print(machine_line(results["machine"]))
     print(f"LAMMPS input written to {script}")
     for name, _ in conditions:
-        found = results[name].get("lammps_configs") or {}
+        found = results[name]["lammps_configs"]  # {} without LAMMPS
         if found:
             tried = "; ".join(f"{config} {rate / 1e6:.2f}" for config, rate in found["rates"].items())
             print(
