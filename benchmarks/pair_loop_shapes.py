@@ -146,9 +146,8 @@ class Shapes:
                     for k in range(loop.start[a], loop.start[a + 1]):
                         b = loop.neighbour[k]
                         d = xa - loop.x[b]
-                        inv2 = 0.1 * d.dot(d)
-                        if ti.static(division):
-                            inv2 = 1.0 / d.dot(d)
+                        r2 = d.dot(d)
+                        inv2 = 1.0 / r2 if ti.static(division) else 0.1 * r2  # without: a product in its place
                         fab = self._law(inv2) * d
                         fa += fab
                         if ti.static(scatter):
