@@ -1,6 +1,6 @@
 """Render a sandbox surface cache frame in Blender, headless, with temperature as a colour ramp.
 
-    blender -b --factory-startup -P examples/blender_render.py -- out/wax.surface.00120.ply out/wax_blender.png [HEIGHT]
+    blender -b --factory-startup -P examples/blender_render.py -- out/wax.ply.surface.00120.ply out/wax.png [HEIGHT]
 
 The PLY is one frame of `sandbox run SCENE --cache out/wax.ply --cache-surface` (or `sandbox.Cache`): a triangle mesh
 with a `temperature` value (degrees C) per vertex. Blender's own PLY importer keeps only colours, so this script

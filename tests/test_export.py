@@ -142,8 +142,8 @@ def _read_ply(path: Path, frames: list[int]) -> list[dict]:
 
     out = []
     for frame in frames:
-        ply = PlyData.read(str(path.with_name(f"wax.{frame:05d}.ply")))
-        surface = PlyData.read(str(path.with_name(f"wax.surface.{frame:05d}.ply")))
+        ply = PlyData.read(str(path.with_name(f"wax.ply.{frame:05d}.ply")))
+        surface = PlyData.read(str(path.with_name(f"wax.ply.surface.{frame:05d}.ply")))
         v = ply["vertex"]
         comment = ply.comments[0].split()
         assert ply.comments[1] == "unit 0.001 m up Y" and len(ply["edge"].data) > 0
@@ -213,9 +213,9 @@ def test_a_cache_resumes_like_every_output(tmp_path):
         assert main([*resume, "--cache", "c.ply"]) == 0
     finally:
         os.chdir(cwd)
-    names = sorted(p.name for p in whole.glob("c.*.ply"))
-    assert names == [f"c.{k:05d}.ply" for k in range(1, 13)]
-    assert sorted(p.name for p in resumed.glob("c.*.ply")) == names
+    names = sorted(p.name for p in whole.glob("c.ply.*.ply"))
+    assert names == [f"c.ply.{k:05d}.ply" for k in range(1, 13)]
+    assert sorted(p.name for p in resumed.glob("c.ply.*.ply")) == names
     for name in names:
         assert (resumed / name).read_bytes() == (whole / name).read_bytes(), name
 
@@ -246,7 +246,7 @@ def test_blender_renders_the_cache_with_hot_and_cold_apart(tmp_path):
     with sandbox.Cache(tmp_path / "block.ply") as cache:
         cache.write(sim, surface=True)
     script = Path(__file__).parents[1] / "examples" / "blender_render.py"
-    surface = tmp_path / f"block.surface.{sim.frames_done:05d}.ply"
+    surface = tmp_path / f"block.ply.surface.{sim.frames_done:05d}.ply"
     picture = tmp_path / "render.png"
     done = subprocess.run(
         ["blender", "-b", "--factory-startup", "-P", str(script), "--", str(surface), str(picture), "64"],

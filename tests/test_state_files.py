@@ -20,6 +20,7 @@ import sandbox
 from sandbox.app.cli import EXIT_BAD_INPUT, main
 from sandbox.core import runtime
 from sandbox.errors import SandboxError, SimulationError
+from sandbox.files.persist import load_into
 
 CAMPAIGN = os.environ.get("SANDBOX_FUZZ") == "campaign"
 SMALL = {"bodies.0.hi": [70.0, 8.0]}  # candle: springs, heat, refreezing, emitters, lifetimes, kinematic flame
@@ -88,6 +89,13 @@ def edited(saved, tmp_path, arrays=None, meta=None, host=None):
         (lambda a, m, h: {"host": {"clock.dt": 0.0}}, "clock.dt"),
         (lambda a, m, h: {"host": {"emitters.serial": [1, 2, 3, 4, 5]}}, "emitters.serial"),
         (lambda a, m, h: {"host": {"clock.time": None}}, "clock.time"),
+        # issue 72: values the scene file could not hold (an OverflowError in the emitters; accepted controls)
+        (lambda a, m, h: {"host": {"clock.dt": 1e308}}, "clock.dt"),
+        (lambda a, m, h: {"meta": {"controls": {**m["controls"], "heat.ambient": -300.0}}}, "control heat.ambient"),
+        (lambda a, m, h: {"meta": {"controls": {**m["controls"], "heat.ambient": 1e30}}}, "control heat.ambient"),
+        (lambda a, m, h: {"meta": {"controls": {**m["controls"], "world.drag": -1.0}}}, "control world.drag"),
+        (lambda a, m, h: {"meta": {"controls": {**m["controls"], "world.gravity": [0.0, 1e-300]}}}, "world.gravity"),
+        (lambda a, m, h: {"meta": {"controls": {**m["controls"], "pair.scale": [-1.0, 1.0]}}}, "control pair.scale"),
     ],
     ids=lambda v: v if isinstance(v, str) else "",
 )
@@ -297,3 +305,26 @@ def test_fuzzed_archive_members_are_refused_in_one_line_never_allocated(saved, t
         sandbox.resume(crafted)
     except SandboxError as exc:
         assert str(crafted) in str(exc) and "\n" not in str(exc)
+
+
+@pytest.mark.parametrize(
+    "control, value", [("thermal_walls.floor", -1.0), ("lid.pressure", -1.0), ("lid.pressure", 1e308)]
+)
+def test_a_molecular_state_files_controls_keep_the_scenes_ranges(tmp_path, control, value):
+    """A wall's temperature or the lid's pressure out of the scene's range was a ValueError traceback (issue 72):
+    now one SandboxError naming the control, through the API, and the simulation is left as it was."""
+    sim = sandbox.load("pressure_cooker", arch="cpu")
+    path = sim.save(tmp_path / "cooker")
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {key: data[key] for key in data.files}
+    meta = json.loads(str(arrays.pop("meta")))
+    meta["controls"][control] = value
+    write(path, arrays, meta, json.loads(str(arrays.pop("host"))))
+    with pytest.raises(SandboxError, match=rf"control {re.escape(control)} = "):
+        sandbox.resume(path)
+    before = sim.controls.values()
+    with pytest.raises(SandboxError, match=rf"control {re.escape(control)} = "):
+        load_into(sim, path)
+    assert sim.controls.values() == before
+    with pytest.raises(SandboxError, match=rf"control {re.escape(control)} = "):
+        sim.controls.set({control: value})

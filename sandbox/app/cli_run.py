@@ -26,12 +26,14 @@ from ..config.arguments import (
     gif_plan,
     gif_warning,
     outputs_not_inputs,
+    outside_numbered,
 )
 from ..core import runtime
 from ..errors import SandboxError
-from ..files.cache_sequence import CACHE_SUFFIXES, cache_kind, index_path
+from ..files.cache_sequence import CACHE_SUFFIXES, cache_kind, frame_name, frame_pattern, index_path
 from ..files.cache_usd import pxr
 from ..files.persist import read_meta, saved_scene
+from ..render.segments import PngFolder
 from ..render.surface import EXPORT_HINT
 from ..render.video import check_output
 from ..simulation import Simulation
@@ -79,6 +81,12 @@ def _check_run_outputs(args, out: str | None, scene) -> None:
         "--cache": index_path(Path(args.cache)) if args.cache else None,
     }
     distinct_outputs(outputs)
+    numbered = {}  # the options that write numbered files: where, and the pattern of their names
+    if args.cache is not None:
+        numbered["--cache"] = (outputs["--cache"].parent, frame_pattern(outputs["--cache"]))
+    if out is not None and not Path(out).suffix:
+        numbered["--out"] = (Path(out), PngFolder.FRAME)
+    outside_numbered(outputs, numbered)
     for option, path in outputs.items():  # all before any folder is made for one of them
         if path is not None:
             check_name_lengths(option, path)
@@ -105,11 +113,18 @@ def _check_run_outputs(args, out: str | None, scene) -> None:
 
 
 def check_cache_output(path: str, surface: bool) -> None:
-    """--cache: a known kind, its packages installed, a writable folder; the frame files' names fit."""
+    """--cache: a known kind, its packages installed, a writable folder; the frame files' names fit (and, for USD,
+    hold no backslash, which USD's asset paths read as a folder separator)."""
     kind = cache_kind(Path(path))
     check_file_output("--cache", path, CACHE_SUFFIXES)
-    check_name_lengths("--cache", Path(path).with_name(Path(path).stem + ".surface.00000.usdc"))
+    index = index_path(Path(path))
+    check_name_lengths("--cache", index.with_name(frame_name(index, MAX_FRAMES, surface=True)))
     if kind == "usd":
+        if "\\" in Path(path).name:
+            raise SandboxError(
+                f"--cache {path}: a backslash in a USD cache's name, which USD reads as a folder separator (its frames "
+                "would resolve to nothing); expected a name without one"
+            )
         pxr()
     if surface:
         try:

@@ -255,6 +255,7 @@ class Controller:
         if self.sim.dim == 2 and norm > 0 and self.gravity_angle:
             a = math.radians(self.gravity_angle)
             g = self.gravity_strength * np.array([math.sin(a), -math.cos(a)])
+            g[np.abs(g) < 1e-9 * self.gravity_strength] = 0.0  # cos(90 deg)'s round-off is no pull
         else:
             g = scene_gravity * (self.gravity_strength / norm) if norm > 0 else scene_gravity
         self.sim.controls.set({"world.gravity": [float(c) for c in (g if self.gravity_on else 0.0 * g)]})

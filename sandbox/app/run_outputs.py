@@ -94,6 +94,14 @@ class RunOutputs:
             self._release()
             raise
 
+    def _find(self, writer, record: dict, resume: tuple[Path, dict]):
+        """What `writer` continues of the checkpoint `resume` (its path and meta), the record proven against the
+        files and against what the checkpoint's frame implies (rows, pictures, cached frames)."""
+        checkpoint, frame = resume[0], resume[1]["frame"]
+        if isinstance(writer, CacheSequence):
+            return writer.find(record, checkpoint, frame, self.cache_every, self.cache_surface)
+        return writer.find(record, checkpoint, frame)
+
     @property
     def pictures(self) -> bool:
         return "--out" in self.writers
@@ -111,9 +119,10 @@ class RunOutputs:
                 self.writers["--out"] = StillWriter(claim.path, width, height, fps, still_frame)
             else:
                 self.writers["--out"] = PngFolder(claim, width, height)
-        for option in ("--stats", "--dump"):
-            if option in claims:
-                self.writers[option] = AppendFile(claims[option])
+        if "--stats" in claims:
+            self.writers["--stats"] = AppendFile(claims["--stats"], lines_at=lambda frame: frame + 1)  # header, rows
+        if "--dump" in claims:
+            self.writers["--dump"] = AppendFile(claims["--dump"])
         if "--cache" in claims:
             self.writers["--cache"] = CacheSequence(claims["--cache"], self.cache, fps)
         records = _records(resume, restart)
@@ -129,7 +138,7 @@ class RunOutputs:
                 )
             _check_kind(record, resume[0], option, claims[option].path, writer)
             _check_record(record, resume[0], option, writer.RECORD)
-            found[option] = writer.find(record, resume[0])
+            found[option] = self._find(writer, record, resume)
         for option, writer in self.writers.items():
             if option in found:
                 writer.adopt(found[option])

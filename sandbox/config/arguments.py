@@ -154,6 +154,20 @@ def distinct_outputs(paths: dict[str, str | None]) -> None:
         seen.append((option, path))
 
 
+def outside_numbered(outputs: dict[str, str | Path | None], numbered: dict[str, tuple[Path, re.Pattern]]) -> None:
+    """No output may be one of the numbered files another output writes (a cache's frames and surfaces, a PNG
+    folder's frames): `numbered` gives each such option's folder and the pattern of its files' names."""
+    for owner, (folder, pattern) in numbered.items():
+        for option, path in outputs.items():
+            if path is None or option == owner:
+                continue
+            path = Path(path)
+            if pattern.fullmatch(path.name) and os.path.realpath(path.parent) == os.path.realpath(folder):
+                raise SandboxError(
+                    f"{option} {path}: one of the numbered files {owner} {outputs[owner]} writes; expected another name"
+                )
+
+
 def outputs_not_inputs(outputs: dict[str, str | None], inputs: dict[str, str | None]) -> None:
     """No output may be a file the run reads (the scene, a mask, the state resumed), except that the checkpoint may
     be the state resumed (a checkpoint replaces its file whole, after the state was read)."""

@@ -226,6 +226,17 @@ def check_lengths(table: Any, dim: int, file: str, key: str = "") -> None:
                     check_lengths(item, dim, file, f"{sub}[{i}]")
 
 
+def key_check(table: type, name: str) -> Check:
+    """The check a scene key keeps (the range every scene number keeps, then its own `spec(check=...)`), for a value
+    that reaches the simulation another way (a live control set by a slider, the API or a state file)."""
+    own = {f.name: f for f in dataclasses.fields(table)}[name].metadata["check"]
+
+    def check(value: Any) -> str | None:
+        return out_of_range(value) or (own(value) if own is not None else None)
+
+    return check
+
+
 def out_of_range(value: Any) -> str | None:
     """What is wrong with a number (or a vector's numbers) outside the ranges every scene number keeps, or None."""
     if isinstance(value, bool):

@@ -31,6 +31,25 @@ def gather(model, terms) -> dict:
     return values
 
 
+def problem(model, terms, values: dict) -> str | None:
+    """What is wrong with the first of `values` (controls by namespaced name, of this simulation's names and shapes)
+    that its owner's check refuses, as "control KEY = VALUE: expected ...", or None. Each owner's `control_checks()`
+    gives the scene key's check a control keeps (config/schema.key_check): a state file or a script can set no value
+    that the scene file could not."""
+    for space, owner in owners(model, terms):
+        checks = owner.control_checks()
+        for name, check in checks.items():
+            key = f"{space}.{name}"
+            if key not in values:
+                continue
+            value = values[key]
+            flat = np.asarray(value, dtype=float).ravel().tolist() if np.ndim(value) else float(value)
+            said = check(tuple(flat) if isinstance(flat, list) else flat)
+            if said:
+                return f"control {key} = {value!r}: {said}"
+    return None
+
+
 def apply(model, terms, values: dict) -> None:
     """Set the live controls from gather()'s table (the names already checked against this simulation's)."""
     for space, owner in owners(model, terms):
@@ -61,4 +80,7 @@ class Controls:
                 raise SandboxError(f"no live control {key!r}; this scene has {', '.join(current)}")
             if np.shape(value) != np.shape(current[key]) or not np.all(np.isfinite(value)):
                 raise SandboxError(f"control {key} = {value!r}; expected finite numbers shaped like {current[key]!r}")
+        said = problem(self.model, self.terms, values)
+        if said:
+            raise SandboxError(said)
         apply(self.model, self.terms, values)

@@ -6,6 +6,8 @@ import numpy as np
 import taichi as ti
 
 from ..config.materials import Material
+from ..config.scene_tables import World
+from ..config.schema import key_check
 from . import transfer
 from .oriented import data_oriented
 from .transfer import real_fields
@@ -81,6 +83,10 @@ class Model:
         """The live controls as plain numbers (for state files)."""
         gravity, drag = transfer.download([self.gravity, self.drag])
         return {"gravity": [float(g) for g in gravity], "drag": float(drag)}
+
+    def control_checks(self) -> dict:
+        """Gravity and drag keep the checks of the scene's keys (core/controls.problem)."""
+        return {"gravity": key_check(World, "gravity"), "drag": key_check(World, "drag")}
 
     def apply_controls(self, values: dict) -> None:
         """Set the live controls from `controls()`'s numbers."""

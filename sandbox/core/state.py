@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config.schema import MAX_MAGNITUDE, MIN_MAGNITUDE
 from . import transfer
 from .particles import Mover, Particles, SpringState
 
@@ -43,7 +44,8 @@ class Range:
 
 ANY = Range()  # any finite value
 COUNT = Range(lo=0, hi=2**31 - 1)  # a count or a counter (kernels and id fields hold them as i32)
-POSITIVE = Range(lo=1e-300)  # masses, radii, step sizes: above zero
+POSITIVE = Range(lo=1e-300)  # masses, radii: above zero
+STEP = Range(lo=MIN_MAGNITUDE, hi=MAX_MAGNITUDE)  # a step size: within the range every scene number keeps
 
 
 @dataclass(frozen=True)
@@ -83,7 +85,7 @@ class State:
         self.mover = Mover(particles, springs)
         self._entries: list[Entry] = []
         self.declare("clock", self, ("time", "step", "frames"), kind=VALUE, valid=COUNT)
-        self.declare("clock", self, ("dt",), kind=VALUE, valid=POSITIVE)
+        self.declare("clock", self, ("dt",), kind=VALUE, valid=STEP)
         self.declare("state", self, ("layout",), kind=VALUE, physical=False)  # the lists compare theirs with it
         self.declare("particles", particles, ("n",), valid=Range(lo=0, atmost="capacity"))
         self._declare_particles(particles)

@@ -7,22 +7,26 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import OutputError, SandboxError
-from .claim import Claim, create_exclusive, own_partial
+from .claim import RESTART_HINT, Claim, create_exclusive, own_partial
 
 CHUNK = 1 << 20
 
 
 class AppendFile:
-    """The output `claim.path`, opened by start() (fresh) or resume(record) (continuing a marked file)."""
+    """The output `claim.path`, opened by start() (fresh) or find(record, ...) then adopt() (continuing a marked
+    file). `lines_at(frame)`: the lines the file holds after `frame` frames, when that is fixed (the stats CSV: a
+    header and a row a frame), so that a record claiming another count is refused."""
 
     RECORD = {"partial": str, "bytes": int, "sha256": str}  # what mark() records
     kind, words = "text", "a text file"
 
-    def __init__(self, claim: Claim) -> None:
+    def __init__(self, claim: Claim, lines_at: Callable[[int], int] | None = None) -> None:
         self.claim = claim
+        self.lines_at = lines_at
         self.partial = claim.partial()
         self._file = None
         self._hash = hashlib.sha256()
@@ -34,19 +38,36 @@ class AppendFile:
         if header:
             self.write(header)
 
-    def find(self, record: dict, checkpoint: Path):
-        """The file the checkpoint marked (the partial a killed run left, or the finished file), proven to begin
-        with the `record["bytes"]` bytes recorded; else a SandboxError saying it does not match. Changes nothing."""
+    def find(self, record: dict, checkpoint: Path, frame: int):
+        """The file the checkpoint of frame `frame` marked (the partial a killed run left, or the finished file),
+        proven to begin with the `record["bytes"]` bytes recorded, holding the lines `frame` implies, and, when it is
+        the finished file, not claimed as nothing; else a SandboxError saying what does not match. Changes nothing."""
         path, size, digest = self.claim.path, record["bytes"], record["sha256"]
         left = own_partial(path, record["partial"])  # only a name of this output's own partial pattern
         for source in (left, path):
             prefix = _prefix_hash(source, size) if source is not None else None
-            if prefix is not None and prefix.hexdigest() == digest:
-                return source, prefix, size
+            if prefix is not None and prefix[0].hexdigest() == digest:
+                self._check_claim(source, size, prefix[1], checkpoint, frame)
+                return source, prefix[0], size
         raise SandboxError(
             f"{self.claim.option} {path}: does not begin with the {size:,} bytes the checkpoint {checkpoint} was "
-            "written with; expected the file that run wrote, or --restart-outputs to start the outputs over"
+            f"written with; {RESTART_HINT}"
         )
+
+    def _check_claim(self, source: Path, size: int, lines: int, checkpoint: Path, frame: int) -> None:
+        """A proven prefix must still be one this output holds at `frame`: the digest of nothing or of the CSV's
+        header alone is anyone's to write, so a record claiming less than its frame implies would cut the file."""
+        option, path = self.claim.option, self.claim.path
+        if source == path and size == 0 and path.stat().st_size > 0:
+            raise SandboxError(
+                f"{option} {path}: the checkpoint {checkpoint} claims none of its {path.stat().st_size:,} bytes, so "
+                f"continuing would empty it; {RESTART_HINT}"
+            )
+        if self.lines_at is not None and lines != self.lines_at(frame):
+            raise SandboxError(
+                f"{option} {path}: holds {lines} lines in the part the checkpoint {checkpoint} claims, where its frame "
+                f"{frame} makes {self.lines_at(frame)}; {RESTART_HINT}"
+            )
 
     def adopt(self, found) -> None:
         """Continue the file find() returned: a killed run's partial is cut back to the checkpoint and written on;
@@ -123,11 +144,12 @@ class AppendFile:
 
 
 def _prefix_hash(path: Path, size: int):
-    """The SHA-256 state of the first `size` bytes of `path`, or None when it is missing or shorter."""
+    """The SHA-256 state of the first `size` bytes of `path` and the line ends among them, or None when it is
+    missing or shorter."""
     try:
         if not path.is_file() or path.stat().st_size < size:
             return None
-        digest = hashlib.sha256()
+        digest, lines = hashlib.sha256(), 0
         with open(path, "rb") as src:
             left = size
             while left:
@@ -135,8 +157,9 @@ def _prefix_hash(path: Path, size: int):
                 if not chunk:
                     return None
                 digest.update(chunk)
+                lines += chunk.count(b"\n")
                 left -= len(chunk)
-        return digest
+        return digest, lines
     except OSError:
         return None
 

@@ -1,27 +1,34 @@
 """A particle cache written frame by frame beside the path named for it, under the rules of docs/files.md.
 
-    --cache out/wax.ply   out/wax.00000.ply, out/wax.00001.ply, ... (and out/wax.surface.00000.ply ... with surfaces)
-    --cache out/wax.vtp   out/wax.00000.vtp ... (and out/wax.surface.00000.vtp ...) and the collection out/wax.pvd
-    --cache out/wax.usd   out/wax.00000.usdc ... and the stage out/wax.usd (.usda and .usdc as asked)
+    --cache out/wax.ply   out/wax.ply.00000.ply, out/wax.ply.00001.ply, ... (and out/wax.ply.surface.00000.ply ...)
+    --cache out/wax.vtp   out/wax.pvd.00000.vtp ... (and out/wax.pvd.surface.00000.vtp ...) and the collection
+                          out/wax.pvd
+    --cache out/wax.usd   out/wax.usd.00000.usdc ... and the stage out/wax.usd (.usda and .usdc as asked)
 
-The index (`.pvd`, the USD stage) is the path the claim holds; every file is written under the run's partial name
-and renamed when whole, the index again at every checkpoint and at the end, so a reader never meets half a file. The
-frame files are the run's like a PNG folder's frames: those of an earlier run (of the cache's own pattern, beyond the
-frames continued) are removed when the run starts. A checkpoint records the frames written, their times and a digest
-of every file's SHA-256, which a resume checks before it numbers on.
+The frame files' names begin with the whole name of the file the claim holds (the index: the `.pvd`, the USD stage,
+the named PLY), so two caches of different names never share a frame file (wax.usd and wax.usda, or wax.surface.ply
+beside wax.ply's surfaces), and the claim's lock holds the frames with the index. Every file is written under the
+run's partial name and renamed when whole, the index again at every checkpoint and at the end, so a reader never
+meets half a file. The frame files are the run's like a PNG folder's frames: those of an earlier run (of the cache's
+own pattern, beyond the frames continued) are removed when the run starts. A checkpoint records the frames written,
+their times and a digest of every file's SHA-256; a resume checks that they are the frames its checkpoint's frame,
+--cache-every and --cache-surface make, and that every file is there with its digest, before it numbers on.
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from pathlib import Path
 
+from ..config.arguments import MAX_FRAMES
 from ..errors import SandboxError
 from .cache_formats import CacheFrame, ply_bytes, pvd_text, surface_ply_bytes, surface_vtp_bytes, vtp_bytes
-from .claim import RESTART_HINT, Claim, digest_of, remove_numbered, write_whole
+from .claim import RESTART_HINT, Claim, digest_of, is_regular_file, remove_numbered, write_whole
 
 CACHE_SUFFIXES = (".usd", ".usda", ".usdc", ".vtp", ".pvd", ".ply")
+FRAME_EXT = {"usd": ".usdc", "vtk": ".vtp", "ply": ".ply"}  # a frame file's extension, by kind
 
 
 def cache_kind(path: Path) -> str:
@@ -40,6 +47,13 @@ def index_path(path: Path) -> Path:
     return path.with_suffix(".pvd") if cache_kind(path) == "vtk" else path
 
 
+def frame_name(index: Path, frame: int, surface: bool = False) -> str:
+    """The name of the frame file numbered `frame` (its surface's with `surface`) of the cache whose index is
+    `index`."""
+    ext = FRAME_EXT[cache_kind(index)]
+    return f"{index.name}{'.surface' if surface else ''}.{frame:05d}{ext}"
+
+
 class CacheSequence:
     """The cache `claim.path` (its index, index_path()) holding one frame per write(); `fps`: time codes per second
     of a USD stage; `lines`: springs as line cells in a VTK cache."""
@@ -51,17 +65,16 @@ class CacheSequence:
         self.format = cache_kind(named)
         self.kind = f"cache-{self.format}"
         self.words = f"a {self.format.upper()} particle cache"
-        self.ext = {"usd": ".usdc", "vtk": ".vtp", "ply": ".ply"}[self.format]
-        self.stem = named.name[: -len(named.suffix)]
+        self.ext = FRAME_EXT[self.format]
         self.frames: list[list] = []  # [frame, time, has surface] per written frame
         self.hashes: list[str] = []
         self.up, self.surface = "Y", False
         self.removed: list[Path] = []
-        self._pattern = re.compile(rf"{re.escape(self.stem)}(?:\.surface)?\.(\d{{5,}}){re.escape(self.ext)}")
+        self._pattern = frame_pattern(claim.path)
 
     # ------------------------------------------------------------------ names
     def frame_file(self, index: int, surface: bool = False) -> Path:
-        return self.named.with_name(f"{self.stem}{'.surface' if surface else ''}.{index:05d}{self.ext}")
+        return self.claim.path.with_name(frame_name(self.claim.path, index, surface))
 
     def _files(self, k: int) -> list[Path]:
         frame, _, surface = self.frames[k]
@@ -73,19 +86,39 @@ class CacheSequence:
         """A fresh cache: frame files of an earlier run are removed."""
         self._remove_beyond(-1)
 
-    def find(self, record: dict, checkpoint: Path):
-        """The frames the checkpoint recorded, their files proven by their digests; else a SandboxError."""
+    def find(self, record: dict, checkpoint: Path, frame: int, every: int = 1, surface: bool = False):
+        """The frames the checkpoint of frame `frame` recorded, when they are the ones a cache of every `every`
+        frames (with surfaces or not) holds then, and their files are there with their digests; else a
+        SandboxError."""
         frames = record["written"]
-        ok = all(isinstance(f, list) and len(f) == 3 and isinstance(f[0], int) and f[0] >= 0 for f in frames)
-        if not ok:
+        if not _well_formed(frames):
             raise SandboxError(f"{checkpoint}: its record of --cache is damaged; {RESTART_HINT}")
+        numbers, expected = [f[0] for f in frames], list(range(every, frame + 1, every))
+        if numbers != expected or any(f[2] != surface for f in frames):
+            asked = f"every {every} frames" + (" with surfaces" if surface else "")
+            raise SandboxError(
+                f"--cache {self.named}: the checkpoint {checkpoint} records {len(frames)} cached frames, not those a "
+                f"cache of {asked} holds at its frame {frame}; expected the same --cache-every and --cache-surface, or "
+                "--restart-outputs to start the outputs over"
+            )
+        if not frames and any(self._pattern.fullmatch(p.name) for p in self.claim.path.parent.iterdir()):
+            raise SandboxError(
+                f"--cache {self.named}: the checkpoint {checkpoint} claims none of its frame files, so continuing "
+                f"would remove them; {RESTART_HINT}"
+            )
         self.frames, hashes = [list(f) for f in frames], []
         for k in range(len(frames)):
             for path in self._files(k):
                 try:
+                    if not is_regular_file(path, single=True):
+                        raise OSError
                     hashes.append(hashlib.sha256(path.read_bytes()).hexdigest())
                 except OSError:
-                    hashes.append("missing")
+                    self.frames = []
+                    raise SandboxError(
+                        f"--cache {self.named}: {path.name}, which the checkpoint {checkpoint} records, is missing or "
+                        f"not a file this run can read; {RESTART_HINT}"
+                    ) from None
         if digest_of(hashes) != record["digest"]:
             self.frames = []
             raise SandboxError(
@@ -160,3 +193,27 @@ class CacheSequence:
 
     def abandon(self) -> list[Path]:
         return []
+
+
+def frame_pattern(index: Path) -> re.Pattern:
+    """The names of every frame file (and surface) of the cache whose index is `index`; the number is group 1."""
+    ext = FRAME_EXT[cache_kind(index)]
+    return re.compile(rf"{re.escape(index.name)}(?:\.surface)?\.(\d{{5,}}){re.escape(ext)}")
+
+
+def _well_formed(frames) -> bool:
+    """A record's list of cached frames: [frame number, simulated time, has a surface], numbers in range, times
+    finite, not negative and not decreasing."""
+    if not isinstance(frames, list):
+        return False
+    last = 0.0
+    for f in frames:
+        if not (isinstance(f, list) and len(f) == 3 and type(f[0]) is int and isinstance(f[2], bool)):
+            return False
+        time = f[1]
+        if isinstance(time, bool) or not isinstance(time, int | float) or not math.isfinite(time):
+            return False
+        if not (0 <= f[0] <= MAX_FRAMES and last <= time):
+            return False
+        last = time
+    return True

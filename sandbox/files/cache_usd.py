@@ -15,6 +15,8 @@ the stage is read (Blender, Houdini, Omniverse, usdview, or `pxr.Usd.Stage.Open`
 
 from __future__ import annotations
 
+import errno
+import re
 from pathlib import Path
 
 import numpy as np
@@ -69,7 +71,7 @@ def write_frame_layer(path: Path, frame: CacheFrame) -> None:
             UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
                 name, Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
             ).Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), t)
-    layer.Export(str(path))
+    _export(layer, path)
 
 
 def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, surface: bool) -> None:
@@ -117,4 +119,18 @@ def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, s
     if text is not None:
         path.write_text(text)
     else:
-        layer.Export(str(path))
+        _export(layer, path)
+
+
+def _export(layer, path: Path) -> None:
+    """Save `layer` to `path`; an OSError (as every other writer's) when USD cannot: a full disk, a size limit, a
+    folder it may not write to. USD reports those as a Tf.ErrorException whose text names the system's reason."""
+    from pxr import Tf
+
+    try:
+        ok = layer.Export(str(path))
+    except Tf.ErrorException as exc:
+        found = re.search(r"writing file: ([^'\n]+)", str(exc))
+        raise OSError(errno.EIO, found.group(1) if found else "USD could not write the layer") from None
+    if not ok:
+        raise OSError(errno.EIO, "USD could not write the layer")

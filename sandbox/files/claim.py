@@ -9,10 +9,11 @@ their writer is gone).
     .NAME.<pid>-<random>.seg0003.partial.EXT   numbered pieces of one output (video segments)
 
 Trust: a name read from a file (a state file's record of its outputs) is used only when it matches the pattern
-above for the path named on this command line, in that path's folder, and is a regular file, not a link
-(`own_partial`). Locks and partials are opened with O_NOFOLLOW (and partials with O_EXCL), so a link or a folder
-planted at one of these names is refused, never written through. A NAME too long to carry the decorations is
-shortened in the hidden names to its first bytes and a digest of the whole (`hidden_stem`).
+above for the path named on this command line, in that path's folder, and is a regular file of one name, not a
+link (`own_partial`: a hard link's second name would carry the writes to another file). Locks and partials are
+opened with O_NOFOLLOW (and partials with O_EXCL), so a link or a folder planted at one of these names is refused,
+never written through. A NAME too long to carry the decorations is shortened in the hidden names to its first bytes
+and a digest of the whole (`hidden_stem`).
 """
 
 from __future__ import annotations
@@ -70,21 +71,23 @@ def partial_pattern(path: Path, pieces: bool = False) -> re.Pattern:
     return re.compile(rf"\.{re.escape(hidden_stem(path))}\.{_TOKEN}{tag}\.partial{re.escape(_suffix(path))}")
 
 
-def is_regular_file(path: Path) -> bool:
-    """`path` is a regular file itself (not a link, folder, FIFO or device)."""
+def is_regular_file(path: Path, single: bool = False) -> bool:
+    """`path` is a regular file itself (not a link, folder, FIFO or device); `single`: and its only name (a hard
+    link's second name would let a write to it change another file)."""
     try:
-        return stat.S_ISREG(os.lstat(path).st_mode)
+        info = os.lstat(path)
     except OSError:
         return False
+    return stat.S_ISREG(info.st_mode) and (info.st_nlink == 1 or not single)
 
 
 def own_partial(path: Path, name: object, pieces: bool = False) -> Path | None:
     """The partial file `name` (read from a file, so untrusted) of the output `path`, when it is one a run of the
-    sandbox would have made for `path` (its pattern, `path`'s folder) and is a regular file; else None."""
+    sandbox would have made for `path` (its pattern, `path`'s folder) and is a regular file of one name; else None."""
     if not isinstance(name, str) or not partial_pattern(path, pieces).fullmatch(name):
         return None
     candidate = path.with_name(name)
-    return candidate if is_regular_file(candidate) else None
+    return candidate if is_regular_file(candidate, single=True) else None
 
 
 def create_exclusive(path: Path, option: str = "") -> int:

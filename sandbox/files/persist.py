@@ -206,6 +206,9 @@ def load_into(sim: Saveable, path: str | Path, meta: dict | None = None) -> None
     if not isinstance(host, dict):
         raise SandboxError(f"{path}: the state file's host values are not a table; expected one written by save()")
     _check_controls(meta["controls"], controls(sim), path)
+    said = live_controls.problem(sim.model, sim.terms, meta["controls"])
+    if said:
+        raise SandboxError(f"{path}: {said}")
     if meta["integrator"] not in REGISTRY:
         raise SandboxError(f"{path}: integrator {meta['integrator']!r}; expected one of {', '.join(REGISTRY)}")
     before = sim.integrator.name

@@ -23,6 +23,8 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..config.scene_tables import Heat as HeatTable
+from ..config.schema import key_check
 from ..core.oriented import data_oriented
 from ..core.transfer import real_fields
 from .heat_sources import HeatSources
@@ -148,6 +150,9 @@ class Heat(Term):
 
     def controls(self) -> dict:
         return {"ambient": float(self.sources.ambient[None])}
+
+    def control_checks(self) -> dict:
+        return {"ambient": key_check(HeatTable, "ambient")}
 
     def apply_controls(self, values: dict) -> None:
         if "ambient" in values:

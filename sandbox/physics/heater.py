@@ -19,6 +19,8 @@ import math
 
 import taichi as ti
 
+from ..config.molecular_table import Heater as HeaterTable
+from ..config.schema import key_check
 from ..core.oriented import data_oriented
 from .heat_sources import scheduled_value
 from .term import Measure, Term, register
@@ -60,6 +62,10 @@ class Heater(Term):
     def controls(self) -> dict:
         """The power, and whether it still follows the scene's schedule (1) or was set by hand (0)."""
         return {"power": self.power, "scheduled": 0.0 if self.by_hand else 1.0}
+
+    def control_checks(self) -> dict:
+        scheduled = lambda v: None if v in (0.0, 1.0) else f"expected 0 (set by hand) or 1 (scheduled), got {v:g}"  # noqa: E731
+        return {"power": key_check(HeaterTable, "power"), "scheduled": scheduled}
 
     def apply_controls(self, values: dict) -> None:
         """Set the power; without "scheduled": 1 (a state file's record) it is set by hand and the schedule stops."""

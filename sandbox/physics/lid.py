@@ -16,6 +16,8 @@ The lid's update runs between steps (the long way)."""
 
 import taichi as ti
 
+from ..config.molecular_table import Lid as LidTable
+from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
 from .term import Measure, Term, register
@@ -78,6 +80,9 @@ class Lid(Term):
 
     def controls(self) -> dict:
         return {"pressure": self.pressure}
+
+    def control_checks(self) -> dict:
+        return {"pressure": key_check(LidTable, "pressure")}
 
     def apply_controls(self, values: dict) -> None:
         if "pressure" in values:

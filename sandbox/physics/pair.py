@@ -22,6 +22,7 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..config.schema import non_negative, out_of_range
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
@@ -135,6 +136,10 @@ class PairForce(Term):
 
     def controls(self) -> dict:
         return {"scale": list(self.scale)}
+
+    def control_checks(self) -> dict:
+        """The potential sliders' scales: numbers of the scene's range, not negative."""
+        return {"scale": lambda v: out_of_range(v) or next((non_negative(x) for x in v if non_negative(x)), None)}
 
     def apply_controls(self, values: dict) -> None:
         if "scale" in values:

@@ -187,6 +187,11 @@ class Term:
     def apply_controls(self, values: dict) -> None:
         """Set what controls() returned."""
 
+    def control_checks(self) -> dict:
+        """The check each control keeps (name: a schema check, config/schema.key_check for one a scene key sets),
+        applied to every value set from a slider, the API or a state file (core/controls.problem)."""
+        return {}
+
     def after_restore(self, state) -> None:
         """The state was put back (reset, undo, load): refresh what follows from it."""
 

@@ -20,7 +20,8 @@ import math
 import numpy as np
 import taichi as ti
 
-from ..config.molecular_table import WALL_SIDES
+from ..config.molecular_table import WALL_SIDES, ThermalWall
+from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.state import COUNT
@@ -80,6 +81,9 @@ class ThermalWalls(Term):
 
     def controls(self) -> dict:
         return dict(zip(self.names, self.temperatures()))
+
+    def control_checks(self) -> dict:
+        return {name: key_check(ThermalWall, "temperature") for name in self.names}
 
     def apply_controls(self, values: dict) -> None:
         temps = self.temperatures()

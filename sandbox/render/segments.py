@@ -47,13 +47,25 @@ class SegmentedVideo:
         self._encoder: Encoder | None = None
         self._cut: Path | None = None  # a piece cut from a finished video by find()
 
-    def find(self, record: dict, checkpoint: Path):
-        """The video the checkpoint marked, as pieces holding its `record["frames"]` frames: those a killed run left,
-        else the first frames of the finished video cut into a piece of this run's own (for a GIF, whose finished
-        frames were given one palette again, only their count is checked). A SandboxError when neither matches."""
+    def find(self, record: dict, checkpoint: Path, frame: int):
+        """The video the checkpoint of frame `frame` marked, as pieces holding its `record["frames"]` frames (those
+        `frame` frames offered imply): those a killed run left, else the first frames of the finished video cut into
+        a piece of this run's own (for a GIF, whose finished frames were given one palette again, only their count
+        is checked). A SandboxError when neither matches, or when a record of no frames meets a finished video."""
         path, frames = self.claim.path, record["frames"]
         self._check_settings(record, checkpoint)
+        if record["offered"] != frame or frames != -(-frame // self.every):
+            raise SandboxError(
+                f"{self.claim.option} {path}: the checkpoint {checkpoint} records {frames} frames of "
+                f"{record['offered']} offered, where its frame {frame} makes {-(-frame // self.every)} of {frame}; "
+                f"{RESTART_HINT}"
+            )
         if frames == 0:
+            if path.is_file() and path.stat().st_size > 0:
+                raise SandboxError(
+                    f"{self.claim.option} {path}: the checkpoint {checkpoint} claims none of its frames, so continuing "
+                    f"would replace it; {RESTART_HINT}"
+                )
             return [], [], record["offered"]
         left = [own_partial(path, name, pieces=True) for name in record["pieces"]]  # only names of its own pattern
         if left and all(p is not None for p in left):
@@ -181,9 +193,20 @@ class PngFolder:
         self.hashes: list[str] = []
         self.removed: list[Path] = []
 
-    def find(self, record: dict, checkpoint: Path):
-        """The hashes of the `record["frames"]` frame files the checkpoint marked, or a SandboxError."""
+    def find(self, record: dict, checkpoint: Path, frame: int):
+        """The hashes of the `record["frames"]` frame files the checkpoint of frame `frame` marked (one a frame), or
+        a SandboxError."""
         frames = record["frames"]
+        if frames != frame:
+            raise SandboxError(
+                f"{self.claim.option} {self.claim.path}: the checkpoint {checkpoint} records {frames} frames where its "
+                f"frame {frame} makes {frame}; {RESTART_HINT}"
+            )
+        if frames == 0 and self._file(0).exists():
+            raise SandboxError(
+                f"{self.claim.option} {self.claim.path}: the checkpoint {checkpoint} claims none of its frames, so "
+                f"continuing would remove them; {RESTART_HINT}"
+            )
         if record["size"] != [self.width, self.height]:
             raise SandboxError(
                 f"{self.claim.option} {self.claim.path}: the checkpoint {checkpoint} continues frames of "

@@ -1,0 +1,88 @@
+"""Caches own their frames and fail like every writer (issue 72): frame files named from the whole cache name, so
+caches of different names never share one; no other output of the run may take a frame's name; a USD cache that
+cannot be written (a size limit, as a full disk meets the writer) exits 4 with one line, as PLY and VTK do; a name
+USD would misread is refused. Each run is `sandbox run` in this process (its kernels come from the cache)."""
+
+from __future__ import annotations
+
+import resource
+from pathlib import Path
+
+import pytest
+
+from sandbox.app.cli import EXIT_BAD_INPUT
+from tests.test_hostile_files import errors, run
+
+pytestmark = pytest.mark.xdist_group("run_files")
+
+STILL = ["--out", "s.png"]  # no video: the cache is what is written
+
+
+def frames_of(folder: Path, prefix: str) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.glob(f"{prefix}.*")) if p.name != prefix}
+
+
+@pytest.mark.parametrize("first, second", [("a.usd", "a.usda"), ("a.usd", "a.usdc"), ("a.usda", "a.usdc")])
+def test_caches_of_different_names_never_share_a_frame_file(tmp_path, capsys, first, second):
+    """`--cache a.usd` then `--cache a.usda` wrote the same a.NNNNN.usdc frames: the second run replaced the
+    first's (a.usd's frames then showed the other run's particles, or nothing)."""
+    assert run(tmp_path, frames=4, outputs=[*STILL, "--cache", first]) == 0, errors(capsys)
+    kept = frames_of(tmp_path, first)
+    assert len(kept) == 4
+    code = run(tmp_path, "--substeps", "4", frames=2, outputs=["--out", "t.png", "--cache", second])  # other frames
+    assert code == 0, errors(capsys)
+    assert frames_of(tmp_path, first) == kept
+    assert len(frames_of(tmp_path, second)) == 2
+
+
+def test_a_surface_named_cache_never_removes_another_caches_surfaces(tmp_path, capsys):
+    """`--cache w.surface.ply` beside a finished `w.ply --cache-surface` deleted w.ply's surfaces."""
+    assert run(tmp_path, "--cache-surface", frames=2, outputs=[*STILL, "--cache", "w.ply"]) == 0, errors(capsys)
+    kept = frames_of(tmp_path, "w.ply")
+    assert sorted(kept) == ["w.ply.00001.ply", "w.ply.00002.ply", "w.ply.surface.00001.ply", "w.ply.surface.00002.ply"]
+    assert run(tmp_path, frames=2, outputs=["--out", "t.png", "--cache", "w.surface.ply"]) == 0, errors(capsys)
+    assert frames_of(tmp_path, "w.ply") == kept
+
+
+@pytest.mark.parametrize(
+    "cache, other",
+    [("w.ply", "w.ply.00001.ply"), ("w.ply", "w.ply.surface.00002.ply"), ("w.usd", "w.usd.00001.usdc")],
+)
+def test_no_other_output_may_take_a_cache_frames_name(tmp_path, capsys, cache, other):
+    """`--cache w.ply --stats w.00001.ply` replaced that frame: the check compared only the index path."""
+    code = run(tmp_path, frames=2, outputs=[*STILL, "--cache", cache, "--stats", other])
+    lines = errors(capsys)
+    assert code == EXIT_BAD_INPUT and len(lines) == 1, lines
+    assert f"--stats {other}: one of the numbered files --cache" in lines[0]
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_stats_file_inside_a_png_folder_is_not_one_of_its_frames(tmp_path, capsys):
+    code = run(tmp_path, frames=2, outputs=["--out", "frames", "--stats", "frames/frame_00001.png"])
+    lines = errors(capsys)
+    assert code == EXIT_BAD_INPUT and len(lines) == 1 and "one of the numbered files --out" in lines[0], lines
+
+
+def test_a_usd_cache_past_a_size_limit_exits_4_in_one_line(tmp_path, capsys):
+    """A full disk or `ulimit -f` was a traceback (exit 1) for USD, where PLY and VTK exit 4 with one line. The
+    limit lets the first two frame layers (about 4.1 and 4.3 kB) be written and stops the third."""
+    (tmp_path / "warm").mkdir()
+    assert run(tmp_path / "warm", frames=1, outputs=[*STILL, "--cache", "a.usd"]) == 0  # kernels compiled and saved
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (4380, hard))
+    try:
+        code = run(tmp_path, frames=6, outputs=[*STILL, "--cache", "a.usd"])
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    lines = errors(capsys)
+    assert code == 4 and len(lines) == 1, lines
+    assert "a.usd.00003.usdc" in lines[0] and "File too large" in lines[0], lines
+    assert not (tmp_path / "a.usd").exists() and not list(tmp_path.glob(".a.usd.00003.usdc*"))
+
+
+@pytest.mark.parametrize("name", ["a\\b.usda", "a\\b.usd"])
+def test_a_usd_cache_name_with_a_backslash_is_refused(tmp_path, capsys, name):
+    code = run(tmp_path, frames=2, outputs=[*STILL, "--cache", name])
+    lines = errors(capsys)
+    assert code == EXIT_BAD_INPUT and len(lines) == 1 and "backslash" in lines[0], lines
+    assert not list(tmp_path.iterdir())
