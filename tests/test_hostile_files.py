@@ -223,6 +223,36 @@ def test_a_kill_while_the_outputs_are_joined_is_finished_by_resume(tmp_path, mon
     assert not [p.name for p in folder.iterdir() if p.name.startswith(".")]
 
 
+def test_a_kill_inside_ffmpegs_join_leaves_no_concat_list_after_the_resume(tmp_path, monkeypatch, capsys):
+    """kill -9 while ffmpeg joins the pieces leaves its concat list (`...partial.mp4.pieces.txt`), which the resume
+    left in the folder for good (issue 72); it is removed with the other partial files now."""
+    folder = tmp_path / "killed"
+    folder.mkdir()
+    monkeypatch.setattr(segments, "join", lambda pieces, path: (_ for _ in ()).throw(Killed()))
+    with pytest.raises(Killed):
+        run(folder, frames=10)
+    monkeypatch.undo()
+    listing = folder / (partial_name(folder / "m.mp4", token="4242-abcdef").name + ".pieces.txt")
+    listing.write_text("file 'x'\n")  # what the killed join left
+    assert run(folder, resume=True, frames=10) == 0, errors(capsys)
+    assert len(frame_digests(folder / "m.mp4")) == 10
+    assert not [p.name for p in folder.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("output, planted", [("frames", "frames/.frame_00005.png"), ("w.ply", ".w.ply.00005.ply")])
+def test_a_killed_runs_partial_frame_file_is_removed_by_the_resume(tmp_path, capsys, output, planted):
+    """kill -9 while a PNG frame (or a cache frame) is written leaves its hidden partial file in the folder; the
+    resume left it there for good (issue 72)."""
+    option = "--out" if output == "frames" else "--cache"
+    outputs = ["--checkpoint", "c.npz", option, output] + (["--out", "m.png"] if option == "--cache" else [])
+    assert run(tmp_path, frames=4, outputs=outputs) == 0, errors(capsys)
+    partial = tmp_path / f"{planted}.4242-abcdef.partial{Path(planted).suffix}"
+    partial.write_bytes(b"half a frame")
+    assert run(tmp_path, resume=True, frames=8, outputs=outputs) == 0, errors(capsys)
+    assert not partial.exists()
+    assert not [p for p in tmp_path.rglob(".*") if ".partial" in p.name]
+
+
 def test_a_resumed_gif_keeps_the_frames_the_uninterrupted_gif_keeps(tmp_path, monkeypatch, capsys):
     """A GIF keeps every k-th frame, k planned from the run's length: planned from the frames left after the
     checkpoint, the resumed part kept other frames (151 where the uninterrupted run kept 150). A small size budget

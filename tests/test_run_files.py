@@ -215,3 +215,26 @@ def test_a_signal_whose_exception_is_lost_still_stops_the_run_at_the_next_frame(
             with stopper.held():
                 pass  # the next frame's outputs
     assert stopped.value.signum == signals.SIGTERM
+
+
+def test_sigterm_to_the_run_and_its_ffmpeg_together_exits_143_resumable(tmp_path):
+    """systemd, scancel or a `kill` of every process signal ffmpeg as well: the run ended with exit 4 "ffmpeg
+    failed" and no named outputs (issue 72). Now 143, its outputs under partial names, and the resume from the last
+    checkpoint finishes the same files as an uninterrupted run's."""
+    import psutil
+
+    proc = start(tmp_path, frames=FRAMES)
+    wait_for(lambda: checkpoint_frame(tmp_path) >= EVERY, proc)
+    encoders = [c for c in psutil.Process(proc.pid).children(recursive=True) if "ffmpeg" in c.name()]
+    while not encoders:  # the next piece's ffmpeg starts with the first frame after the checkpoint
+        assert proc.poll() is None, finish(proc)
+        encoders = [c for c in psutil.Process(proc.pid).children(recursive=True) if "ffmpeg" in c.name()]
+    for pid in [proc.pid, *(c.pid for c in encoders)]:
+        os.kill(pid, signal.SIGTERM)
+    code, err = finish(proc)
+    assert code == 143, err
+    assert err[-1].startswith("stopped by SIGTERM, which stopped ffmpeg too: the outputs are kept"), err
+    assert not [line for line in err if line.startswith("error")], err
+    code, err = finish(start(tmp_path, resume=True))
+    assert code == 0, err
+    assert len(rows(tmp_path / "s.csv")) == FRAMES and len(frame_digests(tmp_path / "m.mp4")) == FRAMES

@@ -309,9 +309,16 @@ def _said(args, sim, plan: RunPlan, result) -> int:
     summary = f"wrote {out} ({count}, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
     if last is not None and sim.terms.heat is not None:
         summary += f"; molten fraction {last.molten_fraction:.2f}, broken springs {last.broken_springs}"
-    print(summary, file=sys.stderr)
+    if not result.kept:
+        print(summary, file=sys.stderr)
     if result.interrupted:
         name = signal.Signals(result.signal).name if result.signal else "SIGINT"
-        print(f"stopped by {name}: the files written so far are complete and valid", file=sys.stderr)
+        if result.kept:
+            again = f"--resume {args.checkpoint} continues them" if args.checkpoint else "they hold the frames done"
+            names = ", ".join(p.name for p in result.kept)
+            print(f"stopped by {name}, which stopped ffmpeg too: the outputs are kept under partial names ({names}); "
+                  f"{again}", file=sys.stderr)  # fmt: skip
+        else:
+            print(f"stopped by {name}: the files written so far are complete and valid", file=sys.stderr)
         return 128 + (result.signal or 2)
     return 0

@@ -196,9 +196,8 @@ class RunOutputs:
                     writer.close() if isinstance(writer, StillWriter) else writer.publish()
                 return []
             return self._abandon_all()
-        except OutputError:
-            self._abandon_all()
-            raise
+        except OutputError as exc:
+            raise OutputError(exc.path, exc.reason, self._abandon_all()) from None
         finally:
             self._release()
 

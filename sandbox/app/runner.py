@@ -27,6 +27,7 @@ class RunResult:
     interrupted: bool = False
     stopped: str | None = None  # the blow-up guard's message when it stopped the run
     signal: int | None = None  # the signal that interrupted it (2: Ctrl-C, 15: SIGTERM, 1: SIGHUP)
+    kept: list[Path] = dataclasses.field(default_factory=list)  # partial files kept (a signal stopped a writer too)
 
 
 def _progress(total: int, enabled: bool, label: str):
@@ -83,7 +84,7 @@ def run_headless(
     last = None
     done = 0
     interrupted, signum, stopped = False, None, None
-    complete = True
+    complete, kept = True, []
     with Stopper() as stopper:
         try:
             for frame in range(first_frame, first_frame + frames):
@@ -102,7 +103,11 @@ def run_headless(
         except OutputError as exc:
             complete = False
             kept = outputs.close(complete=False)
-            raise OutputError(exc.path, exc.reason, kept) from None
+            if stopper.pending is None:
+                raise OutputError(exc.path, exc.reason, kept) from None
+            # the signal that stops this run stopped a writer too (systemd, scancel or `kill` signal ffmpeg as well):
+            # the outputs stay under partial names, continued by a resume from the last checkpoint
+            interrupted, signum = True, stopper.pending
         except BaseException:
             complete = False
             outputs.close(complete=False)
@@ -113,10 +118,22 @@ def run_headless(
             if complete:
                 finished = first_frame + done if done == frames and not (interrupted or stopped) else None
                 with stopper.deferred():  # a signal now waits until every output has its name
-                    outputs.close(complete=True, finished_frame=finished)
+                    kept = _close(outputs, finished, interrupted or stopper.pending is not None)
         if stopper.pending is not None and not interrupted:
             interrupted, signum = True, stopper.pending
-    return RunResult(done, sim.time, time.perf_counter() - start, last, interrupted, stopped, signum)
+    return RunResult(done, sim.time, time.perf_counter() - start, last, interrupted, stopped, signum, kept)
+
+
+def _close(outputs: RunOutputs, finished: int | None, signalled: bool) -> list[Path]:
+    """Give every output its name; the partial files kept instead when a signal that stopped the run stopped a
+    writer too (an ffmpeg that received the same SIGTERM cannot finish its piece): a resume continues them."""
+    try:
+        outputs.close(complete=True, finished_frame=finished)
+    except OutputError as exc:
+        if not signalled:
+            raise
+        return exc.kept
+    return []
 
 
 def _renderer(sim: Simulation, width: int, height: int, cfg) -> Renderer:

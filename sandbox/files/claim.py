@@ -40,6 +40,8 @@ RUN_TOKEN = new_token()  # this process's part of the partial names of files wri
 NAME_MAX = 255  # bytes in one file name on the file systems the sandbox writes to (ext4, xfs, btrfs, tmpfs, APFS)
 _DECORATION = 64  # bytes the hidden names add around the stem: ".", ".<pid>-<hex6>", ".seg0000", ".partial.EXT"
 _TOKEN = r"\d{1,10}-[0-9a-f]{6}"
+LISTING = ".pieces.txt"  # added to a joined video's partial name for ffmpeg's list of the pieces
+_PARTIAL = re.compile(rf"\.(.+)\.{_TOKEN}\.partial(\.[^.]*)?")  # any file's partial name: its name is group 1
 
 
 def hidden_stem(path: Path) -> str:
@@ -170,13 +172,14 @@ class Claim:
         or in pieces (only meaningful while the lock is held: their writers are gone)."""
         mine = f".{self.token}."
         whole, pieces = partial_pattern(self.path), partial_pattern(self.path, pieces=True)
+        listing = re.compile(whole.pattern + LISTING.replace(".", r"\."))  # a join's concat list (render/encoder.py)
         found = []
         try:
             names = os.listdir(self.path.parent)
         except OSError:
             return []
         for name in names:
-            if mine not in name and (whole.fullmatch(name) or pieces.fullmatch(name)):
+            if mine not in name and any(p.fullmatch(name) for p in (whole, pieces, listing)):
                 candidate = self.path.with_name(name)
                 if is_regular_file(candidate):
                     found.append(candidate)
@@ -212,7 +215,8 @@ def write_whole(target: Path, data: bytes | Callable[[Path], None], option: str,
 
 def remove_numbered(folder: Path, pattern: re.Pattern, first: int) -> list[Path]:
     """Remove the regular files in `folder` whose names match `pattern` (its last group a frame number) numbered
-    `first` or later: an earlier run's frames. Returns those removed."""
+    `first` or later: an earlier run's frames; and the partial files of any of them that a killed run left (never
+    complete, and the claim held proves their writer gone). Returns those removed."""
     try:
         names = sorted(os.listdir(folder))
     except OSError:  # no folder yet
@@ -220,8 +224,10 @@ def remove_numbered(folder: Path, pattern: re.Pattern, first: int) -> list[Path]
     removed = []
     for name in names:
         match = pattern.fullmatch(name)
+        partial = _PARTIAL.fullmatch(name)
+        late = match is not None and int(match.group(match.lastindex)) >= first
         path = folder / name
-        if match and int(match.group(match.lastindex)) >= first and is_regular_file(path):
+        if (late or (partial is not None and pattern.fullmatch(partial.group(1)))) and is_regular_file(path):
             path.unlink(missing_ok=True)
             removed.append(path)
     return removed

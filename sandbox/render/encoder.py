@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import OutputError
+from ..files.claim import LISTING
 
 GIF_PALETTE = "split[a][b];[a]palettegen=stats_mode=diff[p];[b][p]paletteuse=dither=none:diff_mode=rectangle"
 
@@ -119,7 +120,7 @@ def frame_digests(path: Path, frames: int | None = None) -> list[str]:
 def join(pieces: list[Path], path: Path) -> None:
     """Write the videos `pieces` one after another into `path`: MP4 pieces are copied packet for packet (every piece
     starts on a key frame), GIF pieces are decoded and given one palette again."""
-    listing = path.with_name(path.name + ".pieces.txt")
+    listing = path.with_name(path.name + LISTING)
     listing.write_text("".join(f"file {_quoted(ff_path(p))}\n" for p in pieces))
     try:
         codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() == ".mp4" else _codec(path)
