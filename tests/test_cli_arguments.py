@@ -76,6 +76,14 @@ def test_bad_values_give_one_line_and_exit_2_writing_nothing(extra, expected, tm
         (["serve", "--max-sessions", "0"], "--max-sessions: expected at least 1"),
         (["serve", "--max-fps", "500"], "--max-fps: expected 1 to 60"),
         (["serve", "--token", "short"], "--token: expected at least 8 characters"),
+        # issue 72: study modes at once, options a study does not read, empty or repeated temperatures
+        (["study", "--out", "{tmp}/s", "--coexistence", "--heating"], "--coexistence and --heating: one study a run"),
+        (["study", "--out", "{tmp}/s", "--heating", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler with --heating"),
+        (["study", "--out", "{tmp}/s", "--phase", "--workers", "2", "--threads", "1"], "--workers, --threads with"),
+        (["study", "--out", "{tmp}/s", "--heating", "--temperatures", "0.7"], "--temperatures with --heating"),
+        (["study", "--out", "{tmp}/s", "--integrators", "rk4", "--coexistence"], "--integrators with --coexistence"),
+        (["study", "--out", "{tmp}/s", "--coexistence", "--temperatures", ""], "--temperatures: empty"),
+        (["study", "--out", "{tmp}/s", "--coexistence", "--temperatures", "0.7,0.8,0.7"], "0.7 given twice"),
     ],
 )
 def test_study_and_bench_check_their_arguments_first(argv, expected, tmp_path, capsys):
@@ -85,6 +93,25 @@ def test_study_and_bench_check_their_arguments_first(argv, expected, tmp_path, c
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ")
     assert expected.replace("{tmp}", str(tmp_path)) in err[0]
+
+
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["--cache", "-w.ply"], "argument --cache: expected one argument; a value beginning with '-' is written"),
+        (["--cache-every", "abc"], "argument --cache-every: invalid int value: 'abc'"),
+        (["--dim", "4"], "unrecognized arguments: --dim 4"),
+        (["--arch", "tpu"], "argument --arch: invalid choice: 'tpu'"),
+    ],
+)
+def test_what_argparse_refuses_is_one_line_too(argv, expected, tmp_path, capsys):
+    """argparse's own refusals printed its usage text before the error (issue 72): one line now, exit 2."""
+    with pytest.raises(SystemExit) as stop:
+        main([*RUN, "--frames", "1", "--out", str(tmp_path / "s.png"), *argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert stop.value.code == EXIT_BAD_INPUT
+    assert len(err) == 1 and err[0].startswith("error: ") and expected in err[0], err
+    assert not list(tmp_path.iterdir())
 
 
 def test_a_missing_output_folder_is_created_before_the_run(tmp_path, capsys):

@@ -198,10 +198,23 @@ def cmd_sweep(args) -> int:
     return 0 if counts["pending"] == 0 else EXIT_STOPPED
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, with a bad command line answered in one line (what is wrong, where the options are listed) and
+    exit status 2, like every other bad input, instead of the usage text."""
+
+    def error(self, message: str):
+        hint = ""
+        if "expected one argument" in message:  # `--cache -w.ply`: argparse takes -w.ply for an option
+            option = message.split(":")[0].removeprefix("argument ").split("/")[-1]
+            hint = f"; a value beginning with '-' is written {option}=VALUE"
+        print(f"error: {message}{hint} (`{self.prog} --help` lists the options)", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command line: `sandbox run|check|list|keys|study|sweep|bench|serve ...` (each subcommand's arguments in
     a function of its own below)."""
-    parser = argparse.ArgumentParser(prog="sandbox", description="Taichi particle sandbox and melting-solid demo")
+    parser = OneLineParser(prog="sandbox", description="Taichi particle sandbox and melting-solid demo")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     _run_arguments(sub)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 
 from ..config.arguments import check_folder_output, check_names, check_pool_arguments, pool_arguments
+from ..errors import SandboxError
 from ..research.coexistence import parse_temperatures, run_coexistence
 from ..research.heating_curve import run_heating_study
 from ..research.phase_study import run_phase_study
@@ -13,14 +14,40 @@ from ..research.study import INTEGRATORS, PROBLEMS, run_study
 from .cli_common import EXIT_INTERRUPTED
 
 
+def _check_modes(args) -> None:
+    """One study a run, and only the options that study reads: the Dask options reach the integrator and
+    coexistence studies (the heating and phase studies run in this process), --temperatures and --dim the
+    coexistence study, --integrators and --problems the integrator study."""
+    modes = [flag for flag in ("phase", "coexistence", "heating") if getattr(args, flag)]
+    if len(modes) > 1:
+        raise SandboxError(f"--{' and --'.join(modes)}: one study a run; expected one of them")
+    mode = modes[0] if modes else "integrators"
+    pool = [o for o, v in (("--scheduler", args.scheduler != "auto"), ("--workers", args.workers),
+                           ("--threads", args.threads)) if v]  # fmt: skip
+    unread = {
+        "heating": pool + ["--temperatures"] * (args.temperatures is not None),
+        "phase": pool + ["--temperatures"] * (args.temperatures is not None),
+        "integrators": ["--temperatures"] * (args.temperatures is not None),
+        "coexistence": [],
+    }[mode]
+    if mode != "integrators":
+        unread += [o for o, v in (("--integrators", args.integrators), ("--problems", args.problems)) if v]
+    if mode != "coexistence" and args.dim != 3:
+        unread.append("--dim")
+    if unread:
+        study = f"--{mode}" if modes else "the integrator study"
+        raise SandboxError(f"{', '.join(unread)} with {study}: it does not read them; expected them left out")
+
+
 def cmd_study(args) -> int:
     check_pool_arguments(args)
+    _check_modes(args)
     integrators = check_names("--integrators", args.integrators, INTEGRATORS)
     problems = check_names("--problems", args.problems, PROBLEMS)
+    temperatures = parse_temperatures(args.temperatures, args.dim) if args.coexistence else None
     out = check_folder_output("--out", args.out)
     log = lambda line: print(line, file=sys.stderr)  # noqa: E731
     if args.coexistence:
-        temperatures = parse_temperatures(args.temperatures, args.dim)
         run_coexistence(out, temperatures, args.quick, log, args.dim, args.scheduler, args.workers, args.threads)
         print(f"wrote {out}/coexistence.md and coexistence.csv")
         return 0

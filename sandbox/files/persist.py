@@ -153,7 +153,7 @@ def read_meta(path: str | Path) -> dict:
         raise SandboxError(f"{path}: not a sandbox state file; expected one written by sim.save()")
     if meta.get("format_version") != FORMAT_VERSION or meta.get("sandbox") != __version__:
         raise SandboxError(
-            f"{path}: state file of sandbox {meta.get('sandbox')} (format {meta.get('format_version')}); this is "
+            f"{path}: state file of sandbox {meta.get('sandbox')!r} (format {meta.get('format_version')!r}); this is "
             f"sandbox {__version__} (format {FORMAT_VERSION}): a state resumes bit for bit only in the version that "
             "wrote it"
         )

@@ -267,8 +267,10 @@ DEFAULT_TEMPERATURES = {3: (0.70, 0.75, 0.80, 0.85), 2: (0.30, 0.33, 0.36, 0.39)
 def parse_temperatures(text: str | None, dim: int = 3) -> list[float]:
     """--temperatures: comma-separated reduced temperatures from 0.2 to 1.2 (default: DEFAULT_TEMPERATURES, below
     the critical point of this truncation); SandboxError naming the option for anything else."""
-    if not text:
+    if text is None:
         return list(DEFAULT_TEMPERATURES[dim])
+    if not text.strip():
+        raise SandboxError("--temperatures: empty; expected comma-separated reduced temperatures from 0.2 to 1.2")
     out = []
     for word in text.split(","):
         try:
@@ -280,6 +282,9 @@ def parse_temperatures(text: str | None, dim: int = 3) -> list[float]:
         out.append(value)
     if len(out) > 12:
         raise SandboxError(f"--temperatures: {len(out)} of them; expected at most 12")
+    twice = sorted({t for t in out if out.count(t) > 1})
+    if twice:
+        raise SandboxError(f"--temperatures: {', '.join(f'{t:g}' for t in twice)} given twice; expected each once")
     return out
 
 
