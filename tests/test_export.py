@@ -267,3 +267,27 @@ def test_blender_renders_the_cache_with_hot_and_cold_apart(tmp_path):
     left[:, columns[0] + third :], right[:, : columns[-1] - third] = False, False
     redness = image[..., 0] - image[..., 2]
     assert redness[right].mean() > 30 and redness[left].mean() < -30  # the hot end red, the cold end blue
+
+
+def test_a_surface_is_written_in_one_order_whatever_order_it_was_built_in():
+    """Identical runs wrote surfaces that differed in bytes (issue 72): splashsurf may emit the same mesh in another
+    order. The canonical form of a mesh shuffled (vertices renumbered, triangles reordered and turned) is the
+    original's, and it is the same closed surface (area and volume kept)."""
+    from sandbox.files.cache_formats import Surface
+    from sandbox.render.surface import canonical
+
+    rng = np.random.default_rng(5)
+    points = rng.normal(size=(2000, 3))
+    points = 6.0 * points / np.linalg.norm(points, axis=1, keepdims=True)
+    built = reconstruct(points, {"t": points[:, 0].copy()}, 0.5)
+    perm = rng.permutation(len(built.vertices))
+    renumber = np.empty_like(perm)
+    renumber[perm] = np.arange(len(perm))
+    tri = renumber[built.triangles][rng.permutation(len(built.triangles))]
+    tri = np.roll(tri, 1, axis=1)  # each triangle turned: the same orientation
+    shuffled = Surface(built.vertices[perm], tri, {"t": built.vertex_data["t"][perm]})
+    again = canonical(shuffled)
+    assert again.vertices.tobytes() == built.vertices.tobytes()
+    assert again.triangles.tobytes() == built.triangles.tobytes()
+    assert again.vertex_data["t"].tobytes() == built.vertex_data["t"].tobytes()
+    assert area_and_volume(again) == pytest.approx(area_and_volume(shuffled))

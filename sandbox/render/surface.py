@@ -34,13 +34,13 @@ def reconstruct(
         raise SandboxError(f"surfaces need pysplashsurf; {EXPORT_HINT}") from exc
     if len(points) < 4:
         return None
-    points = np.asarray(points, dtype=np.float64)
+    points = np.ascontiguousarray(points, dtype=np.float64)  # splashsurf refuses strided arrays
     if dim == 2:
         layers = [points + np.array([0.0, 0.0, dz]) for dz in (-2 * radius, 0.0, 2 * radius)]
         points = np.concatenate(layers)
         values = {name: np.tile(np.asarray(v, dtype=np.float64), 3) for name, v in values.items()}
     else:
-        values = {name: np.asarray(v, dtype=np.float64) for name, v in values.items()}
+        values = {name: np.ascontiguousarray(v, dtype=np.float64) for name, v in values.items()}
     mesh, _ = pysplashsurf.reconstruction_pipeline(
         points,
         attributes_to_interpolate=values,
@@ -55,7 +55,22 @@ def reconstruct(
     if not len(triangles):
         return None
     data = {name: np.asarray(mesh.point_attributes[name], dtype=np.float32) for name in values}
-    return Surface(vertices, triangles, data)
+    return canonical(Surface(vertices, triangles, data))
+
+
+def canonical(surface: Surface) -> Surface:
+    """`surface` in one order whatever order its builder emitted it in (splashsurf's threads may emit the same mesh
+    in another order from run to run): vertices sorted by position, each triangle starting at its least vertex (its
+    orientation kept), triangles sorted. Two runs that build the same mesh write the same bytes."""
+    v = surface.vertices
+    order = np.lexsort(v.T[::-1])  # by x, then y, then z
+    rank = np.empty(len(order), dtype=np.int64)
+    rank[order] = np.arange(len(order))
+    tri = rank[surface.triangles]
+    turn = (np.arange(3)[None, :] + tri.argmin(axis=1)[:, None]) % 3
+    tri = np.take_along_axis(tri, turn, axis=1)
+    tri = tri[np.lexsort(tri.T[::-1])]
+    return Surface(v[order], tri, {name: values[order] for name, values in surface.vertex_data.items()})
 
 
 def area_and_volume(surface: Surface) -> tuple[float, float]:
