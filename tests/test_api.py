@@ -163,7 +163,7 @@ def test_bad_state_files_give_one_clear_error(tmp_path):
     meta = json.loads(str(data["meta"]))
     old = tmp_path / "old.npz"
     np.savez(old, **{**data, "meta": np.array(json.dumps({**meta, "sandbox": "0.0.1"}))})
-    with pytest.raises(SandboxError, match="state file of sandbox 0.0.1"):
+    with pytest.raises(SandboxError, match="state file of sandbox '0.0.1'"):
         sandbox.resume(old)
     truncated = tmp_path / "truncated.npz"
     truncated.write_bytes(path.read_bytes()[: path.stat().st_size // 2])

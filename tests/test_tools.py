@@ -120,3 +120,46 @@ def test_empty_sandbox_spawns_palette_materials_and_cold_wax_freezes_into_one_so
     assert np.all(np.bincount(np.concatenate([i, j]), minlength=made)[:made] > 0)
     with pytest.raises(SandboxError, match="not in this scene"):
         tools.spawn("lava", [64.0, 40.0], 2.0)
+
+
+def _slots(sim, first: int, last: int) -> dict:
+    p = sim.particles
+    return {name: getattr(p, name).to_numpy()[first:last] for name in p.names()}
+
+
+def test_a_spawn_after_retirement_gives_fresh_values_in_every_field():
+    """Fireworks retires dead sparks by compaction; the spawn tool then wrote its hand-kept list of fields and left
+    the rest as the dead had them: 258 of 512 spawned particles inherited a dead spark's age and lifetime (issue 73),
+    and died at once. Every field of a spawned slot is what the tool gives or the field's declared default."""
+    from sandbox.core.particles import PER_PARTICLE
+
+    sim = Simulation(load_scene(SCENES / "fireworks.toml"))
+    tools = Tools(sim)
+    for _ in range(60):  # bursts, and sparks retired (lifetimes 2.2 s +- 40%)
+        sim.run(5)
+        if int(sim.particles.n[None]) < sim.particles.ident.to_numpy().max():
+            break
+    p = sim.particles
+    n = int(p.n[None])
+    assert p.next_ident > n, "no spark was retired: the test needs freed slots"
+    stale = _slots(sim, n, sim.capacity)
+    assert not np.any(stale["lifetime"]) and not np.any(stale["age"]), "freed slots kept a dead spark's values"
+    added = tools.spawn(sim.material_names[0], [80.0, 40.0], 6.0)
+    assert added > 20
+    new = _slots(sim, n, n + added)
+    given = {"x", "v", "mass", "radius", "material", "color", "group", "ident"}
+    for field in PER_PARTICLE:
+        if field.name in new and field.name not in given:
+            assert np.all(new[field.name] == field.default), field.name
+    spawned = set(new["ident"].tolist())
+    sim.run(5)  # none dies at once: they live for ever (lifetime 0), as the tool's particles do in any scene
+    assert spawned <= set(p.ident.to_numpy()[: int(p.n[None])].tolist())
+
+
+def test_erased_slots_hold_their_declared_defaults(melt):
+    sim, tools = melt
+    n = int(sim.particles.n[None])
+    removed = tools.erase([60.0, 6.0], 2.5)
+    assert removed > 0
+    freed = _slots(sim, n - removed, n)
+    assert not np.any(freed["x"]) and not np.any(freed["mass"]) and not np.any(freed["T"])

@@ -273,7 +273,7 @@ class Controller:
     def set_pair_scale(self, attraction: float, repulsion: float) -> None:
         """Scale every pair's attraction and repulsion from the materials' values (scenes with a pair force)."""
         if self.sim.terms.pair is not None:
-            self.sim.terms.pair.set_scale(attraction, repulsion)
+            self.sim.controls.set({"pair.scale": [float(attraction), float(repulsion)]})
 
     # ------------------------------------------------------------------ readouts
     def readouts(self, stats, fps: float | None = None) -> list[panel.Readout]:
@@ -296,9 +296,20 @@ class Controller:
         gravity controls follow the file's gravity."""
         load_into(self.sim, path)
         self.stroke = None
-        g = self.sim.model.gravity.to_numpy()
+        g = self.sim.model.gravity.to_numpy().astype(float)
         if np.any(g):
             self.gravity_on, self.gravity_strength = True, float(np.linalg.norm(g))
+            self.gravity_angle = self._angle_of(g)
+        if self.sim.scene.world.substeps != "auto":
+            self.dt_scale = self.sim.dt / self.base_dt
+
+    def _angle_of(self, g: np.ndarray) -> float:
+        """The gravity slider's angle (degrees) that gives the direction of `g`: 0 along the scene's own direction
+        (and in 3D, where there is no angle), else turned from straight down as apply_gravity turns it."""
+        scene = np.asarray(self.sim.scene.world.gravity, dtype=float)
+        if self.sim.dim != 2 or np.allclose(g / np.linalg.norm(g), scene / np.linalg.norm(scene), atol=1e-9):
+            return 0.0
+        return math.degrees(math.atan2(g[0], -g[1]))
 
 
 def open_scene(name: str, arch: str = "cpu"):

@@ -108,6 +108,7 @@ class Tools:
             data[: len(kept)] = kept
             field.from_numpy(data)
         p.n[None] = int(keep.sum())
+        p.clear(int(keep.sum()), n)  # the slots left hold nothing of the erased
         springs = self.sim.state.springs
         if springs is not None:
             i, j = springs.i.to_numpy(), springs.j.to_numpy()
@@ -170,11 +171,7 @@ class Tools:
             values["T"] = t
         if self.p.refreeze:
             values["liquid"] = np.full(m, LIQUID)  # spawned as a melt: it freezes into a solid where it is cold
-        for name, vals in values.items():
-            field = getattr(self.p, name)
-            data = field.to_numpy()
-            data[n : n + m] = vals
-            field.from_numpy(data)
+        self.p.put(n, values)  # every other field (age, lifetime, phase ...) at its declared default
         self.p.n[None] = n + m
         self.p.next_ident += m
         self._changed()

@@ -269,10 +269,20 @@ def apply_requests(control, state: WindowState, path: Path) -> None:
         else:
             try:
                 control.load(path)
-                state.integrator = control.sim.integrator.name
+                follow_controller(state, control)
                 state.log.append(f"loaded {path} (t = {control.sim.time:.2f} s)")
             except SandboxError as exc:
                 state.log.append(str(exc))
+
+
+def follow_controller(state: WindowState, control) -> None:
+    """The window's copies of what a loaded state changed (its integrator, gravity, step scale, pair scales), so the
+    next frame's requests do not set the old values back."""
+    state.integrator = control.sim.integrator.name
+    state.gravity_on, state.dt_scale = control.gravity_on, control.dt_scale
+    pair = control.sim.terms.pair
+    if pair is not None:
+        state.attraction, state.repulsion = pair.scale
 
 
 def panel_characters(window_width: int, panel: float) -> int:

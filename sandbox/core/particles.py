@@ -10,17 +10,56 @@ and any passenger a front-end attached, such as a renderer's motion-blur tails),
 bond lists with them.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 import taichi as ti
 
 from . import transfer
 from .oriented import data_oriented
+from .ranges import ANY, COUNT, POSITIVE, Range
+
+
+@dataclass(frozen=True)
+class PerParticle:
+    """One per-particle field: its name, kind ("real", "int", "vector": dim reals, "colour": 3 f32), the Particles
+    option that allocates it (None: always), the value a slot holds before a particle is put there or after it
+    leaves (what spawning writes where it is given nothing), the values a state file may hold, and its meaning."""
+
+    name: str
+    kind: str
+    option: str | None
+    default: float
+    valid: Range
+    meaning: str
+
+
+# Every per-particle field, once: allocation, the order particles move in, spawning's defaults, freed slots and
+# the state file's checks all read this table.
+PER_PARTICLE = (
+    PerParticle("x", "vector", None, 0.0, ANY, "position (length), (C, D)"),
+    PerParticle("v", "vector", None, 0.0, ANY, "velocity (length / time), (C, D)"),
+    PerParticle("mass", "real", None, 0.0, POSITIVE, "mass, (C,)"),
+    PerParticle("radius", "real", None, 0.0, POSITIVE, "radius (length): walls and drawing, (C,)"),
+    PerParticle("material", "int", None, 0, Range(lo=0, below="materials"), "index into the scene's materials, (C,)"),
+    PerParticle("color", "colour", None, 0.0, Range(lo=0.0, hi=1.0), "base colour, RGB in [0, 1], (C, 3)"),
+    PerParticle("group", "int", None, 0, Range(lo=0, below="groups"), "the body or emitter it came from, (C,)"),
+    # its id: its index in the built scene, then numbered on as emitters and tools add particles (stable when
+    # storage is reordered or compacted; never reused)
+    PerParticle("ident", "int", None, 0, Range(lo=0, below="next_ident"), "the particle's id, (C,)"),
+    PerParticle("h", "real", "heat", 0.0, ANY, "specific enthalpy (heat / mass): the heat state, (C,)"),
+    PerParticle("T", "real", "heat", 0.0, ANY, "temperature (degrees), derived from h (physics/phase.py), (C,)"),
+    PerParticle("liquid", "int", "refreeze", 0, Range(lo=0, hi=3), "1 once molten, until it refreezes, (C,)"),
+    PerParticle("age", "real", "lifetimes", 0.0, COUNT, "time since birth, (C,)"),
+    PerParticle("lifetime", "real", "lifetimes", 0.0, COUNT, "retired when age reaches it; 0: for ever, (C,)"),
+    PerParticle("kind", "int", "structure", 0, ANY, "phase from structure: 0 gas, 1 liquid, 2 solid, (C,)"),
+)
 
 
 @data_oriented
 class Particles:
-    """Per-particle fields: capacity C slots, the first n[None] live; D = dim. `sim.particles()` (calling this
-    object) returns the live particles as NumPy arrays by id (simulation.py's particle_table)."""
+    """Per-particle fields (PER_PARTICLE): capacity C slots, the first n[None] live; D = dim. `sim.particles()`
+    (calling this object) returns the live particles as NumPy arrays by id (simulation.py's particle_table)."""
 
     def __init__(
         self,
@@ -38,40 +77,24 @@ class Particles:
         self.lifetimes = lifetimes
         self.structure = structure
         self.n = ti.field(ti.i32, shape=())  # live particle count
-        self.x = ti.Vector.field(dim, float, shape=capacity)  # position (length), (C, D)
-        self.v = ti.Vector.field(dim, float, shape=capacity)  # velocity (length / time), (C, D)
-        self.mass = ti.field(float, shape=capacity)  # mass, (C,)
-        self.radius = ti.field(float, shape=capacity)  # radius (length): walls and drawing, (C,)
-        self.material = ti.field(ti.i32, shape=capacity)  # index into the scene's used materials, (C,)
-        self.color = ti.Vector.field(3, ti.f32, shape=capacity)  # base colour, RGB in [0, 1], (C, 3)
-        self.group = ti.field(ti.i32, shape=capacity)  # the body or emitter a particle came from, (C,)
-        # the particle's id: its index in the built scene, then numbered on as emitters and tools add particles
-        # (stable when storage is reordered or compacted; never reused)
-        self.ident = ti.field(ti.i32, shape=capacity)
         self.next_ident = 0  # the id the next added particle gets
-        if heat:
-            self.h = ti.field(float, shape=capacity)  # specific enthalpy (heat / mass): the heat state, (C,)
-            self.T = ti.field(float, shape=capacity)  # temperature (degrees), derived from h (physics/phase.py), (C,)
-        if refreeze:
-            self.liquid = ti.field(ti.i32, shape=capacity)  # 1 once molten, until it refreezes (physics/phase.py)
-        if lifetimes:
-            self.age = ti.field(float, shape=capacity)  # time since birth, (C,)
-            self.lifetime = ti.field(float, shape=capacity)  # retired when age reaches it; 0: for ever, (C,)
-        if structure:
-            self.kind = ti.field(ti.i32, shape=capacity)  # phase from structure: 0 gas, 1 liquid, 2 solid, (C,)
+        for field in self.declared():
+            setattr(self, field.name, self._allocate(field.kind))
+
+    def _allocate(self, kind: str):
+        if kind == "vector":
+            return ti.Vector.field(self.dim, float, shape=self.capacity)
+        if kind == "colour":
+            return ti.Vector.field(3, ti.f32, shape=self.capacity)
+        return ti.field(ti.i32 if kind == "int" else float, shape=self.capacity)
+
+    def declared(self) -> list[PerParticle]:
+        """The declarations of the fields this scene allocates, in PER_PARTICLE's order."""
+        return [f for f in PER_PARTICLE if f.option is None or getattr(self, f.option)]
 
     def names(self) -> list[str]:
         """Names of the per-particle fields allocated, in a fixed order (what moves with a particle)."""
-        names = ["x", "v", "mass", "radius", "material", "color", "group", "ident"]
-        if self.heat:
-            names += ["h", "T"]
-        if self.refreeze:
-            names.append("liquid")
-        if self.lifetimes:
-            names += ["age", "lifetime"]
-        if self.structure:
-            names.append("kind")
-        return names
+        return [f.name for f in self.declared()]
 
     def fields(self) -> list:
         """The per-particle fields, in names() order."""
@@ -80,9 +103,32 @@ class Particles:
     def nbytes(self) -> int:
         """Bytes held by these fields."""
         real = 8 if self.x.dtype == ti.f64 else 4
-        floats = 2 * self.dim + 2 + (2 if self.heat else 0) + (2 if self.lifetimes else 0)
-        ints = 3 + (1 if self.refreeze else 0) + (1 if self.structure else 0)  # material, group, ident, (liquid, kind)
-        return self.capacity * (floats * real + 4 * ints + 12)  # + f32 colour
+        size = {"vector": self.dim * real, "real": real, "int": 4, "colour": 12}
+        return self.capacity * sum(size[f.kind] for f in self.declared())
+
+    def put(self, first: int, values: dict[str, np.ndarray]) -> None:
+        """Write slots [first, first + m) of every field: `values` (name -> (m,) or (m, k) array) where given, the
+        declared default elsewhere, so a new particle never inherits what an earlier one left in its slot."""
+        m = len(next(iter(values.values())))
+        unknown = set(values) - set(self.names())
+        if unknown:
+            raise ValueError(f"no per-particle field {', '.join(sorted(unknown))}; expected some of {self.names()}")
+        for f in self.declared():
+            field = getattr(self, f.name)
+            data = field.to_numpy()
+            data[first : first + m] = values[f.name] if f.name in values else f.default
+            field.from_numpy(data)
+
+    def clear(self, first: int, last: int) -> None:
+        """Slots [first, last) back to their declared defaults (the slots the erased or retired left)."""
+        if last > first:
+            self._clear(first, last, tuple(self.fields()), tuple(f.default for f in self.declared()))
+
+    @ti.kernel
+    def _clear(self, first: ti.i32, last: ti.i32, fields: ti.template(), defaults: ti.template()):
+        for i in range(first, last):
+            for k in ti.static(range(len(fields))):
+                fields[k][i] = ti.zero(fields[k][i]) + ti.static(defaults[k])
 
 
 def bond_table(

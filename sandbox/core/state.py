@@ -22,30 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config.schema import MAX_MAGNITUDE, MIN_MAGNITUDE
 from . import transfer
 from .particles import Mover, Particles, SpringState
+from .ranges import ANY, COUNT, STEP, Range
 
 FIELD, NDARRAY, VALUE = "field", "ndarray", "value"
-
-
-@dataclass(frozen=True)
-class Range:
-    """The values an entry may hold, checked when a state file is read (files/state_check.py): between `lo` and
-    `hi` (numbers, inclusive), below `below` and at most `atmost` (names of counts known at the check: "capacity",
-    "n" live particles, "materials", "groups", "springs" slots, "next_ident"), and finite (reals)."""
-
-    lo: float | None = None
-    hi: float | None = None
-    below: str | None = None
-    atmost: str | None = None
-    finite: bool = True
-
-
-ANY = Range()  # any finite value
-COUNT = Range(lo=0, hi=2**31 - 1)  # a count or a counter (kernels and id fields hold them as i32)
-POSITIVE = Range(lo=1e-300)  # masses, radii: above zero
-STEP = Range(lo=MIN_MAGNITUDE, hi=MAX_MAGNITUDE)  # a step size: within the range every scene number keeps
 
 
 @dataclass(frozen=True)
@@ -99,20 +80,9 @@ class State:
             self.declare(each, springs, ("created", "span"), valid=Range(lo=0, atmost="springs"))
 
     def _declare_particles(self, p: Particles) -> None:
-        """The per-particle fields, each with the values it may hold."""
-        ranges = {
-            "mass": POSITIVE,
-            "radius": POSITIVE,
-            "material": Range(lo=0, below="materials"),
-            "color": Range(lo=0.0, hi=1.0),
-            "group": Range(lo=0, below="groups"),
-            "ident": Range(lo=0, below="next_ident"),
-            "liquid": Range(lo=0, hi=3),
-            "age": COUNT,
-            "lifetime": COUNT,
-        }
-        for name in p.names():
-            self.declare("particles", p, (name,), rows="particles", valid=ranges.get(name, ANY))
+        """The per-particle fields, each with the values it may hold (core/particles.py declares both)."""
+        for field in p.declared():
+            self.declare("particles", p, (field.name,), rows="particles", valid=field.valid)
 
     # ------------------------------------------------------------------ the declarations
     def declare(

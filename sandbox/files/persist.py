@@ -37,7 +37,7 @@ from .claim import partial_name
 from .state_check import check_meta, check_state
 
 FORMAT = "sandbox-state"
-FORMAT_VERSION = 3  # 3: the live controls are namespaced ("world.gravity")
+FORMAT_VERSION = 4  # 3: the live controls are namespaced ("world.gravity"); 4: heat sources' values are controls
 MAX_META_BYTES = 16 << 20  # the meta table (the scene, the outputs' records) and the host values, each
 
 

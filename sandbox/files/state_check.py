@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 import taichi as ti
 
+from ..core.ranges import Range
 from ..core.runtime import ARCHES, PRECISIONS
-from ..core.state import FIELD, NDARRAY, VALUE, Range
+from ..core.state import FIELD, NDARRAY, VALUE
 from ..errors import SandboxError
 
 _NUMPY = {ti.f32: np.float32, ti.f64: np.float64, ti.i32: np.int32, ti.u32: np.uint32, ti.i8: np.int8, ti.u8: np.uint8}

@@ -18,7 +18,7 @@ import taichi as ti
 from ..config.build import load_mask
 from ..core import transfer
 from ..core.oriented import data_oriented
-from ..core.state import COUNT, Range
+from ..core.ranges import COUNT, Range
 from ..errors import SceneError
 from .fields import random_uniform
 from .phase import NEVER_BONDS

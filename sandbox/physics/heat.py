@@ -24,7 +24,7 @@ import numpy as np
 import taichi as ti
 
 from ..config.scene_tables import Heat as HeatTable
-from ..config.schema import key_check
+from ..config.schema import key_check, out_of_range
 from ..core.oriented import data_oriented
 from ..core.transfer import real_fields
 from .heat_sources import HeatSources
@@ -149,14 +149,29 @@ class Heat(Term):
         self.sources.set_time(state.time)
 
     def controls(self) -> dict:
-        return {"ambient": float(self.sources.ambient[None])}
+        """The air's temperature; with heat sources, each one's temperature or power now and whether it was set by
+        hand (1: its schedule no longer applies), so a slider's value survives a save and load."""
+        out = {"ambient": float(self.sources.ambient[None])}
+        n = len(self.sources.specs)
+        if n:
+            out["sources"] = [self.sources.value(k) for k in range(n)]
+            out["by_hand"] = [1.0 if k in self.sources.by_hand else 0.0 for k in range(n)]
+        return out
 
     def control_checks(self) -> dict:
-        return {"ambient": key_check(HeatTable, "ambient")}
+        flags = lambda v: next((f"expected 0 or 1 each, got {x:g}" for x in v if x not in (0.0, 1.0)), None)  # noqa: E731
+        return {"ambient": key_check(HeatTable, "ambient"), "sources": out_of_range, "by_hand": flags}
 
     def apply_controls(self, values: dict) -> None:
         if "ambient" in values:
             self.sources.ambient[None] = values["ambient"]
+        if "sources" in values:  # held by hand: kept; scheduled: its schedule sets it again (after_restore)
+            held = values.get("by_hand", [1.0] * len(values["sources"]))
+            for k, (value, by_hand) in enumerate(zip(values["sources"], held)):
+                if by_hand:
+                    self.sources.hold(k, float(value))
+                else:
+                    self.sources.release(k, float(value))
 
     @ti.func
     def flow(self, i, j, r2):

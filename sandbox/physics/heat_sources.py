@@ -70,6 +70,11 @@ class HeatSources:
         self.by_hand.add(k)
         self._write(k, float(value))
 
+    def release(self, k: int, value: float) -> None:
+        """Set source k's value as its schedule (or the scene) has it, no longer held by hand."""
+        self.by_hand.discard(k)
+        self._write(k, float(value))
+
     def _write(self, k: int, value: float) -> None:
         if value != self._values[k]:
             self.src_value[k] = value

@@ -52,8 +52,10 @@ class Lifetimes(Term):
         dead = int(self._count_dead())
         if dead == 0:
             return 0
-        self._find_moves(int(self.p.n[None]) - dead)
+        n = int(self.p.n[None])
+        self._find_moves(n - dead)
         self.state.fill_holes(self.hole, self.filler, int(self.moves[0]))
+        self.p.clear(n - dead, n)  # the slots left hold nothing of the dead: the next born start fresh
         return dead
 
     @ti.func

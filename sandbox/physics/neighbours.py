@@ -25,7 +25,7 @@ import taichi as ti
 from ..core import runtime
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
-from ..core.state import COUNT, Range
+from ..core.ranges import COUNT, Range
 
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
 # The type of the lists as a kernel argument (see the docstring): one flat array, row i of width w at [i w, (i + 1) w).

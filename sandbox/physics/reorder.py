@@ -7,7 +7,7 @@ grid's counting sort gives the order, and the State moves every particle into it
 passengers: core/particles.py's Mover). Particles keep their identity in `ident` (the particle id).
 """
 
-from ..core.state import COUNT
+from ..core.ranges import COUNT
 
 
 class CellOrder:

@@ -24,7 +24,7 @@ from ..config.molecular_table import WALL_SIDES, ThermalWall
 from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
-from ..core.state import COUNT
+from ..core.ranges import COUNT
 from .agitation import normal
 from .fields import random_uniform
 from .term import Measure, Term, register
