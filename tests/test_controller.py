@@ -271,3 +271,17 @@ def test_a_scene_key_is_one_declaration_checked_against_the_scenes_dimension():
         parse_table(Breeze, {"gust": 1e300}, "scene.toml", "breeze")
     with pytest.raises(SceneError, match="did you mean 'gust'"):
         parse_table(Breeze, {"gusts": 1.0}, "scene.toml", "breeze")
+
+
+def test_a_renamed_measure_stops_the_build_naming_it(monkeypatch):
+    """Quantities read the terms' measures by name (`s.m.get("pair", 0.0)`): a term renaming its measure made the
+    pair energy read 0 for ever, silently (issue 73). Every name a quantity reads is checked against every name a
+    term declares when the diagnostics are built."""
+    from sandbox.measure import diagnostics
+    from sandbox.physics.pair import PairForce
+    from sandbox.physics.term import Measure
+
+    assert {"pair", "pair_virial", "ke", "n"} <= diagnostics.declared_measures()
+    monkeypatch.setattr(PairForce, "measures", (Measure("pair_energy", "sum", "pairs"), PairForce.measures[1]))
+    with pytest.raises(ValueError, match="reads the measure 'pair', which no term declares"):
+        _block()

@@ -15,7 +15,9 @@ def _commands() -> list[str]:
 def test_the_readmes_first_two_commands_make_a_venv_first():
     demo, tests = _commands()
     for command in (demo, tests):
-        assert command.startswith("python3 -m venv .venv && . .venv/bin/activate && python3 -m pip install -e "), command
+        assert command.startswith("python3 -m venv .venv && . .venv/bin/activate && python3 -m pip install -e "), (
+            command
+        )
         assert "\n" not in command
     assert demo.endswith("sandbox run melting_block") and tests.endswith("python3 -m pytest")
 

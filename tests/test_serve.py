@@ -285,6 +285,9 @@ def test_every_string_the_pages_show_is_in_every_catalogue():
     used |= {key for key in re.findall(r'\bt\("([a-z_]+)"', script) if not key.endswith("_")}  # not prefixes
     used |= {"tool_" + name for name in ("none", *tool_table.names())}  # every shipped tool has its words
     used |= {"r_" + key for key in ("time", "particles", "broken", "temperature", "melted", "solid", "liquid", "gas")}
+    from sandbox.app.controller import SETTING_FAMILIES
+
+    used |= {"s_" + family for family in SETTING_FAMILIES}  # every slider's label (a missing one showed its raw key)
     assert used - set(en) == set()
     assert all(en[k] != fr[k] for k in ("title", "reset", "lesson", "r_temperature"))  # translated, not copied
 

@@ -32,6 +32,14 @@ from .tools import Tools
 from .window_state import first_tool, tools_for
 
 SUMMARY_EVERY = 2.0  # seconds of simulated time the summary's trend looks back over
+# Every slider settings() can offer, by family ("source0" and "source1" are the family "source"): the page labels
+# each as its catalogues' s_<family> (app/web/i18n), and a test holds the three catalogues to this list.
+SETTING_FAMILIES = ("air", "source", "wall", "heater", "lid", "gravity", "gravity_angle")
+
+
+def setting_family(key: str) -> str:
+    """The family of a setting's key: its key without a trailing index ("source1" -> "source")."""
+    return key.rstrip("0123456789")
 
 
 @dataclass(frozen=True)
@@ -219,6 +227,9 @@ class Controller:
                         "gravity_angle", "gravity angle", self.gravity_angle, -180.0, 180.0, "deg", 1.0, angle
                     )
                 )
+        undeclared = [s.key for s in out if setting_family(s.key) not in SETTING_FAMILIES]
+        if undeclared:  # a new slider needs its family here and its words in the catalogues
+            raise ValueError(f"settings {undeclared} are not in SETTING_FAMILIES; expected them declared")
         return out
 
     def _shown(self, key, words, value, lo, hi, kind: str, step, apply) -> panel.Setting:

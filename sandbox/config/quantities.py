@@ -183,6 +183,50 @@ def compute(m: dict, time: float, dim: int, volume: float, wall_pressure: float,
     return {q.name: sums.of(q.name) for q in QUANTITIES}
 
 
+class _Reading(dict):
+    """A table of sums that notes every name read from it (each reads as 1.0, so every branch that needs a value
+    is taken)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.read: set[str] = set()
+
+    def __getitem__(self, name):
+        self.read.add(name)
+        return 1.0
+
+    def get(self, name, default=None):
+        self.read.add(name)
+        return 1.0
+
+    def __contains__(self, name) -> bool:
+        self.read.add(name)
+        return True
+
+
+def measures_read() -> dict[str, set[str]]:
+    """The measure names (physics/term.py's `measures`, and the particle count "n") each quantity reads, found by
+    computing it on a table that notes what is read."""
+    out = {}
+    for q in QUANTITIES:
+        m = _Reading()
+        Sums(m, 1.0, 2, 1.0, 1.0, True, True, {}).of(q.name)
+        out[q.name] = m.read
+    return out
+
+
+def check_measures(known: set[str]) -> None:
+    """Every measure a quantity reads is one of `known` (every name any term or the motion declares): ValueError
+    naming the quantity and the measure otherwise, so a renamed measure stops the build instead of reading 0."""
+    for name, read in measures_read().items():
+        unknown = sorted(read - known)
+        if unknown:
+            raise ValueError(
+                f"quantity {name!r} reads the measure {', '.join(map(repr, unknown))}, which no term declares; "
+                "expected a name of a term's `measures` (physics/term.py)"
+            )
+
+
 def markdown_table() -> str:
     """The quantities as docs/physics.md's table: name, unit, meaning."""
     rows = ["| quantity | unit | meaning |", "|---|---|---|"]

@@ -11,9 +11,10 @@ costliest: a scan of the cell grid) may be skipped and the last values kept.
 import numpy as np
 import taichi as ti
 
+from ..config.quantities import check_measures
 from ..core import runtime
 from ..core.oriented import data_oriented
-from ..physics.term import Measure
+from ..physics.term import TERMS, Measure
 
 
 @data_oriented
@@ -44,11 +45,17 @@ class Motion:
         return 0.5 * p.mass[i] * v2, p.mass[i], ti.sqrt(v2), 1 - finite, p.mass[i] * p.x[i][1]
 
 
+def declared_measures() -> set[str]:
+    """Every measure name any term class (physics/term.TERMS) or the motion declares, and the particle count "n"."""
+    return {m.name for owner in (Motion, *TERMS) for m in owner.measures} | {"n"}
+
+
 @data_oriented
 class Diagnostics:
     """The measuring kernel of `terms` over `state` (with `hood`'s grid for the pair measures)."""
 
     def __init__(self, model, state, terms: list, hood):
+        check_measures(declared_measures())
         self.state, self.hood, self.loops, self.dim = state, hood, model.loops, model.dim
         self.p = state.particles
         self.springs = state.springs
