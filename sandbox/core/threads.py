@@ -1,17 +1,15 @@
 """Pin Taichi's CPU worker threads to distinct cores.
 
-Taichi's CPU backend runs each parallel loop on a pool of worker threads that sleep between loops. On the 2-core
-development machine Linux often wakes both workers on the same core, so a parallel loop ran at the speed of a serial
-one about half the time (`python benchmarks/thread_pinning.py`: a parallel loop of 10,000 items, median 915-931 us
-with the workers free, 505-578 us with each pinned to its own core; the minimum is the same). OpenMP runtimes offer
-the same choice (OMP_PROC_BIND). After Taichi starts on the CPU, `pin_workers` finds the pool's threads (those that
-run a small parallel kernel: the calling thread only waits) and gives each a core of its own, round robin over the
-cores this process may use. Linux only; SANDBOX_PIN_THREADS=0 leaves the threads alone.
+Taichi's CPU backend runs each parallel loop on a pool of worker threads that sleep between loops, and Linux may
+wake two of them on one core, so a parallel loop runs at a serial loop's speed (OpenMP runtimes offer the same choice
+as OMP_PROC_BIND). After Taichi starts on the CPU, `pin_workers` finds the pool's threads (those that run a small
+parallel kernel: the calling thread only waits) and gives each a core of its own, round robin over the cores this
+process may use. Linux only; SANDBOX_PIN_THREADS=0 leaves the threads alone.
 
 While other programs share the cores (step/plan.py's crowded stepping, one worker at a time), `free_workers(True)`
-lets the pinned workers run on any of those cores, so the scheduler can move the one that works to the core less
-crowded now; `free_workers(False)` pins them again for the team. Beside 3 CPU-bound programs on 2 cores the one-thread
-way ran 13% faster freed in 3D and 6% in 2D (docs/performance.md, "Per CPU").
+lets the pinned workers run on any usable core, so the scheduler can move the one that works to the core less
+crowded now; `free_workers(False)` pins them again for the team. Pinning changes where threads run, never what they
+compute. What each choice was measured to gain (`python benchmarks/thread_pinning.py`) is in docs/performance.md.
 """
 
 import os

@@ -1,23 +1,19 @@
 """How a team-stepped scene steps while other work shares its cores: the way measured fastest now.
 
-A team's workers spin at barriers and need a core each (core/threads.py's LoadWatch says when they would not get
-one). Two ways of stepping give the team's trajectory bit for bit without needing every core:
+Invariant: every way gives the team's trajectory bit for bit (tests/test_fast_paths.py holds it), so the choice is
+speed alone. A team's workers spin at barriers and need a core each (core/threads.py's LoadWatch says when they would
+not get one); two ways need no core to themselves:
   LONG   the long way: each pass launched from the host onto Taichi's thread pool, whose workers sleep between
          passes, so the process uses what share of every core the scheduler gives it;
-  ALONE  the team's launch with one worker: many steps with no wait on another thread at all (the team's own
-         kernel, so its sums and trajectory: step/fused.py).
-Which is faster depends on how the scheduler shares the cores, not on the CPU: beside other programs in sessions of
-their own (Linux's autogroup shares the cores between sessions first) one thread lost nothing to one other
-CPU-bound program and the long way 10% (W1 2D, 100k, 2 cores: 24.6 and 22 M particle-steps/s, the team 10); beside
-other work in the same session the long way led (25.5 against 24.5). So both are timed, in stints of STINT steps,
-and the faster kept; the slower is tried again after RETRY seconds, and after twice as long each time it proves
-slower still (up to MAX_RETRY): at a fixed RETRY a long crowded run spent 9% of its time on the slower way.
+  ALONE  the team's launch with one worker: many steps with no wait on another thread (the team's own kernel, so its
+         sums and trajectory: step/fused.py).
 
-A way's seconds a step is its recent seconds over its recent steps (both halved every STINT steps it runs, so a
-short stint counts for its few steps), not an average of its stints' rates: a stint is cut short where a call asks
-for fewer steps (a frame's substeps, a call's remainder), and a short stint that happens to hold no list build reads
-far faster than its way (beside 3 hogs, averaged by stint, the long way looked a third faster than it was and was
-chosen while slower; docs/performance.md, "Per CPU").
+Tuning: which is faster depends on how the scheduler shares the cores (other programs in sessions of their own, or
+in this one), not on the CPU, so both are timed in stints of STINT steps and the faster kept; the slower is tried
+again after RETRY seconds, then after twice as long each time it proves slower still, up to MAX_RETRY. A way's
+seconds a step is its recent seconds over its recent steps (both halved every STINT steps it runs), not an average of
+its stints' rates: a stint cut short by a call's remainder, holding no list build, would read far faster than its way.
+The measurements behind these choices are in docs/performance.md ("Per CPU").
 """
 
 from __future__ import annotations
