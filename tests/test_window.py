@@ -1,5 +1,6 @@
 """The window: key handling without a screen, and a GGUI frame rendered hidden (skipped where Vulkan is missing)."""
 
+import dataclasses
 import itertools
 import subprocess
 import sys
@@ -26,12 +27,13 @@ def test_keys_drive_the_state():
     assert s.paused
     s.handle_key(" ")
     assert not s.paused
-    s.handle_key("3")  # drag
-    assert s.tool == "drag"
-    s.handle_key("4")  # attract: not offered in this scene
-    assert s.tool == "drag" and "not available" in s.log[-1]
     s.handle_key("Tab")  # the next tool the scene offers (GGUI reports no digits)
-    assert s.tool != "drag" and s.tool in s.tools_available
+    assert s.tool == "cool"
+    for _ in range(3):
+        s.handle_key("Tab")
+    assert s.tool == "heat"  # round the tools this scene offers, and back
+    s.handle_key("3")  # GGUI never sends digits: no key is bound to one
+    assert s.tool == "heat"
     r = s.radius
     s.handle_key("Up")
     assert s.radius == pytest.approx(r * 1.25)
@@ -59,6 +61,24 @@ def test_keys_drive_the_state():
     for key, attr in (("z", "undo"), ("w", "save"), ("o", "load")):
         s.handle_key(key)
         assert getattr(s, attr)
+
+
+def test_every_key_is_bound_once_and_the_help_lists_it():
+    """Key bindings are one table (KEYS) that handle_key and the help both read: each key is bound once, each
+    binding's first key appears in the help, and a key the table lacks changes nothing."""
+    from sandbox.app.window_state import KEYS, help_lines
+
+    keys = [key for b in KEYS for key in b.keys]
+    assert len(keys) == len(set(keys))
+    shown = " ".join(help_lines())
+    for b in KEYS:
+        name = {" ": "space", "Escape": "Esc"}.get(b.keys[0], b.keys[0])
+        assert name in shown, b.keys
+    s = state()
+    before = dataclasses.asdict(s)
+    for key in ("3", "[", "+", "F5", "Return"):
+        s.handle_key(key)
+    assert dataclasses.asdict(s) == before
 
 
 def _block():

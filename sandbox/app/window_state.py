@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import textwrap
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,37 +17,85 @@ from . import tool_table
 
 
 def help_lines() -> list[str]:
-    """The help overlay's lines (the tools as the table holds them now)."""
+    """The help overlay's lines: every key binding's words (the tools as the table holds them now), then the mouse."""
     tools = "Tab    next tool: " + ", ".join(tool_table.names()) + " (or the panel's slider)"
-    return HELP[:3] + [tools] + HELP[3:]
+    return [tools if b.help == TOOLS_LINE else b.help for b in KEYS if b.help] + MOUSE_HELP
 
 
-# GGUI (Taichi 1.7) reports letters and named keys only (Escape, Return, Tab, arrows, space, Shift, ...): digits,
-# brackets, + and - and the F keys never arrive, so every key the help lists is one of those.
-HELP = [
-    "space  pause / resume",
-    "s      single step (paused)",
-    "r      reset to the start",
-    "Up Down     brush radius",
-    "Right Left  substeps per frame",
-    "g      gravity on / off",
-    "i      next integrator",
-    "z      undo the last tool stroke (Ctrl+Z too)",
-    "w      save the state (out/SCENE.state.npz)",
-    "o      load the saved state back",
-    "n      the scene picker (switch scene) on / off",
-    "p      screenshot",
-    "m      next material for the spawn tool",
-    "v      start / stop recording an MP4 (out/SCENE_N.mp4)",
-    "e      live energy plot on / off",
-    "f      pair-force panel on / off (with attraction and repulsion sliders)",
-    "c      next colour map (temperature, phase, speed, material)",
-    "b      motion blur on / off",
-    "k      springs drawn on / off (2D)",
-    "l      the scene's lesson on / off",
-    "x      full screen on / off",
-    "h      this help",
-    "q, Esc  quit",
+def _flip(name: str) -> Callable[[WindowState], None]:
+    return lambda s: setattr(s, name, not getattr(s, name))
+
+
+def _ask(name: str) -> Callable[[WindowState], None]:
+    return lambda s: setattr(s, name, True)
+
+
+def _next_tool(s: WindowState) -> None:
+    if s.tools_available:
+        k = s.tools_available.index(s.tool) if s.tool in s.tools_available else -1
+        s.tool = s.tools_available[(k + 1) % len(s.tools_available)]
+
+
+def _next_of(items: str, name: str) -> Callable[[WindowState], None]:
+    """Step the attribute `name` to the next of the list attribute `items` (nothing when the list is empty)."""
+
+    def step(s: WindowState) -> None:
+        choices = getattr(s, items)
+        if choices:
+            setattr(s, name, choices[(choices.index(getattr(s, name)) + 1) % len(choices)])
+
+    return step
+
+
+def _set(name: str, change: Callable) -> Callable[[WindowState], None]:
+    return lambda s: setattr(s, name, change(getattr(s, name)))
+
+
+@dataclass(frozen=True)
+class Binding:
+    """A key binding: the GGUI key names that press it, its line in the help ("" where the line before covers it),
+    and what it does to the WindowState."""
+
+    keys: tuple[str, ...]
+    help: str
+    act: Callable[[WindowState], None]
+
+
+TOOLS_LINE = "Tab"  # the help line of Tab is written from the tool table
+# Every key, once: handle_key and the help both read this table. GGUI (Taichi 1.7) reports letters and named keys
+# only (Escape, Return, Tab, arrows, space, Shift, ...): digits, brackets, + and - never arrive, so none is bound.
+KEYS = (
+    Binding((" ",), "space  pause / resume", _flip("paused")),
+    Binding(("s",), "s      single step (paused)", _ask("single_step")),
+    Binding(("r",), "r      reset to the start", _ask("reset")),
+    Binding(("Tab",), TOOLS_LINE, _next_tool),
+    Binding(("Up",), "Up Down     brush radius", _set("radius", lambda r: min(100.0, r * 1.25))),
+    Binding(("Down",), "", _set("radius", lambda r: max(0.5, r / 1.25))),
+    Binding(("Right",), "Right Left  substeps per frame", _set("substeps", lambda n: min(1000, n + 1))),
+    Binding(("Left",), "", _set("substeps", lambda n: max(1, n - 1))),
+    Binding(("g",), "g      gravity on / off", _flip("gravity_on")),
+    Binding(("i",), "i      next integrator", _next_of("integrators", "integrator")),
+    Binding(("z",), "z      undo the last tool stroke (Ctrl+Z too)", _ask("undo")),
+    Binding(("w",), "w      save the state (out/SCENE.state.npz)", _ask("save")),
+    Binding(("o",), "o      load the saved state back", _ask("load")),
+    Binding(("n",), "n      the scene picker (switch scene) on / off", _flip("picking")),
+    Binding(("p",), "p      screenshot", _ask("screenshot")),
+    Binding(("m",), "m      next material for the spawn tool", _next_of("materials", "material")),
+    Binding(("v",), "v      start / stop recording an MP4 (out/SCENE_N.mp4)", _flip("recording")),
+    Binding(("e",), "e      live energy plot on / off", _flip("energy_plot")),
+    Binding(("f",), "f      pair-force panel on / off (with attraction and repulsion sliders)", _flip("potential")),
+    Binding(
+        ("c",), "c      next colour map (temperature, phase, speed, material)", _next_of("color_modes", "color_by")
+    ),
+    Binding(("b",), "b      motion blur on / off", _flip("motion_blur")),
+    Binding(("k",), "k      springs drawn on / off (2D)", _flip("draw_springs")),
+    Binding(("l",), "l      the scene's lesson on / off", _flip("show_lesson")),
+    Binding(("x", "F11"), "x      full screen on / off", _flip("full_screen")),
+    Binding(("h", "F1"), "h      this help", _flip("show_help")),
+    Binding(("q", "Escape"), "q, Esc  quit", _ask("quit")),
+)
+BY_KEY = {key: b for b in KEYS for key in b.keys}
+MOUSE_HELP = [
     "left mouse: apply the tool at the cursor (2D)",
     "3D: left drag orbit, right drag zoom, middle drag pan",
 ]
@@ -101,67 +150,10 @@ class WindowState:
             self.material = self.materials[0]
 
     def handle_key(self, key: str) -> None:
-        """Apply one key press (GGUI key names: single characters, 'Escape', ' ', 'F1')."""
-        if key in ("q", "Escape"):
-            self.quit = True
-        elif key == " ":
-            self.paused = not self.paused
-        elif key == "s":
-            self.single_step = True
-        elif key == "r":
-            self.reset = True
-        elif key.isdigit() and 1 <= int(key) <= len(tool_table.names()):  # a GGUI that reports digits (1.7 not)
-            picked = tool_table.names()[int(key) - 1]
-            if picked in self.tools_available:
-                self.tool = picked
-            else:
-                self.log.append(f"{picked} is not available in this scene")
-        elif key == "Tab" and self.tools_available:
-            k = self.tools_available.index(self.tool) if self.tool in self.tools_available else -1
-            self.tool = self.tools_available[(k + 1) % len(self.tools_available)]
-        elif key in ("[", "Down"):
-            self.radius = max(0.5, self.radius / 1.25)
-        elif key in ("]", "Up"):
-            self.radius = min(100.0, self.radius * 1.25)
-        elif key in ("+", "=", "Right"):
-            self.substeps = min(1000, self.substeps + 1)
-        elif key in ("-", "Left"):
-            self.substeps = max(1, self.substeps - 1)
-        elif key == "g":
-            self.gravity_on = not self.gravity_on
-        elif key == "i":
-            k = self.integrators.index(self.integrator)
-            self.integrator = self.integrators[(k + 1) % len(self.integrators)]
-        elif key in ("x", "F11"):
-            self.full_screen = not self.full_screen
-        elif key in ("h", "F1"):
-            self.show_help = not self.show_help
-        elif key == "p":
-            self.screenshot = True
-        elif key == "v":
-            self.recording = not self.recording
-        elif key == "e":
-            self.energy_plot = not self.energy_plot
-        elif key == "f":
-            self.potential = not self.potential
-        elif key == "c" and self.color_modes:
-            self.color_by = self.color_modes[(self.color_modes.index(self.color_by) + 1) % len(self.color_modes)]
-        elif key == "b":
-            self.motion_blur = not self.motion_blur
-        elif key == "k":
-            self.draw_springs = not self.draw_springs
-        elif key == "l":
-            self.show_lesson = not self.show_lesson
-        elif key == "z":
-            self.undo = True
-        elif key == "w":
-            self.save = True
-        elif key == "o":
-            self.load = True
-        elif key == "n":
-            self.picking = not self.picking
-        elif key == "m" and self.materials:
-            self.material = self.materials[(self.materials.index(self.material) + 1) % len(self.materials)]
+        """Apply one key press (GGUI key names: single characters, 'Escape', ' ', 'F1'): its binding in KEYS."""
+        binding = BY_KEY.get(key)
+        if binding is not None:
+            binding.act(self)
 
 
 def tools_for(sim) -> list[str]:
