@@ -1,6 +1,7 @@
 """Shared helpers: scenes from Python dicts, and Taichi on the CPU backend."""
 
 import copy
+import json
 import os
 import signal
 from pathlib import Path
@@ -75,6 +76,7 @@ def scene_file(tmp_path):
 
 def pytest_addoption(parser):
     parser.addoption("--regen-golden", action="store_true", help="rewrite the stored golden images in tests/golden")
+    parser.addoption("--record-durations", action="store_true", help="rewrite tests/durations.json from this run")
 
 
 @pytest.fixture
@@ -94,46 +96,16 @@ def compiled_kernels(monkeypatch) -> list[str]:
     return compiled
 
 
-# The modules in the order their tests start, the longest first (seconds with an empty kernel cache, 2 workers), so
-# that the last to start are short and both workers finish together. A module missing here starts last.
-LONGEST_FIRST = (
-    "test_window_screens",
-    "test_state_files",
-    "test_fast_paths",
-    "test_states_of_matter",
-    "test_render",
-    "test_run_files",
-    "test_serve",
-    "test_effects",
-    "test_api",
-    "test_integrators",
-    "test_scenes_and_output",
-    "test_notebook",
-    "test_window",
-    "test_study_dask",
-    "test_heat",
-    "test_forces",
-    "test_phase",
-    "test_sweep",
-    "test_backends",
-    "test_guard",
-    "test_bench",
-    "test_tools",
-    "test_install",
-    "test_pressure",
-    "test_fuzz",
-    "test_agitation",
-    "test_boiling",
-    "test_picture_layout",
-    "test_figures",
-    "test_melting",
-    "test_cli_arguments",
-    "test_motion",
-    "test_taichi_compat",
-    "test_scene_validation",
-    "test_transfer",
-    "test_build",
-)
+# Each module's recorded worker-seconds (setup, call and teardown of its tests with an empty kernel cache, 2 workers):
+# the modules start longest first, so that the last to start are short and both workers finish together. A module not
+# recorded starts last. `python3 -m pytest --record-durations` (and `-m long --record-durations`) rewrites the file
+# from the run it finishes.
+DURATIONS_FILE = ROOT / "tests" / "durations.json"
+DURATIONS: dict[str, float] = json.loads(DURATIONS_FILE.read_text()) if DURATIONS_FILE.exists() else {}
+
+
+def _module(item) -> str:
+    return item.module.__name__.rpartition(".")[2]
 
 
 @pytest.hookimpl(tryfirst=True)  # before xdist's own, which reads the groups
@@ -141,8 +113,24 @@ def pytest_collection_modifyitems(config, items):
     """Each module's tests run one after another on one worker (an xdist group per module, unless a test names its
     own): tests of one module mostly build the same scenes, and a kernel compiled by one test is loaded from the
     offline cache by the next, where two workers running neighbouring tests side by side would both compile it."""
-    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
     for item in items:
         if item.get_closest_marker("xdist_group") is None:
-            item.add_marker(pytest.mark.xdist_group(item.module.__name__.rpartition(".")[2]))
-    items.sort(key=lambda item: rank.get(item.module.__name__.rpartition(".")[2], len(rank)))
+            item.add_marker(pytest.mark.xdist_group(_module(item)))
+    items.sort(key=lambda item: -DURATIONS.get(_module(item), -1.0))
+
+
+_recorded: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report):
+    """Each test's setup, call and teardown, summed by module (on the controller too: xdist sends it the reports)."""
+    module = report.nodeid.split("::")[0].rpartition("/")[2].removesuffix(".py")
+    _recorded[module] = _recorded.get(module, 0.0) + report.duration
+
+
+def pytest_sessionfinish(session):
+    """--record-durations: the modules run now get their recorded seconds (the others keep theirs)."""
+    if session.config.getoption("--record-durations") and not hasattr(session.config, "workerinput"):
+        merged = {**DURATIONS, **{k: round(v, 1) for k, v in _recorded.items()}}
+        ordered = dict(sorted(merged.items(), key=lambda kv: -kv[1]))
+        DURATIONS_FILE.write_text(json.dumps(ordered, indent=1) + "\n")

@@ -9,6 +9,8 @@ import pytest
 import sandbox
 from sandbox.physics.agitation import GAS_WEIGHT, KELVIN
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 SCALE = 0.01  # pJ per kelvin
 
 

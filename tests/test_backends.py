@@ -22,6 +22,8 @@ from sandbox.simulation import Simulation
 
 from .conftest import ROOT
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 LJ_STEPS = 400
 FRAMES = 20
 

@@ -1,8 +1,11 @@
 """The benchmark's workloads measure what they say: W2 is a steady spring lattice, W3 the same run every repeat."""
 
 import numpy as np
+import pytest
 
 from sandbox.research import bench
+
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 
 
 def test_the_w2_lattice_holds_its_shape_under_its_own_weight():

@@ -7,6 +7,8 @@ import pytest
 
 import sandbox
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 POWER = 400_000.0  # heat per second (mg kJ/kg per s = mJ/s) shared by mass among every particle
 
 

@@ -17,6 +17,8 @@ from sandbox.simulation import Simulation
 
 from .conftest import ROOT
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 
 def test_the_slab_analysis_agrees_with_the_engine_and_the_rescaler_holds_the_temperature_and_momentum():
     sim = Simulation(scene_from_dict(slab_scene(0.8, width=7.5, thickness=6.0), STUDY_PATH))

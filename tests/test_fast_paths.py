@@ -12,6 +12,8 @@ from sandbox.simulation import Simulation
 
 from .conftest import SCENES, make_scene, scene_dict
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 
 def lj_box(side: float = 20.0, reorder: int = 0, half: bool = True, neighbor_list: bool = True, seed: int = 5):
     """A periodic 2D LJ liquid (W1 in miniature), f64, ~320 particles."""

@@ -12,7 +12,7 @@ import pytest
 
 from tests.conftest import ROOT
 
-pytestmark = [pytest.mark.xdist_group("wheel"), pytest.mark.slow]  # one worker builds the wheel, once
+pytestmark = [pytest.mark.xdist_group("wheel"), pytest.mark.slow, pytest.mark.long]  # one worker builds the wheel, once
 
 
 def _run(args, cwd, **kw):

@@ -12,7 +12,7 @@ from sandbox.simulation import Simulation
 
 from .conftest import make_scene, scene_dict
 
-pytestmark = pytest.mark.xdist_group("study")  # one worker builds the session fixture, once
+pytestmark = [pytest.mark.xdist_group("study"), pytest.mark.long]  # one worker builds the session fixture, once
 
 ALL = study.INTEGRATORS
 

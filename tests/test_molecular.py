@@ -15,6 +15,8 @@ from sandbox.simulation import Simulation
 
 from .conftest import make_scene
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 CUTOFF = 2.5
 
 

@@ -7,6 +7,8 @@ import pytest
 
 from .conftest import ROOT
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 NOTEBOOK = ROOT / "examples" / "melting_in_class.ipynb"
 
 

@@ -16,6 +16,8 @@ from sandbox.simulation import Simulation
 
 from .conftest import SCENES
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 
 def ink_at(img: np.ndarray, text: str, x: int, y: int, size: int, color=LIGHT) -> bool:
     """Whether `img` holds `color` (within the blending's rounding) on every pixel that `text` drawn at (x, y)

@@ -24,7 +24,7 @@ from sandbox.app.cli import EXIT_BAD_INPUT, main
 from sandbox.files.persist import read_meta
 from sandbox.render.encoder import frame_digests
 
-pytestmark = pytest.mark.xdist_group("run_files")
+pytestmark = [pytest.mark.xdist_group("run_files"), pytest.mark.long]
 
 FRAMES, EVERY = 24, 4
 SCENE = ["candle", "--set", "bodies.0.hi=[70.0,8.0]"]  # 96 particles: springs, heat, flame, emitters

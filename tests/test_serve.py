@@ -16,7 +16,7 @@ import pytest
 
 from sandbox.app.serve_protocol import ProtocolError, RateLimit, parse
 
-pytestmark = pytest.mark.xdist_group("serve")
+pytestmark = [pytest.mark.xdist_group("serve"), pytest.mark.long]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 

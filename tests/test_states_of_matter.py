@@ -11,6 +11,8 @@ import sandbox
 from sandbox.measure.phase_map import phase_map_of
 from sandbox.render.phase_plot import DOT
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 STEAM_TABLE_KPA = {20.0: 2.339, 50.0: 12.35, 80.0: 47.41, 120.0: 198.7}  # water's vapour pressure (IAPWS)
 SNAPSHOTS = {"solid": 0, "liquid": 25, "gas": 145}  # states_of_matter frames: ice at -20 C, water at ~60 C, steam
 

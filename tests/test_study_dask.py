@@ -9,7 +9,10 @@ import pytest
 from sandbox.errors import SandboxError
 from sandbox.research.study import StudyTask, plan_tasks, run_study
 
-pytestmark = pytest.mark.xdist_group("dask")  # the two cluster tests do not start their clusters side by side
+pytestmark = [
+    pytest.mark.xdist_group("dask"),
+    pytest.mark.long,
+]  # the two cluster tests do not start their clusters side by side
 
 PAIR = ("symplectic_euler", "velocity_verlet")
 

@@ -14,6 +14,8 @@ from sandbox.errors import SandboxError
 
 from .conftest import SCENES
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 SMALL = {"bodies.0.lo": [56.0, 0.0], "bodies.0.hi": [64.0, 6.0]}  # 48 particles
 
 

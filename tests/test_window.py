@@ -15,6 +15,8 @@ from sandbox.simulation import Simulation
 
 from .conftest import ROOT, SCENES
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 
 def state(tools=("heat", "cool", "drag", "erase")):
     return WindowState(list(tools), ["symplectic_euler", "verlet", "implicit_euler"], "symplectic_euler", 8)

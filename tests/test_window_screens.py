@@ -24,6 +24,8 @@ SCRIPT = """
 import sys
 from sandbox.app.controller import open_scene
 from sandbox.app.window import run_window
+
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 out, frames = sys.argv[1], int(sys.argv[2])
 for name in sys.argv[3].split(","):
     sim = open_scene(name)  # a fresh runtime per scene, as the scene picker does
