@@ -27,6 +27,7 @@ from .scene_tables import (
     HeatSource,
     Render,
     Scene,
+    SceneSections,
     World,
     _SceneFile,
     heat_support,
@@ -176,25 +177,17 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     _check_render(file, render, dim)
     reach = raw.pair.cutoff if raw.pair else 1.0
     check_size(file, world, bodies, emitters, bool(raw.pair or heat), raw.smoke, reach)
+    sections = {f.name: getattr(raw, f.name) for f in dataclasses.fields(SceneSections)}
+    sections.update(world=world, bodies=bodies, emitters=emitters, fields=list(raw.fields))  # as checked above
+    used = dict.fromkeys([b.material for b in bodies] + [e.material for e in emitters] + raw.scene.palette)
     return Scene(
+        **sections,
         name=raw.scene.name or path.stem,
         description=raw.scene.description,
         path=path,
-        world=world,
-        pair=raw.pair,
-        heat=heat,
-        bodies=bodies,
-        render=render,
-        materials={
-            name: materials[name]
-            for name in dict.fromkeys([b.material for b in bodies] + [e.material for e in emitters] + raw.scene.palette)
-        },
+        materials={name: materials[name] for name in used},
         palette=list(raw.scene.palette),
         lesson=raw.scene.lesson,
-        emitters=emitters,
-        fields=list(raw.fields),
-        smoke=raw.smoke,
-        molecular=raw.molecular,
         spacing=spacing,
         source=copy.deepcopy(data),
     )

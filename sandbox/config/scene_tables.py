@@ -368,37 +368,38 @@ class Body(FieldCoupling):
 
 
 @dataclass(frozen=True, kw_only=True)
-class _SceneFile:
-    scene: SceneInfo = spec(doc="[scene]", factory=SceneInfo)
+class SceneSections:
+    """The tables of a scene file that a validated Scene keeps as they are (checked), declared once: the file's
+    schema (_SceneFile) and the Scene both are these, and scene_from_dict copies them by these names."""
+
     world: World = spec(doc="[world]")
     pair: PairForce | None = spec(None, doc="[pair]")
     heat: Heat | None = spec(None, doc="[heat]")
-    molecular: Molecular | None = spec(None, doc="[molecular]")
+    molecular: Molecular | None = spec(None, doc="[molecular]: atoms, temperature from motion, phases from structure")
     bodies: list[Body] = spec(doc="[[bodies]]", factory=list)
     emitters: list[Emitter] = spec(doc="[[emitters]]", factory=list)
     fields: list[FieldElement] = spec(doc="[[fields]]", factory=list)
     smoke: Smoke | None = spec(None, doc="[smoke]")
     render: Render = spec(doc="[render]", factory=Render)
-    materials: dict | None = spec(None, doc="[materials.NAME]")
 
 
 @dataclass(frozen=True, kw_only=True)
-class Scene:
-    """A validated scene: what to build and how to run and draw it."""
+class _SceneFile(SceneSections):
+    """A scene file as read: its sections, [scene] (name, lesson, palette) and the materials it defines itself."""
+
+    scene: SceneInfo = spec(doc="[scene]", factory=SceneInfo)
+    materials: dict | None = spec(None, doc="[materials.NAME]: the scene's own materials, added to the library's")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scene(SceneSections):
+    """A validated scene: what to build and how to run and draw it. Its sections are the file's, checked; `materials`
+    holds the materials the scene uses (from the library or its own [materials.NAME]), by name."""
 
     name: str
     description: str
     path: Path
-    world: World
-    pair: PairForce | None
-    heat: Heat | None
-    bodies: list[Body]
-    render: Render
     materials: dict[str, Material] = field(repr=False)
-    emitters: list[Emitter] = field(default_factory=list)
-    fields: list[FieldElement] = field(default_factory=list)
-    smoke: Smoke | None = None
-    molecular: Molecular | None = None  # the molecular model: atoms, temperature from motion, phases from structure
 
     @property
     def dim(self) -> int:
