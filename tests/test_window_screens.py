@@ -16,6 +16,8 @@ from sandbox.simulation import Simulation
 
 from .conftest import ROOT, SCENES
 
+pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+
 SCENES_FOR_A_CLASS = ("sandbox", "melting_block", "ice_cube", "candle")
 SIZES = ((1024, 768), (1280, 720), (1920, 1080))
 FRAMES = 3
@@ -24,8 +26,6 @@ SCRIPT = """
 import sys
 from sandbox.app.controller import open_scene
 from sandbox.app.window import run_window
-
-pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 out, frames = sys.argv[1], int(sys.argv[2])
 for name in sys.argv[3].split(","):
     sim = open_scene(name)  # a fresh runtime per scene, as the scene picker does
