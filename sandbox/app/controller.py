@@ -12,7 +12,6 @@ A call that fails for a reason the user should read returns or raises a `Notice`
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +21,7 @@ import numpy as np
 from ..config.resources import shipped_scene
 from ..config.scene import load_scene
 from ..core import runtime
+from ..core.controls import owners as controls_owners
 from ..errors import SandboxError
 from ..files.persist import load_into, save_state
 from ..measure.units import shown
@@ -32,9 +32,21 @@ from .tools import Tools
 from .window_state import first_tool, tools_for
 
 SUMMARY_EVERY = 2.0  # seconds of simulated time the summary's trend looks back over
-# Every slider settings() can offer, by family ("source0" and "source1" are the family "source"): the page labels
-# each as its catalogues' s_<family> (app/web/i18n), and a test holds the three catalogues to this list.
-SETTING_FAMILIES = ("air", "source", "wall", "heater", "lid", "gravity", "gravity_angle")
+# Every slider settings() can offer, by family ("source0" and "source1" are the family "source"), in the order the
+# panels show them: the page labels each as its catalogues' s_<family> (app/web/i18n), and a test holds the three
+# catalogues to this list.
+SETTING_FAMILIES = (
+    "air",
+    "source",
+    "wall",
+    "heater",
+    "lid",
+    "attraction",
+    "repulsion",
+    "gravity",
+    "gravity_angle",
+    "dt_scale",
+)
 
 
 def setting_family(key: str) -> str:
@@ -161,75 +173,57 @@ class Controller:
 
     # ------------------------------------------------------------------ live settings
     def settings(self) -> list[panel.Setting]:
-        """The sliders a lesson asks students to move, each with what it does: the room's temperature, each heat
-        source's temperature or power (the first two), and gravity's strength and (2D) direction in scenes that
-        have it. A new setting is one entry here; the window, the page and the teacher's broadcast all offer it."""
+        """The sliders a lesson asks students to move: each term's own (physics/term.py's `sliders()`, over its live
+        controls: the air, the heat sources, the walls, the heater, the lid, the pair law), then the controller's
+        (gravity's strength and, in 2D, direction; the time step's scale). The window, the page and the teacher's
+        broadcast all offer these; a new one is a declaration in its term and its words in the catalogues."""
+        values = self.sim.controls.values()
+        out = [
+            self._from_slider(f"{space}.{s.control}", values, s)
+            for space, owner in controls_owners(self.sim.model, self.sim.terms)
+            for s in owner.sliders()
+        ]
+        out += self._own_settings()
+        undeclared = [s.key for s in out if setting_family(s.key) not in SETTING_FAMILIES]
+        if undeclared:  # a new slider needs its family here and its words in the catalogues
+            raise ValueError(f"settings {undeclared} are not in SETTING_FAMILIES; expected them declared")
+        return sorted(out, key=lambda s: SETTING_FAMILIES.index(setting_family(s.key)))  # the panels' order
+
+    def _from_slider(self, control: str, values: dict, s) -> panel.Setting:
+        """The panel's slider of a term's declaration `s` over the live control `control` (an entry of it where
+        `s.index` is set), shown in the scene's units."""
+        now = values[control]
+
+        def apply(value: float) -> None:
+            if s.index is None:
+                self.sim.controls.set({control: value})
+            else:
+                vector = list(self.sim.controls.values()[control])
+                vector[s.index] = value
+                self.sim.controls.set({control: vector})
+
+        value = now if s.index is None else now[s.index]
+        return self._shown(s.key, s.words, float(value), s.lo, s.hi, s.kind, s.step, apply)
+
+    def _own_settings(self) -> list[panel.Setting]:
+        """Gravity's strength and (2D) direction, over the one gravity vector; the time step as a multiple of the
+        scene's (scenes with fixed substeps)."""
         out = []
-        heat = self.sim.terms.heat
-        if heat is not None:
-            sources = heat.sources
-
-            def air(value: float) -> None:
-                self.sim.controls.set({"heat.ambient": value})
-
-            out.append(
-                panel.Setting("air", "air temperature", float(sources.ambient[None]), -50.0, 300.0, "C", 1.0, air)
-            )
-            for k, src in enumerate(sources.specs[:2]):
-                hold = functools.partial(sources.hold, k)
-                if src.mode == "power":
-                    top = 2.0 * max([abs(src.power), *map(abs, src.schedule_values)]) or 1.0
-                    out.append(
-                        panel.Setting(f"source{k}", src.name, sources.value(k), -top, top, "mJ/s", top / 100, hold)
-                    )
-                else:
-                    out.append(panel.Setting(f"source{k}", src.name, sources.value(k), -100.0, 1500.0, "C", 1.0, hold))
-        walls = self.sim.terms.thermal_walls
-        if walls is not None:  # the molecular model's heaters and coolers: each wall's kT
-            for k, (name, kt) in enumerate(zip(walls.names[:2], walls.temperatures())):
-
-                def set_wall(value: float, name: str = name) -> None:
-                    self.sim.controls.set({f"thermal_walls.{name}": value})
-
-                top = max(2.0, 2.0 * kt)
-                out.append(self._shown(f"wall{k}", f"{name} temperature", kt, 0.02, top, "kT", 0.01, set_wall))
-        heater = self.sim.terms.heater
-        if heater is not None:  # the molecular model's even heater: positive heats, negative cools
-
-            def power(value: float) -> None:
-                self.sim.controls.set({"heater.power": value})
-
-            top = max(2.0 * abs(heater.power), 1.0)
-            out.append(self._shown("heater", "heater power", heater.power, -top, top, "power", top / 200, power))
-        lid = self.sim.terms.lid
-        if lid is not None:  # the weight on the molecular model's lid, as the outside pressure
-
-            def press(value: float) -> None:
-                self.sim.controls.set({"lid.pressure": value})
-
-            top = max(0.2, 4.0 * lid.pressure)
-            out.append(self._shown("lid", "lid pressure", lid.pressure, 0.0, top, "pressure", top / 200, press))
         if any(self.sim.scene.world.gravity):
             top = 4.0 * float(np.linalg.norm(self.sim.scene.world.gravity))
-
-            def strength(value: float) -> None:
-                self.steer_gravity(strength=value)
-
-            def angle(value: float) -> None:
-                self.steer_gravity(angle=value)
-
+            strength = lambda value: self.steer_gravity(strength=value)  # noqa: E731
             out.append(
                 self._shown("gravity", "gravity", self.gravity_strength, 0.0, top, "acceleration", top / 100, strength)
             )
             if self.sim.dim == 2:
+                angle = lambda value: self.steer_gravity(angle=value)  # noqa: E731
                 out.append(
                     panel.Setting(
                         "gravity_angle", "gravity angle", self.gravity_angle, -180.0, 180.0, "deg", 1.0, angle
                     )
                 )
-        undeclared = [s.key for s in out if setting_family(s.key) not in SETTING_FAMILIES]
-        if undeclared:  # a new slider needs its family here and its words in the catalogues
-            raise ValueError(f"settings {undeclared} are not in SETTING_FAMILIES; expected them declared")
+        if self.sim.scene.world.substeps != "auto":
+            out.append(panel.Setting("dt_scale", "time step", self.dt_scale, 0.1, 2.0, "x", 0.05, self.set_dt_scale))
         return out
 
     def _shown(self, key, words, value, lo, hi, kind: str, step, apply) -> panel.Setting:

@@ -201,9 +201,8 @@ class WindowLoop:
             if not resized:
                 state.log.append(f"view: {state.color_by}, blur {'on' if state.motion_blur else 'off'}")
         if sim.terms.pair is not None:
-            shown_law = (state.potential, state.attraction, state.repulsion)
+            shown_law = (state.potential, *sim.terms.pair.scale)
             if shown_law != self.potential_shown:
-                self.control.set_pair_scale(state.attraction, state.repulsion)
                 r, force = sim.terms.pair.curve()
                 renderer.set_potential(force if state.potential else None, (float(r[0]), float(r[-1])))
                 self.potential_shown = shown_law

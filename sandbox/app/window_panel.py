@@ -86,16 +86,13 @@ def controls(gui, chars: int, control, state: WindowState) -> None:
         state.reset = True
     state.paused = gui.checkbox("paused (space)", state.paused)
     setting_sliders(gui, control)
-    if sim.scene.world.substeps != "auto":
-        state.dt_scale = gui.slider_float("time step x", state.dt_scale, 0.1, 2.0)
+    if sim.scene.world.substeps != "auto":  # its scale is one of the settings above
         stable = f", springs stable below {state.stable_dt:.2g} s" if sim.state.springs else ""
         say(gui, chars, f"time step {sim.dt:.2g} s{stable}")
     state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
     if sim.terms.pair is not None:
         state.potential = gui.checkbox("pair force (f)", state.potential)
-        if state.potential:
-            state.attraction = gui.slider_float("attraction x", state.attraction, 0.0, 4.0)
-            state.repulsion = gui.slider_float("repulsion x", state.repulsion, 0.25, 4.0)
+        if state.potential:  # the attraction and repulsion sliders are among the settings above
             r_eq = sim.terms.pair.r_eq_np[0, 0]
             say(gui, chars, f"at rest {r_eq:.3f} {length_unit(sim.material_names)} apart (the curve's zero)")
     state.recording = gui.checkbox("record MP4 (v)", state.recording)

@@ -83,7 +83,7 @@ KEYS = (
     Binding(("m",), "m      next material for the spawn tool", _next_of("materials", "material")),
     Binding(("v",), "v      start / stop recording an MP4 (out/SCENE_N.mp4)", _flip("recording")),
     Binding(("e",), "e      live energy plot on / off", _flip("energy_plot")),
-    Binding(("f",), "f      pair-force panel on / off (with attraction and repulsion sliders)", _flip("potential")),
+    Binding(("f",), "f      pair-force panel on / off (the law against distance)", _flip("potential")),
     Binding(
         ("c",), "c      next colour map (temperature, phase, speed, material)", _next_of("color_modes", "color_by")
     ),
@@ -122,10 +122,7 @@ class WindowState:
     material: str = ""
     recording: bool = False  # v: writing the window's frames to an MP4
     energy_plot: bool = False  # e: a live plot of kinetic, potential and total energy
-    potential: bool = False  # f: show the pair-force law against distance, with attraction/repulsion sliders
-    attraction: float = 1.0  # scale of every pair's alpha (the panel's slider)
-    repulsion: float = 1.0  # scale of every pair's beta
-    dt_scale: float = 1.0  # the time step as a multiple of the scene's (the panel's slider)
+    potential: bool = False  # f: show the pair-force law against distance (its sliders are settings)
     stable_dt: float = float("inf")  # the springs' stable step, refreshed every STABLE_DT_EVERY frames
     color_modes: list[str] = field(default_factory=list)  # c cycles the colour map through these
     color_by: str = ""
@@ -243,8 +240,6 @@ def apply_requests(control, state: WindowState, path: Path) -> None:
         control.set_integrator(state.integrator)
     if state.gravity_on != control.gravity_on:
         control.steer_gravity(on=state.gravity_on)
-    if state.dt_scale != control.dt_scale:
-        control.set_dt_scale(state.dt_scale)
     if state.undo:
         state.undo = False
         state.log.append(control.undo().text)
@@ -268,13 +263,10 @@ def apply_requests(control, state: WindowState, path: Path) -> None:
 
 
 def follow_controller(state: WindowState, control) -> None:
-    """The window's copies of what a loaded state changed (its integrator, gravity, step scale, pair scales), so the
-    next frame's requests do not set the old values back."""
+    """The window's copies of what a loaded state changed (its integrator, gravity on or off), so the next frame's
+    requests do not set the old values back (the sliders read the controller's values every frame)."""
     state.integrator = control.sim.integrator.name
-    state.gravity_on, state.dt_scale = control.gravity_on, control.dt_scale
-    pair = control.sim.terms.pair
-    if pair is not None:
-        state.attraction, state.repulsion = pair.scale
+    state.gravity_on = control.gravity_on
 
 
 def panel_characters(window_width: int, panel: float) -> int:

@@ -84,6 +84,10 @@ class Model:
         gravity, drag = transfer.download([self.gravity, self.drag])
         return {"gravity": [float(g) for g in gravity], "drag": float(drag)}
 
+    def sliders(self) -> list:
+        """None: gravity's strength and direction are the controller's sliders over the one vector control."""
+        return []
+
     def control_checks(self) -> dict:
         """Gravity and drag keep the checks of the scene's keys (core/controls.problem)."""
         return {"gravity": key_check(World, "gravity"), "drag": key_check(World, "drag")}

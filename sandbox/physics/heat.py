@@ -29,7 +29,7 @@ from ..core.oriented import data_oriented
 from ..core.transfer import real_fields
 from .heat_sources import HeatSources
 from .phase import LIQUID, NEVER_BONDS
-from .term import Measure, Term, register
+from .term import Measure, Slider, Term, register
 
 
 def wendland_grad_factor(r: float, h: float, dim: int) -> float:
@@ -158,6 +158,17 @@ class Heat(Term):
             out["by_hand"] = [1.0 if k in self.sources.by_hand else 0.0 for k in range(n)]
         return out
 
+    def sliders(self) -> list[Slider]:
+        """The air's temperature, and the first two heat sources' temperature (or power)."""
+        out = [Slider("air", "air temperature", "ambient", -50.0, 300.0, "C", 1.0)]
+        for k, src in enumerate(self.sources.specs[:2]):
+            if src.mode == "power":
+                top = 2.0 * max([abs(src.power), *map(abs, src.schedule_values)]) or 1.0
+                out.append(Slider(f"source{k}", src.name, "sources", -top, top, "mJ/s", top / 100, index=k))
+            else:
+                out.append(Slider(f"source{k}", src.name, "sources", -100.0, 1500.0, "C", 1.0, index=k))
+        return out
+
     def control_checks(self) -> dict:
         flags = lambda v: next((f"expected 0 or 1 each, got {x:g}" for x in v if x not in (0.0, 1.0)), None)  # noqa: E731
         return {"ambient": key_check(HeatTable, "ambient"), "sources": out_of_range, "by_hand": flags}
@@ -166,7 +177,11 @@ class Heat(Term):
         if "ambient" in values:
             self.sources.ambient[None] = values["ambient"]
         if "sources" in values:  # held by hand: kept; scheduled: its schedule sets it again (after_restore)
-            held = values.get("by_hand", [1.0] * len(values["sources"]))
+            now = [self.sources.value(k) for k in range(len(values["sources"]))]
+            changed = [
+                1.0 if k in self.sources.by_hand or v != now[k] else 0.0 for k, v in enumerate(values["sources"])
+            ]
+            held = values.get("by_hand", changed)  # without the flags (a slider): those set now are held by hand
             for k, (value, by_hand) in enumerate(zip(values["sources"], held)):
                 if by_hand:
                     self.sources.hold(k, float(value))

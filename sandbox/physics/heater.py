@@ -23,7 +23,7 @@ from ..config.molecular_table import Heater as HeaterTable
 from ..config.schema import key_check
 from ..core.oriented import data_oriented
 from .heat_sources import scheduled_value
-from .term import Measure, Term, register
+from .term import Measure, Slider, Term, register
 
 
 @register
@@ -62,6 +62,11 @@ class Heater(Term):
     def controls(self) -> dict:
         """The power, and whether it still follows the scene's schedule (1) or was set by hand (0)."""
         return {"power": self.power, "scheduled": 0.0 if self.by_hand else 1.0}
+
+    def sliders(self) -> list[Slider]:
+        """The power: positive heats, negative cools, up to twice the scene's (1 at least)."""
+        top = max(2.0 * max([abs(self.spec.power), *map(abs, self.spec.schedule_values)]), 1.0)
+        return [Slider("heater", "heater power", "power", -top, top, "power", top / 200)]
 
     def control_checks(self) -> dict:
         scheduled = lambda v: None if v in (0.0, 1.0) else f"expected 0 (set by hand) or 1 (scheduled), got {v:g}"  # noqa: E731

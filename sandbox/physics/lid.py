@@ -20,7 +20,7 @@ from ..config.molecular_table import Lid as LidTable
 from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
-from .term import Measure, Term, register
+from .term import Measure, Slider, Term, register
 
 
 @register
@@ -65,6 +65,7 @@ class Lid(Term):
         self.gauge = ti.field(ti.f64, shape=())  # momentum per area the atoms gave it since the gauge restarted
         self.since = ti.field(ti.f64, shape=())  # ... and when it restarted (time)
         self.pressure = float(spec.pressure)
+        self.scene_pressure = self.pressure  # the scene's: the slider's range follows it, not the value it sets
         transfer.upload([(self.height, float(spec.height))])
 
     def declare(self, state) -> None:
@@ -80,6 +81,11 @@ class Lid(Term):
 
     def controls(self) -> dict:
         return {"pressure": self.pressure}
+
+    def sliders(self) -> list[Slider]:
+        """The weight on the lid, as the outside pressure: up to four times the scene's (0.2 at least)."""
+        top = max(0.2, 4.0 * self.scene_pressure)
+        return [Slider("lid", "lid pressure", "pressure", 0.0, top, "pressure", top / 200)]
 
     def control_checks(self) -> dict:
         return {"pressure": key_check(LidTable, "pressure")}

@@ -27,7 +27,7 @@ from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
 from ..core.transfer import real_fields
-from .term import Measure, Term, register
+from .term import Measure, Slider, Term, register
 
 
 def radial_force(r, alpha, beta, eps, a, b):
@@ -136,6 +136,13 @@ class PairForce(Term):
 
     def controls(self) -> dict:
         return {"scale": list(self.scale)}
+
+    def sliders(self) -> list[Slider]:
+        """Every pair's attraction and repulsion as multiples of the materials' (the pair-force panel's law)."""
+        return [
+            Slider("attraction", "pair attraction", "scale", 0.0, 4.0, "x", 0.01, index=0),
+            Slider("repulsion", "pair repulsion", "scale", 0.25, 4.0, "x", 0.01, index=1),
+        ]
 
     def control_checks(self) -> dict:
         """The potential sliders' scales: numbers of the scene's range, not negative."""

@@ -100,6 +100,24 @@ class Measure:
     start: float = 0.0  # where a sum or maximum starts (a maximum of temperatures: below any)
 
 
+@dataclass(frozen=True)
+class Slider:
+    """A slider a term offers over one of its live controls (controls()): `key` names it to every front-end (the
+    window, the page, the teacher's broadcast), `words` say what it sets, `control` is the control's name (an entry
+    `index` of a vector control), `lo` to `hi` its range and `step` its step in the control's units, and `kind` the
+    unit kind it is shown in (measure/units.shown: "kT", "power", "pressure", ...; any other string is a unit shown
+    as it is: "C", "x")."""
+
+    key: str
+    words: str
+    control: str
+    lo: float
+    hi: float
+    kind: str
+    step: float
+    index: int | None = None
+
+
 @dataclass
 class Parts:
     """What a term is built from: the model, the state, the neighbour structure (None without pair terms), and the
@@ -186,6 +204,10 @@ class Term:
 
     def apply_controls(self, values: dict) -> None:
         """Set what controls() returned."""
+
+    def sliders(self) -> list[Slider]:
+        """The sliders this term offers over its live controls, in the order a panel shows them (none by default)."""
+        return []
 
     def control_checks(self) -> dict:
         """The check each control keeps (name: a schema check, config/schema.key_check for one a scene key sets),

@@ -27,7 +27,7 @@ from ..core.oriented import data_oriented
 from ..core.ranges import COUNT
 from .agitation import normal
 from .fields import random_uniform
-from .term import Measure, Term, register
+from .term import Measure, Slider, Term, register
 
 
 @register
@@ -81,6 +81,13 @@ class ThermalWalls(Term):
 
     def controls(self) -> dict:
         return dict(zip(self.names, self.temperatures()))
+
+    def sliders(self) -> list[Slider]:
+        """The first two walls' temperatures (kT), up to twice the scene's (2 at least)."""
+        return [
+            Slider(f"wall{k}", f"{w.name} temperature", w.name, 0.02, max(2.0, 2.0 * w.temperature), "kT", 0.01)
+            for k, w in enumerate(self.walls[:2])
+        ]
 
     def control_checks(self) -> dict:
         return {name: key_check(ThermalWall, "temperature") for name in self.names}

@@ -331,7 +331,7 @@ function settingLabel(s) {
   const label = s.key.startsWith("source") ? t("s_source", { words: named("source", s.words) })
     : s.key.startsWith("wall") ? t("s_wall", { words: named("wall", s.words.replace(/ temperature$/, "")) })
     : t("s_" + s.key);
-  return label + (s.unit ? ` (${s.unit.replace(/^C$/, "°C").replace(/^deg$/, "°")})` : "");
+  return label + (s.unit ? ` (${s.unit.replace(/^C$/, "°C").replace(/^deg$/, "°").replace(/^x$/, "×")})` : "");
 }
 
 function fillSettings(settings) {
