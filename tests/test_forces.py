@@ -360,3 +360,59 @@ def test_a_term_added_in_one_class_acts_in_every_way_of_stepping(trap_registered
     assert team.plan.team is not None and team.plan.fused_batches > 0 == long_way.plan.fused_batches
     assert np.array_equal(team.positions(), long_way.positions())
     assert team.terms.trap is not None
+
+
+MORSE = {"law": "morse", "depth": 1.5, "width": 2.0, "distance": 1.1, "cutoff": 3.0}
+
+
+def _morse(r: float) -> tuple[float, float]:
+    """The Morse well of MORSE by hand: (U(r), dU/dr)."""
+    e = np.exp(-2.0 * (r - 1.1))
+    return 1.5 * (1.0 - e) ** 2 - 1.5, 2.0 * 1.5 * 2.0 * e * (1.0 - e)
+
+
+def test_a_new_pair_law_is_one_class_and_its_force_is_minus_the_derivative_of_its_energy():
+    """The Morse law is one class (physics/pair_laws.py; the cutoff, shifts and core are the term's, issue 73): in
+    NumPy its force is the central difference of its own energy and both equal the formula by hand; in the Taichi step
+    two particles feel m_i m_j dU/dr along their separation and measure U shifted to zero at the cutoff."""
+    from sandbox.physics.pair_laws import NUMPY, MorseLaw
+
+    law, c = MorseLaw(None, False), (1.5, 2.0, 1.1)
+    for r in (0.8, 1.1, 1.6, 2.5):
+        h = 1e-6
+        du = (law.u(r + h, c, NUMPY) - law.u(r - h, c, NUMPY)) / (2 * h)
+        assert r * law.g(r * r, c, NUMPY) == pytest.approx(du, rel=1e-6, abs=1e-9)
+        assert (law.u(r, c, NUMPY), r * law.g(r * r, c, NUMPY)) == pytest.approx(_morse(r), rel=1e-12, abs=1e-12)
+    assert law.equilibrium(c) == 1.1
+    sim = two_particles(pair=MORSE, springs=False, material="lj")
+    m = float(np.prod(sim.particles.mass.to_numpy()[:2]))
+    for r in (0.9, 1.1, 1.5, 2.4):
+        f = place(sim, [[10.0, 10.0], [10.0 + r, 10.0]])
+        u, du = _morse(r)
+        assert f[0][0] == pytest.approx(m * du, rel=1e-4, abs=1e-5)  # attracting (du > 0) pulls i to +x
+        assert f[1][0] == -f[0][0]
+        assert sim.stats().pair_energy == pytest.approx(m * (u - _morse(3.0)[0]), rel=1e-4, abs=1e-5)
+
+
+def test_a_morse_cluster_keeps_its_energy_under_velocity_verlet():
+    """NVE with the new law: a 5 x 5 cluster of Morse atoms, jostled, over 2,000 velocity-Verlet steps in f64."""
+    world = {"dim": 2, "lo": [0, 0], "hi": [30, 30], "dt": 0.002, "substeps": 50, "integrator": "velocity_verlet"}
+    world["precision"] = "f64"
+    data = scene_dict(
+        world=world,
+        pair=MORSE,
+        bodies=[{"material": "lj", "shape": "box", "lo": [10, 10], "hi": [15, 15], "springs": False}],
+    )
+    sim = Simulation(make_scene(data))
+    rng = np.random.default_rng(3)
+    n = int(sim.particles.n[None])
+    v = sim.particles.v.to_numpy()
+    v[:n] += rng.normal(scale=0.3, size=(n, 2))
+    sim.particles.v.from_numpy(v)
+    e0 = sim.stats().total_energy
+    energies = []
+    for _ in range(40):
+        sim.advance_frame()
+        energies.append(sim.stats().total_energy)
+    assert sim.step_count == 2000 and sim.stats().pair_energy < -1.0  # bound: the well holds them
+    assert np.max(np.abs(np.array(energies) - e0)) < 2e-4 * abs(e0)

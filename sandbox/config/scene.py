@@ -138,7 +138,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     dim = world.dim
     check_lengths(raw, dim, file)  # every vector declared with a length: world.lo, bodies[0].velocity, ...
     world = _check_world(file, world)
-    if raw.pair is not None and raw.pair.b <= raw.pair.a:
+    if raw.pair is not None and raw.pair.law == "power" and raw.pair.b <= raw.pair.a:
         raise SceneError(file, "pair.b", f"expected the repulsion exponent b above a = {raw.pair.a}")
     if raw.pair is not None and raw.pair.force_shift and raw.heat is not None:
         raise SceneError(file, "pair.force_shift", "expected no [heat] table with it: the force shift is for atoms")
@@ -170,6 +170,15 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
                 f"{list(world.lo)}..{list(world.hi)}; expected it inside world.lo..world.hi",
             )
     spacing = particle_spacing(bodies, emitters)
+    if raw.pair is not None and raw.pair.law == "morse" and raw.heat is not None:
+        boiling = [name for name in used_names(bodies, emitters, raw.scene.palette) if materials[name].boils]
+        if boiling:
+            raise SceneError(
+                file,
+                "pair.law",
+                f"{boiling[0]} boils, and its vapour loses the power law's attraction; expected law = "
+                '"power" with a material that boils',
+            )
     heat = raw.heat
     _check_molecular(file, raw)
     _check_reach(file, world, heat, raw.pair, spacing)
@@ -179,7 +188,7 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
     check_size(file, world, bodies, emitters, bool(raw.pair or heat), raw.smoke, reach)
     sections = {f.name: getattr(raw, f.name) for f in dataclasses.fields(SceneSections)}
     sections.update(world=world, bodies=bodies, emitters=emitters, fields=list(raw.fields))  # as checked above
-    used = dict.fromkeys([b.material for b in bodies] + [e.material for e in emitters] + raw.scene.palette)
+    used = used_names(bodies, emitters, raw.scene.palette)
     return Scene(
         **sections,
         name=raw.scene.name or path.stem,
@@ -191,6 +200,11 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
         spacing=spacing,
         source=copy.deepcopy(data),
     )
+
+
+def used_names(bodies, emitters, palette) -> list[str]:
+    """The materials a scene uses, in first-use order: the bodies', the emitters', then the palette's."""
+    return list(dict.fromkeys([b.material for b in bodies] + [e.material for e in emitters] + list(palette)))
 
 
 def _check_molecular(file: str, raw) -> None:

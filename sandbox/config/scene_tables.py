@@ -122,6 +122,12 @@ class World:
 
 @dataclass(frozen=True, kw_only=True)
 class PairForce:
+    law: str = spec(
+        "power",
+        doc="the pair law (physics/pair_laws.py): power (alpha/(d+eps)^a - beta/d^b, the materials' pair_* keys) or "
+        "morse (a well of depth, width and distance below, the same for every pair)",
+        check=one_of("power", "morse"),
+    )
     a: float = spec(2.0, doc="exponent of the attraction term alpha/(d+eps)^a (at most 64)", check=exponent)
     b: float = spec(4.0, doc="exponent of the repulsion term beta/d^b (at most 64)", check=exponent)
     cutoff: float = spec(2.5, doc="cutoff distance of the pair force (length)", check=positive)
@@ -140,6 +146,11 @@ class PairForce:
         doc="subtract the force at the cutoff, so that it falls continuously to zero there (the linear-force-shifted "
         "potential of NIST's Lennard-Jones tables; its energy is zero at the cutoff whatever shift says)",
     )
+    depth: float = spec(1.0, doc="law = morse: the well's depth D (energy per unit mass product)", check=positive)
+    width: float = spec(
+        2.0, doc="law = morse: w in e^(-w (d - r0)) (1 / length): larger, a narrower well", check=positive
+    )
+    distance: float = spec(1.0, doc="law = morse: r0, where the well is deepest (length)", check=positive)
 
 
 @dataclass(frozen=True, kw_only=True)

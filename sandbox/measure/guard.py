@@ -96,7 +96,7 @@ def _pair_depth(pair) -> float:
         for q in range(n):
             for r in (pair.r_core_np[p, q], pair.r_eq_np[p, q]):
                 if math.isfinite(r) and r < pair.cutoff:
-                    depth = max(depth, abs(pair._u(r, p, q) - pair.shift_np[p, q]))
+                    depth = max(depth, abs(pair.potential(r, p, q) - pair.shift_np[p, q]))
     return depth
 
 

@@ -1,10 +1,12 @@
-"""The generalized pair force between particles not joined by a live spring.
+"""The pair force between particles not joined by a live spring: a pair law (physics/pair_laws.py, written once for
+NumPy and Taichi) and what this term applies to any law: the cutoff, the energy and force shifts, the core cap, the
+viscous term, materials' tables and the sliders' scales.
 
-Force on i from j, with d = x_j - x_i, r = |d| (attraction positive along d):
+Force on i from j, with d = x_j - x_i, r = |d| (attraction positive along d), g the law's radial factor:
 
-    F_i = m_i m_j ( alpha / (r + eps)^a  -  beta / r^b ) d          for core <= r < cutoff
+    F_i = m_i m_j g(r) d          for core <= r < cutoff; the power law's g = alpha / (r + eps)^a - beta / r^b
 
-The 12-6 Lennard-Jones force is the case a = 8, b = 14, eps = 0, alpha = 24 e s^6, beta = 48 e s^12 (unit masses).
+The 12-6 Lennard-Jones force is the power law with a = 8, b = 14, eps = 0, alpha = 24 e s^6, beta = 48 e s^12.
 Below r_core = core * r_eq (r_eq: where the force vanishes) the force keeps its magnitude at r_core, so two particles
 at (almost) the same point get a large but finite push; at r = 0 exactly the push is along the first axis, in
 opposite directions for i and j (by index order). The energy is continued linearly there, so dU/dr still equals the
@@ -17,7 +19,8 @@ A viscous term -gamma ((v_i - v_j) . n) n w(r), w = 1 - r/cutoff, gives the melt
 so momentum is conserved. Materials mix by geometric means of alpha and beta, arithmetic means of eps and gamma.
 """
 
-import math
+import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import taichi as ti
@@ -27,50 +30,35 @@ from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
 from ..core.transfer import real_fields
+from .pair_laws import LAWS, NUMPY, TAICHI, PowerLaw
 from .term import Measure, Slider, Term, register
 
 
 def radial_force(r, alpha, beta, eps, a, b):
-    """Radial force factor g(r) such that F_i = g(r) d (NumPy/float; unit masses)."""
-    return alpha / (r + eps) ** a - beta / r**b
+    """Radial force factor g(r) of the power law such that F_i = g(r) d (NumPy/float; unit masses)."""
+    return PowerLaw(_Exponents(a, b), soft=True).g(np.multiply(r, r), (alpha, beta, eps), NUMPY)
 
 
 def equilibrium_distance(alpha: float, beta: float, eps: float, a: float, b: float) -> float:
-    """The r where the force vanishes (alpha/(r+eps)^a = beta/r^b), by bisection; inf without attraction."""
-    if alpha <= 0:
-        return math.inf
-    if beta <= 0:
-        return 0.0
-    f = lambda r: math.log(alpha) - a * math.log(r + eps) - math.log(beta) + b * math.log(r)  # noqa: E731
-    lo, hi = 1e-6, 1.0
-    while f(hi) < 0:
-        hi *= 2
-        if hi > 1e12:
-            return math.inf
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if f(mid) < 0 else (lo, mid)
-    return 0.5 * (lo + hi)
-
-
-def _antiderivative(r: float, eps: float, a: float) -> float:
-    """A(r) with A'(r) = r / (r + eps)^a."""
-    u = r + eps
-    if a == 2:
-        return math.log(u) + eps / u
-    if a == 1:
-        return u - eps * math.log(u)
-    return u ** (2 - a) / (2 - a) - eps * u ** (1 - a) / (1 - a)
+    """The r where the power law's force vanishes (alpha/(r+eps)^a = beta/r^b); inf without attraction."""
+    return PowerLaw(_Exponents(a, b), soft=True).equilibrium((alpha, beta, eps))
 
 
 def pair_energy(r: float, alpha: float, beta: float, eps: float, a: float, b: float, cutoff: float) -> float:
-    """Unshifted-at-core, shifted-at-cutoff potential U(r) with dU/dr = r g(r) (unit masses, r >= core)."""
+    """The power law's potential U(r), shifted to zero at the cutoff, with dU/dr = r g(r) (unit masses, r >= core)."""
+    law, c = PowerLaw(_Exponents(a, b), soft=True), (alpha, beta, eps)
+    return float(law.u(r, c, NUMPY) - law.u(cutoff, c, NUMPY))
 
-    def raw(s):
-        rep = -beta * math.log(s) if b == 2 else beta * s ** (2 - b) / (b - 2)
-        return alpha * _antiderivative(s, eps, a) + rep
 
-    return raw(r) - raw(cutoff)
+# A law's g and u are plain Python on purpose (physics/pair_laws.py: the same lines run on NumPy arrays), with no branch
+# on a run-time value, so Taichi's warning that it does not transform them is expected.
+warnings.filterwarnings("ignore", message=r'.*Calling non-taichi function "self\.pair_law\.', category=SyntaxWarning)
+
+
+@dataclass(frozen=True)
+class _Exponents:
+    a: float
+    b: float
 
 
 @register
@@ -104,45 +92,43 @@ class PairForce(Term):
         self.shifted = bool(pair.shift) or self.force_shifted
         self.dim = model.dim
         self.a, self.b = float(pair.a), float(pair.b)
-        self.int_exponents = self.a.is_integer() and self.b.is_integer()
         self.cutoff = float(pair.cutoff)
         self.reach = self.cutoff
-        alpha = np.array([m.pair_alpha for m in materials])
-        beta = np.array([m.pair_beta for m in materials])
-        eps = np.array([m.pair_soft for m in materials])
+        soft = any(m.pair_soft for m in materials)
+        self.pair_law = LAWS[pair.law](
+            pair, soft
+        )  # its formula (physics/pair_laws.py); the cutoff, shifts and core here
         visc = np.array([m.viscosity for m in materials])
         self.n_materials = n
         self.core = float(pair.core)
-        self.base_alpha_np = np.sqrt(np.outer(alpha, alpha))
-        self.base_beta_np = np.sqrt(np.outer(beta, beta))
-        self.eps_np = 0.5 * (eps[:, None] + eps[None, :])
+        self.base_np = self.pair_law.coefficients(materials, pair)  # the law's three (n, n) coefficient tables
         self.visc_np = 0.5 * (visc[:, None] + visc[None, :])
-        # eps and visc are filled here; the other tables by set_scale (one copy kernel each time)
-        self.eps, self.visc = real_fields(self.eps_np, self.visc_np)
+        # the third coefficient (the power law's eps) and visc are filled here; the others by set_scale (one copy
+        # kernel each time)
+        self.eps, self.visc = real_fields(self.base_np[2], self.visc_np)
         self.alpha, self.beta, self.r_core, self.shift, self.f_core = (ti.field(float, shape=(n, n)) for _ in range(5))
         self.f_cut = ti.field(float, shape=(n, n))  # g(cutoff) cutoff: the force shift (zero without it)
         self.shift_att = ti.field(float, shape=(n, n))  # the attraction's part of the shift (vapour scales it)
         self.set_scale(1.0, 1.0)
         self.single_material = n == 1
         self.has_viscosity = bool(np.any(self.visc_np > 0))
-        self.even_fast_path = bool(np.all(self.eps_np == 0)) and self.a % 2 == 0 and self.b % 2 == 0
         self.mass, self.material, self.v, self.x = particles.mass, particles.material, particles.v, particles.x
         # boiling: a particle's vapour share feels no attraction (compiled in only where a material boils)
-        self.boils = particles.heat and any(m.boils for m in materials)
+        self.boils = particles.heat and any(m.boils for m in materials) and self.pair_law.attraction is not None
         self.phase, self.h = (model.phase, particles.h) if self.boils else (None, None)
 
     def words(self, where: str) -> list[str]:
-        return [f"pair force (a={self.a:g}, b={self.b:g}, cutoff {self.cutoff:g})"] if where == "rates" else []
+        return [f"pair force ({self.pair_law.words()}, cutoff {self.cutoff:g})"] if where == "rates" else []
 
     def controls(self) -> dict:
         return {"scale": list(self.scale)}
 
     def sliders(self) -> list[Slider]:
         """Every pair's attraction and repulsion as multiples of the materials' (the pair-force panel's law)."""
-        return [
-            Slider("attraction", "pair attraction", "scale", 0.0, 4.0, "x", 0.01, index=0),
-            Slider("repulsion", "pair repulsion", "scale", 0.25, 4.0, "x", 0.01, index=1),
-        ]
+        out = [Slider("attraction", "pair attraction", "scale", 0.0, 4.0, "x", 0.01, index=0)]
+        if "repulsion" in self.pair_law.scaled:
+            out.append(Slider("repulsion", "pair repulsion", "scale", 0.25, 4.0, "x", 0.01, index=1))
+        return out
 
     def control_checks(self) -> dict:
         """The potential sliders' scales: numbers of the scene's range, not negative."""
@@ -153,41 +139,36 @@ class PairForce(Term):
             self.set_scale(*values["scale"])
 
     def set_scale(self, attraction: float, repulsion: float) -> None:
-        """Scale every pair's alpha (attraction) and beta (repulsion) from the materials' values, live (the window's
-        potential sliders): the equilibrium distance, core cap and energy shift follow; no kernel recompiles."""
+        """Scale every pair's attraction and repulsion (the law's `scaled` coefficients: the power law's alpha and
+        beta) from the materials' values, live (the window's potential sliders): the equilibrium distance, core cap and
+        energy shift follow; no kernel recompiles."""
         self.scale = (float(attraction), float(repulsion))
-        n = self.n_materials
-        self.alpha_np = self.base_alpha_np * attraction
-        self.beta_np = self.base_beta_np * repulsion
-        self.r_eq_np = np.array(
-            [
-                [
-                    equilibrium_distance(self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q], self.a, self.b)
-                    for q in range(n)
-                ]
-                for p in range(n)
-            ]
-        )
+        law, n = self.pair_law, self.n_materials
+        factors = {"attraction": attraction, "repulsion": repulsion}
+        self.coef_np = [base * next((factors[k] for k, i in law.scaled.items() if i == j), 1.0) for j, base in
+                        enumerate(self.base_np)]  # fmt: skip
+        c = self.coef_np
+        self.r_eq_np = np.array([[law.equilibrium([t[p, q] for t in c]) for q in range(n)] for p in range(n)])
         finite_req = np.where(np.isfinite(self.r_eq_np), self.r_eq_np, 1.0)
         self.r_core_np = np.maximum(self.core * finite_req, 1e-6)
-        # Energy shift so that U(cutoff) = 0 (zero with pair.shift = false), and U at the core for the linear
-        # continuation below it.
-        self.shift_np = np.array([[self._u(self.cutoff, p, q) for q in range(n)] for p in range(n)])
-        att = np.array([[_antiderivative(self.cutoff, self.eps_np[p, q], self.a) for q in range(n)] for p in range(n)])
-        self.shift_att_np = self.alpha_np * att
+        # Energy shift so that U(cutoff) = 0 (zero with pair.shift = false), and its attraction's part (what a vapour
+        # share does not feel, for a law that boils); the force at the core radius (held below it) and at the cutoff.
+        cut, rc = self.cutoff, self.r_core_np
+        self.shift_np = law.u(np.full((n, n), cut), c, NUMPY)
+        self.shift_att_np = np.zeros((n, n))
+        if law.attraction is not None:
+            self.shift_att_np = law.u(np.full((n, n), cut), law.attracting(c), NUMPY)
         if not self.shifted:
             self.shift_np = np.zeros_like(self.shift_np)
             self.shift_att_np = np.zeros_like(self.shift_att_np)
-        # Force magnitude at the core radius, g(r_core) r_core per unit mass product (held below the core).
-        rc = self.r_core_np
-        g_core = self.alpha_np / (rc + self.eps_np) ** self.a - self.beta_np / rc**self.b
-        cut = self.cutoff
-        g_cut = self.alpha_np / (cut + self.eps_np) ** self.a - self.beta_np / cut**self.b
+        g_core = law.g(rc * rc, c, NUMPY)
+        g_cut = law.g(np.full((n, n), cut * cut), c, NUMPY)
         self.f_cut_np = g_cut * cut if self.force_shifted else np.zeros_like(g_cut)
         transfer.upload(
             [
-                (self.alpha, self.alpha_np),
-                (self.beta, self.beta_np),
+                (self.alpha, c[0]),
+                (self.beta, c[1]),
+                (self.eps, c[2]),
                 (self.r_core, self.r_core_np),
                 (self.shift, self.shift_np),
                 (self.shift_att, self.shift_att_np),
@@ -196,44 +177,30 @@ class PairForce(Term):
             ]
         )
 
+    @property
+    def alpha_np(self) -> np.ndarray:
+        """The first coefficient's table, scaled (the power law's alpha)."""
+        return self.coef_np[0]
+
+    @property
+    def beta_np(self) -> np.ndarray:
+        return self.coef_np[1]
+
+    @property
+    def eps_np(self) -> np.ndarray:
+        return self.coef_np[2]
+
+    def potential(self, r: float, p: int, q: int) -> float:
+        """The law's unshifted potential per unit mass product at r (length) between materials p and q."""
+        return float(self.pair_law.u(r, [t[p, q] for t in self.coef_np], NUMPY))
+
     def curve(self, samples: int = 128, p: int = 0, q: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """(r, radial force per unit mass product, positive attracting) for materials p, q from half the core radius to
         the cutoff, with the core cap: what the window's potential panel draws."""
         r = np.linspace(0.5 * self.r_core_np[p, q], self.cutoff, samples)
         held = np.maximum(r, self.r_core_np[p, q])
-        g = radial_force(held, self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q], self.a, self.b)
+        g = self.pair_law.g(held * held, [t[p, q] for t in self.coef_np], NUMPY)
         return r, g * held - self.f_cut_np[p, q]
-
-    def _u(self, r, p, q):
-        """Unshifted potential per unit mass product at r (NumPy side; used for the cutoff shift)."""
-        alpha, beta, eps, a, b = self.alpha_np[p, q], self.beta_np[p, q], self.eps_np[p, q], self.a, self.b
-        rep = -beta * math.log(r) if b == 2 else beta * r ** (2 - b) / (b - 2)
-        return alpha * _antiderivative(r, eps, a) + rep
-
-    @ti.func
-    def _powneg(self, x, e: ti.template()):
-        """x^(-e): repeated multiplication when e is a whole number (exact and fast), else pow."""
-        result = 0.0 * x
-        if ti.static(float(e).is_integer() and e >= 0):
-            inv = 1.0 / x
-            result = 1.0 + 0.0 * x
-            for _ in ti.static(range(int(e))):
-                result *= inv
-        else:
-            result = ti.pow(x, -e)
-        return result
-
-    @ti.func
-    def _ipow(self, x, n: ti.template()):
-        """x^n for a whole number n >= 0, by binary exponentiation unrolled at compile time."""
-        result = 1.0 + 0.0 * x
-        base = x
-        for bit in ti.static(range(max(int(n).bit_length(), 1))):
-            if ti.static((int(n) >> bit) & 1):
-                result *= base
-            if ti.static((int(n) >> (bit + 1)) > 0):
-                base = base * base
-        return result
 
     @ti.func
     def _pair_ids(self, i, j):
@@ -276,19 +243,12 @@ class PairForce(Term):
     @ti.func
     def law(self, c, i, j, d, r2):
         """g(r) d per unit mass product for coefficients c (see coefficients), with the core cap: finite at any r."""
-        alpha, beta, eps, rc, f_core = c[0], c[1], c[2], c[3], c[4]
-        if ti.static(self.boils):  # vapour does not stick: attraction only between the liquid shares
-            alpha *= self.liquid_share(i, j)
+        k0, k1, k2, rc, f_core = c[0], c[1], c[2], c[3], c[4]
+        if ti.static(self.boils):  # vapour does not stick: attraction (the power law's alpha) only between liquid
+            k0 *= self.liquid_share(i, j)
         f = ti.Vector.zero(float, self.dim)
         if r2 >= rc * rc:
-            g = 0.0
-            if ti.static(self.even_fast_path):  # eps = 0 and even exponents: powers of 1/r^2, no sqrt
-                inv2 = 1.0 / r2
-                g = alpha * self._ipow(inv2, self.a // 2) - beta * self._ipow(inv2, self.b // 2)
-            else:
-                r = ti.sqrt(r2)
-                g = alpha * self._powneg(r + eps, self.a) - beta * self._powneg(r, self.b)
-            f = g * d
+            f = self.pair_law.g(r2, (k0, k1, k2), TAICHI) * d
         else:  # inside the core: the force keeps its magnitude at the core radius
             r = ti.sqrt(r2)
             n = d / ti.max(r, 1e-12)
@@ -326,47 +286,24 @@ class PairForce(Term):
     @ti.func
     def energy(self, i, j, r2):
         """Potential energy of the pair (i, j) at squared distance r2 (< cutoff^2), shifted to zero at the cutoff
-        unless pair.shift is false."""
+        unless pair.shift is false, continued linearly inside the core (dU/dr stays the capped force)."""
         p, q = self.material[i], self.material[j]
         r = ti.sqrt(r2)
         rc = self.r_core[p, q]
         re = ti.max(r, rc)
+        k0, k1, k2 = self.alpha[p, q], self.beta[p, q], self.eps[p, q]
         s = 1.0  # the attraction's share: vapour feels none, as in law()
         if ti.static(self.boils):
             s = self.liquid_share(i, j)
-        u = self._u_func(re, p, q, s) - self.shift[p, q]
+            k0 *= s
+        u = self.pair_law.u(re, (k0, k1, k2), TAICHI) - self.shift[p, q]
         if ti.static(self.boils):
             u += (1.0 - s) * self.shift_att[p, q]
         if r < rc:  # linear continuation: dU/dr stays equal to the (capped) force
-            alpha = self.alpha[p, q]
-            if ti.static(self.boils):
-                alpha *= s
-            g = alpha * self._powneg(rc + self.eps[p, q], self.a) - self.beta[p, q] * self._powneg(rc, self.b)
-            u += g * rc * (r - rc)
+            u += self.pair_law.g(rc * rc, (k0, k1, k2), TAICHI) * rc * (r - rc)
         if ti.static(self.force_shifted):
             u -= self.f_cut[p, q] * (r - self.cutoff)
         return self.mass[i] * self.mass[j] * u
-
-    @ti.func
-    def _u_func(self, r, p, q, s):
-        """The unshifted potential per unit mass product at r, its attraction scaled by s where a material boils."""
-        alpha, beta, eps = self.alpha[p, q], self.beta[p, q], self.eps[p, q]
-        if ti.static(self.boils):
-            alpha *= s
-        u = r + eps
-        att = 0.0 * r
-        if ti.static(self.a == 2.0):
-            att = ti.log(u) + eps / u
-        elif ti.static(self.a == 1.0):
-            att = u - eps * ti.log(u)
-        else:
-            att = self._powneg(u, self.a - 2.0) / (2.0 - self.a) - eps * self._powneg(u, self.a - 1.0) / (1.0 - self.a)
-        rep = 0.0 * r
-        if ti.static(self.b == 2.0):
-            rep = -beta * ti.log(r)
-        else:
-            rep = beta * self._powneg(r, self.b - 2.0) / (self.b - 2.0)
-        return alpha * att + rep
 
     # ------------------------------------------------------------------ its part of the rates
     @ti.func
