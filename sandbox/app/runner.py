@@ -65,11 +65,10 @@ def run_headless(
     SIGTERM or SIGHUP stop the run between steps (the result says `interrupted`, and `signal`); the guard stops it
     with a SimulationError (the result's `stopped` holds its message). Either way the outputs hold exactly the
     frames before, closed into valid files under the names asked for (a video with no frame is not written). A write
-    that fails (a full disk) leaves them under partial names and raises an OutputError that lists them.
+    that fails (a full disk) leaves them under partial names and raises an OutputError that lists them; where the
+    signal that stopped the run stopped ffmpeg too, they are kept so, and the result lists them (`kept`).
     """
-    cfg = sim.scene.render
-    if not overlays:
-        cfg = dataclasses.replace(cfg, title=False, clock=False, legend=False)
+    cfg = _render_table(sim, overlays)
     width, height, fps = width or cfg.width, height or cfg.height, fps or cfg.fps
     if outputs is None:
         outputs = RunOutputs(sim, out, stats_path, size=(width, height, fps), still_frame=still_frame)
@@ -80,9 +79,7 @@ def run_headless(
         return renderer.frame()
 
     bar = _progress(frames, progress, sim.scene.name)
-    start = time.perf_counter()
-    last = None
-    done = 0
+    start, last, done = time.perf_counter(), None, 0
     interrupted, signum, stopped = False, None, None
     complete, kept = True, []
     with Stopper() as stopper:
@@ -122,6 +119,12 @@ def run_headless(
         if stopper.pending is not None and not interrupted:
             interrupted, signum = True, stopper.pending
     return RunResult(done, sim.time, time.perf_counter() - start, last, interrupted, stopped, signum, kept)
+
+
+def _render_table(sim: Simulation, overlays: bool):
+    """The scene's render table, without the title, clock and legend where `overlays` is False."""
+    cfg = sim.scene.render
+    return cfg if overlays else dataclasses.replace(cfg, title=False, clock=False, legend=False)
 
 
 def _close(outputs: RunOutputs, finished: int | None, signalled: bool) -> list[Path]:
