@@ -19,16 +19,14 @@ pytestmark = pytest.mark.long  # a long validation: `python3 -m pytest -m long` 
 
 
 def state(tools=("heat", "cool", "drag", "erase")):
-    return WindowState(list(tools), ["symplectic_euler", "verlet", "implicit_euler"], "symplectic_euler", 8)
+    return WindowState(list(tools), ["symplectic_euler", "verlet", "implicit_euler"], 8)
 
 
 def test_keys_drive_the_state():
     s = state()
-    assert s.tool == "heat" and not s.paused
-    s.handle_key(" ")
-    assert s.paused
-    s.handle_key(" ")
-    assert not s.paused
+    assert s.tool == "heat" and not s.toggle_pause
+    s.handle_key(" ")  # a request to the controller: the state holds no copy of whether it is paused
+    assert s.toggle_pause
     s.handle_key("Tab")  # the next tool the scene offers (GGUI reports no digits)
     assert s.tool == "cool"
     for _ in range(3):
@@ -46,12 +44,12 @@ def test_keys_drive_the_state():
     s.handle_key("Left")
     assert s.substeps == 7
     s.handle_key("i")
-    assert s.integrator == "verlet"
+    assert s.next_integrator
     for key, attr in (("s", "single_step"), ("r", "reset"), ("p", "screenshot"), ("h", "show_help"), ("q", "quit")):
         s.handle_key(key)
         assert getattr(s, attr)
     s.handle_key("g")
-    assert not s.gravity_on
+    assert s.toggle_gravity
     for key, attr in (("v", "recording"), ("e", "energy_plot"), ("f", "potential"), ("b", "motion_blur")):
         s.handle_key(key)
         assert getattr(s, attr)
@@ -146,6 +144,32 @@ def test_save_and_load_keys_continue_as_the_uninterrupted_run(tmp_path):
     apply_requests(Controller(other), s, path)
     assert "expected one saved from this 'spring_lattice'" in s.log[-1]
     assert _same(other.snapshot(), kept)
+
+
+def test_keys_ask_the_controller_and_the_window_keeps_no_copy_of_its_state(tmp_path):
+    """Pause, gravity and the integrator live in the controller alone (issue 73: the views kept copies and synced
+    them every frame, so a loaded state's gravity was set back by the window's copy): a key asks, apply_requests
+    acts once, and a state loaded with gravity off and another integrator stays as loaded."""
+    from sandbox.app.controller import Controller
+    from sandbox.app.window_state import apply_requests, make_state
+
+    sim, path = _block(), tmp_path / "quick.state.npz"
+    s, control = make_state(sim, None), Controller(sim)
+    first = sim.integrator.name
+    for key in (" ", "g", "i"):
+        s.handle_key(key)
+    apply_requests(control, s, path)
+    assert control.paused and not control.gravity_on and sim.integrator.name != first
+    assert not (s.toggle_pause or s.toggle_gravity or s.next_integrator)  # each request acted on once
+    apply_requests(control, s, path)
+    assert control.paused and not control.gravity_on  # nothing set back
+    control.save(path)
+    control.play(), control.steer_gravity(on=True), control.set_integrator(first)
+    s.handle_key("o")
+    apply_requests(control, s, path)
+    assert not np.any(sim.model.gravity.to_numpy()) and sim.integrator.name != first
+    apply_requests(control, s, path)  # the next frame
+    assert not np.any(sim.model.gravity.to_numpy()) and sim.integrator.name != first
 
 
 def test_panel_offers_only_what_the_scene_uses():
@@ -557,7 +581,7 @@ def test_full_screen_opens_the_window_again_at_the_screens_size(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "size (1600, 900)" in proc.stdout
     assert read_png(shot).shape[:2] == (900, 1600)
-    state = WindowState(["drag"], ["verlet"], "verlet", 8)
+    state = WindowState(["drag"], ["verlet"], 8)
     state.handle_key("x")
     assert state.full_screen
     state.handle_key("x")

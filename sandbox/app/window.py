@@ -165,7 +165,7 @@ class WindowLoop:
         stats = self.readouts(u, v)
         self.clock.lap("readouts")
         self.draw(u, v, stats)
-        if not state.paused:
+        if not self.control.paused:
             rest = (sim_start - frame_start) + (time.perf_counter() - sim_end)  # the frame's work besides stepping
             self.pacer.record(state.frame_substeps, sim_end - sim_start, rest)
         self.shown += 1
@@ -276,7 +276,9 @@ class WindowLoop:
         now = time.perf_counter()
         self.fps = 0.9 * self.fps + 0.1 / max(now - self.last, 1e-6)
         self.last = now
-        state.pace = 0.0 if state.paused else self.fps * state.frame_substeps * self.sim.dt  # simulated s / wall s
+        state.pace = (
+            0.0 if self.control.paused else self.fps * state.frame_substeps * self.sim.dt
+        )  # simulated s / wall s
         draw_panel(self.gui, self.control, state, stats, self.fps, self.shape[0])
 
 

@@ -46,7 +46,7 @@ def draw_panel(gui, control, state: WindowState, stats, fps: float, window_width
 def readouts(gui, chars: int, control, state: WindowState, stats, fps: float) -> None:
     """The shared description's measurements (panel.py), packed into as few lines as the panel's width allows, then
     the probe and the integrator. ASCII only: GGUI's font has no degree sign."""
-    line = "PAUSED" if state.paused else ""
+    line = "PAUSED" if control.paused else ""
     for item in control.readouts(stats, fps):
         text = f"{item.words} {item.text()}"
         if line and len(line) + 3 + len(text) > chars:
@@ -56,7 +56,7 @@ def readouts(gui, chars: int, control, state: WindowState, stats, fps: float) ->
     if line:
         say(gui, chars, line)
     say(gui, chars, f"under the cursor: {state.probe or '-'}")
-    say(gui, chars, f"integrator {state.integrator} (i)   {pace_text(state)}")
+    say(gui, chars, f"integrator {control.sim.integrator.name} (i)   {pace_text(state)}")
 
 
 def setting_sliders(gui, control) -> None:
@@ -84,7 +84,8 @@ def controls(gui, chars: int, control, state: WindowState) -> None:
             state.undo = True
     if gui.button("reset to the start (r)"):
         state.reset = True
-    state.paused = gui.checkbox("paused (space)", state.paused)
+    if gui.checkbox("paused (space)", control.paused) != control.paused:
+        state.toggle_pause = True
     setting_sliders(gui, control)
     if sim.scene.world.substeps != "auto":  # its scale is one of the settings above
         stable = f", springs stable below {state.stable_dt:.2g} s" if sim.state.springs else ""

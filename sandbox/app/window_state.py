@@ -65,7 +65,7 @@ TOOLS_LINE = "Tab"  # the help line of Tab is written from the tool table
 # Every key, once: handle_key and the help both read this table. GGUI (Taichi 1.7) reports letters and named keys
 # only (Escape, Return, Tab, arrows, space, Shift, ...): digits, brackets, + and - never arrive, so none is bound.
 KEYS = (
-    Binding((" ",), "space  pause / resume", _flip("paused")),
+    Binding((" ",), "space  pause / resume", _ask("toggle_pause")),
     Binding(("s",), "s      single step (paused)", _ask("single_step")),
     Binding(("r",), "r      reset to the start", _ask("reset")),
     Binding(("Tab",), TOOLS_LINE, _next_tool),
@@ -73,8 +73,8 @@ KEYS = (
     Binding(("Down",), "", _set("radius", lambda r: max(0.5, r / 1.25))),
     Binding(("Right",), "Right Left  substeps per frame", _set("substeps", lambda n: min(1000, n + 1))),
     Binding(("Left",), "", _set("substeps", lambda n: max(1, n - 1))),
-    Binding(("g",), "g      gravity on / off", _flip("gravity_on")),
-    Binding(("i",), "i      next integrator", _next_of("integrators", "integrator")),
+    Binding(("g",), "g      gravity on / off", _ask("toggle_gravity")),
+    Binding(("i",), "i      next integrator", _ask("next_integrator")),
     Binding(("z",), "z      undo the last tool stroke (Ctrl+Z too)", _ask("undo")),
     Binding(("w",), "w      save the state (out/SCENE.state.npz)", _ask("save")),
     Binding(("o",), "o      load the saved state back", _ask("load")),
@@ -103,20 +103,23 @@ MOUSE_HELP = [
 
 @dataclass
 class WindowState:
-    """What the window's keys control; handle_key is the single place keys change it."""
+    """What the window's keys control; handle_key is the single place keys change it. What the controller holds
+    (paused, gravity, the integrator, the settings) is not copied here: a key or a panel widget asks for a change
+    (toggle_pause, toggle_gravity, next_integrator ...) and apply_requests makes it on the controller, which the
+    panel reads every frame."""
 
     tools_available: list[str]
-    integrators: list[str]
-    integrator: str
+    integrators: list[str]  # the order `i` steps through
     substeps: int
     tool: str = ""
     radius: float = 3.0
-    paused: bool = False
+    toggle_pause: bool = False
     single_step: bool = False
     reset: bool = False
     quit: bool = False
     show_help: bool = False
-    gravity_on: bool = True
+    toggle_gravity: bool = False
+    next_integrator: bool = False
     screenshot: bool = False
     materials: list[str] = field(default_factory=list)  # what the spawn tool can make
     material: str = ""
@@ -177,7 +180,6 @@ def make_state(sim, substeps: int | None) -> WindowState:
     return WindowState(
         tools,
         list(REGISTRY),
-        sim.integrator.name,
         int(fixed),
         materials=sim.material_names,
         color_modes=modes,
@@ -232,14 +234,18 @@ def apply_requests(control, state: WindowState, path: Path) -> None:
         state.reset = False
         control.reset()
     if state.single_step:
-        state.single_step, state.paused = False, True
-        control.step_once()
-    if state.paused != control.paused:
-        control.pause() if state.paused else control.play()
-    if state.integrator != control.sim.integrator.name:
-        control.set_integrator(state.integrator)
-    if state.gravity_on != control.gravity_on:
-        control.steer_gravity(on=state.gravity_on)
+        state.single_step = False
+        control.step_once()  # pauses
+    if state.toggle_pause:
+        state.toggle_pause = False
+        control.play() if control.paused else control.pause()
+    if state.next_integrator:
+        state.next_integrator = False
+        names, now = state.integrators, control.sim.integrator.name
+        control.set_integrator(names[(names.index(now) + 1) % len(names) if now in names else 0])
+    if state.toggle_gravity:
+        state.toggle_gravity = False
+        control.steer_gravity(on=not control.gravity_on)
     if state.undo:
         state.undo = False
         state.log.append(control.undo().text)
@@ -256,17 +262,9 @@ def apply_requests(control, state: WindowState, path: Path) -> None:
         else:
             try:
                 control.load(path)
-                follow_controller(state, control)
                 state.log.append(f"loaded {path} (t = {control.sim.time:.2f} s)")
             except SandboxError as exc:
                 state.log.append(str(exc))
-
-
-def follow_controller(state: WindowState, control) -> None:
-    """The window's copies of what a loaded state changed (its integrator, gravity on or off), so the next frame's
-    requests do not set the old values back (the sliders read the controller's values every frame)."""
-    state.integrator = control.sim.integrator.name
-    state.gravity_on = control.gravity_on
 
 
 def panel_characters(window_width: int, panel: float) -> int:
