@@ -336,7 +336,7 @@ def test_the_probe_reads_the_particle_under_the_cursor():
 
 
 def test_pacing_runs_fewer_substeps_when_a_frame_of_them_would_not_fit_and_says_so():
-    from sandbox.app.window_parts import FramePacer
+    from sandbox.app.pacing import FramePacer
     from sandbox.app.window_state import pace_text
 
     pacer = FramePacer(target_fps=50.0)  # 20 ms a frame
@@ -364,7 +364,7 @@ def test_pacing_learns_a_frames_fixed_simulation_cost_and_runs_the_substeps_that
     """A frame's simulation costs 3 ms plus 0.5 ms a substep and its drawing 28 ms, so the 30 fps floor leaves room
     for 4 substeps (28 + 3 + 4 x 0.5 = 33 ms). Taking the whole cost as per substep, a pacer that starts at one
     substep (3.5 ms) would stay there; this one tries more after frames that fit and fits both parts."""
-    from sandbox.app.window_parts import FramePacer
+    from sandbox.app.pacing import FramePacer
 
     pacer = FramePacer()
     pacer.record(1, simulation_seconds=0.0035, rest_seconds=0.028)

@@ -21,7 +21,6 @@ import dataclasses
 import functools
 import io
 import json
-import math
 import os
 import struct
 import tempfile
@@ -30,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .pacing import FramePacer
+
 FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
 MAX_FPS = 30.0  # pictures a second at most (serve --max-fps): more shows a class nothing new, and takes a core
 JPEG_QUALITY = 80
@@ -37,7 +38,7 @@ READOUTS_EVERY = 6  # pictures between the readouts sent with them (JPEG picture
 READOUT_SECONDS = 0.3  # seconds between the readouts sent with particle frames
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
 BAND_SECONDS = 1.0  # seconds between the charts' bands sent to a page that draws the particles
-SMOOTH_FPS = 20.0  # pictures a second a session keeps, where the machine is short of CPU, by stepping less a picture
+SMOOTH_FPS = 20.0  # pictures a second a tab keeps, where the machine is short of CPU, by stepping less a picture
 DRAWS = ("page", "server")  # who draws a 2D scene's particles: the page (particle frames) or the session (JPEG)
 
 
@@ -74,7 +75,9 @@ class Session:
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
         self.frames = 0
         self.band_due = False  # the charts' band goes with the next picture (a page that draws the particles)
-        self.pace = Pace()  # the steps a picture shows, fewer where the machine is short of CPU
+        # the steps a picture shows: the window's rule, at the pictures a second a tab keeps (fewer steps where the
+        # machine is short of CPU, so the class sees smooth motion in slow motion rather than jerks)
+        self.pacer = FramePacer(target_fps=SMOOTH_FPS, floor_fps=SMOOTH_FPS)
         self.last_readouts = self.last_band = -1e9  # when they were last sent (wall seconds)
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
         self.load(scene)
@@ -246,20 +249,26 @@ class Session:
         from ..errors import SimulationError
 
         sim = self.sim
-        wall, cpu = time.perf_counter(), time.process_time()
-        paced = self.particle_frames is not None  # where the steps are most of a picture's cost (not a JPEG's)
+        wall = time.perf_counter()
+        # paced where the steps are most of a picture's cost (not a JPEG's), and the steps are the scene's to choose
+        substeps = sim.scene.world.substeps
+        paced = self.particle_frames is not None and substeps != "auto"
+        steps, stepped = (self.pacer.choose(int(substeps)) if paced else None), 0.0
         try:
-            self.control.advance(self.pace.steps(sim) if paced else None)
+            stepping = time.perf_counter()
+            taken = self.control.advance(steps)
+            stepped = time.perf_counter() - stepping
         except SimulationError as exc:  # a blow-up: say so and start the scene again
             self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
             self.control.reset()
+            taken = 0
         self.frames += 1
         if self.particle_frames:
             self.send_particle_frame(wall)
         else:
             self.send_picture()
-        if paced:
-            self.pace.picture(time.perf_counter() - wall, time.process_time() - cpu)
+        if paced and taken:  # a paused tab's pictures say nothing of what its steps cost
+            self.pacer.record(taken, stepped, time.perf_counter() - wall - stepped)
 
     def send_particle_frame(self, now: float) -> None:
         """The particle frame (it carries the clock), and at their own rates the readouts and the charts' band."""
@@ -395,50 +404,6 @@ class Session:
             self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
         finally:
             path.unlink(missing_ok=True)
-
-
-class Pace:
-    """How many of a frame's steps a picture shows. A session shows a whole frame a picture; where the machine is short
-    of CPU (its pictures come slower than SMOOTH_FPS and the session got under 70% of a core while it worked: other
-    processes were running) it shows about a quarter fewer steps a picture each second, down to one, so the class
-    sees smooth motion in slow motion rather than jerky motion in slow motion: the simulation gets the CPU it got
-    before, spent on nearly the same steps, in more pictures. With room again (pictures a quarter above SMOOTH_FPS) it
-    shows more: a session settles at the most steps a picture that keep SMOOTH_FPS. Scenes whose steps are sized a
-    frame at a time (substeps = "auto") always show whole frames, and so do sessions that send JPEG pictures, whose
-    cost is mostly the drawing."""
-
-    def __init__(self):
-        self.steps_now: int | None = None  # steps a picture (None: the scene's whole frame)
-        self.window_start = time.perf_counter()
-        self.pictures = 0
-        self.wall = self.cpu = 0.0  # seconds spent making pictures in this window, and of CPU while at it
-        self.full = 0  # the scene's steps a frame (0: "auto")
-
-    def steps(self, sim) -> int | None:
-        """The steps for the next picture (None: the scene's own frame)."""
-        substeps = sim.scene.world.substeps
-        self.full = 0 if substeps == "auto" else int(substeps)
-        if self.steps_now is None or not self.full:
-            return None
-        return min(self.steps_now, self.full)
-
-    def picture(self, wall: float, cpu: float) -> None:
-        """A picture was made in `wall` seconds using `cpu` seconds of this process's CPU; every second, decide."""
-        self.pictures += 1
-        self.wall += wall
-        self.cpu += cpu
-        now = time.perf_counter()
-        span = now - self.window_start
-        if span < 1.0:
-            return
-        rate, got = self.pictures / span, self.cpu / max(self.wall, 1e-9)
-        steps = self.full if self.steps_now is None else self.steps_now
-        if rate < SMOOTH_FPS and got < 0.7 and steps > 1:
-            self.steps_now = max(1, int(steps * 0.75))
-        elif rate > 1.25 * SMOOTH_FPS and self.steps_now is not None:
-            more = math.ceil(steps / 0.75)
-            self.steps_now = None if more >= self.full else more
-        self.window_start, self.pictures, self.wall, self.cpu = now, 0, 0.0, 0.0
 
 
 def png(picture) -> bytes:

@@ -21,9 +21,10 @@ from ..core import runtime, taichi_compat
 from ..errors import SandboxError
 from ..render.raster import Renderer
 from .controller import Controller
+from .pacing import FramePacer
 from .probe import particle_at, probe
 from .window_panel import PANEL_WIDTH, draw_panel
-from .window_parts import FRAME_PARTS, FrameClock, FramePacer, OrbitCamera, Recorder, ResizeWatch, screen_size
+from .window_parts import FRAME_PARTS, FrameClock, OrbitCamera, Recorder, ResizeWatch, screen_size
 from .window_state import apply_requests, make_state, quick_save_path, view_config
 
 __all__ = ["FRAME_PARTS", "WindowRun", "WindowUnavailable", "run_window", "window_unavailable_reason"]
