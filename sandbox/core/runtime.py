@@ -213,9 +213,10 @@ def cpu_features() -> dict:
 
 @functools.cache
 def vector_gathers_pay() -> bool:
-    """Whether loops that gather from scattered particles run faster vectorized on this CPU (Rates.blocked_rows).
-    They paid on an Intel CPU with AVX-512 and cost on an AMD EPYC with AVX-512 as well (its gathers are slower;
-    docs/performance.md, "Why the code is shaped so"); unknown elsewhere, so no. SANDBOX_PAIR_BLOCKS=1 or 0 decides."""
+    """Whether loops that gather from scattered particles run faster vectorized on this CPU (Rates.blocked_rows): a
+    tuning choice, never a change in what is computed beyond the order of a sum. Yes on Intel CPUs with AVX-512, no
+    elsewhere (the measurements: docs/performance.md, "Why the code is shaped so"); SANDBOX_PAIR_BLOCKS=1 or 0
+    decides."""
     chosen = os.environ.get("SANDBOX_PAIR_BLOCKS", "")
     if chosen in ("0", "1"):
         return chosen == "1"

@@ -5,10 +5,10 @@ in the rows ahead of it (a half list: each pair once, under one of its two parti
 list stays valid until some particle has moved more than skin / 2 since the build (then no pair within `reach` can be
 missing), or the particle count changes; a cheap check kernel decides each step. Lists have a width sized from the
 initial packing with a margin; when a particle gets more neighbours than fit, the lists are reallocated wider. They are
-a Taichi ndarray, which kernels take as an argument of fixed type and any shape, so widening them recompiles nothing (as
-a field passed as a template argument they did: every kernel that read them, a stall of about a second each time the
-candle scene's flame grew them, three times in its first 35 frames). Past MAX_BYTES of lists (say, a thousand particles
-crushed into one cell) the step falls back to scanning the cell grid directly: no interaction is ever dropped.
+a Taichi ndarray, which kernels take as an argument of fixed type and any shape, so widening them recompiles nothing
+(a field passed as a template argument would recompile every kernel that reads it, a stall each time the lists
+grow). Past MAX_BYTES of lists (say, a thousand particles crushed into one cell) the step falls back to scanning the
+cell grid directly: no interaction is ever dropped.
 
 Bonded pairs (half lists given `springs`): a pair joined by a live spring at the build is stored as -(s + 1), s the
 spring, so the pair pass can skip its pair force (a bonded pair feels its spring instead) without searching the bond
