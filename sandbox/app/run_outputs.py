@@ -94,14 +94,6 @@ class RunOutputs:
             self._release()
             raise
 
-    def _find(self, writer, record: dict, resume: tuple[Path, dict]):
-        """What `writer` continues of the checkpoint `resume` (its path and meta), the record proven against the
-        files and against what the checkpoint's frame implies (rows, pictures, cached frames)."""
-        checkpoint, frame = resume[0], resume[1]["frame"]
-        if isinstance(writer, CacheSequence):
-            return writer.find(record, checkpoint, frame, self.cache_every, self.cache_surface)
-        return writer.find(record, checkpoint, frame)
-
     @property
     def pictures(self) -> bool:
         return "--out" in self.writers
@@ -124,7 +116,9 @@ class RunOutputs:
         if "--dump" in claims:
             self.writers["--dump"] = AppendFile(claims["--dump"])
         if "--cache" in claims:
-            self.writers["--cache"] = CacheSequence(claims["--cache"], self.cache, fps)
+            self.writers["--cache"] = CacheSequence(
+                claims["--cache"], self.cache, fps, every=self.cache_every, surface=self.cache_surface
+            )
         records = _records(resume, restart)
         found = {}  # every output checked before any is touched
         for option, writer in self.writers.items():
@@ -138,7 +132,8 @@ class RunOutputs:
                 )
             _check_kind(record, resume[0], option, claims[option].path, writer)
             _check_record(record, resume[0], option, writer.RECORD)
-            found[option] = self._find(writer, record, resume)
+            # proven against the files and against what the checkpoint's frame implies (rows, pictures, cached frames)
+            found[option] = writer.find(record, resume[0], resume[1]["frame"])
         for option, writer in self.writers.items():
             if option in found:
                 writer.adopt(found[option])

@@ -56,12 +56,16 @@ def frame_name(index: Path, frame: int, surface: bool = False) -> str:
 
 class CacheSequence:
     """The cache `claim.path` (its index, index_path()) holding one frame per write(); `fps`: time codes per second
-    of a USD stage; `lines`: springs as line cells in a VTK cache."""
+    of a USD stage; `lines`: springs as line cells in a VTK cache; `every` and `surface`: what a run of the command
+    line caches (every `every`-th frame, with surfaces or not), which a resume's record must match."""
 
     RECORD = {"written": list, "digest": str}
 
-    def __init__(self, claim: Claim, named: Path, fps: float = 30.0, lines: bool = True) -> None:
+    def __init__(
+        self, claim: Claim, named: Path, fps: float = 30.0, lines: bool = True, every: int = 1, surface: bool = False
+    ) -> None:
         self.claim, self.named, self.fps, self.lines = claim, named, fps, lines
+        self.every, self.surface_asked = every, surface
         self.format = cache_kind(named)
         self.kind = f"cache-{self.format}"
         self.words = f"a {self.format.upper()} particle cache"
@@ -86,10 +90,11 @@ class CacheSequence:
         """A fresh cache: frame files of an earlier run are removed."""
         self._remove_beyond(-1)
 
-    def find(self, record: dict, checkpoint: Path, frame: int, every: int = 1, surface: bool = False):
-        """The frames the checkpoint of frame `frame` recorded, when they are the ones a cache of every `every`
-        frames (with surfaces or not) holds then, and their files are there with their digests; else a
+    def find(self, record: dict, checkpoint: Path, frame: int):
+        """The frames the checkpoint of frame `frame` recorded, when they are the ones this run's cache (every
+        `self.every` frames, with surfaces or not) holds then, and their files are there with their digests; else a
         SandboxError."""
+        every, surface = self.every, self.surface_asked
         frames = record["written"]
         if not _well_formed(frames):
             raise SandboxError(f"{checkpoint}: its record of --cache is damaged; {RESTART_HINT}")
