@@ -245,7 +245,11 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
             r.surface_cell,
             dim,
         )
-    return CacheFrame(sim.frames_done, sim.time, points, data, widths.astype(np.float32), bonds, shape, up)
+    world = sim.scene.world
+    frame_seconds = world.frame_time if world.substeps == "auto" else int(world.substeps) * sim.dt
+    return CacheFrame(
+        sim.frames_done, sim.time, points, data, widths.astype(np.float32), bonds, shape, up, float(frame_seconds)
+    )
 
 
 class Cache:

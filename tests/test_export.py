@@ -291,3 +291,59 @@ def test_a_surface_is_written_in_one_order_whatever_order_it_was_built_in():
     assert again.triangles.tobytes() == built.triangles.tobytes()
     assert again.vertex_data["t"].tobytes() == built.vertex_data["t"].tobytes()
     assert area_and_volume(again) == pytest.approx(area_and_volume(shuffled))
+
+
+@pytest.mark.parametrize("kind", ["usd", "ply", "vtp"])
+def test_a_ballistic_particles_velocity_carries_it_to_its_next_cached_position(tmp_path, kind):
+    """Time right (issue 76): USD velocities were per simulated second while the stage plays 24 time codes a second,
+    so motion blur came out 0.02 x 24 = 0.48 (here) of the motion. Now position + velocity x (time codes apart /
+    time codes a second) is the next cached position in USD and PLY (a frame of the run is a time code, or a Houdini
+    frame, played at the cache's fps), and position + velocity x (timesteps apart) in VTK, whose collection's
+    timesteps are simulated seconds: each to 1e-5 relative, for a body moving at (3, 1) with no force on it."""
+    from tests.conftest import make_scene, scene_dict
+
+    world = {"dim": 2, "lo": [0.0, 0.0], "hi": [40.0, 40.0], "dt": 0.002, "substeps": 10}
+    body = {"material": "jelly", "shape": "box", "lo": [5.0, 5.0], "hi": [8.0, 8.0], "springs": False}
+    sim = sandbox.Simulation(make_scene(scene_dict(world=world, bodies=[{**body, "velocity": [3.0, 1.0]}])))
+    path = tmp_path / f"b.{kind}"
+    with sandbox.Cache(path, fps=24.0) as cache:
+        for _ in range(3):
+            cache.write(sim)
+            sim.run(2)
+    frames, fps = [0, 2, 4], 24.0
+    if kind == "usd":
+        from pxr import Usd, UsdGeom
+
+        stage = Usd.Stage.Open(str(path))
+        assert stage.GetTimeCodesPerSecond() == fps
+        points = UsdGeom.Points(stage.GetPrimAtPath("/World/particles"))
+        p = [np.asarray(points.GetPointsAttr().Get(f)) for f in frames]
+        v = [np.asarray(points.GetVelocitiesAttr().Get(f)) for f in frames]
+        seconds = [2 / fps, 2 / fps]
+    elif kind == "ply":
+        from plyfile import PlyData
+
+        plys = [PlyData.read(str(tmp_path / f"b.ply.{f:05d}.ply")) for f in frames]
+        p = [np.stack([ply["vertex"][a] for a in "xyz"], axis=1) for ply in plys]
+        v = [np.stack([ply["vertex"][a] for a in ("vx", "vy", "vz")], axis=1) for ply in plys]
+        assert "velocity in length per second at 24 frames a second" in " ".join(plys[0].comments)
+        seconds = [2 / fps, 2 / fps]
+    else:
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+        from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+        collection = ET.parse(tmp_path / "b.pvd").getroot().find("Collection")
+        sets = [(float(d.get("timestep")), d.get("file")) for d in collection]
+        p, v = [], []
+        for _, name in sets:
+            reader = vtkXMLPolyDataReader()
+            reader.SetFileName(str(tmp_path / name))
+            reader.Update()
+            poly = reader.GetOutput()
+            p.append(vtk_to_numpy(poly.GetPoints().GetData()))
+            v.append(vtk_to_numpy(poly.GetPointData().GetArray("velocity")))
+        seconds = [sets[1][0] - sets[0][0], sets[2][0] - sets[1][0]]
+    for k in range(2):
+        moved = p[k + 1] - p[k]
+        assert np.abs(moved[:, 0]).min() > 0.1  # it moved: 0.12 along x in two frames
+        np.testing.assert_allclose(p[k] + v[k] * seconds[k], p[k + 1], rtol=1e-5, atol=1e-5 * np.abs(p[k]).max())

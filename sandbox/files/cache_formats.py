@@ -35,8 +35,9 @@ class Surface:
 @dataclass
 class CacheFrame:
     """One cached frame: `frame` its number (frames done), `time` simulated seconds, `points` (N, 3) positions,
-    `point_data` name -> (N,) or (N, 3) arrays, `widths` (N,) particle diameters, `bonds` (M, 2) row indices of the
-    springs' ends (or None), `surface` (or None), `up` the scene's up axis ("Y" or "Z")."""
+    `point_data` name -> (N,) or (N, 3) arrays (velocity in length per simulated second), `widths` (N,) particle
+    diameters, `bonds` (M, 2) row indices of the springs' ends (or None), `surface` (or None), `up` the scene's up
+    axis ("Y" or "Z"), `frame_seconds` the simulated seconds one frame spans (0: not known)."""
 
     frame: int
     time: float
@@ -46,6 +47,8 @@ class CacheFrame:
     bonds: np.ndarray | None = None
     surface: Surface | None = None
     up: str = "Y"
+    frame_seconds: float = 0.0
+    velocity_note: str = ""  # how the velocity is written (a PLY comment)
 
 
 # ---------------------------------------------------------------------------------------------------------- PLY
@@ -79,6 +82,8 @@ def _ply(frame: CacheFrame, elements: list[tuple[str, int, list[str], bytes]]) -
     """A binary PLY: (element name, count, property lines, the element's bytes) in order."""
     lines = ["ply", "format binary_little_endian 1.0", f"comment sandbox frame {frame.frame} time {frame.time:.9g} s"]
     lines.append(f"comment unit {METERS_PER_UNIT} m up {frame.up}")
+    if frame.velocity_note:
+        lines.append(f"comment {frame.velocity_note}")
     for name, count, properties, _ in elements:
         lines += [f"element {name} {count}", *properties]
     lines.append("end_header")

@@ -17,6 +17,7 @@ their times and a digest of every file's SHA-256; a resume checks that they are 
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import re
@@ -148,6 +149,7 @@ class CacheSequence:
     # ------------------------------------------------------------------ writing
     def write(self, frame: CacheFrame) -> None:
         """Write one frame's files (and the index is rewritten at the next mark or at the end)."""
+        frame = self._timed(frame)
         self.up = frame.up
         surface = frame.surface is not None
         self.surface = self.surface or surface
@@ -163,6 +165,19 @@ class CacheSequence:
                 data = surface_ply_bytes(frame) if self.format == "ply" else surface_vtp_bytes(frame)
                 self._publish(self.frame_file(frame.frame, True), data)
         self.frames.append([frame.frame, frame.time, surface])
+
+    def _timed(self, frame: CacheFrame) -> CacheFrame:
+        """The frame with its velocity in the time its format plays at (docs/export.md, "Time"): USD and PLY in
+        length per second of playback at `fps` frames a second (a stage's time code, or a Houdini frame, is one frame
+        of the run), so that position + velocity x (frames apart / fps) is the later frame's position; VTK in length
+        per simulated second, the unit of its collection's timesteps."""
+        velocity = frame.point_data.get("velocity")
+        if velocity is None or self.format == "vtk" or not frame.frame_seconds:
+            return frame
+        scale = self.fps * frame.frame_seconds  # simulated seconds per second of playback
+        note = f"velocity in length per second at {self.fps:g} frames a second (a frame: {frame.frame_seconds:g} s)"
+        data = {**frame.point_data, "velocity": (velocity * scale).astype(velocity.dtype)}
+        return dataclasses.replace(frame, point_data=data, velocity_note=note)
 
     def _publish(self, target: Path, data) -> None:
         """Write `target` whole (bytes, or a function that writes the path it is given) and keep its digest."""
