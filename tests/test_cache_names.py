@@ -86,3 +86,23 @@ def test_a_usd_cache_name_with_a_backslash_is_refused(tmp_path, capsys, name):
     lines = errors(capsys)
     assert code == EXIT_BAD_INPUT and len(lines) == 1 and "backslash" in lines[0], lines
     assert not list(tmp_path.iterdir())
+
+
+def test_a_cache_only_run_with_no_video_encodes_nothing_and_touches_no_video(tmp_path, capsys):
+    """A cache-only run encoded a default out/SCENE.mp4 (1.7x the wall time) and replaced the one there (issue 76):
+    --no-video writes the cache alone; with --out it is refused in one line."""
+    (tmp_path / "out").mkdir()
+    earlier = tmp_path / "out" / "candle.mp4"
+    earlier.write_bytes(b"someone's video")
+    assert run(tmp_path, "--no-video", frames=3, outputs=["--cache", "w.ply"]) == 0, errors(capsys)
+    assert earlier.read_bytes() == b"someone's video"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "out",
+        "w.ply.00001.ply",
+        "w.ply.00002.ply",
+        "w.ply.00003.ply",
+    ]
+    assert "-> w.ply" in capsys.readouterr().err
+    assert run(tmp_path, "--no-video", frames=2, outputs=["--out", "m.mp4"]) == EXIT_BAD_INPUT
+    lines = errors(capsys)
+    assert len(lines) == 1 and "--no-video with --out" in lines[0]

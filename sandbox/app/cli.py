@@ -285,6 +285,12 @@ def _run_arguments(sub) -> None:
     run.add_argument(
         "--cache-surface", action="store_true", help="with --cache: a surface mesh of the bodies and melts too"
     )
+    run.add_argument(
+        "--no-video",
+        action="store_true",
+        help="headless without pictures: only the --stats, --dump, --cache and --checkpoint asked for (no default "
+        "out/SCENE.mp4 is written or touched)",
+    )
     run.set_defaults(func=cmd_run)
 
 

@@ -64,6 +64,8 @@ def _check_run_numbers(args) -> None:
     check_count("--cache-every", args.cache_every, 1, MAX_FRAMES)
     if (args.cache_every is not None or args.cache_surface) and args.cache is None:
         raise SandboxError("--cache-every/--cache-surface: expected together with --cache PATH.usd|.vtp|.ply")
+    if args.no_video and (args.out is not None or args.still_frame is not None):
+        raise SandboxError("--no-video with --out or --still-frame: expected pictures or none, not both")
     if args.resume is not None and args.set:
         raise SandboxError("--set with --resume: a resumed run continues the saved scene; expected no --set")
 
@@ -197,7 +199,7 @@ def _plan_run(args) -> RunPlan:
         args.checkpoint = f"out/{file_stem(scene.name)}.state.npz"
     if args.still_frame is not None:
         check_count("--still-frame", args.still_frame, 0, frames - 1)
-    headless = args.headless
+    headless = args.headless or args.no_video
     if not headless and (args.dump or args.checkpoint_every or args.cache):
         print("--dump, --cache and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
         headless = True
@@ -207,7 +209,7 @@ def _plan_run(args) -> RunPlan:
             headless = True
             print(f"{reason}: running headless", file=sys.stderr)
     out = args.out
-    if headless and out is None:
+    if headless and out is None and not args.no_video:
         out = f"out/{file_stem(scene.name)}.mp4"
         try:
             check_output(out)
@@ -267,7 +269,7 @@ def _headless(args, sim, plan: RunPlan) -> int:
         start = f"no frames (the outputs of the {frames} saved are finished)"
     print(
         f"{scene.name}: {sim.model.built.count} particles, {sim.model.built.spring_count} springs, {start} x "
-        f"{args.substeps or scene.world.substeps} steps on {sim.arch} -> {out}",
+        f"{args.substeps or scene.world.substeps} steps on {sim.arch} -> {out or _written(args)}",
         file=sys.stderr,
     )
     result = run_headless(
@@ -284,6 +286,12 @@ def _headless(args, sim, plan: RunPlan) -> int:
         overlays=not args.no_overlays,
     )
     return _said(args, sim, plan, result)
+
+
+def _written(args) -> str:
+    """What a run without pictures (--no-video) writes, in words."""
+    named = [p for p in (args.stats, args.dump, args.cache, args.checkpoint) if p]
+    return ", ".join(str(p) for p in named) or "no file (--no-video and nothing else asked for)"
 
 
 def _said(args, sim, plan: RunPlan, result) -> int:
@@ -306,7 +314,7 @@ def _said(args, sim, plan: RunPlan, result) -> int:
         if first_frame
         else f"{result.frames} frames"
     )
-    summary = f"wrote {out} ({count}, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
+    summary = f"wrote {out or _written(args)} ({count}, t = {result.sim_time:.3g}, {result.wall_seconds:.1f} s wall)"
     if last is not None and sim.terms.heat is not None:
         summary += f"; molten fraction {last.molten_fraction:.2f}, broken springs {last.broken_springs}"
     if not result.kept:
