@@ -20,6 +20,7 @@ from .files.claim import Claim
 from .files.extxyz import append_frame, frame_text
 from .files.table import FrameTable
 from .physics.phase import ENTHALPY_LAW, gas_fraction_np, temperature_np
+from .render.colormaps import TEMPERATURE_STOPS, ramp_np_many
 from .render.notebook import Movie, png_html
 from .render.raster import Renderer
 from .render.surface import reconstruct
@@ -247,9 +248,22 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
         )
     world = sim.scene.world
     frame_seconds = world.frame_time if world.substeps == "auto" else int(world.substeps) * sim.dt
-    return CacheFrame(
+    frame = CacheFrame(
         sim.frames_done, sim.time, points, data, widths.astype(np.float32), bonds, shape, up, float(frame_seconds)
     )
+    frame.colors = cache_colors(sim, table)
+    return frame
+
+
+def cache_colors(sim, table: dict) -> np.ndarray:
+    """Each particle's colour as the sandbox draws it, (N, 3) uint8 sRGB: the temperature colour map over the scene's
+    render.temperature_range where the scene has heat, else its material's colour."""
+    if sim.particles.heat:
+        lo, hi = sim.scene.render.temperature_range
+        rgb = ramp_np_many(TEMPERATURE_STOPS, (table["temperature"] - lo) / (hi - lo))
+    else:
+        rgb = sim.model.materials.colors[table["material"]]
+    return np.clip(np.round(255.0 * np.asarray(rgb, dtype=np.float64)), 0, 255).astype(np.uint8)
 
 
 class Cache:

@@ -347,3 +347,41 @@ def test_a_ballistic_particles_velocity_carries_it_to_its_next_cached_position(t
         moved = p[k + 1] - p[k]
         assert np.abs(moved[:, 0]).min() > 0.1  # it moved: 0.12 along x in two frames
         np.testing.assert_allclose(p[k] + v[k] * seconds[k], p[k + 1], rtol=1e-5, atol=1e-5 * np.abs(p[k]).max())
+
+
+def test_caches_carry_the_sandboxs_colours_extents_and_a_plain_triangle_surface(cached):
+    """Looks tools read (issue 76, item 2): the sandbox's own colour of each particle (the temperature map over the
+    scene's range, as the picture has it) as USD's displayColor, decoded to linear as USD expects, and as PLY's
+    red/green/blue bytes in sRGB; USD extents that hold every point; the surface a plain triangle mesh
+    (subdivisionScheme none, which renderers otherwise take for Catmull-Clark) with a unit normal at each vertex."""
+    from sandbox.files.cache_usd import srgb_to_linear
+    from sandbox.render.colormaps import TEMPERATURE_STOPS, ramp_np_many
+
+    kind, path, tables = cached
+    frame, _, p, _ = tables[-1]
+    lo, hi = sandbox.load("candle", set=SMALL, arch="cpu").scene.render.temperature_range
+    expected = np.round(255.0 * ramp_np_many(TEMPERATURE_STOPS, (p["temperature"] - lo) / (hi - lo))).astype(np.uint8)
+    assert len(np.unique(expected, axis=0)) > 3  # a candle's wax and flame: several colours
+    if kind == "usd":
+        from pxr import Usd, UsdGeom
+
+        stage = Usd.Stage.Open(str(path))
+        points = UsdGeom.Points(stage.GetPrimAtPath("/World/particles"))
+        colors = np.asarray(points.GetDisplayColorPrimvar().Get(frame))
+        np.testing.assert_allclose(colors, srgb_to_linear(expected), atol=1e-6)
+        xyz = np.asarray(points.GetPointsAttr().Get(frame))
+        box = np.asarray(points.GetExtentAttr().Get(frame))
+        assert np.all(box[0] <= xyz.min(axis=0)) and np.all(xyz.max(axis=0) <= box[1])
+        mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/surface"))
+        assert mesh.GetSubdivisionSchemeAttr().Get() == "none"
+        normals = np.asarray(mesh.GetNormalsAttr().Get(frame))
+        assert len(normals) == len(mesh.GetPointsAttr().Get(frame))
+        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-5)
+    elif kind == "ply":
+        from plyfile import PlyData
+
+        v = PlyData.read(str(path.with_name(f"wax.ply.{frame:05d}.ply")))["vertex"]
+        got = np.stack([v["red"], v["green"], v["blue"]], axis=1)
+        assert got.dtype == np.uint8 and np.array_equal(got, expected)
+    else:
+        pytest.skip("VTK caches carry the temperature itself: ParaView colours by it with its own maps")

@@ -49,6 +49,7 @@ class CacheFrame:
     up: str = "Y"
     frame_seconds: float = 0.0
     velocity_note: str = ""  # how the velocity is written (a PLY comment)
+    colors: np.ndarray | None = None  # (N, 3) uint8 sRGB: the sandbox's own colour of each particle
 
 
 # ---------------------------------------------------------------------------------------------------------- PLY
@@ -100,6 +101,8 @@ def ply_bytes(frame: CacheFrame) -> bytes:
         else:
             columns[name] = values
     columns["width"] = frame.widths
+    if frame.colors is not None:  # read as the vertex colour by MeshLab, Blender and Houdini
+        columns.update({c: frame.colors[:, k] for k, c in enumerate(("red", "green", "blue"))})
     vertex = _ply_table(columns)
     elements = [("vertex", len(vertex), _properties(vertex), vertex.tobytes())]
     if frame.bonds is not None and len(frame.bonds):

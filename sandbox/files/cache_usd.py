@@ -50,6 +50,11 @@ def write_frame_layer(path: Path, frame: CacheFrame) -> None:
     if velocity is not None:
         points.GetVelocitiesAttr().Set(Vt.Vec3fArray.FromNumpy(velocity.astype(np.float32)), t)
     points.GetIdsAttr().Set(Vt.Int64Array.FromNumpy(frame.point_data["id"].astype(np.int64)), t)
+    half = 0.5 * float(frame.widths.max(initial=0.0))
+    points.GetExtentAttr().Set(_extent(frame.points, half), t)
+    if frame.colors is not None:  # USD's displayColor is linear: the sandbox's sRGB colours, decoded
+        colors = Vt.Vec3fArray.FromNumpy(srgb_to_linear(frame.colors).astype(np.float32))
+        points.GetDisplayColorPrimvar().Set(colors, t)
     points.GetPrim().CreateAttribute("sandbox:time", Sdf.ValueTypeNames.Double).Set(float(frame.time), t)
     api = UsdGeom.PrimvarsAPI(points.GetPrim())
     for name, kind in PRIMVARS.items():
@@ -67,6 +72,8 @@ def write_frame_layer(path: Path, frame: CacheFrame) -> None:
         mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(s.vertices.astype(np.float32)), t)
         mesh.GetFaceVertexCountsAttr().Set(Vt.IntArray.FromNumpy(np.full(len(s.triangles), 3, np.int32)), t)
         mesh.GetFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(s.triangles.reshape(-1).astype(np.int32)), t)
+        mesh.GetExtentAttr().Set(_extent(s.vertices, 0.0), t)
+        mesh.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(vertex_normals(s.vertices, s.triangles)), t)
         for name, values in s.vertex_data.items():
             UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
                 name, Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
@@ -89,8 +96,10 @@ def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, s
     world = UsdGeom.Xform.Define(stage, "/World")
     stage.SetDefaultPrim(world.GetPrim())
     points = UsdGeom.Points.Define(stage, "/World/particles")
-    for attr in (points.CreatePointsAttr(), points.CreateWidthsAttr(), points.CreateVelocitiesAttr()):
+    declared = (points.CreatePointsAttr(), points.CreateWidthsAttr(), points.CreateVelocitiesAttr())
+    for attr in (*declared, points.CreateExtentAttr()):
         attr.SetCustomDataByKey("sandbox", "values in the clips")
+    points.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
     points.CreateIdsAttr()
     points.GetPrim().CreateAttribute("sandbox:time", Sdf.ValueTypeNames.Double)  # simulated seconds at each frame
     api = UsdGeom.PrimvarsAPI(points.GetPrim())
@@ -99,6 +108,9 @@ def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, s
     if surface:
         mesh = UsdGeom.Mesh.Define(stage, "/World/surface")
         mesh.CreatePointsAttr(), mesh.CreateFaceVertexCountsAttr(), mesh.CreateFaceVertexIndicesAttr()
+        mesh.CreateExtentAttr(), mesh.CreateNormalsAttr()
+        mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # triangles as they are, not Catmull-Clark
         UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
             "temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
         )
@@ -134,3 +146,30 @@ def _export(layer, path: Path) -> None:
         raise OSError(errno.EIO, found.group(1) if found else "USD could not write the layer") from None
     if not ok:
         raise OSError(errno.EIO, "USD could not write the layer")
+
+
+def _extent(points: np.ndarray, pad: float):
+    """The box around `points` (N, 3), widened by `pad`, as USD's extent ([min, max])."""
+    from pxr import Gf, Vt
+
+    lo = points.min(axis=0) - pad if len(points) else np.zeros(3)
+    hi = points.max(axis=0) + pad if len(points) else np.zeros(3)
+    return Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))])
+
+
+def srgb_to_linear(colors: np.ndarray) -> np.ndarray:
+    """(N, 3) uint8 sRGB colours as linear floats in [0, 1] (the sRGB transfer function inverted)."""
+    c = colors.astype(np.float64) / 255.0
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(V, 3) float32 unit normals at the vertices: the sum of the adjacent triangles' area-weighted normals."""
+    v = vertices.astype(np.float64)
+    a, b, c = (v[triangles[:, k]] for k in range(3))
+    face = np.cross(b - a, c - a)  # twice the area, along the normal
+    normals = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(normals, triangles[:, k], face)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return (normals / np.where(length > 0, length, 1.0)).astype(np.float32)
