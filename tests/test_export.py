@@ -295,11 +295,12 @@ def test_a_surface_is_written_in_one_order_whatever_order_it_was_built_in():
 
 @pytest.mark.parametrize("kind", ["usd", "ply", "vtp"])
 def test_a_ballistic_particles_velocity_carries_it_to_its_next_cached_position(tmp_path, kind):
-    """Time right (issue 76): USD velocities were per simulated second while the stage plays 24 time codes a second,
-    so motion blur came out 0.02 x 24 = 0.48 (here) of the motion. Now position + velocity x (time codes apart /
-    time codes a second) is the next cached position in USD and PLY (a frame of the run is a time code, or a Houdini
-    frame, played at the cache's fps), and position + velocity x (timesteps apart) in VTK, whose collection's
-    timesteps are simulated seconds: each to 1e-5 relative, for a body moving at (3, 1) with no force on it."""
+    """Time right (issue 76): USD velocities were per simulated second while the stage plays 24 time codes a second
+    and a frame is 0.02 simulated seconds, so motion blur came out 1 / (0.02 x 24) = 2.08 times the motion (here).
+    Now position + velocity x (time codes apart / time codes a second) is the next cached position in USD and PLY (a
+    frame of the run is a time code, or a Houdini frame, played at the cache's fps), and position + velocity x
+    (timesteps apart) in VTK, whose collection's timesteps are simulated seconds: each to 1e-5 relative, for a body
+    moving at (3, 1) with no force on it."""
     from tests.conftest import make_scene, scene_dict
 
     world = {"dim": 2, "lo": [0.0, 0.0], "hi": [40.0, 40.0], "dt": 0.002, "substeps": 10}
