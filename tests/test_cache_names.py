@@ -65,11 +65,15 @@ def test_a_stats_file_inside_a_png_folder_is_not_one_of_its_frames(tmp_path, cap
 
 def test_a_usd_cache_past_a_size_limit_exits_4_in_one_line(tmp_path, capsys):
     """A full disk or `ulimit -f` was a traceback (exit 1) for USD, where PLY and VTK exit 4 with one line. The
-    limit lets the first two frame layers (about 4.1 and 4.3 kB) be written and stops the third."""
-    (tmp_path / "warm").mkdir()
-    assert run(tmp_path / "warm", frames=1, outputs=[*STILL, "--cache", "a.usd"]) == 0  # kernels compiled and saved
+    candle's frame layers grow as its flame emits: the limit, set between the sizes of its second and third frame
+    layers (measured by a first run), lets two be written and stops the third."""
+    (tmp_path / "warm").mkdir()  # kernels compiled and saved, and the frames' sizes known
+    assert run(tmp_path / "warm", frames=3, outputs=[*STILL, "--cache", "a.usd"]) == 0
+    sizes = [(tmp_path / "warm" / f"a.usd.{k:05d}.usdc").stat().st_size for k in (1, 2, 3)]
+    assert sizes[1] < sizes[2] and max(sizes[1], (tmp_path / "warm" / "s.png").stat().st_size) < sizes[2]
+    limit = (sizes[1] + sizes[2]) // 2
     soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (4380, hard))
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
     try:
         code = run(tmp_path, frames=6, outputs=[*STILL, "--cache", "a.usd"])
     finally:
