@@ -377,7 +377,7 @@ def test_a_new_pair_law_is_one_class_and_its_force_is_minus_the_derivative_of_it
     two particles feel m_i m_j dU/dr along their separation and measure U shifted to zero at the cutoff."""
     from sandbox.physics.pair_laws import NUMPY, MorseLaw
 
-    law, c = MorseLaw(None, False), (1.5, 2.0, 1.1)
+    law, c = MorseLaw(None), (1.5, 2.0, 1.1)
     for r in (0.8, 1.1, 1.6, 2.5):
         h = 1e-6
         du = (law.u(r + h, c, NUMPY) - law.u(r - h, c, NUMPY)) / (2 * h)

@@ -70,7 +70,6 @@ class CacheSequence:
         self.format = cache_kind(named)
         self.kind = f"cache-{self.format}"
         self.words = f"a {self.format.upper()} particle cache"
-        self.ext = FRAME_EXT[self.format]
         self.frames: list[list] = []  # [frame, time, has surface] per written frame
         self.hashes: list[str] = []
         self.up, self.surface = "Y", False

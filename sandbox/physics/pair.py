@@ -20,7 +20,6 @@ so momentum is conserved. Materials mix by geometric means of alpha and beta, ar
 """
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 import taichi as ti
@@ -30,35 +29,29 @@ from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
 from ..core.transfer import real_fields
-from .pair_laws import LAWS, NUMPY, TAICHI, PowerLaw
+from .pair_laws import NUMPY, TAICHI, PowerLaw, law_for
 from .term import Measure, Slider, Term, register
 
 
 def radial_force(r, alpha, beta, eps, a, b):
     """Radial force factor g(r) of the power law such that F_i = g(r) d (NumPy/float; unit masses)."""
-    return PowerLaw(_Exponents(a, b), soft=True).g(np.multiply(r, r), (alpha, beta, eps), NUMPY)
+    return PowerLaw(a, b).g(np.multiply(r, r), (alpha, beta, eps), NUMPY)
 
 
 def equilibrium_distance(alpha: float, beta: float, eps: float, a: float, b: float) -> float:
     """The r where the power law's force vanishes (alpha/(r+eps)^a = beta/r^b); inf without attraction."""
-    return PowerLaw(_Exponents(a, b), soft=True).equilibrium((alpha, beta, eps))
+    return PowerLaw(a, b).equilibrium((alpha, beta, eps))
 
 
 def pair_energy(r: float, alpha: float, beta: float, eps: float, a: float, b: float, cutoff: float) -> float:
     """The power law's potential U(r), shifted to zero at the cutoff, with dU/dr = r g(r) (unit masses, r >= core)."""
-    law, c = PowerLaw(_Exponents(a, b), soft=True), (alpha, beta, eps)
+    law, c = PowerLaw(a, b), (alpha, beta, eps)
     return float(law.u(r, c, NUMPY) - law.u(cutoff, c, NUMPY))
 
 
 # A law's g and u are plain Python on purpose (physics/pair_laws.py: the same lines run on NumPy arrays), with no branch
 # on a run-time value, so Taichi's warning that it does not transform them is expected.
 warnings.filterwarnings("ignore", message=r'.*Calling non-taichi function "self\.pair_law\.', category=SyntaxWarning)
-
-
-@dataclass(frozen=True)
-class _Exponents:
-    a: float
-    b: float
 
 
 @register
@@ -95,18 +88,15 @@ class PairForce(Term):
         self.cutoff = float(pair.cutoff)
         self.reach = self.cutoff
         soft = any(m.pair_soft for m in materials)
-        self.pair_law = LAWS[pair.law](
-            pair, soft
-        )  # its formula (physics/pair_laws.py); the cutoff, shifts and core here
+        self.pair_law = law_for(pair, soft)  # its formula (pair_laws.py); the cutoff, shifts and core are here
         visc = np.array([m.viscosity for m in materials])
         self.n_materials = n
         self.core = float(pair.core)
         self.base_np = self.pair_law.coefficients(materials, pair)  # the law's three (n, n) coefficient tables
         self.visc_np = 0.5 * (visc[:, None] + visc[None, :])
-        # the third coefficient (the power law's eps) and visc are filled here; the others by set_scale (one copy
-        # kernel each time)
-        self.eps, self.visc = real_fields(self.base_np[2], self.visc_np)
-        self.alpha, self.beta, self.r_core, self.shift, self.f_core = (ti.field(float, shape=(n, n)) for _ in range(5))
+        (self.visc,) = real_fields(self.visc_np)  # the law's coefficients and what follows from them: set_scale
+        self.alpha, self.beta, self.eps = (ti.field(float, shape=(n, n)) for _ in range(3))  # coefficients 0, 1, 2
+        self.r_core, self.shift, self.f_core = (ti.field(float, shape=(n, n)) for _ in range(3))
         self.f_cut = ti.field(float, shape=(n, n))  # g(cutoff) cutoff: the force shift (zero without it)
         self.shift_att = ti.field(float, shape=(n, n))  # the attraction's part of the shift (vapour scales it)
         self.set_scale(1.0, 1.0)

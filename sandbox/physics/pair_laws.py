@@ -75,10 +75,11 @@ class PowerLaw:
     scaled = {"attraction": 0, "repulsion": 1}  # what the pair-force sliders scale
     attraction = 0  # the coefficient vapour does not feel (a material that boils)
 
-    def __init__(self, pair, soft: bool) -> None:
-        """`pair`: the scene's [pair] table; `soft`: some material pair has eps != 0."""
-        self.a, self.b = float(pair.a), float(pair.b)
-        self.even = not soft and self.a % 2 == 0 and self.b % 2 == 0  # powers of 1/r^2: no square root
+    def __init__(self, a: float, b: float, soft: bool = True) -> None:
+        """Exponents `a` and `b`; `soft`: some material pair has eps != 0 (else, with even exponents, the forces are
+        powers of 1/r^2 and need no square root)."""
+        self.a, self.b = float(a), float(b)
+        self.even = not soft and self.a % 2 == 0 and self.b % 2 == 0
 
     def coefficients(self, materials, pair) -> list[np.ndarray]:
         """The (n, n) tables of alpha, beta and eps of every pair of `materials`."""
@@ -145,7 +146,8 @@ class MorseLaw:
     scaled = {"attraction": 0}  # the well's depth
     attraction = None  # no attraction apart from the rest: materials that boil need the power law
 
-    def __init__(self, pair, soft: bool) -> None:
+    def __init__(self, pair) -> None:
+        """`pair`: the scene's [pair] table (its depth, width and distance)."""
         self.pair = pair
 
     def coefficients(self, materials, pair) -> list[np.ndarray]:
@@ -170,4 +172,6 @@ class MorseLaw:
         return f"Morse: depth {self.pair.depth:g}, width {self.pair.width:g}, at {self.pair.distance:g}"
 
 
-LAWS = {law.name: law for law in (PowerLaw, MorseLaw)}
+def law_for(pair, soft: bool):
+    """The law the scene's [pair] table names; `soft`: some material pair has a softening eps != 0."""
+    return MorseLaw(pair) if pair.law == MorseLaw.name else PowerLaw(pair.a, pair.b, soft)
