@@ -5,8 +5,8 @@ cap, the window's curve) and inside Taichi kernels (the step's forces, the measu
 
 A law gives only its formula, its three coefficients (from the materials or the [pair] table) and which of them the
 pair-force sliders scale; the term (physics/pair.py) applies the cutoff, the energy shift (pair.shift), the force
-shift (pair.force_shift), the core cap and the viscous term for any law. A new law is a class here, with a name in
-LAWS and its keys in the [pair] table (config/scene_tables.py).
+shift (pair.force_shift), the core cap and the viscous term for any law. A new law is a class here, chosen by
+law_for, with its keys in the [pair] table (config/scene_tables.py).
 
     power   alpha / (r + eps)^a - beta / r^b: the 12-6 Lennard-Jones force is a = 8, b = 14, eps = 0, alpha = 24 e s^6,
             beta = 48 e s^12 (unit masses); materials mix alpha and beta geometrically, eps arithmetically
