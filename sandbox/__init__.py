@@ -37,7 +37,7 @@ _EXPORTS = {
     "Simulation": "simulation",
     "FrameTable": "files.table",
     "plateau": "measure.curves",
-    "Cache": "scripting",
+    "Cache": "caching",
 }
 
 

@@ -14,16 +14,11 @@ import numpy as np
 from .config.arguments import MAX_SIDE
 from .config.schema import parse_table
 from .errors import SandboxError
-from .files.cache_formats import CacheFrame
-from .files.cache_sequence import CacheSequence, index_path
-from .files.claim import Claim
 from .files.extxyz import append_frame, frame_text
 from .files.table import FrameTable
-from .physics.phase import ENTHALPY_LAW, gas_fraction_np, temperature_np
-from .render.colormaps import TEMPERATURE_STOPS, ramp_np_many
+from .physics.phase import ENTHALPY_LAW, temperature_np
 from .render.notebook import Movie, png_html
 from .render.raster import Renderer
-from .render.surface import reconstruct
 
 
 def run_frames(sim, frames: int, progress: bool = False, after=None) -> FrameTable:
@@ -185,119 +180,3 @@ def _progress_bar(total: int, label: str):
     except ImportError:
         return None
     return tqdm(total=total, unit="frame", desc=label)
-
-
-def particle_phases(sim, table: dict[str, np.ndarray]) -> np.ndarray:
-    """Phase code per row of `table` (particle_table): 0 solid (melt fraction below one half), 1 liquid, 2 gas (gas
-    fraction at least one half). Without heat every particle is 0."""
-    n = len(table["id"])
-    if sim.terms.heat is None:
-        return np.zeros(n, dtype=np.int32)
-    p, live = sim.particles, sim.state.live_count()
-    order = np.argsort(p.ident.to_numpy()[:live], kind="stable")
-    ids = table["material"]
-    c, _, liquidus, latent, boil, vapor, liquid_c, _ = (sim.model.column(name, ids) for name in ENTHALPY_LAW)
-    gas = gas_fraction_np(p.h.to_numpy()[:live][order], c, liquidus, latent, boil, vapor, liquid_c)
-    return np.where(gas >= 0.5, 2, np.where(table["melt_fraction"] >= 0.5, 1, 0)).astype(np.int32)
-
-
-def cache_frame(sim, surface: bool = False) -> CacheFrame:
-    """The particles now as one cache frame (files/cache_formats.py): positions in 3 components, velocity,
-    temperature (degrees C), melt fraction, phase, material, body and id as point data, widths (each particle's
-    diameter, length), the live springs, and with `surface` the surface of the bodies and melts (not the emitted
-    particles, not the gas) with temperature on its vertices (render/surface.py, the scene's surface_* keys)."""
-    table = particle_table(sim)
-    dim, n = sim.dim, len(table["id"])
-    points = np.zeros((n, 3), dtype=np.float32)
-    points[:, :dim] = table["position"]
-    velocity = np.zeros((n, 3), dtype=np.float32)
-    velocity[:, :dim] = table["velocity"]
-    phase = particle_phases(sim, table)
-    groups = sim.scene.groups
-    diameter = np.array([2 * g.particle_radius if hasattr(g, "particle_radius") else sim.scene.spacing for g in groups])
-    widths = np.where(
-        table["body"] < len(groups), diameter[np.minimum(table["body"], len(groups) - 1)], sim.scene.spacing
-    )
-    data = {
-        "velocity": velocity,
-        "temperature": np.nan_to_num(table["temperature"].astype(np.float32), nan=0.0),
-        "melt_fraction": table["melt_fraction"].astype(np.float32),
-        "phase": phase,
-        "material": table["material"].astype(np.int32),
-        "body": table["body"].astype(np.int32),
-        "id": table["id"],
-    }
-    bonds = None
-    if sim.state.springs is not None:
-        bonds = np.searchsorted(table["id"], spring_pairs(sim)).astype(np.int64).reshape(-1, 2)  # ids -> rows
-    gravity = np.abs(np.asarray(sim.scene.world.gravity or (0.0,) * dim))
-    up = "Z" if dim == 3 and gravity.size == 3 and gravity.argmax() == 2 and gravity.max() > 0 else "Y"
-    shape = None
-    if surface:
-        emitted = (table["body"] >= len(sim.scene.bodies)) & (table["body"] < len(groups))
-        keep = ~emitted & (phase < 2)
-        r = sim.scene.render
-        shape = reconstruct(
-            points[keep],
-            {"temperature": data["temperature"][keep]},
-            0.5 * sim.scene.spacing,
-            r.surface_smoothing,
-            r.surface_iso,
-            r.surface_cell,
-            dim,
-        )
-    world = sim.scene.world
-    frame_seconds = world.frame_time if world.substeps == "auto" else int(world.substeps) * sim.dt
-    frame = CacheFrame(
-        sim.frames_done, sim.time, points, data, widths.astype(np.float32), bonds, shape, up, float(frame_seconds)
-    )
-    frame.colors = cache_colors(sim, table)
-    return frame
-
-
-def cache_colors(sim, table: dict) -> np.ndarray:
-    """Each particle's colour as the sandbox draws it, (N, 3) uint8 sRGB: the temperature colour map over the scene's
-    render.temperature_range where the scene has heat, else its material's colour."""
-    if sim.particles.heat:
-        lo, hi = sim.scene.render.temperature_range
-        rgb = ramp_np_many(TEMPERATURE_STOPS, (table["temperature"] - lo) / (hi - lo))
-    else:
-        rgb = sim.model.materials.colors[table["material"]]
-    return np.clip(np.round(255.0 * np.asarray(rgb, dtype=np.float64)), 0, 255).astype(np.uint8)
-
-
-class Cache:
-    """A particle cache a script writes frame by frame (docs/export.md): `with sandbox.Cache("out/wax.usd") as
-    cache: ... cache.write(sim)`. `fps`: time codes per second of a USD stage; `lines`: springs as VTK lines."""
-
-    def __init__(self, path: str | Path, fps: float = 30.0, lines: bool = True) -> None:
-        path = Path(path)
-        self.claim = Claim("cache", index_path(path))
-        self.claim.acquire()
-        self.sequence = CacheSequence(self.claim, path, fps, lines)
-        self.sequence.start()
-
-    def write(self, sim, surface: bool = False) -> None:
-        """Add the particles as they are now (the frame numbered sim.frames_done)."""
-        self.sequence.write(cache_frame(sim, surface))
-
-    def close(self) -> None:
-        """Write the index and release the name."""
-        try:
-            self.sequence.publish()
-        finally:
-            self.claim.release()
-
-    def __enter__(self) -> Cache:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-
-def write_cache(sim, path: str | Path, frames: int, every: int = 1, surface: bool = False, fps: float = 30.0) -> Path:
-    """Run `frames` frames, caching the state before them and after every `every`-th (see Cache); the index path."""
-    with Cache(path, fps) as cache:
-        cache.write(sim, surface)
-        run_frames(sim, frames, after=lambda k: (k + 1) % every == 0 and cache.write(sim, surface))
-    return cache.claim.path

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import taichi as ti
 
-from . import scripting
+from . import caching, scripting
 from .assembly import assemble
 from .config.arguments import MAX_SUBSTEPS
 from .config.scene_tables import Scene
@@ -253,9 +253,9 @@ class Simulation:
         self, path: str | Path, frames: int, every: int = 1, surface: bool = False, fps: float = 30.0
     ) -> Path:
         """Run `frames` frames into a particle cache for Blender, Houdini or ParaView (PATH.usd, .vtp or .ply; see
-        scripting.write_cache and docs/export.md): the state now and after every `every`-th frame; `surface`: a
+        caching.write_cache and docs/export.md): the state now and after every `every`-th frame; `surface`: a
         surface mesh of the bodies and melts with each. Returns the path to open."""
-        return scripting.write_cache(self, path, frames, every, surface, fps)
+        return caching.write_cache(self, path, frames, every, surface, fps)
 
     def _repr_html_(self) -> str:
         return scripting.html(self)

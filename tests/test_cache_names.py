@@ -28,25 +28,30 @@ def test_caches_of_different_names_never_share_a_frame_file(tmp_path, capsys, fi
     first's (a.usd's frames then showed the other run's particles, or nothing)."""
     assert run(tmp_path, frames=4, outputs=[*STILL, "--cache", first]) == 0, errors(capsys)
     kept = frames_of(tmp_path, first)
-    assert len(kept) == 4
+    assert len(kept) == 5  # frames 0 to 4
     code = run(tmp_path, "--substeps", "4", frames=2, outputs=["--out", "t.png", "--cache", second])  # other frames
     assert code == 0, errors(capsys)
     assert frames_of(tmp_path, first) == kept
-    assert len(frames_of(tmp_path, second)) == 2
+    assert len(frames_of(tmp_path, second)) == 3
 
 
 def test_a_surface_named_cache_never_removes_another_caches_surfaces(tmp_path, capsys):
     """`--cache w.surface.ply` beside a finished `w.ply --cache-surface` deleted w.ply's surfaces."""
     assert run(tmp_path, "--cache-surface", frames=2, outputs=[*STILL, "--cache", "w.ply"]) == 0, errors(capsys)
     kept = frames_of(tmp_path, "w.ply")
-    assert sorted(kept) == ["w.ply.00001.ply", "w.ply.00002.ply", "w.ply.surface.00001.ply", "w.ply.surface.00002.ply"]
+    assert sorted(kept) == [f"w.ply.{kind}{k:05d}.ply" for kind in ("", "parts.", "surface.") for k in range(3)]
     assert run(tmp_path, frames=2, outputs=["--out", "t.png", "--cache", "w.surface.ply"]) == 0, errors(capsys)
     assert frames_of(tmp_path, "w.ply") == kept
 
 
 @pytest.mark.parametrize(
     "cache, other",
-    [("w.ply", "w.ply.00001.ply"), ("w.ply", "w.ply.surface.00002.ply"), ("w.usd", "w.usd.00001.usdc")],
+    [
+        ("w.ply", "w.ply.00001.ply"),
+        ("w.ply", "w.ply.surface.00002.ply"),
+        ("w.ply", "w.ply.parts.00002.ply"),
+        ("w.usd", "w.usd.00001.usdc"),
+    ],
 )
 def test_no_other_output_may_take_a_cache_frames_name(tmp_path, capsys, cache, other):
     """`--cache w.ply --stats w.00001.ply` replaced that frame: the check compared only the index path."""
@@ -100,12 +105,8 @@ def test_a_cache_only_run_with_no_video_encodes_nothing_and_touches_no_video(tmp
     earlier.write_bytes(b"someone's video")
     assert run(tmp_path, "--no-video", frames=3, outputs=["--cache", "w.ply"]) == 0, errors(capsys)
     assert earlier.read_bytes() == b"someone's video"
-    assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "out",
-        "w.ply.00001.ply",
-        "w.ply.00002.ply",
-        "w.ply.00003.ply",
-    ]
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert files == ["out", *sorted(f"w.ply.{kind}{k:05d}.ply" for kind in ("", "parts.") for k in range(4))]
     assert "-> w.ply" in capsys.readouterr().err
     assert run(tmp_path, "--no-video", frames=2, outputs=["--out", "m.mp4"]) == EXIT_BAD_INPUT
     lines = errors(capsys)

@@ -143,12 +143,12 @@ def test_a_png_folder_record_of_no_frames_removes_none(cached, tmp_path, capsys)
     "written, says",
     [
         ([], "--cache w.ply"),  # a cache of no frames: the 8 frame files would be removed
-        ([[4, 0.08, False], [8, 0.16, False], [9, 0.18, False]], "--cache w.ply"),  # a frame never written
+        ([[0, 0.0, False], [4, 0.08, False], [8, 0.16, False], [9, 0.18, False]], "--cache w.ply"),  # unwritten
         ([[4, "0.08", False], [8, 0.16, False]], "record of --cache is damaged"),  # a string time was a traceback
         ([[4, float("nan"), False], [8, 0.16, False]], "record of --cache is damaged"),
         ([[4, 0.08, False], [10**30, 0.16, False]], "record of --cache is damaged"),
-        ([[2, 0.04, False], [4, 0.08, False], [6, 0.12, False], [8, 0.16, False]], "--cache w.ply"),  # every 2
-        ([[4, 0.08, True], [8, 0.16, True]], "--cache w.ply"),  # with surfaces this run does not write
+        ([[k, 0.02 * k, False] for k in range(0, 9, 2)], "--cache w.ply"),  # every 2
+        ([[k, 0.02 * k, True] for k in range(9)], "--cache w.ply"),  # surfaces this run does not write
     ],
     ids=["none", "unwritten", "string-time", "nan-time", "huge-frame", "other-every", "surfaces"],
 )
@@ -161,7 +161,8 @@ def test_a_cache_record_proves_only_the_frames_on_disk(cached, tmp_path, capsys,
         hashes = []
         for frame, _, surface in written:
             if isinstance(frame, int) and frame < 10**6:
-                for name in [f"w.ply.{frame:05d}.ply"] + ([f"w.ply.surface.{frame:05d}.ply"] if surface else []):
+                names = [f"w.ply.{frame:05d}.ply"] + ([f"w.ply.surface.{frame:05d}.ply"] if surface else [])
+                for name in [*names, f"w.ply.parts.{frame:05d}.ply"]:
                     path = cached / name
                     hashes.append(hashlib.sha256(path.read_bytes()).hexdigest() if path.exists() else "missing")
         record.update(written=written, digest=digest_of(hashes))
@@ -199,7 +200,7 @@ def test_an_honest_checkpoint_still_continues_every_output(finished, cached, tmp
         assert run(folder, resume=True, frames=12, outputs=outputs) == 0, errors(capsys)
     assert (tmp_path / finished.name / "s.csv").read_text().count("\n") == 13
     assert len(list((tmp_path / cached.name / "frames").glob("frame_*.png"))) == 12
-    assert len(list((tmp_path / cached.name).glob("w.ply.*.ply"))) == 12
+    assert len(list((tmp_path / cached.name).glob("w.ply.0*.ply"))) == 13  # frames 0 to 12
 
 
 def test_a_hard_link_at_a_partials_name_is_never_appended_to(finished, tmp_path, capsys):

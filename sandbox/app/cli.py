@@ -283,6 +283,12 @@ def _run_arguments(sub) -> None:
     )
     run.add_argument("--cache-every", type=int, metavar="N", help="with --cache: every N frames (default 1)")
     run.add_argument(
+        "--cache-from",
+        type=int,
+        metavar="FRAME",
+        help="with --cache: the first frame cached (default 0, the state the run starts from)",
+    )
+    run.add_argument(
         "--cache-surface", action="store_true", help="with --cache: a surface mesh of the bodies and melts too"
     )
     run.add_argument(

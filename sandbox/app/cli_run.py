@@ -62,8 +62,11 @@ def _check_run_numbers(args) -> None:
     if args.dump_every is not None and args.dump is None:
         raise SandboxError(f"--dump-every {args.dump_every}: expected together with --dump PATH.extxyz")
     check_count("--cache-every", args.cache_every, 1, MAX_FRAMES)
-    if (args.cache_every is not None or args.cache_surface) and args.cache is None:
-        raise SandboxError("--cache-every/--cache-surface: expected together with --cache PATH.usd|.vtp|.ply")
+    check_count("--cache-from", args.cache_from, 0, MAX_FRAMES)
+    if (args.cache_every is not None or args.cache_from is not None or args.cache_surface) and args.cache is None:
+        raise SandboxError(
+            "--cache-every/--cache-from/--cache-surface: expected together with --cache PATH.usd|.vtp|.ply"
+        )
     if args.no_video and (args.out is not None or args.still_frame is not None):
         raise SandboxError("--no-video with --out or --still-frame: expected pictures or none, not both")
     if args.resume is not None and args.set:
@@ -199,6 +202,8 @@ def _plan_run(args) -> RunPlan:
         args.checkpoint = f"out/{file_stem(scene.name)}.state.npz"
     if args.still_frame is not None:
         check_count("--still-frame", args.still_frame, 0, frames - 1)
+    if args.cache_from is not None and args.cache_from > frames:
+        raise SandboxError(f"--cache-from {args.cache_from}: the run ends at frame {frames}; expected 0 to {frames}")
     headless = args.headless or args.no_video
     if not headless and (args.dump or args.checkpoint_every or args.cache):
         print("--dump, --cache and --checkpoint-every write from headless runs: running headless", file=sys.stderr)
@@ -263,6 +268,7 @@ def _headless(args, sim, plan: RunPlan) -> int:
         cache=args.cache,
         cache_every=args.cache_every or 1,
         cache_surface=args.cache_surface,
+        cache_from=args.cache_from or 0,
     )
     start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
     if frames == first_frame:

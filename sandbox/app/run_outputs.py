@@ -18,15 +18,17 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from ..caching import cache_frame, scene_parts
 from ..errors import OutputError, SandboxError
 from ..files.appending import AppendFile
 from ..files.cache_sequence import CacheSequence, index_path
 from ..files.claim import RESTART_HINT, Claim
 from ..files.persist import save_state
 from ..measure.stats import stat_values
+from ..render.camera import scene_camera
 from ..render.segments import PngFolder, SegmentedVideo
 from ..render.video import StillWriter
-from ..scripting import cache_frame, extxyz_text
+from ..scripting import extxyz_text
 from ..simulation import STAT_COLUMNS, Stats
 
 KIND_WORDS = {"mp4": "an MP4 video", "gif": "a GIF", "png-folder": "a folder of PNG frames", "text": "a text file"}
@@ -72,11 +74,12 @@ class RunOutputs:
         cache: str | Path | None = None,
         cache_every: int = 1,
         cache_surface: bool = False,
+        cache_from: int = 0,
     ) -> None:
         self.sim = sim
         self.dump_every = dump_every
         self.cache = Path(cache) if cache else None
-        self.cache_every, self.cache_surface = cache_every, cache_surface
+        self.cache_every, self.cache_surface, self.cache_from = cache_every, cache_surface, cache_from
         self.checkpoint = Path(checkpoint) if checkpoint else None
         self.checkpoint_every = checkpoint_every if self.checkpoint is not None else None
         named = {"--out": out, "--stats": stats, "--dump": dump, "--checkpoint": self.checkpoint}
@@ -117,7 +120,14 @@ class RunOutputs:
             self.writers["--dump"] = AppendFile(claims["--dump"])
         if "--cache" in claims:
             self.writers["--cache"] = CacheSequence(
-                claims["--cache"], self.cache, fps, every=self.cache_every, surface=self.cache_surface
+                claims["--cache"],
+                self.cache,
+                fps,
+                every=self.cache_every,
+                surface=self.cache_surface,
+                first=self.cache_from,
+                parts=scene_parts(self.sim),
+                camera=scene_camera(self.sim.scene),
             )
         records = _records(resume, restart)
         found = {}  # every output checked before any is touched
@@ -141,6 +151,8 @@ class RunOutputs:
                 writer.start(_csv_text(None) if option == "--stats" else "")
             elif not isinstance(writer, StillWriter):
                 writer.start()
+                if option == "--cache" and self.caches(0) and resume is None:
+                    writer.write(cache_frame(self.sim, self.cache_surface))  # the state the run starts from
         in_use = {p for w in self.writers.values() if not isinstance(w, StillWriter) for p in w.in_use()}
         for claim in self.claims:
             for leftover in claim.leftovers():
@@ -167,10 +179,15 @@ class RunOutputs:
             self.writers["--out"].write(picture())
         if "--dump" in self.writers and done % self.dump_every == 0:
             self.writers["--dump"].write(extxyz_text(self.sim))
-        if "--cache" in self.writers and done % self.cache_every == 0:
+        if "--cache" in self.writers and self.caches(done):
             self.writers["--cache"].write(cache_frame(self.sim, self.cache_surface))
         if self.checkpoint_every and done % self.checkpoint_every == 0:
             self._checkpoint(done)
+
+    def caches(self, done: int) -> bool:
+        """Whether the cache holds the state after `done` frames (0: the state the run starts from): every
+        `cache_every`-th frame from `cache_from` on."""
+        return done >= self.cache_from and (done - self.cache_from) % self.cache_every == 0
 
     def _checkpoint(self, done: int) -> None:
         records = {option: w.mark() for option, w in self.writers.items() if not isinstance(w, StillWriter)}

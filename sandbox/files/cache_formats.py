@@ -1,8 +1,9 @@
 """One frame of a particle cache, and how it is written as PLY and as VTK XML PolyData (.vtp, with a .pvd collection).
 
 A `CacheFrame` is what every format carries: the particles' positions (always 3 components: a 2D scene has z = 0)
-and their point data (velocity, temperature in degrees C, melt fraction, phase, material, body, id), optionally the
-live springs as pairs of row indices, and optionally a triangle surface with its own vertex data. Lengths are in the
+and their point data (velocity, temperature in degrees C (`temp_c` in USD and PLY: FILM_NAMES), melt fraction,
+phase, material, body, id), optionally the live springs as pairs of row indices, and optionally a triangle surface
+with its own vertex data; the scene's walls, plates and lid, and its camera. Lengths are in the
 scene's unit (one particle spacing = 1 mm: `METERS_PER_UNIT`), times in simulated seconds.
 
 Both writers are plain NumPy: PLY is a text header and one binary table per element; VTP is XML whose arrays follow
@@ -21,15 +22,26 @@ import numpy as np
 
 METERS_PER_UNIT = 0.001  # one particle spacing is 1 mm (README, "Units")
 PHASES = ("solid", "liquid", "gas")  # the `phase` codes 0, 1, 2
+# Names renderers reserve, as the formats Blender and Houdini read write them: Cycles takes an attribute named
+# `temperature` for the smoke simulation's and shades it flat, so USD and PLY carry the temperature as `temp_c`; VTK
+# (ParaView, which reserves no name) keeps `temperature`.
+FILM_NAMES = {"temperature": "temp_c"}
+
+
+def film_name(name: str) -> str:
+    """The attribute name a USD or PLY cache gives the point data `name`."""
+    return FILM_NAMES.get(name, name)
 
 
 @dataclass
 class Surface:
-    """A triangle mesh: `vertices` (V, 3) float, `triangles` (T, 3) int indices, `vertex_data` name -> (V,) array."""
+    """A triangle mesh: `vertices` (V, 3) float, `triangles` (T, 3) int indices, `vertex_data` name -> (V,) array,
+    `colors` (V, 3) uint8 sRGB or None."""
 
     vertices: np.ndarray
     triangles: np.ndarray
     vertex_data: dict[str, np.ndarray] = field(default_factory=dict)
+    colors: np.ndarray | None = None
 
 
 @dataclass
@@ -37,7 +49,8 @@ class CacheFrame:
     """One cached frame: `frame` its number (frames done), `time` simulated seconds, `points` (N, 3) positions,
     `point_data` name -> (N,) or (N, 3) arrays (velocity in length per simulated second), `widths` (N,) particle
     diameters, `bonds` (M, 2) row indices of the springs' ends (or None), `surface` (or None), `up` the scene's up
-    axis ("Y" or "Z"), `frame_seconds` the simulated seconds one frame spans (0: not known)."""
+    axis ("Y" or "Z"), `frame_seconds` the simulated seconds one frame spans (0: not known), `parts` the scene's
+    walls, plates and lid (files/cache_parts.py), `camera` the pictures' camera (render/camera.py's Camera)."""
 
     frame: int
     time: float
@@ -50,6 +63,8 @@ class CacheFrame:
     frame_seconds: float = 0.0
     velocity_note: str = ""  # how the velocity is written (a PLY comment)
     colors: np.ndarray | None = None  # (N, 3) uint8 sRGB: the sandbox's own colour of each particle
+    parts: list = field(default_factory=list)
+    camera: object | None = None
 
 
 # ---------------------------------------------------------------------------------------------------------- PLY
@@ -79,12 +94,12 @@ def _properties(table: np.ndarray) -> list[str]:
     return [f"property {_PLY_TYPES[table.dtype[p].str[1:]]} {p}" for p in table.dtype.names]
 
 
-def _ply(frame: CacheFrame, elements: list[tuple[str, int, list[str], bytes]]) -> bytes:
-    """A binary PLY: (element name, count, property lines, the element's bytes) in order."""
+def _ply(frame: CacheFrame, elements: list[tuple[str, int, list[str], bytes]], comments: tuple = ()) -> bytes:
+    """A binary PLY: (element name, count, property lines, the element's bytes) in order; `comments` more header
+    comments."""
     lines = ["ply", "format binary_little_endian 1.0", f"comment sandbox frame {frame.frame} time {frame.time:.9g} s"]
     lines.append(f"comment unit {METERS_PER_UNIT} m up {frame.up}")
-    if frame.velocity_note:
-        lines.append(f"comment {frame.velocity_note}")
+    lines += [f"comment {line}" for line in comments]
     for name, count, properties, _ in elements:
         lines += [f"element {name} {count}", *properties]
     lines.append("end_header")
@@ -99,7 +114,7 @@ def ply_bytes(frame: CacheFrame) -> bytes:
         if values.ndim == 2:
             columns.update({f"{name[0]}{axis}": a for axis, a in zip("xyz", values.T)})
         else:
-            columns[name] = values
+            columns[film_name(name)] = values
     columns["width"] = frame.widths
     if frame.colors is not None:  # read as the vertex colour by MeshLab, Blender and Houdini
         columns.update({c: frame.colors[:, k] for k, c in enumerate(("red", "green", "blue"))})
@@ -108,14 +123,19 @@ def ply_bytes(frame: CacheFrame) -> bytes:
     if frame.bonds is not None and len(frame.bonds):
         edge = _ply_table({"vertex1": frame.bonds[:, 0], "vertex2": frame.bonds[:, 1]})
         elements.append(("edge", len(edge), _properties(edge), edge.tobytes()))
-    return _ply(frame, elements)
+    comments = [frame.velocity_note] if frame.velocity_note else []
+    comments += [frame.camera.words()] if frame.camera is not None else []
+    return _ply(frame, elements, tuple(comments))
 
 
-def surface_ply_bytes(frame: CacheFrame) -> bytes:
-    """The surface of `frame` as a binary PLY mesh: `vertex` (x, y, z and the vertex data) and `face` (a list of
-    three vertex indices each)."""
-    s = frame.surface
-    vertex = _ply_table({"x": s.vertices[:, 0], "y": s.vertices[:, 1], "z": s.vertices[:, 2], **s.vertex_data})
+def surface_ply_bytes(frame: CacheFrame, mesh: Surface | None = None, comments: tuple = ()) -> bytes:
+    """The surface of `frame` (or `mesh`: the parts) as a binary PLY mesh: `vertex` (x, y, z, the vertex data and
+    any colours) and `face` (a list of three vertex indices each)."""
+    s = mesh if mesh is not None else frame.surface
+    data = {film_name(name): values for name, values in s.vertex_data.items()}
+    if s.colors is not None:
+        data.update({c: s.colors[:, k] for k, c in enumerate(("red", "green", "blue"))})
+    vertex = _ply_table({"x": s.vertices[:, 0], "y": s.vertices[:, 1], "z": s.vertices[:, 2], **data})
     faces = np.empty(len(s.triangles), dtype=[("n", "u1"), ("v", "<i4", (3,))])
     faces["n"], faces["v"] = 3, s.triangles
     return _ply(
@@ -124,6 +144,7 @@ def surface_ply_bytes(frame: CacheFrame) -> bytes:
             ("vertex", len(vertex), _properties(vertex), vertex.tobytes()),
             ("face", len(faces), ["property list uchar int vertex_indices"], faces.tobytes()),
         ],
+        comments,
     )
 
 
@@ -190,14 +211,17 @@ def vtp_bytes(frame: CacheFrame, lines: bool = True) -> bytes:
     return _vtp(frame.points, data, {"Verts": np.arange(len(frame.points)), "Lines": bonds})
 
 
-def surface_vtp_bytes(frame: CacheFrame) -> bytes:
-    """The surface of `frame` as VTK XML PolyData: triangles as polygon cells, the vertex data as point data."""
-    s = frame.surface
-    return _vtp(s.vertices, s.vertex_data, {"Polys": s.triangles.reshape(-1)})
+def surface_vtp_bytes(frame: CacheFrame, mesh: Surface | None = None) -> bytes:
+    """The surface of `frame` (or `mesh`: the parts) as VTK XML PolyData: triangles as polygon cells, the vertex data
+    as point data, any colours as `color` (3 bytes a point: ParaView draws them as they are with Map Scalars off)."""
+    s = mesh if mesh is not None else frame.surface
+    data = dict(s.vertex_data) if s.colors is None else {**s.vertex_data, "color": s.colors}
+    return _vtp(s.vertices, data, {"Polys": s.triangles.reshape(-1)})
 
 
 def pvd_text(entries: list[tuple[float, int, str]]) -> str:
-    """A ParaView collection: (time, part, file name) per dataset; part 0 the particles, 1 the surface."""
+    """A ParaView collection: (time, part, file name) per dataset; part 0 the particles, 1 the surface, 2 the
+    walls, plates and lid."""
     rows = "".join(
         f'<DataSet timestep="{t:.9g}" group="" part="{part}" file={quoteattr(name)}/>\n' for t, part, name in entries
     )

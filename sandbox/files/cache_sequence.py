@@ -1,6 +1,7 @@
 """A particle cache written frame by frame beside the path named for it, under the rules of docs/files.md.
 
-    --cache out/wax.ply   out/wax.ply.00000.ply, out/wax.ply.00001.ply, ... (and out/wax.ply.surface.00000.ply ...)
+    --cache out/wax.ply   out/wax.ply.00000.ply, out/wax.ply.00001.ply, ... (and out/wax.ply.surface.00000.ply ...),
+                          out/wax.ply.parts.00000.ply, ... (the walls, plates and lid)
     --cache out/wax.vtp   out/wax.pvd.00000.vtp ... (and out/wax.pvd.surface.00000.vtp ...) and the collection
                           out/wax.pvd
     --cache out/wax.usd   out/wax.usd.00000.usdc ... and the stage out/wax.usd (.usda and .usdc as asked)
@@ -26,6 +27,7 @@ from pathlib import Path
 from ..config.arguments import MAX_FRAMES
 from ..errors import SandboxError
 from .cache_formats import CacheFrame, ply_bytes, pvd_text, surface_ply_bytes, surface_vtp_bytes, vtp_bytes
+from .cache_parts import parts_comment, parts_surface
 from .claim import RESTART_HINT, Claim, digest_of, is_regular_file, remove_numbered, write_whole
 
 CACHE_SUFFIXES = (".usd", ".usda", ".usdc", ".vtp", ".pvd", ".ply")
@@ -48,25 +50,37 @@ def index_path(path: Path) -> Path:
     return path.with_suffix(".pvd") if cache_kind(path) == "vtk" else path
 
 
-def frame_name(index: Path, frame: int, surface: bool = False) -> str:
-    """The name of the frame file numbered `frame` (its surface's with `surface`) of the cache whose index is
-    `index`."""
+def frame_name(index: Path, frame: int, surface: bool = False, parts: bool = False) -> str:
+    """The name of the frame file numbered `frame` (its surface's with `surface`, the scene's parts' with `parts`)
+    of the cache whose index is `index`."""
     ext = FRAME_EXT[cache_kind(index)]
-    return f"{index.name}{'.surface' if surface else ''}.{frame:05d}{ext}"
+    return f"{index.name}{'.surface' if surface else '.parts' if parts else ''}.{frame:05d}{ext}"
 
 
 class CacheSequence:
     """The cache `claim.path` (its index, index_path()) holding one frame per write(); `fps`: time codes per second
     of a USD stage; `lines`: springs as line cells in a VTK cache; `every` and `surface`: what a run of the command
-    line caches (every `every`-th frame, with surfaces or not), which a resume's record must match."""
+    line caches (every `every`-th frame from frame `first` on, with surfaces or not), which a resume's record must
+    match; `parts` and
+    `camera`: the scene's walls, plates and lid and its pictures' camera (a frame written brings its own), which
+    PLY and VTK write as a file a frame (`parts`: whether the frames have one) and USD in its stage."""
 
     RECORD = {"written": list, "digest": str}
 
     def __init__(
-        self, claim: Claim, named: Path, fps: float = 30.0, lines: bool = True, every: int = 1, surface: bool = False
+        self,
+        claim: Claim,
+        named: Path,
+        fps: float = 30.0,
+        lines: bool = True,
+        every: int = 1,
+        surface: bool = False,
+        first: int = 0,
+        parts: list | None = None,
+        camera=None,
     ) -> None:
         self.claim, self.named, self.fps, self.lines = claim, named, fps, lines
-        self.every, self.surface_asked = every, surface
+        self.every, self.surface_asked, self.first = every, surface, first
         self.format = cache_kind(named)
         self.kind = f"cache-{self.format}"
         self.words = f"a {self.format.upper()} particle cache"
@@ -75,15 +89,19 @@ class CacheSequence:
         self.up, self.surface = "Y", False
         self.removed: list[Path] = []
         self._pattern = frame_pattern(claim.path)
+        self.parts, self.camera = list(parts or []), camera
 
     # ------------------------------------------------------------------ names
-    def frame_file(self, index: int, surface: bool = False) -> Path:
-        return self.claim.path.with_name(frame_name(self.claim.path, index, surface))
+    def frame_file(self, index: int, surface: bool = False, parts: bool = False) -> Path:
+        return self.claim.path.with_name(frame_name(self.claim.path, index, surface, parts))
 
     def _files(self, k: int) -> list[Path]:
         frame, _, surface = self.frames[k]
         files = [self.frame_file(frame)]
-        return files + [self.frame_file(frame, True)] if surface and self.format != "usd" else files
+        if self.format != "usd":
+            files += [self.frame_file(frame, True)] if surface else []
+            files += [self.frame_file(frame, parts=True)] if self.parts else []
+        return files
 
     # ------------------------------------------------------------------ opening
     def start(self) -> None:
@@ -98,12 +116,13 @@ class CacheSequence:
         frames = record["written"]
         if not _well_formed(frames):
             raise SandboxError(f"{checkpoint}: its record of --cache is damaged; {RESTART_HINT}")
-        numbers, expected = [f[0] for f in frames], list(range(every, frame + 1, every))
+        numbers, expected = [f[0] for f in frames], list(range(self.first, frame + 1, every))
         if numbers != expected or any(f[2] != surface for f in frames):
-            asked = f"every {every} frames" + (" with surfaces" if surface else "")
+            asked = f"every {every} frames from frame {self.first}" + (" with surfaces" if surface else "")
             raise SandboxError(
                 f"--cache {self.named}: the checkpoint {checkpoint} records {len(frames)} cached frames, not those a "
-                f"cache of {asked} holds at its frame {frame}; expected the same --cache-every and --cache-surface, or "
+                f"cache of {asked} holds at its frame {frame}; expected the same --cache-every, --cache-from and "
+                "--cache-surface, or "
                 "--restart-outputs to start the outputs over"
             )
         if not frames and any(self._pattern.fullmatch(p.name) for p in self.claim.path.parent.iterdir()):
@@ -150,6 +169,7 @@ class CacheSequence:
         """Write one frame's files (and the index is rewritten at the next mark or at the end)."""
         frame = self._timed(frame)
         self.up = frame.up
+        self.parts, self.camera = frame.parts or self.parts, frame.camera or self.camera
         surface = frame.surface is not None
         self.surface = self.surface or surface
         target = self.frame_file(frame.frame)
@@ -163,6 +183,14 @@ class CacheSequence:
             if surface:
                 data = surface_ply_bytes(frame) if self.format == "ply" else surface_vtp_bytes(frame)
                 self._publish(self.frame_file(frame.frame, True), data)
+            if self.parts:
+                mesh = parts_surface(self.parts)
+                data = (
+                    surface_ply_bytes(frame, mesh, (parts_comment(self.parts),))
+                    if self.format == "ply"
+                    else surface_vtp_bytes(frame, mesh)
+                )
+                self._publish(self.frame_file(frame.frame, parts=True), data)
         self.frames.append([frame.frame, frame.time, surface])
 
     def _timed(self, frame: CacheFrame) -> CacheFrame:
@@ -193,12 +221,16 @@ class CacheSequence:
                 entries.append((time, 0, self.frame_file(frame).name))
                 if surface:
                     entries.append((time, 1, self.frame_file(frame, True).name))
+                if self.parts:
+                    entries.append((time, 2, self.frame_file(frame, parts=True).name))
             write_whole(self.claim.path, pvd_text(entries).encode(), "--cache", self.claim.token)
         else:
             from .cache_usd import write_stage
 
             clips = [(frame, self.frame_file(frame).name) for frame, _, _ in self.frames]
-            stage = lambda path: write_stage(path, clips, self.fps, self.up, self.surface)  # noqa: E731
+            stage = lambda path: write_stage(  # noqa: E731
+                path, clips, self.fps, self.up, self.surface, self.parts, self.camera
+            )
             write_whole(self.claim.path, stage, "--cache", self.claim.token)
 
     def mark(self) -> dict:
@@ -217,7 +249,7 @@ class CacheSequence:
 def frame_pattern(index: Path) -> re.Pattern:
     """The names of every frame file (and surface) of the cache whose index is `index`; the number is group 1."""
     ext = FRAME_EXT[cache_kind(index)]
-    return re.compile(rf"{re.escape(index.name)}(?:\.surface)?\.(\d{{5,}}){re.escape(ext)}")
+    return re.compile(rf"{re.escape(index.name)}(?:\.surface|\.parts)?\.(\d{{5,}}){re.escape(ext)}")
 
 
 def _well_formed(frames) -> bool:

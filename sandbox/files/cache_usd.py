@@ -3,9 +3,11 @@
     NAME.usd (or .usda/.usdc)   the stage: units (metersPerUnit 0.001), up axis, time codes (one per frame, at the
                                 run's frame rate), /World with a Points prim /World/particles (and a Mesh
                                 /World/surface where surfaces are cached) whose attributes are declared here and
-                                whose values come from the clips
-    NAME.00012.usdc             frame 12: the points, widths, velocities and primvars (temperature in degrees C,
-                                melt_fraction, phase, material, body, id) at time code 12; the surface mesh too
+                                whose values come from the clips; the scene's walls, plates and lid as Mesh prims
+                                /World/parts/NAME; the pictures' camera /World/camera
+    NAME.00012.usdc             frame 12: the points, widths, velocities and primvars (temp_c, the temperature in
+                                degrees C, melt_fraction, phase, material, body, id) at time code 12; the surface
+                                mesh and the parts too
 
 A frame is written and closed on its own, so a run of a million particles streams to disk a frame at a time (a
 single layer holding every time sample would keep them all in memory until it is saved). USD resolves the clips when
@@ -16,13 +18,15 @@ the stage is read (Blender, Houdini, Omniverse, usdview, or `pxr.Usd.Stage.Open`
 from __future__ import annotations
 
 import errno
+import math
 import re
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SandboxError
-from .cache_formats import METERS_PER_UNIT, CacheFrame
+from .cache_formats import METERS_PER_UNIT, CacheFrame, film_name
+from .cache_parts import Part, box_faces
 
 USD_HINT = "install the export extra: python3 -m pip install -e '.[export]'"
 PRIMVARS = {"temperature": "Float", "melt_fraction": "Float", "phase": "Int", "material": "Int", "body": "Int"}
@@ -65,7 +69,10 @@ def write_frame_layer(path: Path, frame: CacheFrame) -> None:
                 if kind == "Float"
                 else Vt.IntArray.FromNumpy(values.astype(np.int32))
             )
-            api.CreatePrimvar(name, getattr(Sdf.ValueTypeNames, f"{kind}Array"), UsdGeom.Tokens.vertex).Set(array, t)
+            primvar = api.CreatePrimvar(
+                film_name(name), getattr(Sdf.ValueTypeNames, f"{kind}Array"), UsdGeom.Tokens.vertex
+            )
+            primvar.Set(array, t)
     if frame.surface is not None:
         s = frame.surface
         mesh = UsdGeom.Mesh.Define(stage, "/World/surface")
@@ -76,13 +83,73 @@ def write_frame_layer(path: Path, frame: CacheFrame) -> None:
         mesh.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(vertex_normals(s.vertices, s.triangles)), t)
         for name, values in s.vertex_data.items():
             UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
-                name, Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
+                film_name(name), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
             ).Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), t)
+    for part in frame.parts:
+        vertices, _ = box_faces(part)
+        mesh = UsdGeom.Mesh.Define(stage, part_path(part))
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(vertices), t)
+        mesh.GetExtentAttr().Set(_extent(vertices, 0.0), t)
+        color = srgb_to_linear(np.asarray([part.color], np.uint8)).astype(np.float32)
+        mesh.GetDisplayColorPrimvar().Set(Vt.Vec3fArray.FromNumpy(color), t)
+        temperature = Vt.FloatArray([float(part.temperature)])
+        UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
+            film_name("temperature"), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.constant
+        ).Set(temperature, t)
     _export(layer, path)
 
 
-def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, surface: bool) -> None:
-    """Write the stage `path` over the frame layers `clips` ((frame, file name beside it), in order)."""
+def part_path(part: Part) -> str:
+    """The prim path of a part of the scene (files/cache_parts.py): /World/parts/NAME."""
+    return f"/World/parts/{part.name}"
+
+
+def _declare_parts(stage, parts: list[Part]) -> None:
+    """The parts' Mesh prims on the stage: their topology (each a box, fixed), and the attributes the clips give
+    values."""
+    _, UsdGeom, Sdf, Vt, _ = pxr()
+    UsdGeom.Scope.Define(stage, "/World/parts")
+    for part in parts:
+        vertices, triangles = box_faces(part)
+        mesh = UsdGeom.Mesh.Define(stage, part_path(part))
+        mesh.CreatePointsAttr(), mesh.CreateExtentAttr()
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(triangles), 3, np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(triangles.reshape(-1)))
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        mesh.CreateDoubleSidedAttr(True)
+        mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant)
+        UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
+            film_name("temperature"), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.constant
+        )
+
+
+def _declare_camera(stage, camera) -> None:
+    """The pictures' camera as /World/camera: placed at its eye looking at its target, world y up; perspective
+    with its vertical field of view, or orthographic over a 2D scene's view. USD's apertures are in tenths of a
+    scene length."""
+    _, UsdGeom, _, _, Gf = pxr()
+    prim = UsdGeom.Camera.Define(stage, "/World/camera")
+    right, up, forward = camera.axes()
+    rows = [(*right, 0.0), (*up, 0.0), (*(-forward), 0.0), (*camera.eye, 1.0)]  # a camera looks down its -z
+    prim.AddTransformOp().Set(Gf.Matrix4d(*[float(v) for row in rows for v in row]))
+    if camera.ortho_height:
+        prim.CreateProjectionAttr(UsdGeom.Tokens.orthographic)
+        prim.CreateVerticalApertureAttr(10.0 * camera.ortho_height)
+        prim.CreateHorizontalApertureAttr(10.0 * camera.ortho_height * camera.aspect)
+    else:
+        vertical = 24.0  # the focal length follows from it and the field of view; only their ratio matters
+        prim.CreateVerticalApertureAttr(vertical)
+        prim.CreateHorizontalApertureAttr(vertical * camera.aspect)
+        prim.CreateFocalLengthAttr(0.5 * vertical / math.tan(math.radians(camera.fov) / 2))
+    distance = float(np.linalg.norm(np.asarray(camera.eye) - np.asarray(camera.target)))
+    prim.CreateClippingRangeAttr(Gf.Vec2f(0.001 * distance, 100.0 * distance))
+
+
+def write_stage(
+    path: Path, clips: list[tuple[int, str]], fps: float, up: str, surface: bool, parts=(), camera=None
+) -> None:
+    """Write the stage `path` over the frame layers `clips` ((frame, file name beside it), in order), with the
+    scene's `parts` and its `camera` where given."""
     Usd, UsdGeom, Sdf, Vt, Gf = pxr()
     layer = Sdf.Layer.CreateAnonymous(path.suffix if path.suffix in (".usda", ".usdc") else ".usda")
     stage = Usd.Stage.Open(layer)
@@ -104,7 +171,7 @@ def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, s
     points.GetPrim().CreateAttribute("sandbox:time", Sdf.ValueTypeNames.Double)  # simulated seconds at each frame
     api = UsdGeom.PrimvarsAPI(points.GetPrim())
     for name, kind in PRIMVARS.items():
-        api.CreatePrimvar(name, getattr(Sdf.ValueTypeNames, f"{kind}Array"), UsdGeom.Tokens.vertex)
+        api.CreatePrimvar(film_name(name), getattr(Sdf.ValueTypeNames, f"{kind}Array"), UsdGeom.Tokens.vertex)
     if surface:
         mesh = UsdGeom.Mesh.Define(stage, "/World/surface")
         mesh.CreatePointsAttr(), mesh.CreateFaceVertexCountsAttr(), mesh.CreateFaceVertexIndicesAttr()
@@ -112,8 +179,12 @@ def write_stage(path: Path, clips: list[tuple[int, str]], fps: float, up: str, s
         mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # triangles as they are, not Catmull-Clark
         UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
-            "temperature", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
+            film_name("temperature"), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
         )
+    if parts:
+        _declare_parts(stage, list(parts))
+    if camera is not None:
+        _declare_camera(stage, camera)
     del stage  # the clips are authored on the layer alone: composing them here would look for the frame files
     if clips:
         layer.GetPrimAtPath("/World").SetInfo(

@@ -15,6 +15,7 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
+from .camera import default_eye, look_at
 from .colormaps import temperature_map
 from .flat import source_table
 from .style import BLEND, LID_COLOR, R_MIN
@@ -33,11 +34,9 @@ class Spheres3D:
         self.background = ti.Vector(list(cfg.background))
         lo, hi = np.asarray(model.scene.world.lo), np.asarray(model.scene.world.hi)
         centre = (np.asarray(view_box[0]) + np.asarray(view_box[1])) / 2
-        size = float(np.linalg.norm(np.asarray(view_box[1]) - np.asarray(view_box[0])))
         target = np.asarray(cfg.camera_target) if cfg.camera_target else centre
         room = canvas.height / max(2 * self.cy, 1.0)  # back off as far as the band above takes rows from the view
-        default_eye = centre + np.array([0.35, 0.45, 1.0]) * size * 0.9 * room
-        eye = np.asarray(cfg.camera_position) if cfg.camera_position else default_eye
+        eye = np.asarray(cfg.camera_position) if cfg.camera_position else default_eye(view_box, room)
         # fields, not compile-time constants, so the window can orbit without recompiling
         self.camera = ti.Vector.field(3, ti.f32, shape=4)  # eye, right, up, forward
         self.focal_field = ti.field(ti.f32, shape=())  # pixels: focal length of the pinhole
@@ -68,13 +67,7 @@ class Spheres3D:
     def set_camera(self, eye, target, fov_degrees: float) -> None:
         """Place the camera (world units) looking at target with a vertical field of view in degrees."""
         eye, target = np.asarray(eye, dtype=float), np.asarray(target, dtype=float)
-        fwd = target - eye
-        fwd /= np.linalg.norm(fwd)
-        right = np.cross(fwd, np.array([0.0, 1.0, 0.0]))
-        if np.linalg.norm(right) < 1e-6:
-            right = np.array([1.0, 0.0, 0.0])
-        right /= np.linalg.norm(right)
-        true_up = np.cross(right, fwd)
+        right, true_up, fwd = look_at(eye, target)
         self.eye_np, self.fwd_np, self.target_np = eye, fwd, target
         self.right_np, self.up_np = right, true_up
         focal = 0.5 * self.canvas.height / math.tan(math.radians(fov_degrees) / 2)
