@@ -183,7 +183,8 @@ def test_a_2d_cache_holds_an_orthographic_camera_over_the_pictures_view(pot):
     np.testing.assert_allclose(np.asarray(camera.frustum.GetPosition())[:2], middle, atol=1e-3)
     np.testing.assert_allclose(np.asarray(camera.frustum.ComputeViewDirection()), [0, 0, -1], atol=1e-9)
     ply_camera = next(c for c in _ply_comments(folder / "pot.ply.00000.ply") if c.startswith("camera "))
-    assert ply_camera.split()[-4] == "ortho_height" and float(ply_camera.split()[-3]) == pytest.approx(cfg.height / scale)
+    words = ply_camera.split()
+    assert words[-4] == "ortho_height" and float(words[-3]) == pytest.approx(cfg.height / scale)
 
 
 def _ply_comments(path) -> list[str]:
