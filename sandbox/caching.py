@@ -20,6 +20,8 @@ from .render.style import LID_COLOR
 from .render.surface import reconstruct
 from .scripting import particle_table, run_frames, spring_pairs
 
+RGB = ("red", "green", "blue")
+
 
 def particle_phases(sim, table: dict[str, np.ndarray]) -> np.ndarray:
     """Phase code per row of `table` (particle_table): 0 solid (melt fraction below one half), 1 liquid, 2 gas (gas
@@ -47,6 +49,7 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
     velocity = np.zeros((n, 3), dtype=np.float32)
     velocity[:, :dim] = table["velocity"]
     phase = particle_phases(sim, table)
+    colors = cache_colors(sim, table)
     groups = sim.scene.groups
     diameter = np.array([2 * g.particle_radius if hasattr(g, "particle_radius") else sim.scene.spacing for g in groups])
     widths = np.where(
@@ -71,21 +74,23 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
         emitted = (table["body"] >= len(sim.scene.bodies)) & (table["body"] < len(groups))
         keep = ~emitted & (phase < 2)
         r = sim.scene.render
+        values = {"temperature": data["temperature"][keep]}
+        if not sim.particles.heat:  # the materials' colours, blended across the surface
+            values.update({c: colors[keep, k].astype(np.float32) for k, c in enumerate(RGB)})
         shape = reconstruct(
-            points[keep],
-            {"temperature": data["temperature"][keep]},
-            0.5 * sim.scene.spacing,
-            r.surface_smoothing,
-            r.surface_iso,
-            r.surface_cell,
-            dim,
+            points[keep], values, 0.5 * sim.scene.spacing, r.surface_smoothing, r.surface_iso, r.surface_cell, dim
         )
+        if sim.particles.heat:  # the colour of the temperature there, as the particles have theirs
+            shape.colors = temperature_colors(sim, shape.vertex_data["temperature"])
+        else:
+            blended = np.stack([shape.vertex_data.pop(c) for c in RGB], axis=1)
+            shape.colors = np.clip(np.round(blended), 0, 255).astype(np.uint8)
     world = sim.scene.world
     frame_seconds = world.frame_time if world.substeps == "auto" else int(world.substeps) * sim.dt
     frame = CacheFrame(
         sim.frames_done, sim.time, points, data, widths.astype(np.float32), bonds, shape, up, float(frame_seconds)
     )
-    frame.colors = cache_colors(sim, table)
+    frame.colors = colors
     frame.parts, frame.camera = scene_parts(sim), scene_camera(sim.scene)
     return frame
 
@@ -94,10 +99,16 @@ def cache_colors(sim, table: dict) -> np.ndarray:
     """Each particle's colour as the sandbox draws it, (N, 3) uint8 sRGB: the temperature colour map over the scene's
     render.temperature_range where the scene has heat, else its material's colour."""
     if sim.particles.heat:
-        lo, hi = sim.scene.render.temperature_range
-        rgb = ramp_np_many(TEMPERATURE_STOPS, (table["temperature"] - lo) / (hi - lo))
-    else:
-        rgb = sim.model.materials.colors[table["material"]]
+        return temperature_colors(sim, table["temperature"])
+    rgb = sim.model.materials.colors[table["material"]]
+    return np.clip(np.round(255.0 * np.asarray(rgb, dtype=np.float64)), 0, 255).astype(np.uint8)
+
+
+def temperature_colors(sim, temperature: np.ndarray) -> np.ndarray:
+    """(N, 3) uint8 sRGB: the temperature colour map over the scene's render.temperature_range at `temperature`
+    (N,) degrees C."""
+    lo, hi = sim.scene.render.temperature_range
+    rgb = ramp_np_many(TEMPERATURE_STOPS, (np.asarray(temperature, np.float64) - lo) / (hi - lo))
     return np.clip(np.round(255.0 * np.asarray(rgb, dtype=np.float64)), 0, 255).astype(np.uint8)
 
 

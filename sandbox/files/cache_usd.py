@@ -81,6 +81,8 @@ def write_frame_layer(path: Path, frame: CacheFrame) -> None:
         mesh.GetFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(s.triangles.reshape(-1).astype(np.int32)), t)
         mesh.GetExtentAttr().Set(_extent(s.vertices, 0.0), t)
         mesh.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(vertex_normals(s.vertices, s.triangles)), t)
+        if s.colors is not None:
+            mesh.GetDisplayColorPrimvar().Set(Vt.Vec3fArray.FromNumpy(srgb_to_linear(s.colors).astype(np.float32)), t)
         for name, values in s.vertex_data.items():
             UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
                 film_name(name), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
@@ -177,6 +179,7 @@ def write_stage(
         mesh.CreatePointsAttr(), mesh.CreateFaceVertexCountsAttr(), mesh.CreateFaceVertexIndicesAttr()
         mesh.CreateExtentAttr(), mesh.CreateNormalsAttr()
         mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+        mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # triangles as they are, not Catmull-Clark
         UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
             film_name("temperature"), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
