@@ -31,10 +31,32 @@ def ffmpeg_exe() -> str:
     return imageio_ffmpeg.get_ffmpeg_exe()
 
 
+# An MP4's pictures are converted from RGB with BT.709's matrix into limited-range YUV and tagged so (primaries,
+# transfer, matrix, range): players and editors read HD video as BT.709, and an untagged stream converted with
+# swscale's default (BT.601) matrix shows shifted colours in them.
+BT709 = ["-colorspace", "bt709", "-color_primaries", "bt709", "-color_trc", "bt709", "-color_range", "tv"]
+TO_BT709 = (
+    "scale=out_color_matrix=bt709:out_range=tv,"
+    "setparams=color_primaries=bt709:color_trc=bt709:colorspace=bt709:range=tv"
+)
+
+
 def _codec(path: Path) -> list[str]:
     if path.suffix.lower() == ".gif":
         return ["-vcodec", "gif", "-pix_fmt", "rgb24", "-qscale:v", "16", "-filter_complex", GIF_PALETTE]
-    return ["-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", "15", "-movflags", "+faststart"]
+    return [
+        "-vf",
+        TO_BT709,
+        "-vcodec",
+        "libx264",
+        "-pix_fmt",
+        "yuv420p",
+        "-crf",
+        "15",
+        *BT709,
+        "-movflags",
+        "+faststart",
+    ]
 
 
 def _run(args: list[str], what: Path) -> str:
