@@ -40,6 +40,7 @@ from ..config.schema import describe, unknown
 from ..core import runtime
 from ..errors import OutputError, SandboxError, SimulationError
 from ..render.video import check_output
+from ..render.video_codec import CODECS
 from ..simulation import Simulation
 from .cli_bench import cmd_bench
 from .cli_common import (
@@ -258,6 +259,17 @@ def _run_arguments(sub) -> None:
     run.add_argument("--width", type=int, help="picture width in pixels (default: render.width)")
     run.add_argument("--height", type=int, help="picture height in pixels (default: render.height)")
     run.add_argument("--fps", type=float, help="video frames per second (default: render.fps)")
+    run.add_argument(
+        "--codec",
+        choices=CODECS,
+        help="the video's codec: h264 (the .mp4 default) or h265 in .mp4 or .mov; prores (the .mov default) or png "
+        "in .mov (docs/export.md, Video for editors)",
+    )
+    run.add_argument(
+        "--quality", type=int, metavar="Q", help="h264/h265: the CRF, 0..51, lower is better (15); prores: 0..3 (3 HQ)"
+    )
+    run.add_argument("--lossless", action="store_true", help="h264/h265 at no loss (4:4:4); png is always lossless")
+    run.add_argument("--alpha", action="store_true", help="prores (4444) or png in .mov: the background transparent")
     run.add_argument(
         "--no-overlays", action="store_true", help="videos and pictures without the title, clock and legend"
     )

@@ -36,6 +36,7 @@ from ..files.persist import read_meta, saved_scene
 from ..render.segments import PngFolder
 from ..render.surface import EXPORT_HINT
 from ..render.video import check_output
+from ..render.video_codec import VideoCodec, choose_codec
 from ..simulation import Simulation
 from .cli_common import EXIT_STOPPED, _load, stability_warnings
 from .controller import open_scene
@@ -154,7 +155,7 @@ def _resumed_scene(args):
 class RunPlan:
     """What `sandbox run` will do, decided from its arguments before anything is built: the scene (resumed or
     loaded), the frames (from `first_frame`, of the saved state's meta `saved`), window or headless, the output and
-    its picture size, frame rate and frame stride (a GIF keeps every `every`-th frame)."""
+    its picture size, frame rate and frame stride (a GIF keeps every `every`-th frame), and a video's encoding."""
 
     scene: object
     first_frame: int
@@ -166,6 +167,7 @@ class RunPlan:
     height: int
     fps: float
     every: int = 1
+    codec: VideoCodec = VideoCodec()
 
 
 def cmd_run(args) -> int:
@@ -225,6 +227,8 @@ def _plan_run(args) -> RunPlan:
         scene, first_frame, saved_meta, frames, headless, out,
         args.width or scene.render.width, args.height or scene.render.height, args.fps or scene.render.fps,
     )  # fmt: skip
+    suffix = Path(out).suffix if out is not None and headless else None
+    plan.codec = choose_codec(suffix, args.codec, args.quality, args.lossless, args.alpha)
     if out is not None and Path(out).suffix.lower() == ".gif":
         sized = args.width is not None or args.height is not None
         # planned for the whole run, so that a resumed run keeps the frames the uninterrupted one keeps
@@ -269,6 +273,7 @@ def _headless(args, sim, plan: RunPlan) -> int:
         cache_every=args.cache_every or 1,
         cache_surface=args.cache_surface,
         cache_from=args.cache_from or 0,
+        codec=plan.codec,
     )
     start = f"frames {first_frame + 1} to {frames}" if first_frame else f"{frames} frames"
     if frames == first_frame:

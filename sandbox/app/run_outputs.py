@@ -28,10 +28,17 @@ from ..measure.stats import stat_values
 from ..render.camera import scene_camera
 from ..render.segments import PngFolder, SegmentedVideo
 from ..render.video import StillWriter
+from ..render.video_codec import VideoCodec
 from ..scripting import extxyz_text
 from ..simulation import STAT_COLUMNS, Stats
 
-KIND_WORDS = {"mp4": "an MP4 video", "gif": "a GIF", "png-folder": "a folder of PNG frames", "text": "a text file"}
+KIND_WORDS = {
+    "mp4": "an MP4 video",
+    "mov": "a MOV video",
+    "gif": "a GIF",
+    "png-folder": "a folder of PNG frames",
+    "text": "a text file",
+}
 KIND_WORDS.update({f"cache-{k}": f"a {k.upper()} particle cache" for k in ("usd", "vtk", "ply")})
 
 
@@ -53,7 +60,8 @@ def _csv_text(row: dict | None) -> str:
 class RunOutputs:
     """The outputs of one headless run of `sim`. `out`: the pictures (.mp4, .gif, .png or a folder; None: none),
     `stats`: the CSV, `dump`: extended XYZ every `dump_every` frames, `checkpoint`: the state every
-    `checkpoint_every` frames; `every`: a video keeps every `every`-th frame (a GIF's frame rate); `resume`:
+    `checkpoint_every` frames; `every`: a video keeps every `every`-th frame (a GIF's frame rate); `codec`: an MP4's
+    or MOV's encoding (render/video_codec.py); `resume`:
     (state path, its meta) when continuing; `restart`: start the outputs over instead of continuing."""
 
     def __init__(
@@ -75,8 +83,10 @@ class RunOutputs:
         cache_every: int = 1,
         cache_surface: bool = False,
         cache_from: int = 0,
+        codec: VideoCodec | None = None,
     ) -> None:
         self.sim = sim
+        self.codec = codec
         self.dump_every = dump_every
         self.cache = Path(cache) if cache else None
         self.cache_every, self.cache_surface, self.cache_from = cache_every, cache_surface, cache_from
@@ -108,8 +118,8 @@ class RunOutputs:
         if "--out" in claims:
             claim = claims["--out"]
             suffix = claim.path.suffix.lower()
-            if suffix in (".mp4", ".gif"):
-                self.writers["--out"] = SegmentedVideo(claim, width, height, fps, every)
+            if suffix in (".mp4", ".mov", ".gif"):
+                self.writers["--out"] = SegmentedVideo(claim, width, height, fps, every, self.codec)
             elif suffix == ".png":
                 self.writers["--out"] = StillWriter(claim.path, width, height, fps, still_frame)
             else:

@@ -9,9 +9,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import taichi as ti
 
 from ..errors import OutputError, SimulationError
+from ..render.matte import BLACK, WHITE, matte
 from ..render.raster import Renderer
 from ..simulation import Simulation, Stats
 from .run_outputs import RunOutputs
@@ -72,11 +74,19 @@ def run_headless(
     width, height, fps = width or cfg.width, height or cfg.height, fps or cfg.fps
     if outputs is None:
         outputs = RunOutputs(sim, out, stats_path, size=(width, height, fps), still_frame=still_frame)
-    renderer = _renderer(sim, width, height, cfg) if outputs.pictures else None
+    alpha = outputs.pictures and outputs.codec is not None and outputs.codec.alpha
+    if alpha:  # drawn over black and over white: their difference is each pixel's coverage (render/matte.py)
+        renderer = _renderer(sim, width, height, dataclasses.replace(cfg, background=BLACK))
+        over_white = _renderer(sim, width, height, dataclasses.replace(cfg, background=WHITE))
+    else:
+        renderer = _renderer(sim, width, height, cfg) if outputs.pictures else None
 
     def picture():
         renderer.record(last)
-        return renderer.frame()
+        if not alpha:
+            return renderer.frame()
+        over_white.record(last)
+        return matte(np.array(renderer.frame(), copy=True), over_white.frame())
 
     bar = _progress(frames, progress, sim.scene.name)
     start, last, done = time.perf_counter(), None, 0

@@ -18,7 +18,7 @@ MAX_FRAMES = 1_000_000
 MAX_SUBSTEPS = 100_000
 MAX_SIDE = 8192  # pixels: an 8K picture
 MAX_FPS = 1000.0
-VIDEO_SUFFIXES = (".mp4", ".gif")
+VIDEO_SUFFIXES = (".mp4", ".mov", ".gif")
 FRAME_SUFFIXES = (*VIDEO_SUFFIXES, ".png", "")
 
 
@@ -74,7 +74,7 @@ def check_rate(option: str, value: float | None, hi: float) -> None:
 
 
 def check_picture(width: int, height: int, out: str | None) -> None:
-    """The picture size of a run: each side in 16..MAX_SIDE pixels, and even for MP4 and GIF (yuv420p video)."""
+    """The picture size of a run: each side in 16..MAX_SIDE pixels, and even for MP4, MOV and GIF (YUV video)."""
     for option, side in (("--width", width), ("--height", height)):
         check_count(option, side, 16, MAX_SIDE)
     if out is not None and Path(out).suffix.lower() in VIDEO_SUFFIXES and (width % 2 or height % 2):
@@ -122,14 +122,16 @@ def check_file_output(option: str, path: str | Path, suffixes: tuple[str, ...] |
 
 
 def check_frames_output(option: str, path: str | Path) -> Path:
-    """The run's --out: a .mp4/.gif/.png file or a folder for numbered PNG frames (created if missing)."""
+    """The run's --out: a .mp4/.mov/.gif/.png file or a folder for numbered PNG frames (created if missing)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in FRAME_SUFFIXES:
-        raise SandboxError(f"{option} {path}: unknown output kind {suffix!r}; expected .mp4, .gif, .png or a folder")
+        raise SandboxError(
+            f"{option} {path}: unknown output kind {suffix!r}; expected .mp4, .mov, .gif, .png or a folder"
+        )
     if suffix:
         return check_file_output(option, path)
-    return check_folder_output(option, path, "a folder for PNG frames (or a .mp4, .gif or .png)")
+    return check_folder_output(option, path, "a folder for PNG frames (or a .mp4, .mov, .gif or .png)")
 
 
 def check_folder_output(option: str, path: str | Path, what: str = "a folder") -> Path:

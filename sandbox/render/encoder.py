@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import OutputError
 from ..files.claim import LISTING
+from .video_codec import VideoCodec
 
 GIF_PALETTE = "split[a][b];[a]palettegen=stats_mode=diff[p];[b][p]paletteuse=dither=none:diff_mode=rectangle"
 
@@ -31,32 +32,12 @@ def ffmpeg_exe() -> str:
     return imageio_ffmpeg.get_ffmpeg_exe()
 
 
-# An MP4's pictures are converted from RGB with BT.709's matrix into limited-range YUV and tagged so (primaries,
-# transfer, matrix, range): players and editors read HD video as BT.709, and an untagged stream converted with
-# swscale's default (BT.601) matrix shows shifted colours in them.
-BT709 = ["-colorspace", "bt709", "-color_primaries", "bt709", "-color_trc", "bt709", "-color_range", "tv"]
-TO_BT709 = (
-    "scale=out_color_matrix=bt709:out_range=tv,"
-    "setparams=color_primaries=bt709:color_trc=bt709:colorspace=bt709:range=tv"
-)
-
-
-def _codec(path: Path) -> list[str]:
+def _codec(path: Path, codec: VideoCodec | None = None) -> list[str]:
+    """ffmpeg's output arguments for `path`: a GIF's palette, else `codec`'s (render/video_codec.py; default H.264)
+    and, in an MP4 or MOV, its index at the front."""
     if path.suffix.lower() == ".gif":
         return ["-vcodec", "gif", "-pix_fmt", "rgb24", "-qscale:v", "16", "-filter_complex", GIF_PALETTE]
-    return [
-        "-vf",
-        TO_BT709,
-        "-vcodec",
-        "libx264",
-        "-pix_fmt",
-        "yuv420p",
-        "-crf",
-        "15",
-        *BT709,
-        "-movflags",
-        "+faststart",
-    ]
+    return [*(codec or VideoCodec()).args(), "-movflags", "+faststart"]
 
 
 def _run(args: list[str], what: Path) -> str:
@@ -85,14 +66,17 @@ def _last_line(text: str) -> str:
 
 
 class Encoder:
-    """One ffmpeg process writing `path` (.mp4: H.264 yuv420p; .gif: one palette for the clip) from (H, W, 3) uint8
-    frames, top row first. close() waits for it and raises OutputError when it failed; kill() abandons the file."""
+    """One ffmpeg process writing `path` (.mp4 or .mov: `codec`, H.264 by default; .gif: one palette for the clip)
+    from (H, W, 3) uint8 frames, top row first ((H, W, 4) RGBA where the codec has alpha). close() waits for it and
+    raises OutputError when it failed; kill() abandons the file."""
 
-    def __init__(self, path: Path, width: int, height: int, fps: float) -> None:
+    def __init__(self, path: Path, width: int, height: int, fps: float, codec: VideoCodec | None = None) -> None:
         self.path = path
+        codec = codec or VideoCodec()
         rate = str(Fraction(fps).limit_denominator())
-        args = ["-y", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}", "-pix_fmt", "rgb24"]
-        args += ["-r", rate, "-i", "-", "-an", *_codec(path), ff_path(path)]
+        pixels = "rgb24" if path.suffix.lower() == ".gif" else codec.input_format
+        args = ["-y", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}", "-pix_fmt", pixels]
+        args += ["-r", rate, "-i", "-", "-an", *_codec(path, codec), ff_path(path)]
         self._log = tempfile.TemporaryFile()  # noqa: SIM115 - closed in close()/kill()
         self._proc = subprocess.Popen(
             [ffmpeg_exe(), "-nostdin", "-v", "error", *args],
@@ -140,18 +124,19 @@ def frame_digests(path: Path, frames: int | None = None) -> list[str]:
 
 
 def join(pieces: list[Path], path: Path) -> None:
-    """Write the videos `pieces` one after another into `path`: MP4 pieces are copied packet for packet (every piece
-    starts on a key frame), GIF pieces are decoded and given one palette again."""
+    """Write the videos `pieces` one after another into `path`: MP4 and MOV pieces are copied packet for packet
+    (every piece starts on a key frame), GIF pieces are decoded and given one palette again."""
     listing = path.with_name(path.name + LISTING)
     listing.write_text("".join(f"file {_quoted(ff_path(p))}\n" for p in pieces))
     try:
-        codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() == ".mp4" else _codec(path)
+        codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() != ".gif" else _codec(path)
         _run(["-y", "-f", "concat", "-safe", "0", "-i", ff_path(listing), *codec, ff_path(path)], path)
     finally:
         listing.unlink(missing_ok=True)
 
 
 def cut(source: Path, frames: int, path: Path) -> None:
-    """Write the first `frames` frames of `source` to `path` (MP4: copied, and exact where a piece began there)."""
-    codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() == ".mp4" else _codec(path)
+    """Write the first `frames` frames of `source` to `path` (MP4, MOV: copied, and exact where a piece began
+    there)."""
+    codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() != ".gif" else _codec(path)
     _run(["-y", "-i", ff_path(source), "-map", "0:v", "-frames:v", str(frames), *codec, ff_path(path)], path)

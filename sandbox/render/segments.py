@@ -17,6 +17,7 @@ from PIL import Image
 from ..errors import OutputError, SandboxError
 from ..files.claim import RESTART_HINT, Claim, create_exclusive, digest_of, own_partial, remove_numbered, write_whole
 from .encoder import Encoder, cut, frame_digests, join
+from .video_codec import VideoCodec
 
 
 def _settings(words: str, width: int, height: int, fps: float, every: int) -> str:
@@ -30,16 +31,20 @@ def _new_file(path: Path, option: str) -> Path:
 
 
 class SegmentedVideo:
-    """`claim.path` (.mp4 or .gif) written piece by piece."""
+    """`claim.path` (.mp4, .mov or .gif) written piece by piece, encoded as `codec` (render/video_codec.py)."""
 
     # what mark() records
     RECORD = {"pieces": list, "frames": int, "offered": int, "digest": str, "size": list, "fps": float, "every": int}
 
-    def __init__(self, claim: Claim, width: int, height: int, fps: float, every: int = 1) -> None:
+    def __init__(
+        self, claim: Claim, width: int, height: int, fps: float, every: int = 1, codec: VideoCodec | None = None
+    ) -> None:
         """`every`: keep every `every`-th frame offered (a GIF's lower frame rate; the video plays at fps / every)."""
         self.claim, self.width, self.height, self.fps, self.every = claim, width, height, fps / every, every
         self.kind = claim.path.suffix.lower().lstrip(".")
-        self.words = "a GIF" if self.kind == "gif" else "an MP4 video"
+        self.codec = codec or VideoCodec()
+        self.words = {"gif": "a GIF", "mov": "a MOV video"}.get(self.kind, "an MP4 video")
+        self.encoding = "GIF" if self.kind == "gif" else self.codec.words()
         self.pieces: list[Path] = []
         self.digests: list[str] = []  # of the frames in closed pieces
         self.frames = 0  # written, in all pieces
@@ -79,7 +84,7 @@ class SegmentedVideo:
                 raise SandboxError(
                     f"{self.claim.option} {path}: is not a video this run can continue; {RESTART_HINT}"
                 ) from None
-            pieces, exact = [first], path.suffix.lower() == ".mp4"
+            pieces, exact = [first], path.suffix.lower() != ".gif"
         else:
             raise SandboxError(
                 f"{self.claim.option} {path}: missing, and so are the pieces the checkpoint {checkpoint} names; "
@@ -94,7 +99,15 @@ class SegmentedVideo:
         return pieces, digests, record["offered"]
 
     def _check_settings(self, record: dict, checkpoint: Path) -> None:
-        """The picture size, frame rate and kept frames of this run are those the checkpoint's video was made with."""
+        """The picture size, frame rate, kept frames and encoding of this run are those the checkpoint's video was
+        made with (a record without an encoding is an earlier version's untagged H.264)."""
+        was = record.get("codec", "an earlier version's untagged H.264")
+        if was != self.encoding:
+            raise SandboxError(
+                f"{self.claim.option} {self.claim.path}: the checkpoint {checkpoint} continues a video encoded as "
+                f"{str(was)[:80]}, this run encodes {self.encoding}; expected the same --codec, --quality, --lossless "
+                "and --alpha, or --restart-outputs to start the outputs over"
+            )
         saved = (record["size"], float(record["fps"]), record["every"])
         if saved != ([self.width, self.height], float(self.fps), self.every):
             was = _settings(self.words, *(saved[0] if len(saved[0]) == 2 else (0, 0)), saved[1], saved[2])
@@ -123,7 +136,7 @@ class SegmentedVideo:
         if self._encoder is None:
             # this run's name: pieces adopted from a killed run carry that run's, so the numbers cannot collide
             piece = _new_file(self.claim.partial(f"seg{len(self.pieces):04d}"), self.claim.option)
-            self._encoder = Encoder(piece, self.width, self.height, self.fps)
+            self._encoder = Encoder(piece, self.width, self.height, self.fps, self.codec)
             self.pieces.append(piece)
         self._encoder.write(frame)
         self.frames += 1
@@ -147,6 +160,7 @@ class SegmentedVideo:
             "size": [self.width, self.height],
             "fps": float(self.fps),
             "every": self.every,
+            "codec": self.encoding,
         }
 
     def publish(self) -> None:

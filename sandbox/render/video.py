@@ -129,13 +129,13 @@ class FfmpegWriter(FrameWriter):
 def check_output(path: str | Path) -> None:
     """Fail early (before any simulation) when the output kind needs a package that is missing."""
     suffix = Path(path).suffix.lower()
-    if suffix in (".mp4", ".gif"):
+    if suffix in (".mp4", ".mov", ".gif"):
         try:
             import imageio_ffmpeg  # noqa: F401
         except ImportError as exc:
             raise SandboxError(f"{path}: writing {suffix} needs imageio-ffmpeg; {VIDEO_HINT}") from exc
     elif suffix not in ("", ".png"):
-        raise SandboxError(f"{path}: unknown output kind {suffix!r}; expected .mp4, .gif, .png or a folder")
+        raise SandboxError(f"{path}: unknown output kind {suffix!r}; expected .mp4, .mov, .gif, .png or a folder")
 
 
 def open_writer(path: str | Path, width: int, height: int, fps: float, still_frame: int | None = None) -> FrameWriter:
@@ -145,7 +145,7 @@ def open_writer(path: str | Path, width: int, height: int, fps: float, still_fra
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
     suffix = path.suffix.lower()
-    if suffix in (".mp4", ".gif"):
+    if suffix in (".mp4", ".mov", ".gif"):
         if width % 2 or height % 2:
             raise SandboxError(f"{path}: {suffix} needs an even width and height, got {width}x{height}")
         return FfmpegWriter(path, width, height, fps)
