@@ -380,3 +380,22 @@ def test_caches_carry_the_sandboxs_colours_extents_and_a_plain_triangle_surface(
         assert np.abs(np.stack([s["red"], s["green"], s["blue"]], axis=1) - surface_rgb).max() <= 1
     else:
         pytest.skip("VTK caches carry the temperature itself: ParaView colours by it with its own maps")
+
+
+def test_the_cache_bench_measures_each_format_in_a_process_of_its_own(tmp_path):
+    """`sandbox bench --cache`: each format is written in a fresh process (docs/export.md measured USD's memory in the
+    process PLY and VTK had grown), and its bytes a frame are the writer's own (a PLY frame: its bytes exactly)."""
+    from sandbox.files.cache_formats import ply_bytes
+    from sandbox.research.cache_bench import bench_caches, synthetic_frame
+
+    results = bench_caches(2000, 3, tmp_path)
+    processes = {kind: r["process"] for kind, r in results["formats"].items()}
+    assert len(set(processes.values())) == 3 and os.getpid() not in processes.values()
+    rng = np.random.default_rng(1)
+    frames = [synthetic_frame(2000, k, rng) for k in range(2)]  # as the bench makes them, written alternately
+    written = 0
+    for k in range(3):
+        frames[k % 2].frame = k
+        written += len(ply_bytes(frames[k % 2]))
+    assert results["formats"]["ply"]["bytes_per_frame"] == pytest.approx(written / 3, rel=1e-12)
+    assert not list((tmp_path).iterdir())  # every format's files removed
