@@ -21,6 +21,7 @@ from .render.surface import reconstruct
 from .scripting import particle_table, run_frames, spring_pairs
 
 RGB = ("red", "green", "blue")
+SURFACE_VELOCITY = ("vx", "vy", "vz")  # the particles' velocity interpolated onto the surface, as PLY names it
 
 
 def particle_phases(sim, table: dict[str, np.ndarray]) -> np.ndarray:
@@ -41,7 +42,8 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
     """The particles now as one cache frame (files/cache_formats.py): positions in 3 components, velocity,
     temperature (degrees C), melt fraction, phase, material, body and id as point data, widths (each particle's
     diameter, length), the live springs, and with `surface` the surface of the bodies and melts (not the emitted
-    particles, not the gas) with temperature on its vertices (render/surface.py, the scene's surface_* keys)."""
+    particles, not the gas) with the temperature, velocity and colour there on its vertices (render/surface.py, the
+    scene's surface_* keys); the scene's parts and its pictures' camera."""
     table = particle_table(sim)
     dim, n = sim.dim, len(table["id"])
     points = np.zeros((n, 3), dtype=np.float32)
@@ -75,6 +77,7 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
         keep = ~emitted & (phase < 2)
         r = sim.scene.render
         values = {"temperature": data["temperature"][keep]}
+        values.update({name: velocity[keep, k] for k, name in enumerate(SURFACE_VELOCITY)})
         if not sim.particles.heat:  # the materials' colours, blended across the surface
             values.update({c: colors[keep, k].astype(np.float32) for k, c in enumerate(RGB)})
         shape = reconstruct(

@@ -215,7 +215,11 @@ def surface_vtp_bytes(frame: CacheFrame, mesh: Surface | None = None) -> bytes:
     """The surface of `frame` (or `mesh`: the parts) as VTK XML PolyData: triangles as polygon cells, the vertex data
     as point data, any colours as `color` (3 bytes a point: ParaView draws them as they are with Map Scalars off)."""
     s = mesh if mesh is not None else frame.surface
-    data = dict(s.vertex_data) if s.colors is None else {**s.vertex_data, "color": s.colors}
+    data = {k: v for k, v in s.vertex_data.items() if k not in ("vx", "vy", "vz")}
+    if "vx" in s.vertex_data:  # one vector array, as the particles' velocity
+        data["velocity"] = np.stack([s.vertex_data[k] for k in ("vx", "vy", "vz")], axis=1)
+    if s.colors is not None:
+        data["color"] = s.colors
     return _vtp(s.vertices, data, {"Polys": s.triangles.reshape(-1)})
 
 

@@ -204,7 +204,11 @@ class CacheSequence:
         scale = self.fps * frame.frame_seconds  # simulated seconds per second of playback
         note = f"velocity in length per second at {self.fps:g} frames a second (a frame: {frame.frame_seconds:g} s)"
         data = {**frame.point_data, "velocity": (velocity * scale).astype(velocity.dtype)}
-        return dataclasses.replace(frame, point_data=data, velocity_note=note)
+        surface = frame.surface
+        if surface is not None and "vx" in surface.vertex_data:  # the surface's velocity, in the same time
+            vertex_data = {k: v * scale if k in ("vx", "vy", "vz") else v for k, v in surface.vertex_data.items()}
+            surface = dataclasses.replace(surface, vertex_data=vertex_data)
+        return dataclasses.replace(frame, point_data=data, velocity_note=note, surface=surface)
 
     def _publish(self, target: Path, data) -> None:
         """Write `target` whole (bytes, or a function that writes the path it is given) and keep its digest."""

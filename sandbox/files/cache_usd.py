@@ -83,7 +83,12 @@ def write_frame_layer(path: Path, frame: CacheFrame) -> None:
         mesh.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(vertex_normals(s.vertices, s.triangles)), t)
         if s.colors is not None:
             mesh.GetDisplayColorPrimvar().Set(Vt.Vec3fArray.FromNumpy(srgb_to_linear(s.colors).astype(np.float32)), t)
+        if "vx" in s.vertex_data:
+            velocity = np.stack([s.vertex_data[k] for k in ("vx", "vy", "vz")], axis=1).astype(np.float32)
+            mesh.GetVelocitiesAttr().Set(Vt.Vec3fArray.FromNumpy(velocity), t)
         for name, values in s.vertex_data.items():
+            if name in ("vx", "vy", "vz"):
+                continue
             UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
                 film_name(name), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex
             ).Set(Vt.FloatArray.FromNumpy(values.astype(np.float32)), t)
@@ -177,7 +182,7 @@ def write_stage(
     if surface:
         mesh = UsdGeom.Mesh.Define(stage, "/World/surface")
         mesh.CreatePointsAttr(), mesh.CreateFaceVertexCountsAttr(), mesh.CreateFaceVertexIndicesAttr()
-        mesh.CreateExtentAttr(), mesh.CreateNormalsAttr()
+        mesh.CreateExtentAttr(), mesh.CreateNormalsAttr(), mesh.CreateVelocitiesAttr()
         mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
         mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex)
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # triangles as they are, not Catmull-Clark
