@@ -40,7 +40,6 @@ from ..config.schema import describe, unknown
 from ..core import runtime
 from ..errors import OutputError, SandboxError, SimulationError
 from ..render.video import check_output
-from ..render.video_codec import CODECS
 from ..simulation import Simulation
 from .cli_bench import cmd_bench
 from .cli_common import (
@@ -51,7 +50,7 @@ from .cli_common import (
     _scene_path,
     stability_warnings,
 )
-from .cli_run import cmd_run
+from .cli_run import cmd_run, film_arguments
 from .cli_study import study_arguments
 from .serve_session import DRAWS
 from .signals import Stopper, exit_code
@@ -254,22 +253,11 @@ def _run_arguments(sub) -> None:
     run.add_argument("--headless", action="store_true", help="no window: write frames to --out")
     run.add_argument("--frames", type=int, help="number of frames (default: render.frames)")
     run.add_argument("--substeps", type=int, help="steps of world.dt per frame (default: world.substeps)")
-    run.add_argument("--out", help="output: .mp4, .gif, .png (a still) or a folder for PNG frames")
+    run.add_argument("--out", help="output: .mp4, .mov, .gif, .png (a still) or a folder for PNG frames")
     run.add_argument("--stats", help="write per-frame measurements to this CSV")
     run.add_argument("--width", type=int, help="picture width in pixels (default: render.width)")
     run.add_argument("--height", type=int, help="picture height in pixels (default: render.height)")
     run.add_argument("--fps", type=float, help="video frames per second (default: render.fps)")
-    run.add_argument(
-        "--codec",
-        choices=CODECS,
-        help="the video's codec: h264 (the .mp4 default) or h265 in .mp4 or .mov; prores (the .mov default) or png "
-        "in .mov (docs/export.md, Video for editors)",
-    )
-    run.add_argument(
-        "--quality", type=int, metavar="Q", help="h264/h265: the CRF, 0..51, lower is better (15); prores: 0..3 (3 HQ)"
-    )
-    run.add_argument("--lossless", action="store_true", help="h264/h265 at no loss (4:4:4); png is always lossless")
-    run.add_argument("--alpha", action="store_true", help="prores (4444) or png in .mov: the background transparent")
     run.add_argument(
         "--no-overlays", action="store_true", help="videos and pictures without the title, clock and legend"
     )
@@ -288,27 +276,12 @@ def _run_arguments(sub) -> None:
     )
     run.add_argument("--dump-every", type=int, metavar="N", help="with --dump: every N frames (default 1)")
     run.add_argument(
-        "--cache",
-        metavar="PATH",
-        help="write a particle cache for Blender, Houdini, ParaView: PATH.usd (.usda/.usdc), PATH.vtp (with a .pvd) "
-        "or PATH.ply, one file per cached frame (docs/export.md)",
-    )
-    run.add_argument("--cache-every", type=int, metavar="N", help="with --cache: every N frames (default 1)")
-    run.add_argument(
-        "--cache-from",
-        type=int,
-        metavar="FRAME",
-        help="with --cache: the first frame cached (default 0, the state the run starts from)",
-    )
-    run.add_argument(
-        "--cache-surface", action="store_true", help="with --cache: a surface mesh of the bodies and melts too"
-    )
-    run.add_argument(
         "--no-video",
         action="store_true",
         help="headless without pictures: only the --stats, --dump, --cache and --checkpoint asked for (no default "
         "out/SCENE.mp4 is written or touched)",
     )
+    film_arguments(run)
     run.set_defaults(func=cmd_run)
 
 

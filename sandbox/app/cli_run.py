@@ -36,7 +36,7 @@ from ..files.persist import read_meta, saved_scene
 from ..render.segments import PngFolder
 from ..render.surface import EXPORT_HINT
 from ..render.video import check_output
-from ..render.video_codec import VideoCodec, choose_codec
+from ..render.video_codec import CODECS, VideoCodec, choose_codec
 from ..simulation import Simulation
 from .cli_common import EXIT_STOPPED, _load, stability_warnings
 from .controller import open_scene
@@ -341,3 +341,37 @@ def _said(args, sim, plan: RunPlan, result) -> int:
             print(f"stopped by {name}: the files written so far are complete and valid", file=sys.stderr)
         return 128 + (result.signal or 2)
     return 0
+
+
+def film_arguments(run) -> None:
+    """`sandbox run`'s arguments for film work: the video's encoding (render/video_codec.py) and the particle cache
+    (docs/export.md), each an argument group of its own in --help."""
+    group = run.add_argument_group("video for editors (an .mp4 or .mov --out)")
+    group.add_argument(
+        "--codec",
+        choices=CODECS,
+        help="the video's codec: h264 (the .mp4 default) or h265 in .mp4 or .mov; prores (the .mov default) or png "
+        "in .mov (docs/export.md, Video for editors)",
+    )
+    group.add_argument(
+        "--quality", type=int, metavar="Q", help="h264/h265: the CRF, 0..51, lower is better (15); prores: 0..3 (3 HQ)"
+    )
+    group.add_argument("--lossless", action="store_true", help="h264/h265 at no loss (4:4:4); png is always lossless")
+    group.add_argument("--alpha", action="store_true", help="prores (4444) or png in .mov: the background transparent")
+    group = run.add_argument_group("particle caches for Blender, Houdini and ParaView")
+    group.add_argument(
+        "--cache",
+        metavar="PATH",
+        help="write a particle cache for Blender, Houdini, ParaView: PATH.usd (.usda/.usdc), PATH.vtp (with a .pvd) "
+        "or PATH.ply, one file per cached frame (docs/export.md)",
+    )
+    group.add_argument("--cache-every", type=int, metavar="N", help="with --cache: every N frames (default 1)")
+    group.add_argument(
+        "--cache-from",
+        type=int,
+        metavar="FRAME",
+        help="with --cache: the first frame cached (default 0, the state the run starts from)",
+    )
+    group.add_argument(
+        "--cache-surface", action="store_true", help="with --cache: a surface mesh of the bodies and melts too"
+    )
