@@ -4,16 +4,16 @@ pictures' camera, each read back with an independent reader (usd-core, plyfile, 
 
 from __future__ import annotations
 
-import os
 import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
 
 import sandbox
-from sandbox.app.cli import EXIT_BAD_INPUT, main
+from sandbox.app.cli import EXIT_BAD_INPUT
 from sandbox.files.cache_usd import srgb_to_linear
 from sandbox.render.colormaps import TEMPERATURE_STOPS, ramp_np_many
+from tests.test_export import run as run_candle
 
 pytestmark = pytest.mark.xdist_group("export")
 
@@ -194,13 +194,7 @@ def _ply_comments(path) -> list[str]:
 
 
 def run(folder, *extra: str, frames: int) -> int:
-    cwd = os.getcwd()
-    os.chdir(folder)
-    try:
-        argv = ["run", "candle", "--set", "bodies.0.hi=[70.0,8.0]", "--no-video", "--quiet", "--frames", str(frames)]
-        return main([*argv, *extra])
-    finally:
-        os.chdir(cwd)
+    return run_candle(folder, "--no-video", *extra, frames=frames)
 
 
 def test_the_command_line_caches_frame_0_and_from_a_chosen_frame(tmp_path):

@@ -280,6 +280,16 @@ def test_a_surface_is_written_in_one_order_whatever_order_it_was_built_in():
     assert area_and_volume(again) == pytest.approx(area_and_volume(shuffled))
 
 
+def moving_body(corner: float):
+    """A 2D box of particles from (5, 5) to (corner, corner), no springs, moving at (3, 1) with no force on it
+    (dt 0.002, 10 steps a frame)."""
+    from tests.conftest import make_scene, scene_dict
+
+    world = {"dim": 2, "lo": [0.0, 0.0], "hi": [40.0, 40.0], "dt": 0.002, "substeps": 10}
+    body = {"material": "jelly", "shape": "box", "lo": [5.0, 5.0], "hi": [corner, corner], "springs": False}
+    return sandbox.Simulation(make_scene(scene_dict(world=world, bodies=[{**body, "velocity": [3.0, 1.0]}])))
+
+
 @pytest.mark.parametrize("kind", ["usd", "ply", "vtp"])
 def test_a_ballistic_particles_velocity_carries_it_to_its_next_cached_position(tmp_path, kind):
     """Time right (issue 76): USD velocities were per simulated second while the stage plays 24 time codes a second
@@ -288,11 +298,7 @@ def test_a_ballistic_particles_velocity_carries_it_to_its_next_cached_position(t
     frame of the run is a time code, or a Houdini frame, played at the cache's fps), and position + velocity x
     (timesteps apart) in VTK, whose collection's timesteps are simulated seconds: each to 1e-5 relative, for a body
     moving at (3, 1) with no force on it."""
-    from tests.conftest import make_scene, scene_dict
-
-    world = {"dim": 2, "lo": [0.0, 0.0], "hi": [40.0, 40.0], "dt": 0.002, "substeps": 10}
-    body = {"material": "jelly", "shape": "box", "lo": [5.0, 5.0], "hi": [8.0, 8.0], "springs": False}
-    sim = sandbox.Simulation(make_scene(scene_dict(world=world, bodies=[{**body, "velocity": [3.0, 1.0]}])))
+    sim = moving_body(8.0)
     path = tmp_path / f"b.{kind}"
     with sandbox.Cache(path, fps=24.0) as cache:
         for _ in range(3):
@@ -407,11 +413,7 @@ def test_the_surface_moves_with_the_velocity_it_carries(tmp_path, kind):
     surface): for a body moving at (3, 1) with no force on it, every vertex's velocity is the body's, and the surface's
     mean vertex moves by velocity x the time between cached frames (within 2% of the move: the next frame's surface is
     built anew)."""
-    from tests.conftest import make_scene, scene_dict
-
-    world = {"dim": 2, "lo": [0.0, 0.0], "hi": [40.0, 40.0], "dt": 0.002, "substeps": 10}
-    body = {"material": "jelly", "shape": "box", "lo": [5.0, 5.0], "hi": [11.0, 11.0], "springs": False}
-    sim = sandbox.Simulation(make_scene(scene_dict(world=world, bodies=[{**body, "velocity": [3.0, 1.0]}])))
+    sim = moving_body(11.0)
     path = tmp_path / f"b.{kind}"
     with sandbox.Cache(path, fps=24.0) as cache:
         for _ in range(2):
