@@ -50,6 +50,7 @@ from .cli_common import (
     _scene_path,
     stability_warnings,
 )
+from .cli_lesson import check_lesson
 from .cli_run import cmd_run, film_arguments
 from .cli_study import study_arguments
 from .serve_session import DRAWS
@@ -62,6 +63,8 @@ def cmd_check(args) -> int:
     runtime.require(args.arch, scene.world.precision)
 
     sim = Simulation(scene, arch=args.arch)
+    if args.lesson:
+        return check_lesson(sim, progress=not args.quiet)
     w = scene.world
     print(f"scene {scene.name} ({scene.path}): valid")
     if scene.description:
@@ -289,6 +292,10 @@ def _check_arguments(sub) -> None:
     """`sandbox check`'s arguments."""
     check = sub.add_parser("check", help="validate a scene and print the pipeline it will run")
     scene_args(check)
+    check.add_argument(
+        "--lesson", action="store_true", help="run the scene and check its lesson's claims (exit 1 when one fails)"
+    )
+    check.add_argument("--quiet", action="store_true", help="with --lesson: no progress bar")
     check.set_defaults(func=cmd_check)
 
 

@@ -179,6 +179,9 @@ def scene_from_dict(data: dict, path: Path) -> Scene:
                 f"{boiling[0]} boils, and its vapour loses the power law's attraction; expected law = "
                 '"power" with a material that boils',
             )
+    lesson_problem = raw.scene.lesson.problem()
+    if lesson_problem:
+        raise SceneError(file, f"scene.lesson.{lesson_problem[0]}", lesson_problem[1])
     heat = raw.heat
     _check_molecular(file, raw)
     _check_reach(file, world, heat, raw.pair, spacing)

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .arguments import MAX_SUBSTEPS
+from .lesson import Lesson, LessonClaim, UncheckedSentence  # noqa: F401 - part of the scene tables
 from .materials import Material
 from .molecular_table import WALL_SIDES, Heater, Lid, Molecular, ThermalWall  # noqa: F401 - part of the scene tables
 from .render_table import CHART_SERIES, COLOR_BY, Render  # noqa: F401 - part of the scene tables
@@ -31,25 +32,6 @@ MAX_EXPONENT = 64  # a whole-number exponent is unrolled into multiplications wh
 
 def exponent(x: float) -> str | None:
     return None if 0 < x <= MAX_EXPONENT else f"expected a number above 0 and at most {MAX_EXPONENT}, got {x}"
-
-
-@dataclass(frozen=True, kw_only=True)
-class Lesson:
-    """[scene.lesson]: a short lesson in a teacher's words, shown by `sandbox list` and at the top of the window."""
-
-    happens: str = spec("", doc="what happens in the scene, in a sentence or two")
-    explore: str = spec("", doc="what to try in the window and from the command line: keys, tools, --set values")
-    explore_page: str = spec(
-        "",
-        doc="what to try in the classroom's page: its buttons, Tool menu and sliders, no keys or command-line options "
-        "(the page shows `explore` where this is empty)",
-    )
-    physics: str = spec("", doc="the physics it shows")
-
-    def parts(self) -> list[tuple[str, str]]:
-        """(label, text) for each part given: "What happens", "Try", "The physics"."""
-        parts = (("What happens", self.happens), ("Try", self.explore), ("The physics", self.physics))
-        return [(label, text) for label, text in parts if text]
 
 
 @dataclass(frozen=True, kw_only=True)
