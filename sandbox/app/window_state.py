@@ -203,11 +203,15 @@ LESSON_WIDTH = 46  # characters per line of the lesson in the panel of a 1280-pi
 CHARACTER_PX = 7.5  # the width of one of GGUI's panel characters, pixels (its font is 13 px high)
 
 
-@functools.cache  # the panel asks every frame; a lesson (frozen) wraps the same way each time
 def lesson_text(lesson, width: int = LESSON_WIDTH) -> tuple[str, ...]:
     """The scene's lesson as the panel's lines: each part labelled and wrapped to `width` characters."""
+    return _wrapped(tuple(lesson.parts()), width)
+
+
+@functools.cache  # the panel asks every frame; a lesson's parts wrap the same way each time
+def _wrapped(parts: tuple[tuple[str, str], ...], width: int) -> tuple[str, ...]:
     lines = []
-    for label, text in lesson.parts():
+    for label, text in parts:
         lines += textwrap.wrap(f"{label}: {text}", width)
     return tuple(lines)
 
