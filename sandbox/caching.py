@@ -88,10 +88,8 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
         else:
             blended = np.stack([shape.vertex_data.pop(c) for c in RGB], axis=1)
             shape.colors = np.clip(np.round(blended), 0, 255).astype(np.uint8)
-    world = sim.scene.world
-    frame_seconds = world.frame_time if world.substeps == "auto" else int(world.substeps) * sim.dt
     frame = CacheFrame(
-        sim.frames_done, sim.time, points, data, widths.astype(np.float32), bonds, shape, up, float(frame_seconds)
+        sim.frames_done, sim.time, points, data, widths.astype(np.float32), bonds, shape, up, sim.frame_seconds
     )
     frame.colors = colors
     frame.parts, frame.camera = scene_parts(sim), scene_camera(sim.scene)

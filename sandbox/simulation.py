@@ -91,6 +91,12 @@ class Simulation:
     step_count = property(lambda self: self.state.step, doc="steps taken")
     frames_done = property(lambda self: self.state.frames, doc="frames advanced")
 
+    @property
+    def frame_seconds(self) -> float:
+        """The simulated seconds one frame spans: the scene's substeps of dt, or its frame time with auto substeps."""
+        world = self.scene.world
+        return float(world.frame_time if world.substeps == "auto" else int(world.substeps) * self.dt)
+
     dt = property(
         lambda self: self.state.dt,
         lambda self, value: setattr(self.state, "dt", float(value)),

@@ -12,12 +12,6 @@ from ..simulation import Simulation
 EXIT_CLAIM_FAILS = 1
 
 
-def frame_time(sim: Simulation) -> float:
-    """The simulated seconds one frame spans (the scene's substeps of dt, or its frame time with auto substeps)."""
-    world = sim.scene.world
-    return float(world.frame_time if world.substeps == "auto" else int(world.substeps) * sim.dt)
-
-
 def check_lesson(sim: Simulation, progress: bool = True) -> int:
     """Run `sim` for the frames its lesson's claims need, print each verdict; the exit status."""
     scene, lesson = sim.scene, sim.scene.lesson
@@ -26,9 +20,11 @@ def check_lesson(sim: Simulation, progress: bool = True) -> int:
         return 0
     check_measures(lesson.claims)
     frames = lesson.frames(scene.render.frames)
-    print(f"{scene.name}: {len(lesson.claims)} claims over {frames} frames ({frames * frame_time(sim):g} s simulated)")
+    print(
+        f"{scene.name}: {len(lesson.claims)} claims over {frames} frames ({frames * sim.frame_seconds:g} s simulated)"
+    )
     table = sim.run(frames, progress=progress)
-    verdicts = evaluate(lesson.claims, table, frame_time(sim), scene.render.frames)
+    verdicts = evaluate(lesson.claims, table, sim.frame_seconds, scene.render.frames)
     for verdict in verdicts:
         print(f"  {verdict.line()}")
     for sentence in lesson.unchecked:
