@@ -252,6 +252,34 @@ def test_a_lid_under_an_outside_pressure_finds_the_height_of_the_ideal_gas_law(p
     assert np.mean(heights) - 2 * radius == pytest.approx(n * np.mean(temps) / (pressure * 50.0), rel=0.08)
 
 
+def test_the_lids_pressure_follows_its_schedule_until_set_by_hand_and_a_state_keeps_it():
+    """A lid scheduled at pressure 0.06 for 30 time units and 0.24 after (a pressure cooker's lid made heavier, issue
+    75): the pressure in force is the schedule's, the gas is pressed down by the heavier lid (it settles at about a
+    quarter of the height above the atoms), a state's record keeps following the schedule and a slider's value stops
+    it; a negative scheduled pressure is refused by name."""
+    walls = [{"name": side, "side": side, "temperature": 1.0} for side in ("bottom", "left", "right")]
+    lid = {"pressure": 0.06, "mass": 20.0, "height": 30.0}
+    lid.update(schedule_times=[0.0, 30.0], schedule_values=[0.06, 0.24])
+    sim = atoms(2, 50.0, (1, 1), (49, 18), 3.0, 1.0, periodic=False, molecular={"walls": walls, "lid": lid}, dt=0.01)
+    sim.step(2900)
+    light = sim.stats().lid_height
+    assert sim.controls.values()["lid.pressure"] == 0.06 and sim.controls.values()["lid.scheduled"] == 1.0
+    saved = sim.controls.values()
+    sim.step(3000)
+    assert sim.controls.values()["lid.pressure"] == 0.24
+    heavy = sim.stats().lid_height
+    assert heavy < 0.5 * light  # measured in the ideal gas law's test: height - 2 r = N kT / (P L)
+    sim.controls.set({"lid.pressure": 0.1})  # by hand: the schedule stops
+    sim.step(100)
+    assert sim.controls.values()["lid.pressure"] == 0.1 and sim.controls.values()["lid.scheduled"] == 0.0
+    sim.controls.set(saved)  # a state's record: the schedule applies again (at this time, 0.24)
+    sim.step(1)
+    assert sim.controls.values()["lid.pressure"] == 0.24
+    with pytest.raises(SceneError, match=r"molecular.lid.schedule_values\[1\]"):
+        negative = {**lid, "schedule_values": [0.06, -1.0]}
+        atoms(2, 50.0, (1, 1), (49, 18), 3.0, 1.0, periodic=False, molecular={"lid": negative})
+
+
 def test_the_lid_keeps_the_energy_of_atoms_and_lid_with_the_work_of_the_outside_pressure():
     """Without thermal walls, E_atoms + M u^2 / 2 + P A h is conserved (the lid's hits are elastic collisions)."""
     lid = {"pressure": 0.08, "mass": 20.0, "height": 30.0}

@@ -33,6 +33,11 @@ class Lid:
     )
     mass: float = spec(100.0, doc="the lid's mass (in atoms' masses): heavier, slower to follow", check=positive)
     height: float = spec(doc="the lid's starting height along y (length)", check=positive)
+    schedule_times: tuple[float, ...] = spec((), doc="times (increasing, from 0) at which the pressure changes")
+    schedule_values: tuple[float, ...] = spec((), doc="the pressure from each of schedule_times on")
+    schedule_period: float = spec(
+        0.0, doc="repeat the schedule with this period (0: hold the last value)", check=non_negative
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -249,6 +249,11 @@ def _check_molecular(file: str, raw) -> None:
     seen = set()
     if molecular.heater is not None:
         check_schedule(file, "molecular.heater", molecular.heater)
+    if molecular.lid:
+        check_schedule(file, "molecular.lid", molecular.lid)
+        for k, value in enumerate(molecular.lid.schedule_values):
+            if not value >= 0:
+                raise SceneError(file, f"molecular.lid.schedule_values[{k}]", f"expected a pressure >= 0, got {value}")
     for i, wall in enumerate(molecular.walls):
         axis, _ = WALL_SIDES[wall.side]
         if axis >= raw.world.dim:

@@ -1,5 +1,6 @@
 """A lid (piston) for the molecular model: a horizontal wall across the box at height h that the atoms push up and an
-outside pressure P pushes down ([molecular.lid]: pressure, mass M, starting height).
+outside pressure P pushes down ([molecular.lid]: pressure, mass M, starting height; the pressure may follow a
+schedule, as the heater's power does, until a slider sets it by hand).
 
 An atom that crosses the lid bounces off it as in an elastic collision of masses m and M (the relative speed
 v_y - u reverses about their centre of mass, u the lid's speed at the step's start), and the momentum it gives the
@@ -20,6 +21,7 @@ from ..config.molecular_table import Lid as LidTable
 from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
+from .heat_sources import scheduled_value
 from .term import Measure, Slider, Term, register
 
 
@@ -64,8 +66,11 @@ class Lid(Term):
         self.pushed = ti.field(float, shape=())  # momentum the atoms gave the lid this step
         self.gauge = ti.field(ti.f64, shape=())  # momentum per area the atoms gave it since the gauge restarted
         self.since = ti.field(ti.f64, shape=())  # ... and when it restarted (time)
-        self.pressure = float(spec.pressure)
-        self.scene_pressure = self.pressure  # the scene's: the slider's range follows it, not the value it sets
+        self.spec = spec
+        self.pressure = scheduled_value(spec, spec.pressure, 0.0)
+        self.by_hand = not spec.schedule_times  # set by hand (or never scheduled): the schedule no longer applies
+        # the scene's: the slider's range follows it, not the value it sets
+        self.scene_pressure = max([float(spec.pressure), *map(float, spec.schedule_values)])
         transfer.upload([(self.height, float(spec.height))])
 
     def declare(self, state) -> None:
@@ -80,7 +85,8 @@ class Lid(Term):
         self.restart_gauge(state.time)
 
     def controls(self) -> dict:
-        return {"pressure": self.pressure}
+        """The outside pressure, and whether it still follows the scene's schedule (1) or was set by hand (0)."""
+        return {"pressure": self.pressure, "scheduled": 0.0 if self.by_hand else 1.0}
 
     def sliders(self) -> list[Slider]:
         """The weight on the lid, as the outside pressure: up to four times the scene's (0.2 at least)."""
@@ -88,14 +94,18 @@ class Lid(Term):
         return [Slider("lid", "lid pressure", "pressure", 0.0, top, "pressure", top / 200)]
 
     def control_checks(self) -> dict:
-        return {"pressure": key_check(LidTable, "pressure")}
+        scheduled = lambda v: None if v in (0.0, 1.0) else f"expected 0 (set by hand) or 1 (scheduled), got {v:g}"  # noqa: E731
+        return {"pressure": key_check(LidTable, "pressure"), "scheduled": scheduled}
 
     def apply_controls(self, values: dict) -> None:
+        """Set the pressure; without "scheduled": 1 (a state file's record) it is set by hand and the schedule
+        stops."""
         if "pressure" in values:
             value = float(values["pressure"])
             if not value >= 0.0:
                 raise ValueError(f"lid pressure {value!r}; expected a number of at least 0")
             self.pressure = value
+        self.by_hand = not self.spec.schedule_times or values.get("scheduled", 0.0) == 0.0
 
     def words(self, where: str) -> list[str]:
         if where == "finish":
@@ -105,6 +115,8 @@ class Lid(Term):
         return []
 
     def after_step(self, state) -> None:
+        if not self.by_hand:  # the pressure in force at the start of the step just taken (the clock moves on after)
+            self.pressure = scheduled_value(self.spec, self.spec.pressure, state.time)
         self._move(state.dt, self.pressure * self.area)
 
     @ti.kernel
