@@ -104,6 +104,19 @@ def test_a_claim_over_another_divides_by_it_and_a_shorter_claim_sees_its_own_fra
     assert all(v.holds for v in verdicts)
 
 
+def test_where_keeps_only_the_frames_where_another_measurement_is_in_its_range():
+    """The boiling point as a claim sees it: the temperature while a fifth to four fifths of the atoms are gas."""
+    run = {**table([0.0, 0.1, 0.3, 0.6, 0.9]), "motion_temperature": np.array([0.5, 0.6, 0.7, 0.72, 1.0])}
+    boiling = claim(measure="motion_temperature", stat="mean", where="structure_gas", where_between=[0.2, 0.8])
+    (verdict,) = evaluate([LessonClaim(**{**boiling.__dict__, "above": 0.0})], run, 0.5, 5)
+    assert verdict.value == pytest.approx(0.71)
+    assert "while structure_gas is 0.2..0.8" in verdict.line()
+    with pytest.raises(SceneError, match="where and where_between: expected both"):
+        make_scene(with_claims({**GAS, "where": "structure_solid"}))
+    with pytest.raises(SandboxError, match=r"claims\[0\]\.where 'gas_share'"):
+        evaluate([claim(above=0, where="gas_share", where_between=[0, 1])], run, 0.5, 5)
+
+
 def test_an_unknown_measure_is_one_line():
     with pytest.raises(SandboxError, match=r"claims\[0\]\.measure 'gas_share': expected a column of the stats table"):
         evaluate([claim(measure="gas_share", above=0)], table([1.0]), 0.5, 1)

@@ -11,10 +11,12 @@ simulated time:
     above = 0.05
 
 `duration` is the simulated time the measure spends in `between` ([lo, hi]); `time_of_first` the time it first
-enters it (never: infinite). `over` names an earlier claim (its `name`): the value is then this claim's divided by
-that one's ("boiling lasts six times as long as melting"). A sentence no run can check is listed under
-[[scene.lesson.unchecked]] with the reason, so every sentence is one or the other. `sandbox check --lesson SCENE`
-runs the scene and says which claims hold (measure/lesson_claims.py).
+enters it (never: infinite). `where` and `where_between` keep only the frames where another measurement lies in a
+range ("the liquid's temperature while a fifth to four fifths of the atoms are gas": the boiling point). `over`
+names an earlier claim (its `name`): the value is then this claim's divided by that one's ("boiling lasts six times
+as long as melting"). A sentence no run can check is listed under [[scene.lesson.unchecked]] with the reason, so
+every sentence is one or the other. `sandbox check --lesson SCENE` runs the scene and says which claims hold
+(measure/lesson_claims.py).
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ class LessonClaim:
     stat: str = spec("last", doc="how the window's values reduce to one: " + ", ".join(STATS), check=one_of(*STATS))
     window: tuple[float, ...] = spec((), doc="[t0, t1]: the simulated seconds looked at (default: the whole run)")
     between: tuple[float, ...] = spec((), doc="stat = duration or time_of_first: the range [lo, hi] of the measure")
+    where: str = spec("", doc="another measurement: only the frames where it lies in `where_between` count")
+    where_between: tuple[float, ...] = spec((), doc="with `where`: its range [lo, hi]")
     above: float | None = spec(None, doc="the value must be above this", infinite=True)
     below: float | None = spec(None, doc="the value must be below this", infinite=True)
     name: str = spec("", doc="a name for a later claim's `over`")
@@ -53,8 +57,12 @@ class LessonClaim:
             return f"between: expected [lo, hi] with stat = duration or time_of_first, and only then (stat {self.stat})"
         if self.between and (len(self.between) != 2 or not self.between[0] <= self.between[1]):
             return f"between {list(self.between)}: expected [lo, hi] with lo <= hi"
-        if any(not math.isfinite(x) for x in (*self.window, *self.between)):
-            return "window and between: expected finite numbers"
+        if bool(self.where) != bool(self.where_between):
+            return "where and where_between: expected both (a measurement and its range [lo, hi]) or neither"
+        if self.where_between and (len(self.where_between) != 2 or not self.where_between[0] <= self.where_between[1]):
+            return f"where_between {list(self.where_between)}: expected [lo, hi] with lo <= hi"
+        if any(not math.isfinite(x) for x in (*self.window, *self.between, *self.where_between)):
+            return "window, between and where_between: expected finite numbers"
         return None
 
 

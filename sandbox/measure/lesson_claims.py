@@ -32,26 +32,35 @@ class Verdict:
             f"{word} {bound:g}" for word, bound in (("above", c.above), ("below", c.below)) if bound is not None
         )
         what = f"{c.stat} of {c.measure}" + (f" over {c.over}'s" if c.over else "")
+        if c.where:
+            what += f" while {c.where} is {c.where_between[0]:g}..{c.where_between[1]:g}"
         window = f" in t = {c.window[0]:g}..{c.window[1]:g} s" if c.window else ""
         return f'{"holds" if self.holds else "FAILS"}  "{c.says}": {what}{window} = {self.value:.4g}, expected {bounds}'
 
 
 def check_measures(claims: list[LessonClaim]) -> None:
-    """A SandboxError naming the first claim whose measure is no column of the stats table."""
+    """A SandboxError naming the first claim whose measure (or `where`) is no column of the stats table."""
     for k, claim in enumerate(claims):
-        if claim.measure not in STAT_COLUMNS:
-            raise SandboxError(
-                f"scene.lesson.claims[{k}].measure {claim.measure!r}: expected a column of the stats table "
-                f"({', '.join(STAT_COLUMNS[2:])})"
-            )
+        for key, name in (("measure", claim.measure), ("where", claim.where)):
+            if name and name not in STAT_COLUMNS:
+                raise SandboxError(
+                    f"scene.lesson.claims[{k}].{key} {name!r}: expected a column of the stats table "
+                    f"({', '.join(STAT_COLUMNS[2:])})"
+                )
 
 
-def reduce(claim: LessonClaim, time: np.ndarray, values: np.ndarray, frame_time: float) -> float:
-    """The claim's stat of `values` (by frame, at simulated `time`) within its window; `frame_time` the simulated
-    seconds a frame spans (a duration counts frames)."""
+def reduce(
+    claim: LessonClaim, time: np.ndarray, values: np.ndarray, frame_time: float, where: np.ndarray | None = None
+) -> float:
+    """The claim's stat of `values` (by frame, at simulated `time`) within its window, over the frames where `where`
+    (the claim's `where` measurement, by frame) lies in its range; `frame_time` the simulated seconds a frame spans
+    (a duration counts frames)."""
     keep = np.ones(len(time), bool)
     if claim.window:
         keep = (time >= claim.window[0] - 1e-9) & (time <= claim.window[1] + 1e-9)
+    if claim.where:
+        lo, hi = claim.where_between
+        keep &= (where >= lo) & (where <= hi)
     t, v = time[keep], values[keep]
     if len(v) == 0 or (claim.stat not in ("duration", "time_of_first") and not np.all(np.isfinite(v))):
         return math.nan
@@ -81,7 +90,8 @@ def evaluate(claims: list[LessonClaim], table, frame_time: float, scene_frames: 
     verdicts, named = [], {}
     for claim in claims:
         upto = frames <= (claim.frames or scene_frames)
-        value = reduce(claim, time[upto], np.asarray(table[claim.measure], float)[upto], frame_time)
+        where = np.asarray(table[claim.where], float)[upto] if claim.where else None
+        value = reduce(claim, time[upto], np.asarray(table[claim.measure], float)[upto], frame_time, where)
         if claim.over:
             base = named[claim.over]
             value = value / base if base else math.inf
