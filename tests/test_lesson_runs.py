@@ -1,8 +1,8 @@
 """Every shipped lesson against its scene's own run (issue 75): `sandbox check --lesson SCENE` runs the scene as
-shipped for as long as its claims need and every claim holds. Two scenes do not yet show what their lessons say
-(crystal_3d's crystal does not melt within its length; pressure_cooker's pool lifts off its floor and nothing boils):
-their checks are expected to fail, strictly, so the day they are fixed this test says so. Long: the runs take
-minutes (states_of_matter_atoms, a whole heat-and-cool cycle, most of them)."""
+shipped for as long as its claims need and every claim holds. One scene does not yet show what its lesson says
+(crystal_3d's crystal does not melt within its length): its check is expected to fail, strictly, so the day it is
+fixed this test says so. Long: the runs take minutes (states_of_matter_atoms and pressure_cooker, whole heat-and-cool
+cycles, most of them)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,6 @@ pytestmark = pytest.mark.long
 
 NOT_YET = {
     "crystal_3d": "its crystal stays 99% solid for 12 time units: the floor's heat does not melt the bottom layers",
-    "pressure_cooker": "the pool lifts off its floor (no gravity), the floor stops heating it, and nothing boils",
 }
 
 

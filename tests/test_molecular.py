@@ -495,7 +495,7 @@ def test_an_argon_scene_computes_as_reduced_units_and_is_shown_in_kelvin_and_kil
     assert rows["argon"]["time"].value == pytest.approx(2.1564 * rows["lj"]["time"].value, rel=1e-4)
     control = Controller(sims["argon"])
     lid = {s.key: s for s in control.settings()}["lid"]
-    assert lid.unit == "kPa" and lid.value == pytest.approx(0.03 * 41897.6, rel=1e-5)
+    assert lid.unit == "kPa" and lid.value == pytest.approx(0.02 * 41897.6, rel=1e-5)
     control.set("lid", 2513.85)  # kPa
     assert sims["argon"].terms.lid.pressure == pytest.approx(0.06, rel=1e-5)
     chart = Chart(("motion_temperature",), (0, 400, 0, 120), 12, ["argon"], 3)

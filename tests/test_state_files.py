@@ -308,12 +308,17 @@ def test_fuzzed_archive_members_are_refused_in_one_line_never_allocated(saved, t
 
 
 @pytest.mark.parametrize(
-    "control, value", [("thermal_walls.floor", -1.0), ("lid.pressure", -1.0), ("lid.pressure", 1e308)]
+    "scene, control, value",
+    [
+        ("condensation", "thermal_walls.floor", -1.0),
+        ("pressure_cooker", "lid.pressure", -1.0),
+        ("pressure_cooker", "lid.pressure", 1e308),
+    ],
 )
-def test_a_molecular_state_files_controls_keep_the_scenes_ranges(tmp_path, control, value):
+def test_a_molecular_state_files_controls_keep_the_scenes_ranges(tmp_path, scene, control, value):
     """A wall's temperature or the lid's pressure out of the scene's range was a ValueError traceback (issue 72):
     now one SandboxError naming the control, through the API, and the simulation is left as it was."""
-    sim = sandbox.load("pressure_cooker", arch="cpu")
+    sim = sandbox.load(scene, arch="cpu")
     path = sim.save(tmp_path / "cooker")
     with np.load(path, allow_pickle=False) as data:
         arrays = {key: data[key] for key in data.files}
