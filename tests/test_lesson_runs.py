@@ -1,8 +1,7 @@
 """Every shipped lesson against its scene's own run (issue 75): `sandbox check --lesson SCENE` runs the scene as
-shipped for as long as its claims need and every claim holds. One scene does not yet show what its lesson says
-(crystal_3d's crystal does not melt within its length): its check is expected to fail, strictly, so the day it is
-fixed this test says so. Long: the runs take minutes (states_of_matter_atoms and pressure_cooker, whole heat-and-cool
-cycles, most of them)."""
+shipped for as long as its claims need and every claim holds (crystal_3d, condensation, boiling_pot and
+pressure_cooker were changed until they did). Long: the runs take minutes (states_of_matter_atoms and
+pressure_cooker, whole heat-and-cool cycles, most of them)."""
 
 from __future__ import annotations
 
@@ -14,18 +13,9 @@ from sandbox.config.scene import load_scene
 
 pytestmark = pytest.mark.long
 
-NOT_YET = {
-    "crystal_3d": "its crystal stays 99% solid for 12 time units: the floor's heat does not melt the bottom layers",
-}
 
-
-def lessons_with_claims() -> list:
-    scenes = []
-    for path in shipped_scenes():
-        if load_scene(path).lesson.claims:
-            mark = pytest.mark.xfail(strict=True, reason=NOT_YET[path.stem]) if path.stem in NOT_YET else ()
-            scenes.append(pytest.param(path.stem, marks=mark))
-    return scenes
+def lessons_with_claims() -> list[str]:
+    return [path.stem for path in shipped_scenes() if load_scene(path).lesson.claims]
 
 
 @pytest.mark.parametrize("scene", lessons_with_claims())
