@@ -14,8 +14,17 @@ from sandbox.config.scene import load_scene
 pytestmark = pytest.mark.long
 
 
-def lessons_with_claims() -> list[str]:
-    return [path.stem for path in shipped_scenes() if load_scene(path).lesson.claims]
+# the two whole heat-and-cool cycles (minutes each) run on workers of their own, beside the other lessons
+OWN_WORKER = ("pressure_cooker", "states_of_matter_atoms")
+
+
+def lessons_with_claims() -> list:
+    scenes = []
+    for path in shipped_scenes():
+        if load_scene(path).lesson.claims:
+            marks = pytest.mark.xdist_group(f"lesson_{path.stem}") if path.stem in OWN_WORKER else ()
+            scenes.append(pytest.param(path.stem, marks=marks))
+    return scenes
 
 
 @pytest.mark.parametrize("scene", lessons_with_claims())
