@@ -163,9 +163,9 @@ def build(name: str, ply: dict, up: str, kind: str, mat) -> bpy.types.Object:
 
 def show_between(obj, start: int, end: int | None, first: int) -> None:
     """Keyframe `obj` visible from frame `start` until `end` (None: the end), hidden before and after."""
-    for frame, hidden in ((first - 1, True), (start, False), (end, True)):
-        if frame is None or (frame < start and start == first):
-            continue
+    keys = [(first - 1, True)] if start > first else []  # hidden from the sequence's start
+    keys += [(start, False)] + ([(end, True)] if end is not None else [])
+    for frame, hidden in keys:
         obj.hide_render = obj.hide_viewport = hidden
         obj.keyframe_insert("hide_render", frame=frame)
         obj.keyframe_insert("hide_viewport", frame=frame)

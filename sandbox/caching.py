@@ -9,19 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .files.cache_formats import CacheFrame
+from .files.cache_formats import COLOR_COLUMNS, SURFACE_VELOCITY, CacheFrame
 from .files.cache_parts import Part
 from .files.cache_sequence import CacheSequence, index_path
 from .files.claim import Claim
 from .physics.phase import ENTHALPY_LAW, gas_fraction_np
 from .render.camera import scene_camera
 from .render.colormaps import TEMPERATURE_STOPS, ramp_np_many
-from .render.style import LID_COLOR
+from .render.style import LID_COLOR, WALL_GAIN, WALL_LIFT
 from .render.surface import reconstruct
 from .scripting import particle_table, run_frames, spring_pairs
-
-RGB = ("red", "green", "blue")
-SURFACE_VELOCITY = ("vx", "vy", "vz")  # the particles' velocity interpolated onto the surface, as PLY names it
 
 
 def particle_phases(sim, table: dict[str, np.ndarray]) -> np.ndarray:
@@ -79,14 +76,14 @@ def cache_frame(sim, surface: bool = False) -> CacheFrame:
         values = {"temperature": data["temperature"][keep]}
         values.update({name: velocity[keep, k] for k, name in enumerate(SURFACE_VELOCITY)})
         if not sim.particles.heat:  # the materials' colours, blended across the surface
-            values.update({c: colors[keep, k].astype(np.float32) for k, c in enumerate(RGB)})
+            values.update({c: colors[keep, k].astype(np.float32) for k, c in enumerate(COLOR_COLUMNS)})
         shape = reconstruct(
             points[keep], values, 0.5 * sim.scene.spacing, r.surface_smoothing, r.surface_iso, r.surface_cell, dim
         )
         if sim.particles.heat:  # the colour of the temperature there, as the particles have theirs
             shape.colors = temperature_colors(sim, shape.vertex_data["temperature"])
         else:
-            blended = np.stack([shape.vertex_data.pop(c) for c in RGB], axis=1)
+            blended = np.stack([shape.vertex_data.pop(c) for c in COLOR_COLUMNS], axis=1)
             shape.colors = np.clip(np.round(blended), 0, 255).astype(np.uint8)
     frame = CacheFrame(
         sim.frames_done, sim.time, points, data, widths.astype(np.float32), bonds, shape, up, sim.frame_seconds
@@ -101,21 +98,24 @@ def cache_colors(sim, table: dict) -> np.ndarray:
     render.temperature_range where the scene has heat, else its material's colour."""
     if sim.particles.heat:
         return temperature_colors(sim, table["temperature"])
-    rgb = sim.model.materials.colors[table["material"]]
-    return np.clip(np.round(255.0 * np.asarray(rgb, dtype=np.float64)), 0, 255).astype(np.uint8)
+    return color_bytes(sim.model.materials.colors[table["material"]])
 
 
 def temperature_colors(sim, temperature: np.ndarray) -> np.ndarray:
     """(N, 3) uint8 sRGB: the temperature colour map over the scene's render.temperature_range at `temperature`
     (N,) degrees C."""
     lo, hi = sim.scene.render.temperature_range
-    rgb = ramp_np_many(TEMPERATURE_STOPS, (np.asarray(temperature, np.float64) - lo) / (hi - lo))
+    return color_bytes(ramp_np_many(TEMPERATURE_STOPS, (np.asarray(temperature, np.float64) - lo) / (hi - lo)))
+
+
+def color_bytes(rgb) -> np.ndarray:
+    """Colours of floats in [0, 1] (..., 3) as uint8 bytes, rounded."""
     return np.clip(np.round(255.0 * np.asarray(rgb, dtype=np.float64)), 0, 255).astype(np.uint8)
 
 
 def srgb_bytes(rgb) -> tuple[int, int, int]:
-    """A colour of floats in [0, 1] as 3 bytes."""
-    return tuple(int(v) for v in np.clip(np.round(255.0 * np.asarray(rgb, float)), 0, 255))
+    """One colour of floats in [0, 1] as 3 bytes."""
+    return tuple(int(v) for v in color_bytes(rgb))
 
 
 def scene_parts(sim) -> list[Part]:
@@ -135,7 +135,7 @@ def scene_parts(sim) -> list[Part]:
 
     parts = []
     if not scene.world.periodic:
-        wall = srgb_bytes(np.minimum(np.asarray(scene.render.background) * 2.2 + 0.04, 1.0))  # the pictures' frame
+        wall = srgb_bytes(np.asarray(scene.render.background) * WALL_GAIN + WALL_LIFT)  # the pictures' frame
         parts.append(Part("walls", tuple(map(float, lo)), tuple(map(float, hi)), wall, open=("+y", "+z")))
     heat = sim.terms.heat
     cold, hot = scene.render.temperature_range
@@ -145,7 +145,7 @@ def scene_parts(sim) -> list[Part]:
         value = heat.sources.value(k) if heat is not None else float("nan")
         temperature = value if source.mode != "power" else math.nan
         shown = temperature if source.mode != "power" else (hot if value >= 0 else cold)
-        color = srgb_bytes(ramp_np_many(TEMPERATURE_STOPS, np.array([(shown - cold) / (hot - cold)]))[0])
+        color = tuple(int(v) for v in temperature_colors(sim, [shown])[0])
         parts.append(Part(f"plate_{k}", *box(source.lo, source.hi), color, float(temperature)))
     lid = sim.terms.lid
     if lid is not None:

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..caching import cache_frame, scene_parts
+from ..config.arguments import VIDEO_SUFFIXES
 from ..errors import OutputError, SandboxError
 from ..files.appending import AppendFile
 from ..files.cache_sequence import CacheSequence, index_path
@@ -26,19 +27,13 @@ from ..files.claim import RESTART_HINT, Claim
 from ..files.persist import save_state
 from ..measure.stats import stat_values
 from ..render.camera import scene_camera
-from ..render.segments import PngFolder, SegmentedVideo
+from ..render.segments import VIDEO_WORDS, PngFolder, SegmentedVideo
 from ..render.video import StillWriter
 from ..render.video_codec import VideoCodec
 from ..scripting import extxyz_text
 from ..simulation import STAT_COLUMNS, Stats
 
-KIND_WORDS = {
-    "mp4": "an MP4 video",
-    "mov": "a MOV video",
-    "gif": "a GIF",
-    "png-folder": "a folder of PNG frames",
-    "text": "a text file",
-}
+KIND_WORDS = {**VIDEO_WORDS, "png-folder": "a folder of PNG frames", "text": "a text file"}
 KIND_WORDS.update({f"cache-{k}": f"a {k.upper()} particle cache" for k in ("usd", "vtk", "ply")})
 
 
@@ -118,7 +113,7 @@ class RunOutputs:
         if "--out" in claims:
             claim = claims["--out"]
             suffix = claim.path.suffix.lower()
-            if suffix in (".mp4", ".mov", ".gif"):
+            if suffix in VIDEO_SUFFIXES:
                 self.writers["--out"] = SegmentedVideo(claim, width, height, fps, every, self.codec)
             elif suffix == ".png":
                 self.writers["--out"] = StillWriter(claim.path, width, height, fps, still_frame)

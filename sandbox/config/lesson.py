@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 from .schema import at_least, one_of, spec
 
-STATS = ("first", "last", "min", "max", "mean", "change", "duration", "time_of_first")
+RANGED = ("duration", "time_of_first")  # the stats that count frames in `between`
+STATS = ("first", "last", "min", "max", "mean", "change", *RANGED)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -52,7 +53,7 @@ class LessonClaim:
             return f"above {self.above} is not below below {self.below}"
         if self.window and (len(self.window) != 2 or not self.window[0] < self.window[1]):
             return f"window {list(self.window)}: expected [t0, t1] with t0 < t1"
-        needs_range = self.stat in ("duration", "time_of_first")
+        needs_range = self.stat in RANGED
         if needs_range != bool(self.between):
             return f"between: expected [lo, hi] with stat = duration or time_of_first, and only then (stat {self.stat})"
         if self.between and (len(self.between) != 2 or not self.between[0] <= self.between[1]):

@@ -26,11 +26,18 @@ PHASES = ("solid", "liquid", "gas")  # the `phase` codes 0, 1, 2
 # `temperature` for the smoke simulation's and shades it flat, so USD and PLY carry the temperature as `temp_c`; VTK
 # (ParaView, which reserves no name) keeps `temperature`.
 FILM_NAMES = {"temperature": "temp_c"}
+COLOR_COLUMNS = ("red", "green", "blue")  # a colour's bytes as PLY columns (MeshLab, Blender and Houdini read them)
+SURFACE_VELOCITY = ("vx", "vy", "vz")  # a surface's velocity as vertex data (PLY's names; USD and VTK take a vector)
 
 
 def film_name(name: str) -> str:
     """The attribute name a USD or PLY cache gives the point data `name`."""
     return FILM_NAMES.get(name, name)
+
+
+def color_columns(colors: np.ndarray) -> dict[str, np.ndarray]:
+    """(N, 3) uint8 colours as the PLY columns red, green, blue."""
+    return {c: colors[:, k] for k, c in enumerate(COLOR_COLUMNS)}
 
 
 @dataclass
@@ -42,6 +49,12 @@ class Surface:
     triangles: np.ndarray
     vertex_data: dict[str, np.ndarray] = field(default_factory=dict)
     colors: np.ndarray | None = None
+
+    def velocity(self) -> np.ndarray | None:
+        """(V, 3) the velocity at the vertices (their SURFACE_VELOCITY data), or None where the surface has none."""
+        if SURFACE_VELOCITY[0] not in self.vertex_data:
+            return None
+        return np.stack([self.vertex_data[k] for k in SURFACE_VELOCITY], axis=1)
 
 
 @dataclass
@@ -117,7 +130,7 @@ def ply_bytes(frame: CacheFrame) -> bytes:
             columns[film_name(name)] = values
     columns["width"] = frame.widths
     if frame.colors is not None:  # read as the vertex colour by MeshLab, Blender and Houdini
-        columns.update({c: frame.colors[:, k] for k, c in enumerate(("red", "green", "blue"))})
+        columns.update(color_columns(frame.colors))
     vertex = _ply_table(columns)
     elements = [("vertex", len(vertex), _properties(vertex), vertex.tobytes())]
     if frame.bonds is not None and len(frame.bonds):
@@ -134,7 +147,7 @@ def surface_ply_bytes(frame: CacheFrame, mesh: Surface | None = None, comments: 
     s = mesh if mesh is not None else frame.surface
     data = {film_name(name): values for name, values in s.vertex_data.items()}
     if s.colors is not None:
-        data.update({c: s.colors[:, k] for k, c in enumerate(("red", "green", "blue"))})
+        data.update(color_columns(s.colors))
     vertex = _ply_table({"x": s.vertices[:, 0], "y": s.vertices[:, 1], "z": s.vertices[:, 2], **data})
     faces = np.empty(len(s.triangles), dtype=[("n", "u1"), ("v", "<i4", (3,))])
     faces["n"], faces["v"] = 3, s.triangles
@@ -215,9 +228,10 @@ def surface_vtp_bytes(frame: CacheFrame, mesh: Surface | None = None) -> bytes:
     """The surface of `frame` (or `mesh`: the parts) as VTK XML PolyData: triangles as polygon cells, the vertex data
     as point data, any colours as `color` (3 bytes a point: ParaView draws them as they are with Map Scalars off)."""
     s = mesh if mesh is not None else frame.surface
-    data = {k: v for k, v in s.vertex_data.items() if k not in ("vx", "vy", "vz")}
-    if "vx" in s.vertex_data:  # one vector array, as the particles' velocity
-        data["velocity"] = np.stack([s.vertex_data[k] for k in ("vx", "vy", "vz")], axis=1)
+    data = {k: v for k, v in s.vertex_data.items() if k not in SURFACE_VELOCITY}
+    velocity = s.velocity()
+    if velocity is not None:  # one vector array, as the particles' velocity
+        data["velocity"] = velocity
     if s.colors is not None:
         data["color"] = s.colors
     return _vtp(s.vertices, data, {"Polys": s.triangles.reshape(-1)})

@@ -26,7 +26,15 @@ from pathlib import Path
 
 from ..config.arguments import MAX_FRAMES
 from ..errors import SandboxError
-from .cache_formats import CacheFrame, ply_bytes, pvd_text, surface_ply_bytes, surface_vtp_bytes, vtp_bytes
+from .cache_formats import (
+    SURFACE_VELOCITY,
+    CacheFrame,
+    ply_bytes,
+    pvd_text,
+    surface_ply_bytes,
+    surface_vtp_bytes,
+    vtp_bytes,
+)
 from .cache_parts import parts_comment, parts_surface
 from .claim import RESTART_HINT, Claim, digest_of, is_regular_file, remove_numbered, write_whole
 
@@ -61,9 +69,9 @@ class CacheSequence:
     """The cache `claim.path` (its index, index_path()) holding one frame per write(); `fps`: time codes per second
     of a USD stage; `lines`: springs as line cells in a VTK cache; `every` and `surface`: what a run of the command
     line caches (every `every`-th frame from frame `first` on, with surfaces or not), which a resume's record must
-    match; `parts` and
-    `camera`: the scene's walls, plates and lid and its pictures' camera (a frame written brings its own), which
-    PLY and VTK write as a file a frame (`parts`: whether the frames have one) and USD in its stage."""
+    match; `parts` and `camera`: the scene's walls, plates and lid and its pictures' camera (a frame written brings
+    its own), which PLY and VTK write as a file a frame (`parts`: whether the frames have one) and USD in its
+    stage."""
 
     RECORD = {"written": list, "digest": str}
 
@@ -205,8 +213,8 @@ class CacheSequence:
         note = f"velocity in length per second at {self.fps:g} frames a second (a frame: {frame.frame_seconds:g} s)"
         data = {**frame.point_data, "velocity": (velocity * scale).astype(velocity.dtype)}
         surface = frame.surface
-        if surface is not None and "vx" in surface.vertex_data:  # the surface's velocity, in the same time
-            vertex_data = {k: v * scale if k in ("vx", "vy", "vz") else v for k, v in surface.vertex_data.items()}
+        if surface is not None and surface.velocity() is not None:  # the surface's velocity, in the same time
+            vertex_data = {k: v * scale if k in SURFACE_VELOCITY else v for k, v in surface.vertex_data.items()}
             surface = dataclasses.replace(surface, vertex_data=vertex_data)
         return dataclasses.replace(frame, point_data=data, velocity_note=note, surface=surface)
 

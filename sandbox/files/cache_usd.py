@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SandboxError
-from .cache_formats import METERS_PER_UNIT, CacheFrame, film_name
+from .cache_formats import METERS_PER_UNIT, SURFACE_VELOCITY, CacheFrame, film_name
 from .cache_parts import Part, box_faces
 
 USD_HINT = "install the export extra: python3 -m pip install -e '.[export]'"
@@ -83,11 +83,11 @@ def write_frame_layer(path: Path, frame: CacheFrame) -> None:
         mesh.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(vertex_normals(s.vertices, s.triangles)), t)
         if s.colors is not None:
             mesh.GetDisplayColorPrimvar().Set(Vt.Vec3fArray.FromNumpy(srgb_to_linear(s.colors).astype(np.float32)), t)
-        if "vx" in s.vertex_data:
-            velocity = np.stack([s.vertex_data[k] for k in ("vx", "vy", "vz")], axis=1).astype(np.float32)
-            mesh.GetVelocitiesAttr().Set(Vt.Vec3fArray.FromNumpy(velocity), t)
+        velocity = s.velocity()
+        if velocity is not None:
+            mesh.GetVelocitiesAttr().Set(Vt.Vec3fArray.FromNumpy(velocity.astype(np.float32)), t)
         for name, values in s.vertex_data.items():
-            if name in ("vx", "vy", "vz"):
+            if name in SURFACE_VELOCITY:
                 continue
             UsdGeom.PrimvarsAPI(mesh.GetPrim()).CreatePrimvar(
                 film_name(name), Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config.lesson import LessonClaim
+from ..config.lesson import RANGED, LessonClaim
 from ..errors import SandboxError
 from .stats import STAT_COLUMNS
 
@@ -62,9 +62,9 @@ def reduce(
         lo, hi = claim.where_between
         keep &= (where >= lo) & (where <= hi)
     t, v = time[keep], values[keep]
-    if len(v) == 0 or (claim.stat not in ("duration", "time_of_first") and not np.all(np.isfinite(v))):
+    if len(v) == 0 or (claim.stat not in RANGED and not np.all(np.isfinite(v))):
         return math.nan
-    if claim.stat in ("duration", "time_of_first"):
+    if claim.stat in RANGED:
         lo, hi = claim.between
         inside = (v >= lo) & (v <= hi)
         if claim.stat == "duration":

@@ -136,6 +136,18 @@ def source_value(src, t: float) -> float:
     return scheduled_value(src, src.power if src.mode == "power" else src.temperature, t)
 
 
+def schedule_flag(value: float) -> str | None:
+    """The check of a control's "scheduled" flag (a scheduled heater's power or lid's pressure): 0 set by hand, 1
+    following the scene's schedule."""
+    return None if value in (0.0, 1.0) else f"expected 0 (set by hand) or 1 (scheduled), got {value:g}"
+
+
+def set_by_hand(table, values: dict) -> bool:
+    """Whether a control with a schedule is set by hand after `values` are applied: without a schedule always, else
+    unless the values carry "scheduled": 1 (a state file's record; a slider's value has no flag)."""
+    return not table.schedule_times or values.get("scheduled", 0.0) == 0.0
+
+
 def scheduled_value(table, base: float, t: float) -> float:
     """The value in force at time t of a table with a schedule (`schedule_times`, `schedule_values`,
     `schedule_period`: a heat source, the molecular heater): its schedule's, else `base`."""

@@ -22,7 +22,7 @@ import taichi as ti
 from ..config.molecular_table import Heater as HeaterTable
 from ..config.schema import key_check
 from ..core.oriented import data_oriented
-from .heat_sources import scheduled_value
+from .heat_sources import schedule_flag, scheduled_value, set_by_hand
 from .term import Measure, Slider, Term, register
 
 
@@ -69,8 +69,7 @@ class Heater(Term):
         return [Slider("heater", "heater power", "power", -top, top, "power", top / 200)]
 
     def control_checks(self) -> dict:
-        scheduled = lambda v: None if v in (0.0, 1.0) else f"expected 0 (set by hand) or 1 (scheduled), got {v:g}"  # noqa: E731
-        return {"power": key_check(HeaterTable, "power"), "scheduled": scheduled}
+        return {"power": key_check(HeaterTable, "power"), "scheduled": schedule_flag}
 
     def apply_controls(self, values: dict) -> None:
         """Set the power; without "scheduled": 1 (a state file's record) it is set by hand and the schedule stops."""
@@ -79,7 +78,7 @@ class Heater(Term):
             if not math.isfinite(value):
                 raise ValueError(f"heater power {value!r}; expected a finite number (negative cools)")
             self.power = value
-        self.by_hand = not self.spec.schedule_times or values.get("scheduled", 0.0) == 0.0
+        self.by_hand = set_by_hand(self.spec, values)
 
     def words(self, where: str) -> list[str]:
         if where == "after":

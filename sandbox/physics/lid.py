@@ -21,7 +21,7 @@ from ..config.molecular_table import Lid as LidTable
 from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
-from .heat_sources import scheduled_value
+from .heat_sources import schedule_flag, scheduled_value, set_by_hand
 from .term import Measure, Slider, Term, register
 
 
@@ -94,8 +94,7 @@ class Lid(Term):
         return [Slider("lid", "lid pressure", "pressure", 0.0, top, "pressure", top / 200)]
 
     def control_checks(self) -> dict:
-        scheduled = lambda v: None if v in (0.0, 1.0) else f"expected 0 (set by hand) or 1 (scheduled), got {v:g}"  # noqa: E731
-        return {"pressure": key_check(LidTable, "pressure"), "scheduled": scheduled}
+        return {"pressure": key_check(LidTable, "pressure"), "scheduled": schedule_flag}
 
     def apply_controls(self, values: dict) -> None:
         """Set the pressure; without "scheduled": 1 (a state file's record) it is set by hand and the schedule
@@ -105,7 +104,7 @@ class Lid(Term):
             if not value >= 0.0:
                 raise ValueError(f"lid pressure {value!r}; expected a number of at least 0")
             self.pressure = value
-        self.by_hand = not self.spec.schedule_times or values.get("scheduled", 0.0) == 0.0
+        self.by_hand = set_by_hand(self.spec, values)
 
     def words(self, where: str) -> list[str]:
         if where == "finish":

@@ -40,6 +40,12 @@ def _codec(path: Path, codec: VideoCodec | None = None) -> list[str]:
     return [*(codec or VideoCodec()).args(), "-movflags", "+faststart"]
 
 
+def _copied(path: Path) -> list[str]:
+    """ffmpeg's output arguments for writing `path` from other videos: MP4 and MOV packets copied as they are (the
+    encoding, its tags included, kept); a GIF encoded again, with its palette."""
+    return ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() != ".gif" else _codec(path)
+
+
 def _run(args: list[str], what: Path) -> str:
     """Run ffmpeg with `args`; its stdout, or an OutputError naming `what` and ffmpeg's last line."""
     done = subprocess.run(
@@ -129,8 +135,7 @@ def join(pieces: list[Path], path: Path) -> None:
     listing = path.with_name(path.name + LISTING)
     listing.write_text("".join(f"file {_quoted(ff_path(p))}\n" for p in pieces))
     try:
-        codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() != ".gif" else _codec(path)
-        _run(["-y", "-f", "concat", "-safe", "0", "-i", ff_path(listing), *codec, ff_path(path)], path)
+        _run(["-y", "-f", "concat", "-safe", "0", "-i", ff_path(listing), *_copied(path), ff_path(path)], path)
     finally:
         listing.unlink(missing_ok=True)
 
@@ -138,5 +143,4 @@ def join(pieces: list[Path], path: Path) -> None:
 def cut(source: Path, frames: int, path: Path) -> None:
     """Write the first `frames` frames of `source` to `path` (MP4, MOV: copied, and exact where a piece began
     there)."""
-    codec = ["-c", "copy", "-movflags", "+faststart"] if path.suffix.lower() != ".gif" else _codec(path)
-    _run(["-y", "-i", ff_path(source), "-map", "0:v", "-frames:v", str(frames), *codec, ff_path(path)], path)
+    _run(["-y", "-i", ff_path(source), "-map", "0:v", "-frames:v", str(frames), *_copied(path), ff_path(path)], path)

@@ -28,6 +28,8 @@ from .style import (
     SPRING_COLOR,
     SPRING_OPACITY,
     TILE,
+    WALL_GAIN,
+    WALL_LIFT,
     _add,
 )
 
@@ -119,7 +121,7 @@ class Flat2D:
         elif (
             ti.min(pix[0] - self.px_lo[0], self.px_hi[0] - pix[0], pix[1] - self.px_lo[1], self.px_hi[1] - pix[1]) < 1.5
         ):
-            c = self.background * 2.2 + 0.04  # the walls: a faint frame
+            c = self.background * WALL_GAIN + WALL_LIFT  # the walls: a faint frame
         for k in range(self.n_src):
             if (
                 pix[0] >= self.src_lo[k][0] - 1

@@ -19,6 +19,8 @@ from ..files.claim import RESTART_HINT, Claim, create_exclusive, digest_of, own_
 from .encoder import Encoder, cut, frame_digests, join
 from .video_codec import VideoCodec
 
+VIDEO_WORDS = {"mp4": "an MP4 video", "mov": "a MOV video", "gif": "a GIF"}  # by kind (the suffix)
+
 
 def _settings(words: str, width: int, height: int, fps: float, every: int) -> str:
     return f"{words} of {width}x{height} at {fps:g} frames/s" + (f", every {every} frames kept" if every > 1 else "")
@@ -43,7 +45,7 @@ class SegmentedVideo:
         self.claim, self.width, self.height, self.fps, self.every = claim, width, height, fps / every, every
         self.kind = claim.path.suffix.lower().lstrip(".")
         self.codec = codec or VideoCodec()
-        self.words = {"gif": "a GIF", "mov": "a MOV video"}.get(self.kind, "an MP4 video")
+        self.words = VIDEO_WORDS[self.kind]
         self.encoding = "GIF" if self.kind == "gif" else self.codec.words()
         self.pieces: list[Path] = []
         self.digests: list[str] = []  # of the frames in closed pieces

@@ -16,6 +16,7 @@ SPRING_COLOR = (0.55, 0.6, 0.7)
 SPRING_OPACITY = 0.6
 BRUSH_COLOR = (0.92, 0.92, 0.92)  # the window's tool outline
 LID_COLOR = (0.85, 0.85, 0.9)  # the molecular model's lid, 2D and 3D
+WALL_GAIN, WALL_LIFT = 2.2, 0.04  # 2D: the walls' faint frame is the background x gain + lift (caches use it too)
 BRUSH_OPACITY = 0.85
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from ..config.arguments import VIDEO_SUFFIXES
 from ..errors import OutputError, SandboxError
 from ..files.claim import partial_name
 from .encoder import Encoder, ffmpeg_exe
@@ -129,7 +130,7 @@ class FfmpegWriter(FrameWriter):
 def check_output(path: str | Path) -> None:
     """Fail early (before any simulation) when the output kind needs a package that is missing."""
     suffix = Path(path).suffix.lower()
-    if suffix in (".mp4", ".mov", ".gif"):
+    if suffix in VIDEO_SUFFIXES:
         try:
             import imageio_ffmpeg  # noqa: F401
         except ImportError as exc:
@@ -145,7 +146,7 @@ def open_writer(path: str | Path, width: int, height: int, fps: float, still_fra
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
     suffix = path.suffix.lower()
-    if suffix in (".mp4", ".mov", ".gif"):
+    if suffix in VIDEO_SUFFIXES:
         if width % 2 or height % 2:
             raise SandboxError(f"{path}: {suffix} needs an even width and height, got {width}x{height}")
         return FfmpegWriter(path, width, height, fps)

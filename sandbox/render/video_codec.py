@@ -61,9 +61,8 @@ class VideoCodec:
             rate = ["-qp", "0"] if self.lossless else ["-crf", str(q)]
             return ["-vf", TO_YUV709, "-vcodec", "libx264", "-pix_fmt", pix, *rate, *YUV_TAGS]
         params = "log-level=error" + (":lossless=1" if self.lossless else f":crf={q}")
-        return ["-vf", TO_YUV709, "-vcodec", "libx265", "-pix_fmt", pix, "-x265-params", params, "-tag:v", "hvc1"] + [
-            *YUV_TAGS
-        ]
+        codec = ["-vcodec", "libx265", "-pix_fmt", pix, "-x265-params", params, "-tag:v", "hvc1"]
+        return ["-vf", TO_YUV709, *codec, *YUV_TAGS]
 
     def words(self) -> str:
         """The encoding in words ("H.264, CRF 15"), as a resume's refusal names it."""

@@ -138,7 +138,6 @@ def run(n: int, frames: int, out: str | None) -> dict:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-if (
-    __name__ == "__main__"
-):  # one format's bench, for bench_caches: python -m sandbox.research.cache_bench KIND N FRAMES DIR
+# one format's bench, for bench_caches: python -m sandbox.research.cache_bench KIND N FRAMES DIR
+if __name__ == "__main__":
     print(json.dumps(bench_format(sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), Path(sys.argv[4]))))

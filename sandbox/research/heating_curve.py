@@ -201,7 +201,8 @@ def report(runs: list[HeatingRun]) -> str:
             f"| {run.pressure:g} | {run.plateau():.3f} | {tb:.3f} | {run.plateau(liquid=False):.3f} | "
             f"{run.vaporisation_heat():.2f} | {slopes} |"
         )
-    lines += [f"\nLid pressure {run.pressure:g}:{above_critical(run)}." for run in runs if above_critical(run)]
+    notes = [(run.pressure, above_critical(run)) for run in runs]
+    lines += [f"\nLid pressure {pressure:g}:{note}." for pressure, note in notes if note]
     lines += [
         "",
         "dT/dQ (of all atoms' kT) is given per atom (N dT/dQ, the inverse of the heat capacity per atom): small",
