@@ -52,10 +52,9 @@ def cycle():
             name = next(k for k, v in SNAPSHOTS.items() if v == frame)
             pictures[name] = sim.picture()
             plot = sim._picture_renderer[1].phase_plot
-            regions[name] = plot.dot_region()
+            regions[name] = plot.line_region()
             box = plot.plot_box()
-            x, r = plot.to_pixels(box, *plot.trail[-1])
-            dots[name] = (box[0] + int(round(float(x))), box[2] + int(round(float(r))))
+            dots[name] = (box[0] + plot.line_x(box), box, plot.temperature)
         if frame == frames:
             break
         table = sim.run(1)
@@ -122,13 +121,18 @@ def test_the_lesson_melts_at_0_boils_at_100_and_the_steam_fills_the_box(cycle):
 
 
 @pytest.mark.parametrize("state", list(SNAPSHOTS))
-def test_pictures_show_the_phase_diagram_dot_in_the_states_region(cycle, state):
-    """In pictures of solid, liquid and gas, the phase diagram's dot lies in that state's region and is drawn
-    there (the pixel at its centre is the dot's colour)."""
+def test_pictures_mark_the_models_temperature_on_the_phase_diagram_and_draw_no_dot(cycle, state):
+    """In pictures of solid, liquid and gas, the phase diagram marks the model's mean temperature with a line in
+    that state's temperature range (the rule's regions), drawn down the whole plot; and no dot: the mesoscale model
+    has no measured temperature and pressure to place one by (a dot's disc would be DOT-coloured beside the line)."""
     assert cycle["regions"][state] == state
-    x, row = cycle["dots"][state]
-    pixel = cycle["pictures"][state][row, x].astype(int)
-    assert np.abs(pixel - np.asarray(DOT)).max() <= 3
+    x, (bx0, bx1, br0, br1), temperature = cycle["dots"][state]
+    picture = cycle["pictures"][state].astype(int)
+    near = lambda block: np.abs(block - np.asarray(DOT)).max(axis=-1) <= 3  # noqa: E731
+    column = near(picture[br0 + 1 : br1, x])
+    assert column.mean() > 0.85  # the line, top to bottom (the regions' names are drawn over it)
+    inside = near(picture[br0 + 1 : br1, bx0 + 1 : bx1])
+    assert inside.sum(axis=1).max() <= 4  # no disc: at most the line's width in any row
 
 
 def test_boiling_pot_melts_then_boils_and_the_steam_presses_and_heats():

@@ -19,13 +19,15 @@ from ..measure.units import shown
 @dataclass(frozen=True)
 class Readout:
     """One measurement: `key` names it (the page's message catalogue), `words` in English, `value` in `unit`
-    (nan: nothing to measure), shown with `digits` decimals."""
+    (nan: nothing to measure), shown with `digits` decimals; `source`: what the number is (config/quantities.SOURCES:
+    "measured", "rule" or "clock"; "" for the drawing rate)."""
 
     key: str
     words: str
     value: float
     unit: str = ""
     digits: int = 1
+    source: str = ""
 
     def text(self) -> str:
         """The value with its unit, or "-" (ASCII: the window's font has no en dash)."""
@@ -71,7 +73,14 @@ def measured(key: str, name: str, sim, stats, digits: int = 1) -> Readout:
     if unit == "%":
         value *= 100.0
     unit = {"°C": "C", "count": ""}.get(unit, unit)
-    return Readout(key, q.words, value, unit, digits)
+    return Readout(key, q.words, value, unit, digits, q.source)
+
+
+def marks_sources(items: list[Readout]) -> bool:
+    """Whether a scene's readouts say what each number is: where some are set by the model's rule (a mesoscale
+    scene's heat and phases), each is marked measured or rule; where all are measured (atoms, a cold lattice), none
+    needs the mark."""
+    return any(item.source == "rule" for item in items)
 
 
 def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
@@ -86,13 +95,13 @@ def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
         out.append(measured("temperature", "mean_temperature", sim, stats))
         groups = thermometers(sim)
         if len(groups) > 1:  # a temperature per body: a candle's flame and wax are not averaged into one number
-            out += [Readout("temperature_of", name.replace("_", " "), t, "C") for name, t in groups[:4]]
+            out += [Readout("temperature_of", name.replace("_", " "), t, "C", 1, "rule") for name, t in groups[:4]]
         if any(material.boils for material in sim.model.material_list):
             solid, liquid, gas = stats.phase_shares
             out += [
-                Readout("solid", "solid", 100 * solid, "%", 0),
-                Readout("liquid", "liquid", 100 * liquid, "%", 0),
-                Readout("gas", "gas", 100 * gas, "%", 0),
+                Readout("solid", "solid", 100 * solid, "%", 0, "rule"),
+                Readout("liquid", "liquid", 100 * liquid, "%", 0, "rule"),
+                Readout("gas", "gas", 100 * gas, "%", 0, "rule"),
             ]
         else:
             out.append(measured("melted", "molten_fraction", sim, stats, 0))

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import textwrap
 
+from ..config.quantities import RULE_WORDS
 from ..config.resources import shipped_scenes
 from ..measure.units import length_unit
+from .panel import marks_sources
 from .window_state import WindowState, help_lines, lesson_text, pace_text, panel_characters, pick_scene
 
 PANEL_WIDTH = 0.28  # of the window's width: the panel's column, full height; the renderer draws right of it
@@ -47,14 +49,18 @@ def readouts(gui, chars: int, control, state: WindowState, stats, fps: float) ->
     """The shared description's measurements (panel.py), packed into as few lines as the panel's width allows, then
     the probe and the integrator. ASCII only: GGUI's font has no degree sign."""
     line = "PAUSED" if control.paused else ""
-    for item in control.readouts(stats, fps):
-        text = f"{item.words} {item.text()}"
+    items = control.readouts(stats, fps)
+    marked = marks_sources(items)
+    for item in items:
+        text = f"{item.words}{' (rule)' * (marked and item.source == 'rule')} {item.text()}"
         if line and len(line) + 3 + len(text) > chars:
             say(gui, chars, line)
             line = ""
         line = f"{line}   {text}" if line else text
     if line:
         say(gui, chars, line)
+    if marked:
+        say(gui, chars, f"(rule): {RULE_WORDS}; the rest is measured")
     say(gui, chars, f"under the cursor: {state.probe or '-'}")
     say(gui, chars, f"integrator {control.sim.integrator.name} (i)   {pace_text(state)}")
 

@@ -47,7 +47,8 @@ class Sums:
 class Quantity:
     """One reported quantity (module docstring). `unit`: one of UNIT_KINDS, read in the scene's units
     (measure/units.py); `words`: a few words for labels; `doc`: one sentence for docs/physics.md; `value`: from Sums
-    (nan where the scene has nothing to measure); `chart`: whether render.chart may plot it; `integer`: a count."""
+    (nan where the scene has nothing to measure); `chart`: whether render.chart may plot it; `integer`: a count;
+    `source`: one of SOURCES, what a reader is told the number is (panel, page, chart legends, docs)."""
 
     name: str
     unit: str
@@ -56,7 +57,15 @@ class Quantity:
     value: Callable[[Sums], float]
     chart: bool = True
     integer: bool = False
+    source: str = "measured"
 
+
+# What a number is: "measured" from the particles' motion, forces and the energy exchanged (it comes out of a run);
+# "rule": the mesoscale model's heat and phase variables, which follow the material's set numbers (its melting and
+# boiling points, latent heats, conductivity) and the rules that break bonds and switch a parcel's pull; "clock": the
+# simulated time. The molecular model has no rule-made readout: its temperature and phases come from the motion.
+SOURCES = ("measured", "rule", "clock")
+RULE_WORDS = "set by the model's rule, not measured"
 
 UNIT_KINDS = ("s", "length", "energy", "kT", "energy per particle", "pressure", "°C", "%", "heat", "speed", "count")
 
@@ -90,7 +99,7 @@ def _structure_share(kind: str) -> Callable[[Sums], float]:
 
 
 QUANTITIES: tuple[Quantity, ...] = (
-    Quantity("time", "s", "time", "simulated time", lambda s: s.time, chart=False),
+    Quantity("time", "s", "time", "simulated time", lambda s: s.time, chart=False, source="clock"),
     Quantity("kinetic_energy", "energy", "kinetic energy", "sum of m v^2 / 2", lambda s: s.m["ke"]),
     Quantity("potential_energy", "energy", "potential energy", "spring + pair + gravity energy",
              lambda s: s.of("spring_energy") + s.of("pair_energy") + s.of("gravity_energy")),
@@ -114,8 +123,9 @@ QUANTITIES: tuple[Quantity, ...] = (
              / (s.dim * s.volume)),
     Quantity("wall_pressure", "pressure", "pressure on the walls", "momentum the walls took per unit time and wall "
              "area since the frame began; nan without walls", lambda s: s.wall_pressure),
-    Quantity("mean_temperature", "°C", "mean temperature", "mean particle temperature; nan without heat",
-             lambda s: s.m["tsum"] / s.m["n"] if (s.heat and s.m["n"]) else NAN),
+    Quantity("mean_temperature", "°C", "mean temperature", "mean particle temperature (the heat model's: "
+             "conducted, and held at the material's melting and boiling points by its rule); nan without heat",
+             lambda s: s.m["tsum"] / s.m["n"] if (s.heat and s.m["n"]) else NAN, source="rule"),
     Quantity("kinetic_temperature", "°C", "temperature of the motion", "the temperature the molten particles' "
              "motion relative to the local flow says (heat.agitation_time); nan without it",
              lambda s: s.m["agitation"] / (s.dim * s.m["free"]) - 273.15 if s.m.get("free") else NAN),
@@ -143,14 +153,16 @@ QUANTITIES: tuple[Quantity, ...] = (
              "lid area since the frame began (its outside pressure and weight, on average, once it rests); nan without "
              "a lid", lambda s: s.m["lid_impulse"] / (s.time - s.m["lid_since"])
              if "lid_impulse" in s.m and s.time > s.m["lid_since"] else NAN),
-    Quantity("molten_fraction", "%", "molten", "mean melt fraction of the particles of meltable materials",
-             _share("phi", "meltable")),
-    Quantity("gas_fraction", "%", "boiled", "mean vapour fraction of the particles of materials that boil",
-             _share("psi", "boilable")),
+    Quantity("molten_fraction", "%", "molten", "mean melt fraction of the particles of meltable materials (each melts "
+             "at its material's set point by rule)", _share("phi", "meltable"), source="rule"),
+    Quantity("gas_fraction", "%", "boiled", "mean vapour fraction of the particles of materials that boil (each "
+             "boils at its material's set point by rule)", _share("psi", "boilable"), source="rule"),
     Quantity("heat_content", "heat", "heat content", "sum of m h: the enthalpy in the particles, conserved without "
-             "sources; nan without heat", lambda s: s.m["heat"] if s.heat else NAN),
-    Quantity("broken_springs", "count", "broken bonds", "springs created minus springs alive",
-             lambda s: int(s.m["created"]) - int(s.m["alive"]) if s.springs else 0, chart=False, integer=True),
+             "sources; nan without heat", lambda s: s.m["heat"] if s.heat else NAN, source="rule"),
+    Quantity("broken_springs", "count", "broken bonds", "springs created minus springs alive (a spring "
+             "breaks by rule: both ends molten enough, or stretched 100-fold)",
+             lambda s: int(s.m["created"]) - int(s.m["alive"]) if s.springs else 0, chart=False, integer=True,
+             source="rule"),
     Quantity("max_speed", "speed", "fastest particle", "the largest particle speed", lambda s: s.m["vmax"]),
     Quantity("centre_of_mass_height", "length", "centre of mass height", "the particles' centre of mass along y "
              "(the axis of every shipped scene's gravity): sum m y / sum m; nan without particles",
@@ -167,6 +179,8 @@ def _checked(quantities: tuple[Quantity, ...]) -> dict[str, Quantity]:
     for q in quantities:
         if q.name in by_name or q.name == PHASE_DIAGRAM:
             raise ValueError(f"quantity {q.name!r} is declared twice; expected one declaration per name")
+        if q.source not in SOURCES:
+            raise ValueError(f"quantity {q.name!r} has source {q.source!r}; expected one of {', '.join(SOURCES)}")
         if q.unit not in UNIT_KINDS:
             raise ValueError(f"quantity {q.name!r} has unit {q.unit!r}; expected one of {', '.join(UNIT_KINDS)}")
         by_name[q.name] = q
@@ -228,9 +242,9 @@ def check_measures(known: set[str]) -> None:
 
 
 def markdown_table() -> str:
-    """The quantities as docs/physics.md's table: name, unit, meaning."""
-    rows = ["| quantity | unit | meaning |", "|---|---|---|"]
-    rows += [f"| `{q.name}` | {q.unit} | {q.doc} |" for q in QUANTITIES]
+    """The quantities as docs/physics.md's table: name, unit, what it is (SOURCES), meaning."""
+    rows = ["| quantity | unit | source | meaning |", "|---|---|---|---|"]
+    rows += [f"| `{q.name}` | {q.unit} | {q.source} | {q.doc} |" for q in QUANTITIES]
     return "\n".join(rows)
 
 

@@ -1,4 +1,4 @@
-"""The pressure-temperature phase diagram of a scene's boiling material, and where its current state sits on it.
+"""The pressure-temperature phase diagram of a scene's boiling material, as the mesoscale model's rule makes it.
 
 The curves are Clausius-Clapeyron's, from the material's latent heats and molar mass (its `molar_mass`, g/mol; where
 unset, Trouton's rule L_v M = 88 J/mol/K x T_b):
@@ -12,11 +12,8 @@ until the material has boiled, the ideal gas's estimate of the pressure in the s
 T_b, N k T_b / V (N particles of it, k = heat.agitation_scale, V the box's volume, its area in 2D); once it has, the
 mean pressure the gauge read while it boiled (render/phase_plot.py).
 
-The dot: a gas (at least 95% boiled) sits at the measured pressure (the walls' gauge, else the virial pressure), so
-heating it in its closed box moves it right and up, below the vapour curve; while it boils it rides the vapour curve;
-a solid or a liquid (less than 5% boiled) has no vapour over it in the sandbox (it does not evaporate below its
-boiling point), so no pressure to place it by: it is drawn a factor CONDENSED above the curve at its temperature,
-inside its own region.
+This is the model's rule, not a measurement (the mesoscale model's melting and boiling points are set numbers): the
+panel says so, and marks the model's temperature on it with a line, not a dot (render/phase_plot.py).
 """
 
 from __future__ import annotations
@@ -29,7 +26,7 @@ import numpy as np
 KELVIN = 273.15
 GAS_CONSTANT = 8.314  # J / (mol K)
 TROUTON = 88.0  # J / (mol K): the entropy of vaporization of most liquids at their boiling point
-CONDENSED = 4.0  # a solid's or liquid's dot is drawn this factor above its coexistence curve (module docstring)
+HEADROOM = 16.0  # the pressure axis reaches this factor above the vapour curve a little past the boiling point
 BOILING = (0.05, 0.95)  # gas fractions between which the material is boiling (on the vapour curve)
 REGIONS = ("solid", "liquid", "gas")
 
@@ -64,23 +61,13 @@ class PhaseMap:
             return "gas"
         return "solid" if temperature < self.melt else "liquid"
 
-    def dot(self, temperature: float, pressure: float, gas_fraction: float) -> tuple[float, float]:
-        """Where the state (mean temperature °C, measured pressure, gas fraction 0..1) is drawn (module docstring)."""
-        curve = float(self.vapour_pressure(temperature))
-        if gas_fraction >= BOILING[1]:
-            measured = pressure if math.isfinite(pressure) and pressure > 0 else curve * 0.5
-            return temperature, min(measured, 0.9 * curve)  # the gauge's noise never lifts a gas over the curve
-        if gas_fraction > BOILING[0]:
-            return temperature, curve
-        return temperature, CONDENSED * curve
-
     def axes(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """((T lo, T hi) °C, (P lo, P hi)): the diagram's ranges, from below the melting point to well past boiling
-        and from the sublimation curve's foot to above the condensed dots."""
+        and from the sublimation curve's foot to HEADROOM above the vapour curve a little past boiling."""
         span = self.boil - self.melt
         t_lo, t_hi = self.melt - 0.5 * span, self.boil + 2.0 * span
         p_lo = float(self.vapour_pressure(t_lo))
-        p_hi = CONDENSED * 4.0 * float(self.vapour_pressure(self.boil + 0.25 * span))
+        p_hi = HEADROOM * float(self.vapour_pressure(self.boil + 0.25 * span))
         return (t_lo, t_hi), (p_lo, p_hi)
 
 

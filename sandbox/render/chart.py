@@ -14,7 +14,7 @@ import math
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ..config.quantities import QUANTITIES
+from ..config.quantities import BY_NAME, QUANTITIES
 from ..measure.units import length_unit, series_scale, series_words, shown
 from .layout import side_by_side
 from .text import GREY, dim, draw_text, line_height, text_width
@@ -47,6 +47,12 @@ def short_words(name: str) -> str:
     return {"mean_temperature": "mean", "kinetic_temperature": "motion", "molten_fraction": "melted"}.get(
         name, name.split("_")[0]
     )
+
+
+def set_by_rule(name: str) -> bool:
+    """Whether the series `name` is set by the model's rule rather than measured (config/quantities.py's source)."""
+    quantity = BY_NAME.get(name)
+    return quantity is not None and quantity.source == "rule"
 
 
 def value_text(value: float, unit: str) -> str:
@@ -102,9 +108,13 @@ class Chart:
         self.size = size
         self.translated = words is not None and any(words.series(n, "") for n in self.series)
         words = words or Words()
+        # a series the model's rule sets (a mesoscale scene's heat and phases) says so after its words
+        self.marks = [f" {words.rule_mark()}" if set_by_rule(n) else "" for n in self.series]
         self.words = [
-            (words.series(name, english), unit)
-            for name, (english, unit) in ((n, series_words(n, material_names, dim)) for n in self.series)
+            (words.series(name, english) + mark, unit)
+            for mark, (name, (english, unit)) in zip(
+                self.marks, ((n, series_words(n, material_names, dim)) for n in self.series)
+            )
         ]
         by_unit: dict[str, list[int]] = {}
         for k, (_, unit) in enumerate(self.words):
@@ -220,7 +230,9 @@ class Chart:
         # left out, where the panel is too narrow for them
         latest = [next((v for v in reversed(self.history[k]) if math.isfinite(v)), math.nan) for k in panel.names]
         unit = f"({panel.unit})" if panel.unit else ""
-        shorter = (lambda k: self.words[k][0]) if self.translated else (lambda k: short_words(self.series[k]))
+        shorter = (
+            (lambda k: self.words[k][0]) if self.translated else (lambda k: short_words(self.series[k]) + self.marks[k])
+        )
         for words in (lambda k: self.words[k][0], shorter, lambda k: ""):
             texts = [f"{words(k)} {value_text(v, panel.unit)}".strip() for k, v in zip(panel.names, latest)]
             if sum(text_width(t + "   ", size) for t in texts) + text_width(unit, size) <= rect[1] - rect[0] - 4:

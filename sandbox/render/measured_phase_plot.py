@@ -15,11 +15,12 @@ import numpy as np
 from ..measure.coexistence_curve import CoexistenceCurve
 from ..measure.units import pressure_unit, shown
 from .chart import pen_on, value_ticks
-from .phase_plot import CURVE, DOT, REGION_FILL, TRAIL, PressureTemperaturePanel
+from .phase_plot import CURVE, DOT, REGION_FILL, PressureTemperaturePanel
 from .text import GREY, dim, draw_text, text_width
 from .words import Words
 
 SAMPLES = 40  # frames averaged for the dot
+TRAIL = 240  # positions kept for the trail
 
 
 class MeasuredPhasePlot(PressureTemperaturePanel):

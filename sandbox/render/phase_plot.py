@@ -1,6 +1,12 @@
-"""The phase diagram panel: a material's pressure-temperature diagram (measure/phase_map.py) with the current state as
-a moving dot and a fading trail of where it has been, drawn on the host into the picture's top band like a chart.
-`render.chart = ["phase_diagram", ...]` shows it (window, videos and pictures alike)."""
+"""The phase diagram panel of a mesoscale scene: its material's pressure-temperature diagram as the model's rule
+makes it (measure/phase_map.py: the set melting and boiling points, Clausius-Clapeyron through them), with the model's
+temperature as a line across it, drawn on the host into the picture's top band like a chart. `render.chart =
+["phase_diagram", ...]` shows it (window, videos and pictures alike).
+
+No dot: a dot would need a measured temperature and a measured pressure of the material, and the mesoscale model has
+neither on these axes (its temperature is a field its rule holds at the set points; its parcels' gauge pressure is
+no vapour pressure). The title and the line say "rule". The molecular model's diagram (measured_phase_plot.py) draws
+a dot, from measurements only."""
 
 from __future__ import annotations
 
@@ -17,8 +23,7 @@ from .words import Words
 
 REGION_FILL = {"solid": (60, 90, 120), "liquid": (40, 60, 130), "gas": (75, 75, 75)}
 CURVE = (235, 235, 235)
-DOT = (255, 70, 40)
-TRAIL = 240  # positions kept for the trail
+DOT = (255, 70, 40)  # the temperature line's colour (and the molecular diagram's dot's)
 SMOOTHING = 0.1  # each frame's share of the gauge's running mean (the wall gauge of a few particles is noisy)
 
 
@@ -74,7 +79,7 @@ class PhasePlot(PressureTemperaturePanel):
         self.words = words or Words()
         self.unit = pressure_unit(material_names, dim)
         self.set_axes()
-        self.trail: list[tuple[float, float]] = []  # (°C, pressure) of the dot, oldest first
+        self.temperature = math.nan  # the model's mean temperature (°C), where the line is drawn
         self.pressure = math.nan  # the gauge's running mean
         self.boiling: list[float] = []  # the running mean's values while the material boiled
         self.place(rect)
@@ -85,9 +90,9 @@ class PhasePlot(PressureTemperaturePanel):
         self.log_lo, self.log_hi = math.floor(math.log10(p_lo)), math.ceil(math.log10(p_hi))
 
     def record(self, stats) -> None:
-        """Place the dot from this frame's measurements (mean temperature, gauge pressure, gas fraction). Once the
-        material has boiled, the vapour curve passes through the mean pressure the gauge read while it boiled: that
-        is the vapour pressure at the boiling point, measured."""
+        """Move the temperature line to this frame's mean temperature. Once the material has boiled, the vapour curve
+        passes through the mean pressure the gauge read while it boiled (the box's pressure at the boiling point,
+        measured, in place of the ideal gas's estimate)."""
         pressure = stats.wall_pressure if math.isfinite(stats.wall_pressure) else stats.pressure
         if not math.isfinite(stats.mean_temperature):
             return
@@ -98,13 +103,12 @@ class PhasePlot(PressureTemperaturePanel):
             self.boiling.append(self.pressure)
             self.map = dataclasses.replace(self.map, anchor=float(np.mean(self.boiling)))
             self.set_axes()
-        self.trail.append(self.map.dot(stats.mean_temperature, self.pressure, stats.gas_fraction))
-        del self.trail[:-TRAIL]
+        self.temperature = float(stats.mean_temperature)
 
     def adopt(self, other) -> None:
         """Take over `other`'s trail (a renderer rebuilt at a new size)."""
         if isinstance(other, PhasePlot):
-            self.trail, self.boiling = list(other.trail), list(other.boiling)
+            self.temperature, self.boiling = other.temperature, list(other.boiling)
             self.pressure, self.map = other.pressure, other.map
             self.set_axes()
 
@@ -131,13 +135,9 @@ class PhasePlot(PressureTemperaturePanel):
             ty = self.to_pixels(box, pmap.melt, pmap.triple_point()[1])[1]
             pen.line([(mx, 0), (mx, float(ty))], fill=CURVE, width=2)  # the melting line
             pen.rectangle([0, 0, w, h], outline=(160, 160, 160))
-            if self.trail:
-                tx, tr = self.to_pixels(box, *np.asarray(self.trail, float).T)
-                if len(tx) > 1:
-                    pen.line(list(zip(tx.tolist(), tr.tolist())), fill=(255, 170, 150), width=1)
-                radius = max(3, size // 3)
-                x, r = float(tx[-1]), float(tr[-1])
-                pen.ellipse([x - radius, r - radius, x + radius, r + radius], fill=DOT, outline=(255, 255, 255))
+            if math.isfinite(self.temperature):
+                x = float(self.line_x(box))
+                pen.line([(x, 0), (x, h)], fill=DOT, width=max(2, size // 8))
         for name, (t, frac) in {
             "solid": (self.t_lo, 0.08),
             "liquid": (0.5 * (pmap.melt + pmap.boil), 0.08),
@@ -145,9 +145,10 @@ class PhasePlot(PressureTemperaturePanel):
         }.items():
             x = bx0 + int(self.to_pixels(box, t, 1.0)[0]) + 4
             draw_text(img, self.words.phase(name), x, br0 + int(frac * (br1 - br0)), size, (220, 220, 220))
-        title = self.words.phase_title(pmap.material, self.unit)
+        mark = f" {self.words.rule_mark()}"  # the whole diagram, and the line's temperature, are the model's rule
+        title = self.words.phase_title(pmap.material, self.unit) + mark
         if text_width(title, size) > self.rect[1] - self.rect[0] - 4:
-            title = self.words.phase_title(pmap.material, self.unit, short=True)
+            title = self.words.phase_title(pmap.material, self.unit, short=True) + mark
         draw_text(img, title, self.rect[0] + 2, self.rect[2], size, DOT)
         middle = (self.log_lo + self.log_hi) / 2
         middle_text = f"1e{middle:g}" if middle == int(middle) else ""
@@ -159,8 +160,14 @@ class PhasePlot(PressureTemperaturePanel):
         end = "°C"
         draw_text(img, end, bx1 - text_width(end, size), br1 + 3, size, GREY)
 
-    def dot_region(self) -> str | None:
-        """The region the dot is drawn in ('solid', 'liquid', 'gas'; None before the first record)."""
-        if not self.trail:
+    def line_x(self, box) -> int:
+        """The temperature line's column relative to the plot box."""
+        return int(round(float(self.to_pixels(box, self.temperature, 1.0)[0])))
+
+    def line_region(self) -> str | None:
+        """The region the rule gives the line's temperature above the vapour curve ('solid' below the melting point,
+        'liquid' from it to the boiling point, 'gas' above; None before the first record)."""
+        if not math.isfinite(self.temperature):
             return None
-        return self.map.region(*self.trail[-1])
+        pmap = self.map
+        return "solid" if self.temperature < pmap.melt else "liquid" if self.temperature <= pmap.boil else "gas"

@@ -23,6 +23,10 @@ class Words:
         """A chart series' words (the catalogue's `chart_<name>`)."""
         return self.catalogue.get(f"chart_{name}", english)
 
+    def rule_mark(self) -> str:
+        """What follows a chart series set by the model's rule, not measured (the catalogue's `mark_rule`)."""
+        return self.catalogue.get("mark_rule", "(rule)")
+
     def phase(self, name: str) -> str:
         """A region of the phase diagram: "solid", "liquid", "gas" (the catalogue's `phase_<name>`)."""
         return self.catalogue.get(f"phase_{name}", name)

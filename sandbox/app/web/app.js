@@ -295,9 +295,18 @@ function onInfo(msg) {
   if (now - lastReadoutsShown > 1000) {  // once a second: readable, and not a flood for a screen reader
     lastReadoutsShown = now;
     const rows = [];
+    // where some numbers are set by the model's rule (a mesoscale scene's heat and phases), each says what it is
+    const marked = msg.readouts.some((r) => r.source === "rule");
     for (const r of msg.readouts) {
       const dt = document.createElement("dt");
       dt.textContent = readoutLabel(r);
+      if (marked && (r.source === "measured" || r.source === "rule")) {
+        const badge = document.createElement("span");
+        badge.className = "source " + r.source;
+        badge.textContent = t("source_" + r.source);
+        badge.title = t("source_" + r.source + "_title");
+        dt.append(" ", badge);
+      }
       const dd = document.createElement("dd");
       dd.dataset.key = r.key;
       const unit = r.unit === "C" ? "°C" : r.unit;
