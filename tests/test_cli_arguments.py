@@ -81,6 +81,8 @@ def test_bad_values_give_one_line_and_exit_2_writing_nothing(extra, expected, tm
         (["study", "--out", "{tmp}/s", "--heating", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler with --heating"),
         (["study", "--out", "{tmp}/s", "--phase", "--workers", "2", "--threads", "1"], "--workers, --threads with"),
         (["study", "--out", "{tmp}/s", "--heating", "--temperatures", "0.7"], "--temperatures with --heating"),
+        (["study", "--out", "{tmp}/s", "--triple", "--workers", "2"], "--workers with --triple"),
+        (["study", "--out", "{tmp}/s", "--triple", "--phase"], "--phase and --triple: one study a run"),
         (["study", "--out", "{tmp}/s", "--integrators", "rk4", "--coexistence"], "--integrators with --coexistence"),
         (["study", "--out", "{tmp}/s", "--coexistence", "--temperatures", ""], "--temperatures: empty"),
         (["study", "--out", "{tmp}/s", "--coexistence", "--temperatures", "0.7,0.8,0.7"], "0.7 given twice"),

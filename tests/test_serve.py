@@ -173,6 +173,13 @@ def test_the_page_shows_a_live_picture_and_a_heat_stroke_warms_what_is_under_it(
     assert picture(page)[1] != first  # it moves
     assert "wax" in page.inner_text("#happens")
     assert page.inner_text("#readouts dd[data-key='temperature']").endswith("°C")
+    # a mesoscale scene: every readout says what it is, the heat model's by rule, the motion's measured
+    badges = page.eval_on_selector_all(
+        "#readouts dt", "dts => dts.map(d => [d.nextElementSibling.dataset.key, d.querySelector('.source')?.textContent])"
+    )
+    sources = dict(badges)
+    assert sources["temperature"] == "rule" and sources["melted"] == "rule" and sources["energy"] == "measured"
+    assert all(badge in ("measured", "rule") for key, badge in badges if key not in ("time", "fps"))
     page.select_option("#tool", "heat")
     box = page.locator("#picture").bounding_box()
     x, y = box["x"] + box["width"] * 0.5, box["y"] + box["height"] * 0.7  # inside the block, above its hot foot
@@ -222,6 +229,7 @@ def test_the_second_language_shows_translated_text(classroom):
     assert page.inner_text("#reset") == "Recommencer"
     page.wait_for_selector("#readouts dt")
     assert "température moyenne" in page.inner_text("#readouts")
+    assert page.inner_text("#readouts .source.rule") == "règle"  # the marks speak the page's language
     assert page.evaluate("document.documentElement.lang") == "fr"
     page.select_option("#scene", "ice_cube")  # the scene picker: the session opens it in place of the last one
     page.wait_for_function("document.getElementById('happens').textContent.includes('glaçon')", timeout=30000)

@@ -11,6 +11,7 @@ from ..research.coexistence import parse_temperatures, run_coexistence
 from ..research.heating_curve import run_heating_study
 from ..research.phase_study import run_phase_study
 from ..research.study import INTEGRATORS, PROBLEMS, run_study
+from ..research.triple_point import run_triple_study
 from .cli_common import EXIT_INTERRUPTED
 
 
@@ -18,7 +19,7 @@ def _check_modes(args) -> None:
     """One study a run, and only the options that study reads: the Dask options reach the integrator and
     coexistence studies (the heating and phase studies run in this process), --temperatures and --dim the
     coexistence study, --integrators and --problems the integrator study."""
-    modes = [flag for flag in ("phase", "coexistence", "heating") if getattr(args, flag)]
+    modes = [flag for flag in ("phase", "coexistence", "heating", "triple") if getattr(args, flag)]
     if len(modes) > 1:
         raise SandboxError(f"--{' and --'.join(modes)}: one study a run; expected one of them")
     mode = modes[0] if modes else "integrators"
@@ -27,6 +28,7 @@ def _check_modes(args) -> None:
     unread = {
         "heating": pool + ["--temperatures"] * (args.temperatures is not None),
         "phase": pool + ["--temperatures"] * (args.temperatures is not None),
+        "triple": pool + ["--temperatures"] * (args.temperatures is not None),
         "integrators": ["--temperatures"] * (args.temperatures is not None),
         "coexistence": [],
     }[mode]
@@ -54,6 +56,7 @@ def cmd_study(args) -> int:
     validation = {  # flag: (runner, what it writes, the plot it adds where matplotlib is installed)
         "heating": (run_heating_study, "heating_curve.md and heating_curve.csv", "heating_curve.png"),
         "phase": (run_phase_study, "phase.md, stefan.csv, heating_curve.csv", "stefan.png"),
+        "triple": (run_triple_study, "triple_point.md and triple_point.csv", "no plot"),
     }
     for flag, (runner, files, plot) in validation.items():
         if getattr(args, flag):
@@ -99,6 +102,11 @@ def study_arguments(sub) -> None:
         action="store_true",
         help="instead: the molecular model's heating curve (a crystal under a lid heated at constant power, two lid "
         "pressures: about 5 minutes)",
+    )
+    study.add_argument(
+        "--triple",
+        action="store_true",
+        help="instead: the molecular model's triple point by direct three-phase coexistence (3D; about 3 minutes)",
     )
     study.add_argument(
         "--temperatures",

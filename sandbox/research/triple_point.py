@@ -23,13 +23,16 @@ at dt 0.005, f64.
 
 from __future__ import annotations
 
+import csv
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
 from ..config.scene import scene_from_dict
+from ..measure.coexistence_curve import shipped_curve
 from ..simulation import Simulation
 from .coexistence import CUTOFF, Rescaler
 from .study_runs import STUDY_PATH
@@ -148,10 +151,11 @@ def three_phase_positions(spacing: float, cells: int = 6, layers: int = 6, liqui
     a = width / across
     dz = 1.0 / (LIQUID_DENSITY * a * a)
     stacks = math.ceil(liquid_atoms / across**2)
-    grid = np.stack(np.meshgrid(np.arange(across), np.arange(across), np.arange(stacks), indexing="ij"), axis=-1)
+    # layer by layer from the crystal up (z the slowest index), so only the top layer is partly filled
+    grid = np.stack(np.meshgrid(np.arange(stacks), np.arange(across), np.arange(across), indexing="ij"), axis=-1)
     grid = grid.reshape(-1, 3)[:liquid_atoms]
     bottom = crystal[:, 2].max() + 0.5 * (cell / 2 + dz)
-    liquid = np.column_stack([(grid[:, 0] + 0.5) * a, (grid[:, 1] + 0.5) * a, bottom + grid[:, 2] * dz])
+    liquid = np.column_stack([(grid[:, 1] + 0.5) * a, (grid[:, 2] + 0.5) * a, bottom + grid[:, 0] * dz])
     x = np.concatenate([crystal, liquid])
     top = liquid[:, 2].max() + 0.5 * dz
     x[:, 2] += 0.5 * vacuum
@@ -203,3 +207,54 @@ def triple_estimate(runs: list[ThreePhaseRun]) -> tuple[float, float]:
     values = np.array([r.temperature for r in kept])
     spread = float(values.std(ddof=1)) if len(kept) > 1 else 0.0
     return float(values.mean()), max(spread, float(np.mean([r.temperature_err for r in kept])))
+
+
+STARTS = (0.50, 0.53, 0.56, 0.59)  # the three-phase runs' start temperatures, about the expected triple point
+GUESS = 0.55  # the temperature at which the crystal's zero-pressure spacing is found
+
+
+def run_triple_study(out: Path, quick: bool = False, log=print) -> tuple[float, float]:
+    """The triple point: the crystal's spacing, then three-phase runs from each of STARTS (`quick`: a smaller slab,
+    two starts, a third of the length: about a minute, a check that the study runs, not the figure); writes
+    out/triple_point.csv and .md and returns (kT, its uncertainty)."""
+    spacing = zero_pressure_spacing(GUESS, spacings=(1.12, 1.14, 1.16), log=log)
+    size = dict(cells=5, layers=4, settle=20000) if quick else dict(cells=6, layers=8, settle=60000)
+    starts = (STARTS[0], STARTS[2]) if quick else STARTS  # (the quick slab's crystal melts through from 0.59)
+    runs = [run_three_phase(spacing, start, log=log, **size) for start in starts]
+    estimate = triple_estimate(runs)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "triple_point.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(asdict(runs[0])))
+        writer.writeheader()
+        writer.writerows(asdict(run) for run in runs)
+    (out / "triple_point.md").write_text(report(runs, spacing, estimate))
+    return estimate
+
+
+def report(runs: list[ThreePhaseRun], spacing: float, estimate: tuple[float, float]) -> str:
+    """The study's result in Markdown: each run, the estimate, and the peers' values."""
+    kt, err = estimate
+    lines = [
+        "# Triple point of the molecular model",
+        "",
+        "Made by `sandbox study --triple`: an fcc crystal slab, a liquid slab and vapour in a periodic box, run at",
+        f"constant energy (LJ force-shifted at 2.5 sigma; {runs[0].atoms} atoms; the crystal's nearest-neighbour",
+        f"distance {spacing:.4f}, where its pressure is zero at kT {GUESS:g}). Reduced units.",
+        "",
+        "| start kT | settled kT | +- | solid at start | solid at end | gas at end | kept coexistence |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for run in runs:
+        lines.append(
+            f"| {run.start_temperature:g} | {run.temperature:.4f} | {run.temperature_err:.4f} | {run.solid_first:.0%} "
+            f"| {run.solid_last:.0%} | {run.gas_last:.0%} | {'yes' if run.coexisted else 'no'} |"
+        )
+    lines += ["", f"Triple point: kT = {kt:.3f} +- {err:.3f} (mean of the runs that kept crystal and liquid).", ""]
+    curve = shipped_curve(3)
+    critical = f"{curve.critical_temperature:.3f}" if curve is not None else "-"
+    lines += ["| potential | triple point kT | critical point kT | ratio |", "|---|---|---|---|"]
+    lines.append(f"| this model (force-shifted at 2.5 sigma) | {kt:.3f} +- {err:.3f} | {critical} | "
+                 f"{kt / curve.critical_temperature if curve is not None else math.nan:.3f} |")  # fmt: skip
+    lines += [f"| {name} | {t:.3f} +- {e:.3f} | {c:.3f} | {t / c:.3f} |" for name, t, e, c in PEERS]
+    lines.append("")
+    return "\n".join(lines)
