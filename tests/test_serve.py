@@ -175,7 +175,8 @@ def test_the_page_shows_a_live_picture_and_a_heat_stroke_warms_what_is_under_it(
     assert page.inner_text("#readouts dd[data-key='temperature']").endswith("°C")
     # a mesoscale scene: every readout says what it is, the heat model's by rule, the motion's measured
     badges = page.eval_on_selector_all(
-        "#readouts dt", "dts => dts.map(d => [d.nextElementSibling.dataset.key, d.querySelector('.source')?.textContent])"
+        "#readouts dt",
+        "dts => dts.map(d => [d.nextElementSibling.dataset.key, d.querySelector('.source')?.textContent])",
     )
     sources = dict(badges)
     assert sources["temperature"] == "rule" and sources["melted"] == "rule" and sources["energy"] == "measured"
