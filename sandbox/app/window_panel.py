@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import textwrap
 
-from ..config.quantities import RULE_WORDS
 from ..config.resources import shipped_scenes
 from ..measure.units import length_unit
 from .panel import marks_sources
@@ -47,20 +47,24 @@ def draw_panel(gui, control, state: WindowState, stats, fps: float, window_width
 
 def readouts(gui, chars: int, control, state: WindowState, stats, fps: float) -> None:
     """The shared description's measurements (panel.py), packed into as few lines as the panel's width allows, then
-    the probe and the integrator. ASCII only: GGUI's font has no degree sign."""
-    line = "PAUSED" if control.paused else ""
+    the probe and the integrator. Where some are set by the model's rule, those follow "rule:" and the rest
+    "measured:" (the clock and the drawing rate first, unmarked). ASCII only: GGUI's font has no degree sign."""
     items = control.readouts(stats, fps)
-    marked = marks_sources(items)
-    for item in items:
-        text = f"{item.words}{' (rule)' * (marked and item.source == 'rule')} {item.text()}"
+    texts = [f"{item.words} {item.text()}" for item in items]
+    if marks_sources(items):  # each group's first reading carries its heading, so a heading never ends a line
+        texts = [text for item, text in zip(items, texts) if item.source not in ("rule", "measured")]
+        for source, heading in (("rule", "rule:"), ("measured", "measured:")):
+            ruled = sorted((item for item in items if item.source == source), key=lambda item: item.key == "broken")
+            group = [f"{item.words} {item.text()}" for item in ruled]  # (the bonds after the heat: fewer lines)
+            texts += [f"{heading} {group[0]}", *group[1:]] if group else []
+    line = "PAUSED" if control.paused else ""
+    for text in texts:
         if line and len(line) + 3 + len(text) > chars:
             say(gui, chars, line)
             line = ""
         line = f"{line}   {text}" if line else text
     if line:
         say(gui, chars, line)
-    if marked:
-        say(gui, chars, f"(rule): {RULE_WORDS}; the rest is measured")
     say(gui, chars, f"under the cursor: {state.probe or '-'}")
     say(gui, chars, f"integrator {control.sim.integrator.name} (i)   {pace_text(state)}")
 
@@ -94,7 +98,8 @@ def controls(gui, chars: int, control, state: WindowState) -> None:
         state.toggle_pause = True
     setting_sliders(gui, control)
     if sim.scene.world.substeps != "auto":  # its scale is one of the settings above
-        stable = f", springs stable below {state.stable_dt:.2g} s" if sim.state.springs else ""
+        finite = sim.state.springs and math.isfinite(state.stable_dt)  # (no springs yet: no limit to say)
+        stable = f", springs stable below {state.stable_dt:.2g} s" if finite else ""
         say(gui, chars, f"time step {sim.dt:.2g} s{stable}")
     state.energy_plot = gui.checkbox("energy plot (e)", state.energy_plot)
     if sim.terms.pair is not None:
