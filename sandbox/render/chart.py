@@ -233,7 +233,7 @@ class Chart:
         shorter = (
             (lambda k: self.words[k][0]) if self.translated else (lambda k: short_words(self.series[k]) + self.marks[k])
         )
-        for words in (lambda k: self.words[k][0], shorter, lambda k: ""):
+        for words in (lambda k: self.words[k][0], shorter, lambda k: self.marks[k].strip()):  # (the mark stays)
             texts = [f"{words(k)} {value_text(v, panel.unit)}".strip() for k, v in zip(panel.names, latest)]
             if sum(text_width(t + "   ", size) for t in texts) + text_width(unit, size) <= rect[1] - rect[0] - 4:
                 break

@@ -146,9 +146,13 @@ class PhasePlot(PressureTemperaturePanel):
             x = bx0 + int(self.to_pixels(box, t, 1.0)[0]) + 4
             draw_text(img, self.words.phase(name), x, br0 + int(frac * (br1 - br0)), size, (220, 220, 220))
         mark = f" {self.words.rule_mark()}"  # the whole diagram, and the line's temperature, are the model's rule
-        title = self.words.phase_title(pmap.material, self.unit) + mark
-        if text_width(title, size) > self.rect[1] - self.rect[0] - 4:
-            title = self.words.phase_title(pmap.material, self.unit, short=True) + mark
+        titles = (
+            self.words.phase_title(pmap.material, self.unit) + mark,
+            self.words.phase_title(pmap.material, self.unit, short=True) + mark,
+            self.words.material(pmap.material) + mark,  # the narrowest: what it is a diagram of, and that it is rule
+        )
+        room = self.rect[1] - self.rect[0] - 4
+        title = next((t for t in titles if text_width(t, size) <= room), titles[-1])
         draw_text(img, title, self.rect[0] + 2, self.rect[2], size, DOT)
         middle = (self.log_lo + self.log_hi) / 2
         middle_text = f"1e{middle:g}" if middle == int(middle) else ""

@@ -42,9 +42,9 @@ FCC_CELL = 1.556  # the fcc cell's edge for nearest neighbours 1.10 sigma
 STAGES = ("crystal", "melting", "liquid", "boiling", "vapour")
 
 
-def heating_scene(pressure: float, power: float, cells: int = 5, height: float = 240.0) -> dict:
+def heating_scene(pressure: float, power: float, cells: int = 5, height: float = 240.0, seed: int = 5) -> dict:
     """The scene table: an fcc crystal `cells` cells wide on the floor of a box `height` tall, under a lid pressed
-    by `pressure`, heated at `power` (reduced units)."""
+    by `pressure`, heated at `power` (reduced units); `seed` draws the starting velocities."""
     side = cells * FCC_CELL
     top = cells * FCC_CELL + 0.3
     return {
@@ -57,7 +57,7 @@ def heating_scene(pressure: float, power: float, cells: int = 5, height: float =
         "molecular": {"lid": {"pressure": pressure, "mass": 50.0, "height": top + 0.6}, "heater": {"power": power}},
         "bodies": [{
             "material": "lj", "shape": "box", "lattice": "fcc", "lo": [0.0, 0.3, 0.0], "hi": [side, top, side],
-            "spacing": 1.10, "springs": False, "random_velocity": 0.2, "seed": 5,
+            "spacing": 1.10, "springs": False, "random_velocity": 0.2, "seed": seed,
         }],
     }  # fmt: skip
 
@@ -108,11 +108,11 @@ class HeatingRun:
 
 
 def run_heating(pressure: float, power: float, cells: int = 5, steps: int = 600_000, every: int = 1000,
-                log=None) -> HeatingRun:  # fmt: skip
+                log=None, seed: int = 5) -> HeatingRun:  # fmt: skip
     """Heat the crystal under a lid at `pressure` with `power` for at most `steps` steps, stopping once it has all
-    been gas for 50 rows; a row every `every` steps."""
+    been gas for 50 rows; a row every `every` steps; `seed` draws the starting velocities."""
     started = time.perf_counter()
-    sim = Simulation(scene_from_dict(heating_scene(pressure, power, cells), STUDY_PATH))
+    sim = Simulation(scene_from_dict(heating_scene(pressure, power, cells, seed=seed), STUDY_PATH))
     rows = []
     vapour_rows = 0
     for _ in range(steps // every):
