@@ -76,6 +76,9 @@ def test_bad_values_give_one_line_and_exit_2_writing_nothing(extra, expected, tm
         (["serve", "--max-sessions", "0"], "--max-sessions: expected at least 1"),
         (["serve", "--max-fps", "500"], "--max-fps: expected 1 to 60"),
         (["serve", "--token", "short"], "--token: expected at least 8 characters"),
+        (["serve", "--per-client", "-1"], "--per-client: expected 0 (no limit) or more sessions, got -1"),
+        (["serve", "--idle", "5"], "--idle: expected 60 to 86400 seconds, got 5"),
+        (["serve", "--idle", "nan"], "--idle: expected 60 to 86400 seconds, got nan"),
         # issue 72: study modes at once, options a study does not read, empty or repeated temperatures
         (["study", "--out", "{tmp}/s", "--coexistence", "--heating"], "--coexistence and --heating: one study a run"),
         (["study", "--out", "{tmp}/s", "--heating", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler with --heating"),

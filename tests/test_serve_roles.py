@@ -24,7 +24,7 @@ pytest.importorskip("httpx")
 
 from starlette.testclient import TestClient  # noqa: E402
 
-from sandbox.app.serve import MAX_BROADCAST, Classroom, Handle  # noqa: E402
+from sandbox.app.serve import MAX_BROADCAST, MAX_IN_FLIGHT, Classroom, Handle  # noqa: E402
 from sandbox.app.serve_protocol import ProtocolError, parse  # noqa: E402
 from sandbox.app.serve_routes import make_app  # noqa: E402
 
@@ -38,6 +38,8 @@ class StandIn:
     def __init__(self) -> None:
         self.handle: Handle | None = None
         self.sent: list[dict] = []
+        self.uploads: list[int] = []  # the size of each upload it was given
+        self.checking = 0.0  # seconds it takes to check an upload
 
     def send_bytes(self, data: bytes) -> None:
         message = json.loads(data)
@@ -48,6 +50,9 @@ class StandIn:
         elif message["t"] == "save":
             Path(message["path"]).write_bytes(b"PK saved state")
             loop.call_soon(self.handle.answer, "saved", {"t": "saved"})
+        elif message["t"] == "upload":  # checked a little later, as a session loading a file is
+            self.uploads.append(Path(message["path"]).stat().st_size)
+            loop.call_later(self.checking, self.handle.answer, "upload_done", {"t": "upload_done"})
 
     def fileno(self) -> int:
         return -1
@@ -139,6 +144,118 @@ def test_bodies_are_limited_before_they_are_read(room):
     )
     assert declared.status_code in (400, 413)  # refused on its word, before a byte is read
     assert not list(classroom.scratch.iterdir())
+
+
+def stand_in_sessions(classroom: Classroom) -> None:
+    """Make `classroom` open stand-in sessions (no process) for its tabs' sockets."""
+
+    def open_stand_in(scene: str) -> Handle:
+        conn = StandIn()
+        handle = Handle(f"sid-{len(classroom.sessions)}-{time.monotonic_ns()}", scene, NoProcess(), conn)
+        handle.frames = 1
+        conn.handle = handle
+        classroom.sessions[handle.sid] = handle
+        return handle
+
+    classroom.open = open_stand_in
+
+
+def first_message(ws) -> dict:
+    return json.loads(ws.receive_text())
+
+
+def test_a_client_over_its_share_of_sessions_is_refused_in_one_line(room):
+    """Issue 74: one class link opened sessions until the class was full. A client holds at most `per_client`
+    sessions, counted by its address and by its page's cookie alike (a new cookie from the same address is the same
+    client); the third socket is told why in one line and closed; another client still gets in; 0 lifts the limit."""
+    classroom, client, _, token = room
+    classroom.sessions.clear()
+    stand_in_sessions(classroom)
+    page = client.get("/" + query(token))
+    assert "sandbox_client" in page.headers.get("set-cookie", "")  # the page names its browser
+    url = "/ws" + query(token)
+    with client.websocket_connect(url) as one, client.websocket_connect(url) as two:
+        assert first_message(one)["t"] == first_message(two)["t"] == "hello"
+        with client.websocket_connect(url) as three:
+            refused = first_message(three)
+            assert refused["key"] == "per_client" and "already has 2 sessions open" in refused["text"]
+        client.cookies.set("sandbox_client", "a-cookie-of-its-own")  # the same address with a fresh cookie
+        with client.websocket_connect(url) as four:
+            assert first_message(four)["key"] == "per_client"
+        assert len(classroom.sessions) == 2
+        classroom.per_client = 0
+        with client.websocket_connect(url) as five:
+            assert first_message(five)["t"] == "hello"
+    classroom.per_client = 2
+    other = Classroom("melting_block", token, max_sessions=4, teacher=TEACHER)
+    other.sessions = {h.sid: h for h in classroom.sessions.values()}
+    assert other.held_by("10.0.0.7", "another-cookie") == 0 and not other.over_share("10.0.0.7", "another-cookie")
+
+
+def test_a_session_takes_one_upload_at_a_time_and_the_server_caps_the_bytes_in_flight(room):
+    """Issue 74: 100 parallel uploads with one student's key raised the server's memory by 1.4 GB. A session's
+    upload waits for the session to check it; a second one meanwhile is refused before its body is read, and so is
+    one that would take the uploads in flight over MAX_IN_FLIGHT; each reservation is freed when its upload ends."""
+    classroom, client, sessions, token = room
+    a, b = sessions["a"], sessions["b"]
+    url = "/api/state" + query(token, sid=a.sid, key=a.key)
+    ok = client.post(url, content=b"PK one")
+    assert ok.status_code == 202 and a.conn.uploads == [6] and classroom.in_flight == 0 and a.upload_bytes == 0
+    assert classroom.take_upload(a, 1000) is None  # an upload to a is under way ...
+    busy = client.post(url, content=b"PK two")
+    assert busy.status_code == 429 and "one upload at a time" in busy.text and a.conn.uploads == [6]
+    classroom.end_upload(a)
+    classroom.in_flight = MAX_IN_FLIGHT - 10  # other sessions' uploads fill the server's allowance
+    crowded = client.post("/api/state" + query(token, sid=b.sid, key=b.key), content=b"PK" * 100)
+    assert crowded.status_code == 429 and "other uploads" in crowded.text and not b.conn.uploads
+    classroom.in_flight = 0
+    assert not list(classroom.scratch.iterdir())
+
+
+def test_parallel_uploads_to_one_session_are_taken_one_at_a_time():
+    """A hundred uploads at once with one key: one is taken, the rest refused at once, the bytes in flight never
+    above one upload's."""
+    httpx = pytest.importorskip("httpx")
+    classroom = Classroom("melting_block", None, max_sessions=4, teacher=TEACHER)
+    conn = StandIn()
+    conn.checking = 0.5
+    handle = Handle("sid-a", "melting_block", NoProcess(), conn)
+    conn.handle = handle
+    classroom.sessions[handle.sid] = handle
+    peak = []
+    take = classroom.take_upload
+    classroom.take_upload = lambda h, size: (take(h, size), peak.append(classroom.in_flight))[0]
+    body = b"PK" + b"x" * (1 << 20)
+
+    async def everyone():
+        transport = httpx.ASGITransport(app=make_app(classroom))
+        async with httpx.AsyncClient(transport=transport, base_url="http://testserver") as http:
+            url = f"/api/state?sid={handle.sid}&key={handle.key}"
+            return await asyncio.gather(*(http.post(url, content=body) for _ in range(100)))
+
+    answers = asyncio.run(everyone())
+    codes = sorted(r.status_code for r in answers)
+    assert codes.count(202) == 1 and codes.count(429) == 99
+    assert max(peak) <= len(body) and classroom.in_flight == 0 and conn.uploads == [len(body)]
+
+
+def test_a_silent_tab_loses_its_session_and_is_told_why():
+    """Issue 74: idle sessions are reclaimed after the set time with a message on the tab (they went silently)."""
+    classroom = Classroom("melting_block", None, max_sessions=4, idle=0.2, teacher=TEACHER)
+    handle = Handle("sid-a", "melting_block", NoProcess(), StandIn())
+    handle.frames, handle.last_seen = 5, time.monotonic() - 1.0
+    classroom.sessions[handle.sid] = handle
+
+    async def reap_once():
+        reaper = asyncio.create_task(classroom.reap_idle())
+        await asyncio.sleep(0.3)
+        reaper.cancel()
+
+    asyncio.run(reap_once())
+    assert not classroom.sessions
+    kind, body = handle.outbox.get_nowait()
+    said = json.loads(body)
+    assert said["key"] == "idle" and "silent for 0.2 s" in said["text"] and handle.outbox.get_nowait() is None
 
 
 def test_the_teacher_page_keeps_the_secret_in_a_cookie(room):

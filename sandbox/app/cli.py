@@ -416,6 +416,17 @@ def _serve_arguments(sub) -> None:
         metavar="N",
         help="sessions of the scene kept started ahead of the tabs, so a class joins at once (default: --max-sessions)",
     )
+    serve.add_argument(
+        "--per-client",
+        type=int,
+        default=2,
+        metavar="N",
+        help="sessions one browser (its address or cookie) may hold at once, so no student fills the class (0: no "
+        "limit; raise it where a class shares one address)",
+    )
+    serve.add_argument(
+        "--idle", type=float, default=300.0, metavar="SECONDS", help="a tab silent this long loses its session (60+)"
+    )
     serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
     serve.add_argument(
         "--draw",
@@ -436,6 +447,10 @@ def cmd_serve(args) -> int:
         raise SandboxError(f"--max-sessions: expected at least 1, got {args.max_sessions}")
     if args.warm is not None and args.warm < 0:
         raise SandboxError(f"--warm: expected 0 or more sessions, got {args.warm}")
+    if args.per_client < 0:
+        raise SandboxError(f"--per-client: expected 0 (no limit) or more sessions, got {args.per_client}")
+    if not 60.0 <= args.idle <= 86400.0:
+        raise SandboxError(f"--idle: expected 60 to 86400 seconds, got {args.idle:g}")
     if not 1.0 <= args.max_fps <= 60.0:
         raise SandboxError(f"--max-fps: expected 1 to 60, got {args.max_fps:g}")
     for option, value in (("--token", args.token), ("--teacher-token", args.teacher_token)):
@@ -458,6 +473,8 @@ def cmd_serve(args) -> int:
         args.teacher_token,
         args.warm,
         args.draw,
+        args.per_client,
+        args.idle,
     )
 
 

@@ -8,6 +8,12 @@ printed with the address when not given) on every request and WebSocket, whose O
 message is checked (serve_protocol.py); sessions are limited in number, upload size and idle time; nothing a
 client sends names a file on the server; scripts and styles come from the package (no CDN).
 
+Fair shares: a client (its address, and the page's `sandbox_client` cookie) holds at most `per_client` sessions at
+once (2 unless the teacher says otherwise), so one student cannot fill the class; a session takes one upload at a
+time (the next is refused until the session has checked the last), and the uploads in flight over the whole server
+hold at most MAX_IN_FLIGHT bytes (beyond it an upload is refused at once, before its body is read); a tab silent
+for `idle` seconds loses its session and is told so.
+
 Roles: the teacher's page and routes (the sessions, their pictures, broadcasts, any session's state) need the
 teacher's secret, separate from the class's link (always made up and printed in the teacher's address; the page
 keeps it in a cookie). A student's session answers only to the socket that opened it: the hello gives that socket
@@ -34,6 +40,8 @@ from .serve_session import scratch_dir, session_main
 WEB = Path(__file__).resolve().parent / "web"
 PICTURE = (960, 540)  # the sessions' picture size (the page scales it to fit)
 MAX_UPLOAD = 16 * 1024 * 1024  # bytes of an uploaded state file
+MAX_IN_FLIGHT = 4 * MAX_UPLOAD  # bytes of uploads the whole server holds at once (module docstring)
+PER_CLIENT = 2  # sessions one client (address or cookie) may hold at once, unless the teacher says otherwise
 MAX_BROADCAST = 2048  # bytes of a teacher's broadcast message
 WARN_SECONDS = 2.0  # "too many messages" is said at most once in this long
 IDLE_SECONDS = 300.0  # a tab silent this long (closed, asleep) loses its session
@@ -56,6 +64,9 @@ class Handle:
     started: float = field(default_factory=time.monotonic)
     frames: int = 0
     info: dict = field(default_factory=dict)
+    address: str = ""  # the tab's network address and its page's client cookie: whose session it is (per_client)
+    client: str = ""
+    upload_bytes: int = 0  # bytes of the upload this session is taking (0: none; one at a time)
 
     def send(self, message: dict) -> None:
         self.conn.send_bytes(json.dumps(message).encode())
@@ -86,7 +97,10 @@ class Classroom:
         teacher: str | None = None,
         warm: int | None = None,
         draw: str = "page",
+        per_client: int = PER_CLIENT,
     ):
+        self.per_client = per_client  # sessions a client may hold at once (0: no limit)
+        self.in_flight = 0  # bytes of uploads being taken now, over every session
         self.draw = draw  # who draws a 2D scene's particles (serve_session.DRAWS)
         self.scene, self.token, self.max_sessions, self.idle, self.max_fps = scene, token, max_sessions, idle, max_fps
         self.teacher = teacher or secrets.token_urlsafe(12)
@@ -112,6 +126,32 @@ class Classroom:
         handle.started = time.monotonic()
         self.sessions[handle.sid] = handle
         return handle
+
+    def held_by(self, address: str, client: str) -> int:
+        """Sessions held now by the client at `address` or with the cookie `client` (the larger count: a student
+        who clears the cookie keeps the address, one who moves keeps the cookie)."""
+        by_address = sum(1 for h in self.sessions.values() if address and h.address == address)
+        by_cookie = sum(1 for h in self.sessions.values() if client and h.client == client)
+        return max(by_address, by_cookie)
+
+    def over_share(self, address: str, client: str) -> bool:
+        """Whether a new session would give this client more than `per_client`."""
+        return self.per_client > 0 and self.held_by(address, client) >= self.per_client
+
+    def take_upload(self, handle: Handle, size: int) -> str | None:
+        """Reserve `size` bytes for an upload to `handle`'s session: None when taken, else why not (one line)."""
+        if handle.upload_bytes:
+            return "one upload at a time: the last one is still being checked"
+        if self.in_flight + size > MAX_IN_FLIGHT:
+            return "the server is taking other uploads: try again in a few seconds"
+        handle.upload_bytes = size
+        self.in_flight += size
+        return None
+
+    def end_upload(self, handle: Handle) -> None:
+        """The session has checked its upload (or it failed): its bytes are free again."""
+        self.in_flight -= handle.upload_bytes
+        handle.upload_bytes = 0
 
     def starting(self) -> int:
         """Tabs' sessions that have not drawn their first picture yet (a newcomer is behind them)."""
@@ -142,6 +182,7 @@ class Classroom:
     def close(self, handle: Handle) -> None:
         """End a session: its process and memory go with it."""
         self.sessions.pop(handle.sid, None)
+        self.end_upload(handle)
         if handle in self.warm:
             self.warm.remove(handle)
         with contextlib.suppress(Exception):
@@ -184,7 +225,9 @@ class Classroom:
                     text = f"your sandbox did not start within {START_SECONDS:.0f} s (the server is busy): reload"
                     handle.outbox.put_nowait(("text", json.dumps({"t": "error", "key": "start_failed", "text": text})))
                     self.close(handle)
-                elif now - handle.last_seen > self.idle:
+                elif now - handle.last_seen > self.idle:  # said on the tab, so a student knows why it stopped
+                    text = f"this tab was silent for {self.idle:g} s and its sandbox was closed: reload the page"
+                    handle.outbox.put_nowait(("text", json.dumps({"t": "error", "key": "idle", "text": text})))
                     self.close(handle)
 
     # ------------------------------------------------------------------ checks

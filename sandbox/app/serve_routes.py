@@ -20,8 +20,27 @@ from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocketDisconnect
 
-from .serve import MAX_BROADCAST, MAX_UPLOAD, WARN_SECONDS, WEB, Classroom, Handle, is_loopback, lan_address
+from .serve import (
+    IDLE_SECONDS,
+    MAX_BROADCAST,
+    MAX_UPLOAD,
+    PER_CLIENT,
+    WARN_SECONDS,
+    WEB,
+    Classroom,
+    Handle,
+    is_loopback,
+    lan_address,
+)
 from .serve_protocol import ProtocolError, RateLimit, parse
+
+CLIENT_COOKIE = "sandbox_client"
+
+
+def declared_size(request, limit: int) -> int:
+    """The bytes a request says its body holds, at most `limit`; `limit` where it does not say."""
+    declared = request.headers.get("content-length", "")
+    return min(int(declared), limit) if declared.isdigit() else limit
 
 
 async def bounded_body(request, limit: int) -> bytes | None:
@@ -85,6 +104,8 @@ class ClassroomRoutes:
                 response.set_cookie("sandbox_token", classroom.token, httponly=True, samesite="strict")
             if teacher:
                 response.set_cookie("sandbox_teacher", classroom.teacher, httponly=True, samesite="strict")
+            if not request.cookies.get(CLIENT_COOKIE):  # whose sessions a tab's are (Classroom.per_client)
+                response.set_cookie(CLIENT_COOKIE, secrets.token_urlsafe(12), httponly=True, samesite="strict")
             return response
 
         return endpoint
@@ -128,12 +149,21 @@ class ClassroomRoutes:
                 media_type="application/octet-stream",
                 headers={"Content-Disposition": f'attachment; filename="{name}"'},
             )
-        body = await bounded_body(request, MAX_UPLOAD)
-        if body is None:
-            return PlainTextResponse(f"state file refused: larger than {MAX_UPLOAD // 2**20} MB", 413)
-        path.write_bytes(body)
-        handle.send({"t": "upload", "path": str(path)})  # checked by the session; its answer comes by WebSocket
-        return PlainTextResponse("checking", 202)
+        refused = self.classroom.take_upload(handle, declared_size(request, MAX_UPLOAD))
+        if refused:
+            return PlainTextResponse(f"state file refused: {refused}", 429)
+        try:
+            body = await bounded_body(request, MAX_UPLOAD)
+            if body is None:
+                return PlainTextResponse(f"state file refused: larger than {MAX_UPLOAD // 2**20} MB", 413)
+            path.write_bytes(body)
+            del body
+            # checked by the session, which tells the tab by WebSocket; its next upload waits until then
+            await ask(handle, "upload_done", {"t": "upload", "path": str(path)}, 60)
+        finally:
+            path.unlink(missing_ok=True)
+            self.classroom.end_upload(handle)
+        return PlainTextResponse("checked", 202)
 
     async def sessions(self, request):
         """The teacher's list: each session's scene, frames, simulated time and frame rate; the warm ones ready."""
@@ -194,11 +224,20 @@ class ClassroomRoutes:
             await websocket.send_text(json.dumps({"t": "error", "key": "full", "text": text}))
             await websocket.close(code=1013)
             return
+        address = websocket.client.host if websocket.client else ""
+        client = websocket.cookies.get(CLIENT_COOKIE, "")
+        if classroom.over_share(address, client):
+            text = (f"this browser already has {classroom.per_client} sessions open (the class's limit a student): "
+                    "close another tab of the sandbox and reload")  # fmt: skip
+            await websocket.send_text(json.dumps({"t": "error", "key": "per_client", "text": text}))
+            await websocket.close(code=1013)
+            return
         scene = websocket.query_params.get("scene", classroom.scene)
         if scene not in classroom.scenes:
             scene = classroom.scene
         ahead = classroom.starting()
         handle = classroom.open(scene)
+        handle.address, handle.client = address, client
         hello = {"t": "hello", "sid": handle.sid, "key": handle.key, "scenes": classroom.scenes}
         await websocket.send_text(json.dumps(hello))
         if handle.frames == 0:  # not a warm one: say so, and how many are starting before it
@@ -288,6 +327,8 @@ def serve(
     teacher: str | None = None,
     warm: int | None = None,
     draw: str = "page",
+    per_client: int = PER_CLIENT,
+    idle: float = IDLE_SECONDS,
 ) -> int:
     """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed) and
     the teacher's (with the teacher's secret, made up when not given)."""
@@ -295,7 +336,9 @@ def serve(
 
     if token is None and not is_loopback(host):
         token = secrets.token_urlsafe(12)
-    classroom = Classroom(scene, token, max_sessions, max_fps=max_fps, teacher=teacher, warm=warm, draw=draw)
+    classroom = Classroom(
+        scene, token, max_sessions, idle, max_fps, teacher=teacher, warm=warm, draw=draw, per_client=per_client
+    )
     query = f"?token={token}" if token else ""
     shown = lan_address() if host in ("0.0.0.0", "::") else host
     print(f"the classroom: http://{shown}:{port}/{query}", flush=True)

@@ -404,6 +404,7 @@ class Session:
             self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
         finally:
             path.unlink(missing_ok=True)
+            self.tell({"t": "upload_done"})  # the server takes this session's next upload only now
 
 
 def png(picture) -> bytes:

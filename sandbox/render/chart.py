@@ -116,6 +116,12 @@ class Chart:
                 self.marks, ((n, series_words(n, material_names, dim)) for n in self.series)
             )
         ]
+        # a narrow panel's words: one word (the catalogue's `chart_short_<name>` in another language), with the mark
+        self.short = [
+            (words.series(f"short_{n}", "") if self.translated else short_words(n)) or words.series(n, english)
+            for n, (english, _) in ((n, series_words(n, material_names, dim)) for n in self.series)
+        ]
+        self.short = [short + mark for short, mark in zip(self.short, self.marks)]
         by_unit: dict[str, list[int]] = {}
         for k, (_, unit) in enumerate(self.words):
             by_unit.setdefault(unit, []).append(k)
@@ -230,10 +236,7 @@ class Chart:
         # left out, where the panel is too narrow for them
         latest = [next((v for v in reversed(self.history[k]) if math.isfinite(v)), math.nan) for k in panel.names]
         unit = f"({panel.unit})" if panel.unit else ""
-        shorter = (
-            (lambda k: self.words[k][0]) if self.translated else (lambda k: short_words(self.series[k]) + self.marks[k])
-        )
-        for words in (lambda k: self.words[k][0], shorter, lambda k: self.marks[k].strip()):  # (the mark stays)
+        for words in (lambda k: self.words[k][0], lambda k: self.short[k], lambda k: self.marks[k].strip()):
             texts = [f"{words(k)} {value_text(v, panel.unit)}".strip() for k, v in zip(panel.names, latest)]
             if sum(text_width(t + "   ", size) for t in texts) + text_width(unit, size) <= rect[1] - rect[0] - 4:
                 break

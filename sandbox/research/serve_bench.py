@@ -85,7 +85,7 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
     port, teacher = _free_port(), secrets.token_urlsafe(12)
     server = subprocess.Popen(
         [sys.executable, "-m", "sandbox", "serve", scene, "--port", str(port), "--max-sessions", str(clients)]
-        + ["--teacher-token", teacher, "--draw", draw],
+        + ["--teacher-token", teacher, "--draw", draw, "--per-client", "0"],  # (its tabs share one address)
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,

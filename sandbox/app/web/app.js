@@ -186,7 +186,7 @@ function onText(msg) {
   else if (msg.t === "info") onInfo(msg);
   else if (msg.t === "paused") { paused = msg.paused; $("pause").textContent = t(paused ? "play" : "pause"); }
   else if (msg.t === "error") {
-    if (msg.key === "full" || msg.key === "start_failed" || msg.key === "session_ended") refused = true;
+    if (["full", "per_client", "idle", "start_failed", "session_ended"].includes(msg.key)) refused = true;
     say(msg.key ? t(msg.key, { text: msg.text || "" }) : msg.text);
   }
   else if (msg.t === "notice") say(t(msg.key, { text: msg.text || "" }));
