@@ -626,6 +626,36 @@ def test_a_drag_on_a_3d_picture_turns_it(classroom):
         page.close()
 
 
+def test_a_slow_tab_sees_its_scene_at_the_scenes_pace_not_one_frame_a_picture():
+    """Issue 74: a tab asking for a picture 0.2 s after each ran its scene at 0.02 of its pace (one frame a
+    picture). The scene keeps its own clock: over 60 frame times a tab asking every sixth gets 10 pictures (plus the
+    two it may draw before asking) of a scene that has stepped all 60 frames; a session no page has asked yet (a
+    warm one) does not step on its own."""
+    from multiprocessing import Pipe
+
+    from sandbox.app.serve_session import Session
+
+    page, session_end = Pipe()
+    session = Session(session_end, "melting_block", 480, 270)
+    session.pacer.choose = lambda wanted: wanted  # every frame whole: the pacer's trims are not what is tested
+    sim = session.sim
+    frame_seconds = sim.scene.world.substeps * sim.scene.world.dt
+    now = due = 0.0
+    for _ in range(10):  # waiting for its tab: its first pictures, then nothing
+        due = session.tick(now, due)
+        now += session.interval
+    assert session.frames == 2 and sim.time == pytest.approx(2 * frame_seconds)
+    start = sim.time
+    for k in range(60):
+        if k % 6 == 0:
+            session.handle({"t": "ready"})
+        due = session.tick(now, due)
+        now += session.interval
+    assert session.frames == 2 + 10
+    assert sim.time - start == pytest.approx(60 * frame_seconds)
+    page.close()
+
+
 CHART_SAMPLES = 6  # pictures drawn before the words are read: the charts need a few samples to draw lines
 
 

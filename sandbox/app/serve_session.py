@@ -10,9 +10,11 @@ the server passes to the page as it is:
   (x0, row0: two u16, then a PNG) a few times a second, and b"P" + a particle frame (a few kB) a picture;
 - else (3D, motion blur, springs drawn, additive light, or `draw="server"`): b"F" + the renderer's picture as a JPEG.
 
-It draws a frame only when the page has asked for one (a "ready" credit), so the frame rate follows what the network
-and the server's load allow; the simulation advances one frame per picture delivered, so under load a session runs
-in slow motion rather than dropping pictures.
+The scene keeps its own clock: a frame of it is stepped every 1 / max_fps seconds whether or not the page has asked
+for a picture, and a frame is drawn and sent only when the page has asked (a "ready" credit), so a slow device or a
+background tab gets fewer pictures of a scene at its pace, each the newest (it used to step one frame a picture: a
+tab asking five times a second ran at a fiftieth of the pace). Where the machine is short of CPU, the pacer takes
+fewer steps a frame (slow motion, never a backlog).
 """
 
 from __future__ import annotations
@@ -70,6 +72,8 @@ class Session:
         self.interval = 1.0 / max_fps
         self.width, self.height = width, height
         self.credits = FIRST_CREDITS
+        self.watched = False  # a page has asked for a picture: from then on the scene runs by its clock (a warm
+        # session waiting for its tab draws its first pictures and waits)
         self.control = None  # the Controller: the simulation's tools, run controls, settings and readouts
         self.lang = "en"  # the page's language, which the picture's chart words follow
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
@@ -147,22 +151,32 @@ class Session:
         self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
 
     def loop(self) -> None:
-        due = 0.0  # when the next picture may be drawn (at most max_fps a second)
+        due = time.perf_counter()  # when the scene's next frame is due (one every 1 / max_fps seconds)
         while True:
-            wait = 0.05 if self.credits <= 0 else max(due - time.perf_counter(), 0.0)
-            if self.conn.poll(wait):
-                while self.conn.poll(0):  # everything the page sent, before the next picture
+            if self.conn.poll(max(due - time.perf_counter(), 0.0)):
+                while self.conn.poll(0):  # everything the page sent, before the next frame
                     self.handle(json.loads(self.conn.recv_bytes()))
                 continue
-            if self.credits > 0 and time.perf_counter() >= due:
-                self.credits -= 1
-                due = time.perf_counter() + self.interval
-                self.frame()
+            due = self.tick(time.perf_counter(), due)
+
+    def tick(self, now: float, due: float) -> float:
+        """At wall time `now` (s): where a frame is `due`, step it, drawn and sent if the page has asked for a
+        picture; returns when the next frame is due. A frame late by more than one interval is not made up (the
+        scene slows rather than bursts)."""
+        if now < due:
+            return due
+        if self.credits > 0:
+            self.credits -= 1
+            self.frame()
+        elif self.watched:
+            self.step()
+        return max(due + self.interval, now - self.interval)
 
     def handle(self, msg: dict) -> None:
         kind = msg["t"]
         if kind == "ready":
             self.credits = min(self.credits + 1, FIRST_CREDITS + 1)
+            self.watched = True
         elif kind == "tool":
             self.tool(msg)
         elif kind == "pointer":
@@ -245,23 +259,31 @@ class Session:
             self.tell({"t": "error", "text": str(exc)})
 
     # ------------------------------------------------------------------ a frame
-    def frame(self) -> None:
+    def paced(self) -> bool:
+        """Whether the pacer chooses the steps: where they are most of a picture's cost (not a JPEG's), and the scene's
+        to choose."""
+        return self.particle_frames is not None and self.sim.scene.world.substeps != "auto"
+
+    def step(self) -> tuple[int, float]:
+        """One frame of the scene (the pacer's steps where paced()); (steps taken, seconds they took). A blow-up is
+        said to the page and the scene starts again."""
         from ..errors import SimulationError
 
-        sim = self.sim
-        wall = time.perf_counter()
-        # paced where the steps are most of a picture's cost (not a JPEG's), and the steps are the scene's to choose
-        substeps = sim.scene.world.substeps
-        paced = self.particle_frames is not None and substeps != "auto"
-        steps, stepped = (self.pacer.choose(int(substeps)) if paced else None), 0.0
+        steps = self.pacer.choose(int(self.sim.scene.world.substeps)) if self.paced() else None
+        stepping = time.perf_counter()
         try:
-            stepping = time.perf_counter()
             taken = self.control.advance(steps)
-            stepped = time.perf_counter() - stepping
-        except SimulationError as exc:  # a blow-up: say so and start the scene again
+        except SimulationError as exc:
             self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
             self.control.reset()
-            taken = 0
+            return 0, 0.0
+        return taken, time.perf_counter() - stepping
+
+    def frame(self) -> None:
+        """One frame stepped, then drawn and sent (or its particles sent, where the page draws them)."""
+        wall = time.perf_counter()
+        paced = self.paced()
+        taken, stepped = self.step()
         self.frames += 1
         if self.particle_frames:
             self.send_particle_frame(wall)
