@@ -83,6 +83,7 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
     from .peer_bench import CpuHog
 
     port, teacher = _free_port(), secrets.token_urlsafe(12)
+    launched = time.monotonic()
     server = subprocess.Popen(
         [sys.executable, "-m", "sandbox", "serve", scene, "--port", str(port), "--max-sessions", str(clients)]
         + ["--teacher-token", teacher, "--draw", draw, "--per-client", "0"],  # (its tabs share one address)
@@ -93,6 +94,7 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
     windows = []
     try:
         _wait_until_warm(server, port, teacher, clients)  # the class arrives when its sessions are ready
+        ready_seconds = time.monotonic() - launched
         url = f"ws://127.0.0.1:{port}/ws?scene={scene}"
         t0 = time.monotonic()
         windows.append(("quiet", t0 + WARMUP, t0 + WARMUP + MEASURE))
@@ -142,6 +144,7 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
         "picture": "particle frames drawn by the page" if draw == "page" else "960 x 540 JPEG",
         "draw": draw,
         "conditions": conditions,
+        "ready_seconds": ready_seconds,  # from the server's launch until every tab's session had drawn a picture
         **conditions[0],  # the quiet figures, under their names of old
         # the simulated tabs share the machine with the server: their CPU (over the whole run) is not the server's
         "clients_cpu_percent": 100 * (after.user + after.system - before.user - before.system) / (stop - t0),
@@ -165,6 +168,7 @@ def _condition(name, start, stop, results, sampler, clients, pace) -> dict:
         "slow_motion": slow,
         "cpu_percent_per_session": sampler.cpu / max(clients, 1),
         "memory_mb_per_session": sampler.memory / max(clients, 1) / 2**20,
+        "memory_mb": sampler.memory / 2**20,  # the server's whole: its process and every session's
     }
 
 
@@ -227,7 +231,10 @@ class _Sampler:
 
 def report(result: dict) -> str:
     """The benchmark's lines for the terminal."""
-    lines = [f"serve: {result['clients']} sessions of {result['scene']} over loopback, {result['picture']}"]
+    lines = [
+        f"serve: {result['clients']} sessions of {result['scene']} over loopback, {result['picture']}",
+        f"  ready: every session drew its first picture {result['ready_seconds']:.1f} s after the server started",
+    ]
     quiet = result["conditions"][0]
     for condition in result["conditions"]:
         fps = ", ".join(f"{f:.1f}" for f in condition["fps_per_session"])
@@ -237,8 +244,9 @@ def report(result: dict) -> str:
             f"(each: {fps})",
             f"    input-to-picture latency: median {condition['latency_median_ms']:.0f} ms; simulated time at "
             f"{slow:.2f} of the scene's own pace (1: real time as in its video)",
+            f"    pace of each tab's scene: {', '.join(f'{x:.2f}' for x in condition['slow_motion'])}",
             f"    server per session: {condition['cpu_percent_per_session']:.0f}% of a core, "
-            f"{condition['memory_mb_per_session']:.0f} MB resident",
+            f"{condition['memory_mb_per_session']:.0f} MB resident; the whole server {condition['memory_mb']:.0f} MB",
         ]
         if condition is not quiet and quiet["fps_median"] > 0:
             lines.append(f"    kept {100 * condition['fps_median'] / quiet['fps_median']:.0f}% of the quiet rate")
