@@ -388,12 +388,7 @@ def _bench_arguments(sub) -> None:
         help="only the classroom server: N simulated browser tabs over loopback (frame rate, latency, CPU, memory); "
         "with --contended K, measured again beside K CPU-bound processes",
     )
-    bench.add_argument(
-        "--draw",
-        choices=DRAWS,
-        default="page",
-        help="with --serve: who draws a 2D scene's particles (as sandbox serve --draw)",
-    )
+    draw_argument(bench, "with --serve: who draws a 2D scene's particles (as sandbox serve --draw)")
     bench.set_defaults(func=cmd_bench)
 
 

@@ -41,13 +41,15 @@ def serve_arguments(sub) -> None:
         "--idle", type=float, default=300.0, metavar="SECONDS", help="a tab silent this long loses its session (60+)"
     )
     serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
-    serve.add_argument(
-        "--draw",
-        choices=DRAWS,
-        default="page",
-        help="who draws a 2D scene's particles: the page (particle frames: light on the server) or the server (JPEG)",
+    draw_argument(
+        serve, "who draws a 2D scene's particles: the page (particle frames: light on the server) or the server (JPEG)"
     )
     serve.set_defaults(func=cmd_serve)
+
+
+def draw_argument(parser, words: str) -> None:
+    """The `--draw page|server` option (serve_session.DRAWS), which `sandbox serve` and `sandbox bench --serve` share."""
+    parser.add_argument("--draw", choices=DRAWS, default="page", help=words)
 
 
 def cmd_serve(args) -> int:
