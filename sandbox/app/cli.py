@@ -51,9 +51,8 @@ from .cli_common import (
 )
 from .cli_lesson import check_lesson
 from .cli_run import cmd_run, film_arguments
-from .cli_serve import serve_arguments
+from .cli_serve import draw_argument, serve_arguments
 from .cli_study import study_arguments
-from .serve_session import DRAWS
 from .signals import Stopper, exit_code
 from .sweep import METRICS, check_keys, parse_vary, plan_runs, plot_sweep, run_sweep
 

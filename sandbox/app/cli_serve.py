@@ -48,7 +48,7 @@ def serve_arguments(sub) -> None:
 
 
 def draw_argument(parser, words: str) -> None:
-    """The `--draw page|server` option (serve_session.DRAWS), which `sandbox serve` and `sandbox bench --serve` share."""
+    """The `--draw page|server` option (serve_session.DRAWS) of `sandbox serve` and `sandbox bench --serve`."""
     parser.add_argument("--draw", choices=DRAWS, default="page", help=words)
 
 
