@@ -176,7 +176,8 @@ def test_under_load_the_sandbox_is_timed_in_batches_of_as_many_steps_as_quiet(mo
 
 def test_the_rounds_against_lammps_are_as_many_as_asked(monkeypatch, tmp_path, capsys):
     """`--rounds N` alternates N rounds of each side (3 by default) on a machine too noisy for three; the medians of
-    those rounds are compared."""
+    those rounds are compared. LAMMPS runs both ways each round (issue 77): with the strict list check and with
+    in.lj's own list policy, and the sandbox's ratio to each is printed side by side, with each side's spread."""
     from sandbox.app import cli_bench
 
     runs = []
@@ -188,8 +189,11 @@ def test_the_rounds_against_lammps_are_as_many_as_asked(monkeypatch, tmp_path, c
     found = {"config": "plain 1x1", "rates": {"plain 1x1": 1e6}}
     monkeypatch.setattr(cli_bench, "lammps_at_its_best", lambda n_side, dim, steps: (fake_lammps, found))
     assert _small_peer_comparison(monkeypatch, tmp_path, lammps=True, contended=None, rounds=4) == 0
-    assert runs == [None] * 4 + ["in.lj"]  # four rounds, then LAMMPS's own list policy once
-    assert "LAMMPS   3.00 M particle-steps/s" in capsys.readouterr().out  # of rounds 1, 2, 3, 4: the upper middle
+    assert runs == ["strict", "in.lj"] * 4  # four rounds, each policy in each
+    out = capsys.readouterr().out
+    assert "LAMMPS (list checked every step)   5.00 M" in out  # of 1, 3, 5, 7: the upper middle
+    assert "LAMMPS (in.lj's own list policy)   6.00 M" in out  # of 2, 4, 6, 8
+    assert "LAMMPS strict 7.00, LAMMPS in.lj 4.00" in out  # each side's rounds, max over min
 
 
 def test_under_load_lammps_is_compared_at_its_best_under_that_load(monkeypatch, tmp_path, capsys):
@@ -222,4 +226,4 @@ def test_under_load_lammps_is_compared_at_its_best_under_that_load(monkeypatch, 
     assert _small_peer_comparison(monkeypatch, tmp_path, lammps=True, contended=3, rounds=1) == 0
     out = capsys.readouterr().out
     assert "LAMMPS at its best here: omp 1x2" in out and "LAMMPS at its best beside 3 hogs: opt 2x1" in out
-    assert "LAMMPS   4.00 M particle-steps/s" in out and "LAMMPS   1.00 M particle-steps/s" in out
+    assert "LAMMPS (list checked every step)   4.00 M" in out and "LAMMPS (list checked every step)   1.00 M" in out

@@ -147,37 +147,58 @@ PEER_ROUNDS = 3  # W1 against LAMMPS: this many alternating runs of each, median
 
 
 def against_lammps(
-    sim, run_lammps, repeats: int, rounds: int, integrators=(LIKE_LAMMPS,), steps: int | None = None
+    sim,
+    run_lammps,
+    repeats: int,
+    rounds: int,
+    integrators=(LIKE_LAMMPS,),
+    steps: int | None = None,
+    policies: tuple[str, ...] = ("strict",),
 ) -> dict:
     """Each of `integrators` in turn (`measure(sim)` from the scene's initial state, batches of `steps` where given)
-    and LAMMPS (`run_lammps()`), alternately, `rounds` times (0: no LAMMPS); {integrator: its median, with LAMMPS's
-    median and their ratio for LIKE_LAMMPS}. Alternating spreads the machine's changing load over every side."""
+    and LAMMPS (`run_lammps(policy)` for each of its neighbour-list `policies`, peer_bench.LAMMPS_POLICIES),
+    alternately, `rounds` times (0: no LAMMPS); {integrator: its median, with LAMMPS's median and their ratio for
+    LIKE_LAMMPS under the first policy, and under each policy in "by_policy"}. Alternating spreads the machine's
+    changing load over every side."""
     ours: dict = {name: [] for name in integrators}
-    peer = []
+    peer: dict = {policy: [] for policy in policies}
     for _ in range(max(rounds, 1)):
         for name in integrators:
             sim.reset()
             sim.set_integrator(name)
             ours[name].append(measure(sim, repeats, steps=steps))
-        if rounds:
-            lmp = run_lammps()
+        for policy in policies if rounds else ():
+            lmp = run_lammps(policy)
             if lmp is None or "error" in lmp:
                 rounds = 0
                 if lmp is not None:
                     ours[integrators[0]][-1]["lammps"] = lmp
                 break
-            peer.append(lmp)
+            peer[policy].append(lmp)
+        if not rounds:
+            break
     out = {}
     for name, runs in ours.items():
-        res = dict(sorted(runs, key=lambda r: r["particle_steps_per_second"])[len(runs) // 2])
+        res = dict(_median(runs))
         res["rounds"] = [r["particle_steps_per_second"] for r in runs]
         res["integrator"] = name
-        if peer and name == LIKE_LAMMPS:
-            lmp = sorted(peer, key=lambda r: r["particle_steps_per_second"])[len(peer) // 2]
-            res["lammps"] = dict(lmp, rounds=[r["particle_steps_per_second"] for r in peer])
-            res["ratio_to_lammps"] = res["particle_steps_per_second"] / lmp["particle_steps_per_second"]
+        if name == LIKE_LAMMPS and all(peer.values()) and rounds:
+            by_policy = {}
+            for policy, runs_of_policy in peer.items():
+                lmp = dict(_median(runs_of_policy), rounds=[r["particle_steps_per_second"] for r in runs_of_policy])
+                by_policy[policy] = {
+                    "lammps": lmp,
+                    "ratio": res["particle_steps_per_second"] / lmp["particle_steps_per_second"],
+                }
+            res["lammps"], res["ratio_to_lammps"] = by_policy[policies[0]]["lammps"], by_policy[policies[0]]["ratio"]
+            res["by_policy"] = by_policy
         out[name] = res
     return out
+
+
+def _median(runs: list[dict]) -> dict:
+    """The run whose particle-steps per second is the median (the upper of the middle two)."""
+    return sorted(runs, key=lambda r: r["particle_steps_per_second"])[len(runs) // 2]
 
 
 def lammps_w1(
@@ -262,7 +283,7 @@ def lammps_at_its_best(n_side: int, dim: int, steps: int, cores: int | None = No
     None, {}) without LAMMPS."""
     found = best_lammps(n_side, dim, steps, cores)
     if found is None:
-        return (lambda: None), {}
+        return (lambda policy="strict": None), {}
     (accel, procs, threads), rates = found
     return (
         lambda policy="strict": lammps_w1(n_side, procs, steps, dim, accel, threads, policy),
