@@ -227,8 +227,8 @@ class ClassroomRoutes:
         address = websocket.client.host if websocket.client else ""
         client = websocket.cookies.get(CLIENT_COOKIE, "")
         if classroom.over_share(address, client):
-            text = (f"this browser already has {classroom.per_client} sessions open (the class's limit a student): "
-                    "close another tab of the sandbox and reload")  # fmt: skip
+            text = (f"this browser already has {classroom.per_client} sessions open, as many as the class allows one "
+                    "student: close another tab of the sandbox and reload")  # fmt: skip
             await websocket.send_text(json.dumps({"t": "error", "key": "per_client", "text": text}))
             await websocket.close(code=1013)
             return
