@@ -141,7 +141,7 @@ def test_chart_panels_group_series_by_unit_with_round_axes():
     sim = Simulation(load_scene(SCENES / "melting_block.toml"))
     ren = Renderer(sim.model, sim.state, 960, 540, sim.scene.render)
     chart = ren.chart
-    assert [(p.title, p.unit) for p in chart.panels] == [("mean temperature", "°C"), ("molten", "%")]
+    assert [(p.title, p.unit) for p in chart.panels] == [("mean temperature (rule)", "°C"), ("molten (rule)", "%")]
     energies = Chart(("kinetic_energy", "potential_energy", "total_energy"), (0, 600, 0, 200), 12, ["wax"])
     assert [(p.title, p.unit) for p in energies.panels] == [("kinetic energy, potential energy, total energy", "pJ")]
     for k in range(11):  # temperature 20 -> 120, melt 0 -> 50 %
