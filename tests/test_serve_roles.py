@@ -239,6 +239,40 @@ def test_parallel_uploads_to_one_session_are_taken_one_at_a_time():
     assert max(peak) <= len(body) and classroom.in_flight == 0 and conn.uploads == [len(body)]
 
 
+class Alive(NoProcess):
+    def is_alive(self) -> bool:
+        return True
+
+
+def test_the_warm_pool_starts_as_many_sessions_at_once_as_there_are_cores(monkeypatch):
+    """Issue 74: a class waited for its sessions to start one at a time (12 took 49 s here). The warm pool starts
+    as many at once as the machine has cores, and the next ones as those draw their first pictures (12: 25 s)."""
+    from sandbox.app import serve
+
+    monkeypatch.setattr(serve, "usable_cores", lambda: 2)
+    classroom = Classroom("melting_block", None, max_sessions=6, teacher=TEACHER)
+    started = []
+
+    def spawn(scene):
+        handle = Handle(f"sid-{len(started)}", scene, Alive(), StandIn())
+        started.append(handle)
+        return handle
+
+    classroom.spawn = spawn
+
+    async def warm_for(seconds):
+        task = asyncio.create_task(classroom.keep_warm())
+        await asyncio.sleep(seconds)
+        task.cancel()
+
+    asyncio.run(warm_for(0.8))
+    assert len(started) == 2  # two starting at once, the rest waiting for them
+    for handle in started:
+        handle.frames = 1  # they drew their first pictures
+    asyncio.run(warm_for(0.8))
+    assert len(started) == 4 and len(classroom.warm) == 4
+
+
 def test_a_silent_tab_loses_its_session_and_is_told_why():
     """Issue 74: idle sessions are reclaimed after the set time with a message on the tab (they went silently)."""
     classroom = Classroom("melting_block", None, max_sessions=4, idle=0.2, teacher=TEACHER)

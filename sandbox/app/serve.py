@@ -35,6 +35,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from ..config.resources import shipped_scenes
+from ..core.cores import usable_cores
 from .serve_session import scratch_dir, session_main
 
 WEB = Path(__file__).resolve().parent / "web"
@@ -159,12 +160,14 @@ class Classroom:
 
     async def keep_warm(self) -> None:
         """Keep up to `warm_target` sessions of the default scene started ahead of the tabs (all sessions, warm or
-        a tab's, at most max_sessions), starting one at a time so that a small machine is not swamped."""
+        a tab's, at most max_sessions), starting as many at once as the machine has cores (a start is one busy
+        core: importing, compiling or loading kernels), so that a small machine is not swamped."""
+        at_once = usable_cores()
         while True:
             self.warm = [h for h in self.warm if h.process.is_alive()]
-            starting = any(h.frames == 0 for h in self.warm)
+            starting = sum(1 for h in self.warm if h.frames == 0)
             room = self.max_sessions - len(self.sessions) - len(self.warm)
-            if not starting and len(self.warm) < self.warm_target and room > 0:
+            if starting < at_once and len(self.warm) < self.warm_target and room > 0:
                 self.warm.append(self.spawn(self.scene))
             await asyncio.sleep(0.25)
 
