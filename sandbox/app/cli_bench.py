@@ -25,6 +25,7 @@ from ..research.bench import (
     measure,
     measure_from_start,
     melting_block_sim,
+    no_lammps,
     render_cost,
     scaling,
     spring_heat_lattice_sim,
@@ -126,9 +127,7 @@ def whole_set(args, repeats: int) -> tuple[dict, list]:
     if not args.quick:
         peers.append(("W1-3D LJ liquid", lambda: lj_box_3d_sim(32, args.arch), 32, 3))
     for label, factory, n_side, dim in peers:
-        run_lammps, found = (
-            lammps_at_its_best(n_side, dim, 500) if args.lammps else ((lambda policy="strict": None), {})
-        )
+        run_lammps, found = lammps_at_its_best(n_side, dim, 500) if args.lammps else (no_lammps, {})
         runtime.reset()  # independent workloads: a runtime holds at most ~512 field trees
         sim = factory()
         # fix nve is velocity Verlet: the same integrator on both sides; the scenes' default beside it
@@ -302,9 +301,7 @@ def peer_comparison(args, repeats: int) -> int:
         with context():
             # LAMMPS's best under this condition's load: its OpenMP threads spin at barriers as a team does (beside
             # 3 hogs on 2 cores `omp 1x2`, fastest quiet in one run, kept under a tenth of its quiet rate, opt 2x1 30%)
-            run_lammps, found = (
-                lammps_at_its_best(n_side, dim, lammps_steps) if args.lammps else ((lambda policy="strict": None), {})
-            )
+            run_lammps, found = lammps_at_its_best(n_side, dim, lammps_steps) if args.lammps else (no_lammps, {})
             # LAMMPS both ways: with the strict list check (every step), and with in.lj's own policy (rebuilt every
             # 20 steps, unchecked), which is how its users run this benchmark
             res = against_lammps(

@@ -25,13 +25,9 @@ def _check_modes(args) -> None:
     mode = modes[0] if modes else "integrators"
     pool = [o for o, v in (("--scheduler", args.scheduler != "auto"), ("--workers", args.workers),
                            ("--threads", args.threads)) if v]  # fmt: skip
-    unread = {
-        "heating": pool + ["--temperatures"] * (args.temperatures is not None),
-        "phase": pool + ["--temperatures"] * (args.temperatures is not None),
-        "triple": pool + ["--temperatures"] * (args.temperatures is not None),
-        "integrators": ["--temperatures"] * (args.temperatures is not None),
-        "coexistence": [],
-    }[mode]
+    temperatures = ["--temperatures"] * (args.temperatures is not None)
+    # the heating, phase and triple-point studies run in this process and at their own temperatures
+    unread = {"integrators": temperatures, "coexistence": []}.get(mode, pool + temperatures)
     if mode != "integrators":
         unread += [o for o, v in (("--integrators", args.integrators), ("--problems", args.problems)) if v]
     if mode != "coexistence" and args.dim != 3:
@@ -53,15 +49,15 @@ def cmd_study(args) -> int:
         run_coexistence(out, temperatures, args.quick, log, args.dim, args.scheduler, args.workers, args.threads)
         print(f"wrote {out}/coexistence.md and coexistence.csv")
         return 0
-    validation = {  # flag: (runner, what it writes, the plot it adds where matplotlib is installed)
+    validation = {  # flag: (runner, what it writes, the plot it adds where matplotlib is installed, if any)
         "heating": (run_heating_study, "heating_curve.md and heating_curve.csv", "heating_curve.png"),
         "phase": (run_phase_study, "phase.md, stefan.csv, heating_curve.csv", "stefan.png"),
-        "triple": (run_triple_study, "triple_point.md and triple_point.csv", "no plot"),
+        "triple": (run_triple_study, "triple_point.md and triple_point.csv", None),
     }
     for flag, (runner, files, plot) in validation.items():
         if getattr(args, flag):
             runner(out, quick=args.quick, log=log)
-            print(f"wrote {out}/{files}" + (" and plots" if (out / plot).exists() else ""))
+            print(f"wrote {out}/{files}" + (" and plots" if plot and (out / plot).exists() else ""))
             return 0
     try:
         run_study(

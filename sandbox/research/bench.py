@@ -196,6 +196,11 @@ def against_lammps(
     return out
 
 
+def no_lammps(policy: str = "strict") -> None:
+    """What `run_lammps` is where LAMMPS is not run: no result under any list policy."""
+    return None
+
+
 def _median(runs: list[dict]) -> dict:
     """The run whose particle-steps per second is the median (the upper of the middle two)."""
     return sorted(runs, key=lambda r: r["particle_steps_per_second"])[len(runs) // 2]
@@ -283,7 +288,7 @@ def lammps_at_its_best(n_side: int, dim: int, steps: int, cores: int | None = No
     None, {}) without LAMMPS."""
     found = best_lammps(n_side, dim, steps, cores)
     if found is None:
-        return (lambda policy="strict": None), {}
+        return no_lammps, {}
     (accel, procs, threads), rates = found
     return (
         lambda policy="strict": lammps_w1(n_side, procs, steps, dim, accel, threads, policy),

@@ -45,6 +45,7 @@ CUTOFF = 2.5
 NIST_LFS_PSAT = {0.65: 6.71090e-03, 0.70: 1.18932e-02, 0.75: 1.95405e-02, 0.80: 3.02538e-02, 0.85: 4.47539e-02,
                  0.90: 6.39698e-02}  # fmt: skip
 ARGON = REAL_SUBSTANCES["argon"]  # the argon the reduced units stand for (measure/units.py)
+LFS_PAIR = {"a": 8.0, "b": 14.0, "cutoff": CUTOFF, "force_shift": True}  # a scene's [pair]: LJ force-shifted at CUTOFF
 F_CUT = 24.0 / CUTOFF**7 - 48.0 / CUTOFF**13  # the 12-6 force's attraction at the cutoff (unit masses)
 
 
@@ -97,7 +98,7 @@ def slab_scene(temperature: float, width: float, rho: float = 0.8, thickness: fl
             "dim": dim, "lo": [0.0] * dim, "hi": [*across, lz], "dt": 0.005, "periodic": True,
             "precision": "f64", "integrator": "velocity_verlet",
         },
-        "pair": {"a": 8.0, "b": 14.0, "cutoff": CUTOFF, "force_shift": True},
+        "pair": dict(LFS_PAIR),
         "molecular": {},
         "bodies": [{
             "material": "lj", "shape": "box", "lattice": "cubic" if dim == 3 else "square",
@@ -181,8 +182,8 @@ def measure_snapshot(
     return z, energy, p_zz, p_vapour
 
 
-def _blocks(values: np.ndarray, count: int = 5) -> tuple[float, float]:
-    """(mean, standard error from `count` block means)."""
+def block_average(values: np.ndarray, count: int = 5) -> tuple[float, float]:
+    """(mean, standard error from `count` block means) of a correlated series."""
     blocks = np.array([b.mean() for b in np.array_split(np.asarray(values), count)])
     return float(blocks.mean()), float(blocks.std(ddof=1) / math.sqrt(count))
 
@@ -236,14 +237,14 @@ def run_slab(temperature: float, width: float | None = None, equilibrate: int = 
             )
         )
     data = np.array(rows)
-    kt, kt_err = _blocks(data[:, 0])
-    rho_l, rho_l_err = _blocks(data[:, 1])
-    rho_v, rho_v_err = _blocks(data[:, 2])
-    p, p_err = _blocks(data[:, 3])
-    p_zz, p_zz_err = _blocks(data[:, 6])
+    kt, kt_err = block_average(data[:, 0])
+    rho_l, rho_l_err = block_average(data[:, 1])
+    rho_v, rho_v_err = block_average(data[:, 2])
+    p, p_err = block_average(data[:, 3])
+    p_zz, p_zz_err = block_average(data[:, 6])
     u_v_all = data[:, 5][np.isfinite(data[:, 5])]
-    u_l, u_l_err = _blocks(data[:, 4])
-    u_v, u_v_err = _blocks(u_v_all) if len(u_v_all) >= 5 else (float("nan"), float("nan"))
+    u_l, u_l_err = block_average(data[:, 4])
+    u_v, u_v_err = block_average(u_v_all) if len(u_v_all) >= 5 else (float("nan"), float("nan"))
     dh = (u_v - u_l) + p * (1.0 / rho_v - 1.0 / rho_l)
     dh_err = math.sqrt(u_v_err**2 + u_l_err**2 + (p_err / rho_v) ** 2 + (p * rho_v_err / rho_v**2) ** 2)
     point = SlabPoint(kt, kt_err, rho_l, rho_l_err, rho_v, rho_v_err, p, p_err, p_zz, p_zz_err, dh, dh_err, n,

@@ -34,6 +34,7 @@ import numpy as np
 from ..config.scene import scene_from_dict
 from ..measure.coexistence_curve import shipped_curve
 from ..simulation import Simulation
+from .coexistence import LFS_PAIR
 from .dask_pool import run_jobs
 from .figures import legend_beside, pyplot, save
 from .study_runs import STUDY_PATH
@@ -53,7 +54,7 @@ def heating_scene(pressure: float, power: float, cells: int = 5, height: float =
             "dim": 3, "lo": [0.0, 0.0, 0.0], "hi": [side, height, side], "dt": 0.005, "precision": "f64",
             "integrator": "velocity_verlet", "restitution": 1.0, "friction": 0.0,
         },
-        "pair": {"a": 8.0, "b": 14.0, "cutoff": 2.5, "force_shift": True},
+        "pair": dict(LFS_PAIR),
         "molecular": {"lid": {"pressure": pressure, "mass": 50.0, "height": top + 0.6}, "heater": {"power": power}},
         "bodies": [{
             "material": "lj", "shape": "box", "lattice": "fcc", "lo": [0.0, 0.3, 0.0], "hi": [side, top, side],

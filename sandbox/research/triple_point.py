@@ -34,7 +34,7 @@ import numpy as np
 from ..config.scene import scene_from_dict
 from ..measure.coexistence_curve import shipped_curve
 from ..simulation import Simulation
-from .coexistence import CUTOFF, Rescaler
+from .coexistence import LFS_PAIR, Rescaler, block_average
 from .study_runs import STUDY_PATH
 
 ROOT2 = math.sqrt(2.0)
@@ -63,7 +63,7 @@ def _box_scene(name: str, box: np.ndarray, atoms: int, kt: float, seed: int) -> 
         "scene": {"name": name},
         "world": {"dim": 3, "lo": [0.0, 0.0, 0.0], "hi": box.tolist(), "dt": 0.005, "periodic": True,
                   "precision": "f64", "integrator": "velocity_verlet"},
-        "pair": {"a": 8.0, "b": 14.0, "cutoff": CUTOFF, "force_shift": True},
+        "pair": dict(LFS_PAIR),
         "molecular": {},
         "bodies": [{"material": "lj", "shape": "box", "lattice": "cubic", "lo": [0.0, 0.0, 0.0], "hi": box.tolist(),
                     "spacing": spacing, "springs": False, "random_velocity": math.sqrt(kt), "seed": seed}],
@@ -178,10 +178,9 @@ def run_three_phase(spacing: float, start: float, equilibrate: int = 2000, settl
     t, solid, gas = np.array(rows).T
     half = slice(len(t) // 2, None)
     coexisted = bool(np.all((solid[half] > 0.1) & (solid[half] < 0.9)))
-    blocks = np.array([b.mean() for b in np.array_split(t[half], 5)])
+    temperature, err = block_average(t[half]) if coexisted else (math.nan, math.nan)
     run = ThreePhaseRun(
-        start, float(blocks.mean()) if coexisted else math.nan,
-        float(blocks.std(ddof=1) / math.sqrt(5)) if coexisted else math.nan,
+        start, temperature, err,
         float(solid[0]), float(solid[-1]), float(gas[-1]), coexisted, len(x), equilibrate + settle,
         time.perf_counter() - began,
     )  # fmt: skip
