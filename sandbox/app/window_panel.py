@@ -50,13 +50,18 @@ def readouts(gui, chars: int, control, state: WindowState, stats, fps: float) ->
     the probe and the integrator. Where some are set by the model's rule, those follow "rule:" and the rest
     "measured:" (the clock and the drawing rate first, unmarked). ASCII only: GGUI's font has no degree sign."""
     items = control.readouts(stats, fps)
-    texts = [f"{item.words} {item.text()}" for item in items]
-    if marks_sources(items):  # each group's first reading carries its heading, so a heading never ends a line
-        texts = [text for item, text in zip(items, texts) if item.source not in ("rule", "measured")]
-        for source, heading in (("rule", "rule:"), ("measured", "measured:")):
-            ruled = sorted((item for item in items if item.source == source), key=lambda item: item.key == "broken")
-            group = [f"{item.words} {item.text()}" for item in ruled]  # (the bonds after the heat: fewer lines)
-            texts += [f"{heading} {group[0]}", *group[1:]] if group else []
+    groups = [("", items)]
+    if marks_sources(items):  # the clock first, unmarked; then each source under its heading
+        groups = [("", [item for item in items if item.source not in ("rule", "measured")])]
+        for source in ("rule", "measured"):  # (the bonds after the heat: fewer lines)
+            of_source = sorted((item for item in items if item.source == source), key=lambda item: item.key == "broken")
+            groups.append((f"{source}:", of_source))
+    # each group's first reading carries its heading, so a heading never ends a line
+    texts = [
+        f"{heading if k == 0 else ''} {item.words} {item.text()}".strip()
+        for heading, group in groups
+        for k, item in enumerate(group)
+    ]
     line = "PAUSED" if control.paused else ""
     for text in texts:
         if line and len(line) + 3 + len(text) > chars:

@@ -110,18 +110,14 @@ class Chart:
         words = words or Words()
         # a series the model's rule sets (a mesoscale scene's heat and phases) says so after its words
         self.marks = [f" {words.rule_mark()}" if set_by_rule(n) else "" for n in self.series]
-        self.words = [
-            (words.series(name, english) + mark, unit)
-            for mark, (name, (english, unit)) in zip(
-                self.marks, ((n, series_words(n, material_names, dim)) for n in self.series)
-            )
-        ]
+        english = [series_words(n, material_names, dim) for n in self.series]  # (words, unit) of each
+        full = [words.series(n, said) for n, (said, _) in zip(self.series, english)]
+        self.words = [(w + mark, unit) for w, mark, (_, unit) in zip(full, self.marks, english)]
         # a narrow panel's words: one word (the catalogue's `chart_short_<name>` in another language), with the mark
         self.short = [
-            (words.series(f"short_{n}", "") if self.translated else short_words(n)) or words.series(n, english)
-            for n, (english, _) in ((n, series_words(n, material_names, dim)) for n in self.series)
+            ((words.series(f"short_{n}", "") if self.translated else short_words(n)) or w) + mark
+            for n, w, mark in zip(self.series, full, self.marks)
         ]
-        self.short = [short + mark for short, mark in zip(self.short, self.marks)]
         by_unit: dict[str, list[int]] = {}
         for k, (_, unit) in enumerate(self.words):
             by_unit.setdefault(unit, []).append(k)

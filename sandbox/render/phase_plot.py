@@ -106,7 +106,7 @@ class PhasePlot(PressureTemperaturePanel):
         self.temperature = float(stats.mean_temperature)
 
     def adopt(self, other) -> None:
-        """Take over `other`'s trail (a renderer rebuilt at a new size)."""
+        """Take over `other`'s temperature, gauge and boiling pressures (a renderer rebuilt at a new size)."""
         if isinstance(other, PhasePlot):
             self.temperature, self.boiling = other.temperature, list(other.boiling)
             self.pressure, self.map = other.pressure, other.map
