@@ -1,6 +1,7 @@
 """The classroom's pictures drawn by the page (issue 56, item 4): a 2D session sends the picture without its
 particles once, the charts' band a few times a second and a particle frame (places, sizes, colours) a picture; what
-the page composes from them is the renderer's picture. 3D scenes, and `draw="server"`, still send JPEG pictures."""
+the page composes from them is the renderer's picture. Scenes the page cannot compose, and `draw="server"`, send
+JPEG pictures (3D spheres: tests/test_sphere_frames.py)."""
 
 import base64
 import io
@@ -153,12 +154,13 @@ def b64(data: bytes) -> str:
     return base64.b64encode(data).decode()
 
 
-def test_3d_scenes_and_server_drawing_send_jpeg_pictures():
-    """A 3D scene (shaded spheres) cannot be drawn by the page from a particle frame: its session sends the
-    renderer's JPEG pictures, as a 2D session does when the server draws (`draw="server"`)."""
+def test_a_3d_scene_with_a_moving_lid_and_server_drawing_send_jpeg_pictures():
+    """A 3D scene whose picture the page cannot compose (a lid that moves, drawn into the backdrop) sends the
+    renderer's JPEG pictures, as a 2D session does when the server draws (`draw="server"`). Other 3D scenes send
+    sphere frames (tests/test_sphere_frames.py)."""
     from sandbox.app.serve_session import Session
 
-    for scene, draw in (("melting_block_3d", "page"), ("lj_box", "server")):
+    for scene, draw in (("states_of_matter_atoms", "page"), ("lj_box", "server")):
         page, end = Pipe()
         session = Session(end, scene, 160, 90, draw=draw)
         session.frame()

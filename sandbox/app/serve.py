@@ -36,7 +36,7 @@ from urllib.parse import urlsplit
 
 from ..config.resources import shipped_scenes
 from ..core.cores import usable_cores
-from .serve_session import scratch_dir, session_main
+from .serve_session import FRAMES, PICTURES, scratch_dir, session_main
 
 WEB = Path(__file__).resolve().parent / "web"
 PICTURE = (960, 540)  # the sessions' picture size (the page scales it to fit)
@@ -47,7 +47,6 @@ MAX_BROADCAST = 2048  # bytes of a teacher's broadcast message
 WARN_SECONDS = 2.0  # "too many messages" is said at most once in this long
 IDLE_SECONDS = 300.0  # a tab silent this long (closed, asleep) loses its session
 START_SECONDS = 60.0  # a session that has not drawn its first picture by then is given up
-PICTURES = (b"F", b"P", b"B", b"C")  # a JPEG picture, a particle frame, a backdrop, a band (serve_session.py)
 
 
 @dataclass
@@ -207,7 +206,7 @@ class Classroom:
             return
         kind, body = data[:1], data[1:]
         if kind in PICTURES:  # to the page as they are: it reads the kind from the first byte
-            handle.frames += kind in (b"F", b"P")
+            handle.frames += kind in FRAMES
             handle.outbox.put_nowait(("bytes", data))
         elif kind == b"T":
             handle.answer("thumb", body)

@@ -83,6 +83,8 @@ def parse(text: str | bytes, scenes) -> dict:
         return out
     if kind == "action":
         return {"t": "action", "name": _choice(msg, "name", ACTIONS)}
+    if kind == "nogl":  # the page cannot draw 3D spheres (no WebGL2): it asks for pictures instead
+        return {"t": "nogl"}
     if kind == "lang":  # the page's language: the picture's chart words follow it
         return {"t": "lang", "lang": _choice(msg, "lang", LANGUAGES)}
     if kind == "view":  # dx, dy: the drag in fractions of the picture
@@ -91,7 +93,7 @@ def parse(text: str | bytes, scenes) -> dict:
     if kind == "scene":
         return {"t": "scene", "name": _choice(msg, "name", tuple(scenes))}
     raise ProtocolError(
-        f"message type {kind!r} refused: expected ready, pointer, tool, set, action, view, lang or scene"
+        f"message type {kind!r} refused: expected ready, pointer, tool, set, action, view, nogl, lang or scene"
     )
 
 

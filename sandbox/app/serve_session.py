@@ -5,10 +5,13 @@ The server (serve.py) and the session talk over a multiprocessing pipe in bytes:
 (already validated by serve_protocol.py); the session answers b"J" + JSON (readouts, messages) or a picture, which
 the server passes to the page as it is:
 
-- where the page draws (`draw="page"`, a 2D scene of discs: render/particle_frame.py): b"B" + a PNG of the picture
-  without its particles (the domain, walls, heat sources and charts) when a scene opens, b"C" + the charts' band
-  (x0, row0: two u16, then a PNG) a few times a second, and b"P" + a particle frame (a few kB) a picture;
-- else (3D, motion blur, springs drawn, additive light, or `draw="server"`): b"F" + the renderer's picture as a JPEG.
+- where the page draws (`draw="page"`: a 2D scene of discs, render/particle_frame.py, or a 3D scene of opaque
+  spheres on a page with WebGL2, render/sphere_frame.py): b"B" + a PNG of the picture without its particles (the
+  domain, walls, heat sources, floor and charts) when a scene opens (in 3D again after the camera moves), b"C" + the
+  charts' band (x0, row0: two u16, then a PNG) a few times a second, and b"P" + a particle frame (a few kB) or b"S"
+  + a sphere frame a picture;
+- else (motion blur, springs drawn, translucent or additive light, a page without WebGL2, or `draw="server"`):
+  b"F" + the renderer's picture as a JPEG.
 
 The scene keeps its own clock: a frame of it is stepped every 1 / max_fps seconds whether or not the page has asked
 for a picture, and a frame is drawn and sent only when the page has asked (a "ready" credit), so a slow device or a
@@ -40,7 +43,12 @@ READOUTS_EVERY = 6  # pictures between the readouts sent with them (JPEG picture
 READOUT_SECONDS = 0.3  # seconds between the readouts sent with particle frames
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
 BAND_SECONDS = 1.0  # seconds between the charts' bands sent to a page that draws the particles
+BACKDROP_SECONDS = 0.1  # seconds at least between the 3D backdrops sent while the camera moves
 SMOOTH_FPS = 20.0  # pictures a second a tab keeps, where the machine is short of CPU, by stepping less a picture
+# what a session sends a picture: a JPEG, or a frame the page draws (render/particle_frame.PAGE_FRAMES, not imported:
+# the server's process never loads Taichi)
+FRAMES = (b"F", b"P", b"S")
+PICTURES = (*FRAMES, b"B", b"C")  # and the backdrops and bands a page draws its frames over
 DRAWS = ("page", "server")  # who draws a 2D scene's particles: the page (particle frames) or the session (JPEG)
 
 
@@ -66,7 +74,9 @@ class Session:
             raise ValueError(f"draw: expected one of {', '.join(DRAWS)}, got {draw!r}")
         self.conn = conn
         self.draw_by = draw
-        self.particle_frames = None  # the ParticleFrame packer where the page draws the particles
+        self.particle_frames = None  # the ParticleFrame (2D) or SphereFrame (3D) packer where the page draws them
+        self.webgl = True  # the page can draw spheres (it says "nogl" where it cannot: then 3D comes as pictures)
+        self.backdrop_due = False  # the 3D camera moved: the picture without particles goes with the next frame
         self.base = None  # the picture without particles or charts, (H, W, 3) uint8, where the page draws
         self.under = None  # and with the charts: what the page has under its particles
         self.interval = 1.0 / max_fps
@@ -82,7 +92,7 @@ class Session:
         # the steps a picture shows: the window's rule, at the pictures a second a tab keeps (fewer steps where the
         # machine is short of CPU, so the class sees smooth motion in slow motion rather than jerks)
         self.pacer = FramePacer(target_fps=SMOOTH_FPS, floor_fps=SMOOTH_FPS)
-        self.last_readouts = self.last_band = -1e9  # when they were last sent (wall seconds)
+        self.last_readouts = self.last_band = self.last_backdrop = -1e9  # when they were last sent (wall seconds)
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
         self.load(scene)
 
@@ -91,7 +101,6 @@ class Session:
         """Open the shipped scene `scene` as the window's scene picker does (Taichi restarted, so switching scenes
         frees the last one's fields), with this session's own renderer at its picture size."""
         from ..render.overlays import Overlays
-        from ..render.particle_frame import ParticleFrame, backdrop_picture, unsupported
         from ..render.raster import Renderer
         from .controller import Controller
         from .window_parts import OrbitCamera
@@ -109,9 +118,7 @@ class Session:
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
         self.sim.state.carry(self.renderer.tails)
-        self.particle_frames = None
-        if self.draw_by == "page" and unsupported(self.renderer) is None:
-            self.particle_frames = ParticleFrame(self.renderer)
+        self.particle_frames = page_packer(self.renderer) if self.draw_by == "page" and self.webgl_or_2d() else None
         self.set_words()
         painter = self.renderer.painter
         self.orbit = OrbitCamera(painter.eye_np, painter.target_np) if self.sim.dim == 3 else None
@@ -128,8 +135,17 @@ class Session:
             }
         )
         if self.particle_frames:  # what does not move with the particles, once
-            self.base = backdrop_picture(self.renderer)
-            self.conn.send_bytes(b"B" + png(self.draw_under()))
+            self.send_backdrop(time.perf_counter())
+
+    def webgl_or_2d(self) -> bool:
+        """Whether the page can draw this scene's particles: any 2D scene, a 3D one where the page has WebGL2."""
+        return self.sim.dim == 2 or self.webgl
+
+    def send_backdrop(self, now: float) -> None:
+        """The picture without its particles, with the charts (b"B" + PNG), for a page that draws the particles."""
+        self.base = self.particle_frames.backdrop()
+        self.conn.send_bytes(b"B" + png(self.draw_under()))
+        self.backdrop_due, self.last_backdrop = False, now
 
     @property
     def sim(self):
@@ -191,6 +207,11 @@ class Session:
             self.action(msg["name"])
         elif kind == "view":
             self.view(msg["move"], msg["dx"], msg["dy"])
+        elif kind == "nogl":  # the page has no WebGL2: 3D scenes come as pictures from now on
+            self.webgl = False
+            if self.sim.dim == 3 and self.particle_frames is not None:
+                self.particle_frames = None
+                self.credits = max(self.credits, 1)  # the frame the page could not draw, again as a picture
         elif kind == "lang":
             self.lang = msg["lang"]
             self.set_words()
@@ -232,6 +253,7 @@ class Session:
         buttons = [move == "orbit", move == "zoom", move == "pan"]
         self.orbit.drag(buttons, dx, dy)
         self.renderer.set_camera(self.orbit.eye(), self.orbit.target, self.renderer.painter.fov)
+        self.backdrop_due = self.particle_frames is not None  # the floor is seen from elsewhere now
 
     # ------------------------------------------------------------------ tools
     def world_at(self, fx: float, fy: float):
@@ -299,7 +321,9 @@ class Session:
         if now - self.last_readouts >= READOUT_SECONDS:
             self.last_readouts = now
             self.tell({"t": "info", "time": sim.time, "frame": self.frames, "seq": self.seq, **self.readouts()})
-        if self.band_due or (now - self.last_band >= BAND_SECONDS and self.renderer.plots()):
+        if self.backdrop_due and now - self.last_backdrop >= BACKDROP_SECONDS:
+            self.send_backdrop(now)  # with the charts drawn on it: the band is in it
+        elif self.band_due or (now - self.last_band >= BAND_SECONDS and self.renderer.plots()):
             self.last_band = now
             self.send_band()
         self.conn.send_bytes(self.particle_frames.encode(self.frames, self.seq, sim.time))
@@ -333,7 +357,7 @@ class Session:
 
         from ..render.particle_frame import small_picture
 
-        if self.particle_frames:
+        if self.particle_frames and self.sim.dim == 2:
             return small_picture(self.under, self.particle_frames.pack(), 240, 135)
         return np.asarray(Image.fromarray(self.draw()).resize((240, 135), Image.Resampling.BILINEAR))
 
@@ -427,6 +451,17 @@ class Session:
         finally:
             path.unlink(missing_ok=True)
             self.tell({"t": "upload_done"})  # the server takes this session's next upload only now
+
+
+def page_packer(renderer):
+    """What packs `renderer`'s particles for the page to draw: a ParticleFrame (2D discs), a SphereFrame (3D opaque
+    spheres), or None where the page cannot draw them as the renderer does (the session sends pictures)."""
+    from ..render import particle_frame, sphere_frame
+
+    kind = particle_frame if renderer.dim == 2 else sphere_frame
+    if kind.unsupported(renderer) is not None:
+        return None
+    return particle_frame.ParticleFrame(renderer) if renderer.dim == 2 else sphere_frame.SphereFrame(renderer)
 
 
 def png(picture) -> bytes:

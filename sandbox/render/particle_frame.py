@@ -26,6 +26,7 @@ from ..core.oriented import data_oriented
 from .style import BLEND, MIN_FADE, R_MIN
 
 HEADER = struct.Struct("<cIIdI")  # b"P", frame, seq, time, n
+PAGE_FRAMES = (b"P", b"S")  # the frames a page draws itself, each starting with HEADER: particle and sphere frames
 FIXED = 16.0  # sub-pixel steps per pixel in a frame's places and radii
 
 
@@ -93,6 +94,10 @@ class ParticleFrame:
         if n:
             self._pack(n, self.records)
         return self.records[:n]
+
+    def backdrop(self) -> np.ndarray:
+        """The picture without its particles or text, (H, W, 3) uint8 (backdrop_picture)."""
+        return backdrop_picture(self.renderer)
 
     def encode(self, frame: int, seq: int, time: float) -> bytes:
         """The particle frame of the state now (the module docstring's layout)."""

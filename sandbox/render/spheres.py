@@ -42,7 +42,8 @@ class Spheres3D:
         self.focal_field = ti.field(ti.f32, shape=())  # pixels: focal length of the pinhole
         self.set_camera(eye, target, cfg.fov)
         light = np.asarray(cfg.light_direction, dtype=float)
-        self.light_dir = ti.Vector(list(light / np.linalg.norm(light)))
+        self.light_np = light / np.linalg.norm(light)  # unit vector towards the light (world)
+        self.light_dir = ti.Vector(list(self.light_np))
         self.specular = float(cfg.specular)
         self.ground = bool(cfg.ground)
         self.floor_y = float(lo[1])
@@ -73,6 +74,10 @@ class Spheres3D:
         focal = 0.5 * self.canvas.height / math.tan(math.radians(fov_degrees) / 2)
         transfer.upload([(self.camera, np.array([eye, right, true_up, fwd], np.float32)), (self.focal_field, focal)])
         self.fov = float(fov_degrees)
+
+    def paint_backdrop(self) -> None:
+        """The picture without particles into the image: the background, the floor and its heat sources, the lid."""
+        self._clear_3d()
 
     def draw(self) -> None:
         """Every 3D pass, into the image."""

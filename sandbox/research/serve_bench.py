@@ -22,7 +22,7 @@ import time
 import urllib.request
 
 from ..errors import SandboxError
-from ..render.particle_frame import HEADER
+from ..render.particle_frame import HEADER, PAGE_FRAMES
 
 WARMUP = 8.0  # seconds after every session has drawn its first picture
 MEASURE = 15.0  # seconds measured
@@ -51,10 +51,10 @@ async def _client(url: str, stop: float, out: dict) -> None:
             except asyncio.TimeoutError:
                 break
             now = time.monotonic()
-            if isinstance(message, bytes) and message[:1] == b"P":  # a particle frame carries its own clock
+            if isinstance(message, bytes) and message[:1] in PAGE_FRAMES:  # a frame the page draws carries its clock
                 _, _, acked, sim_time, _ = HEADER.unpack_from(message)
                 clock.append((now, sim_time))
-            if isinstance(message, bytes) and message[:1] in (b"F", b"P"):  # a picture (not a backdrop or band)
+            if isinstance(message, bytes) and message[:1] in (b"F", *PAGE_FRAMES):  # a picture (not a backdrop or band)
                 pictures.append(now)
                 if acked in sent:  # the first picture after the session applied input `acked`
                     latencies.append((now, now - sent.pop(acked)))

@@ -103,11 +103,13 @@ function connect(scene) {
 
 // What the session sends as bytes, told apart by the first byte (sandbox/app/serve_session.py): "F" a JPEG picture;
 // where the page draws the particles, "B" the picture without them (PNG), "C" the charts' band (x0, row0, PNG) and
-// "P" a particle frame (sandbox/render/particle_frame.py). They are handled in order, one at a time.
+// "P" a particle frame (sandbox/render/particle_frame.py), "S" a sphere frame (sandbox/render/sphere_frame.py,
+// drawn by spheres.js). They are handled in order, one at a time.
 let pictures = Promise.resolve();
 function onBinary(buffer) { pictures = pictures.then(() => onBytes(buffer)).catch(() => {}); }
 
 const base = document.createElement("canvas");  // the picture without its particles, where the page draws them
+let band = null;  // where the charts' band lies on it ({x, y, w, h}): drawn again over 3D spheres, as the renderer
 async function bitmapOf(bytes, type) { return createImageBitmap(new Blob([bytes], { type })); }
 
 async function onBytes(buffer) {
@@ -126,12 +128,24 @@ async function onBytes(buffer) {
   } else if (kind === "C") {
     const at = new DataView(buffer, 1, 4);
     const bitmap = await bitmapOf(buffer.slice(5), "image/png");
-    base.getContext("2d").drawImage(bitmap, at.getUint16(0, true), at.getUint16(2, true));
+    band = { x: at.getUint16(0, true), y: at.getUint16(2, true), w: bitmap.width, h: bitmap.height };
+    base.getContext("2d").drawImage(bitmap, band.x, band.y);
     bitmap.close();
   } else if (kind === "P") {
     const context = pictureContext(base.width, base.height);
     context.drawImage(base, 0, 0);
     drawParticles(context, buffer);
+    shown(context);
+  } else if (kind === "S") {
+    const spheres = drawSpheres(buffer, base.width, base.height);
+    if (spheres === null) { send({ t: "nogl" }); return; }  // no WebGL2 here: the session sends pictures instead
+    const context = pictureContext(base.width, base.height);
+    context.drawImage(base, 0, 0);
+    context.drawImage(spheres, 0, 0);
+    if (band) context.drawImage(base, band.x, band.y, band.w, band.h, band.x, band.y, band.w, band.h);
+    const view = new DataView(buffer);
+    context.canvas.dataset.particles = String(view.getUint32(17, true));
+    context.canvas.dataset.time = String(view.getFloat64(9, true));
     shown(context);
   }
 }
@@ -195,6 +209,7 @@ function onText(msg) {
 let sceneDim = 2;  // 3: a drag on the picture turns its camera (shift: pans), the wheel zooms
 function onScene(msg) {
   sceneDim = msg.dim || 2;
+  band = null;  // the new scene's band comes with its first pictures
   $("hint").dataset.i18n = sceneDim === 3 ? "canvas_hint_3d" : "canvas_hint";  // kept across a change of language
   $("hint").textContent = t($("hint").dataset.i18n);
   $("scene").value = msg.scene;

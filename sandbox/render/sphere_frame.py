@@ -1,0 +1,127 @@
+"""A 3D picture as data for a page to draw with WebGL (a "sphere frame"): the camera, and each particle's place,
+drawn radius and colour. The browser classroom sends these instead of a JPEG a picture (app/serve_session.py), so a
+3D tab costs the server no drawing or encoding either; what does not move with the particles (the background, the
+floor and its heat sources, the charts) goes apart as the picture without its particles (`backdrop_picture`), again
+whenever the camera moves.
+
+The page draws each particle as the renderer does (render/spheres.py): projected through the same pinhole camera, a
+disc of max(radius x focal / depth, R_MIN) pixels covering the pixels whose centres lie on it, the sphere's front
+surface depth-tested per pixel, shaded (diffuse, ambient 0.3, a specular highlight) where its group is drawn shaded,
+flat otherwise; colours are the renderer's (Look), written to 8 bits as the renderer writes them.
+
+A sphere frame, little-endian:
+
+    b"S", then frame (u32), seq (u32: the last setting applied), time (f64: simulated seconds), n (u32),
+    then the camera: 20 f32: eye, right, up, forward (3 each, world units), focal length (pixels), the view's axis
+    on the picture cx, cy (pixels, y up), the light's direction (3), specular strength, R_MIN (pixels),
+    then n records of five u32: x, y, z, r as f32 bits (world units; r < 0: drawn flat, not shaded) and
+    R | G << 8 | B << 16 | 255 << 24.
+
+Scenes this cannot show as the renderer does (motion blur, translucent or additive particles, a moving lid) have
+`unsupported(...)` say why; the classroom sends them as pictures.
+"""
+
+import struct
+
+import numpy as np
+import taichi as ti
+
+from ..core.oriented import data_oriented
+from .particle_frame import HEADER  # b"S", frame, seq, time, n
+from .style import R_MIN
+
+CAMERA = struct.Struct("<20f")  # eye, right, up, forward, focal, cx, cy, light, specular, R_MIN
+WORDS = 5  # u32 words a particle: x, y, z, r (f32 bits), RGBA
+
+
+def unsupported(renderer) -> str | None:
+    """Why `renderer`'s pictures cannot be sent as sphere frames (None where they can)."""
+    if renderer.dim != 3:
+        return "a 2D scene (discs: particle frames)"
+    if renderer.cfg.motion_blur:
+        return "motion blur"
+    blends = renderer.look.blends - {"opaque"}
+    if blends:
+        return f"{' and '.join(sorted(blends))} particles"
+    if renderer.painter.has_lid:
+        return "a moving lid"
+    return None
+
+
+@data_oriented
+class SphereFrame:
+    """Packs the particles of a 3D `renderer`'s state into sphere frames (module docstring)."""
+
+    def __init__(self, renderer):
+        why = unsupported(renderer)
+        if why is not None:
+            raise ValueError(f"sphere frames: this scene's picture has {why}; expected a 3D scene of opaque spheres")
+        self.renderer, self.painter = renderer, renderer.painter
+        self.look, self.p = renderer.look, renderer.state.particles
+        # on the CPU the kernel writes straight into this host array (no copy; elsewhere Taichi copies it back)
+        self.records = np.zeros((max(renderer.model.capacity, 1), WORDS), np.uint32)
+
+    @ti.kernel
+    def _pack(self, n: ti.i32, records: ti.types.ndarray()):
+        look, p = self.look, self.p
+        for i in range(n):
+            x = ti.cast(p.x[i], ti.f32)
+            r = ti.cast(look.drawn_radius(i), ti.f32)
+            if look.g_draw[p.group[i]] != 2:  # drawn flat (render/spheres.py shades only draw mode 2)
+                r = -r
+            c = ti.cast(ti.math.clamp(look.color(i), 0.0, 1.0) * 255.0 + 0.5, ti.u32)
+            for k in ti.static(range(3)):
+                records[i, k] = ti.bit_cast(x[k], ti.u32)
+            records[i, 3] = ti.bit_cast(r, ti.u32)
+            records[i, 4] = c[0] | (c[1] << 8) | (c[2] << 16) | (ti.cast(255, ti.u32) << 24)
+
+    def pack(self) -> np.ndarray:
+        """The live particles' records now, (n, 5) uint32 (the module docstring's layout): a view of this packer's
+        array, valid until the next pack."""
+        self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
+        n = min(int(self.p.n[None]), len(self.records))
+        if n:
+            self._pack(n, self.records)
+        return self.records[:n]
+
+    def camera(self) -> bytes:
+        """The camera block of a frame (module docstring)."""
+        painter = self.painter
+        eye, right, up, forward = painter.camera.to_numpy()
+        focal = float(painter.focal_field[None])
+        values = [*eye, *right, *up, *forward, focal, painter.cx, painter.cy, *painter.light_np]
+        return CAMERA.pack(*values, painter.specular, R_MIN)
+
+    def backdrop(self) -> np.ndarray:
+        """The picture without its particles or text as the camera sees it now, (H, W, 3) uint8 (backdrop_picture)."""
+        return backdrop_picture(self.renderer)
+
+    def encode(self, frame: int, seq: int, time: float) -> bytes:
+        """The sphere frame of the state now (the module docstring's layout)."""
+        records = self.pack()
+        head = HEADER.pack(b"S", frame & 0xFFFFFFFF, seq & 0xFFFFFFFF, float(time), len(records))
+        return head + self.camera() + records.tobytes()
+
+
+def decode(data: bytes) -> dict:
+    """A sphere frame read back: frame, seq, time, the camera's numbers and per particle x ((n, 3) float32), r
+    (float32, negative: flat) and rgba ((n, 4) uint8). For tests and tools; the page reads the same layout."""
+    _, frame, seq, time, n = HEADER.unpack_from(data)
+    camera = CAMERA.unpack_from(data, HEADER.size)
+    records = np.frombuffer(data, np.uint32, count=WORDS * n, offset=HEADER.size + CAMERA.size).reshape(n, WORDS)
+    return {
+        "frame": frame,
+        "seq": seq,
+        "time": time,
+        "camera": camera,
+        "x": records[:, :3].copy().view(np.float32),
+        "r": records[:, 3].copy().view(np.float32),
+        "rgba": records[:, 4].astype("<u4").view(np.uint8).reshape(-1, 4),
+    }
+
+
+def backdrop_picture(renderer) -> np.ndarray:
+    """The 3D picture without its particles or its text, (H, W, 3) uint8, top row first: the background and the
+    floor with its heat sources, as the camera sees them now (the charts are drawn on a copy)."""
+    renderer.painter.paint_backdrop()
+    return renderer.canvas.picture().copy()
