@@ -387,7 +387,13 @@ def _bench_arguments(sub) -> None:
         help="only the classroom server: N simulated browser tabs over loopback (frame rate, latency, CPU, memory); "
         "with --contended K, measured again beside K CPU-bound processes",
     )
-    draw_argument(bench, "with --serve: who draws a 2D scene's particles (as sandbox serve --draw)")
+    bench.add_argument(
+        "--serve-scene",
+        default="melting_block",
+        metavar="NAME",
+        help="with --serve: the shipped scene every tab opens (default melting_block)",
+    )
+    draw_argument(bench, "with --serve: who draws the particles (as sandbox serve --draw)")
     bench.set_defaults(func=cmd_bench)
 
 

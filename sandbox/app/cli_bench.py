@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 from ..config.arguments import check_count, check_file_output, check_folder_output
+from ..config.resources import shipped_scenes
 from ..core import runtime
 from ..core.cores import usable_cores
 from ..errors import SandboxError
@@ -73,7 +74,10 @@ def run_bench(args) -> int:
 
         if args.serve < 1:
             raise SandboxError(f"--serve: expected a number of sessions of at least 1, got {args.serve}")
-        result = bench_serve(args.serve, draw=args.draw, hogs=args.contended or 0)
+        names = [path.stem for path in shipped_scenes()]
+        if args.serve_scene not in names:
+            raise SandboxError(f"--serve-scene: no shipped scene {args.serve_scene!r}; expected one of {', '.join(names)}")
+        result = bench_serve(args.serve, args.serve_scene, draw=args.draw, hogs=args.contended or 0)
         print(report(result))
         write_json(args.json, result)
         return 0

@@ -141,7 +141,7 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
     return {
         "clients": clients,
         "scene": scene,
-        "picture": "particle frames drawn by the page" if draw == "page" else "960 x 540 JPEG",
+        "picture": "frames drawn by the page (where it can)" if draw == "page" else "960 x 540 JPEG",
         "draw": draw,
         "conditions": conditions,
         "ready_seconds": ready_seconds,  # from the server's launch until every tab's session had drawn a picture
