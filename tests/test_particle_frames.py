@@ -62,7 +62,7 @@ def test_a_2d_session_sends_particle_frames_that_make_the_renderers_picture(sess
     for _ in range(14):
         session.frame()
         sent += messages(page)  # read as they come: a pipe holds only so much
-    session.send_band()  # the charts as they are now (they go every BAND_SECONDS)
+    session.page.send_band()  # the charts as they are now (they go every BAND_SECONDS)
     sent += messages(page)
     kinds = [m[:1] for m in sent]
     assert kinds.count(b"P") == 14 and b"F" not in kinds
@@ -104,7 +104,7 @@ def test_the_page_draws_a_particle_frame_as_the_renderer_draws_the_picture(sessi
     messages(page)
     session.frame()
     sent = messages(page)
-    session.send_band()
+    session.page.send_band()
     sent += messages(page)
     frame_bytes = [m for m in sent if m[:1] == b"P"][-1]
     band = [m[1:] for m in sent if m[:1] == b"C"][-1]
@@ -211,6 +211,6 @@ def test_the_teachers_thumbnail_comes_from_the_particle_frame_and_looks_like_the
     assert small.shape == (135, 240, 3)
     session.renderer.full_refresh = True
     reference = np.asarray(Image.fromarray(session.renderer.frame()).resize((240, 135), Image.Resampling.BILINEAR))
-    empty = np.asarray(Image.fromarray(session.under).resize((240, 135), Image.Resampling.BILINEAR))
+    empty = np.asarray(Image.fromarray(session.page.under).resize((240, 135), Image.Resampling.BILINEAR))
     difference = np.abs(small.astype(int) - reference.astype(int)).mean()
     assert difference < 8.0 and difference < 0.5 * np.abs(empty.astype(int) - reference.astype(int)).mean()

@@ -76,7 +76,7 @@ def test_a_3d_session_sends_sphere_frames_with_the_renderers_camera_and_colours(
     clear = np.all(picture == backdrops[0], axis=2)
     assert 0.3 < clear.mean() < 0.97  # spheres cover part of the picture, the rest is the backdrop to the byte
     session.view("orbit", 0.1, 0.0)
-    session.last_backdrop = -1e9
+    session.page.last_backdrop = -1e9
     session.frame()
     assert [m[:1] for m in messages(page)].count(b"B") == 1
 
@@ -134,7 +134,7 @@ def test_the_page_draws_a_sphere_frame_as_the_renderer_draws_the_picture(scene):
     for _ in range(3):
         session.frame()
         sent += messages(page)  # read as they come: a pipe holds only so much
-    session.send_band()
+    session.page.send_band()
     session.frame()
     sent += messages(page)
     end.close()

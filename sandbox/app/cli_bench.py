@@ -76,7 +76,9 @@ def run_bench(args) -> int:
             raise SandboxError(f"--serve: expected a number of sessions of at least 1, got {args.serve}")
         names = [path.stem for path in shipped_scenes()]
         if args.serve_scene not in names:
-            raise SandboxError(f"--serve-scene: no shipped scene {args.serve_scene!r}; expected one of {', '.join(names)}")
+            raise SandboxError(
+                f"--serve-scene: no shipped scene {args.serve_scene!r}; expected one of {', '.join(names)}"
+            )
         result = bench_serve(args.serve, args.serve_scene, draw=args.draw, hogs=args.contended or 0)
         print(report(result))
         write_json(args.json, result)

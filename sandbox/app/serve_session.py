@@ -27,7 +27,6 @@ import functools
 import io
 import json
 import os
-import struct
 import tempfile
 import time
 from pathlib import Path
@@ -35,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .pacing import FramePacer
+from .serve_drawing import PageDrawing, page_packer
 
 FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
 MAX_FPS = 30.0  # pictures a second at most (serve --max-fps): more shows a class nothing new, and takes a core
@@ -42,8 +42,6 @@ JPEG_QUALITY = 80
 READOUTS_EVERY = 6  # pictures between the readouts sent with them (JPEG pictures)
 READOUT_SECONDS = 0.3  # seconds between the readouts sent with particle frames
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
-BAND_SECONDS = 1.0  # seconds between the charts' bands sent to a page that draws the particles
-BACKDROP_SECONDS = 0.1  # seconds at least between the 3D backdrops sent while the camera moves
 SMOOTH_FPS = 20.0  # pictures a second a tab keeps, where the machine is short of CPU, by stepping less a picture
 # what a session sends a picture: a JPEG, or a frame the page draws (render/particle_frame.PAGE_FRAMES, not imported:
 # the server's process never loads Taichi)
@@ -74,11 +72,8 @@ class Session:
             raise ValueError(f"draw: expected one of {', '.join(DRAWS)}, got {draw!r}")
         self.conn = conn
         self.draw_by = draw
-        self.particle_frames = None  # the ParticleFrame (2D) or SphereFrame (3D) packer where the page draws them
+        self.page: PageDrawing | None = None  # what a page that draws the particles is sent (serve_drawing.py)
         self.webgl = True  # the page can draw spheres (it says "nogl" where it cannot: then 3D comes as pictures)
-        self.backdrop_due = False  # the 3D camera moved: the picture without particles goes with the next frame
-        self.base = None  # the picture without particles or charts, (H, W, 3) uint8, where the page draws
-        self.under = None  # and with the charts: what the page has under its particles
         self.interval = 1.0 / max_fps
         self.width, self.height = width, height
         self.credits = FIRST_CREDITS
@@ -88,11 +83,10 @@ class Session:
         self.lang = "en"  # the page's language, which the picture's chart words follow
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
         self.frames = 0
-        self.band_due = False  # the charts' band goes with the next picture (a page that draws the particles)
         # the steps a picture shows: the window's rule, at the pictures a second a tab keeps (fewer steps where the
         # machine is short of CPU, so the class sees smooth motion in slow motion rather than jerks)
         self.pacer = FramePacer(target_fps=SMOOTH_FPS, floor_fps=SMOOTH_FPS)
-        self.last_readouts = self.last_band = self.last_backdrop = -1e9  # when they were last sent (wall seconds)
+        self.last_readouts = -1e9  # when the readouts were last sent with a page's frame (wall seconds)
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
         self.load(scene)
 
@@ -118,7 +112,8 @@ class Session:
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
         self.sim.state.carry(self.renderer.tails)
-        self.particle_frames = page_packer(self.renderer) if self.draw_by == "page" and self.webgl_or_2d() else None
+        packer = page_packer(self.renderer, self.webgl) if self.draw_by == "page" else None
+        self.page = PageDrawing(self.conn, self.renderer, packer) if packer is not None else None
         self.set_words()
         painter = self.renderer.painter
         self.orbit = OrbitCamera(painter.eye_np, painter.target_np) if self.sim.dim == 3 else None
@@ -131,21 +126,11 @@ class Session:
                 "tool": self.first_tool(),
                 "materials": list(self.sim.material_names),
                 "dim": self.sim.dim,  # 3: a drag turns, zooms or pans the picture's camera
-                "draw": "page" if self.particle_frames else "server",
+                "draw": "page" if self.page else "server",
             }
         )
-        if self.particle_frames:  # what does not move with the particles, once
-            self.send_backdrop(time.perf_counter())
-
-    def webgl_or_2d(self) -> bool:
-        """Whether the page can draw this scene's particles: any 2D scene, a 3D one where the page has WebGL2."""
-        return self.sim.dim == 2 or self.webgl
-
-    def send_backdrop(self, now: float) -> None:
-        """The picture without its particles, with the charts (b"B" + PNG), for a page that draws the particles."""
-        self.base = self.particle_frames.backdrop()
-        self.conn.send_bytes(b"B" + png(self.draw_under()))
-        self.backdrop_due, self.last_backdrop = False, now
+        if self.page:  # what does not move with the particles, once
+            self.page.send_backdrop(time.perf_counter())
 
     @property
     def sim(self):
@@ -209,8 +194,8 @@ class Session:
             self.view(msg["move"], msg["dx"], msg["dy"])
         elif kind == "nogl":  # the page has no WebGL2: 3D scenes come as pictures from now on
             self.webgl = False
-            if self.sim.dim == 3 and self.particle_frames is not None:
-                self.particle_frames = None
+            if self.sim.dim == 3 and self.page is not None:
+                self.page = None
                 self.credits = max(self.credits, 1)  # the frame the page could not draw, again as a picture
         elif kind == "lang":
             self.lang = msg["lang"]
@@ -243,7 +228,8 @@ class Session:
         the charts' band again with the next picture)."""
         self.renderer.words = chart_words(self.lang)
         self.renderer.set_chart(tuple(self.renderer.cfg.chart), keep_history=True)
-        self.band_due = True
+        if self.page:
+            self.page.band_due = True
 
     def view(self, move: str, dx: float, dy: float) -> None:
         """Turn (orbit), zoom or pan a 3D picture's camera by a drag of (dx, dy) picture fractions, as the window's
@@ -253,7 +239,8 @@ class Session:
         buttons = [move == "orbit", move == "zoom", move == "pan"]
         self.orbit.drag(buttons, dx, dy)
         self.renderer.set_camera(self.orbit.eye(), self.orbit.target, self.renderer.painter.fov)
-        self.backdrop_due = self.particle_frames is not None  # the floor is seen from elsewhere now
+        if self.page:
+            self.page.camera_moved()
 
     # ------------------------------------------------------------------ tools
     def world_at(self, fx: float, fy: float):
@@ -284,7 +271,7 @@ class Session:
     def paced(self) -> bool:
         """Whether the pacer chooses the steps: where they are most of a picture's cost (not a JPEG's), and the scene's
         to choose."""
-        return self.particle_frames is not None and self.sim.scene.world.substeps != "auto"
+        return self.page is not None and self.sim.scene.world.substeps != "auto"
 
     def step(self) -> tuple[int, float]:
         """One frame of the scene (the pacer's steps where paced()); (steps taken, seconds they took). A blow-up is
@@ -307,26 +294,22 @@ class Session:
         paced = self.paced()
         taken, stepped = self.step()
         self.frames += 1
-        if self.particle_frames:
-            self.send_particle_frame(wall)
+        if self.page:
+            self.send_page_frame(wall)
         else:
             self.send_picture()
         if paced and taken:  # a paused tab's pictures say nothing of what its steps cost
             self.pacer.record(taken, stepped, time.perf_counter() - wall - stepped)
 
-    def send_particle_frame(self, now: float) -> None:
-        """The particle frame (it carries the clock), and at their own rates the readouts and the charts' band."""
+    def send_page_frame(self, now: float) -> None:
+        """The frame the page draws (it carries the clock), and at their own rates the readouts, the charts' band and
+        the backdrop (serve_drawing.py)."""
         sim = self.sim
         self.record_charts()
         if now - self.last_readouts >= READOUT_SECONDS:
             self.last_readouts = now
             self.tell({"t": "info", "time": sim.time, "frame": self.frames, "seq": self.seq, **self.readouts()})
-        if self.backdrop_due and now - self.last_backdrop >= BACKDROP_SECONDS:
-            self.send_backdrop(now)  # with the charts drawn on it: the band is in it
-        elif self.band_due or (now - self.last_band >= BAND_SECONDS and self.renderer.plots()):
-            self.last_band = now
-            self.send_band()
-        self.conn.send_bytes(self.particle_frames.encode(self.frames, self.seq, sim.time))
+        self.page.send(now, self.frames, self.seq, sim.time)
 
     def send_picture(self) -> None:
         """The renderer's picture as a JPEG, with the clock (and every few pictures the readouts)."""
@@ -346,7 +329,7 @@ class Session:
     def draw(self):
         """This moment's whole picture: the renderer's own buffer, encoded before the next frame (no copy)."""
         self.record_charts()
-        if self.particle_frames:  # the renderer has not drawn the frames the page drew: every tile again
+        if self.page:  # the renderer has not drawn the frames the page drew: every tile again
             self.renderer.full_refresh = True
         return self.renderer.frame()
 
@@ -355,30 +338,10 @@ class Session:
         few milliseconds), else the renderer's picture made small."""
         from PIL import Image
 
-        from ..render.particle_frame import small_picture
-
-        if self.particle_frames and self.sim.dim == 2:
-            return small_picture(self.under, self.particle_frames.pack(), 240, 135)
+        small = self.page.thumbnail(240, 135) if self.page else None
+        if small is not None:
+            return small
         return np.asarray(Image.fromarray(self.draw()).resize((240, 135), Image.Resampling.BILINEAR))
-
-    def draw_under(self) -> np.ndarray:
-        """The picture under the particles now: the backdrop with the charts drawn on it, kept as `under` (the
-        teacher's thumbnails start from it)."""
-        self.under = self.base.copy()
-        self.renderer.draw_text_overlays(self.under)
-        return self.under
-
-    def send_band(self) -> None:
-        """The charts' band as the picture draws it (over the backdrop), for a page that draws the particles."""
-        from ..render.particle_frame import band_rect
-
-        self.band_due = False
-        rect = band_rect(self.renderer)
-        if rect is None:
-            return
-        x0, x1, r0, r1 = rect
-        crop = np.ascontiguousarray(self.draw_under()[r0 : r1 + 1, x0 : x1 + 1])
-        self.conn.send_bytes(b"C" + struct.pack("<HH", x0, r0) + png(crop))
 
     def readouts(self) -> dict:
         """The panel's description now (panel.py) and the sentence for screen readers."""
@@ -451,26 +414,6 @@ class Session:
         finally:
             path.unlink(missing_ok=True)
             self.tell({"t": "upload_done"})  # the server takes this session's next upload only now
-
-
-def page_packer(renderer):
-    """What packs `renderer`'s particles for the page to draw: a ParticleFrame (2D discs), a SphereFrame (3D opaque
-    spheres), or None where the page cannot draw them as the renderer does (the session sends pictures)."""
-    from ..render import particle_frame, sphere_frame
-
-    kind = particle_frame if renderer.dim == 2 else sphere_frame
-    if kind.unsupported(renderer) is not None:
-        return None
-    return particle_frame.ParticleFrame(renderer) if renderer.dim == 2 else sphere_frame.SphereFrame(renderer)
-
-
-def png(picture) -> bytes:
-    """An (H, W, 3) uint8 picture as a PNG (exact colours and crisp text; fast rather than small)."""
-    from PIL import Image
-
-    out = io.BytesIO()
-    Image.fromarray(picture).save(out, "PNG", compress_level=1)
-    return out.getvalue()
 
 
 def page_lesson(lesson) -> dict:
