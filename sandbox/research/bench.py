@@ -118,15 +118,17 @@ def measure_from_start(sim, repeats: int) -> dict:
 
 def measure(sim, repeats: int, target_seconds: float = 0.4, steps: int | None = None) -> dict:
     """Median particle-steps per second over `repeats` timed batches (after a warm-up that compiles) of `steps` steps
-    each (a call of Simulation.step each), or as many as take about `target_seconds`."""
+    each (a call of Simulation.step each), or as many as take about `target_seconds`; "crowded_share": the fraction of
+    the timed steps stepped the crowded way (other work wanted this process's cores: step/crowd.py)."""
 
     sim.step(2)
     sim.step(2)  # compiles what only a second call runs (velocity Verlet's restore of its half-step velocities)
     if steps is None:
         probe = timed_steps(sim, 20) / 20  # 20 steps: a call's fixed costs (velocity Verlet's synchronisation) shared
         steps = max(5, int(target_seconds / max(probe, 1e-6)))
+    crowded = sim.plan.crowded_steps
     times = [timed_steps(sim, steps) for _ in range(repeats)]
-    return _rates_of(sim, times, steps)
+    return dict(_rates_of(sim, times, steps), crowded_share=(sim.plan.crowded_steps - crowded) / (repeats * steps))
 
 
 LIKE_LAMMPS = "velocity_verlet"  # LAMMPS's fix nve
@@ -181,6 +183,7 @@ def against_lammps(
     for name, runs in ours.items():
         res = dict(_median(runs))
         res["rounds"] = [r["particle_steps_per_second"] for r in runs]
+        res["crowded_rounds"] = sum(1 for r in runs if r.get("crowded_share", 0.0) > 0.05)  # a twentieth or more
         res["integrator"] = name
         if name == LIKE_LAMMPS and all(peer.values()) and rounds:
             by_policy = {}
