@@ -154,13 +154,13 @@ def b64(data: bytes) -> str:
     return base64.b64encode(data).decode()
 
 
-def test_a_3d_scene_with_a_moving_lid_and_server_drawing_send_jpeg_pictures():
-    """A 3D scene whose picture the page cannot compose (a lid that moves, drawn into the backdrop) sends the
-    renderer's JPEG pictures, as a 2D session does when the server draws (`draw="server"`). Other 3D scenes send
-    sphere frames (tests/test_sphere_frames.py)."""
+def test_additive_light_and_server_drawing_send_jpeg_pictures():
+    """A scene whose picture the page cannot compose (the candle's additive light) sends the renderer's JPEG
+    pictures, as a 2D session does when the server draws (`draw="server"`). 3D scenes send sphere frames
+    (tests/test_sphere_frames.py)."""
     from sandbox.app.serve_session import Session
 
-    for scene, draw in (("states_of_matter_atoms", "page"), ("lj_box", "server")):
+    for scene, draw in (("candle", "page"), ("lj_box", "server")):
         page, end = Pipe()
         session = Session(end, scene, 160, 90, draw=draw)
         session.frame()

@@ -119,13 +119,13 @@ def page_scripts() -> list[str]:
     return [(WEB / "spheres.js").read_text(), app]
 
 
-@pytest.mark.parametrize("scene", ["melting_block_3d", "evaporation"])
+@pytest.mark.parametrize("scene", ["melting_block_3d", "evaporation", "states_of_matter_atoms"])
 def test_the_page_draws_a_sphere_frame_as_the_renderer_draws_the_picture(scene):
     """The page's WebGL code (spheres.js in Chromium, on its software GPU) turns the session's backdrop, charts'
     band and sphere frame into the renderer's picture: 99% of the pixels within two levels of the renderer's (the
     shading's float rounding), the pixels covered by spheres the same to within 1% of them; with evaporation's
     charts (atoms of the molecular model, drawn flat), the charts drawn over the spheres as the renderer draws
-    them."""
+    them; with states_of_matter_atoms' lid, its tinted cross-section and outline, which hides what lies behind it."""
     from sandbox.app.serve_session import Session
 
     page, end = Pipe()
@@ -138,7 +138,8 @@ def test_the_page_draws_a_sphere_frame_as_the_renderer_draws_the_picture(scene):
     session.frame()
     sent += messages(page)
     end.close()
-    assert [m[:1] for m in sent].count(b"C") >= (scene == "evaporation")
+    assert [m[:1] for m in sent].count(b"C") >= (scene != "melting_block_3d")
+    assert decode([m for m in sent if m[:1] == b"S"][-1])["camera"][20] == (scene == "states_of_matter_atoms")
     session.renderer.full_refresh = True
     picture = session.renderer.frame().copy()
     drawn, asked = draw_in_chromium(page_scripts(), sent)

@@ -12,12 +12,16 @@ flat otherwise; colours are the renderer's (Look), written to 8 bits as the rend
 A sphere frame, little-endian:
 
     b"S", then frame (u32), seq (u32: the last setting applied), time (f64: simulated seconds), n (u32),
-    then the camera: 20 f32: eye, right, up, forward (3 each, world units), focal length (pixels), the view's axis
-    on the picture cx, cy (pixels, y up), the light's direction (3), specular strength, R_MIN (pixels),
+    then the camera: 29 f32: eye, right, up, forward (3 each, world units), focal length (pixels), the view's axis
+    on the picture cx, cy (pixels, y up), the light's direction (3), specular strength, R_MIN (pixels), then the
+    lid (the molecular model's, physics/lid.py): 1 where there is one (else 0), its height, the box's x and z
+    bounds (x0, z0, x1, z1) and its outline's colour (3),
     then n records of five u32: x, y, z, r as f32 bits (world units; r < 0: drawn flat, not shaded) and
     R | G << 8 | B << 16 | 255 << 24.
 
-Scenes this cannot show as the renderer does (motion blur, translucent or additive particles, a moving lid) have
+The lid is drawn by the page too (it moves): the backdrop comes without it, and the page tints the box's
+cross-section at the lid's height and draws its outline, which hides the spheres behind it, as the renderer does.
+Scenes this cannot show as the renderer does (motion blur, translucent or additive particles) have
 `unsupported(...)` say why; the classroom sends them as pictures.
 """
 
@@ -28,9 +32,9 @@ import taichi as ti
 
 from ..core.oriented import data_oriented
 from .particle_frame import HEADER  # b"S", frame, seq, time, n
-from .style import R_MIN
+from .style import LID_COLOR, R_MIN
 
-CAMERA = struct.Struct("<20f")  # eye, right, up, forward, focal, cx, cy, light, specular, R_MIN
+CAMERA = struct.Struct("<29f")  # eye, right, up, forward, focal, cx, cy, light, specular, R_MIN, the lid (9)
 WORDS = 5  # u32 words a particle: x, y, z, r (f32 bits), RGBA
 
 
@@ -43,8 +47,6 @@ def unsupported(renderer) -> str | None:
     blends = renderer.look.blends - {"opaque"}
     if blends:
         return f"{' and '.join(sorted(blends))} particles"
-    if renderer.painter.has_lid:
-        return "a moving lid"
     return None
 
 
@@ -90,7 +92,10 @@ class SphereFrame:
         eye, right, up, forward = painter.camera.to_numpy()
         focal = float(painter.focal_field[None])
         values = [*eye, *right, *up, *forward, focal, painter.cx, painter.cy, *painter.light_np]
-        return CAMERA.pack(*values, painter.specular, R_MIN)
+        lid = [0.0] * 9
+        if painter.has_lid:
+            lid = [1.0, float(painter.lid_height[None]), *painter.floor_box, *LID_COLOR]
+        return CAMERA.pack(*values, painter.specular, R_MIN, *lid)
 
     def backdrop(self) -> np.ndarray:
         """The picture without its particles or text as the camera sees it now, (H, W, 3) uint8 (backdrop_picture)."""
@@ -121,7 +126,7 @@ def decode(data: bytes) -> dict:
 
 
 def backdrop_picture(renderer) -> np.ndarray:
-    """The 3D picture without its particles or its text, (H, W, 3) uint8, top row first: the background and the
-    floor with its heat sources, as the camera sees them now (the charts are drawn on a copy)."""
-    renderer.painter.paint_backdrop()
+    """The 3D picture without its particles, its lid or its text, (H, W, 3) uint8, top row first: the background and
+    the floor with its heat sources, as the camera sees them now (the charts are drawn on a copy)."""
+    renderer.painter.paint_backdrop(lid=False)
     return renderer.canvas.picture().copy()

@@ -49,6 +49,7 @@ class Spheres3D:
         self.floor_y = float(lo[1])
         self.floor_lo = ti.Vector([float(lo[0]), float(lo[2])])
         self.floor_hi = ti.Vector([float(hi[0]), float(hi[2])])
+        self.floor_box = (float(lo[0]), float(lo[2]), float(hi[0]), float(hi[2]))  # x0, z0, x1, z1 (world)
         self.grid_step = float(max(1.0, round(max(hi[0] - lo[0], hi[2] - lo[2]) / 12)))
         # heat sources lying on the floor are drawn on it in the colour bar's colour for their temperature
         heat = model.scene.heat
@@ -61,6 +62,8 @@ class Spheres3D:
         lid = state.entry("lid.height")
         self.lid_height = lid.owner.height if lid is not None else None
         self.has_lid = lid is not None
+        self.lid_shown = ti.field(ti.i32, shape=())  # 0 while the backdrop is painted for a page that draws the lid
+        self.lid_shown[None] = 1
         if canvas.has_alpha:
             self.order = ti.field(ti.i32, shape=model.capacity)  # translucent particles, back to front
             self.n_order = ti.field(ti.i32, shape=())
@@ -75,9 +78,15 @@ class Spheres3D:
         transfer.upload([(self.camera, np.array([eye, right, true_up, fwd], np.float32)), (self.focal_field, focal)])
         self.fov = float(fov_degrees)
 
-    def paint_backdrop(self) -> None:
-        """The picture without particles into the image: the background, the floor and its heat sources, the lid."""
-        self._clear_3d()
+    def paint_backdrop(self, lid: bool = True) -> None:
+        """The picture without particles into the image: the background, the floor and its heat sources, and
+        (with `lid`) the lid."""
+        if self.has_lid and not lid:
+            self.lid_shown[None] = 0
+            self._clear_3d()
+            self.lid_shown[None] = 1
+        else:
+            self._clear_3d()
 
     def draw(self) -> None:
         """Every 3D pass, into the image."""
@@ -153,7 +162,8 @@ class Spheres3D:
                                 c = c * 0.6 + 0.3 * (temperature_map(ti.math.clamp(t, 0.0, 1.0)))
             depth = 2147483647
             if ti.static(self.has_lid):
-                c, depth = self._lid(x, y, c, depth)
+                if self.lid_shown[None]:
+                    c, depth = self._lid(x, y, c, depth)
             canvas.image[x, y] = c
             canvas.depth[x, y] = depth
             if ti.static(canvas.has_additive):

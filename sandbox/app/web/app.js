@@ -110,6 +110,7 @@ function onBinary(buffer) { pictures = pictures.then(() => onBytes(buffer)).catc
 
 const base = document.createElement("canvas");  // the picture without its particles, where the page draws them
 let band = null;  // where the charts' band lies on it ({x, y, w, h}): drawn again over 3D spheres, as the renderer
+let baseVersion = 0;  // counts the changes to `base` (the 3D drawing uploads it again only after one)
 async function bitmapOf(bytes, type) { return createImageBitmap(new Blob([bytes], { type })); }
 
 async function onBytes(buffer) {
@@ -125,22 +126,23 @@ async function onBytes(buffer) {
     base.width = bitmap.width; base.height = bitmap.height;
     base.getContext("2d").drawImage(bitmap, 0, 0);
     bitmap.close();
+    baseVersion += 1;
   } else if (kind === "C") {
     const at = new DataView(buffer, 1, 4);
     const bitmap = await bitmapOf(buffer.slice(5), "image/png");
     band = { x: at.getUint16(0, true), y: at.getUint16(2, true), w: bitmap.width, h: bitmap.height };
     base.getContext("2d").drawImage(bitmap, band.x, band.y);
     bitmap.close();
+    baseVersion += 1;
   } else if (kind === "P") {
     const context = pictureContext(base.width, base.height);
     context.drawImage(base, 0, 0);
     drawParticles(context, buffer);
     shown(context);
   } else if (kind === "S") {
-    const spheres = drawSpheres(buffer, base.width, base.height);
+    const spheres = drawSpheres(buffer, base, baseVersion);  // the whole picture, over the backdrop
     if (spheres === null) { send({ t: "nogl" }); return; }  // no WebGL2 here: the session sends pictures instead
     const context = pictureContext(base.width, base.height);
-    context.drawImage(base, 0, 0);
     context.drawImage(spheres, 0, 0);
     if (band) context.drawImage(base, band.x, band.y, band.w, band.h, band.x, band.y, band.w, band.h);
     const view = new DataView(buffer);

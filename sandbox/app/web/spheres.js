@@ -1,11 +1,13 @@
 // The page's 3D picture: a sphere frame (sandbox/render/sphere_frame.py) drawn with WebGL2 as the sandbox's renderer
-// draws it (sandbox/render/spheres.py): each particle projected through the frame's pinhole camera, a disc of
-// max(radius x focal / depth, R_MIN) pixels over the pixels whose centres lie on it, the sphere's front surface
-// depth-tested per pixel, shaded (ambient 0.3, diffuse, a specular highlight) or flat. One instanced draw a frame.
+// draws it (sandbox/render/spheres.py): the picture without its particles (a texture), the lid where the scene has
+// one (the box's cross-section at its height tinted, its outline drawn at its depth), then each particle projected
+// through the frame's pinhole camera, a disc of max(radius x focal / depth, R_MIN) pixels over the pixels whose
+// centres lie on it, the sphere's front surface depth-tested per pixel, shaded (ambient 0.3, diffuse, a specular
+// highlight) or flat. Two draws a frame: a full-screen pass and one instanced draw of every sphere.
 "use strict";
 
 const SPHERE_HEADER = 21;  // b"S", frame, seq, time, n
-const SPHERE_CAMERA = 80;  // 20 f32
+const SPHERE_CAMERA = 116;  // 29 f32
 const SPHERE_RECORD = 20;  // x, y, z, r (f32), RGBA (u8 x 4)
 const DEPTH_SCALE = 64.0;  // world units: depth z is stored as z / (z + DEPTH_SCALE), in order and within [0, 1)
 
@@ -56,6 +58,45 @@ void main() {
   colour = vec4(clamp(c, 0.0, 1.0), 1.0);
 }`;
 
+// The picture under the spheres: the backdrop (top row first in the texture), and the lid at its height where on.
+const backdropVertex = `#version 300 es
+void main() {
+  vec2 corner = vec2(float((gl_VertexID & 1) * 4 - 1), float((gl_VertexID & 2) * 2 - 1));
+  gl_Position = vec4(corner, 0.0, 1.0);
+}`;
+
+const backdropFragment = `#version 300 es
+precision highp float;
+uniform sampler2D under;
+uniform vec3 eye, right, up, fwd, lidColour;
+uniform float focal, lidOn, lidHeight, depthScale;
+uniform vec2 axis, size;
+uniform vec4 box;
+out vec4 colour;
+void main() {
+  ivec2 px = ivec2(gl_FragCoord.xy);
+  vec3 c = texelFetch(under, ivec2(px.x, int(size.y) - 1 - px.y), 0).rgb;
+  float depth = 1.0;
+  if (lidOn > 0.5) {
+    vec3 ray = normalize(fwd * focal + right * (gl_FragCoord.x - axis.x) + up * (gl_FragCoord.y - axis.y));
+    if (abs(ray.y) > 1e-6) {
+      float s = (lidHeight - eye.y) / ray.y;
+      vec2 u = (eye + s * ray).xz;
+      if (s > 0.0 && all(greaterThanEqual(u, box.xy)) && all(lessThanEqual(u, box.zw))) {
+        float edge = min(min(u.x - box.x, u.y - box.y), min(box.z - u.x, box.w - u.y));
+        c = c * 0.85 + 0.1;
+        if (edge < 1.5 * s / focal) {
+          c = lidColour;
+          float z = s * dot(ray, fwd);
+          depth = z / (z + depthScale);
+        }
+      }
+    }
+  }
+  gl_FragDepth = depth;
+  colour = vec4(c, 1.0);
+}`;
+
 let sphereGL = null;  // {canvas, gl, program, records, where}; false: this browser has no WebGL2
 
 function sphereSetup() {
@@ -68,11 +109,18 @@ function sphereSetup() {
     gl.compileShader(s);
     return s;
   };
-  const program = gl.createProgram();
-  gl.attachShader(program, shader(gl.VERTEX_SHADER, sphereVertex));
-  gl.attachShader(program, shader(gl.FRAGMENT_SHADER, sphereFragment));
-  gl.linkProgram(program);
-  if (!gl.getProgramParameter(program, gl.LINK_STATUS)) return false;
+  const link = (vertex, fragment) => {
+    const p = gl.createProgram();
+    gl.attachShader(p, shader(gl.VERTEX_SHADER, vertex));
+    gl.attachShader(p, shader(gl.FRAGMENT_SHADER, fragment));
+    gl.linkProgram(p);
+    return gl.getProgramParameter(p, gl.LINK_STATUS) ? p : null;
+  };
+  const program = link(sphereVertex, sphereFragment), backdrop = link(backdropVertex, backdropFragment);
+  if (!program || !backdrop) return false;
+  const texture = gl.createTexture();
+  gl.bindTexture(gl.TEXTURE_2D, texture);
+  for (const [key, value] of [[gl.TEXTURE_MIN_FILTER, gl.NEAREST], [gl.TEXTURE_MAG_FILTER, gl.NEAREST]]) gl.texParameteri(gl.TEXTURE_2D, key, value);
   gl.useProgram(program);
   const vao = gl.createVertexArray();
   gl.bindVertexArray(vao);
@@ -89,39 +137,67 @@ function sphereSetup() {
     gl.vertexAttribPointer(at(name), size, type, normalized, SPHERE_RECORD, offset);
     gl.vertexAttribDivisor(at(name), 1);
   }
-  const where = {};
+  const where = {}, backWhere = {};
   for (const name of ["eye", "right", "up", "fwd", "focal", "rmin", "axis", "size", "light", "specular", "depthScale"]) {
     where[name] = gl.getUniformLocation(program, name);
   }
+  for (const name of ["under", "eye", "right", "up", "fwd", "focal", "axis", "size", "lidOn", "lidHeight", "box", "lidColour", "depthScale"]) {
+    backWhere[name] = gl.getUniformLocation(backdrop, name);
+  }
   gl.enable(gl.DEPTH_TEST);
   gl.depthFunc(gl.LESS);
-  return { canvas, gl, records, where };
+  const empty = gl.createVertexArray();
+  return { canvas, gl, records, where, program, backdrop, backWhere, vao, empty, texture, uploaded: -1 };
 }
 
-// The spheres of the sphere frame in `buffer` on a transparent canvas of width x height pixels, to draw over the
-// picture without its particles; null where the browser has no WebGL2 (the page then asks for pictures).
-function drawSpheres(buffer, width, height) {
-  if (sphereGL === null) sphereGL = sphereSetup();
-  if (!sphereGL) return null;
-  const { canvas, gl, records, where } = sphereGL;
-  if (canvas.width !== width || canvas.height !== height) { canvas.width = width; canvas.height = height; }
-  const n = new DataView(buffer).getUint32(17, true);
-  const cam = new Float32Array(buffer.slice(SPHERE_HEADER, SPHERE_HEADER + SPHERE_CAMERA));
+// The camera's uniforms, from the frame's camera block `cam` (Float32Array), into the program at `where`.
+function sphereCamera(gl, where, cam, width, height) {
   gl.uniform3fv(where.eye, cam.subarray(0, 3));
   gl.uniform3fv(where.right, cam.subarray(3, 6));
   gl.uniform3fv(where.up, cam.subarray(6, 9));
   gl.uniform3fv(where.fwd, cam.subarray(9, 12));
   gl.uniform1f(where.focal, cam[12]);
   gl.uniform2f(where.axis, cam[13], cam[14]);
+  gl.uniform2f(where.size, width, height);
+  gl.uniform1f(where.depthScale, DEPTH_SCALE);
+}
+
+// The picture of the sphere frame in `buffer` over `under` (a canvas: the picture without its particles, changed
+// whenever `version` changes), on a canvas of the same size; null where the browser has no WebGL2 (the page then
+// asks for pictures).
+function drawSpheres(buffer, under, version) {
+  if (sphereGL === null) sphereGL = sphereSetup();
+  if (!sphereGL) return null;
+  const { canvas, gl, records, where, backWhere } = sphereGL;
+  const [width, height] = [under.width, under.height];
+  if (canvas.width !== width || canvas.height !== height) { canvas.width = width; canvas.height = height; }
+  if (sphereGL.uploaded !== version) {
+    gl.bindTexture(gl.TEXTURE_2D, sphereGL.texture);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, gl.RGBA, gl.UNSIGNED_BYTE, under);
+    sphereGL.uploaded = version;
+  }
+  const n = new DataView(buffer).getUint32(17, true);
+  const cam = new Float32Array(buffer.slice(SPHERE_HEADER, SPHERE_HEADER + SPHERE_CAMERA));
+  gl.viewport(0, 0, width, height);
+  gl.clearDepth(1.0);
+  gl.clear(gl.DEPTH_BUFFER_BIT);
+  gl.depthFunc(gl.ALWAYS);  // the backdrop pass writes every pixel and the lid outline's depth
+  gl.useProgram(sphereGL.backdrop);
+  sphereCamera(gl, backWhere, cam, width, height);
+  gl.uniform1i(backWhere.under, 0);
+  gl.uniform1f(backWhere.lidOn, cam[20]);
+  gl.uniform1f(backWhere.lidHeight, cam[21]);
+  gl.uniform4fv(backWhere.box, cam.subarray(22, 26));
+  gl.uniform3fv(backWhere.lidColour, cam.subarray(26, 29));
+  gl.bindVertexArray(sphereGL.empty);  // no attributes: the pass makes its corners from gl_VertexID
+  gl.drawArrays(gl.TRIANGLES, 0, 3);
+  gl.depthFunc(gl.LESS);
+  gl.useProgram(sphereGL.program);
+  sphereCamera(gl, where, cam, width, height);
   gl.uniform3fv(where.light, cam.subarray(15, 18));
   gl.uniform1f(where.specular, cam[18]);
   gl.uniform1f(where.rmin, cam[19]);
-  gl.uniform2f(where.size, width, height);
-  gl.uniform1f(where.depthScale, DEPTH_SCALE);
-  gl.viewport(0, 0, width, height);
-  gl.clearColor(0, 0, 0, 0);
-  gl.clearDepth(1.0);
-  gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+  gl.bindVertexArray(sphereGL.vao);
   const start = SPHERE_HEADER + SPHERE_CAMERA;
   gl.bindBuffer(gl.ARRAY_BUFFER, records);
   gl.bufferData(gl.ARRAY_BUFFER, new Uint8Array(buffer, start, SPHERE_RECORD * n), gl.STREAM_DRAW);
