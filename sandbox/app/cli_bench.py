@@ -361,10 +361,11 @@ def print_peer_comparison(results: dict, conditions: list, dim: int, script: Pat
         spread = {"sandbox": res["rounds"]}
         spread.update({f"LAMMPS {p}": peer["lammps"]["rounds"] for p, peer in res.get("by_policy", {}).items()})
         crowded = res.get("crowded_rounds", 0)
+        said = f"; {crowded} of the sandbox's {len(res['rounds'])} rounds stepped crowded (other work)"
         print(
             "          rounds, max/min: "
             + ", ".join(f"{who} {max(r) / min(r):.2f}" for who, r in spread.items() if r and min(r) > 0)
-            + (f"; {crowded} of the sandbox's {len(res['rounds'])} rounds stepped crowded (other work)" if crowded else "")
+            + (said if crowded else "")
         )
     loaded = [name for name, _ in conditions[1:]]
     for name in loaded:
