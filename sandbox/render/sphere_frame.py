@@ -12,12 +12,14 @@ flat otherwise; colours are the renderer's (Look), written to 8 bits as the rend
 A sphere frame, little-endian:
 
     b"S", then frame (u32), seq (u32: the last setting applied), time (f64: simulated seconds), n (u32),
-    then the camera: 29 f32: eye, right, up, forward (3 each, world units), focal length (pixels), the view's axis
+    then the camera: 36 f32: eye, right, up, forward (3 each, world units), focal length (pixels), the view's axis
     on the picture cx, cy (pixels, y up), the light's direction (3), specular strength, R_MIN (pixels), then the
     lid (the molecular model's, physics/lid.py): 1 where there is one (else 0), its height, the box's x and z
-    bounds (x0, z0, x1, z1) and its outline's colour (3),
-    then n records of five u32: x, y, z, r as f32 bits (world units; r < 0: drawn flat, not shaded) and
-    R | G << 8 | B << 16 | 255 << 24.
+    bounds (x0, z0, x1, z1) and its outline's colour (3), then the span the places are given in: its low corner
+    (3) and its size (3), and the largest radius R (world units),
+    then n records of three u32: x | y << 16, z | r << 16 (places as fractions of the span, the radius as a
+    fraction of R, in 65,535ths: a 65,535th of a 40-unit box is 0.0006 units, a hundredth of a pixel at the
+    usual distance), and R | G << 8 | B << 16 | S << 24 (S: 255 shaded, 0 drawn flat). 12 bytes a particle.
 
 The lid is drawn by the page too (it moves): the backdrop comes without it, and the page tints the box's
 cross-section at the lid's height and draws its outline, which hides the spheres behind it, as the renderer does.
@@ -34,8 +36,10 @@ from ..core.oriented import data_oriented
 from .particle_frame import HEADER  # b"S", frame, seq, time, n
 from .style import LID_COLOR, R_MIN
 
-CAMERA = struct.Struct("<29f")  # eye, right, up, forward, focal, cx, cy, light, specular, R_MIN, the lid (9)
-WORDS = 5  # u32 words a particle: x, y, z, r (f32 bits), RGBA
+CAMERA = struct.Struct("<36f")  # eye, right, up, forward, focal, cx, cy, light, specular, R_MIN, lid (9), span (7)
+WORDS = 3  # u32 words a particle: x | y << 16, z | r << 16, RGB and shading
+STEPS = 65535.0  # a place's and a radius's steps across the span and up to the largest radius
+MARGIN = 0.05  # the span: the box widened by this fraction of its size each way (a particle pressed past a wall)
 
 
 def unsupported(renderer) -> str | None:
@@ -60,6 +64,11 @@ class SphereFrame:
             raise ValueError(f"sphere frames: this scene's picture has {why}; expected a 3D scene of opaque spheres")
         self.renderer, self.painter = renderer, renderer.painter
         self.look, self.p = renderer.look, renderer.state.particles
+        world = renderer.model.scene.world
+        lo, hi = np.asarray(world.lo, float), np.asarray(world.hi, float)
+        self.span_lo, self.span = lo - MARGIN * (hi - lo), (1 + 2 * MARGIN) * (hi - lo)
+        self.r_max = float(self.span.max())  # no drawn sphere is wider than its box
+        self._span_lo, self._inv_span = ti.Vector(list(self.span_lo)), ti.Vector(list(STEPS / self.span))
         # on the CPU the kernel writes straight into this host array (no copy; elsewhere Taichi copies it back)
         self.records = np.zeros((max(renderer.model.capacity, 1), WORDS), np.uint32)
 
@@ -67,15 +76,13 @@ class SphereFrame:
     def _pack(self, n: ti.i32, records: ti.types.ndarray()):
         look, p = self.look, self.p
         for i in range(n):
-            x = ti.cast(p.x[i], ti.f32)
-            r = ti.cast(look.drawn_radius(i), ti.f32)
-            if look.g_draw[p.group[i]] != 2:  # drawn flat (render/spheres.py shades only draw mode 2)
-                r = -r
+            q = ti.cast(ti.math.clamp((p.x[i] - self._span_lo) * self._inv_span + 0.5, 0.0, STEPS), ti.u32)
+            r = ti.cast(ti.math.clamp(look.drawn_radius(i) * (STEPS / self.r_max) + 0.5, 0.0, STEPS), ti.u32)
+            shaded = ti.cast(look.g_draw[p.group[i]] == 2, ti.u32) * 255  # render/spheres.py shades draw mode 2 only
             c = ti.cast(ti.math.clamp(look.color(i), 0.0, 1.0) * 255.0 + 0.5, ti.u32)
-            for k in ti.static(range(3)):
-                records[i, k] = ti.bit_cast(x[k], ti.u32)
-            records[i, 3] = ti.bit_cast(r, ti.u32)
-            records[i, 4] = c[0] | (c[1] << 8) | (c[2] << 16) | (ti.cast(255, ti.u32) << 24)
+            records[i, 0] = q[0] | (q[1] << 16)
+            records[i, 1] = q[2] | (r << 16)
+            records[i, 2] = c[0] | (c[1] << 8) | (c[2] << 16) | (shaded << 24)
 
     def pack(self) -> np.ndarray:
         """The live particles' records now, (n, 5) uint32 (the module docstring's layout): a view of this packer's
@@ -95,7 +102,7 @@ class SphereFrame:
         lid = [0.0] * 9
         if painter.has_lid:
             lid = [1.0, float(painter.lid_height[None]), *painter.floor_box, *LID_COLOR]
-        return CAMERA.pack(*values, painter.specular, R_MIN, *lid)
+        return CAMERA.pack(*values, painter.specular, R_MIN, *lid, *self.span_lo, *self.span, self.r_max)
 
     def backdrop(self) -> np.ndarray:
         """The picture without its particles or text as the camera sees it now, (H, W, 3) uint8 (backdrop_picture)."""
@@ -109,19 +116,24 @@ class SphereFrame:
 
 
 def decode(data: bytes) -> dict:
-    """A sphere frame read back: frame, seq, time, the camera's numbers and per particle x ((n, 3) float32), r
-    (float32, negative: flat) and rgba ((n, 4) uint8). For tests and tools; the page reads the same layout."""
+    """A sphere frame read back: frame, seq, time, the camera's numbers and per particle x ((n, 3) world units), r
+    (world units; negative: drawn flat) and rgb ((n, 3) uint8). For tests and tools; the page reads the same
+    layout."""
     _, frame, seq, time, n = HEADER.unpack_from(data)
     camera = CAMERA.unpack_from(data, HEADER.size)
-    records = np.frombuffer(data, np.uint32, count=WORDS * n, offset=HEADER.size + CAMERA.size).reshape(n, WORDS)
+    records = np.frombuffer(data, "<u4", count=WORDS * n, offset=HEADER.size + CAMERA.size).reshape(n, WORDS)
+    lo, span, r_max = np.array(camera[29:32]), np.array(camera[32:35]), camera[35]
+    q = np.stack([records[:, 0] & 0xFFFF, records[:, 0] >> 16, records[:, 1] & 0xFFFF], axis=1)
+    colour = records[:, 2].astype("<u4").view(np.uint8).reshape(-1, 4)
+    radius = (records[:, 1] >> 16) / STEPS * r_max
     return {
         "frame": frame,
         "seq": seq,
         "time": time,
         "camera": camera,
-        "x": records[:, :3].copy().view(np.float32),
-        "r": records[:, 3].copy().view(np.float32),
-        "rgba": records[:, 4].astype("<u4").view(np.uint8).reshape(-1, 4),
+        "x": lo + q / STEPS * span,
+        "r": np.where(colour[:, 3] > 0, radius, -radius),
+        "rgb": colour[:, :3],
     }
 
 

@@ -7,22 +7,24 @@
 "use strict";
 
 const SPHERE_HEADER = 21;  // b"S", frame, seq, time, n
-const SPHERE_CAMERA = 116;  // 29 f32
-const SPHERE_RECORD = 20;  // x, y, z, r (f32), RGBA (u8 x 4)
+const SPHERE_CAMERA = 144;  // 36 f32
+const SPHERE_RECORD = 12;  // x, y, z, r (u16: 65,535ths of the span and of the largest radius), R, G, B, shaded (u8)
 const DEPTH_SCALE = 64.0;  // world units: depth z is stored as z / (z + DEPTH_SCALE), in order and within [0, 1)
 
 const sphereVertex = `#version 300 es
 in vec2 corner;
-in vec3 pos;
-in float rad;
+in vec3 place;
+in float size01;
 in vec4 col;
-uniform vec3 eye, right, up, fwd;
-uniform float focal, rmin;
+uniform vec3 eye, right, up, fwd, spanLo, span;
+uniform float focal, rmin, rMax;
 uniform vec2 axis, size;
 out vec2 vCentre;
 out float vR, vZ, vRad;
 out vec4 vCol;
 void main() {
+  vec3 pos = spanLo + place * span;
+  float rad = col.a > 0.5 ? size01 * rMax : -size01 * rMax;  // negative: drawn flat
   vec3 rel = pos - eye;
   float z = dot(rel, fwd);
   float zc = max(z, 1e-6);
@@ -132,13 +134,13 @@ function sphereSetup() {
   gl.vertexAttribPointer(at("corner"), 2, gl.FLOAT, false, 0, 0);
   const records = gl.createBuffer();
   gl.bindBuffer(gl.ARRAY_BUFFER, records);
-  for (const [name, size, type, normalized, offset] of [["pos", 3, gl.FLOAT, false, 0], ["rad", 1, gl.FLOAT, false, 12], ["col", 4, gl.UNSIGNED_BYTE, true, 16]]) {
+  for (const [name, size, type, offset] of [["place", 3, gl.UNSIGNED_SHORT, 0], ["size01", 1, gl.UNSIGNED_SHORT, 6], ["col", 4, gl.UNSIGNED_BYTE, 8]]) {
     gl.enableVertexAttribArray(at(name));
-    gl.vertexAttribPointer(at(name), size, type, normalized, SPHERE_RECORD, offset);
+    gl.vertexAttribPointer(at(name), size, type, true, SPHERE_RECORD, offset);
     gl.vertexAttribDivisor(at(name), 1);
   }
   const where = {}, backWhere = {};
-  for (const name of ["eye", "right", "up", "fwd", "focal", "rmin", "axis", "size", "light", "specular", "depthScale"]) {
+  for (const name of ["eye", "right", "up", "fwd", "focal", "rmin", "axis", "size", "light", "specular", "depthScale", "spanLo", "span", "rMax"]) {
     where[name] = gl.getUniformLocation(program, name);
   }
   for (const name of ["under", "eye", "right", "up", "fwd", "focal", "axis", "size", "lidOn", "lidHeight", "box", "lidColour", "depthScale"]) {
@@ -197,6 +199,9 @@ function drawSpheres(buffer, under, version) {
   gl.uniform3fv(where.light, cam.subarray(15, 18));
   gl.uniform1f(where.specular, cam[18]);
   gl.uniform1f(where.rmin, cam[19]);
+  gl.uniform3fv(where.spanLo, cam.subarray(29, 32));
+  gl.uniform3fv(where.span, cam.subarray(32, 35));
+  gl.uniform1f(where.rMax, cam[35]);
   gl.bindVertexArray(sphereGL.vao);
   const start = SPHERE_HEADER + SPHERE_CAMERA;
   gl.bindBuffer(gl.ARRAY_BUFFER, records);
