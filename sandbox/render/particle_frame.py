@@ -46,22 +46,48 @@ def unsupported(renderer) -> str | None:
     return None
 
 
+class FramePacker:
+    """What the frames a page draws share (ParticleFrame here, sphere_frame.SphereFrame): the renderer and its
+    particles, three u32 words a particle that the subclass's `_pack(n, records)` kernel writes, and HEADER with the
+    subclass's `kind` byte first."""
+
+    kind = b"?"
+
+    def __init__(self, renderer, why: str | None, expected: str):
+        """`why`: the module's unsupported(renderer) (ValueError naming it and what was `expected` where not None)."""
+        if why is not None:
+            raise ValueError(f"page frames: this scene's picture has {why}; expected {expected}")
+        self.renderer = renderer
+        self.look, self.p = renderer.look, renderer.state.particles
+        # on the CPU the kernel writes straight into this host array (no copy; elsewhere Taichi copies it back)
+        self.records = np.zeros((max(renderer.model.capacity, 1), 3), np.uint32)
+
+    def pack(self) -> np.ndarray:
+        """The live particles' records now, (n, 3) uint32 (the subclass module's layout): a view of this packer's
+        array, valid until the next pack."""
+        self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
+        n = min(int(self.p.n[None]), len(self.records))
+        if n:
+            self._pack(n, self.records)
+        return self.records[:n]
+
+    def header(self, frame: int, seq: int, time: float, n: int) -> bytes:
+        """HEADER of a frame of n particles: the `frame` count, the last setting's `seq`, the simulated `time`."""
+        return HEADER.pack(self.kind, frame & 0xFFFFFFFF, seq & 0xFFFFFFFF, float(time), n)
+
+
 @data_oriented
-class ParticleFrame:
+class ParticleFrame(FramePacker):
     """Packs the particles of a 2D `renderer`'s state into particle frames (module docstring)."""
 
+    kind = b"P"
+
     def __init__(self, renderer):
-        why = unsupported(renderer)
-        if why is not None:
-            raise ValueError(f"particle frames: this scene's picture has {why}; expected a 2D scene drawn as discs")
-        self.renderer = renderer
+        super().__init__(renderer, unsupported(renderer), "a 2D scene drawn as discs")
         painter = renderer.painter
-        self.look, self.p = renderer.look, renderer.state.particles
         self.scale = float(painter.px_per_unit)
         self.offset = painter.offset  # pixels (y up) of the world's origin
         self.height = renderer.height
-        # on the CPU the kernel writes straight into this host array (no copy; elsewhere Taichi copies it back)
-        self.records = np.zeros((max(renderer.model.capacity, 1), 3), np.uint32)
 
     @ti.kernel
     def _pack(self, n: ti.i32, records: ti.types.ndarray()):
@@ -86,15 +112,6 @@ class ParticleFrame:
             records[i, 1] = ti.cast(ti.min(r * FIXED + 0.5, 65535.0), ti.u32) | (ti.cast(kind, ti.u32) << 16)
             records[i, 2] = col[0] | (col[1] << 8) | (col[2] << 16) | (a << 24)
 
-    def pack(self) -> np.ndarray:
-        """The live particles' records now, (n, 3) uint32 (the module docstring's layout): a view of this packer's
-        array, valid until the next pack."""
-        self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
-        n = min(int(self.p.n[None]), len(self.records))
-        if n:
-            self._pack(n, self.records)
-        return self.records[:n]
-
     def backdrop(self) -> np.ndarray:
         """The picture without its particles or text, (H, W, 3) uint8 (backdrop_picture)."""
         return backdrop_picture(self.renderer)
@@ -102,7 +119,7 @@ class ParticleFrame:
     def encode(self, frame: int, seq: int, time: float) -> bytes:
         """The particle frame of the state now (the module docstring's layout)."""
         records = self.pack()
-        return HEADER.pack(b"P", frame & 0xFFFFFFFF, seq & 0xFFFFFFFF, float(time), len(records)) + records.tobytes()
+        return self.header(frame, seq, time, len(records)) + records.tobytes()
 
 
 def unpack(records: np.ndarray) -> dict:

@@ -33,7 +33,7 @@ import numpy as np
 import taichi as ti
 
 from ..core.oriented import data_oriented
-from .particle_frame import HEADER  # b"S", frame, seq, time, n
+from .particle_frame import HEADER, FramePacker  # HEADER: b"S", frame, seq, time, n
 from .style import LID_COLOR, R_MIN
 
 CAMERA = struct.Struct("<36f")  # eye, right, up, forward, focal, cx, cy, light, specular, R_MIN, lid (9), span (7)
@@ -55,22 +55,19 @@ def unsupported(renderer) -> str | None:
 
 
 @data_oriented
-class SphereFrame:
+class SphereFrame(FramePacker):
     """Packs the particles of a 3D `renderer`'s state into sphere frames (module docstring)."""
 
+    kind = b"S"
+
     def __init__(self, renderer):
-        why = unsupported(renderer)
-        if why is not None:
-            raise ValueError(f"sphere frames: this scene's picture has {why}; expected a 3D scene of opaque spheres")
-        self.renderer, self.painter = renderer, renderer.painter
-        self.look, self.p = renderer.look, renderer.state.particles
+        super().__init__(renderer, unsupported(renderer), "a 3D scene of opaque spheres")
+        self.painter = renderer.painter
         world = renderer.model.scene.world
         lo, hi = np.asarray(world.lo, float), np.asarray(world.hi, float)
         self.span_lo, self.span = lo - MARGIN * (hi - lo), (1 + 2 * MARGIN) * (hi - lo)
         self.r_max = float(self.span.max())  # no drawn sphere is wider than its box
         self._span_lo, self._inv_span = ti.Vector(list(self.span_lo)), ti.Vector(list(STEPS / self.span))
-        # on the CPU the kernel writes straight into this host array (no copy; elsewhere Taichi copies it back)
-        self.records = np.zeros((max(renderer.model.capacity, 1), WORDS), np.uint32)
 
     @ti.kernel
     def _pack(self, n: ti.i32, records: ti.types.ndarray()):
@@ -83,15 +80,6 @@ class SphereFrame:
             records[i, 0] = q[0] | (q[1] << 16)
             records[i, 1] = q[2] | (r << 16)
             records[i, 2] = c[0] | (c[1] << 8) | (c[2] << 16) | (shaded << 24)
-
-    def pack(self) -> np.ndarray:
-        """The live particles' records now, (n, 5) uint32 (the module docstring's layout): a view of this packer's
-        array, valid until the next pack."""
-        self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
-        n = min(int(self.p.n[None]), len(self.records))
-        if n:
-            self._pack(n, self.records)
-        return self.records[:n]
 
     def camera(self) -> bytes:
         """The camera block of a frame (module docstring)."""
@@ -111,8 +99,7 @@ class SphereFrame:
     def encode(self, frame: int, seq: int, time: float) -> bytes:
         """The sphere frame of the state now (the module docstring's layout)."""
         records = self.pack()
-        head = HEADER.pack(b"S", frame & 0xFFFFFFFF, seq & 0xFFFFFFFF, float(time), len(records))
-        return head + self.camera() + records.tobytes()
+        return self.header(frame, seq, time, len(records)) + self.camera() + records.tobytes()
 
 
 def decode(data: bytes) -> dict:
