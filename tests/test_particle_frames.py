@@ -7,6 +7,7 @@ import base64
 import io
 import json
 from multiprocessing import Pipe
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from PIL import Image
 from sandbox.render.particle_frame import decode
 
 pytestmark = pytest.mark.xdist_group("serve")
+WEB = Path(__file__).resolve().parents[1] / "sandbox" / "app" / "web"
 
 
 def messages(page) -> list[bytes]:
@@ -88,20 +90,35 @@ def test_a_2d_session_sends_particle_frames_that_make_the_renderers_picture(sess
     assert np.allclose(frame["r"], frame["r"][0]) and 4.0 < frame["r"][0] < 6.0  # half a spacing, in pixels
 
 
-def test_the_page_draws_a_particle_frame_as_the_renderer_draws_the_picture(session_2d):
-    """The page's own drawing code (app.js, in Chromium) turns the session's backdrop, band and particle frame into
-    the renderer's picture: the same colours at every particle's centre, and on average within a few levels where
-    the discs' anti-aliased edges are drawn by the browser instead."""
+@pytest.mark.parametrize("scene", ["melting_block", pytest.param("freeze_thaw", marks=pytest.mark.long)])
+def test_the_page_draws_a_particle_frame_as_the_renderer_draws_the_picture(scene):
+    """The page's own drawing code (discs.js, in Chromium) turns the session's backdrop, band and particle frame into
+    the renderer's picture: the same colours at every particle's centre, and on average within a level where the
+    discs' anti-aliased edges (and freeze_thaw's springs, drawn as lines under the discs) are drawn by the browser
+    instead."""
     import shutil
+
+    from sandbox.app.serve_session import Session
 
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:
         pytest.skip("no Chromium (apt-get install chromium)")
     playwright = pytest.importorskip("playwright.sync_api")
-    from pathlib import Path
-
-    session, page = session_2d
+    page, end = Pipe()
+    session = Session(end, scene, 960, 540, draw="page")
     messages(page)
+    if scene == "freeze_thaw":  # the blob pulled apart, paused, 100 springs put in: the lines show between discs
+        session.control.pause()
+        x = session.sim.particles.x.to_numpy()
+        n = int(session.sim.particles.n[None])
+        x[:n] = x[:n].mean(axis=0) + 1.6 * (x[:n] - x[:n].mean(axis=0))
+        session.sim.particles.x.from_numpy(x)
+        springs = session.sim.state.springs
+        ends = [springs.i.to_numpy(), springs.j.to_numpy(), springs.alive.to_numpy()]
+        ends[0][:100], ends[1][:100], ends[2][:100] = np.arange(100), np.arange(100) + 7, 1
+        for field, values in zip((springs.i, springs.j, springs.alive), ends):
+            field.from_numpy(values)
+        springs.span[None] = max(int(springs.span[None]), 100)
     session.frame()
     sent = messages(page)
     session.page.send_band()
@@ -111,7 +128,7 @@ def test_the_page_draws_a_particle_frame_as_the_renderer_draws_the_picture(sessi
     backdrop = composed(session_png_backdrop(session), [band])
     session.renderer.full_refresh = True
     picture = session.renderer.frame().copy()
-    app = (Path(__file__).resolve().parents[1] / "sandbox" / "app" / "web" / "app.js").read_text()
+    app = (WEB / "app.js").read_text()
     app = app.replace("\nstart();", "\n")  # the page's functions, without connecting anywhere
     out = io.BytesIO()
     Image.fromarray(backdrop).save(out, "PNG")
@@ -120,26 +137,55 @@ def test_the_page_draws_a_particle_frame_as_the_renderer_draws_the_picture(sessi
         try:
             tab = browser.new_page()
             tab.set_content('<canvas id="picture"></canvas><div id="status"></div>')
+            tab.add_script_tag(content=(WEB / "discs.js").read_text())
             tab.add_script_tag(content=app)
-            drawn = tab.evaluate(
-                """async ([png, frame]) => {
+            pictures = tab.evaluate(
+                """async ([png, frames]) => {
                   const bytes = (text) => Uint8Array.from(atob(text), (c) => c.charCodeAt(0)).buffer;
                   const bitmap = await bitmapOf(bytes(png), "image/png");
                   const context = pictureContext(bitmap.width, bitmap.height);
-                  context.drawImage(bitmap, 0, 0);
-                  drawParticles(context, bytes(frame));
-                  return document.getElementById("picture").toDataURL("image/png");  // lossless, and compact
+                  const out = [];
+                  for (const frame of frames) {
+                    context.drawImage(bitmap, 0, 0);
+                    drawParticles(context, bytes(frame));
+                    out.push(document.getElementById("picture").toDataURL("image/png"));  // lossless, compact
+                  }
+                  return out;
                 }""",
-                [b64(out.getvalue()), b64(frame_bytes)],
+                # the frame, and the frame without its springs' lines
+                [b64(out.getvalue()), [b64(frame_bytes), b64(frame_bytes[: 21 + 12 * decode(frame_bytes)["n"]])]],
             )
         finally:
             browser.close()
-    drawn = np.array(Image.open(io.BytesIO(base64.b64decode(drawn.split(",", 1)[1]))).convert("RGB"))
+    drawn, without_lines = (
+        np.array(Image.open(io.BytesIO(base64.b64decode(data.split(",", 1)[1]))).convert("RGB")) for data in pictures
+    )
     frame = decode(frame_bytes)
+    if scene == "freeze_thaw":  # every live spring's ends, in some order, and the renderer's line colour
+        springs = session.sim.state.springs
+        alive = springs.alive.to_numpy().astype(bool)
+        live = {(int(i), int(j)) for i, j in zip(springs.i.to_numpy()[alive], springs.j.to_numpy()[alive])}
+        assert {tuple(pair) for pair in frame["springs"].tolist()} == live and len(frame["springs"]) == len(live)
+        assert frame["line_rgba"].tolist() == [140, 153, 178, 153]  # SPRING_COLOR, SPRING_OPACITY
+        # where the page's lines show between the discs, they bring it to the renderer's picture
+        lines = np.any(drawn != without_lines, axis=2)
+        near = np.abs(drawn.astype(int) - picture.astype(int))[lines].mean()
+        apart = np.abs(without_lines.astype(int) - picture.astype(int))[lines].mean()
+        assert lines.sum() > 200 and near < apart / 3, (lines.sum(), near, apart)
+    else:
+        assert "springs" not in frame
     centres = np.s_[frame["y"].astype(int), frame["x"].astype(int)]
     assert np.mean(np.all(drawn[centres] == picture[centres], axis=1)) > 0.99
     difference = np.abs(drawn.astype(int) - picture.astype(int))
-    assert difference.mean() < 1.0 and np.percentile(difference, 99) < 40, difference.mean()
+    assert difference.mean() < 1.0 and np.percentile(difference, 99) < 40, (
+        difference.mean(),
+        np.percentile(difference, 99),
+    )
+    by_renderer, by_page = np.any(picture != backdrop, axis=2), np.any(drawn != backdrop, axis=2)
+    assert by_renderer.mean() > 0.01 and (by_renderer & by_page).sum() > 0.95 * by_renderer.sum(), (
+        by_renderer.mean(),
+        (by_renderer & by_page).sum() / by_renderer.sum(),
+    )
 
 
 def session_png_backdrop(session) -> bytes:

@@ -11,10 +11,13 @@ A particle frame, little-endian:
 
     b"P", then frame (u32), seq (u32: the last setting applied), time (f64: simulated seconds), n (u32),
     then n records of three u32: x | y << 16 (pixels x 16, rows from the top), r | kind << 16 (the drawn radius in
-    pixels x 16; kind 0 opaque, 1 translucent), and R | G << 8 | B << 16 | A << 24 (A: the drawn opacity, 0 to 255).
+    pixels x 16; kind 0 opaque, 1 translucent), and R | G << 8 | B << 16 | A << 24 (A: the drawn opacity, 0 to 255),
+    then, where the scene draws its springs as lines: m (u32), the lines' R | G << 8 | B << 16 | A << 24 (A: their
+    opacity), and m pairs of u32: the particles (records) each live spring joins. The page draws them first, a line
+    a pixel wide each, "over" one another as the renderer composites them, then the particles.
 
-Scenes this cannot show as the renderer does (3D, motion blur, springs drawn as lines, additive light) have
-`unsupported(...)` say why; the classroom sends them as pictures.
+Scenes this cannot show as the renderer does (3D, motion blur, additive light, a moving lid) have `unsupported(...)`
+say why; the classroom sends them as pictures.
 """
 
 import struct
@@ -23,7 +26,7 @@ import numpy as np
 import taichi as ti
 
 from ..core.oriented import data_oriented
-from .style import BLEND, MIN_FADE, R_MIN
+from .style import BLEND, MIN_FADE, R_MIN, SPRING_COLOR, SPRING_OPACITY
 
 HEADER = struct.Struct("<cIIdI")  # b"P", frame, seq, time, n
 PAGE_FRAMES = (b"P", b"S")  # the frames a page draws itself, each starting with HEADER: particle and sphere frames
@@ -37,8 +40,6 @@ def unsupported(renderer) -> str | None:
         return "a 3D scene (shaded spheres)"
     if cfg.motion_blur:
         return "motion blur"
-    if renderer.painter.draw_springs:
-        return "springs drawn as lines"
     if "additive" in renderer.look.blends:
         return "additive light"
     if renderer.painter.backdrop_moves:
@@ -88,6 +89,10 @@ class ParticleFrame(FramePacker):
         self.scale = float(painter.px_per_unit)
         self.offset = painter.offset  # pixels (y up) of the world's origin
         self.height = renderer.height
+        self.springs = renderer.state.springs if painter.draw_springs else None
+        if self.springs is not None:
+            self.pairs = np.zeros((max(self.springs.count, 1), 2), np.uint32)  # the live springs' ends
+            self.n_pairs = ti.field(ti.i32, shape=())
 
     @ti.kernel
     def _pack(self, n: ti.i32, records: ti.types.ndarray()):
@@ -119,7 +124,23 @@ class ParticleFrame(FramePacker):
     def encode(self, frame: int, seq: int, time: float) -> bytes:
         """The particle frame of the state now (the module docstring's layout)."""
         records = self.pack()
-        return self.header(frame, seq, time, len(records)) + records.tobytes()
+        lines = b""
+        if self.springs is not None:
+            self.n_pairs[None] = 0
+            self._pack_springs(self.pairs)
+            m = int(self.n_pairs[None])
+            colour = np.round(np.array([*SPRING_COLOR, SPRING_OPACITY]) * 255).astype(np.uint8).tobytes()
+            lines = struct.pack("<I", m) + colour + self.pairs[:m].tobytes()
+        return self.header(frame, seq, time, len(records)) + records.tobytes() + lines
+
+    @ti.kernel
+    def _pack_springs(self, pairs: ti.types.ndarray()):
+        s = self.springs
+        for k in range(s.span[None]):
+            if s.alive[k]:
+                slot = ti.atomic_add(self.n_pairs[None], 1)  # in any order: lines of one colour composite alike
+                pairs[slot, 0] = ti.cast(s.i[k], ti.u32)
+                pairs[slot, 1] = ti.cast(s.j[k], ti.u32)
 
 
 def unpack(records: np.ndarray) -> dict:
@@ -139,7 +160,13 @@ def decode(data: bytes) -> dict:
     same layout."""
     _, frame, seq, time, n = HEADER.unpack_from(data)
     records = np.frombuffer(data, np.uint32, count=3 * n, offset=HEADER.size).reshape(n, 3)
-    return {"frame": frame, "seq": seq, "time": time, **unpack(records)}
+    out = {"frame": frame, "seq": seq, "time": time, "n": n, **unpack(records)}
+    end = HEADER.size + 12 * n
+    if len(data) > end:  # the springs' lines
+        (m,) = struct.unpack_from("<I", data, end)
+        out["line_rgba"] = np.frombuffer(data, np.uint8, count=4, offset=end + 4)
+        out["springs"] = np.frombuffer(data, "<u4", count=2 * m, offset=end + 8).reshape(m, 2)
+    return out
 
 
 def backdrop_picture(renderer) -> np.ndarray:

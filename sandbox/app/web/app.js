@@ -158,26 +158,6 @@ function pictureContext(width, height) {
   return canvas.getContext("2d");
 }
 
-// a particle frame: a 21-byte header (kind, frame, seq, time, n), then three u32 a particle: x | y << 16 (pixels
-// x 16, rows from the top), r | kind << 16 (pixels x 16), R | G << 8 | B << 16 | A << 24; drawn as the renderer's
-// discs (opaque ones with their coverage, translucent ones with their opacity), in order
-function drawParticles(context, buffer) {
-  const view = new DataView(buffer);
-  const n = view.getUint32(17, true);
-  const records = new Uint32Array(buffer.slice(21, 21 + 12 * n));
-  for (let i = 0; i < n; i++) {
-    const place = records[3 * i], size = records[3 * i + 1], colour = records[3 * i + 2];
-    const alpha = (colour >>> 24) / 255;
-    context.fillStyle = `rgba(${colour & 255},${(colour >>> 8) & 255},${(colour >>> 16) & 255},${alpha.toFixed(3)})`;
-    context.beginPath();
-    context.arc((place & 0xffff) / 16, (place >>> 16) / 16, Math.max((size & 0xffff) / 16, 0.5), 0, 2 * Math.PI);
-    context.fill();
-  }
-  const canvas = $("picture");
-  canvas.dataset.particles = String(n);
-  canvas.dataset.time = String(view.getFloat64(9, true));
-}
-
 function shown(context) {
   const canvas = $("picture");
   if (document.activeElement === canvas) {  // the keyboard's pointer, where the arrows have put it
