@@ -7,24 +7,15 @@ import io
 import json
 import shutil
 from multiprocessing import Pipe
-from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
 from sandbox.render.sphere_frame import decode
+from tests.test_particle_frames import WEB, b64, messages
 
 pytestmark = pytest.mark.xdist_group("serve")
-WEB = Path(__file__).resolve().parents[1] / "sandbox" / "app" / "web"
-
-
-def messages(page) -> list[bytes]:
-    """Everything the session has sent so far."""
-    out = []
-    while page.poll(0):
-        out.append(page.recv_bytes())
-    return out
 
 
 @pytest.fixture
@@ -186,7 +177,3 @@ def test_a_page_without_webgl2_asks_for_pictures_and_gets_them(session_3d):
     said = messages(page)
     scene = json.loads([m for m in said if m[:1] == b"J" and b'"scene"' in m][0][1:])
     assert scene["draw"] == "server" and [m[:1] for m in said].count(b"F") == 1
-
-
-def b64(data: bytes) -> str:
-    return base64.b64encode(data).decode()

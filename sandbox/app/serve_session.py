@@ -47,7 +47,7 @@ SMOOTH_FPS = 20.0  # pictures a second a tab keeps, where the machine is short o
 # the server's process never loads Taichi)
 FRAMES = (b"F", b"P", b"S")
 PICTURES = (*FRAMES, b"B", b"C")  # and the backdrops and bands a page draws its frames over
-DRAWS = ("page", "server")  # who draws a 2D scene's particles: the page (particle frames) or the session (JPEG)
+DRAWS = ("page", "server")  # who draws the particles: the page (particle or sphere frames) or the session (JPEG)
 
 
 def session_main(

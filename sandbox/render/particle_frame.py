@@ -31,6 +31,7 @@ from .style import BLEND, MIN_FADE, R_MIN, SPRING_COLOR, SPRING_OPACITY
 HEADER = struct.Struct("<cIIdI")  # b"P", frame, seq, time, n
 PAGE_FRAMES = (b"P", b"S")  # the frames a page draws itself, each starting with HEADER: particle and sphere frames
 FIXED = 16.0  # sub-pixel steps per pixel in a frame's places and radii
+SPRING_RGBA = bytes(round(255 * v) for v in (*SPRING_COLOR, SPRING_OPACITY))  # the springs' lines, as a frame says
 
 
 def unsupported(renderer) -> str | None:
@@ -126,21 +127,21 @@ class ParticleFrame(FramePacker):
         records = self.pack()
         lines = b""
         if self.springs is not None:
-            self.n_pairs[None] = 0
-            self._pack_springs(self.pairs)
-            m = int(self.n_pairs[None])
-            colour = np.round(np.array([*SPRING_COLOR, SPRING_OPACITY]) * 255).astype(np.uint8).tobytes()
-            lines = struct.pack("<I", m) + colour + self.pairs[:m].tobytes()
+            m = self._pack_springs(self.pairs)
+            lines = struct.pack("<I", m) + SPRING_RGBA + self.pairs[:m].tobytes()
         return self.header(frame, seq, time, len(records)) + records.tobytes() + lines
 
     @ti.kernel
-    def _pack_springs(self, pairs: ti.types.ndarray()):
+    def _pack_springs(self, pairs: ti.types.ndarray()) -> ti.i32:
+        """The live springs' ends into `pairs`; returns how many."""
         s = self.springs
+        self.n_pairs[None] = 0
         for k in range(s.span[None]):
             if s.alive[k]:
                 slot = ti.atomic_add(self.n_pairs[None], 1)  # in any order: lines of one colour composite alike
                 pairs[slot, 0] = ti.cast(s.i[k], ti.u32)
                 pairs[slot, 1] = ti.cast(s.j[k], ti.u32)
+        return self.n_pairs[None]
 
 
 def unpack(records: np.ndarray) -> dict:

@@ -47,9 +47,8 @@ class Spheres3D:
         self.specular = float(cfg.specular)
         self.ground = bool(cfg.ground)
         self.floor_y = float(lo[1])
-        self.floor_lo = ti.Vector([float(lo[0]), float(lo[2])])
-        self.floor_hi = ti.Vector([float(hi[0]), float(hi[2])])
         self.floor_box = (float(lo[0]), float(lo[2]), float(hi[0]), float(hi[2]))  # x0, z0, x1, z1 (world)
+        self.floor_lo, self.floor_hi = ti.Vector(self.floor_box[:2]), ti.Vector(self.floor_box[2:])
         self.grid_step = float(max(1.0, round(max(hi[0] - lo[0], hi[2] - lo[2]) / 12)))
         # heat sources lying on the floor are drawn on it in the colour bar's colour for their temperature
         heat = model.scene.heat
@@ -62,8 +61,6 @@ class Spheres3D:
         lid = state.entry("lid.height")
         self.lid_height = lid.owner.height if lid is not None else None
         self.has_lid = lid is not None
-        self.lid_shown = ti.field(ti.i32, shape=())  # 0 while the backdrop is painted for a page that draws the lid
-        self.lid_shown[None] = 1
         if canvas.has_alpha:
             self.order = ti.field(ti.i32, shape=model.capacity)  # translucent particles, back to front
             self.n_order = ti.field(ti.i32, shape=())
@@ -81,17 +78,12 @@ class Spheres3D:
     def paint_backdrop(self, lid: bool = True) -> None:
         """The picture without particles into the image: the background, the floor and its heat sources, and
         (with `lid`) the lid."""
-        if self.has_lid and not lid:
-            self.lid_shown[None] = 0
-            self._clear_3d()
-            self.lid_shown[None] = 1
-        else:
-            self._clear_3d()
+        self._clear_3d(int(lid))
 
     def draw(self) -> None:
         """Every 3D pass, into the image."""
         canvas = self.canvas
-        self._clear_3d()
+        self._clear_3d(1)
         if canvas.has_opaque:
             self._depth_3d()
             self._shade_3d()
@@ -132,7 +124,7 @@ class Spheres3D:
         return ti.Vector([sx, sy]), z
 
     @ti.kernel
-    def _clear_3d(self):
+    def _clear_3d(self, lid: ti.i32):
         canvas = self.canvas
         for x, y in canvas.image:
             shade = 0.75 + 0.25 * y / canvas.height
@@ -162,7 +154,7 @@ class Spheres3D:
                                 c = c * 0.6 + 0.3 * (temperature_map(ti.math.clamp(t, 0.0, 1.0)))
             depth = 2147483647
             if ti.static(self.has_lid):
-                if self.lid_shown[None]:
+                if lid:  # 0: for a page that draws the lid itself (render/sphere_frame.py)
                     c, depth = self._lid(x, y, c, depth)
             canvas.image[x, y] = c
             canvas.depth[x, y] = depth

@@ -138,17 +138,14 @@ async function onBytes(buffer) {
     const context = pictureContext(base.width, base.height);
     context.drawImage(base, 0, 0);
     drawParticles(context, buffer);
-    shown(context);
+    shown(context, buffer);
   } else if (kind === "S") {
     const spheres = drawSpheres(buffer, base, baseVersion);  // the whole picture, over the backdrop
     if (spheres === null) { send({ t: "nogl" }); return; }  // no WebGL2 here: the session sends pictures instead
     const context = pictureContext(base.width, base.height);
     context.drawImage(spheres, 0, 0);
     if (band) context.drawImage(base, band.x, band.y, band.w, band.h, band.x, band.y, band.w, band.h);
-    const view = new DataView(buffer);
-    context.canvas.dataset.particles = String(view.getUint32(17, true));
-    context.canvas.dataset.time = String(view.getFloat64(9, true));
-    shown(context);
+    shown(context, buffer);
   }
 }
 
@@ -158,8 +155,14 @@ function pictureContext(width, height) {
   return canvas.getContext("2d");
 }
 
-function shown(context) {
+// a picture on the screen (`frame`: the frame the page drew it from, whose header gives its particles and time)
+function shown(context, frame = null) {
   const canvas = $("picture");
+  if (frame) {
+    const view = new DataView(frame);
+    canvas.dataset.particles = String(view.getUint32(17, true));
+    canvas.dataset.time = String(view.getFloat64(9, true));
+  }
   if (document.activeElement === canvas) {  // the keyboard's pointer, where the arrows have put it
     const x = keyboardPoint.x * canvas.width, y = keyboardPoint.y * canvas.height;
     context.lineWidth = 3;

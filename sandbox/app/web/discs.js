@@ -19,9 +19,6 @@ function drawParticles(context, buffer) {
     context.arc((place & 0xffff) / 16, (place >>> 16) / 16, Math.max((size & 0xffff) / 16, 0.5), 0, 2 * Math.PI);
     context.fill();
   }
-  const canvas = context.canvas;
-  canvas.dataset.particles = String(n);
-  canvas.dataset.time = String(view.getFloat64(9, true));
 }
 
 // the springs' lines after the records at `at`: m, their colour, m pairs of particles; each a line a pixel wide,
