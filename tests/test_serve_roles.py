@@ -54,22 +54,7 @@ class StandIn:
             self.uploads.append(Path(message["path"]).stat().st_size)
             loop.call_later(self.checking, self.handle.answer, "upload_done", {"t": "upload_done"})
 
-    def fileno(self) -> int:
-        return -1
-
-    def close(self) -> None:
-        pass
-
-
-class NoProcess:
-    def terminate(self) -> None:
-        pass
-
-    def join(self, timeout=None) -> None:
-        pass
-
-    def is_alive(self) -> bool:
-        return False
+    ready = built = True  # it takes a tab's messages at once (serve.Handle.link)
 
 
 @pytest.fixture(params=[None, TOKEN], ids=["loopback", "with a class token"])
@@ -79,7 +64,7 @@ def room(request):
     sessions = {}
     for name in ("a", "b"):
         conn = StandIn()
-        handle = Handle(f"sid-{name}", "melting_block", NoProcess(), conn)
+        handle = Handle(f"sid-{name}", "melting_block", conn)
         conn.handle = handle
         classroom.sessions[handle.sid] = handle
         sessions[name] = handle
@@ -112,7 +97,7 @@ def test_teacher_routes_answer_only_the_teacher(room):
             assert response.status_code == 403, (path, who, response.text)
         response = client.request(method, path + query(token, teacher=TEACHER, **extra), content=body)
         assert response.status_code == 200, (path, response.text)
-    assert [m["t"] for m in sessions["b"].conn.sent] == ["action"]  # the teacher's broadcast, once, to everyone
+    assert [m["t"] for m in sessions["b"].link.sent] == ["action"]  # the teacher's broadcast, once, to everyone
 
 
 def test_a_students_state_routes_reach_only_their_own_session(room):
@@ -126,8 +111,8 @@ def test_a_students_state_routes_reach_only_their_own_session(room):
             assert response.status_code == 403, (method, params)  # the same answer whether it exists or not
     assert client.get("/api/state" + query(token, sid=b.sid, teacher=TEACHER)).status_code == 200
     upload = client.post("/api/state" + query(token, sid=a.sid, key=a.key), content=b"PK upload")
-    assert upload.status_code == 202 and a.conn.sent[-1]["t"] == "upload"
-    assert not any(m["t"] == "upload" for m in b.conn.sent)
+    assert upload.status_code == 202 and a.link.sent[-1]["t"] == "upload"
+    assert not any(m["t"] == "upload" for m in b.link.sent)
     if token:  # the class's token is needed as well as the key
         assert client.get("/api/state" + query(None, sid=a.sid, key=a.key)).status_code == 403
 
@@ -138,7 +123,7 @@ def test_bodies_are_limited_before_they_are_read(room):
     huge = b"x" * (MAX_BROADCAST + 1)
     response = client.post("/api/broadcast" + query(token, teacher=TEACHER), content=huge)
     assert response.status_code == 413 and "2048 bytes" in response.text
-    assert not sessions["b"].conn.sent  # nothing was sent on
+    assert not sessions["b"].link.sent  # nothing was sent on
     declared = client.post(
         "/api/state" + query(token, sid=a.sid, key=a.key), content=b"PK", headers={"content-length": str(1 << 40)}
     )
@@ -151,7 +136,7 @@ def stand_in_sessions(classroom: Classroom) -> None:
 
     def open_stand_in(scene: str) -> Handle:
         conn = StandIn()
-        handle = Handle(f"sid-{len(classroom.sessions)}-{time.monotonic_ns()}", scene, NoProcess(), conn)
+        handle = Handle(f"sid-{len(classroom.sessions)}-{time.monotonic_ns()}", scene, conn)
         handle.frames = 1
         conn.handle = handle
         classroom.sessions[handle.sid] = handle
@@ -200,14 +185,14 @@ def test_a_session_takes_one_upload_at_a_time_and_the_server_caps_the_bytes_in_f
     a, b = sessions["a"], sessions["b"]
     url = "/api/state" + query(token, sid=a.sid, key=a.key)
     ok = client.post(url, content=b"PK one")
-    assert ok.status_code == 202 and a.conn.uploads == [6] and classroom.in_flight == 0 and a.upload_bytes == 0
+    assert ok.status_code == 202 and a.link.uploads == [6] and classroom.in_flight == 0 and a.upload_bytes == 0
     assert classroom.take_upload(a, 1000) is None  # an upload to a is under way ...
     busy = client.post(url, content=b"PK two")
-    assert busy.status_code == 429 and "one upload at a time" in busy.text and a.conn.uploads == [6]
+    assert busy.status_code == 429 and "one upload at a time" in busy.text and a.link.uploads == [6]
     classroom.end_upload(a)
     classroom.in_flight = MAX_IN_FLIGHT - 10  # other sessions' uploads fill the server's allowance
     crowded = client.post("/api/state" + query(token, sid=b.sid, key=b.key), content=b"PK" * 100)
-    assert crowded.status_code == 429 and "other uploads" in crowded.text and not b.conn.uploads
+    assert crowded.status_code == 429 and "other uploads" in crowded.text and not b.link.uploads
     classroom.in_flight = 0
     assert not list(classroom.scratch.iterdir())
 
@@ -219,7 +204,7 @@ def test_parallel_uploads_to_one_session_are_taken_one_at_a_time():
     classroom = Classroom("melting_block", None, max_sessions=4, teacher=TEACHER)
     conn = StandIn()
     conn.checking = 0.5
-    handle = Handle("sid-a", "melting_block", NoProcess(), conn)
+    handle = Handle("sid-a", "melting_block", conn)
     conn.handle = handle
     classroom.sessions[handle.sid] = handle
     peak = []
@@ -239,44 +224,10 @@ def test_parallel_uploads_to_one_session_are_taken_one_at_a_time():
     assert max(peak) <= len(body) and classroom.in_flight == 0 and conn.uploads == [len(body)]
 
 
-class Alive(NoProcess):
-    def is_alive(self) -> bool:
-        return True
-
-
-def test_the_warm_pool_starts_as_many_sessions_at_once_as_there_are_cores(monkeypatch):
-    """Issue 74: a class waited for its sessions to start one at a time (12 took 49 s here). The warm pool starts
-    as many at once as the machine has cores, and the next ones as those draw their first pictures (12: 25 s)."""
-    from sandbox.app import serve
-
-    monkeypatch.setattr(serve, "usable_cores", lambda: 2)
-    classroom = Classroom("melting_block", None, max_sessions=6, teacher=TEACHER)
-    started = []
-
-    def spawn(scene):
-        handle = Handle(f"sid-{len(started)}", scene, Alive(), StandIn())
-        started.append(handle)
-        return handle
-
-    classroom.spawn = spawn
-
-    async def warm_for(seconds):
-        task = asyncio.create_task(classroom.keep_warm())
-        await asyncio.sleep(seconds)
-        task.cancel()
-
-    asyncio.run(warm_for(0.8))
-    assert len(started) == 2  # two starting at once, the rest waiting for them
-    for handle in started:
-        handle.frames = 1  # they drew their first pictures
-    asyncio.run(warm_for(0.8))
-    assert len(started) == 4 and len(classroom.warm) == 4
-
-
 def test_a_silent_tab_loses_its_session_and_is_told_why():
     """Issue 74: idle sessions are reclaimed after the set time with a message on the tab (they went silently)."""
     classroom = Classroom("melting_block", None, max_sessions=4, idle=0.2, teacher=TEACHER)
-    handle = Handle("sid-a", "melting_block", NoProcess(), StandIn())
+    handle = Handle("sid-a", "melting_block", StandIn())
     handle.frames, handle.last_seen = 5, time.monotonic() - 1.0
     classroom.sessions[handle.sid] = handle
 

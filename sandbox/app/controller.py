@@ -96,9 +96,10 @@ class Controller:
         self.gravity_angle = 0.0  # degrees from the scene's direction (2D: turning it, as the window's slider does)
 
     @classmethod
-    def open(cls, name: str, arch: str = "cpu") -> Controller:
-        """A controller of a fresh simulation of the shipped scene `name` (open_scene: Taichi restarted)."""
-        return cls(open_scene(name, arch))
+    def open(cls, name: str, arch: str = "cpu", restart: bool = True) -> Controller:
+        """A controller of a fresh simulation of the shipped scene `name` (open_scene: Taichi restarted unless
+        `restart` is False, where other simulations share the runtime)."""
+        return cls(open_scene(name, arch, restart))
 
     def switch(self, name: str, arch: str = "cpu") -> None:
         """Open the shipped scene `name` in place of this one (its fields freed with Taichi's restart)."""
@@ -317,14 +318,17 @@ class Controller:
         return math.degrees(math.atan2(g[0], -g[1]))
 
 
-def open_scene(name: str, arch: str = "cpu"):
+def open_scene(name: str, arch: str = "cpu", restart: bool = True):
     """A fresh Simulation of the shipped scene `name` (the window's scene picker, a classroom tab's scene): Taichi
     is restarted first, so the last scene's fields and compiled kernels are freed (a runtime holds at most ~512
-    field trees, so switching without it would run out), and started again at the new scene's precision."""
+    field trees, so switching without it would run out), and started again at the new scene's precision.
+    `restart=False` keeps the running runtime and what lives in it (a classroom host's other sessions: each adds
+    a few trees, and its scene's precision is theirs)."""
     path = shipped_scene(name)
     if path is None:
         raise SandboxError(f"no shipped scene {name!r}")
     scene = load_scene(path)
-    runtime.reset()
+    if restart:
+        runtime.reset()
     runtime.require(arch, scene.world.precision)
     return Simulation(scene, arch=arch)

@@ -1,6 +1,9 @@
 """The classroom in a browser: `sandbox serve` serves the sandbox to a room of browsers with nothing installed on
-them. Each tab gets a session, its own simulation in its own process (serve_session.py); the page (web/) shows its
-pictures, drawn by the project's renderer, and its panel from the shared description (panel.py). A teacher's page
+them. Each tab gets a session, its own simulation (serve_session.py), held with the class's other sessions of its
+scene in a host process (serve_host.py: a host per scene in use and core, so thirty tabs share two Taichi runtimes
+instead of starting thirty; which slot of which host is whose: serve_slots.py); the page (web/) draws its
+particles, or shows its pictures drawn by the project's renderer, and its panel from the shared description
+(panel.py). A teacher's page
 lists the sessions with a small live picture of each, and pauses them or pushes a scene or a setting to all.
 
 Safe on a school network: it binds 127.0.0.1 unless told otherwise; any other address requires a token (made and
@@ -24,19 +27,22 @@ refused alike whether the session exists or not. Every body is limited before it
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import ipaddress
 import json
+import math
 import multiprocessing
 import secrets
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import urlsplit
 
 from ..config.resources import shipped_scenes
 from ..core.cores import usable_cores
-from .serve_session import FRAMES, PICTURES, scratch_dir, session_main
+from .serve_host import HOST, SLOT
+from .serve_session import FRAMES, PICTURES, scratch_dir
+from .serve_slots import HostProcess, Hosts
 
 WEB = Path(__file__).resolve().parent / "web"
 PICTURE = (960, 540)  # the sessions' picture size (the page scales it to fit)
@@ -47,16 +53,18 @@ MAX_BROADCAST = 2048  # bytes of a teacher's broadcast message
 WARN_SECONDS = 2.0  # "too many messages" is said at most once in this long
 IDLE_SECONDS = 300.0  # a tab silent this long (closed, asleep) loses its session
 START_SECONDS = 60.0  # a session that has not drawn its first picture by then is given up
+MAX_PENDING = 256  # a tab's messages kept while its session is readied (the oldest dropped beyond)
 
 
 @dataclass
 class Handle:
-    """The server's side of one session: its process, pipe and the tab's WebSocket."""
+    """The server's side of one tab's session: its slot in a host (serve_slots.py), the tab's WebSocket queue and
+    what the server knows of it. `link` is the slot (or a test's stand-in): `send_bytes(data)`, `ready` (the session
+    takes the tab's messages now) and `built`."""
 
     sid: str
     scene: str
-    process: object
-    conn: object
+    link: object = None
     key: str = field(default_factory=lambda: secrets.token_urlsafe(18))  # the opening socket's, for HTTP calls
     outbox: asyncio.Queue = field(default_factory=asyncio.Queue)
     waiters: dict = field(default_factory=dict)  # message type -> future (saved, thumbnail)
@@ -67,9 +75,20 @@ class Handle:
     address: str = ""  # the tab's network address and its page's client cookie: whose session it is (per_client)
     client: str = ""
     upload_bytes: int = 0  # bytes of the upload this session is taking (0: none; one at a time)
+    pending: deque = field(default_factory=lambda: deque(maxlen=MAX_PENDING))  # the tab's, until `link.ready`
 
     def send(self, message: dict) -> None:
-        self.conn.send_bytes(json.dumps(message).encode())
+        """A message to the session (kept until its session is ready to take it)."""
+        data = json.dumps(message).encode()
+        if self.link is not None and self.link.ready:
+            self.link.send_bytes(data)
+        else:
+            self.pending.append(data)
+
+    def flush(self) -> None:
+        """What the tab said while its session was being readied, to the session now."""
+        while self.pending and self.link is not None and self.link.ready:
+            self.link.send_bytes(self.pending.popleft())
 
     def expect(self, kind: str) -> asyncio.Future:
         """A future that answer(kind, ...) resolves."""
@@ -83,9 +102,13 @@ class Handle:
         if future and not future.done():
             future.set_result(value)
 
+    def say(self, key: str, text: str) -> None:
+        """An error line for the tab."""
+        self.outbox.put_nowait(("text", json.dumps({"t": "error", "key": key, "text": text})))
+
 
 class Classroom:
-    """The sessions, their limits and the token (module docstring)."""
+    """The sessions, their hosts, their limits and the token (module docstring)."""
 
     def __init__(
         self,
@@ -98,6 +121,7 @@ class Classroom:
         warm: int | None = None,
         draw: str = "page",
         per_client: int = PER_CLIENT,
+        per_host: int | None = None,
     ):
         self.per_client = per_client  # sessions a client may hold at once (0: no limit)
         self.in_flight = 0  # bytes of uploads being taken now, over every session
@@ -105,27 +129,55 @@ class Classroom:
         self.scene, self.token, self.max_sessions, self.idle, self.max_fps = scene, token, max_sessions, idle, max_fps
         self.teacher = teacher or secrets.token_urlsafe(12)
         self.warm_target = max_sessions if warm is None else min(warm, max_sessions)
-        self.warm: list[Handle] = []  # started sessions of the default scene no tab has yet (keep_warm)
         self.scenes = sorted(p.stem for p in shipped_scenes())
         self.sessions: dict[str, Handle] = {}
-        self.context = multiprocessing.get_context("spawn")
+        # a host per core holds the class's sessions of a scene (one Taichi thread each), unless told otherwise
+        per_host = per_host or math.ceil(max_sessions / usable_cores())
+        context = multiprocessing.get_context("spawn")
+        self.hosts = Hosts(context, PICTURE, max_fps, draw, per_host, self._readable)
         self.scratch = scratch_dir()
 
     # ------------------------------------------------------------------ sessions
     def open(self, scene: str) -> Handle:
-        """A session of `scene` (a shipped scene's name) for a tab: a warm one where one of that scene is ready
-        (its first picture already drawn), else one started now in a process of its own."""
-        ready = [h for h in self.warm if h.scene == scene and h.frames > 0 and h.process.is_alive()]
-        if ready:
-            handle = ready[0]
-            self.warm.remove(handle)
-        else:
-            if self.warm and len(self.sessions) + len(self.warm) >= self.max_sessions:
-                self.close(self.warm[-1])  # a tab's own scene before a warm one nobody has asked for
-            handle = self.spawn(scene)
-        handle.started = time.monotonic()
+        """A session of `scene` (a shipped scene's name) for a tab: a built one of that scene where one is free
+        (it starts its scene again for the tab at once), else one built for it."""
+        handle = Handle(secrets.token_urlsafe(8), scene)
         self.sessions[handle.sid] = handle
+        self.place(handle, scene)
         return handle
+
+    def place(self, handle: Handle, scene: str) -> None:
+        """Give `handle` a slot of `scene`: a free built one, one being built, or a new one (where the class is at
+        its limit of slots, hosts no tab uses are ended first, other scenes' before the default's)."""
+        handle.scene, handle.started, handle.frames, handle.info = scene, time.monotonic(), 0, {}
+        free = self.hosts.free(scene)
+        if free:
+            slot = free[0]
+        else:
+            unused = sorted((h for h in self.hosts.hosts if not h.tabs()), key=lambda h: h.scene == self.scene)
+            while unused and self.hosts.slots() >= self.max_sessions:
+                self.hosts.end(unused.pop(0))
+            slot = self.hosts.new_slot(scene)
+        slot.handle, handle.link = handle, slot
+        if slot.built:
+            slot.attach()
+            handle.flush()
+
+    def move(self, handle: Handle, scene: str) -> None:
+        """The tab asks for another scene: its session goes back to its scene's pool, and it gets one of `scene`."""
+        self.release(handle)
+        self.place(handle, scene)
+
+    def release(self, handle: Handle) -> None:
+        """The tab's slot goes back to the pool of its scene (started again for the next tab)."""
+        slot, handle.link = handle.link, None
+        handle.pending.clear()
+        if slot is not None and hasattr(slot, "detach"):
+            slot.detach()
+
+    def ready(self) -> int:
+        """Sessions of the default scene built and free for the next tab (the warm pool)."""
+        return sum(1 for s in self.hosts.free(self.scene) if s.built)
 
     def held_by(self, address: str, client: str) -> int:
         """Sessions held now by the client at `address` or with the cookie `client` (the larger count: a student
@@ -158,52 +210,74 @@ class Classroom:
         return sum(1 for h in self.sessions.values() if h.frames == 0)
 
     async def keep_warm(self) -> None:
-        """Keep up to `warm_target` sessions of the default scene started ahead of the tabs (all sessions, warm or
-        a tab's, at most max_sessions), starting as many at once as the machine has cores (a start is one busy
-        core: importing, compiling or loading kernels), so that a small machine is not swamped."""
+        """Keep up to `warm_target` sessions of the default scene built ahead of the tabs (every slot, free or a
+        tab's, at most max_sessions), building as many at once as the machine has cores, each in its own host (a
+        build is one busy core: importing, compiling or loading kernels), so that a small machine is not swamped;
+        end the hosts no tab and not the pool needs."""
         at_once = usable_cores()
         while True:
-            self.warm = [h for h in self.warm if h.process.is_alive()]
-            starting = sum(1 for h in self.warm if h.frames == 0)
-            room = self.max_sessions - len(self.sessions) - len(self.warm)
-            if starting < at_once and len(self.warm) < self.warm_target and room > 0:
-                self.warm.append(self.spawn(self.scene))
+            for host in list(self.hosts.hosts):
+                if not host.process.is_alive():
+                    self.host_ended(host)
+            for host in self.hosts.unneeded(self.scene, self.warm_target):
+                self.hosts.end(host)
+            free = len(self.hosts.free(self.scene))
+            room = self.max_sessions - self.hosts.slots()
+            if free < self.warm_target and room > 0 and self.hosts.building() < at_once:
+                self.hosts.new_slot(self.scene, spread=True)
             await asyncio.sleep(0.25)
 
-    def spawn(self, scene: str) -> Handle:
-        """Start a session process of `scene`; its messages wait in its handle's outbox until a tab takes it."""
-        parent, child = self.context.Pipe()
-        args = (child, scene, *PICTURE, self.max_fps, 1, self.draw)
-        process = self.context.Process(target=session_main, args=args, daemon=True)
-        process.start()
-        child.close()
-        handle = Handle(secrets.token_urlsafe(8), scene, process, parent)
-        asyncio.get_running_loop().add_reader(parent.fileno(), self._readable, handle)
-        return handle
-
     def close(self, handle: Handle) -> None:
-        """End a session: its process and memory go with it."""
+        """End a tab's session: its slot goes back to its scene's pool; the tab's queue ends."""
         self.sessions.pop(handle.sid, None)
         self.end_upload(handle)
-        if handle in self.warm:
-            self.warm.remove(handle)
-        with contextlib.suppress(Exception):
-            asyncio.get_running_loop().remove_reader(handle.conn.fileno())
-        with contextlib.suppress(Exception):
-            handle.conn.close()
-        handle.process.terminate()
-        handle.process.join(timeout=2)
-        if handle.process.is_alive():
-            handle.process.kill()
+        self.release(handle)
         handle.outbox.put_nowait(None)
 
-    def _readable(self, handle: Handle) -> None:
-        try:
-            data = handle.conn.recv_bytes()
-        except (EOFError, OSError):  # the session's process ended (a crash): tell the tab, free the rest
-            handle.outbox.put_nowait(("text", json.dumps({"t": "error", "key": "session_ended"})))
+    def close_all(self) -> None:
+        """Every session and host ended (the server stops)."""
+        for handle in list(self.sessions.values()):
             self.close(handle)
+        for host in list(self.hosts.hosts):
+            self.hosts.end(host)
+
+    def _readable(self, host: HostProcess) -> None:
+        try:
+            data = host.conn.recv_bytes()
+        except (EOFError, OSError):  # the host's process ended (a crash): tell its tabs, free the rest
+            self.host_ended(host)
             return
+        (index,) = SLOT.unpack_from(data)
+        body = data[SLOT.size :]
+        if index == HOST:
+            self.host_said(host, json.loads(body[1:]))
+        elif index < len(host.slots) and host.slots[index].handle is not None:  # else: the last words of a freed one
+            self.deliver(host.slots[index].handle, body)
+
+    def host_said(self, host: HostProcess, message: dict) -> None:
+        """A host's own message: a slot built, or one that failed or ended."""
+        slot = host.slots[message["slot"]]
+        handle = slot.handle
+        if message["t"] == "built":
+            slot.built = True
+            if handle is not None:
+                slot.attach()
+                handle.flush()
+            return
+        slot.dead = True  # failed (could not be built) or ended (a session's error): told, never given again
+        if handle is not None:
+            handle.say("session_ended", "your sandbox stopped on an error: reload the page")
+            self.close(handle)
+
+    def host_ended(self, host: HostProcess) -> None:
+        for slot in host.slots:
+            if slot.handle is not None:
+                slot.handle.say("session_ended", "your sandbox stopped: reload the page")
+                self.close(slot.handle)
+        self.hosts.end(host)
+
+    def deliver(self, handle: Handle, data: bytes) -> None:
+        """What a session sent its tab: pictures to the page as they are, answers to whoever waits for them."""
         kind, body = data[:1], data[1:]
         if kind in PICTURES:  # to the page as they are: it reads the kind from the first byte
             handle.frames += kind in FRAMES
@@ -225,11 +299,12 @@ class Classroom:
             for handle in list(self.sessions.values()):
                 if handle.frames == 0 and now - handle.started > START_SECONDS:  # said, never silent
                     text = f"your sandbox did not start within {START_SECONDS:.0f} s (the server is busy): reload"
-                    handle.outbox.put_nowait(("text", json.dumps({"t": "error", "key": "start_failed", "text": text})))
+                    handle.say("start_failed", text)
                     self.close(handle)
                 elif now - handle.last_seen > self.idle:  # said on the tab, so a student knows why it stopped
-                    text = f"this tab was silent for {self.idle:g} s and its sandbox was closed: reload the page"
-                    handle.outbox.put_nowait(("text", json.dumps({"t": "error", "key": "idle", "text": text})))
+                    handle.say(
+                        "idle", f"this tab was silent for {self.idle:g} s and its sandbox was closed: reload the page"
+                    )
                     self.close(handle)
 
     # ------------------------------------------------------------------ checks

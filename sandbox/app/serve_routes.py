@@ -179,8 +179,7 @@ class ClassroomRoutes:
             }
             for h in classroom.sessions.values()
         ]
-        ready = sum(1 for h in classroom.warm if h.frames > 0)
-        return JSONResponse({"sessions": rows, "max": classroom.max_sessions, "warm": ready})
+        return JSONResponse({"sessions": rows, "max": classroom.max_sessions, "warm": classroom.ready()})
 
     async def thumb(self, request):
         """A small picture of the session `sid` now."""
@@ -205,9 +204,10 @@ class ClassroomRoutes:
         if message["t"] not in ("action", "scene", "set"):
             return PlainTextResponse("broadcast: expected an action, a scene or a setting", 400)
         for handle in list(classroom.sessions.values()):
-            handle.send(message)
-            if message["t"] == "scene":
-                handle.scene = message["name"]
+            if message["t"] == "scene":  # each tab to a session of that scene (serve_slots.py)
+                classroom.move(handle, message["name"])
+            else:
+                handle.send(message)
         return JSONResponse({"sent": len(classroom.sessions)})
 
     # ------------------------------------------------------------------ a tab's socket
@@ -240,7 +240,7 @@ class ClassroomRoutes:
         handle.address, handle.client = address, client
         hello = {"t": "hello", "sid": handle.sid, "key": handle.key, "scenes": classroom.scenes}
         await websocket.send_text(json.dumps(hello))
-        if handle.frames == 0:  # not a warm one: say so, and how many are starting before it
+        if not handle.link.built:  # not a warm one: say so, and how many are starting before it
             await websocket.send_text(json.dumps({"t": "notice", "key": "starting", "text": str(ahead)}))
 
         async def pump():
@@ -281,9 +281,10 @@ class ClassroomRoutes:
             except ProtocolError as exc:
                 await websocket.send_text(json.dumps({"t": "error", "text": str(exc)}))
                 continue
-            if message["t"] == "scene":
-                handle.scene = message["name"]
-            handle.send(message)
+            if message["t"] == "scene":  # a session of that scene, in its host (serve_slots.py)
+                self.classroom.move(handle, message["name"])
+            else:
+                handle.send(message)
 
     @contextlib.asynccontextmanager
     async def lifespan(self, app):
@@ -294,8 +295,7 @@ class ClassroomRoutes:
         yield
         for task in tasks:
             task.cancel()
-        for handle in [*classroom.sessions.values(), *classroom.warm]:
-            classroom.close(handle)
+        classroom.close_all()
         shutil.rmtree(classroom.scratch, ignore_errors=True)
 
 

@@ -1,5 +1,6 @@
-"""One browser tab's sandbox, in a process of its own (Taichi's runtime is one per process, so a blow-up or a crash
-in one tab never touches another, and closing the tab frees its memory with the process).
+"""One browser tab's sandbox: in the classroom, one of the sessions a host process holds (serve_host.py: one Taichi
+runtime for many tabs of a scene; a blow-up is caught in its session, which starts its scene again, and a session
+that fails ends alone).
 
 The server (serve.py) and the session talk over a multiprocessing pipe in bytes: the server sends JSON commands
 (already validated by serve_protocol.py); the session answers b"J" + JSON (readouts, messages) or a picture, which
@@ -26,7 +27,6 @@ import dataclasses
 import functools
 import io
 import json
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -50,27 +50,25 @@ PICTURES = (*FRAMES, b"B", b"C")  # and the backdrops and bands a page draws its
 DRAWS = ("page", "server")  # who draws the particles: the page (particle or sphere frames) or the session (JPEG)
 
 
-def session_main(
-    conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, threads: int = 1, draw: str = "page"
-) -> None:
-    """Run one tab's simulation of the shipped scene `scene`, with `width` x `height` pictures (at most `max_fps`
-    a second; `draw`: who draws a 2D scene's particles, DRAWS), until the server closes the pipe. Never raises: what
-    goes wrong is reported to the page."""
-    os.environ.setdefault("SANDBOX_CPU_THREADS", str(threads))  # sessions share the cores: one thread each
-    os.environ.setdefault("TI_LOG_LEVEL", "error")
-    try:
-        Session(conn, scene, width, height, max_fps, draw).loop()
-    except (EOFError, BrokenPipeError, KeyboardInterrupt):
-        pass
-
-
 class Session:
     """The simulation, its tools and its undo ring, driven by the server's commands (module docstring)."""
 
-    def __init__(self, conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, draw: str = "page"):
+    def __init__(
+        self,
+        conn,
+        scene: str,
+        width: int,
+        height: int,
+        max_fps: float = MAX_FPS,
+        draw: str = "page",
+        shared: bool = False,
+    ):
+        """`shared`: the session lives in a classroom host beside others of its scene (serve_host.py): Taichi is not
+        restarted to open it, and it never switches scenes (the server moves its tab to another host instead)."""
         if draw not in DRAWS:
             raise ValueError(f"draw: expected one of {', '.join(DRAWS)}, got {draw!r}")
         self.conn = conn
+        self.shared = shared
         self.draw_by = draw
         self.page: PageDrawing | None = None  # what a page that draws the particles is sent (serve_drawing.py)
         self.webgl = True  # the page can draw spheres (it says "nogl" where it cannot: then 3D comes as pictures)
@@ -85,7 +83,7 @@ class Session:
         self.frames = 0
         # the steps a picture shows: the window's rule, at the pictures a second a tab keeps (fewer steps where the
         # machine is short of CPU, so the class sees smooth motion in slow motion rather than jerks)
-        self.pacer = FramePacer(target_fps=SMOOTH_FPS, floor_fps=SMOOTH_FPS)
+        self.forget_costs()
         self.last_readouts = -1e9  # when the readouts were last sent with a page's frame (wall seconds)
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
         self.load(scene)
@@ -93,25 +91,54 @@ class Session:
     # ------------------------------------------------------------------ the scene
     def load(self, scene: str) -> None:
         """Open the shipped scene `scene` as the window's scene picker does (Taichi restarted, so switching scenes
-        frees the last one's fields), with this session's own renderer at its picture size."""
-        from ..render.overlays import Overlays
+        frees the last one's fields; not in a host, where the runtime is shared), with this session's own renderer
+        at its picture size."""
         from ..render.raster import Renderer
         from .controller import Controller
-        from .window_parts import OrbitCamera
 
         if self.control is None:
-            self.control = Controller.open(scene)
+            self.control = Controller.open(scene, restart=not self.shared)
         else:
             self.control.switch(scene)
+        self.scene_name = scene
+        self.initial_controls = self.sim.controls.values()  # what restart() puts back
         # the page shows the title, clock and legend itself, in its language; the picture keeps the scene's charts
         # (the phase diagram among them: the page draws only the temperature's)
         words_off = dataclasses.replace(self.sim.scene.render, title=False, clock=False, legend=False)
         self.renderer = Renderer(self.sim.model, self.sim.state, self.width, self.height, words_off, output="picture")
+        painter = self.renderer.painter
+        self.initial_camera = (
+            (painter.eye_np.copy(), painter.target_np.copy(), painter.fov) if self.sim.dim == 3 else None
+        )
+        self.sim.state.carry(self.renderer.tails)
+        self.open_view()
+
+    def restart(self) -> None:
+        """The scene as it opened, for the next tab of a host's session: its state, live settings, tools, undo
+        ring, clock, camera, charts and language as a freshly built session has them (its fields and compiled
+        kernels kept: nothing is built again)."""
+        self.sim.controls.set(self.initial_controls)
+        self.sim.reset()
+        self.control.bind(self.sim)
+        self.control.paused, self.control.pending_steps = False, 0
+        self.credits, self.watched, self.frames, self.seq = FIRST_CREDITS, False, 0, 0
+        self.pointer, self.lang, self.last_readouts, self.webgl = None, "en", -1e9, True
+        if self.initial_camera is not None:
+            self.renderer.set_camera(*self.initial_camera)
+        self.renderer.set_chart(tuple(self.renderer.cfg.chart), keep_history=False)
+        self.open_view()
+
+    def open_view(self) -> None:
+        """What the page is told and sent of the scene as it opens: the legend's source, who draws, the camera's
+        orbit, the scene message and the backdrop."""
+        from ..render.overlays import Overlays
+        from .window_parts import OrbitCamera
+
+        scene = self.scene_name
         # the page's legend: what the scene's own settings would draw (the picture draws none)
         self.legend_source = Overlays(
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
-        self.sim.state.carry(self.renderer.tails)
         packer = page_packer(self.renderer, self.webgl) if self.draw_by == "page" else None
         self.page = PageDrawing(self.conn, self.renderer, packer) if packer is not None else None
         self.set_words()
@@ -132,6 +159,10 @@ class Session:
         if self.page:  # what does not move with the particles, once
             self.page.send_backdrop(time.perf_counter())
 
+    def forget_costs(self) -> None:
+        """The pacer starts afresh (a host's session forgets its first frame, which compiled its kernels)."""
+        self.pacer = FramePacer(target_fps=SMOOTH_FPS, floor_fps=SMOOTH_FPS)
+
     @property
     def sim(self):
         return self.control.sim
@@ -150,15 +181,6 @@ class Session:
     # ------------------------------------------------------------------ the pipe
     def tell(self, message: dict) -> None:
         self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
-
-    def loop(self) -> None:
-        due = time.perf_counter()  # when the scene's next frame is due (one every 1 / max_fps seconds)
-        while True:
-            if self.conn.poll(max(due - time.perf_counter(), 0.0)):
-                while self.conn.poll(0):  # everything the page sent, before the next frame
-                    self.handle(json.loads(self.conn.recv_bytes()))
-                continue
-            due = self.tick(time.perf_counter(), due)
 
     def tick(self, now: float, due: float) -> float:
         """At wall time `now` (s): where a frame is `due`, step it, drawn and sent if the page has asked for a
@@ -200,7 +222,7 @@ class Session:
         elif kind == "lang":
             self.lang = msg["lang"]
             self.set_words()
-        elif kind == "scene":
+        elif kind == "scene" and not self.shared:  # a host's tab is moved to its new scene's host by the server
             self.load(msg["name"])
         elif kind == "save":
             self.save(Path(msg["path"]))

@@ -1,0 +1,141 @@
+"""A classroom host: one process that holds many tabs' sessions of one scene in one Taichi runtime, so that a class
+does not pay a runtime per tab (about 110 MB and the kernels' compilation each, docs/classroom.md). The server
+(serve.py) starts a host per scene in use and core, and talks to it over one pipe; every message carries the
+index of the session it is for (its *slot*) in two bytes before it, HOST for the host's own:
+
+- server to host: HOST + {"t": "grow"} builds one more session (its kernels compiled and a frame stepped and drawn,
+  unseen), answered HOST + {"t": "built", "slot": k} (or "failed" with the line why); HOST + {"t": "attach", "slot":
+  k} gives session k to a tab (its scene as it opens, serve_session.Session.restart, then frames by its clock);
+  HOST + {"t": "detach", "slot": k} takes it back (silent and still until the next tab); slot + a page's message
+  (already checked by serve_protocol.py) is that session's.
+- host to server: slot + what the session would send its tab (pictures, b"J" + JSON); HOST + b"J" + {"t":
+  "ended", "slot": k, "text": ...} where a session failed (it is not used again; the others run on).
+
+The host steps each attached session on its own clock, in turn (serve_session.Session.tick): where the host is
+short of CPU every session slows alike, and a tab that asks for few pictures keeps its scene's pace. A host's
+sessions never switch scenes: the server moves a tab that asks for another scene to that scene's host.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import os
+import struct
+import time
+
+from .serve_session import MAX_FPS, Session
+
+SLOT = struct.Struct("<H")  # the slot index before every message, both ways
+HOST = 0xFFFF  # ... and the index of the host's own messages
+
+
+class SlotConn:
+    """A session's end of the host's pipe: what it sends goes out after its slot's index, and nothing while no tab
+    has the session (`muted`: while it is built, and after its tab has gone)."""
+
+    def __init__(self, conn, slot: int) -> None:
+        self.conn, self.prefix, self.muted = conn, SLOT.pack(slot), True
+
+    def send_bytes(self, data: bytes) -> None:
+        if not self.muted:
+            self.conn.send_bytes(self.prefix + data)
+
+
+def host_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, draw: str = "page") -> None:
+    """Hold the sessions of the shipped scene `scene` the server asks for (module docstring), with `width` x
+    `height` pictures at most `max_fps` a second, until the server closes the pipe. One Taichi thread: the server
+    starts a host per core."""
+    os.environ.setdefault("SANDBOX_CPU_THREADS", "1")
+    os.environ.setdefault("TI_LOG_LEVEL", "error")
+    try:
+        Host(conn, scene, width, height, max_fps, draw).loop()
+    except (EOFError, BrokenPipeError, KeyboardInterrupt):
+        pass
+
+
+class Host:
+    """The sessions of one scene in one process (module docstring)."""
+
+    def __init__(self, conn, scene: str, width: int, height: int, max_fps: float, draw: str) -> None:
+        self.conn, self.scene, self.size, self.max_fps, self.draw = conn, scene, (width, height), max_fps, draw
+        self.sessions: list[Session | None] = []  # by slot; None where one failed
+        self.due: dict[int, float] = {}  # attached slots: when each one's next frame is due (perf_counter s)
+
+    def loop(self) -> None:
+        """Messages first, then every due session's frame, in turn; then wait for the next due frame or message."""
+        while True:
+            while self.conn.poll(0):
+                self.receive(self.conn.recv_bytes())
+            for slot in list(self.due):
+                due = self.due.get(slot)
+                if due is not None and due <= time.perf_counter():
+                    self.guarded(slot, functools.partial(self.tick, slot, due))
+            upcoming = min(self.due.values(), default=math.inf)
+            wait = min(upcoming - time.perf_counter(), 1.0)
+            if wait > 0:
+                self.conn.poll(wait)
+
+    def tick(self, slot: int, due: float, session: Session) -> None:
+        self.due[slot] = session.tick(time.perf_counter(), due)
+
+    def receive(self, data: bytes) -> None:
+        (slot,) = SLOT.unpack_from(data)
+        message = json.loads(data[SLOT.size :])
+        if slot != HOST:
+            if slot in self.due:  # a detached session hears nothing from a tab that has left
+                self.guarded(slot, lambda s: s.handle(message))
+            return
+        kind = message["t"]
+        if kind == "grow":
+            self.grow()
+        elif kind == "attach":
+            self.attach(message["slot"])
+        elif kind == "detach":
+            self.detach(message["slot"])
+
+    def grow(self) -> None:
+        """One more session, built and its first frame stepped and drawn unseen (its kernels compiled), then
+        said to the server as built; "failed" with the line why where it could not be built."""
+        slot = len(self.sessions)
+        try:
+            session = Session(SlotConn(self.conn, slot), self.scene, *self.size, self.max_fps, self.draw, shared=True)
+            session.frame()
+            session.forget_costs()
+        except Exception as exc:  # noqa: BLE001 - a scene that cannot open is said, and the host serves on
+            self.sessions.append(None)
+            self.tell({"t": "failed", "slot": slot, "text": f"{type(exc).__name__}: {exc}"})
+            return
+        self.sessions.append(session)
+        self.tell({"t": "built", "slot": slot})
+
+    def attach(self, slot: int) -> None:
+        session = self.sessions[slot] if 0 <= slot < len(self.sessions) else None
+        if session is None:
+            self.tell({"t": "ended", "slot": slot, "text": "no such session"})
+            return
+        session.conn.muted = False
+        self.due[slot] = time.perf_counter()
+        self.guarded(slot, lambda s: s.restart())
+
+    def detach(self, slot: int) -> None:
+        self.due.pop(slot, None)
+        if 0 <= slot < len(self.sessions) and self.sessions[slot] is not None:
+            self.sessions[slot].conn.muted = True
+
+    def guarded(self, slot: int, act) -> None:
+        """act(session) for the session in `slot`; where it raises, the session ends (its tab is told by the
+        server) and the host's other sessions run on."""
+        session = self.sessions[slot]
+        try:
+            act(session)
+        except (EOFError, BrokenPipeError):
+            raise
+        except Exception as exc:  # noqa: BLE001 - one tab's failure must not end the others'
+            self.due.pop(slot, None)
+            self.sessions[slot] = None
+            self.tell({"t": "ended", "slot": slot, "text": f"{type(exc).__name__}: {exc}"})
+
+    def tell(self, message: dict) -> None:
+        self.conn.send_bytes(SLOT.pack(HOST) + b"J" + json.dumps(message).encode())

@@ -1,0 +1,144 @@
+"""The server's side of the classroom's hosts (serve_host.py): the host processes, each holding sessions of one
+scene in its slots, and which slot is which tab's. A tab's session is a slot: taken built and free where one of its
+scene waits (at once: it only starts its scene again), else built for it in a host of its scene with room, else in
+a new host. A tab that leaves gives its slot back to the pool of its scene; a host none of whose slots is a tab's
+ends (its memory with it) unless the warm pool needs it. The server's process never imports Taichi."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+from dataclasses import dataclass, field
+
+from .serve_host import HOST, SLOT, host_main
+
+
+@dataclass(eq=False)
+class Slot:
+    """One session in a host: built (its first frame drawn) or being built, free or a tab's (`handle`)."""
+
+    host: HostProcess = field(repr=False)
+    index: int
+    built: bool = False
+    dead: bool = False  # it failed or its host ended: never given again
+    handle: object = field(default=None, repr=False)  # the tab's serve.Handle whose session it is now
+
+    @property
+    def ready(self) -> bool:
+        """A tab's messages go to the session now (before, the handle keeps them)."""
+        return self.built and not self.dead and self.handle is not None
+
+    def send_bytes(self, data: bytes) -> None:
+        self.host.conn.send_bytes(SLOT.pack(self.index) + data)
+
+    def attach(self) -> None:
+        self.host.order({"t": "attach", "slot": self.index})
+
+    def detach(self) -> None:
+        self.handle = None
+        if self.built and not self.dead:
+            self.host.order({"t": "detach", "slot": self.index})
+
+
+@dataclass(eq=False)
+class HostProcess:
+    """A host's process, its pipe and its slots."""
+
+    scene: str
+    process: object
+    conn: object
+    capacity: int
+    slots: list[Slot] = field(default_factory=list)
+
+    def order(self, message: dict) -> None:
+        self.conn.send_bytes(SLOT.pack(HOST) + json.dumps(message).encode())
+
+    def live(self) -> list[Slot]:
+        return [s for s in self.slots if not s.dead]
+
+    def tabs(self) -> int:
+        return sum(1 for s in self.slots if s.handle is not None)
+
+    def building(self) -> int:
+        return sum(1 for s in self.live() if not s.built)
+
+    def grow(self) -> Slot:
+        """A slot asked for now, built by the host after those before it."""
+        slot = Slot(self, len(self.slots))
+        self.slots.append(slot)
+        self.order({"t": "grow"})
+        return slot
+
+
+class Hosts:
+    """Every host of the classroom, started with `context` (multiprocessing), each holding at most `per_host`
+    sessions; `receive(host)` is called when a host's pipe has something to read."""
+
+    def __init__(self, context, picture: tuple[int, int], max_fps: float, draw: str, per_host: int, receive) -> None:
+        self.context, self.picture, self.max_fps, self.draw = context, picture, max_fps, draw
+        self.per_host, self.receive = max(per_host, 1), receive
+        self.hosts: list[HostProcess] = []
+
+    def free(self, scene: str) -> list[Slot]:
+        """The slots of `scene` no tab has, built ones first."""
+        slots = [s for h in self.hosts if h.scene == scene for s in h.live() if s.handle is None]
+        return sorted(slots, key=lambda s: not s.built)
+
+    def slots(self) -> int:
+        """Every live slot, built or being built."""
+        return sum(len(h.live()) for h in self.hosts)
+
+    def building(self) -> int:
+        return sum(h.building() for h in self.hosts)
+
+    def new_slot(self, scene: str, spread: bool = False) -> Slot:
+        """A slot of `scene` asked for now: in the host of that scene with room that has the fewest builds ahead of
+        it and then the fewest tabs (a build pauses its host's tabs for a second or two), else in a new host; with
+        `spread` (the warm pool), in a new host rather than behind another build, so hosts build side by side."""
+        roomy = [h for h in self.hosts if h.scene == scene and len(h.live()) < h.capacity and h.process.is_alive()]
+        idle = [h for h in roomy if h.building() == 0]
+        if not roomy or (spread and not idle):
+            return self.start(scene).grow()
+        return min(idle or roomy, key=lambda h: (h.building(), h.tabs())).grow()
+
+    def start(self, scene: str) -> HostProcess:
+        """A new host process of `scene`, its pipe read by the event loop."""
+        parent, child = self.context.Pipe()
+        args = (child, scene, *self.picture, self.max_fps, self.draw)
+        process = self.context.Process(target=host_main, args=args, daemon=True)
+        process.start()
+        child.close()
+        host = HostProcess(scene, process, parent, self.per_host)
+        self.hosts.append(host)
+        asyncio.get_running_loop().add_reader(parent.fileno(), self.receive, host)
+        return host
+
+    def end(self, host: HostProcess) -> None:
+        """Stop a host: its process and memory go; its slots are dead."""
+        if host in self.hosts:
+            self.hosts.remove(host)
+        for slot in host.slots:
+            slot.dead = True
+        with contextlib.suppress(Exception):
+            asyncio.get_running_loop().remove_reader(host.conn.fileno())
+        with contextlib.suppress(Exception):
+            host.conn.close()
+        host.process.terminate()
+        host.process.join(timeout=2)
+        if host.process.is_alive():
+            host.process.kill()
+
+    def unneeded(self, scene: str, warm_target: int) -> list[HostProcess]:
+        """Hosts no tab uses and the warm pool (`warm_target` free slots of the default `scene`) can do without."""
+        out = []
+        spare = len(self.free(scene))
+        for host in self.hosts:
+            if host.tabs():
+                continue
+            if host.scene == scene:
+                if spare - len(host.live()) < warm_target:
+                    continue
+                spare -= len(host.live())
+            out.append(host)
+        return out

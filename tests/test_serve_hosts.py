@@ -1,0 +1,236 @@
+"""Issue 74: a class's sessions live in hosts, a process per scene and core holding many sessions in one Taichi
+runtime (serve_host.py), instead of a process per tab. The server's side (serve_slots.py) runs here over stand-in
+hosts: which slot a tab gets, that a tab's slot goes back to its scene's pool and is given again, that a tab asking
+for another scene moves to that scene's host, and that one session's failure ends only its tab. A real host then
+builds two sessions in this process: a session given back and started again for the next tab runs, to the bit, as a
+freshly built one does."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("starlette")
+
+from sandbox.app import serve  # noqa: E402
+from sandbox.app.serve import Classroom  # noqa: E402
+from sandbox.app.serve_host import HOST, SLOT, Host  # noqa: E402
+from sandbox.app.serve_slots import HostProcess  # noqa: E402
+
+pytestmark = pytest.mark.xdist_group("serve")
+
+
+class Pipe:
+    """A host's pipe end as the server sees it: what the server sends, by slot."""
+
+    def __init__(self) -> None:
+        self.sent: list[tuple[int, dict]] = []
+
+    def send_bytes(self, data: bytes) -> None:
+        (slot,) = SLOT.unpack_from(data)
+        self.sent.append((slot, json.loads(data[SLOT.size :])))
+
+    def orders(self, kind: str) -> list[int]:
+        """The slots of the host orders of `kind` sent so far."""
+        return [m["slot"] if "slot" in m else None for s, m in self.sent if s == HOST and m["t"] == kind]
+
+    def fileno(self) -> int:
+        return -1
+
+    def close(self) -> None:
+        pass
+
+
+class Process:
+    def __init__(self) -> None:
+        self.alive = True
+
+    def is_alive(self) -> bool:
+        return self.alive
+
+    def terminate(self) -> None:
+        self.alive = False
+
+    def join(self, timeout=None) -> None:
+        pass
+
+
+def stand_in_hosts(classroom: Classroom) -> list[HostProcess]:
+    """Make `classroom` start stand-in hosts (no process); returns the list they are added to."""
+    started = []
+
+    def start(scene: str) -> HostProcess:
+        host = HostProcess(scene, Process(), Pipe(), classroom.hosts.per_host)
+        classroom.hosts.hosts.append(host)
+        started.append(host)
+        return host
+
+    classroom.hosts.start = start
+    return started
+
+
+def built(classroom: Classroom, host: HostProcess, *slots: int) -> None:
+    for slot in slots:
+        classroom.host_said(host, {"t": "built", "slot": slot})
+
+
+def warm_for(classroom: Classroom, seconds: float) -> None:
+    async def run():
+        task = asyncio.create_task(classroom.keep_warm())
+        await asyncio.sleep(seconds)
+        task.cancel()
+
+    asyncio.run(run())
+
+
+def test_the_warm_pool_builds_in_a_host_per_core_side_by_side(monkeypatch):
+    """A class's sessions are built ahead of the tabs, one at a time in each host and as many hosts at once as the
+    machine has cores; a host holds max_sessions / cores of them, so the class fills every core and no more."""
+    monkeypatch.setattr(serve, "usable_cores", lambda: 2)
+    classroom = Classroom("melting_block", None, max_sessions=6)
+    hosts = stand_in_hosts(classroom)
+    warm_for(classroom, 0.6)
+    assert len(hosts) == 2 and [h.conn.orders("grow") for h in hosts] == [[None], [None]]
+    assert classroom.hosts.per_host == 3 and classroom.ready() == 0
+    built(classroom, hosts[0], 0)
+    built(classroom, hosts[1], 0)
+    assert classroom.ready() == 2
+    warm_for(classroom, 0.6)  # the next two in those hosts, side by side, and no third host
+    assert len(hosts) == 2 and [len(h.slots) for h in hosts] == [2, 2]
+    built(classroom, hosts[0], 1)
+    built(classroom, hosts[1], 1)
+    warm_for(classroom, 1.0)
+    built(classroom, hosts[0], 2)
+    built(classroom, hosts[1], 2)
+    warm_for(classroom, 0.6)
+    assert classroom.ready() == 6 and classroom.hosts.slots() == 6 and len(hosts) == 2  # full: nothing more
+
+
+def test_a_tab_takes_a_built_session_and_gives_it_back_for_the_next_tab():
+    """A tab gets a built session at once (started again for it: "attach"), with nothing built anew; when it
+    leaves, the session goes back to the pool ("detach") and the next tab gets the same one. What a tab says while
+    its session is being built waits, in order, and reaches the session once it is built and given to it."""
+    classroom = Classroom("melting_block", None, max_sessions=4, per_host=2)
+    hosts = stand_in_hosts(classroom)
+    first = classroom.open("melting_block")  # nothing built yet: a host is started and asked for one
+    assert len(hosts) == 1 and hosts[0].conn.orders("grow") == [None] and not first.link.built
+    first.send({"t": "ready"})
+    first.send({"t": "action", "name": "pause"})
+    assert not any(s != HOST for s, _ in hosts[0].conn.sent)  # kept until the session is built
+    built(classroom, hosts[0], 0)
+    pipe = hosts[0].conn
+    assert pipe.orders("attach") == [0]
+    assert [m for s, m in pipe.sent if s == 0] == [{"t": "ready"}, {"t": "action", "name": "pause"}]
+    slot = first.link
+    classroom.close(first)
+    assert pipe.orders("detach") == [0] and classroom.ready() == 1 and first.link is None
+    second = classroom.open("melting_block")
+    assert second.link is slot and second.link.built and pipe.orders("attach") == [0, 0]
+    assert pipe.orders("grow") == [None]  # nothing was built for the second tab
+    second.send({"t": "ready"})
+    assert pipe.sent[-1] == (0, {"t": "ready"})
+
+
+def test_a_tab_that_asks_for_another_scene_moves_to_that_scenes_host():
+    """A host's sessions never switch scenes: the tab's session goes back to its pool and the tab gets one of the
+    scene it asked for, in a host of that scene; what the old session still sends no longer reaches the tab; a
+    host no tab uses ends (its memory with it) unless the warm pool needs it."""
+    classroom = Classroom("melting_block", None, max_sessions=4, warm=1, per_host=2)
+    hosts = stand_in_hosts(classroom)
+    handle = classroom.open("melting_block")
+    built(classroom, hosts[0], 0)
+    classroom.move(handle, "lj_box")
+    assert hosts[0].conn.orders("detach") == [0]
+    assert len(hosts) == 2 and hosts[1].scene == "lj_box" and handle.link.host is hosts[1] and handle.scene == "lj_box"
+    old = hosts[0].slots[0]
+    assert old.handle is None  # the old session's last pictures are for nobody now
+    built(classroom, hosts[1], 0)
+    assert hosts[1].conn.orders("attach") == [0]
+    classroom.move(handle, "melting_block")  # back: the free built session of the default scene, at once
+    assert handle.link is old and hosts[0].conn.orders("attach") == [0, 0]
+    warm_for(classroom, 0.6)
+    assert hosts[1] not in classroom.hosts.hosts and not hosts[1].process.alive  # lj_box's host: nobody's
+    assert hosts[0] in classroom.hosts.hosts  # the default scene's, a tab's
+
+
+def test_one_sessions_failure_ends_only_its_tab():
+    """A session that fails in a host (an error in its step or its message) is said to its tab, which is closed,
+    and is never given again; the host's other tabs run on. A host whose process ends tells each of its tabs."""
+    classroom = Classroom("melting_block", None, max_sessions=4, per_host=4)
+    hosts = stand_in_hosts(classroom)
+    a, b = classroom.open("melting_block"), classroom.open("melting_block")
+    built(classroom, hosts[0], 0, 1)
+    classroom.host_said(hosts[0], {"t": "ended", "slot": 0, "text": "RuntimeError: boom"})
+    said = json.loads(a.outbox.get_nowait()[1])
+    assert said["key"] == "session_ended" and a.outbox.get_nowait() is None
+    assert a.sid not in classroom.sessions and b.sid in classroom.sessions
+    c = classroom.open("melting_block")
+    assert c.link is not a.link and c.link.index == 2  # the failed one is not given again
+    classroom.host_ended(hosts[0])
+    assert json.loads(b.outbox.get_nowait()[1])["key"] == "session_ended" and not classroom.sessions
+
+
+class Collect:
+    """A host's pipe end as the host sees it: what its sessions and itself send."""
+
+    def __init__(self) -> None:
+        self.sent: list[tuple[int, bytes]] = []
+
+    def send_bytes(self, data: bytes) -> None:
+        (slot,) = SLOT.unpack_from(data)
+        self.sent.append((slot, data[SLOT.size :]))
+
+    def said(self) -> list[dict]:
+        return [json.loads(b[1:]) for s, b in self.sent if s == HOST]
+
+
+def order(host: Host, slot: int, message: dict) -> None:
+    host.receive(SLOT.pack(slot) + json.dumps(message).encode())
+
+
+def run_frames(host: Host, slot: int, frames: int) -> dict:
+    session = host.sessions[slot]
+    for _ in range(frames):  # the scene's own steps a frame (the pacer's would follow this machine's speed)
+        session.control.advance(int(session.sim.scene.world.substeps))
+    sim = session.sim
+    n = sim.state.live_count()
+    return {
+        "x": sim.particles.x.to_numpy()[:n],
+        "v": sim.particles.v.to_numpy()[:n],
+        "T": sim.particles.T.to_numpy()[:n],
+        "time": sim.time,
+        "controls": sim.controls.values(),
+    }
+
+
+def test_a_session_given_back_starts_again_as_a_freshly_built_one_to_the_bit():
+    """Two sessions built in one host share its runtime. A tab uses the first: every slider moved, gravity turned,
+    the heat tool held, frames stepped. The tab leaves and the next one gets that session: its scene, settings,
+    clock and trajectory are those of the second, never used, session, bit for bit."""
+    conn = Collect()
+    host = Host(conn, "melting_block", 160, 90, 30.0, "page")
+    order(host, HOST, {"t": "grow"})
+    order(host, HOST, {"t": "grow"})
+    assert host.sessions[0].sim.model is not host.sessions[1].sim.model
+    assert [m["t"] for m in conn.said()] == ["built", "built"] and not [s for s, _ in conn.sent if s != HOST]
+    order(host, HOST, {"t": "attach", "slot": 0})
+    scene = [json.loads(b[1:]) for s, b in conn.sent if s == 0 and b[:1] == b"J"]
+    assert scene[0]["t"] == "scene" and scene[0]["scene"] == "melting_block"
+    used = host.sessions[0]
+    for setting in used.control.settings():
+        order(host, 0, {"t": "set", "key": setting.key, "value": setting.lo + 0.7 * (setting.hi - setting.lo)})
+    order(host, 0, {"t": "tool", "tool": "heat", "x": 0.5, "y": 0.6, "radius": 1.0, "down": True})
+    run_frames(host, 0, 12)
+    order(host, HOST, {"t": "detach", "slot": 0})
+    sent = len(conn.sent)
+    order(host, 0, {"t": "action", "name": "pause"})  # a tab that has left is not heard
+    assert not used.control.paused and len(conn.sent) == sent
+    order(host, HOST, {"t": "attach", "slot": 0})
+    order(host, HOST, {"t": "attach", "slot": 1})
+    again, fresh = run_frames(host, 0, 20), run_frames(host, 1, 20)
+    assert again["time"] == fresh["time"] > 0 and again["controls"] == fresh["controls"]
+    for key in ("x", "v", "T"):
+        assert np.array_equal(again[key], fresh[key]), key
