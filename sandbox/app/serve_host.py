@@ -62,6 +62,7 @@ class Host:
         self.conn, self.scene, self.size, self.max_fps, self.draw = conn, scene, (width, height), max_fps, draw
         self.sessions: list[Session | None] = []  # by slot; None where one failed
         self.due: dict[int, float] = {}  # attached slots: when each one's next frame is due (perf_counter s)
+        self.canvas = None  # the picture canvas every session of the host draws in (Renderer's `canvas`)
 
     def loop(self) -> None:
         """Messages first, then every due session's frame, in turn; then wait for the next due frame or message."""
@@ -100,7 +101,8 @@ class Host:
         said to the server as built; "failed" with the line why where it could not be built."""
         slot = len(self.sessions)
         try:
-            session = Session(SlotConn(self.conn, slot), self.scene, *self.size, self.max_fps, self.draw, shared=True)
+            conn = SlotConn(self.conn, slot)
+            session = Session(conn, self.scene, *self.size, self.max_fps, self.draw, shared=True, canvas=self.canvas)
             session.frame()
             session.forget_costs()
         except Exception as exc:  # noqa: BLE001 - a scene that cannot open is said, and the host serves on
@@ -108,6 +110,7 @@ class Host:
             self.tell({"t": "failed", "slot": slot, "text": f"{type(exc).__name__}: {exc}"})
             return
         self.sessions.append(session)
+        self.canvas = session.renderer.canvas  # the next sessions draw in it too (17 MB each at 960 x 540)
         self.tell({"t": "built", "slot": slot})
 
     def attach(self, slot: int) -> None:

@@ -62,13 +62,15 @@ class Session:
         max_fps: float = MAX_FPS,
         draw: str = "page",
         shared: bool = False,
+        canvas=None,
     ):
         """`shared`: the session lives in a classroom host beside others of its scene (serve_host.py): Taichi is not
-        restarted to open it, and it never switches scenes (the server moves its tab to another host instead)."""
+        restarted to open it, and it never switches scenes (the server moves its tab to another host instead);
+        `canvas`: the host's other sessions' picture canvas, which this one's renderer draws in too."""
         if draw not in DRAWS:
             raise ValueError(f"draw: expected one of {', '.join(DRAWS)}, got {draw!r}")
         self.conn = conn
-        self.shared = shared
+        self.shared, self.canvas = shared, canvas
         self.draw_by = draw
         self.page: PageDrawing | None = None  # what a page that draws the particles is sent (serve_drawing.py)
         self.webgl = True  # the page can draw spheres (it says "nogl" where it cannot: then 3D comes as pictures)
@@ -105,7 +107,8 @@ class Session:
         # the page shows the title, clock and legend itself, in its language; the picture keeps the scene's charts
         # (the phase diagram among them: the page draws only the temperature's)
         words_off = dataclasses.replace(self.sim.scene.render, title=False, clock=False, legend=False)
-        self.renderer = Renderer(self.sim.model, self.sim.state, self.width, self.height, words_off, output="picture")
+        size = (self.width, self.height)
+        self.renderer = Renderer(self.sim.model, self.sim.state, *size, words_off, output="picture", canvas=self.canvas)
         painter = self.renderer.painter
         self.initial_camera = (
             (painter.eye_np.copy(), painter.target_np.copy(), painter.fov) if self.sim.dim == 3 else None

@@ -33,6 +33,8 @@ class Canvas:
         spheres (they use the translucent layers); `exposure`: the tone map's, for additive light."""
         if output not in OUTPUTS:
             raise ValueError(f"unknown renderer output '{output}'; expected one of {', '.join(OUTPUTS)}")
+        self.spec = self.spec_of(width, height, dim, output, blends, ghosts, exposure)
+        self.shared = False  # renderers of other states draw here too: each picture is composited whole
         self.on_cpu = runtime.running_arch() == "cpu"
         if output == "rgba" and not self.on_cpu:
             raise ValueError("the packed 'rgba' output is a host array: CPU backend only")
@@ -69,6 +71,11 @@ class Canvas:
             self.n_dirty = ti.field(ti.i32, shape=())
             self.overlay = ti.Vector.field(4, ti.i32, shape=MAX_OVERLAYS)  # tile ranges tx0, tx1, ty0, ty1
             self.n_overlay = ti.field(ti.i32, shape=())
+
+    @staticmethod
+    def spec_of(width: int, height: int, dim: int, output: str, blends: set, ghosts: bool, exposure: float) -> tuple:
+        """What a canvas made with these arguments is: two renderers may share a canvas where theirs are equal."""
+        return (width, height, dim, output, frozenset(blends), bool(ghosts), float(exposure))
 
     def layer(self, channels: int = 1, dtype=ti.f32):
         """A W x H image field (indexed [x, y], stored row by row)."""

@@ -48,11 +48,14 @@ class Renderer:
         strip_splat: bool = True,
         panel: float = 0.0,
         room_for_charts: bool = False,
+        canvas: Canvas | None = None,
     ) -> None:
         """`output`: what render() leaves (canvas.py: "image", "picture" or "rgba"); `strip_splat` False draws every
         2D particle with atomic adds (the reference the strip binning is tested against); `panel`: the fraction of
         the width on the left that a side panel covers (the window's): the scene and the chart are drawn right of
-        it; `room_for_charts`: keep the top band tall enough for charts shown later (the window's toggles)."""
+        it; `room_for_charts`: keep the top band tall enough for charts shown later (the window's toggles);
+        `canvas`: another renderer's of the same picture to draw in (a classroom host's sessions share one: 17 MB
+        each at 960 x 540), where every picture is then drawn whole (what another drew there is not kept)."""
         self.model, self.state = model, state
         self.cfg = render_cfg
         self.width, self.height, self.dim = width, height, model.dim
@@ -64,7 +67,12 @@ class Renderer:
         with transfer.batched():
             self.look = Look(model, state, render_cfg)
             ghosts = bool(render_cfg.motion_blur) and self.dim == 3 and "opaque" in self.look.blends
-            self.canvas = Canvas(width, height, self.dim, output, self.look.blends, ghosts, render_cfg.exposure)
+            spec = (width, height, self.dim, output, self.look.blends, ghosts, render_cfg.exposure)
+            if canvas is not None and canvas.spec != Canvas.spec_of(*spec):
+                raise ValueError("canvas: another picture's (size, blends or output differ); expected one alike")
+            self.canvas = canvas if canvas is not None else Canvas(*spec)
+            if canvas is not None:  # every renderer that draws in it draws whole pictures from now on
+                canvas.shared = True
             self.footprint = Footprint(self.canvas, state.particles, render_cfg, model.capacity, self.dim)
             if self.dim == 2:
                 view = plan.view
@@ -158,7 +166,8 @@ class Renderer:
         self.footprint.before_drawing()
         self.painter.draw()
         if self.dim == 2:  # one pass over the dirty tiles paints the backdrop, composites the layers, zeroes them
-            self.painter.composite(int(self.full_refresh or self.painter.backdrop_moves), self.canvas.out)
+            whole = self.full_refresh or self.painter.backdrop_moves or self.canvas.shared
+            self.painter.composite(int(whole), self.canvas.out)
             self.full_refresh = False
         out = self.canvas.out
         if self.dim == 2 and self.brush is not None:
