@@ -3,11 +3,11 @@ does not pay a runtime per tab (about 110 MB and the kernels' compilation each, 
 (serve.py) starts a host per scene in use and core, and talks to it over one pipe; every message carries the
 index of the session it is for (its *slot*) in two bytes before it, HOST for the host's own:
 
-- server to host: HOST + {"t": "grow"} builds one more session (its kernels compiled and a frame stepped and drawn,
-  unseen), answered HOST + {"t": "built", "slot": k} (or "failed" with the line why); HOST + {"t": "attach", "slot":
-  k} gives session k to a tab (its scene as it opens, serve_session.Session.restart, then frames by its clock);
-  HOST + {"t": "detach", "slot": k} takes it back (silent and still until the next tab); slot + a page's message
-  (already checked by serve_protocol.py) is that session's.
+- server to host: HOST + {"t": "grow"} builds one more session (its kernels compiled: Session.warm_up, unseen),
+  answered HOST + {"t": "built", "slot": k} (or "failed" with the line why); HOST + {"t": "attach", "slot": k} gives
+  session k to a tab (its scene as it opens, serve_session.Session.restart, then frames by its clock); HOST +
+  {"t": "detach", "slot": k} takes it back (silent and still until the next tab); slot + a page's message (already
+  checked by serve_protocol.py) is that session's.
 - host to server: slot + what the session would send its tab (pictures, b"J" + JSON); HOST + b"J" + {"t":
   "ended", "slot": k, "text": ...} where a session failed (it is not used again; the others run on).
 
@@ -97,14 +97,13 @@ class Host:
             self.detach(message["slot"])
 
     def grow(self) -> None:
-        """One more session, built and its first frame stepped and drawn unseen (its kernels compiled), then
-        said to the server as built; "failed" with the line why where it could not be built."""
+        """One more session, built and warmed up unseen (Session.warm_up: its kernels compiled), then said to the
+        server as built; "failed" with the line why where it could not be built."""
         slot = len(self.sessions)
         try:
             conn = SlotConn(self.conn, slot)
             session = Session(conn, self.scene, *self.size, self.max_fps, self.draw, shared=True, canvas=self.canvas)
-            session.frame()
-            session.forget_costs()
+            session.warm_up()
         except Exception as exc:  # noqa: BLE001 - a scene that cannot open is said, and the host serves on
             self.sessions.append(None)
             self.tell({"t": "failed", "slot": slot, "text": f"{type(exc).__name__}: {exc}"})

@@ -162,6 +162,17 @@ class Session:
         if self.page:  # what does not move with the particles, once
             self.page.send_backdrop(time.perf_counter())
 
+    def warm_up(self) -> None:
+        """Compile, before any tab has this session, the kernels a tab's first seconds would (a host's other tabs
+        would wait for each one: a kernel is compiled per session): a frame stepped and sent, the readouts with and
+        without the pair scan, the chart's sample and the restart; then forget what they cost the pacer."""
+        self.frame()
+        self.sim.stats(pair_energy=True)
+        self.readouts()
+        self.renderer.record(self.sim.stats(pair_energy=False))
+        self.restart()
+        self.forget_costs()
+
     def forget_costs(self) -> None:
         """The pacer starts afresh (a host's session forgets its first frame, which compiled its kernels)."""
         self.pacer = FramePacer(target_fps=SMOOTH_FPS, floor_fps=SMOOTH_FPS)
