@@ -124,6 +124,11 @@ class Simulation:
         self.check_alive()
         self.plan.step(n)
 
+    def steps_to_every_pass(self) -> int:
+        """Steps from now until every pass that runs between steps (refreezing) has run once: what a warm-up steps
+        to compile every kernel a run launches."""
+        return self.plan.steps_to_every_pass()
+
     def frame_substeps(self) -> tuple[int, float]:
         """(steps, step size) for the next frame: the scene's fixed substeps at dt, or under "auto" the fewest equal
         steps of at most auto_step() that span world.frame_time."""

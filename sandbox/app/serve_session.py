@@ -164,9 +164,11 @@ class Session:
 
     def warm_up(self) -> None:
         """Compile, before any tab has this session, the kernels a tab's first seconds would (a host's other tabs
-        would wait for each one: a kernel is compiled per session): a frame stepped and sent, the readouts with and
-        without the pair scan, the chart's sample and the restart; then forget what they cost the pacer."""
+        would wait for each one: a kernel is compiled per session): a frame stepped and sent, the steps to every
+        pass between steps, the readouts with and without the pair scan, the chart's sample and the restart; then
+        forget what they cost the pacer."""
         self.frame()
+        self.sim.step(self.sim.steps_to_every_pass())  # the passes between steps (refreezing) compile at theirs
         self.sim.stats(pair_energy=True)
         self.readouts()
         self.renderer.record(self.sim.stats(pair_energy=False))

@@ -147,6 +147,10 @@ class StepPlan:
             if term.at_step(state, done) and self.rates.marks_bonds:
                 self.lists.invalidate()  # the lists mark bonded pairs: new springs must be marked
 
+    def steps_to_every_pass(self) -> int:
+        """Steps from now until every boundary pass has run once (0 where there is none)."""
+        return max((term.next_due(self.state) for term in self.boundary), default=0)
+
     def _fused_batch(self, n: int) -> int:
         """How many of the next n steps to run in one fused launch (0: step the long way)."""
         if not (self.fuses and self.integrator.stages):
