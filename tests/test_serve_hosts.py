@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import time
 
 import numpy as np
 import pytest
@@ -156,9 +157,10 @@ def test_a_tab_that_asks_for_another_scene_moves_to_that_scenes_host():
     assert hosts[0] in classroom.hosts.hosts  # the default scene's, a tab's
 
 
-def test_one_sessions_failure_ends_only_its_tab():
+def test_one_sessions_failure_ends_only_its_tab(monkeypatch):
     """A session that fails in a host (an error in its step or its message) is said to its tab, which is closed,
     and is never given again; the host's other tabs run on. A host whose process ends tells each of its tabs."""
+    monkeypatch.setattr(serve, "usable_cores", lambda: 1)  # one host builds them all
     classroom = Classroom("melting_block", None, max_sessions=4, per_host=4)
     hosts = stand_in_hosts(classroom)
     a, b = classroom.open("melting_block"), classroom.open("melting_block")
@@ -260,3 +262,38 @@ def test_a_hosts_sessions_share_one_canvas_and_each_picture_is_its_own(scene):
     a.renderer.canvas.out[:] = 0  # ... and where a third session drew over every pixel of it
     again = a.renderer.frame().copy()
     assert np.array_equal(first, again) and not np.array_equal(first, other)
+
+
+def test_when_the_teacher_sends_a_scene_the_class_builds_it_on_every_core(monkeypatch):
+    """Every tab moves to a session of the scene sent: they are built in as many new hosts at once as there are
+    cores, not one after another in one host; a tab whose session waits behind others' builds is not given up at
+    START_SECONDS (it is, once built, if it draws nothing by then)."""
+    monkeypatch.setattr(serve, "usable_cores", lambda: 2)
+    classroom = Classroom("melting_block", None, max_sessions=6, warm=0)
+    hosts = stand_in_hosts(classroom)
+    tabs = [classroom.open("melting_block") for _ in range(4)]
+    assert len(hosts) == 2  # even the first tabs' sessions build side by side
+    for host in hosts:
+        built(classroom, host, *range(len(host.slots)))
+    for tab in tabs:
+        classroom.move(tab, "lj_box")
+    boxes = [h for h in hosts if h.scene == "lj_box"]
+    assert len(boxes) == 2 and sorted(len(h.slots) for h in boxes) == [2, 2]
+    waiting = next(t for t in tabs if not t.link.built)
+    waiting.started -= serve.START_SECONDS + 5
+
+    async def reap_once():
+        reaper = asyncio.create_task(classroom.reap_idle())
+        await asyncio.sleep(0.1)
+        reaper.cancel()
+
+    classroom.idle = 0.2
+    for tab in tabs:
+        tab.last_seen = time.monotonic() + 60  # not idle
+    asyncio.run(reap_once())
+    assert waiting.sid in classroom.sessions  # still building: waits on
+    built(classroom, waiting.link.host, waiting.link.index)
+    waiting.started -= serve.START_SECONDS + 5  # built, and no picture since
+    asyncio.run(reap_once())
+    assert waiting.sid not in classroom.sessions
+    assert json.loads(waiting.outbox.get_nowait()[1])["key"] == "start_failed"

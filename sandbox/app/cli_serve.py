@@ -21,13 +21,13 @@ def serve_arguments(sub) -> None:
         "--teacher-token", help="the teacher's secret, for /teacher and its routes (made up and printed when not given)"
     )
     serve.add_argument(
-        "--max-sessions", type=int, default=30, help="browser tabs served at once (a class; about 200 MB each)"
+        "--max-sessions", type=int, default=30, help="browser tabs served at once (a class; 30 tabs of melting_block take about 1.5 GB)"
     )
     serve.add_argument(
         "--warm",
         type=int,
         metavar="N",
-        help="sessions of the scene kept started ahead of the tabs, so a class joins at once (default: --max-sessions)",
+        help="sessions of the scene kept built ahead of the tabs, so a class joins at once (default: --max-sessions)",
     )
     serve.add_argument(
         "--per-client",

@@ -53,6 +53,7 @@ MAX_BROADCAST = 2048  # bytes of a teacher's broadcast message
 WARN_SECONDS = 2.0  # "too many messages" is said at most once in this long
 IDLE_SECONDS = 300.0  # a tab silent this long (closed, asleep) loses its session
 START_SECONDS = 60.0  # a session that has not drawn its first picture by then is given up
+BUILD_SECONDS = 300.0  # ... nor been built by then (behind the builds of a class that changed scene)
 MAX_PENDING = 256  # a tab's messages kept while its session is readied (the oldest dropped beyond)
 
 
@@ -134,7 +135,7 @@ class Classroom:
         # a host per core holds the class's sessions of a scene (one Taichi thread each), unless told otherwise
         per_host = per_host or math.ceil(max_sessions / usable_cores())
         context = multiprocessing.get_context("spawn")
-        self.hosts = Hosts(context, PICTURE, max_fps, draw, per_host, self._readable)
+        self.hosts = Hosts(context, PICTURE, max_fps, draw, per_host, self._readable, usable_cores())
         self.scratch = scratch_dir()
 
     # ------------------------------------------------------------------ sessions
@@ -224,7 +225,7 @@ class Classroom:
             free = len(self.hosts.free(self.scene))
             room = self.max_sessions - self.hosts.slots()
             if free < self.warm_target and room > 0 and self.hosts.building() < at_once:
-                self.hosts.new_slot(self.scene, spread=True)
+                self.hosts.new_slot(self.scene)
             await asyncio.sleep(0.25)
 
     def close(self, handle: Handle) -> None:
@@ -261,6 +262,7 @@ class Classroom:
         if message["t"] == "built":
             slot.built = True
             if handle is not None:
+                handle.started = time.monotonic()  # its first picture is due START_SECONDS from now
                 slot.attach()
                 handle.flush()
             return
@@ -297,8 +299,10 @@ class Classroom:
             await asyncio.sleep(min(self.idle / 4, 15.0))
             now = time.monotonic()
             for handle in list(self.sessions.values()):
-                if handle.frames == 0 and now - handle.started > START_SECONDS:  # said, never silent
-                    text = f"your sandbox did not start within {START_SECONDS:.0f} s (the server is busy): reload"
+                built = getattr(handle.link, "built", True)  # a tab's session may wait for others' builds first
+                limit = START_SECONDS if built else BUILD_SECONDS
+                if handle.frames == 0 and now - handle.started > limit:
+                    text = f"your sandbox did not start within {limit:.0f} s (the server is busy): reload"
                     handle.say("start_failed", text)
                     self.close(handle)
                 elif now - handle.last_seen > self.idle:  # said on the tab, so a student knows why it stopped

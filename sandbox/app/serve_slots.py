@@ -75,9 +75,12 @@ class Hosts:
     """Every host of the classroom, started with `context` (multiprocessing), each holding at most `per_host`
     sessions; `receive(host)` is called when a host's pipe has something to read."""
 
-    def __init__(self, context, picture: tuple[int, int], max_fps: float, draw: str, per_host: int, receive) -> None:
+    def __init__(
+        self, context, picture: tuple[int, int], max_fps: float, draw: str, per_host: int, receive, side_by_side: int
+    ) -> None:
+        """`side_by_side`: hosts of a scene that build at once (a build is one busy core)."""
         self.context, self.picture, self.max_fps, self.draw = context, picture, max_fps, draw
-        self.per_host, self.receive = max(per_host, 1), receive
+        self.per_host, self.receive, self.side_by_side = max(per_host, 1), receive, max(side_by_side, 1)
         self.hosts: list[HostProcess] = []
 
     def free(self, scene: str) -> list[Slot]:
@@ -92,13 +95,16 @@ class Hosts:
     def building(self) -> int:
         return sum(h.building() for h in self.hosts)
 
-    def new_slot(self, scene: str, spread: bool = False) -> Slot:
+    def new_slot(self, scene: str) -> Slot:
         """A slot of `scene` asked for now: in the host of that scene with room that has the fewest builds ahead of
-        it and then the fewest tabs (a build pauses its host's tabs for a second or two), else in a new host; with
-        `spread` (the warm pool), in a new host rather than behind another build, so hosts build side by side."""
-        roomy = [h for h in self.hosts if h.scene == scene and len(h.live()) < h.capacity and h.process.is_alive()]
+        it and then the fewest tabs (a build pauses its host's tabs for a second or two); in a new host where there
+        is none with room, or where every one is building and fewer than `side_by_side` of the scene's hosts are,
+        so that a class's sessions (the warm pool's, or every tab's after the teacher sends a scene) build on every
+        core."""
+        hosts = [h for h in self.hosts if h.scene == scene and h.process.is_alive()]
+        roomy = [h for h in hosts if len(h.live()) < h.capacity]
         idle = [h for h in roomy if h.building() == 0]
-        if not roomy or (spread and not idle):
+        if not roomy or (not idle and sum(1 for h in hosts if h.building()) < self.side_by_side):
             return self.start(scene).grow()
         return min(idle or roomy, key=lambda h: (h.building(), h.tabs())).grow()
 
