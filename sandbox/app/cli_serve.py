@@ -21,7 +21,10 @@ def serve_arguments(sub) -> None:
         "--teacher-token", help="the teacher's secret, for /teacher and its routes (made up and printed when not given)"
     )
     serve.add_argument(
-        "--max-sessions", type=int, default=30, help="browser tabs served at once (a class; 30 tabs of melting_block take about 1.5 GB)"
+        "--max-sessions",
+        type=int,
+        default=30,
+        help="browser tabs served at once (a class; 30 tabs of melting_block take about 1.5 GB)",
     )
     serve.add_argument(
         "--warm",
