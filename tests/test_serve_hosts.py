@@ -193,49 +193,69 @@ def order(host: Host, slot: int, message: dict) -> None:
     host.receive(SLOT.pack(slot) + json.dumps(message).encode())
 
 
-def run_frames(host: Host, slot: int, frames: int) -> dict:
-    session = host.sessions[slot]
-    for _ in range(frames):  # the scene's own steps a frame (the pacer's would follow this machine's speed)
-        session.control.advance(int(session.sim.scene.world.substeps))
-    sim = session.sim
+def run_frames(control, frames: int) -> dict:
+    """`frames` frames of the scene's own steps each (the pacer's would follow this machine's speed) through
+    `control` (a session's, or a lone simulation's controller); what they leave."""
+    for _ in range(frames):
+        control.advance(int(control.sim.scene.world.substeps))
+    sim = control.sim
     n = sim.state.live_count()
+    p = sim.particles
     return {
-        "x": sim.particles.x.to_numpy()[:n],
-        "v": sim.particles.v.to_numpy()[:n],
-        "T": sim.particles.T.to_numpy()[:n],
+        "x": p.x.to_numpy()[:n],
+        "v": p.v.to_numpy()[:n],
+        "T": p.T.to_numpy()[:n] if hasattr(p, "T") else None,  # where the scene has heat
         "time": sim.time,
         "controls": sim.controls.values(),
     }
 
 
-def test_a_session_given_back_starts_again_as_a_freshly_built_one_to_the_bit():
-    """Two sessions built in one host share its runtime. A tab uses the first: every slider moved, gravity turned,
-    the heat tool held, frames stepped. The tab leaves and the next one gets that session: its scene, settings,
-    clock and trajectory are those of the second, never used, session, bit for bit."""
+STROKES = ("heat", "impulse", "drag")  # a tool each scene below has, held where the tab presses
+
+
+@pytest.mark.parametrize(
+    "scene",
+    [
+        "melting_block",
+        pytest.param("lj_box", marks=pytest.mark.long),  # periodic
+        pytest.param("atoms", marks=pytest.mark.long),  # molecular
+        pytest.param("candle", marks=pytest.mark.long),  # an emitter
+    ],
+)
+def test_a_session_given_back_starts_again_as_the_scene_run_alone_to_the_bit(scene):
+    """Two sessions built in one host share its runtime and canvas. A tab uses the first: every slider moved, a
+    tool held, frames stepped. The tab leaves and the next one gets that session: its scene, settings, clock and
+    trajectory are those of the second, never used, session and of the scene run alone, bit for bit."""
+    from sandbox.app.controller import Controller, open_scene
+
     conn = Collect()
-    host = Host(conn, "melting_block", 160, 90, 30.0, "page")
+    host = Host(conn, scene, 160, 90, 30.0, "page")
     order(host, HOST, {"t": "grow"})
     order(host, HOST, {"t": "grow"})
     assert host.sessions[0].sim.model is not host.sessions[1].sim.model
     assert [m["t"] for m in conn.said()] == ["built", "built"] and not [s for s, _ in conn.sent if s != HOST]
     order(host, HOST, {"t": "attach", "slot": 0})
-    scene = [json.loads(b[1:]) for s, b in conn.sent if s == 0 and b[:1] == b"J"]
-    assert scene[0]["t"] == "scene" and scene[0]["scene"] == "melting_block"
+    said = [json.loads(b[1:]) for s, b in conn.sent if s == 0 and b[:1] == b"J"]
+    assert said[0]["t"] == "scene" and said[0]["scene"] == scene
     used = host.sessions[0]
     for setting in used.control.settings():
         order(host, 0, {"t": "set", "key": setting.key, "value": setting.lo + 0.7 * (setting.hi - setting.lo)})
-    order(host, 0, {"t": "tool", "tool": "heat", "x": 0.5, "y": 0.6, "radius": 1.0, "down": True})
-    run_frames(host, 0, 12)
+    tool = next(t for t in STROKES if t in used.tool_names())
+    order(host, 0, {"t": "tool", "tool": tool, "x": 0.5, "y": 0.6, "radius": 1.0, "down": True})
+    run_frames(used.control, 12)
     order(host, HOST, {"t": "detach", "slot": 0})
     sent = len(conn.sent)
     order(host, 0, {"t": "action", "name": "pause"})  # a tab that has left is not heard
     assert not used.control.paused and len(conn.sent) == sent
     order(host, HOST, {"t": "attach", "slot": 0})
     order(host, HOST, {"t": "attach", "slot": 1})
-    again, fresh = run_frames(host, 0, 20), run_frames(host, 1, 20)
-    assert again["time"] == fresh["time"] > 0 and again["controls"] == fresh["controls"]
+    lone = Controller(open_scene(scene, restart=False))
+    again, fresh, alone = (run_frames(c, 20) for c in (used.control, host.sessions[1].control, lone))
+    assert again["time"] == fresh["time"] == alone["time"] > 0
+    assert again["controls"] == fresh["controls"] == alone["controls"]
     for key in ("x", "v", "T"):
-        assert np.array_equal(again[key], fresh[key]), key
+        assert np.array_equal(again[key], fresh[key]) and np.array_equal(again[key], alone[key]), key
+    assert len(again["x"]) > 0
 
 
 @pytest.mark.parametrize("scene", ["melting_block", pytest.param("melting_block_3d", marks=pytest.mark.long)])
@@ -252,11 +272,11 @@ def test_a_hosts_sessions_share_one_canvas_and_each_picture_is_its_own(scene):
     order(host, HOST, {"t": "attach", "slot": 1})
     hotter = next(s for s in b.control.settings() if s.key.startswith("source"))
     order(host, 1, {"t": "set", "key": hotter.key, "value": hotter.hi})
-    run_frames(host, 0, 6)
+    run_frames(a.control, 6)
     if scene == "melting_block":  # wax where the other's picture has none (3D: the tool acts on a particle)
         spawn = {"t": "tool", "tool": "spawn", "x": 0.15, "y": 0.3, "radius": 0.5, "down": True, "material": "wax"}
         order(host, 1, spawn)
-    run_frames(host, 1, 6)
+    run_frames(b.control, 6)
     first = a.renderer.frame().copy()
     other = b.renderer.frame().copy()
     a.renderer.canvas.out[:] = 0  # ... and where a third session drew over every pixel of it

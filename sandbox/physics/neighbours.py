@@ -116,17 +116,21 @@ class NeighbourList:
 
     def declare(self, state) -> None:
         """The lists and when they were built: saved with a state, so a resumed run sums its forces in the same
-        order (not part of a snapshot: restoring one moves the layout on, which rebuilds them)."""
+        order (the lists are not part of a snapshot: restoring one moves the layout on, which rebuilds them; their
+        build count is)."""
         listed = Range(below="capacity")  # a particle, or -(s + 1) for a bonded pair's spring s: checked below
         state.declare("neighbours", self, ("ids",), kind="ndarray", physical=False, rows="particles", valid=listed)
         state.declare("neighbours", self, ("count",), physical=False, rows="particles", valid=COUNT)
         state.declare("neighbours", self, ("x_ref",), physical=False, rows="particles")
         state.declare("neighbours", self, ("n_listed",), physical=False, valid=Range(lo=0, atmost="capacity"))
-        state.declare("neighbours", self, ("fused_builds",), physical=False, valid=COUNT)
-        flags = ("forced", "usable", "fused", "built_layout")
-        state.declare("neighbours", self, flags, kind="value", physical=False)
-        counters = ("host_builds", "grown", "width")
-        state.declare("neighbours", self, counters, kind="value", physical=False, valid=COUNT)
+        # the build count is in snapshots: it decides on which steps the storage is sorted (reorder.py), so a reset
+        # then sorts on the steps a fresh run does
+        state.declare("neighbours", self, ("fused_builds",), valid=COUNT)
+        state.declare("neighbours", self, ("forced", "usable"), kind="value", physical=False)
+        state.declare("neighbours", self, ("fused",), kind="value")
+        state.declare("neighbours", self, ("built_layout",), kind="value", physical=False)
+        state.declare("neighbours", self, ("host_builds",), kind="value", valid=COUNT)
+        state.declare("neighbours", self, ("grown", "width"), kind="value", physical=False, valid=COUNT)
 
     def must_rebuild(self) -> bool:
         """Whether the next check rebuilds whatever the particles' displacements: invalidated, or the particles were

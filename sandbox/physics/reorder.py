@@ -20,8 +20,9 @@ class CellOrder:
         self.next_at = every
 
     def declare(self, state) -> None:
-        """When it sorted and sorts next: saved with a state so a resumed run sorts on the same steps."""
-        state.declare("reorder", self, ("applied", "next_at"), kind="value", physical=False, valid=COUNT)
+        """When it sorted and sorts next: saved with a state so a resumed run sorts on the same steps, and put back
+        with a snapshot so a reset run does too."""
+        state.declare("reorder", self, ("applied", "next_at"), kind="value", valid=COUNT)
 
     def due(self) -> bool:
         """True when the neighbour list has been rebuilt `every` times since the last sort."""
