@@ -49,6 +49,9 @@ def host_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FP
     starts a host per core."""
     os.environ.setdefault("SANDBOX_CPU_THREADS", "1")
     os.environ.setdefault("TI_LOG_LEVEL", "error")
+    from ..core import runtime
+
+    runtime.own_process()  # the sandbox's own process: kernels compile the lighter way (a host compiles many)
     try:
         Host(conn, scene, width, height, max_fps, draw).loop()
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
