@@ -16,7 +16,8 @@ from .serve_host import HOST, SLOT, host_main
 
 @dataclass(eq=False)
 class Slot:
-    """One session in a host: built (its first frame drawn) or being built, free or a tab's (`handle`)."""
+    """One session in a host: built (warmed up: serve_session.Session.warm_up) or being built, free or a tab's
+    (`handle`)."""
 
     host: HostProcess = field(repr=False)
     index: int
