@@ -56,6 +56,9 @@ class StandIn:
 
     ready = built = True  # it takes a tab's messages at once (serve.Handle.link)
 
+    def detach(self) -> None:  # the tab has gone: a session would go back to its pool
+        pass
+
 
 @pytest.fixture(params=[None, TOKEN], ids=["loopback", "with a class token"])
 def room(request):

@@ -61,7 +61,7 @@ MAX_PENDING = 256  # a tab's messages kept while its session is readied (the old
 class Handle:
     """The server's side of one tab's session: its slot in a host (serve_slots.py), the tab's WebSocket queue and
     what the server knows of it. `link` is the slot (or a test's stand-in): `send_bytes(data)`, `ready` (the session
-    takes the tab's messages now) and `built`."""
+    takes the tab's messages now), `built` and `detach()`."""
 
     sid: str
     scene: str
@@ -173,7 +173,7 @@ class Classroom:
         """The tab's slot goes back to the pool of its scene (started again for the next tab)."""
         slot, handle.link = handle.link, None
         handle.pending.clear()
-        if slot is not None and hasattr(slot, "detach"):
+        if slot is not None:
             slot.detach()
 
     def ready(self) -> int:
@@ -299,8 +299,8 @@ class Classroom:
             await asyncio.sleep(min(self.idle / 4, 15.0))
             now = time.monotonic()
             for handle in list(self.sessions.values()):
-                built = getattr(handle.link, "built", True)  # a tab's session may wait for others' builds first
-                limit = START_SECONDS if built else BUILD_SECONDS
+                # a tab's session may wait for others' builds first
+                limit = START_SECONDS if handle.link.built else BUILD_SECONDS
                 if handle.frames == 0 and now - handle.started > limit:
                     text = f"your sandbox did not start within {limit:.0f} s (the server is busy): reload"
                     handle.say("start_failed", text)

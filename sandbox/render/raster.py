@@ -68,11 +68,13 @@ class Renderer:
             self.look = Look(model, state, render_cfg)
             ghosts = bool(render_cfg.motion_blur) and self.dim == 3 and "opaque" in self.look.blends
             spec = (width, height, self.dim, output, self.look.blends, ghosts, render_cfg.exposure)
-            if canvas is not None and canvas.spec != Canvas.spec_of(*spec):
+            if canvas is None:
+                canvas = Canvas(*spec)
+            elif canvas.spec != Canvas.spec_of(*spec):
                 raise ValueError("canvas: another picture's (size, blends or output differ); expected one alike")
-            self.canvas = canvas if canvas is not None else Canvas(*spec)
-            if canvas is not None:  # every renderer that draws in it draws whole pictures from now on
+            else:  # every renderer that draws in it draws whole pictures from now on
                 canvas.shared = True
+            self.canvas = canvas
             self.footprint = Footprint(self.canvas, state.particles, render_cfg, model.capacity, self.dim)
             if self.dim == 2:
                 view = plan.view
