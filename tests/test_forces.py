@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import taichi as ti
 
 from sandbox.physics.neighbours import list_width
 from sandbox.physics.pair import equilibrium_distance, pair_energy, radial_force
@@ -183,6 +184,41 @@ def test_neighbour_lists_give_the_same_forces_as_a_cell_scan():
     plain.step(200)
     # same trajectory either way (up to float summation order over a chaotic 200 steps: compare energies)
     assert plain.stats().total_energy == pytest.approx(sim.stats().total_energy, rel=1e-3)
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_the_blocked_prefix_sum_of_a_gpu_sorts_the_grid_as_the_serial_one(periodic):
+    """A GPU sums the cells' counts in blocks (CellGrid.prefix_sum); forced on the CPU, both sums give every cell
+    the start that the particles in the cells before it make, and the sort puts each particle in its own cell."""
+    from sandbox.core import runtime
+    from sandbox.core.loops import LoopPolicy
+    from sandbox.physics.grid import SCAN_BLOCK, CellGrid
+
+    runtime.init("cpu")
+    rng = np.random.default_rng(5)
+    n, side = 3000, 60.0
+    x = ti.Vector.field(2, ti.f32, shape=n)
+    count = ti.field(ti.i32, shape=())
+    points = rng.uniform(0.0, side, (n, 2)).astype(np.float32)
+    points[: n // 3] = rng.uniform(10.0, 12.0, (n // 3, 2))  # a crowd: some cells hold many, most none
+    x.from_numpy(points)
+    count[None] = n
+    starts = []
+    for blocked in (False, True):
+        loops = LoopPolicy("cpu", n)
+        loops.parallel_scan = blocked
+        grid = CellGrid(x, count, [0.0, 0.0], [side, side], 0.5, periodic, n, loops)
+        assert grid.n_cells > 2 * SCAN_BLOCK  # more than one block, the last one partial
+        grid.rebuild()
+        cells = grid.particle_cell.to_numpy()
+        expected = np.concatenate([[0], np.cumsum(np.bincount(cells, minlength=grid.n_cells))[:-1]])
+        start = grid.cell_start.to_numpy()
+        np.testing.assert_array_equal(start, expected)
+        order = grid.sorted_ids.to_numpy()
+        np.testing.assert_array_equal(np.sort(order), np.arange(n))
+        np.testing.assert_array_equal(np.diff(cells[order]) >= 0, True)  # in cell order
+        starts.append(start)
+    np.testing.assert_array_equal(starts[0], starts[1])
 
 
 def test_list_rows_are_never_a_multiple_of_32_entries_apart():

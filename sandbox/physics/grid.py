@@ -3,7 +3,8 @@
 Cells are at least `reach` wide, and 1 / ROW_SPAN of it along the last axis, so all neighbours of a particle within
 `reach` lie in the 3^(D-1) (2 ROW_SPAN + 1) cells around its own.
 Build: count particles per cell with an integer atomic (the returned old count is the particle's slot in its cell),
-a serial prefix sum over cells, then a scatter of particle ids into `sorted_ids` in cell order.
+a prefix sum over cells (serial on the CPU, in blocks on a GPU: see CellGrid.prefix_sum), then a scatter of particle
+ids into `sorted_ids` in cell order.
 """
 
 import math
@@ -14,6 +15,7 @@ import taichi as ti
 from ..core.oriented import data_oriented
 
 ROW_SPAN = 3  # cells per reach along the last axis (one along the others)
+SCAN_BLOCK = 512  # cells a GPU thread sums in the blocked prefix sum (CellGrid.prefix_sum)
 BOUND_SLACK = 1e-3  # cell widths a scan bound is widened by, against rounding in the positions' cell coordinates
 
 
@@ -57,6 +59,9 @@ class CellGrid:
         self.n = n_active
         self.cell_count = ti.field(ti.i32, shape=self.n_cells)  # particles per cell
         self.cell_start = ti.field(ti.i32, shape=self.n_cells)  # index of the cell's first entry in sorted_ids
+        self.scan_blocks = -(-self.n_cells // SCAN_BLOCK)
+        if loops.parallel_scan:
+            self.block_start = ti.field(ti.i32, shape=self.scan_blocks)  # the blocked sum's first entry of a block
         self.particle_cell = ti.field(ti.i32, shape=capacity)  # flat cell index of each particle
         self.slot = ti.field(ti.i32, shape=capacity)  # position of the particle within its cell
         self.sorted_ids = ti.field(ti.i32, shape=capacity)  # particle ids in cell order
@@ -90,16 +95,43 @@ class CellGrid:
             c = self.flat(self.cell_of(self.x[i]))
             self.particle_cell[i] = c
             self.slot[i] = ti.atomic_add(self.cell_count[c], 1)
-        total = 0
-        ti.loop_config(serialize=True)
-        for c in range(self.n_cells):
-            self.cell_start[c] = total
-            total += self.cell_count[c]
+        self.prefix_sum()
         self.loops.light()
         for i in range(self.n[None]):
             k = self.cell_start[self.particle_cell[i]] + self.slot[i]
             self.sorted_ids[k] = i
             self.x_sorted[k] = self.x[i]
+
+    @ti.func
+    def prefix_sum(self):
+        """cell_start[c] = the particles in the cells before c. On the CPU one serial loop (the cells' counts are in
+        cache); on a GPU each of a few thousand threads sums a block of SCAN_BLOCK cells, one thread runs over the
+        blocks' totals, and each block's thread writes its cells' starts: a serial loop over every cell on one GPU
+        thread took most of a million-particle step (`python benchmarks/list_pruning.py --arch cuda`). Integer
+        sums, so both orders give the same starts."""
+        if ti.static(self.loops.parallel_scan):
+            for b in range(self.scan_blocks):
+                total = 0
+                for c in range(b * SCAN_BLOCK, ti.min((b + 1) * SCAN_BLOCK, self.n_cells)):
+                    total += self.cell_count[c]
+                self.block_start[b] = total
+            running = 0
+            ti.loop_config(serialize=True)
+            for b in range(self.scan_blocks):
+                total = self.block_start[b]
+                self.block_start[b] = running
+                running += total
+            for b in range(self.scan_blocks):
+                start = self.block_start[b]
+                for c in range(b * SCAN_BLOCK, ti.min((b + 1) * SCAN_BLOCK, self.n_cells)):
+                    self.cell_start[c] = start
+                    start += self.cell_count[c]
+        else:
+            total = 0
+            ti.loop_config(serialize=True)
+            for c in range(self.n_cells):
+                self.cell_start[c] = total
+                total += self.cell_count[c]
 
     @ti.func
     def cell_of(self, p):
