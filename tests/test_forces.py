@@ -206,7 +206,7 @@ def test_the_blocked_prefix_sum_of_a_gpu_sorts_the_grid_as_the_serial_one(period
     starts = []
     for blocked in (False, True):
         loops = LoopPolicy("cpu", n)
-        loops.parallel_scan = blocked
+        loops.gpu = blocked
         grid = CellGrid(x, count, [0.0, 0.0], [side, side], 0.5, periodic, n, loops)
         assert grid.n_cells > 2 * SCAN_BLOCK  # more than one block, the last one partial
         grid.rebuild()
@@ -219,6 +219,38 @@ def test_the_blocked_prefix_sum_of_a_gpu_sorts_the_grid_as_the_serial_one(period
         np.testing.assert_array_equal(np.diff(cells[order]) >= 0, True)  # in cell order
         starts.append(start)
     np.testing.assert_array_equal(starts[0], starts[1])
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_gpus_list_build_gives_the_cpus_lists_and_trajectory_to_the_bit(dim, monkeypatch):
+    """The GPU's shapes of the grid's sort (the blocked prefix sum) and of the list build (storing only the kept
+    neighbours), forced on the CPU, list the same neighbours in the same order: a run steps to the same bits."""
+    from sandbox.core import loops
+    from sandbox.research.bench import lj_box_3d_sim
+
+    def run(gpu: bool):
+        made = loops.LoopPolicy.__init__
+
+        def policy(self, *args, **kwargs):
+            made(self, *args, **kwargs)
+            self.gpu = gpu
+
+        with monkeypatch.context() as patch:
+            patch.setattr(loops.LoopPolicy, "__init__", policy)
+            sim = small_lj_box() if dim == 2 else lj_box_3d_sim(8, "cpu")
+        assert sim.model.loops.gpu is gpu
+        sim.step(150)
+        lists = sim.hood.lists
+        rows = lists.ids.to_numpy()
+        listed = [tuple(rows[i, : lists.count[i]]) for i in range(sim.model.built.count)]
+        return sim.positions().copy(), lists.builds, listed
+
+    cpu_x, cpu_builds, cpu_lists = run(False)
+    gpu_x, gpu_builds, gpu_lists = run(True)
+    assert cpu_builds == gpu_builds > 5
+    assert cpu_lists == gpu_lists
+    np.testing.assert_array_equal(cpu_x, gpu_x)
 
 
 def test_list_rows_are_never_a_multiple_of_32_entries_apart():

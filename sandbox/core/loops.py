@@ -61,9 +61,9 @@ class LoopPolicy:
         step.plan.can_step_as_a_team). `team`: they will, at this size (the pair loops then keep their parallel layout,
         which the team shares, for the steps that do not run as a team)."""
         cpu = arch == "cpu"
-        # a GPU sums the cell counts of the grid's sort in blocks, one thread a block (CellGrid.prefix_sum): on one
-        # GPU thread the serial sum over 480,000 cells was most of a 2D million-particle step
-        self.parallel_scan = not cpu
+        # on a GPU the grid's sort sums the cells' counts in blocks (CellGrid.prefix_sum) and a list build stores
+        # only the neighbours it keeps (NeighbourList._scan): loops shaped for many threads and their memory
+        self.gpu = not cpu
         self.serial_light = cpu and capacity < light_parallel_from(threads)
         self.serial_pairs = cpu and capacity < (PAIR_ONLY_PARALLEL_FROM if pair_only else PAIR_PARALLEL_FROM)
         self.team = cpu and team_ok and threads >= 2 and TEAM_FROM <= capacity < TEAM_UNTIL

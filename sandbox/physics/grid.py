@@ -60,7 +60,7 @@ class CellGrid:
         self.cell_count = ti.field(ti.i32, shape=self.n_cells)  # particles per cell
         self.cell_start = ti.field(ti.i32, shape=self.n_cells)  # index of the cell's first entry in sorted_ids
         self.scan_blocks = -(-self.n_cells // SCAN_BLOCK)
-        if loops.parallel_scan:
+        if loops.gpu:
             self.block_start = ti.field(ti.i32, shape=self.scan_blocks)  # the blocked sum's first entry of a block
         self.particle_cell = ti.field(ti.i32, shape=capacity)  # flat cell index of each particle
         self.slot = ti.field(ti.i32, shape=capacity)  # position of the particle within its cell
@@ -109,7 +109,7 @@ class CellGrid:
         blocks' totals, and each block's thread writes its cells' starts: a serial loop over every cell on one GPU
         thread took most of a million-particle step (`python benchmarks/list_pruning.py --arch cuda`). Integer
         sums, so both orders give the same starts."""
-        if ti.static(self.loops.parallel_scan):
+        if ti.static(self.loops.gpu):
             for b in range(self.scan_blocks):
                 total = 0
                 for c in range(b * SCAN_BLOCK, ti.min((b + 1) * SCAN_BLOCK, self.n_cells)):

@@ -364,10 +364,14 @@ class NeighbourList:
         for k in range(start, end):
             j = self.grid.sorted_ids[k]
             d = self.grid.x_sorted[k] - xs
-            if ti.static(store):
+            near = (d.dot(d) < r2max) and j != i
+            if ti.static(store and self.loops.gpu):  # a GPU thread's stores are its row's memory traffic: the kept
+                if near and c < width:
+                    ids[row + c] = j
+            elif ti.static(store):  # the CPU's: branch-free (see _visit)
                 if c < width:
                     ids[row + c] = j
-            c += ti.cast((d.dot(d) < r2max) and j != i, ti.i32)
+            c += ti.cast(near, ti.i32)
         return c
 
 
