@@ -4,6 +4,7 @@ the plain path on a Taichi it does not know, and nothing changes Taichi for the 
 import gc
 import inspect
 import json
+import os
 import subprocess
 import sys
 
@@ -142,3 +143,51 @@ def test_nothing_changes_taichi_for_the_whole_process_unless_asked(mode):
         assert seen["pinned"] == 0
     elif taichi_compat.cpu_threads() >= 2 and hasattr(__import__("os"), "sched_getaffinity"):
         assert seen["pinned"] == taichi_compat.cpu_threads()
+
+
+ONE_THREAD_PROBE = """
+import os, sys
+import taichi as ti
+from sandbox.core import runtime
+if sys.argv[1] == "own":
+    runtime.own_process()
+for threads in ("1", "2"):
+    os.environ["SANDBOX_CPU_THREADS"] = threads
+    runtime.reset()
+    runtime.init("cpu")
+
+    @ti.kernel
+    def first_over(limit: ti.i32) -> ti.i32:
+        found = -1
+        for i in range(100):  # a break in a top-level loop compiles only where the loop runs in place
+            if i * i > limit:
+                found = i
+                break
+        return found
+
+    try:
+        print(threads, first_over(50))
+    except Exception as error:
+        print(threads, type(error).__name__)
+"""
+
+
+@pytest.mark.parametrize("mode", ["embedded", "own"])
+def test_on_one_cpu_thread_the_sandboxs_own_process_runs_every_loop_in_place(mode, tmp_path):
+    """Taichi's pool hands even a one-thread loop to its worker (about 70 us a loop on the 2-core Xeon): where the
+    sandbox owns the process and Taichi runs one CPU thread (a classroom host), each loop is compiled serialized,
+    which Taichi shows by allowing what only a serial top-level loop may do, a `break`; on two threads, or embedded
+    in another program, loops stay Taichi's."""
+    probe = tmp_path / "probe.py"  # Taichi reads a kernel's source from its file
+    probe.write_text(ONE_THREAD_PROBE)
+    done = subprocess.run(
+        [sys.executable, str(probe), mode],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
+    said = dict(line.split() for line in done.stdout.strip().splitlines()[-2:])
+    assert said["1"] == ("8" if mode == "own" else "TaichiSyntaxError"), done.stdout + done.stderr
+    assert said["2"] == "TaichiSyntaxError", done.stdout + done.stderr

@@ -65,6 +65,7 @@ def init(arch: str = "cpu", precision: str = "f32", profile: bool | None = None)
     if _owns_process:
         taichi_compat.lighten_kernel_debug_info()
         taichi_compat.cache_kernel_sources()
+        taichi_compat.serialize_loops_on_one_thread()
     fp = ti.f32 if precision == "f32" else ti.f64
     kwargs = dict(default_fp=fp, offline_cache=True, kernel_profiler=profile)
     if "TI_LOG_LEVEL" not in os.environ:  # Taichi warns when ti.init overrides the variable

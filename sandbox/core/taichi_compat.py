@@ -1,6 +1,6 @@
 """Every use of Taichi beyond its public API, in one place, each with a plain fallback.
 
-The sandbox leans on six things Taichi 1.7 has but does not document as API:
+The sandbox leans on seven things Taichi 1.7 has but does not document as API:
 
 1. the control-flow-graph pass switch (`ti.cfg.cfg_optimization`), turned off around the first launch of the
    whole-step kernels (it takes most of their compile time and they run no slower without it);
@@ -12,11 +12,14 @@ The sandbox leans on six things Taichi 1.7 has but does not document as API:
    calls): read once per function, they save a fifth of Taichi's Python-to-IR time;
 5. the Python ndarray's handle to its C++ array (`Ndarray.arr`), cleared when the runtime is reset, because
    Taichi 1.7 frees an ndarray by address whenever Python collects it, in whatever runtime then runs;
-6. the host's launch paths (`Kernel.__call__`, field element accessors), which launch_count.py wraps while it counts.
+6. the host's launch paths (`Kernel.__call__`, field element accessors), which launch_count.py wraps while it counts;
+7. the AST transformer's `build_For`, which on one CPU thread marks each loop serialized as `ti.loop_config` does
+   (Taichi's pool hands even a one-thread loop to its worker and waits).
 
 On a Taichi version not in KNOWN_VERSIONS each falls back to the plain path and says so once (a RuntimeWarning):
 the CFG pass stays on, classes are plain `ti.data_oriented`, Taichi formats its own excerpts and reads sources at
-every compile, ndarrays are left as they are at a reset, and counting launches is refused.
+every compile, ndarrays are left as they are at a reset, counting launches is refused, and loops on one thread go
+through the pool.
 `tests/test_taichi_compat.py` checks that each fast path is active on the version the project pins.
 
 The running configuration (backend, CPU worker threads, default float) is read through `ti.cfg`, which Taichi
@@ -247,3 +250,44 @@ def field_info(array):
     from taichi.ui.utils import get_field_info  # noqa: PLC0415 - GGUI's module: imported only by a window
 
     return get_field_info(array)
+
+
+# ---------------------------------------------------------------------------- 7. loops on one CPU thread
+def serialize_loops_on_one_thread() -> bool:
+    """Compile every loop as `ti.loop_config(serialize=True)` would while Taichi runs one CPU worker thread: its
+    thread pool hands even a one-thread loop to that worker and waits for it: on the 2-core Xeon three loops of 100
+    items took 218 us so and 13 us run in place, of 100,000 items 348 and 117 us (`python
+    benchmarks/loop_overhead.py --threads 1`). One thread is what a classroom host runs on (serve_host.py).
+    Nothing changes on more threads (the pool is then worth its hand-off) or on a GPU; a loop's iterations run in
+    the same order either way. Process-wide, only where the sandbox owns the process
+    (runtime.own_process). Returns whether it is on."""
+    try:
+        from taichi.lang.ast.ast_transformer import ASTTransformer
+    except ImportError:
+        ASTTransformer = None
+    build_for = getattr(ASTTransformer, "build_For", None)
+    if not SUPPORTED or build_for is None:
+        _plain_path("loops on one CPU thread go through Taichi's thread pool")
+        return False
+    if loops_serialized_on_one_thread():
+        return True
+    taichis_own = build_for
+
+    def build_for_in_place(ctx, node):
+        if ti.cfg.arch == ti.cpu and ti.cfg.cpu_max_num_threads == 1:  # what ti.loop_config(serialize=True) does
+            ctx.ast_builder.parallelize(1)
+            ctx.ast_builder.strictly_serialize()
+        return taichis_own(ctx, node)
+
+    build_for_in_place.in_place = True
+    ASTTransformer.build_For = staticmethod(build_for_in_place)
+    return True
+
+
+def loops_serialized_on_one_thread() -> bool:
+    """Whether serialize_loops_on_one_thread() is in effect."""
+    try:
+        from taichi.lang.ast.ast_transformer import ASTTransformer
+    except ImportError:
+        return False
+    return getattr(getattr(ASTTransformer, "build_For", None), "in_place", False)
