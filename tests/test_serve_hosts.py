@@ -317,3 +317,33 @@ def test_when_the_teacher_sends_a_scene_the_class_builds_it_on_every_core(monkey
     asyncio.run(reap_once())
     assert waiting.sid not in classroom.sessions
     assert json.loads(waiting.outbox.get_nowait()[1])["key"] == "start_failed"
+
+
+@pytest.mark.long
+def test_a_host_the_server_ends_leaves_its_kernels_in_taichis_cache(tmp_path, monkeypatch):
+    """Ended by the server (SIGTERM), a host leaves the normal way and Taichi writes the kernels it compiled to its
+    offline cache, which the next class on the machine reads instead of compiling (killed, it wrote nothing)."""
+    import multiprocessing
+
+    from sandbox.app.serve_host import host_main
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("TI_OFFLINE_CACHE_FILE_PATH", str(cache))
+    context = multiprocessing.get_context("spawn")
+    parent, child = context.Pipe()
+    process = context.Process(target=host_main, args=(child, "melting_block", 320, 180), daemon=True)
+    process.start()
+    child.close()
+    parent.send_bytes(SLOT.pack(HOST) + json.dumps({"t": "grow"}).encode())
+    said = []
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and not any(m.get("t") in ("built", "failed") for m in said):
+        if parent.poll(1):
+            data = parent.recv_bytes()
+            if SLOT.unpack_from(data)[0] == HOST:
+                said.append(json.loads(data[SLOT.size + 1 :]))
+    assert said and said[-1] == {"t": "built", "slot": 0}, said
+    process.terminate()
+    process.join(60)
+    assert process.exitcode == 0
+    assert sum(f.stat().st_size for f in cache.rglob("*") if f.is_file()) > 100_000  # the session's kernels

@@ -14,6 +14,11 @@ index of the session it is for (its *slot*) in two bytes before it, HOST for the
 The host steps each attached session on its own clock, in turn (serve_session.Session.tick): where the host is
 short of CPU every session slows alike, and a tab that asks for few pictures keeps its scene's pace. A host's
 sessions never switch scenes: the server moves a tab that asks for another scene to that scene's host.
+
+Ended (the server's SIGTERM, or its pipe closed) a host leaves the normal way, so Taichi writes the kernels it
+compiled to its offline cache: a host's sessions compile the same kernels in the same order every time, so the next
+class on the machine finds them there (a melting_block session ready in 0.7 s of a core instead of 2.5). Hosts keep
+a cache of their own (CLASSROOM_CACHE), which other Taichi work cannot crowd out of the 100 MB Taichi keeps.
 """
 
 from __future__ import annotations
@@ -22,13 +27,20 @@ import functools
 import json
 import math
 import os
+import signal
 import struct
+import sys
 import time
+from pathlib import Path
 
 from .serve_session import MAX_FPS, Session
 
 SLOT = struct.Struct("<H")  # the slot index before every message, both ways
 HOST = 0xFFFF  # ... and the index of the host's own messages
+# Taichi's offline cache for hosts where TI_OFFLINE_CACHE_FILE_PATH is not set: a class of 30 melting_block tabs
+# compiles about 21 MB of kernels; a few scenes' worth fit in CLASSROOM_CACHE_BYTES
+CLASSROOM_CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "taichi-sandbox-classroom"
+CLASSROOM_CACHE_BYTES = 512 << 20
 
 
 class SlotConn:
@@ -49,6 +61,9 @@ def host_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FP
     starts a host per core."""
     os.environ.setdefault("SANDBOX_CPU_THREADS", "1")
     os.environ.setdefault("TI_LOG_LEVEL", "error")
+    os.environ.setdefault("TI_OFFLINE_CACHE_FILE_PATH", str(CLASSROOM_CACHE))
+    os.environ.setdefault("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES", str(CLASSROOM_CACHE_BYTES))
+    signal.signal(signal.SIGTERM, _leave)  # ended by the server: leave the normal way (module docstring)
     from ..core import runtime
 
     runtime.own_process()  # the sandbox's own process: kernels compile the lighter way (a host compiles many)
@@ -56,6 +71,11 @@ def host_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FP
         Host(conn, scene, width, height, max_fps, draw).loop()
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
+
+
+def _leave(_signum, _frame) -> None:
+    """SIGTERM: exit as at the end of the program (Taichi writes its compiled kernels to its cache as it stops)."""
+    sys.exit(0)
 
 
 class Host:

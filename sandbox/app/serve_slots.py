@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 from .serve_host import HOST, SLOT, host_main
 
+LEAVE_SECONDS = 5.0  # how long an ended host may take to write its kernels to Taichi's cache (0.2 s for two sessions)
+
 
 @dataclass(eq=False)
 class Slot:
@@ -131,8 +133,8 @@ class Hosts:
             asyncio.get_running_loop().remove_reader(host.conn.fileno())
         with contextlib.suppress(Exception):
             host.conn.close()
-        host.process.terminate()
-        host.process.join(timeout=2)
+        host.process.terminate()  # the host leaves the normal way, its kernels written to Taichi's cache
+        host.process.join(timeout=LEAVE_SECONDS)
         if host.process.is_alive():
             host.process.kill()
 
