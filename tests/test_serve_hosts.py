@@ -258,6 +258,43 @@ def test_a_session_given_back_starts_again_as_the_scene_run_alone_to_the_bit(sce
     assert len(again["x"]) > 0
 
 
+@pytest.mark.long
+def test_what_one_tab_does_changes_nothing_in_another_session_of_its_host(tmp_path):
+    """Two tabs on sessions of one host, stepped in turn: one moves every slider, holds a tool, undoes it and loads a
+    saved state; the other tab's scene runs on, to the bit, as the scene run alone."""
+    from sandbox.app.controller import Controller, open_scene
+
+    conn = Collect()
+    host = Host(conn, "melting_block", 160, 90, 30.0, "page")
+    order(host, HOST, {"t": "grow"})
+    order(host, HOST, {"t": "grow"})
+    order(host, HOST, {"t": "attach", "slot": 0})
+    order(host, HOST, {"t": "attach", "slot": 1})
+    busy, quiet = host.sessions
+    lone = Controller(open_scene("melting_block", restart=False))
+    saved = lone.save(tmp_path / "saved.npz")  # the scene at its start, for the busy tab to load
+    for frame in range(14):
+        if frame == 2:
+            for setting in busy.control.settings():
+                order(host, 0, {"t": "set", "key": setting.key, "value": setting.hi})
+        if frame == 4:
+            order(host, 0, {"t": "tool", "tool": "heat", "x": 0.5, "y": 0.4, "radius": 1.0, "down": True})
+        if frame == 6:
+            order(host, 0, {"t": "tool", "tool": "heat", "x": 0.5, "y": 0.4, "radius": 1.0, "down": False})
+            order(host, 0, {"t": "action", "name": "undo"})
+        if frame == 9:
+            order(host, 0, {"t": "upload", "path": str(saved)})
+        for control in (busy.control, quiet.control, lone):
+            run_frames(control, 1)
+    busy_said = [json.loads(b[1:]) for s, b in conn.sent if s == 0 and b[:1] == b"J"]
+    assert any(m.get("key") == "uploaded" for m in busy_said), busy_said  # the busy tab did all that
+    assert busy.control.settings() != quiet.control.settings() or busy.sim.time != quiet.sim.time
+    alone, other = run_frames(lone, 0), run_frames(quiet.control, 0)
+    assert other["time"] == alone["time"] > 0 and other["controls"] == alone["controls"]
+    for key in ("x", "v", "T"):
+        assert np.array_equal(other[key], alone[key]), key
+
+
 @pytest.mark.parametrize("scene", ["melting_block", pytest.param("melting_block_3d", marks=pytest.mark.long)])
 def test_a_hosts_sessions_share_one_canvas_and_each_picture_is_its_own(scene):
     """A host's sessions draw in one canvas (17 MB each at 960 x 540 saved): a session's picture drawn after

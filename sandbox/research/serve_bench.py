@@ -86,7 +86,7 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
     launched = time.monotonic()
     server = subprocess.Popen(
         [sys.executable, "-m", "sandbox", "serve", scene, "--port", str(port), "--max-sessions", str(clients)]
-        + ["--teacher-token", teacher, "--draw", draw, "--per-client", "0"],  # (its tabs share one address)
+        + [f"--teacher-token={teacher}", "--draw", draw, "--per-client", "0"],  # "=": a token may begin with "-"
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
