@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import time
 
 import numpy as np
@@ -108,6 +109,26 @@ def test_the_warm_pool_builds_in_a_host_per_core_side_by_side(monkeypatch):
     built(classroom, hosts[1], 2)
     warm_for(classroom, 0.6)
     assert classroom.ready() == 6 and classroom.hosts.slots() == 6 and len(hosts) == 2  # full: nothing more
+
+
+def test_hosts_are_pinned_a_core_each_in_turn(monkeypatch):
+    """A host is one always-busy thread: each goes to the core the fewest hosts have (so another busy program shares
+    a core with one host, not a core to itself beside two hosts on the other); none where pinning is off or the
+    process has one core."""
+    from sandbox.app import serve_slots
+
+    assert serve_slots.next_core([0, 1], []) == 0
+    assert serve_slots.next_core([0, 1], [0]) == 1
+    assert serve_slots.next_core([0, 1], [0, 1]) == 0
+    assert serve_slots.next_core([2, 5, 7], [2, 5, 2, None]) == 7
+    assert serve_slots.next_core([], [0]) is None
+    monkeypatch.setattr(serve_slots.os, "sched_getaffinity", lambda pid: {3, 1}, raising=False)
+    assert serve_slots.host_cores() == [1, 3]
+    monkeypatch.setenv("SANDBOX_PIN_THREADS", "0")
+    assert serve_slots.host_cores() == []
+    monkeypatch.delenv("SANDBOX_PIN_THREADS")
+    monkeypatch.setattr(serve_slots.os, "sched_getaffinity", lambda pid: {4}, raising=False)
+    assert serve_slots.host_cores() == []
 
 
 def test_a_tab_takes_a_built_session_and_gives_it_back_for_the_next_tab():
@@ -368,7 +389,9 @@ def test_a_host_the_server_ends_leaves_its_kernels_in_taichis_cache(tmp_path, mo
     monkeypatch.setenv("TI_OFFLINE_CACHE_FILE_PATH", str(cache))
     context = multiprocessing.get_context("spawn")
     parent, child = context.Pipe()
-    process = context.Process(target=host_main, args=(child, "melting_block", 320, 180), daemon=True)
+    core = max(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
+    process = context.Process(target=host_main, args=(child, "melting_block", 320, 180, 30.0, "page", core))
+    process.daemon = True
     process.start()
     child.close()
     parent.send_bytes(SLOT.pack(HOST) + json.dumps({"t": "grow"}).encode())
@@ -380,6 +403,8 @@ def test_a_host_the_server_ends_leaves_its_kernels_in_taichis_cache(tmp_path, mo
             if SLOT.unpack_from(data)[0] == HOST:
                 said.append(json.loads(data[SLOT.size + 1 :]))
     assert said and said[-1] == {"t": "built", "slot": 0}, said
+    if core is not None:
+        assert os.sched_getaffinity(process.pid) == {core}  # pinned as the server asked
     process.terminate()
     process.join(60)
     assert process.exitcode == 0

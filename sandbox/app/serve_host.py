@@ -23,6 +23,7 @@ a cache of their own (CLASSROOM_CACHE), which other Taichi work cannot crowd out
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import math
@@ -55,10 +56,15 @@ class SlotConn:
             self.conn.send_bytes(self.prefix + data)
 
 
-def host_main(conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, draw: str = "page") -> None:
+def host_main(
+    conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, draw: str = "page", core: int | None = None
+) -> None:
     """Hold the sessions of the shipped scene `scene` the server asks for (module docstring), with `width` x
     `height` pictures at most `max_fps` a second, until the server closes the pipe. One Taichi thread: the server
-    starts a host per core."""
+    starts a host per core, and pins it to `core` where given (serve_slots.host_cores says why)."""
+    if core is not None:
+        with contextlib.suppress(OSError):  # a core taken away since: the scheduler places the host
+            os.sched_setaffinity(0, {core})
     os.environ.setdefault("SANDBOX_CPU_THREADS", "1")
     os.environ.setdefault("TI_LOG_LEVEL", "error")
     os.environ.setdefault("TI_OFFLINE_CACHE_FILE_PATH", str(CLASSROOM_CACHE))
