@@ -131,6 +131,31 @@ def test_hosts_are_pinned_a_core_each_in_turn(monkeypatch):
     assert serve_slots.host_cores() == []
 
 
+def test_pinned_hosts_turn_to_the_next_core_together_and_never_meet(monkeypatch):
+    """Every ROTATE_SECONDS each host moves to the next core, all at the same moments: hosts that started on
+    different cores are always on different cores, and each spends its turn on every core (a busy program beside the
+    class slows every host's tabs alike)."""
+    from sandbox.app import serve_host
+
+    now, pinned = [100.2], []
+    monkeypatch.setattr(serve_host.time, "time", lambda: now[0])
+    monkeypatch.setattr(serve_host.os, "sched_setaffinity", lambda pid, cores: pinned.append(set(cores)), raising=False)
+    hosts = [serve_host.Pinning(core, (0, 1, 2)) for core in (0, 1, 2)]
+    seen = []
+    for second in range(3):
+        now[0] = 100.2 + second * serve_host.ROTATE_SECONDS
+        pinned.clear()
+        for host in hosts:
+            host.pin()
+            host.pin()  # again within the turn: nothing
+        assert len(pinned) == 3 and set().union(*pinned) == {0, 1, 2}  # three hosts on three cores
+        seen.append([next(iter(c)) for c in pinned])
+    assert [sorted(turns) for turns in zip(*seen)] == [[0, 1, 2]] * 3  # each host on every core in turn
+    serve_host.Pinning(None, (0, 1)).pin()
+    serve_host.Pinning(5, (0, 1)).pin()  # a core no longer its own: left to the scheduler
+    assert len(pinned) == 3
+
+
 def test_a_tab_takes_a_built_session_and_gives_it_back_for_the_next_tab():
     """A tab gets a built session at once (started again for it: "attach"), with nothing built anew; when it
     leaves, the session goes back to the pool ("detach") and the next tab gets the same one. What a tab says while
@@ -390,7 +415,8 @@ def test_a_host_the_server_ends_leaves_its_kernels_in_taichis_cache(tmp_path, mo
     context = multiprocessing.get_context("spawn")
     parent, child = context.Pipe()
     core = max(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
-    process = context.Process(target=host_main, args=(child, "melting_block", 320, 180, 30.0, "page", core))
+    pinned = (core,) if core is not None else ()
+    process = context.Process(target=host_main, args=(child, "melting_block", 320, 180, 30.0, "page", core, pinned))
     process.daemon = True
     process.start()
     child.close()

@@ -42,6 +42,7 @@ HOST = 0xFFFF  # ... and the index of the host's own messages
 # compiles about 21 MB of kernels; a few scenes' worth fit in CLASSROOM_CACHE_BYTES
 CLASSROOM_CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "taichi-sandbox-classroom"
 CLASSROOM_CACHE_BYTES = 512 << 20
+ROTATE_SECONDS = 1.0  # how long a host stays on one core before the next (Pinning)
 
 
 class SlotConn:
@@ -57,14 +58,20 @@ class SlotConn:
 
 
 def host_main(
-    conn, scene: str, width: int, height: int, max_fps: float = MAX_FPS, draw: str = "page", core: int | None = None
+    conn,
+    scene: str,
+    width: int,
+    height: int,
+    max_fps: float = MAX_FPS,
+    draw: str = "page",
+    core: int | None = None,
+    cores: tuple[int, ...] = (),
 ) -> None:
     """Hold the sessions of the shipped scene `scene` the server asks for (module docstring), with `width` x
     `height` pictures at most `max_fps` a second, until the server closes the pipe. One Taichi thread: the server
-    starts a host per core, and pins it to `core` where given (serve_slots.host_cores says why)."""
-    if core is not None:
-        with contextlib.suppress(OSError):  # a core taken away since: the scheduler places the host
-            os.sched_setaffinity(0, {core})
+    starts a host per core, and pins it to `core` of `cores`, the next one every ROTATE_SECONDS (Pinning)."""
+    pinning = Pinning(core, cores)
+    pinning.pin()
     os.environ.setdefault("SANDBOX_CPU_THREADS", "1")
     os.environ.setdefault("TI_LOG_LEVEL", "error")
     os.environ.setdefault("TI_OFFLINE_CACHE_FILE_PATH", str(CLASSROOM_CACHE))
@@ -74,9 +81,31 @@ def host_main(
 
     runtime.own_process()  # the sandbox's own process: kernels compile the lighter way (a host compiles many)
     try:
-        Host(conn, scene, width, height, max_fps, draw).loop()
+        Host(conn, scene, width, height, max_fps, draw, pinning).loop()
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
+
+
+class Pinning:
+    """Which core a host runs on (serve_slots.host_cores says why hosts are pinned): `core` of `cores` at first, then
+    every ROTATE_SECONDS of the wall clock the next of `cores`. Every host turns at the same moments, so hosts that
+    start on different cores stay on different cores, and a busy program beside the class shares each host's core in
+    turn, not one host's (whose tabs then ran at half the others' pace)."""
+
+    def __init__(self, core: int | None, cores: tuple[int, ...]) -> None:
+        self.cores = tuple(cores) if core in cores else ()
+        self.first = self.cores.index(core) if self.cores else 0
+        self.turn = None
+
+    def pin(self) -> None:
+        """Pin this process to its core of now (nothing where it is not pinned, or where its core has gone)."""
+        if not self.cores:
+            return
+        turn = int(time.time() // ROTATE_SECONDS)
+        if turn != self.turn:
+            self.turn = turn
+            with contextlib.suppress(OSError):  # a core taken away since: the scheduler places the host
+                os.sched_setaffinity(0, {self.cores[(self.first + turn) % len(self.cores)]})
 
 
 def _leave(_signum, _frame) -> None:
@@ -87,8 +116,11 @@ def _leave(_signum, _frame) -> None:
 class Host:
     """The sessions of one scene in one process (module docstring)."""
 
-    def __init__(self, conn, scene: str, width: int, height: int, max_fps: float, draw: str) -> None:
+    def __init__(
+        self, conn, scene: str, width: int, height: int, max_fps: float, draw: str, pinning: Pinning | None = None
+    ) -> None:
         self.conn, self.scene, self.size, self.max_fps, self.draw = conn, scene, (width, height), max_fps, draw
+        self.pinning = pinning or Pinning(None, ())
         self.sessions: list[Session | None] = []  # by slot; None where one failed
         self.due: dict[int, float] = {}  # attached slots: when each one's next frame is due (perf_counter s)
         self.canvas = None  # the picture canvas every session of the host draws in (Renderer's `canvas`)
@@ -96,6 +128,8 @@ class Host:
     def loop(self) -> None:
         """Messages first, then every due session's frame, in turn; then wait for the next due frame or message."""
         while True:
+            if self.due:  # turning while the warm pool builds made every class 5 s slower to be ready
+                self.pinning.pin()
             while self.conn.poll(0):
                 self.receive(self.conn.recv_bytes())
             for slot in list(self.due):

@@ -20,7 +20,7 @@ def host_cores() -> list[int]:
     or more (else none, and none where SANDBOX_PIN_THREADS=0). A host is one thread that is always busy while a class
     is on; left to the scheduler, two hosts and another busy program on two cores stayed as two on one core and the
     program alone on the other (the class kept 39-43% of its quiet rate beside one CPU hog; `sandbox bench --serve 30
-    --contended 1`); pinned, the program shares a core with one host."""
+    --contended 1`); pinned, the program shares a core with one host, each in turn (serve_host.Pinning)."""
     if os.environ.get("SANDBOX_PIN_THREADS", "1") == "0" or not hasattr(os, "sched_getaffinity"):
         return []
     cores = sorted(os.sched_getaffinity(0))
@@ -139,7 +139,7 @@ class Hosts:
         """A new host process of `scene`, its pipe read by the event loop."""
         parent, child = self.context.Pipe()
         core = next_core(self.cores, [h.core for h in self.hosts])
-        args = (child, scene, *self.picture, self.max_fps, self.draw, core)
+        args = (child, scene, *self.picture, self.max_fps, self.draw, core, tuple(self.cores))
         process = self.context.Process(target=host_main, args=args, daemon=True)
         process.start()
         child.close()
