@@ -12,16 +12,14 @@ steps (a list kept past its exact life, as GROMACS's statistical buffer and LAMM
 """
 
 import argparse
-import statistics
-import time
 
 import numpy as np
 import taichi as ti
 import this_tree  # noqa: F401  (this checkout's sandbox, not the installed one)
+from step_phases import median_ms, whole_step
 
 from sandbox.core import runtime
 from sandbox.research.bench import lj_box_3d_sim, lj_box_sim
-from sandbox.simulation import timed_steps
 
 BUFFERS = (0.2, 0.1, 0.05)
 LIFE_STEPS = (2, 4, 6, 10, 20)  # steps after the prune at which the missed pairs are counted
@@ -67,19 +65,6 @@ def _lifetimes(sim, reach: float, live: int, buffers: tuple) -> None:
         print(f"  buffer {b:<4g} {life}; pairs missed after so many steps {counts}")
 
 
-def _median_ms(run, repeats: int, calls: int = 20) -> float:
-    run()
-    ti.sync()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        for _ in range(calls):
-            run()
-        ti.sync()
-        times.append((time.perf_counter() - start) / calls)
-    return 1e3 * statistics.median(times)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--arch", default="cpu")
@@ -91,13 +76,8 @@ def main() -> None:
     runtime.own_process()
     side = args.side or (317 if args.two_d else 32)
     sim = lj_box_sim(side, args.arch) if args.two_d else lj_box_3d_sim(side, args.arch)
-    sim.set_integrator("velocity_verlet")
+    step, steps_per_build = whole_step(sim, args.repeats)
     rates, lists = sim.rates, sim.hood.lists
-    timed_steps(sim, 50)
-    builds = lists.builds
-    step = 1e3 * statistics.median(timed_steps(sim, 100) / 100 for _ in range(args.repeats))
-    steps_per_build = 100 * args.repeats / max(lists.builds - builds, 1)
-    lists.ensure_fresh(True)
     ids = lists.flat
     capacity = lists.capacity
     pruned = runtime.ndarray(ti.i32, (capacity * lists.width,))
@@ -121,18 +101,18 @@ def main() -> None:
     built = lists.count.to_numpy()
     live = int(n[None])
     print(f"{live:,} particles, {sim.model.dim}D, {args.arch}, {'half' if sim.hood.half else 'full'} lists; ms")
-    build = _median_ms(lambda: lists._sort_and_fill(ids), args.repeats)
+    build = median_ms(lambda: lists._sort_and_fill(ids), args.repeats)
     built_every = f"a list build {build:.3f}, every {steps_per_build:.1f} steps"
     print(f"  whole step (velocity Verlet)                {step:7.3f}  {built_every}")
-    whole = _median_ms(lambda: rates._rates(True, ids), args.repeats)
+    whole = median_ms(lambda: rates._rates(True, ids), args.repeats)
     print(f"  rates over the lists as built (buffer {lists.skin:g})  {whole:7.3f}  entries {built[:live].sum():,}")
     for buffer in BUFFERS:
         r2 = (lists.reach + buffer) ** 2
-        cost = _median_ms(lambda r2=r2: prune(ids, pruned, r2), args.repeats)
+        cost = median_ms(lambda r2=r2: prune(ids, pruned, r2), args.repeats)
         prune(ids, pruned, r2)
         kept = pruned_count.to_numpy()
         lists.count.from_numpy(kept)
-        rates_pruned = _median_ms(lambda: rates._rates(True, pruned), args.repeats)
+        rates_pruned = median_ms(lambda: rates._rates(True, pruned), args.repeats)
         lists.count.from_numpy(built)
         saved = whole - rates_pruned
         pays = f"pays if it lasts {cost / saved:.1f} steps" if saved > 0 else "never pays"

@@ -23,7 +23,9 @@ from sandbox.research.bench import lj_box_3d_sim, lj_box_sim
 from sandbox.simulation import timed_steps
 
 
-def _median_ms(run, repeats: int, calls: int = 20) -> float:
+def median_ms(run, repeats: int, calls: int = 20) -> float:
+    """Milliseconds a call of `run` takes: the median of `repeats` batches of `calls` calls, after one unmeasured
+    call (its compile), synchronised with the device."""
     run()
     ti.sync()
     times = []
@@ -36,6 +38,19 @@ def _median_ms(run, repeats: int, calls: int = 20) -> float:
     return 1e3 * statistics.median(times)
 
 
+def whole_step(sim, repeats: int) -> tuple[float, float]:
+    """(milliseconds a velocity Verlet step of `sim` takes, the median of `repeats` batches of 100 steps; steps per
+    list build over them), after 50 steps unmeasured; the lists are left freshly built."""
+    sim.set_integrator("velocity_verlet")
+    lists = sim.hood.lists
+    timed_steps(sim, 50)
+    builds = lists.builds
+    step = 1e3 * statistics.median(timed_steps(sim, 100) / 100 for _ in range(repeats))
+    steps_per_build = 100 * repeats / max(lists.builds - builds, 1)
+    lists.ensure_fresh(True)
+    return step, steps_per_build
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--3d", dest="three_d", action="store_true", help="W1-3D (32,768) instead of W1 (100,489)")
@@ -43,13 +58,8 @@ def main() -> None:
     args = parser.parse_args()
     runtime.own_process()
     sim = lj_box_3d_sim(32, "cpu") if args.three_d else lj_box_sim(317, "cpu")
-    sim.set_integrator("velocity_verlet")
+    step, steps_per_build = whole_step(sim, args.repeats)
     rates, lists = sim.rates, sim.hood.lists
-    timed_steps(sim, 50)
-    builds = lists.builds
-    step = 1e3 * statistics.median(timed_steps(sim, 100) / 100 for _ in range(args.repeats))
-    steps_per_build = 100 * args.repeats / max(lists.builds - builds, 1)
-    lists.ensure_fresh(True)
     ids = lists.flat
 
     @ti.kernel
@@ -67,9 +77,9 @@ def main() -> None:
 
     print(f"{sim.model.built.count:,} particles, {sim.model.dim}D; milliseconds:")
     print(f"  whole step          {step:7.3f}")
-    print(f"  pair pass           {_median_ms(lambda: pair_pass(ids), args.repeats):7.3f}")
-    print(f"  per-particle pass   {_median_ms(lambda: particle_pass(ids), args.repeats):7.3f}")
-    build = _median_ms(lambda: lists._sort_and_fill(ids), args.repeats, calls=5)
+    print(f"  pair pass           {median_ms(lambda: pair_pass(ids), args.repeats):7.3f}")
+    print(f"  per-particle pass   {median_ms(lambda: particle_pass(ids), args.repeats):7.3f}")
+    build = median_ms(lambda: lists._sort_and_fill(ids), args.repeats, calls=5)
     print(
         f"  list build          {build:7.3f}  every {steps_per_build:.1f} steps: {build / steps_per_build:.3f} a step"
     )
