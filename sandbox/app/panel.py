@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from ..config.quantities import BY_NAME
+from ..core.transfer import download
 from ..measure.units import shown
 
 
@@ -56,8 +57,7 @@ def thermometers(sim) -> list[tuple[str, float]]:
     if sim.terms.heat is None:
         return []
     n = int(sim.particles.n[None])
-    groups = sim.particles.group.to_numpy()[:n]
-    temps = sim.particles.T.to_numpy()[:n]
+    groups, temps = download([sim.particles.group, sim.particles.T], [n, n])  # one copy of the live rows
     names = [g.name for g in sim.scene.groups] + ["spawned"]
     sums = np.bincount(groups, weights=temps, minlength=len(names))
     counts = np.bincount(groups, minlength=len(names))
