@@ -156,6 +156,35 @@ def test_pinned_hosts_turn_to_the_next_core_together_and_never_meet(monkeypatch)
     assert len(pinned) == 3
 
 
+def test_an_ended_host_is_waited_for_by_a_thread_not_by_the_server(monkeypatch):
+    """An ended host leaves the normal way, writing its kernels to Taichi's cache: the server's loop must not wait
+    for that (every tab's frames would stall), so a thread does, and kills a host that takes over LEAVE_SECONDS."""
+    from sandbox.app import serve_slots
+
+    monkeypatch.setattr(serve_slots, "LEAVE_SECONDS", 0.3)
+
+    class Slow(Process):
+        killed = False
+
+        def join(self, timeout=None) -> None:
+            time.sleep(timeout or 0)
+
+        def is_alive(self) -> bool:
+            return not self.killed
+
+        def kill(self) -> None:
+            self.killed = True
+
+    hosts = serve_slots.Hosts(None, (16, 9), 30.0, "page", 2, None, 1)
+    host = HostProcess("melting_block", Slow(), Pipe(), 2)
+    hosts.hosts.append(host)
+    start = time.perf_counter()
+    reaper = hosts.end(host)
+    assert time.perf_counter() - start < 0.1 and host not in hosts.hosts
+    reaper.join(5)
+    assert host.process.killed
+
+
 def test_a_tab_takes_a_built_session_and_gives_it_back_for_the_next_tab():
     """A tab gets a built session at once (started again for it: "attach"), with nothing built anew; when it
     leaves, the session goes back to the pool ("detach") and the next tab gets the same one. What a tab says while

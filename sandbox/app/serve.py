@@ -239,8 +239,9 @@ class Classroom:
         """Every session and host ended (the server stops)."""
         for handle in list(self.sessions.values()):
             self.close(handle)
-        for host in list(self.hosts.hosts):
-            self.hosts.end(host)
+        reapers = [self.hosts.end(host) for host in list(self.hosts.hosts)]  # all leave at once
+        for reaper in reapers:
+            reaper.join()
 
     def _readable(self, host: HostProcess) -> None:
         try:

@@ -39,7 +39,7 @@ from .serve_session import MAX_FPS, Session
 SLOT = struct.Struct("<H")  # the slot index before every message, both ways
 HOST = 0xFFFF  # ... and the index of the host's own messages
 # Taichi's offline cache for hosts where TI_OFFLINE_CACHE_FILE_PATH is not set: a class of 30 melting_block tabs
-# compiles about 21 MB of kernels; a few scenes' worth fit in CLASSROOM_CACHE_BYTES
+# compiles about 11 MB of kernels; many scenes' worth fit in CLASSROOM_CACHE_BYTES
 CLASSROOM_CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "taichi-sandbox-classroom"
 CLASSROOM_CACHE_BYTES = 512 << 20
 ROTATE_SECONDS = 1.0  # how long a host stays on one core before the next (Pinning)

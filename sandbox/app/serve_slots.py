@@ -10,9 +10,12 @@ import asyncio
 import contextlib
 import json
 import os
+import threading
 from dataclasses import dataclass, field
 
 from .serve_host import HOST, SLOT, host_main
+
+LEAVE_SECONDS = 5.0  # how long an ended host may take to write its kernels to Taichi's cache (0.2 s for two sessions)
 
 
 def host_cores() -> list[int]:
@@ -35,7 +38,12 @@ def next_core(cores: list[int], taken: list[int | None]) -> int | None:
     return min(cores, key=lambda core: (taken.count(core), cores.index(core)))
 
 
-LEAVE_SECONDS = 5.0  # how long an ended host may take to write its kernels to Taichi's cache (0.2 s for two sessions)
+def _reap(process) -> None:
+    """Wait for an ended host's process to leave; kill it after LEAVE_SECONDS."""
+    process.join(timeout=LEAVE_SECONDS)
+    if process.is_alive():
+        process.kill()
+        process.join(timeout=1.0)
 
 
 @dataclass(eq=False)
@@ -148,8 +156,10 @@ class Hosts:
         asyncio.get_running_loop().add_reader(parent.fileno(), self.receive, host)
         return host
 
-    def end(self, host: HostProcess) -> None:
-        """Stop a host: its process and memory go; its slots are dead."""
+    def end(self, host: HostProcess) -> threading.Thread:
+        """Stop a host: its process and memory go; its slots are dead. The host leaves the normal way, writing its
+        kernels to Taichi's cache (serve_host.py), which takes a moment: a thread waits for it (killing it after
+        LEAVE_SECONDS), so the server's loop never does; returns that thread."""
         if host in self.hosts:
             self.hosts.remove(host)
         for slot in host.slots:
@@ -158,10 +168,10 @@ class Hosts:
             asyncio.get_running_loop().remove_reader(host.conn.fileno())
         with contextlib.suppress(Exception):
             host.conn.close()
-        host.process.terminate()  # the host leaves the normal way, its kernels written to Taichi's cache
-        host.process.join(timeout=LEAVE_SECONDS)
-        if host.process.is_alive():
-            host.process.kill()
+        host.process.terminate()
+        reaper = threading.Thread(target=_reap, args=(host.process,), daemon=True)
+        reaper.start()
+        return reaper
 
     def unneeded(self, scene: str, warm_target: int) -> list[HostProcess]:
         """Hosts no tab uses and the warm pool (`warm_target` free slots of the default `scene`) can do without."""
