@@ -116,19 +116,20 @@ def test_hosts_are_pinned_a_core_each_in_turn(monkeypatch):
     a core with one host, not a core to itself beside two hosts on the other); none where pinning is off or the
     process has one core."""
     from sandbox.app import serve_slots
+    from sandbox.core import cores
 
     assert serve_slots.next_core([0, 1], []) == 0
     assert serve_slots.next_core([0, 1], [0]) == 1
     assert serve_slots.next_core([0, 1], [0, 1]) == 0
     assert serve_slots.next_core([2, 5, 7], [2, 5, 2, None]) == 7
     assert serve_slots.next_core([], [0]) is None
-    monkeypatch.setattr(serve_slots.os, "sched_getaffinity", lambda pid: {3, 1}, raising=False)
-    assert serve_slots.host_cores() == [1, 3]
+    monkeypatch.setattr(cores.os, "sched_getaffinity", lambda pid: {3, 1}, raising=False)
+    assert cores.pinnable_cores() == [1, 3]
     monkeypatch.setenv("SANDBOX_PIN_THREADS", "0")
-    assert serve_slots.host_cores() == []
+    assert cores.pinnable_cores() == []
     monkeypatch.delenv("SANDBOX_PIN_THREADS")
-    monkeypatch.setattr(serve_slots.os, "sched_getaffinity", lambda pid: {4}, raising=False)
-    assert serve_slots.host_cores() == []
+    monkeypatch.setattr(cores.os, "sched_getaffinity", lambda pid: {4}, raising=False)
+    assert cores.pinnable_cores() == []
 
 
 def test_pinned_hosts_turn_to_the_next_core_together_and_never_meet(monkeypatch):

@@ -87,7 +87,7 @@ def host_main(
 
 
 class Pinning:
-    """Which core a host runs on (serve_slots.host_cores says why hosts are pinned): `core` of `cores` at first, then
+    """Which core a host runs on (serve_slots.Hosts says why hosts are pinned): `core` of `cores` at first, then
     every ROTATE_SECONDS of the wall clock the next of `cores`. Every host turns at the same moments, so hosts that
     start on different cores stay on different cores, and a busy program beside the class shares each host's core in
     turn, not one host's (whose tabs then ran at half the others' pace)."""

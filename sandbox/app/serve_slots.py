@@ -9,25 +9,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import os
 import threading
 from dataclasses import dataclass, field
 
+from ..core.cores import pinnable_cores
 from .serve_host import HOST, SLOT, host_main
 
 LEAVE_SECONDS = 5.0  # how long an ended host may take to write its kernels to Taichi's cache (0.2 s for two sessions)
-
-
-def host_cores() -> list[int]:
-    """The cores the hosts are pinned to, one each in turn: every core this process may run on, where there are two
-    or more (else none, and none where SANDBOX_PIN_THREADS=0). A host is one thread that is always busy while a class
-    is on; left to the scheduler, two hosts and another busy program on two cores stayed as two on one core and the
-    program alone on the other (the class kept 39-43% of its quiet rate beside one CPU hog; `sandbox bench --serve 30
-    --contended 1`); pinned, the program shares a core with one host, each in turn (serve_host.Pinning)."""
-    if os.environ.get("SANDBOX_PIN_THREADS", "1") == "0" or not hasattr(os, "sched_getaffinity"):
-        return []
-    cores = sorted(os.sched_getaffinity(0))
-    return cores if len(cores) >= 2 else []
 
 
 def next_core(cores: list[int], taken: list[int | None]) -> int | None:
@@ -83,7 +71,7 @@ class HostProcess:
     conn: object
     capacity: int
     slots: list[Slot] = field(default_factory=list)
-    core: int | None = None  # the core its process runs on (host_cores)
+    core: int | None = None  # the core its process runs on first (Hosts.cores, serve_host.Pinning)
 
     def order(self, message: dict) -> None:
         self.conn.send_bytes(SLOT.pack(HOST) + json.dumps(message).encode())
@@ -116,7 +104,11 @@ class Hosts:
         self.context, self.picture, self.max_fps, self.draw = context, picture, max_fps, draw
         self.per_host, self.receive, self.side_by_side = max(per_host, 1), receive, max(side_by_side, 1)
         self.hosts: list[HostProcess] = []
-        self.cores = host_cores()
+        # Each host is one thread, always busy while a class is on: it is pinned to a core, each in turn
+        # (serve_host.Pinning). Left to the scheduler, two hosts and another busy program on two cores stayed as two
+        # on one core and the program alone on the other (the class kept 39-43% of its quiet rate beside one CPU hog,
+        # `sandbox bench --serve 30 --contended 1`); pinned, the program shares a core with one host, each in turn.
+        self.cores = pinnable_cores()
 
     def free(self, scene: str) -> list[Slot]:
         """The slots of `scene` no tab has, built ones first."""

@@ -12,6 +12,16 @@ import os
 from pathlib import Path
 
 
+def pinnable_cores() -> list[int]:
+    """The cores this process may pin its busy threads to, sorted: its CPU affinity where it has two or more cores
+    and pinning is allowed (Linux; not with SANDBOX_PIN_THREADS=0); else none. Taichi's workers (threads.pin_workers)
+    and the classroom's hosts (app/serve_slots.py) are pinned to these."""
+    if os.environ.get("SANDBOX_PIN_THREADS", "1") == "0" or not hasattr(os, "sched_setaffinity"):
+        return []
+    cores = sorted(os.sched_getaffinity(0))
+    return cores if len(cores) >= 2 else []
+
+
 def usable_cores(cgroup_root: str | Path = "/sys/fs/cgroup", self_cgroup: str | Path = "/proc/self/cgroup") -> int:
     """Cores this process may run on at once: its CPU affinity, capped by its cgroup's CPU quota rounded up (at
     least 1). The paths are parameters for tests."""

@@ -17,7 +17,7 @@ import time
 
 import taichi as ti
 
-from .cores import usable_cores
+from .cores import pinnable_cores, usable_cores
 
 _probe_field = None
 PROBE_ATTEMPTS = 10  # rounds of probe launches to find the pool's threads (see pin_workers)
@@ -60,12 +60,10 @@ def pin_workers(threads: int) -> list[tuple[int, int]]:
     global _probe_field, _freed
     pinned.clear()
     _freed = False
-    if os.environ.get("SANDBOX_PIN_THREADS", "1") == "0" or threads < 2:
+    cores = pinnable_cores()
+    if threads < 2 or not os.path.isdir("/proc/self/task"):
         return []
-    if not (hasattr(os, "sched_setaffinity") and os.path.isdir("/proc/self/task")):
-        return []
-    cores = sorted(os.sched_getaffinity(0))
-    if len(cores) < 2 or threads < len(cores):
+    if not cores or threads < len(cores):
         # With cores to spare the scheduler places the workers where the machine is idle; pinned, every such process
         # (sweeps' workers, renders started side by side with SANDBOX_CPU_THREADS) would crowd the first cores.
         return []
