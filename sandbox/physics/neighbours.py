@@ -365,7 +365,7 @@ class NeighbourList:
             j = self.grid.sorted_ids[k]
             d = self.grid.x_sorted[k] - xs
             near = (d.dot(d) < r2max) and j != i
-            if ti.static(store and self.loops.gpu):  # a GPU thread's stores are its row's memory traffic: the kept
+            if ti.static(store and self.loops.gpu):  # on a GPU the stores are the build's memory traffic: kept only
                 if near and c < width:
                     ids[row + c] = j
             elif ti.static(store):  # the CPU's: branch-free (see _visit)
