@@ -637,7 +637,6 @@ def test_a_slow_tab_sees_its_scene_at_the_scenes_pace_not_one_frame_a_picture():
 
     page, session_end = Pipe()
     session = Session(session_end, "melting_block", 480, 270)
-    session.pacer.choose = lambda wanted: wanted  # every frame whole: the pacer's trims are not what is tested
     sim = session.sim
     frame_seconds = sim.scene.world.substeps * sim.scene.world.dt
     now = due = 0.0

@@ -6,6 +6,8 @@ seconds per wall second)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 TARGET_FPS = 60.0  # the frame rate the window's pacing aims for
@@ -86,3 +88,74 @@ class FramePacer:
             self.rest_seconds += a * (rest_seconds - self.rest_seconds)
         self.last = substeps
         self.last_fitted = simulation_seconds + rest_seconds <= self._room()[1]
+
+
+TURN_SMOOTHING = 0.25  # weight of the newest time between frames, and of a step's newest cost, in Turns' averages
+TURN_GAIN = 0.5  # the part of what the last turn was short of or over that Turns' allowed steps take up
+CATCH_UP = 4.0  # frames of the scene's steps a late frame may take at most (the rest is slow motion, no backlog)
+
+
+class SceneClock:
+    """The steps a view's scene is owed by the wall clock: a frame's substeps for every frame interval since its
+    last frame was stepped, so a frame that comes late (a classroom host's other tabs had their turns first) shows
+    the scene at its pace; at most CATCH_UP frames' worth (a stall is not made up)."""
+
+    def __init__(self, interval: float) -> None:
+        """`interval`: the view's frame interval (s)."""
+        self.interval = interval
+        self.owed = 0.0  # steps owed
+        self.stepped_at: float | None = None  # when the last frame was stepped (wall seconds)
+
+    def wait(self) -> None:
+        """The view takes no frame now (no one watches it): its scene's clock waits with it."""
+        self.stepped_at = None
+
+    def owes(self, now: float, substeps: int) -> tuple[int, float]:
+        """(whole steps owed, seconds since the last frame) at wall time `now` (s) for a scene of `substeps` steps a
+        frame interval."""
+        elapsed = self.interval if self.stepped_at is None else max(now - self.stepped_at, 0.0)
+        self.stepped_at = now
+        self.owed = min(self.owed + elapsed / self.interval * substeps, CATCH_UP * substeps)
+        return int(self.owed + 1e-6), elapsed
+
+    def paid(self, steps: int) -> None:
+        """`steps` were given to the scene: owed no more."""
+        self.owed = max(self.owed - steps, 0.0)
+
+
+class Turns:
+    """How many steps a frame may take where views take turns on one core (a classroom host's tabs; a tab alone in
+    its process is one of one), so that each keeps `fps` pictures a second: one allowance for every view on the
+    core, so that where the core is short every tab runs at the same pace.
+
+    Each frame reports how long since that view's last frame (a turn: every view's frame and what the core did
+    beside them) and what its steps cost; over a turn the allowance moves by TURN_GAIN of what the turn was short of
+    or over 1 / fps, in steps at what a step costs, shared among the views (integral control: the turns settle at
+    1 / fps wherever the steps owed would make them longer, whatever the core does beside the frames: drawing,
+    sending, other programs)."""
+
+    def __init__(self, fps: float) -> None:
+        self.aim = 1.0 / fps  # seconds a turn may take
+        self.allowed = math.inf  # steps a frame may take (nothing measured yet: all that are owed)
+        self.per_step = 0.0  # seconds a step costs, smoothed
+        self.turn = 0.0  # seconds between a view's frames, smoothed over every view's
+        self.share = 1  # views taking turns on the core (the host says)
+        self.most = math.inf  # the most a frame is ever owed (CATCH_UP frames' worth)
+
+    def limit(self, owed: int, substeps: int) -> int:
+        """The steps a frame owed `owed` (of a scene of `substeps` a frame interval) takes now (at least 1)."""
+        self.most = CATCH_UP * substeps
+        return max(1, min(owed, int(min(self.allowed, self.most))))
+
+    def record(self, elapsed: float, steps: int, seconds: float) -> None:
+        """A view's frame came `elapsed` (s) after its last and took `steps` in `seconds` (s; none where paused)."""
+        self.turn = elapsed if not self.turn else self.turn + TURN_SMOOTHING * (elapsed - self.turn)
+        if steps <= 0 or seconds <= 0.0:
+            return
+        per_step = seconds / steps
+        self.per_step = per_step if not self.per_step else self.per_step + TURN_SMOOTHING * (per_step - self.per_step)
+        # seconds each view's frame may grow (shrink: negative) for the turns to take 1 / fps; each of the `share`
+        # views reports once a turn, so each report moves the allowance by a share of that
+        share = max(self.share, 1)
+        spare = (self.aim - self.turn) / share
+        self.allowed = min(max(self.allowed + TURN_GAIN * spare / share / self.per_step, 1.0), self.most)

@@ -34,7 +34,8 @@ import sys
 import time
 from pathlib import Path
 
-from .serve_session import MAX_FPS, Session
+from .pacing import Turns
+from .serve_session import MAX_FPS, SMOOTH_FPS, Session
 
 SLOT = struct.Struct("<H")  # the slot index before every message, both ways
 HOST = 0xFFFF  # ... and the index of the host's own messages
@@ -124,6 +125,7 @@ class Host:
         self.sessions: list[Session | None] = []  # by slot; None where one failed
         self.due: dict[int, float] = {}  # attached slots: when each one's next frame is due (perf_counter s)
         self.canvas = None  # the picture canvas every session of the host draws in (Renderer's `canvas`)
+        self.turns = Turns(SMOOTH_FPS)  # the steps a frame may take where its sessions' turns would be too long
 
     def loop(self) -> None:
         """Messages first, then every due session's frame, in turn; then wait for the next due frame or message."""
@@ -171,6 +173,7 @@ class Host:
             self.sessions.append(None)
             self.tell({"t": "failed", "slot": slot, "text": f"{type(exc).__name__}: {exc}"})
             return
+        session.turns = self.turns
         self.sessions.append(session)
         self.canvas = session.renderer.canvas  # the next sessions draw in it too (17 MB each at 960 x 540)
         self.tell({"t": "built", "slot": slot})
@@ -182,10 +185,12 @@ class Host:
             return
         session.conn.muted = False
         self.due[slot] = time.perf_counter()
+        self.turns.share = len(self.due)  # the attached sessions take turns on this core
         self.guarded(slot, lambda s: s.restart())
 
     def detach(self, slot: int) -> None:
         self.due.pop(slot, None)
+        self.turns.share = len(self.due)
         if 0 <= slot < len(self.sessions) and self.sessions[slot] is not None:
             self.sessions[slot].conn.muted = True
 

@@ -14,11 +14,13 @@ the server passes to the page as it is:
 - else (motion blur, springs drawn, translucent or additive light, a page without WebGL2, or `draw="server"`):
   b"F" + the renderer's picture as a JPEG.
 
-The scene keeps its own clock: a frame of it is stepped every 1 / max_fps seconds whether or not the page has asked
-for a picture, and a frame is drawn and sent only when the page has asked (a "ready" credit), so a slow device or a
-background tab gets fewer pictures of a scene at its pace, each the newest (it used to step one frame a picture: a
-tab asking five times a second ran at a fiftieth of the pace). Where the machine is short of CPU, the pacer takes
-fewer steps a frame (slow motion, never a backlog).
+The scene keeps its own clock (pacing.SceneClock): a frame of it is stepped every 1 / max_fps seconds whether or not
+the page has asked for a picture, and a frame is drawn and sent only when the page has asked (a "ready" credit), so a
+slow device or a background tab gets fewer pictures of a scene at its pace, each the newest (it used to step one
+frame a picture: a tab asking five times a second ran at a fiftieth of the pace). A frame that comes late (a host's
+other tabs had their turns first) takes the steps of the time since the last. Where the core is short of CPU, every
+tab on it takes fewer steps a frame alike (pacing.Turns: slow motion at SMOOTH_FPS pictures a second, never a
+backlog).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .pacing import FramePacer
+from .pacing import SceneClock, Turns
 from .serve_drawing import PageDrawing, page_packer
 
 FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
@@ -83,8 +85,9 @@ class Session:
         self.lang = "en"  # the page's language, which the picture's chart words follow
         self.pointer: tuple[float, float] | None = None  # picture fraction under the pointer (the probe)
         self.frames = 0
-        # the steps a picture shows: the window's rule, at the pictures a second a tab keeps (fewer steps where the
-        # machine is short of CPU, so the class sees smooth motion in slow motion rather than jerks)
+        # the steps a picture shows: what the scene's clock owes, fewer where the tabs taking turns on this core would
+        # get fewer than SMOOTH_FPS pictures a second (the class sees smooth motion in slow motion rather than jerks)
+        self.turns = Turns(SMOOTH_FPS)  # a host's sessions share the host's (serve_host.Host.grow)
         self.forget_costs()
         self.last_readouts = -1e9  # when the readouts were last sent with a page's frame (wall seconds)
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
@@ -125,6 +128,7 @@ class Session:
         self.control.bind(self.sim)
         self.control.paused, self.control.pending_steps = False, 0
         self.credits, self.watched, self.frames, self.seq = FIRST_CREDITS, False, 0, 0
+        self.clock.wait()  # the scene's clock starts with the tab
         self.pointer, self.lang, self.last_readouts, self.webgl = None, "en", -1e9, True
         if self.initial_camera is not None:
             self.renderer.set_camera(*self.initial_camera)
@@ -166,7 +170,7 @@ class Session:
         """Compile, before any tab has this session, the kernels a tab's first seconds would (a host's other tabs
         would wait for each one: a kernel is compiled per session): a frame stepped and sent, the steps to every
         pass between steps, the readouts with and without the pair scan, the chart's sample and the restart; then
-        forget what they cost the pacer."""
+        start the scene's clock afresh."""
         self.frame()
         self.sim.step(self.sim.steps_to_every_pass())  # the passes between steps (refreezing) compile at theirs
         self.sim.stats(pair_energy=True)
@@ -176,8 +180,8 @@ class Session:
         self.forget_costs()
 
     def forget_costs(self) -> None:
-        """The pacer starts afresh (a host's session forgets its first frame, which compiled its kernels)."""
-        self.pacer = FramePacer(target_fps=SMOOTH_FPS, floor_fps=SMOOTH_FPS)
+        """The scene's clock starts afresh (a host's session forgets its first frames, which compiled its kernels)."""
+        self.clock = SceneClock(self.interval)
 
     @property
     def sim(self):
@@ -206,9 +210,11 @@ class Session:
             return due
         if self.credits > 0:
             self.credits -= 1
-            self.frame()
+            self.frame(now)
         elif self.watched:
-            self.step()
+            self.step(now)
+        else:  # a warm session waiting for its tab: its scene's clock waits too
+            self.clock.wait()
         return max(due + self.interval, now - self.interval)
 
     def handle(self, msg: dict) -> None:
@@ -307,16 +313,22 @@ class Session:
 
     # ------------------------------------------------------------------ a frame
     def paced(self) -> bool:
-        """Whether the pacer chooses the steps: where they are most of a picture's cost (not a JPEG's), and the scene's
-        to choose."""
+        """Whether the scene's clock and the core's turns choose the steps: where they are most of a picture's cost
+        (not a JPEG's), and the scene's to choose."""
         return self.page is not None and self.sim.scene.world.substeps != "auto"
 
-    def step(self) -> tuple[int, float]:
-        """One frame of the scene (the pacer's steps where paced()); (steps taken, seconds they took). A blow-up is
-        said to the page and the scene starts again."""
+    def step(self, now: float | None = None) -> tuple[int, float]:
+        """One frame of the scene at wall time `now` (s; the clock's now where None): where paced(), the steps its
+        clock owes as far as this core's turns allow (pacing.SceneClock, Turns), else a frame's; (steps taken,
+        seconds they took). A blow-up is said to the page and the scene starts again."""
         from ..errors import SimulationError
 
-        steps = self.pacer.choose(int(self.sim.scene.world.substeps)) if self.paced() else None
+        paced = self.paced()
+        steps = elapsed = None
+        if paced:
+            substeps = int(self.sim.scene.world.substeps)
+            owed, elapsed = self.clock.owes(time.perf_counter() if now is None else now, substeps)
+            steps = self.turns.limit(owed, substeps)
         stepping = time.perf_counter()
         try:
             taken = self.control.advance(steps)
@@ -324,20 +336,22 @@ class Session:
             self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
             self.control.reset()
             return 0, 0.0
-        return taken, time.perf_counter() - stepping
+        stepped = time.perf_counter() - stepping
+        if paced:
+            self.clock.paid(steps)
+            self.turns.record(elapsed, taken, stepped)
+        return taken, stepped
 
-    def frame(self) -> None:
-        """One frame stepped, then drawn and sent (or its particles sent, where the page draws them)."""
+    def frame(self, now: float | None = None) -> None:
+        """One frame stepped (at wall time `now`, s: the clock's now where None), then drawn and sent (or its
+        particles sent, where the page draws them)."""
         wall = time.perf_counter()
-        paced = self.paced()
-        taken, stepped = self.step()
+        self.step(wall if now is None else now)
         self.frames += 1
         if self.page:
             self.send_page_frame(wall)
         else:
             self.send_picture()
-        if paced and taken:  # a paused tab's pictures say nothing of what its steps cost
-            self.pacer.record(taken, stepped, time.perf_counter() - wall - stepped)
 
     def send_page_frame(self, now: float) -> None:
         """The frame the page draws (it carries the clock), and at their own rates the readouts, the charts' band and
