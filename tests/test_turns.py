@@ -76,3 +76,11 @@ def test_a_frame_late_by_a_stall_takes_the_steps_of_the_time_missed_up_to_catch_
     clock.paid(4 * SUBSTEPS)
     clock.wait()  # nobody watching: the clock waits
     assert clock.owes(100.0, SUBSTEPS)[0] == SUBSTEPS
+
+
+def test_a_core_far_too_short_gives_fewer_pictures_not_a_step_a_picture():
+    """Where even FEWEST frames' steps a picture cannot keep 20 pictures a second, the pictures give way: each still
+    shows half a frame's steps (before this floor the allowance fell to one step a picture: a scene at 1/8 pace)."""
+    fps, pace = run_core(views=15, per_step=0.6e-3, picture=2.5e-3)
+    assert min(pace) >= 0.5 * min(fps) / 30.0 - 0.01
+    assert max(fps) < 20.0

@@ -93,6 +93,8 @@ class FramePacer:
 TURN_SMOOTHING = 0.25  # weight of the newest time between frames, and of a step's newest cost, in Turns' averages
 TURN_GAIN = 0.5  # the part of what the last turn was short of or over that Turns' allowed steps take up
 CATCH_UP = 4.0  # frames of the scene's steps a late frame may take at most (the rest is slow motion, no backlog)
+FEWEST = 0.5  # frames of the scene's steps a frame takes at least, where it is owed them (a core too short for fps
+# pictures a second at that gives fewer pictures, not a scene at a step a picture)
 
 
 class SceneClock:
@@ -143,9 +145,11 @@ class Turns:
         self.most = math.inf  # the most a frame is ever owed (CATCH_UP frames' worth)
 
     def limit(self, owed: int, substeps: int) -> int:
-        """The steps a frame owed `owed` (of a scene of `substeps` a frame interval) takes now (at least 1)."""
+        """The steps a frame owed `owed` (of a scene of `substeps` a frame interval) takes now: as many as allowed,
+        but at least FEWEST frames' worth (and 1) where owed."""
         self.most = CATCH_UP * substeps
-        return max(1, min(owed, int(min(self.allowed, self.most))))
+        fewest = max(1, math.ceil(FEWEST * substeps))
+        return max(min(owed, fewest), min(owed, int(min(self.allowed, self.most))), 1)
 
     def record(self, elapsed: float, steps: int, seconds: float) -> None:
         """A view's frame came `elapsed` (s) after its last and took `steps` in `seconds` (s; none where paused)."""
@@ -158,4 +162,4 @@ class Turns:
         # views reports once a turn, so each report moves the allowance by a share of that
         share = max(self.share, 1)
         spare = (self.aim - self.turn) / share
-        self.allowed = min(max(self.allowed + TURN_GAIN * spare / share / self.per_step, 1.0), self.most)
+        self.allowed = min(max(self.allowed + TURN_GAIN * spare / share / self.per_step, FEWEST), self.most)
