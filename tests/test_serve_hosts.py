@@ -111,6 +111,26 @@ def test_the_warm_pool_builds_in_a_host_per_core_side_by_side(monkeypatch):
     assert classroom.ready() == 6 and classroom.hosts.slots() == 6 and len(hosts) == 2  # full: nothing more
 
 
+def test_a_host_that_builds_faster_does_not_make_the_pool_start_a_third_host(monkeypatch):
+    """Issue 74 (seen in `sandbox bench --serve 30`: a third host holding one tab): where one host has built its
+    share while the other is still building, the last slots queue in the host with room; no host is started only to
+    build beside a busy one once the scene has a host per core."""
+    monkeypatch.setattr(serve, "usable_cores", lambda: 2)
+    classroom = Classroom("melting_block", None, max_sessions=6)
+    hosts = stand_in_hosts(classroom)
+    warm_for(classroom, 0.6)
+    built(classroom, hosts[0], 0)
+    warm_for(classroom, 0.6)
+    built(classroom, hosts[0], 1)
+    warm_for(classroom, 0.6)
+    built(classroom, hosts[0], 2)  # the first host is full; the second is still building its first session
+    warm_for(classroom, 0.6)
+    assert len(hosts) == 2 and [len(h.slots) for h in hosts] == [3, 2]  # the next one queued behind its build
+    built(classroom, hosts[1], 0)
+    warm_for(classroom, 0.6)
+    assert len(hosts) == 2 and [len(h.slots) for h in hosts] == [3, 3]
+
+
 def test_hosts_are_pinned_a_core_each_in_turn(monkeypatch):
     """A host is one always-busy thread: each goes to the core the fewest hosts have (so another busy program shares
     a core with one host, not a core to itself beside two hosts on the other); none where pinning is off or the

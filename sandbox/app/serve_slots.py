@@ -125,13 +125,13 @@ class Hosts:
     def new_slot(self, scene: str) -> Slot:
         """A slot of `scene` asked for now: in the host of that scene with room that has the fewest builds ahead of
         it and then the fewest tabs (a build pauses its host's tabs for a second or two); in a new host where there
-        is none with room, or where every one is building and fewer than `side_by_side` of the scene's hosts are,
-        so that a class's sessions (the warm pool's, or every tab's after the teacher sends a scene) build on every
-        core."""
+        is none with room, or where every one is building and the scene has fewer than `side_by_side` hosts, so
+        that a class's sessions (the warm pool's, or every tab's after the teacher sends a scene) build on every
+        core (and no host is started for the last few slots while a host with room is still building)."""
         hosts = [h for h in self.hosts if h.scene == scene and h.process.is_alive()]
         roomy = [h for h in hosts if len(h.live()) < h.capacity]
         idle = [h for h in roomy if h.building() == 0]
-        if not roomy or (not idle and sum(1 for h in hosts if h.building()) < self.side_by_side):
+        if not roomy or (not idle and len(hosts) < self.side_by_side):
             return self.start(scene).grow()
         return min(idle or roomy, key=lambda h: (h.building(), h.tabs())).grow()
 
