@@ -1,8 +1,13 @@
-"""One pacing rule for every view that shows a running scene (the window, each classroom tab): how many of a frame's
-steps the next shown frame takes, so that frames keep coming at the view's rate. Where a frame of the scene's steps
-does not fit in the time a shown frame may take beside the rest of its work (drawing, encoding, sending), fewer
-steps are taken: the scene runs in slow motion rather than in jerks, and the view reports its pace (simulated
-seconds per wall second)."""
+"""How many of a frame's steps the next shown frame of a running scene takes, so that frames keep coming at the
+view's rate. Where the steps do not fit beside the rest of a frame's work (drawing, encoding, sending), fewer are
+taken: the scene runs in slow motion rather than in jerks, and the view reports its pace (simulated seconds per wall
+second).
+
+Two views, two rules: the window is alone on its machine, and FramePacer fits each frame's steps in the frame's
+time from what they cost; a classroom tab's frames take turns with its host's other tabs on one core, where no tab's
+own costs say how long the turns are, so SceneClock (the steps the wall clock owes a scene) and Turns (one allowance
+of steps a frame for every tab on the core, fed back from the turns) pace them (app/serve_session.py).
+"""
 
 from __future__ import annotations
 
