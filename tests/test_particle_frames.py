@@ -263,3 +263,23 @@ def test_the_teachers_thumbnail_comes_from_the_particle_frame_and_looks_like_the
     empty = np.asarray(Image.fromarray(session.page.under).resize((240, 135), Image.Resampling.BILINEAR))
     difference = np.abs(small.astype(int) - reference.astype(int)).mean()
     assert difference < 8.0 and difference < 0.5 * np.abs(empty.astype(int) - reference.astype(int)).mean()
+
+
+def test_a_tabs_motion_blur_streaks_start_where_its_particles_were_when_the_frame_began():
+    """The classroom's fireworks (motion blur, drawn by the server): each picture's streaks run from where a spark
+    was when its frame's steps began. Before, a session never told its renderer a frame began, so the tails stayed
+    where they were first put (the origin: streaks across the sky, 117 lengths long after 40 frames)."""
+    from sandbox.app.serve_session import Session
+
+    page, end = Pipe()
+    session = Session(end, "fireworks", 160, 90)
+    for _ in range(40):
+        session.frame()
+        messages(page)
+    sim = session.sim
+    n = int(sim.particles.n[None])
+    x, tail = sim.particles.x.to_numpy()[:n], session.renderer.footprint.x_prev.to_numpy()[:n]
+    fastest = np.linalg.norm(sim.particles.v.to_numpy()[:n], axis=1).max()
+    frame_time = session.sim.scene.world.substeps * session.sim.scene.world.dt
+    assert n > 100 and np.abs(x - tail).max() <= 1.5 * fastest * frame_time
+    end.close()

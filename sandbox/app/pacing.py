@@ -117,10 +117,10 @@ class SceneClock:
         """The view takes no frame now (no one watches it): its scene's clock waits with it."""
         self.stepped_at = None
 
-    def owes(self, now: float, substeps: int) -> tuple[int, float]:
+    def owes(self, now: float | None, substeps: int) -> tuple[int, float]:
         """(whole steps owed, seconds since the last frame) at wall time `now` (s) for a scene of `substeps` steps a
-        frame interval."""
-        elapsed = self.interval if self.stepped_at is None else max(now - self.stepped_at, 0.0)
+        frame interval; `now` None: a frame asked for outside the clock (a warm-up, a script), one interval's."""
+        elapsed = self.interval if self.stepped_at is None or now is None else max(now - self.stepped_at, 0.0)
         self.stepped_at = now
         self.owed = min(self.owed + elapsed / self.interval * substeps, CATCH_UP * substeps)
         return int(self.owed + 1e-6), elapsed

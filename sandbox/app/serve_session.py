@@ -318,20 +318,23 @@ class Session:
         return self.page is not None and self.sim.scene.world.substeps != "auto"
 
     def step(self, now: float | None = None) -> tuple[int, float]:
-        """One frame of the scene at wall time `now` (s; the clock's now where None): where paced(), the steps its
-        clock owes as far as this core's turns allow (pacing.SceneClock, Turns), else a frame's; (steps taken,
-        seconds they took). A blow-up is said to the page and the scene starts again."""
+        """One frame of the scene at wall time `now` (s; None: asked for outside the scene's clock, one frame
+        interval's): where paced(), the steps its clock owes as far as this core's turns allow (pacing.SceneClock,
+        Turns), else a frame's; (steps taken, seconds they took). A blow-up is said to the page and the scene starts
+        again."""
         from ..errors import SimulationError
 
         paced = self.paced()
         steps = elapsed = None
         if paced:
             substeps = int(self.sim.scene.world.substeps)
-            owed, elapsed = self.clock.owes(time.perf_counter() if now is None else now, substeps)
+            owed, elapsed = self.clock.owes(now, substeps)
             steps = self.turns.limit(owed, substeps)
         stepping = time.perf_counter()
         try:
-            taken = self.control.advance(steps)
+            self.renderer.begin_frame()  # the tails of motion-blur streaks: where the particles were before
+            blurred = self.sim.scene.render.motion_blur  # (the bend of a curved streak halves the frame's launch)
+            taken = self.control.advance(steps, self.renderer.mid_frame if blurred else None)
         except SimulationError as exc:
             self.tell({"t": "error", "text": f"{exc} - the scene starts again"})
             self.control.reset()
@@ -343,10 +346,10 @@ class Session:
         return taken, stepped
 
     def frame(self, now: float | None = None) -> None:
-        """One frame stepped (at wall time `now`, s: the clock's now where None), then drawn and sent (or its
-        particles sent, where the page draws them)."""
+        """One frame stepped (at wall time `now`, s: see step()), then drawn and sent (or its particles sent, where
+        the page draws them)."""
         wall = time.perf_counter()
-        self.step(wall if now is None else now)
+        self.step(now)
         self.frames += 1
         if self.page:
             self.send_page_frame(wall)
