@@ -200,20 +200,21 @@ def b64(data: bytes) -> str:
     return base64.b64encode(data).decode()
 
 
-def test_additive_light_and_server_drawing_send_jpeg_pictures():
-    """A scene whose picture the page cannot compose (the candle's additive light) sends the renderer's JPEG
-    pictures, as a 2D session does when the server draws (`draw="server"`). 3D scenes send sphere frames
+def test_light_on_a_page_without_webgl2_and_server_drawing_send_jpeg_pictures():
+    """A glowing scene (the candle's additive light) on a page that says it has no WebGL2 ("nogl": light.js cannot
+    add the light) gets the renderer's JPEG pictures from then on, as a 2D session does when the server draws
+    (`draw="server"`). With WebGL2 the page draws it (tests/test_light_frames.py); 3D scenes send sphere frames
     (tests/test_sphere_frames.py)."""
     from sandbox.app.serve_session import Session
 
     for scene, draw in (("candle", "page"), ("lj_box", "server")):
         page, end = Pipe()
         session = Session(end, scene, 160, 90, draw=draw)
+        said = json.loads([m for m in messages(page) if m[:1] == b"J" and b'"scene"' in m][0][1:])
+        assert said["draw"] == ("page" if scene == "candle" else "server")
+        session.handle({"t": "nogl"})
         session.frame()
-        sent = messages(page)
-        said = json.loads([m for m in sent if m[:1] == b"J" and b'"scene"' in m][0][1:])
-        assert said["draw"] == "server"
-        pictures = [m for m in sent if m[:1] in (b"F", b"P", b"B", b"C")]
+        pictures = [m for m in messages(page) if m[:1] in (b"F", b"P", b"L", b"B", b"C")]
         assert [m[:1] for m in pictures] == [b"F"] and pictures[0][1:3] == b"\xff\xd8"  # one JPEG picture
         end.close()
     with pytest.raises(ValueError, match="draw: expected one of page, server"):

@@ -1,5 +1,6 @@
 """What a classroom session sends a page that draws the particles itself (serve_session.py): per picture a frame of
-the particles (2D: render/particle_frame.py; 3D spheres on a page with WebGL2: render/sphere_frame.py), and apart
+the particles (2D: render/particle_frame.py, after b"L" + its light where particles glow, render/light_frame.py; 3D
+spheres on a page with WebGL2: render/sphere_frame.py), and apart
 what does not move with them: b"B" + a PNG of the picture without its particles when a scene opens (in 3D again
 after the camera turns, at most every BACKDROP_SECONDS), b"C" + the charts' band (x0, row0: two u16, then a PNG)
 every BAND_SECONDS or when its words change.
@@ -20,13 +21,15 @@ BACKDROP_SECONDS = 0.1  # seconds at least between the 3D backdrops sent while t
 
 
 def page_packer(renderer, webgl: bool):
-    """What packs `renderer`'s particles for the page to draw: a ParticleFrame (2D discs), a SphereFrame (3D opaque
-    spheres, where the page has WebGL2), or None where the page cannot draw them as the renderer does (the session
-    sends pictures)."""
-    from ..render import particle_frame, sphere_frame
+    """What packs `renderer`'s particles for the page to draw: a ParticleFrame (2D discs; where particles glow, with
+    their light, which the page adds with WebGL2), a SphereFrame (3D opaque spheres, where the page has WebGL2), or
+    None where the page cannot draw them as the renderer does (the session sends pictures)."""
+    from ..render import light_frame, particle_frame, sphere_frame
 
     if renderer.dim == 2:
-        return particle_frame.ParticleFrame(renderer) if particle_frame.unsupported(renderer) is None else None
+        if particle_frame.unsupported(renderer) is not None or (light_frame.glows(renderer) and not webgl):
+            return None
+        return particle_frame.ParticleFrame(renderer)
     if webgl and sphere_frame.unsupported(renderer) is None:
         return sphere_frame.SphereFrame(renderer)
     return None
@@ -37,7 +40,10 @@ class PageDrawing:
 
     def __init__(self, conn, renderer, packer) -> None:
         """`packer`: page_packer()'s for `renderer` (not None)."""
+        from ..render.light_frame import LightFrame, glows
+
         self.conn, self.renderer, self.packer = conn, renderer, packer
+        self.light = LightFrame(renderer) if glows(renderer) else None  # the glowing particles' light, for 2D
         self.base: np.ndarray | None = None  # the picture without particles or charts, (H, W, 3) uint8
         self.under: np.ndarray | None = None  # and with the charts: what the page has under its particles
         self.band_due = True  # the charts' band goes with the next picture
@@ -63,6 +69,8 @@ class PageDrawing:
         elif self.band_due or (now - self.last_band >= BAND_SECONDS and self.renderer.plots()):
             self.last_band = now
             self.send_band()
+        if self.light is not None:  # the light of the frame that follows (the page adds it to that frame)
+            self.conn.send_bytes(self.light.encode())
         self.conn.send_bytes(self.packer.encode(frame, seq, time))
 
     def draw_under(self) -> np.ndarray:

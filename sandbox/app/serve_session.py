@@ -6,13 +6,14 @@ The server (serve.py) and the session talk over a multiprocessing pipe in bytes:
 (already validated by serve_protocol.py); the session answers b"J" + JSON (readouts, messages) or a picture, which
 the server passes to the page as it is:
 
-- where the page draws (`draw="page"`: a 2D scene of discs, render/particle_frame.py, or a 3D scene of opaque
-  spheres on a page with WebGL2, render/sphere_frame.py): b"B" + a PNG of the picture without its particles (the
-  domain, walls, heat sources, floor and charts) when a scene opens (in 3D again after the camera moves), b"C" + the
-  charts' band (x0, row0: two u16, then a PNG) a few times a second, and b"P" + a particle frame (a few kB) or b"S"
-  + a sphere frame a picture;
-- else (motion blur, springs drawn, translucent or additive light, a page without WebGL2, or `draw="server"`):
-  b"F" + the renderer's picture as a JPEG.
+- where the page draws (`draw="page"`: a 2D scene of discs, render/particle_frame.py, whose glowing particles' light
+  the page adds with WebGL2, render/light_frame.py, or a 3D scene of opaque spheres on a page with WebGL2,
+  render/sphere_frame.py): b"B" + a PNG of the picture without its particles (the domain, walls, heat sources, floor
+  and charts) when a scene opens (in 3D again after the camera moves), b"C" + the charts' band (x0, row0: two u16,
+  then a PNG) a few times a second, and b"P" + a particle frame (a few kB; after b"L" + its light frame where
+  particles glow) or b"S" + a sphere frame a picture;
+- else (motion blur of particles that do not glow, a moving lid, a page without WebGL2 for 3D or light, or
+  `draw="server"`): b"F" + the renderer's picture as a JPEG.
 
 The scene keeps its own clock (pacing.SceneClock): a frame of it is stepped every 1 / max_fps seconds whether or not
 the page has asked for a picture, and a frame is drawn and sent only when the page has asked (a "ready" credit), so a
@@ -48,7 +49,7 @@ SMOOTH_FPS = 20.0  # pictures a second a tab keeps, where the machine is short o
 # what a session sends a picture: a JPEG, or a frame the page draws (render/particle_frame.PAGE_FRAMES, not imported:
 # the server's process never loads Taichi)
 FRAMES = (b"F", b"P", b"S")
-PICTURES = (*FRAMES, b"B", b"C")  # and the backdrops and bands a page draws its frames over
+PICTURES = (*FRAMES, b"B", b"C", b"L")  # and the backdrops and bands a page draws its frames over, and their light
 DRAWS = ("page", "server")  # who draws the particles: the page (particle or sphere frames) or the session (JPEG)
 
 
@@ -236,9 +237,9 @@ class Session:
             self.action(msg["name"])
         elif kind == "view":
             self.view(msg["move"], msg["dx"], msg["dy"])
-        elif kind == "nogl":  # the page has no WebGL2: 3D scenes come as pictures from now on
+        elif kind == "nogl":  # the page has no WebGL2: 3D scenes and light come as pictures from now on
             self.webgl = False
-            if self.sim.dim == 3 and self.page is not None:
+            if self.page is not None and (self.sim.dim == 3 or self.page.light is not None):
                 self.page = None
                 self.credits = max(self.credits, 1)  # the frame the page could not draw, again as a picture
         elif kind == "lang":

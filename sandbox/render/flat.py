@@ -161,7 +161,7 @@ class Flat2D:
         bins.clear()
         self.model.loops.light()
         for i in range(n):
-            tail, ctrl, head, r, _, _ = self._splat_shape(i)
+            tail, ctrl, head, r, _, _ = self.splat_shape(i)
             x0, x1, _, _ = self.canvas.box(tail, head, r, ctrl)
             s = bins.strip_for(x0, x1, head[0])
             if self.look.g_blend[p.group[i]] == BLEND["additive"] or not ti.static(self.strip_splat):
@@ -191,7 +191,7 @@ class Flat2D:
                 self._splat_one(bins.ids[k], splat_pass < 2)
 
     @ti.func
-    def _splat_shape(self, i):
+    def splat_shape(self, i):
         """(tail, control point, head) of particle i's streak in pixels (all at the head when it is not blurred),
         its drawn radius r >= R_MIN and true radius in pixels, and whether it is blurred."""
         fp = self.footprint
@@ -218,7 +218,7 @@ class Flat2D:
         """Add particle i's coverage to the layers: by plain load and store when `plain` (no other thread draws
         near it), else by atomic adds."""
         canvas = self.canvas
-        tail, ctrl, head, r, r_true, blurred = self._splat_shape(i)
+        tail, ctrl, head, r, r_true, blurred = self.splat_shape(i)
         g = self.p.group[i]
         blend, opacity = self.look.g_blend[g], self.look.opacity(i)
         fade = ti.max((r_true / r) ** 2, MIN_FADE)

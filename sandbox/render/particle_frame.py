@@ -11,13 +11,15 @@ A particle frame, little-endian:
 
     b"P", then frame (u32), seq (u32: the last setting applied), time (f64: simulated seconds), n (u32),
     then n records of three u32: x | y << 16 (pixels x 16, rows from the top), r | kind << 16 (the drawn radius in
-    pixels x 16; kind 0 opaque, 1 translucent), and R | G << 8 | B << 16 | A << 24 (A: the drawn opacity, 0 to 255),
+    pixels x 16; kind 0 opaque, 1 translucent, 2 light: drawn from the light frame sent before, light_frame.py), and
+    R | G << 8 | B << 16 | A << 24 (A: the drawn opacity, 0 to 255),
     then, where the scene draws its springs as lines: m (u32), the lines' R | G << 8 | B << 16 | A << 24 (A: their
     opacity), and m pairs of u32: the particles (records) each live spring joins. The page draws them first, a line
     a pixel wide each, "over" one another as the renderer composites them, then the particles.
 
-Scenes this cannot show as the renderer does (3D, motion blur, additive light, a moving lid) have `unsupported(...)`
-say why; the classroom sends them as pictures.
+Where particles glow (additive light), a light frame (light_frame.py) goes before each particle frame and the page
+adds their light as the renderer does. Scenes this cannot show as the renderer does (3D, motion blur of particles
+that do not glow, a moving lid) have `unsupported(...)` say why; the classroom sends them as pictures.
 """
 
 import struct
@@ -39,10 +41,8 @@ def unsupported(renderer) -> str | None:
     cfg = renderer.cfg
     if renderer.dim != 2:
         return "a 3D scene (shaded spheres)"
-    if cfg.motion_blur:
-        return "motion blur"
-    if "additive" in renderer.look.blends:
-        return "additive light"
+    if cfg.motion_blur and renderer.look.blends != {"additive"}:
+        return "motion blur of particles that do not glow"
     if renderer.painter.backdrop_moves:
         return "a moving lid"
     return None
@@ -109,6 +109,8 @@ class ParticleFrame(FramePacker):
             if look.g_blend[p.group[i]] == BLEND["alpha"]:
                 alpha = ti.min(alpha * look.opacity(i), 0.999)
                 kind = 1
+            elif look.g_blend[p.group[i]] == BLEND["additive"]:
+                kind = 2  # light: drawn from the light frame (light_frame.py), not as a disc
             c = ti.math.clamp(look.color(i), 0.0, 1.0)
             col = ti.cast(c * 255.0 + 0.5, ti.u32)
             a = ti.cast(ti.math.clamp(alpha, 0.0, 1.0) * 255.0 + 0.5, ti.u32)

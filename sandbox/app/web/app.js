@@ -103,14 +103,16 @@ function connect(scene) {
 
 // What the session sends as bytes, told apart by the first byte (sandbox/app/serve_session.py): "F" a JPEG picture;
 // where the page draws the particles, "B" the picture without them (PNG), "C" the charts' band (x0, row0, PNG) and
-// "P" a particle frame (sandbox/render/particle_frame.py), "S" a sphere frame (sandbox/render/sphere_frame.py,
-// drawn by spheres.js). They are handled in order, one at a time.
+// "P" a particle frame (sandbox/render/particle_frame.py), after "L" its light where particles glow
+// (sandbox/render/light_frame.py, drawn by light.js), "S" a sphere frame (sandbox/render/sphere_frame.py, drawn by
+// spheres.js). They are handled in order, one at a time.
 let pictures = Promise.resolve();
 function onBinary(buffer) { pictures = pictures.then(() => onBytes(buffer)).catch(() => {}); }
 
 const base = document.createElement("canvas");  // the picture without its particles, where the page draws them
 let band = null;  // where the charts' band lies on it ({x, y, w, h}): drawn again over 3D spheres, as the renderer
 let baseVersion = 0;  // counts the changes to `base` (the 3D drawing uploads it again only after one)
+let light = null;  // the light frame of the next particle frame, where particles glow (light.js)
 async function bitmapOf(bytes, type) { return createImageBitmap(new Blob([bytes], { type })); }
 
 async function onBytes(buffer) {
@@ -134,10 +136,14 @@ async function onBytes(buffer) {
     base.getContext("2d").drawImage(bitmap, band.x, band.y);
     bitmap.close();
     baseVersion += 1;
+  } else if (kind === "L") {
+    light = buffer;  // the light of the particle frame that follows
   } else if (kind === "P") {
     const context = pictureContext(base.width, base.height);
     context.drawImage(base, 0, 0);
     drawParticles(context, buffer);
+    if (light !== null && !drawLight(context, light)) { send({ t: "nogl" }); light = null; return; }
+    light = null;
     shown(context, buffer);
   } else if (kind === "S") {
     const spheres = drawSpheres(buffer, base, baseVersion);  // the whole picture, over the backdrop

@@ -13,6 +13,7 @@ function drawParticles(context, buffer) {
   if (buffer.byteLength > 21 + 12 * n) drawSprings(context, buffer, records, 21 + 12 * n);
   for (let i = 0; i < n; i++) {
     const place = records[3 * i], size = records[3 * i + 1], colour = records[3 * i + 2];
+    if ((size >>> 16) === 2) continue;  // a glowing particle: its light comes in the light frame (light.js)
     const alpha = (colour >>> 24) / 255;
     context.fillStyle = `rgba(${colour & 255},${(colour >>> 8) & 255},${(colour >>> 16) & 255},${alpha.toFixed(3)})`;
     context.beginPath();
