@@ -626,6 +626,24 @@ def test_a_drag_on_a_3d_picture_turns_it(classroom):
         page.close()
 
 
+def test_a_glowing_scene_is_drawn_by_the_page_with_its_light(classroom):
+    """Issue 74: the candle (additive light) in a real tab: its pictures are particle frames the page draws (the
+    picture says how many particles it drew), the flame's light added by light.js (pixels near white where the
+    flame is: the wax and the backdrop are far darker)."""
+    page = open_page(classroom, "?scene=candle")
+    try:
+        page.wait_for_function("Number(document.getElementById('picture').dataset.particles || 0) > 100", timeout=30000)
+        page.wait_for_function(  # the flame grows over its first seconds
+            """() => { const c = document.getElementById('picture');
+            const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+            let best = 0; for (let k = 0; k < d.length; k += 4) best = Math.max(best, d[k] + d[k + 1] + d[k + 2]);
+            return best > 550; }""",
+            timeout=30000,
+        )
+    finally:
+        page.close()
+
+
 def test_a_slow_tab_sees_its_scene_at_the_scenes_pace_not_one_frame_a_picture():
     """Issue 74: a tab asking for a picture 0.2 s after each ran its scene at 0.02 of its pace (one frame a
     picture). The scene keeps its own clock: over 60 frame times a tab asking every sixth gets 10 pictures (plus the
