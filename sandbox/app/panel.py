@@ -57,7 +57,9 @@ def thermometers(sim) -> list[tuple[str, float]]:
     if sim.terms.heat is None:
         return []
     n = int(sim.particles.n[None])
-    groups, temps = download([sim.particles.group, sim.particles.T], [n, n])  # one copy of the live rows
+    # one copy of both fields, whole: a copy of the live rows only compiles a kernel for every count of them (a
+    # scene whose emitters add and retire particles compiled one at every readout)
+    groups, temps = (values[:n] for values in download([sim.particles.group, sim.particles.T]))
     names = [g.name for g in sim.scene.groups] + ["spawned"]
     sums = np.bincount(groups, weights=temps, minlength=len(names))
     counts = np.bincount(groups, minlength=len(names))

@@ -194,7 +194,8 @@ def _upload(pairs: list) -> None:
 
 def download(fields: list, rows: list[int] | None = None) -> list[np.ndarray]:
     """The leading `rows` (default: all) of each field, as NumPy arrays shaped (rows[, columns][, components]) in the
-    field's own precision."""
+    field's own precision. Each distinct `rows` compiles its own copy kernel: pass counts that do not change (not a
+    live count that emitters change: copy the whole field and slice it)."""
     if not fields:
         return []
     rows = rows if rows is not None else [f.shape[0] if f.shape else 1 for f in fields]
