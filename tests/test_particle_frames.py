@@ -284,3 +284,23 @@ def test_a_tabs_motion_blur_streaks_start_where_its_particles_were_when_the_fram
     frame_time = session.sim.scene.world.substeps * session.sim.scene.world.dt
     assert n > 100 and np.abs(x - tail).max() <= 1.5 * fastest * frame_time
     end.close()
+
+
+def test_a_sessions_next_tab_compiles_no_page_frame_kernel_again(compiled_kernels):
+    """A host's session given to tab after tab (Session.restart) packs its frames with the packers it made for its
+    renderer: before, every restart made new ones, which compiled their kernels again (the particle frame's, and a
+    glowing scene's light frame's) while the host's other tabs waited."""
+    from sandbox.app.serve_session import Session
+
+    page, end = Pipe()
+    session = Session(end, "candle", 160, 90, shared=True)
+    session.warm_up()
+    messages(page)
+    for _ in range(2):
+        before = len(compiled_kernels)
+        session.restart()
+        for _ in range(3):
+            session.frame()
+        messages(page)
+        assert not {"ParticleFrame._pack", "LightFrame._pack"} & set(compiled_kernels[before:])
+    end.close()

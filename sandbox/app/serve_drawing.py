@@ -40,10 +40,8 @@ class PageDrawing:
 
     def __init__(self, conn, renderer, packer) -> None:
         """`packer`: page_packer()'s for `renderer` (not None)."""
-        from ..render.light_frame import LightFrame, glows
-
         self.conn, self.renderer, self.packer = conn, renderer, packer
-        self.light = LightFrame(renderer) if glows(renderer) else None  # the glowing particles' light, for 2D
+        self.light = getattr(packer, "light", None)  # a 2D scene's glowing particles' light (light_frame.py)
         self.base: np.ndarray | None = None  # the picture without particles or charts, (H, W, 3) uint8
         self.under: np.ndarray | None = None  # and with the charts: what the page has under its particles
         self.band_due = True  # the charts' band goes with the next picture

@@ -76,6 +76,7 @@ class Session:
         self.shared, self.canvas = shared, canvas
         self.draw_by = draw
         self.page: PageDrawing | None = None  # what a page that draws the particles is sent (serve_drawing.py)
+        self.packer, self.packer_key = None, None  # ... and what packs its frames, with the renderer it is for
         self.webgl = True  # the page can draw spheres (it says "nogl" where it cannot: then 3D comes as pictures)
         self.interval = 1.0 / max_fps
         self.width, self.height = width, height
@@ -147,7 +148,7 @@ class Session:
         self.legend_source = Overlays(
             self.sim.scene.render, self.renderer.overlays.layout, self.sim.state, self.sim.model, scene
         )
-        packer = page_packer(self.renderer, self.webgl) if self.draw_by == "page" else None
+        packer = self.page_packer() if self.draw_by == "page" else None
         self.page = PageDrawing(self.conn, self.renderer, packer) if packer is not None else None
         self.set_words()
         painter = self.renderer.painter
@@ -166,6 +167,14 @@ class Session:
         )
         if self.page:  # what does not move with the particles, once
             self.page.send_backdrop(time.perf_counter())
+
+    def page_packer(self):
+        """What packs this session's renderer's particles for the page (serve_drawing.page_packer), made once per
+        renderer and page kind: a new one compiled its kernels again for every tab a host's session was given."""
+        key = (self.renderer, self.webgl)  # the renderer itself, not its id: a freed one's id may come again
+        if self.packer_key is None or self.packer_key[0] is not self.renderer or self.packer_key[1] != self.webgl:
+            self.packer, self.packer_key = page_packer(self.renderer, self.webgl), key
+        return self.packer
 
     def warm_up(self) -> None:
         """Compile, before any tab has this session, the kernels a tab's first seconds would (a host's other tabs

@@ -28,6 +28,7 @@ import numpy as np
 import taichi as ti
 
 from ..core.oriented import data_oriented
+from .light_frame import LightFrame, glows
 from .style import BLEND, MIN_FADE, R_MIN, SPRING_COLOR, SPRING_OPACITY
 
 HEADER = struct.Struct("<cIIdI")  # b"P", frame, seq, time, n
@@ -94,6 +95,7 @@ class ParticleFrame(FramePacker):
         if self.springs is not None:
             self.pairs = np.zeros((max(self.springs.count, 1), 2), np.uint32)  # the live springs' ends
             self.n_pairs = ti.field(ti.i32, shape=())
+        self.light = LightFrame(renderer) if glows(renderer) else None  # the glowing particles' light, sent before
 
     @ti.kernel
     def _pack(self, n: ti.i32, records: ti.types.ndarray()):
