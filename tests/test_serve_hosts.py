@@ -485,3 +485,23 @@ def test_a_host_the_server_ends_leaves_its_kernels_in_taichis_cache(tmp_path, mo
     process.join(60)
     assert process.exitcode == 0
     assert sum(f.stat().st_size for f in cache.rglob("*") if f.is_file()) > 100_000  # the session's kernels
+
+
+def test_a_glowing_emitter_scenes_session_compiles_in_its_warm_up_not_in_the_class(compiled_kernels):
+    """Fireworks starts empty: its spawning, retiring and the frames' packing compiled at the first burst, in the
+    class, while the host's other tabs waited (a fireworks host's tabs stalled 0.7 s). The warm-up now runs the scene
+    until its emitters have added and retired particles; the tab's frames then compile nothing."""
+    conn = Collect()
+    host = Host(conn, "fireworks", 160, 90, 30.0, "page")
+    order(host, HOST, {"t": "grow"})
+    order(host, HOST, {"t": "attach", "slot": 0})
+    session = host.sessions[0]
+    before = len(compiled_kernels)
+    now = due = 0.0
+    counts = set()
+    for _ in range(90):  # three seconds of the scene: bursts, sparks fading and retired
+        session.handle({"t": "ready"})
+        due = session.tick(now, due)
+        counts.add(session.sim.state.live_count())
+        now += session.interval
+    assert len(counts) > 10 and compiled_kernels[before:] == []

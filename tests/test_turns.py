@@ -84,3 +84,19 @@ def test_a_core_far_too_short_gives_fewer_pictures_not_a_step_a_picture():
     fps, pace = run_core(views=15, per_step=0.6e-3, picture=2.5e-3)
     assert min(pace) >= 0.5 * min(fps) / 30.0 - 0.01
     assert max(fps) < 20.0
+
+
+def test_one_stall_on_the_core_cuts_no_tabs_steps():
+    """A turn that took a second (a kernel compiled, another program ran) counts as STALL turns in the average: the
+    tabs' allowance stays near all the steps they are owed (before, one stall cut it to half a frame's steps, and
+    the class ran in slow motion for seconds after)."""
+    turns = Turns(FPS)
+    turns.share = 15
+    turns.limit(SUBSTEPS, SUBSTEPS)
+    for _ in range(60):  # a core with room: turns of a frame interval
+        turns.record(INTERVAL, SUBSTEPS, SUBSTEPS * 0.2e-3)
+    most = turns.allowed
+    turns.record(1.0, SUBSTEPS, SUBSTEPS * 0.2e-3)
+    for _ in range(15):
+        turns.record(INTERVAL, SUBSTEPS, SUBSTEPS * 0.2e-3)
+    assert most == 4 * SUBSTEPS and turns.allowed >= 0.8 * most

@@ -98,6 +98,7 @@ class FramePacer:
 TURN_SMOOTHING = 0.25  # weight of the newest time between frames, and of a step's newest cost, in Turns' averages
 TURN_GAIN = 0.5  # the part of what the last turn was short of or over that Turns' allowed steps take up
 CATCH_UP = 4.0  # frames of the scene's steps a late frame may take at most (the rest is slow motion, no backlog)
+STALL = 2.0  # turns longer than this many 1 / fps count as this long in Turns' average (one stall cuts no steps)
 FEWEST = 0.5  # frames of the scene's steps a frame takes at least, where it is owed them (a core too short for fps
 # pictures a second at that gives fewer pictures, not a scene at a step a picture)
 
@@ -158,6 +159,7 @@ class Turns:
 
     def record(self, elapsed: float, steps: int, seconds: float) -> None:
         """A view's frame came `elapsed` (s) after its last and took `steps` in `seconds` (s; none where paused)."""
+        elapsed = min(elapsed, STALL * self.aim)  # a stall (a kernel compiled, another program) is not a turn
         self.turn = elapsed if not self.turn else self.turn + TURN_SMOOTHING * (elapsed - self.turn)
         if steps <= 0 or seconds <= 0.0:
             return

@@ -45,6 +45,7 @@ JPEG_QUALITY = 80
 READOUTS_EVERY = 6  # pictures between the readouts sent with them (JPEG pictures)
 READOUT_SECONDS = 0.3  # seconds between the readouts sent with particle frames
 CHART_EVERY = 3  # pictures between the charts' samples (a sample costs a pass over the particles)
+WARM_UP_SECONDS = 5.0  # simulated seconds a warm-up runs at most, for its emitters' first spawn and retirement
 SMOOTH_FPS = 20.0  # pictures a second a tab keeps, where the machine is short of CPU, by stepping less a picture
 # what a session sends a picture: a JPEG, or a frame the page draws (render/particle_frame.PAGE_FRAMES, not imported:
 # the server's process never loads Taichi)
@@ -182,12 +183,29 @@ class Session:
         pass between steps, the readouts with and without the pair scan, the chart's sample and the restart; then
         start the scene's clock afresh."""
         self.frame()
+        self.warm_up_emitters()
         self.sim.step(self.sim.steps_to_every_pass())  # the passes between steps (refreezing) compile at theirs
         self.sim.stats(pair_energy=True)
         self.readouts()
         self.renderer.record(self.sim.stats(pair_energy=False))
         self.restart()
         self.forget_costs()
+
+    def warm_up_emitters(self) -> None:
+        """Where emitters add particles (and lifetimes retire them), frames until they have done both, at most
+        WARM_UP_SECONDS simulated: spawning, retiring and the frames' packing of a scene that starts empty compile at
+        their first use, which came in the class (a fireworks host's tabs stalled at the first burst)."""
+        terms = self.sim.terms
+        if terms.emitters is None:
+            return
+        counts = [self.sim.state.live_count()]
+        while self.sim.time < WARM_UP_SECONDS:
+            self.frame()
+            counts.append(self.sim.state.live_count())
+            rose = any(b > a for a, b in zip(counts, counts[1:]))
+            fell = any(b < a for a, b in zip(counts, counts[1:]))
+            if rose and (fell or terms.lifetimes is None):
+                return
 
     def forget_costs(self) -> None:
         """The scene's clock starts afresh (a host's session forgets its first frames, which compiled its kernels)."""

@@ -61,7 +61,7 @@ class LightFrame:
         the frame just stepped (Renderer.begin_frame before its steps)."""
         self.footprint.before_drawing()  # no middle position this frame: curved streaks drawn straight
         n = int(self.p.n[None])
-        m = self._pack(n, self.records) if n else 0
+        m = self._pack(n, self.records)  # even for none: compiled where a session warms up
         return LIGHT_HEADER.pack(b"L", m, self.exposure, self.flags) + self.records[:m].tobytes()
 
     @ti.kernel

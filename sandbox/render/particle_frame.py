@@ -70,8 +70,7 @@ class FramePacker:
         array, valid until the next pack."""
         self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
         n = min(int(self.p.n[None]), len(self.records))
-        if n:
-            self._pack(n, self.records)
+        self._pack(n, self.records)  # even for none: compiled where a session warms up (serve_session.warm_up)
         return self.records[:n]
 
     def header(self, frame: int, seq: int, time: float, n: int) -> bytes:
