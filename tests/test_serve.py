@@ -502,7 +502,7 @@ def test_every_name_and_lesson_a_page_shows_is_translated():
     """Scene, material, heat source and body names, phases and every shipped lesson have their words in French and
     Arabic (the page falls back to the English name where one is missing: this test fails first)."""
     from sandbox.app.serve import WEB
-    from sandbox.app.serve_session import page_lesson
+    from sandbox.app.serve_words import page_lesson
     from sandbox.config.resources import shipped_scenes
     from sandbox.config.scene import load_scene
 

@@ -107,3 +107,13 @@ def png(picture) -> bytes:
     out = io.BytesIO()
     Image.fromarray(picture).save(out, "PNG", compress_level=1)
     return out.getvalue()
+
+
+def jpeg(picture, quality: int) -> bytes:
+    """An (H, W, 3) uint8 picture as a JPEG of `quality` (1-95): the pictures of scenes the page cannot draw, and the
+    teacher's thumbnails."""
+    from PIL import Image
+
+    out = io.BytesIO()
+    Image.fromarray(picture).save(out, "JPEG", quality=quality)
+    return out.getvalue()

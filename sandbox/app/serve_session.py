@@ -27,8 +27,6 @@ backlog).
 from __future__ import annotations
 
 import dataclasses
-import functools
-import io
 import json
 import tempfile
 import time
@@ -37,7 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from .pacing import SceneClock, Turns
-from .serve_drawing import PageDrawing, page_packer
+from .serve_drawing import PageDrawing, jpeg, page_packer
+from .serve_words import chart_words, legend, page_lesson
 
 FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
 MAX_FPS = 30.0  # pictures a second at most (serve --max-fps): more shows a class nothing new, and takes a core
@@ -279,7 +278,7 @@ class Session:
         elif kind == "upload":
             self.upload(Path(msg["path"]))
         elif kind == "thumb":
-            self.conn.send_bytes(b"T" + self.jpeg(self.thumbnail(), 70))
+            self.conn.send_bytes(b"T" + jpeg(self.thumbnail(), 70))
 
     def action(self, name: str) -> None:
         control = self.control
@@ -402,7 +401,7 @@ class Session:
         if self.frames % READOUTS_EVERY == 1:  # the page shows readouts a few times a second, not every frame
             info.update(self.readouts())
         self.tell(info)
-        self.conn.send_bytes(b"F" + self.jpeg(picture, JPEG_QUALITY))
+        self.conn.send_bytes(b"F" + jpeg(picture, JPEG_QUALITY))
 
     def record_charts(self) -> None:
         """A sample of the charts' series every CHART_EVERY pictures."""
@@ -432,31 +431,12 @@ class Session:
 
         stats = self.sim.stats(pair_energy=False)
         return {
-            "legend": self.legend(),
+            "legend": legend(self.legend_source),
             "readouts": panel.as_json(self.control.readouts(stats)),
             "settings": panel.as_json(self.control.settings()),
             "summary": self.control.summary(stats),
             "probe": self.probe(),
         }
-
-    def legend(self) -> dict:
-        """What the picture's colours mean, for the page's own legend: a colour bar (its range, quantity, unit and
-        16 colours) or swatches (label, colour); {} where the scene shows none."""
-        overlays = self.legend_source
-        if overlays.kind == "bar":
-            lo, hi, quantity, unit = overlays.scale()
-            return {
-                "kind": "bar",
-                "lo": lo,
-                "hi": hi,
-                "quantity": quantity,
-                "unit": unit,
-                "colors": hex_colors(overlays.legend_colors(16)),
-            }
-        if overlays.kind == "swatches":
-            labels = [label for label, _ in overlays.entries]
-            return {"kind": "swatches", "labels": labels, "colors": hex_colors(c for _, c in overlays.entries)}
-        return {}
 
     def probe(self) -> dict | None:
         from .probe import particle_at, probe
@@ -468,14 +448,6 @@ class Session:
             return None
         i = particle_at(self.sim, point)
         return None if i is None else probe(self.sim, i).fields()
-
-    @staticmethod
-    def jpeg(picture, quality: int) -> bytes:
-        from PIL import Image
-
-        out = io.BytesIO()
-        Image.fromarray(picture).save(out, "JPEG", quality=quality)
-        return out.getvalue()
 
     # ------------------------------------------------------------------ state files
     def save(self, path: Path) -> None:
@@ -499,31 +471,7 @@ class Session:
             self.tell({"t": "upload_done"})  # the server takes this session's next upload only now
 
 
-def page_lesson(lesson) -> dict:
-    """The lesson as the page shows it: what happens, what to try with the page's own controls (`explore_page`,
-    else `explore`), the physics."""
-    if not lesson:
-        return {}
-    return {"happens": lesson.happens, "explore": lesson.explore_page or lesson.explore, "physics": lesson.physics}
-
-
-def hex_colors(colors) -> list[str]:
-    """RGB colours in [0, 1] as CSS "#rrggbb"."""
-    return ["#" + "".join(f"{round(255 * float(c)):02x}" for c in rgb) for rgb in colors]
-
-
 def scratch_dir() -> Path:
     """The server's own new folder for state files in transit (never a name a client chose; made with a name no
     one else can have picked; removed when the server stops)."""
     return Path(tempfile.mkdtemp(prefix="sandbox-serve-"))
-
-
-@functools.cache  # a catalogue read once per language, not at every scene or language change
-def chart_words(lang: str):
-    """The picture's chart words in `lang` (render/words.py), from the page's catalogue; None for English."""
-    from ..render.words import Words
-
-    if lang == "en":
-        return None
-    path = Path(__file__).resolve().parent / "web" / "i18n" / f"{lang}.json"
-    return Words(json.loads(path.read_text(encoding="utf-8")))
