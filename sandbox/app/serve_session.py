@@ -90,7 +90,7 @@ class Session:
         # the steps a picture shows: what the scene's clock owes, fewer where the tabs taking turns on this core would
         # get fewer than SMOOTH_FPS pictures a second (the class sees smooth motion in slow motion rather than jerks)
         self.turns = Turns(SMOOTH_FPS)  # a host's sessions share the host's (serve_host.Host.grow)
-        self.forget_costs()
+        self.clock = SceneClock(self.interval)  # the steps the scene is owed by the wall clock
         self.last_readouts = -1e9  # when the readouts were last sent with a page's frame (wall seconds)
         self.seq = 0  # the last "set" message's sequence number, echoed in the readouts
         self.load(scene)
@@ -130,7 +130,7 @@ class Session:
         self.control.bind(self.sim)
         self.control.paused, self.control.pending_steps = False, 0
         self.credits, self.watched, self.frames, self.seq = FIRST_CREDITS, False, 0, 0
-        self.clock.wait()  # the scene's clock starts with the tab
+        self.clock = SceneClock(self.interval)  # the scene's clock starts with the tab
         self.pointer, self.lang, self.last_readouts, self.webgl = None, "en", -1e9, True
         if self.initial_camera is not None:
             self.renderer.set_camera(*self.initial_camera)
@@ -171,16 +171,16 @@ class Session:
     def page_packer(self):
         """What packs this session's renderer's particles for the page (serve_drawing.page_packer), made once per
         renderer and page kind: a new one compiled its kernels again for every tab a host's session was given."""
-        key = (self.renderer, self.webgl)  # the renderer itself, not its id: a freed one's id may come again
-        if self.packer_key is None or self.packer_key[0] is not self.renderer or self.packer_key[1] != self.webgl:
+        key = (self.renderer, self.webgl)  # the renderer itself (compared by identity), not its id: a freed one's id
+        if self.packer_key != key:  # may come again
             self.packer, self.packer_key = page_packer(self.renderer, self.webgl), key
         return self.packer
 
     def warm_up(self) -> None:
         """Compile, before any tab has this session, the kernels a tab's first seconds would (a host's other tabs
         would wait for each one: a kernel is compiled per session): a frame stepped and sent, the steps to every
-        pass between steps, the readouts with and without the pair scan, the chart's sample and the restart; then
-        start the scene's clock afresh."""
+        pass between steps, the readouts with and without the pair scan, the chart's sample and the restart (which
+        starts the scene's clock afresh)."""
         self.frame()
         self.warm_up_emitters()
         self.sim.step(self.sim.steps_to_every_pass())  # the passes between steps (refreezing) compile at theirs
@@ -188,7 +188,6 @@ class Session:
         self.readouts()
         self.renderer.record(self.sim.stats(pair_energy=False))
         self.restart()
-        self.forget_costs()
 
     def warm_up_emitters(self) -> None:
         """Where emitters add particles (and lifetimes retire them), frames until they have done both, at most
@@ -197,18 +196,13 @@ class Session:
         terms = self.sim.terms
         if terms.emitters is None:
             return
-        counts = [self.sim.state.live_count()]
+        last, rose, fell = self.sim.state.live_count(), False, False
         while self.sim.time < WARM_UP_SECONDS:
             self.frame()
-            counts.append(self.sim.state.live_count())
-            rose = any(b > a for a, b in zip(counts, counts[1:]))
-            fell = any(b < a for a, b in zip(counts, counts[1:]))
+            count = self.sim.state.live_count()
+            rose, fell, last = rose or count > last, fell or count < last, count
             if rose and (fell or terms.lifetimes is None):
                 return
-
-    def forget_costs(self) -> None:
-        """The scene's clock starts afresh (a host's session forgets its first frames, which compiled its kernels)."""
-        self.clock = SceneClock(self.interval)
 
     @property
     def sim(self):
