@@ -25,6 +25,7 @@ from .config.resources import shipped_scene, shipped_scenes
 from .config.scene import apply_override, parse_override, read_scene_table, scene_from_dict
 from .config.schema import unknown
 from .core import runtime
+from .core.worlds import check_count
 from .errors import SandboxError
 from .files.persist import load_into, read_meta, saved_scene
 from .simulation import Simulation
@@ -81,11 +82,18 @@ def load(
     scene: str | Path | Mapping,
     set: Mapping[str, Any] | Sequence[str] | None = None,  # noqa: A002 - the CLI's --set
     arch: str | None = None,
+    worlds: int = 1,
 ) -> Simulation:
     """Build a simulation of `scene`: a shipped scene's name ("melting_block"), a scene file's path, or a scene
     table as a dict (the TOML's structure). `set`: overrides by dotted key ({"world.dt": 0.001,
     "bodies.0.temperature": 80}) or as 'key=value' strings like the CLI's --set. `arch`: the backend (default: the
-    one chosen by sandbox.use, else auto). SceneError names the file, key and expectation when the scene is invalid."""
+    one chosen by sandbox.use, else auto). `worlds`: copies of the scene stepped together, each with its own
+    particles and controls (sim.world(k); docs/worlds.md). SceneError names the file, key and expectation when the
+    scene is invalid."""
+    try:
+        worlds = check_count(worlds)
+    except ValueError as exc:
+        raise SandboxError(str(exc)) from None
 
     if isinstance(scene, Mapping):
         data, path = copy.deepcopy(dict(scene)), Path.cwd() / "scene.toml"
@@ -100,7 +108,7 @@ def load(
     built = scene_from_dict(data, path)
     arch = arch or _arch
     _check_switch(arch, built.world.precision)
-    sim = Simulation(built, arch=arch)
+    sim = Simulation(built, arch=arch, worlds=worlds)
     _alive.add(sim)
     return sim
 

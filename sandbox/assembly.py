@@ -20,6 +20,7 @@ from .core.loops import LoopPolicy
 from .core.model import MaterialTable, Model
 from .core.particles import Particles, SpringState
 from .core.state import State
+from .errors import SandboxError
 from .physics import TERMS, Parts
 from .physics.grid import CellGrid
 from .physics.neighbours import Neighbourhood, NeighbourList
@@ -39,8 +40,9 @@ class Assembly:
     terms: list
 
 
-def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None) -> Assembly:
-    """Build `scene` on Taichi backend `arch` (see Simulation for `half_lists`)."""
+def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None, worlds: int = 1) -> Assembly:
+    """Build `scene` on Taichi backend `arch` (see Simulation for `half_lists`), `worlds` copies of it side by side
+    (core/worlds.py; SandboxError where the scene has a part that cannot yet run as worlds)."""
     running = runtime.init(arch, scene.world.precision)
     built = build_particles(scene)
     world = scene.world
@@ -49,17 +51,21 @@ def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None) ->
     capacity = world.capacity if world.capacity else built.count + max(1024, built.count // 2)
     if not world.capacity:
         capacity += sum(emitter_population(e) for e in scene.emitters)
-    capacity = max(capacity, built.count)
+    capacity = max(capacity, built.count) * worlds
     threads = taichi_compat.cpu_threads() if running == "cpu" else 1
-    loops = LoopPolicy(running, capacity, not (scene.heat or built.spring_count), threads, can_step_as_a_team(scene))
+    pair_only, team_ok = not (scene.heat or built.spring_count), can_step_as_a_team(scene) and worlds == 1
+    loops = LoopPolicy(running, capacity, pair_only, threads, team_ok)
+    # how a lone run of one world would loop: the pair pass sums each world's rows as it would (step/rates.py)
+    lone_loops = LoopPolicy(running, capacity // worlds, pair_only, threads, can_step_as_a_team(scene))
     materials = [scene.materials[name] for name in scene.used_materials()]
     heat = scene.heat
     can_refreeze = bool(heat and heat.refreeze and any(m.melts for m in materials))
     with transfer.batched():
         table = MaterialTable(materials)
-        domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction)
+        domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction, worlds)
         phase = Phase(table) if heat else None
-        model = Model(scene, running, built, capacity, materials, table, phase, loops, domain, threads)
+        model = Model(scene, running, built, capacity, materials, table, phase, loops, domain, threads, worlds)
+        model.lone_loops = lone_loops
         lifetimes = any(e.lifetime > 0 for e in scene.emitters)
         particles = Particles(
             scene.dim,
@@ -68,23 +74,51 @@ def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None) ->
             refreeze=can_refreeze,
             lifetimes=lifetimes,
             structure=scene.molecular is not None,
+            worlds=worlds,
         )
-        _load_particles(particles, built, table.colors, materials)
+        every_world = built.replicated(worlds)
+        _load_particles(particles, every_world, table.colors, materials)
         springs = None
         if built.spring_count or can_refreeze:
             bonds = (heat.refreeze_max_bonds or (8 if scene.dim == 2 else 12)) if can_refreeze else 0
             spare = capacity * bonds // 2  # room for every particle to refreeze with its full bond count
-            springs = SpringState(built, capacity, spare, bonds)
+            springs = SpringState(every_world, capacity, spare, bonds, worlds)
         state = State(particles, springs, world.dt)
         parts = Parts(model, state, None)
         for cls in sorted(TERMS, key=lambda c: hook_order(c, "build")):
             if cls.wanted(parts):
                 parts.terms[cls.key] = cls(parts)
     terms = list(parts.terms.values())
+    if worlds > 1:
+        refuse_worlds(scene, worlds, terms)
     parts.neighbours = hood = _neighbourhood(scene, model, state, half_lists, any(t.key == "pair" for t in terms))
     for part in ([hood] if hood is not None else []) + terms:
         part.declare(state)
     return Assembly(model, state, hood, terms)
+
+
+# The terms a simulation of many worlds can hold so far: their controls, gauges and passes are kept per world. The
+# others (emitters, tools' host work, the lid, the smoke grid, molecular terms ...) still read one world's values.
+WORLD_TERMS = frozenset({"gravity", "pair", "springs", "heat", "walls", "refreeze"})
+
+
+def refuse_worlds(scene: Scene, worlds: int, terms: list) -> None:
+    """SandboxError naming what in `scene` (built as `terms`) cannot yet run as `worlds` worlds (core/worlds.py)."""
+    other = sorted(term.key for term in terms if term.key not in WORLD_TERMS)
+    if other:
+        raise SandboxError(
+            f"{scene.name}: worlds = {worlds} is for scenes whose parts are all {', '.join(sorted(WORLD_TERMS))}; "
+            f"this one has {', '.join(other)}"
+        )
+    heat = scene.heat
+    if heat and heat.stepper != "explicit":  # one conjugate-gradient solve would couple the worlds' iterations
+        raise SandboxError(f'{scene.name}: worlds = {worlds} needs heat.stepper = "explicit", not {heat.stepper!r}')
+    if heat and any(src.mode == "power" for src in heat.sources):  # a power source shares its power by mass
+        raise SandboxError(f'{scene.name}: worlds = {worlds} cannot yet share a heat source of mode "power"')
+    if scene.world.integrator == "implicit_euler":
+        raise SandboxError(f"{scene.name}: worlds = {worlds} needs an explicit integrator, not implicit_euler")
+    if scene.world.substeps == "auto":  # one step size for all: a world's own stable step would change the others'
+        raise SandboxError(f'{scene.name}: worlds = {worlds} needs whole world.substeps, not "auto"')
 
 
 def _load_particles(particles: Particles, built, colors: np.ndarray, materials: list) -> None:
@@ -103,6 +137,10 @@ def _load_particles(particles: Particles, built, colors: np.ndarray, materials: 
         (p.group, built.body),
         (p.ident, np.arange(n, dtype=np.int32)),
     ]
+    if p.worlds:  # world k's particles are the built ones again (config/build.py's replicated), ids as in a lone run
+        each = n // p.world_count
+        pairs[-1] = (p.ident, np.tile(np.arange(each, dtype=np.int32), p.world_count))
+        pairs.append((p.world, np.repeat(np.arange(p.world_count, dtype=np.int32), each)))
     if p.heat:
         h, phi = initial_enthalpy(built.temperature, built.material, materials)
         pairs += [(p.h, h), (p.T, built.temperature)]
@@ -121,7 +159,7 @@ def _neighbourhood(scene: Scene, model: Model, state: State, half_lists: bool | 
     skin = world.skin if world.neighbor_list else 0.0
     capacity = model.capacity
     p = state.particles
-    grid = CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, capacity, model.loops)
+    grid = CellGrid(p.x, p.n, world.lo, world.hi, reach + skin, world.periodic, capacity, model.loops, particles=p)
     implicit_heat = bool(scene.heat) and scene.heat.stepper != "explicit"  # its solve reads full lists
     if half_lists is None:
         half_lists = model.arch == "cpu"
@@ -131,5 +169,6 @@ def _neighbourhood(scene: Scene, model: Model, state: State, half_lists: bool | 
         springs = state.springs if has_pair else None  # half rows mark bonded pairs, which the pair force skips
         lists = NeighbourList(grid, model.domain, state, reach, skin, capacity, half, springs, model.loops)
     every = world.reorder if world.reorder != "auto" else (20 if model.built.count >= 5000 else 0)
+    every = every if model.worlds == 1 else 0  # sorting the storage would mix the worlds' slots: see WORLD_TERMS
     order = CellOrder(state, grid, lists, every) if every and lists is not None else None
     return Neighbourhood(grid, lists, order, half)

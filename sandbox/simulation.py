@@ -37,6 +37,7 @@ from .physics import TermList
 from .physics.springs import Springs
 from .step.plan import StepPlan
 from .step.rates import Rates
+from .world_view import WorldView
 
 
 class ParticleView:
@@ -58,11 +59,12 @@ class ParticleView:
 class Simulation:
     """A running scene: its model, state and terms, stepped by a plan, measured by its diagnostics."""
 
-    def __init__(self, scene: Scene, arch: str = "cpu", half_lists: bool | None = None):
+    def __init__(self, scene: Scene, arch: str = "cpu", half_lists: bool | None = None, worlds: int = 1):
         """Build what `scene` names on Taichi backend `arch`. `half_lists`: apply each neighbour pair once to both
         particles from a half list (None: on the CPU backend, where it halves the pair work; a GPU gathers from
-        full lists instead, which needs no write conflicts)."""
-        built = assemble(scene, arch, half_lists)
+        full lists instead, which needs no write conflicts). `worlds`: copies of the scene held and stepped together
+        (core/worlds.py; each is `world(k)`)."""
+        built = assemble(scene, arch, half_lists, worlds)
         self.model, self.state, self.hood = built.model, built.state, built.hood
         self.terms = TermList(built.terms)
         self.runtime_generation = runtime.generation()
@@ -83,6 +85,14 @@ class Simulation:
     arch = property(lambda self: self.model.arch)
     capacity = property(lambda self: self.model.capacity)
     material_names = property(lambda self: self.model.material_names)
+    worlds = property(lambda self: self.model.worlds, doc="copies of the scene held (core/worlds.py)")
+
+    def world(self, k: int) -> WorldView:
+        """World k of the worlds this simulation holds: its readouts, particles and controls (world_view.py)."""
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < self.worlds:
+            raise SandboxError(f"world {k!r}: expected a whole number from 0 to {self.worlds - 1}")
+        return WorldView(self, k)
+
     particles = property(
         lambda self: ParticleView(self.state.particles, lambda: scripting.particle_table(self)),
         doc="the particle fields (sim.particles.x, ...); calling it, sim.particles(): scripting.particle_table",
@@ -187,12 +197,12 @@ class Simulation:
     )
 
     # ------------------------------------------------------------------ measuring
-    def stats(self, pair_energy: bool = True) -> Stats:
-        """Energies, temperatures and counts now. Raises SimulationError when the blow-up guard finds the state
-        broken. pair_energy=False skips the pair energy's neighbour scan (the costliest part) and reports the last
-        one measured: the window does so on most frames."""
+    def stats(self, pair_energy: bool = True, world: int = 0) -> Stats:
+        """Energies, temperatures and counts now (of world `world`, where the simulation holds several). Raises
+        SimulationError when the blow-up guard finds the state broken. pair_energy=False skips the pair energy's
+        neighbour scan (the costliest part) and reports the last one measured: the window does so on most frames."""
         self.check_alive()
-        m = self.diagnostics.measure(pair_energy)
+        m = self.diagnostics.measure(pair_energy, world)
         heat = self.terms.heat is not None
         problem = self.guard.problem(m, m["bad"], self.state.dt, heat)
         if problem:
@@ -240,6 +250,8 @@ class Simulation:
         blow-up guard stopped, or one that would not load back, is not saved (SimulationError)."""
         if self.broken:
             raise SimulationError(f"{path}: not saved: the state is past a blow-up ({self.broken})")
+        if self.worlds > 1:
+            raise SandboxError(f"{path}: not saved: a state file holds one world; this simulation has {self.worlds}")
         return save_state(self, path)
 
     # ------------------------------------------------------------------ for scripts (scripting.py)

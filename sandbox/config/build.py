@@ -57,6 +57,18 @@ class Particles:
         deg = np.bincount(np.concatenate([self.spring_i, self.spring_j]), minlength=self.count)
         return int(deg.max())
 
+    def replicated(self, worlds: int) -> Particles:
+        """`worlds` copies of these particles one after the other (world k's particle i at k N + i), each copy's
+        springs joining its own particles: the particles of a simulation of that many worlds (core/worlds.py)."""
+        if worlds == 1:
+            return self
+        per_particle = ("x", "v", "mass", "radius", "temperature", "material", "body", "solid")
+        copies = {name: np.concatenate([getattr(self, name)] * worlds) for name in per_particle}
+        shifts = np.repeat(np.arange(worlds, dtype=np.int32) * self.count, self.spring_count)
+        ends = {name: np.tile(getattr(self, name), worlds) + shifts for name in ("spring_i", "spring_j")}
+        per_spring = ("rest_length", "stiffness", "damping")
+        return Particles(**copies, **ends, **{name: np.tile(getattr(self, name), worlds) for name in per_spring})
+
 
 def lattice_sites(body: Body, dim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lattice sites inside the body's shape: (positions (N, D), integer indices (N, D), basis (D, D) scaled)."""

@@ -22,11 +22,13 @@ def owners(model, terms) -> list[tuple[str, object]]:
     return out
 
 
-def gather(model, terms) -> dict:
-    """Every live control as plain numbers, by its namespaced name."""
+def gather(model, terms, world: int = 0) -> dict:
+    """Every live control as plain numbers, by its namespaced name: world `world`'s where each world has its own
+    (an owner's `world_controls`, core/worlds.py), the one value of all worlds elsewhere."""
     values = {}
     for space, owner in owners(model, terms):
-        for name, value in owner.controls().items():
+        own = owner.controls(world=world) if getattr(owner, "world_controls", False) else owner.controls()
+        for name, value in own.items():
             values[f"{space}.{name}"] = value
     return values
 
@@ -50,26 +52,38 @@ def problem(model, terms, values: dict) -> str | None:
     return None
 
 
-def apply(model, terms, values: dict) -> None:
-    """Set the live controls from gather()'s table (the names already checked against this simulation's)."""
+def apply(model, terms, values: dict, world: int | None = None) -> None:
+    """Set the live controls from gather()'s table (the names already checked against this simulation's): world
+    `world`'s where each world has its own, every world's with None."""
     for space, owner in owners(model, terms):
         prefix = f"{space}."
         mine = {key[len(prefix) :]: value for key, value in values.items() if key.startswith(prefix)}
-        if mine:
+        if mine and getattr(owner, "world_controls", False):
+            owner.apply_controls(mine, world=world)
+        elif mine:
             owner.apply_controls(mine)
+
+
+def shared(model, terms) -> set[str]:
+    """The namespaces whose controls are one for all worlds (their owners keep no `world_controls`)."""
+    if getattr(model, "worlds", 1) == 1:
+        return set()
+    return {space for space, owner in owners(model, terms) if not getattr(owner, "world_controls", False)}
 
 
 class Controls:
     """The live controls of a model and its terms (`sim.controls`): `values()` reads them all by namespaced name,
     `set(values)` changes some, each name and shape checked before anything changes."""
 
-    def __init__(self, model, terms) -> None:
-        self.model, self.terms = model, terms
+    def __init__(self, model, terms, world: int | None = None) -> None:
+        """The controls of every world (`world` None: set() sets all worlds alike, values() reads world 0's) or of
+        world `world` alone (a simulation of many worlds, core/worlds.py)."""
+        self.model, self.terms, self.world = model, terms, world
 
     def values(self) -> dict:
         """Every live control by name: {"world.gravity": [0, -9.81], "world.drag": 0, "heat.ambient": 20.0, ...},
         in the scene's units."""
-        return gather(self.model, self.terms)
+        return gather(self.model, self.terms, self.world or 0)
 
     def set(self, values: dict) -> None:
         """Set some live controls by name (as values() names them); SandboxError naming an unknown one or a value
@@ -83,4 +97,8 @@ class Controls:
         said = problem(self.model, self.terms, values)
         if said:
             raise SandboxError(said)
-        apply(self.model, self.terms, values)
+        common = shared(self.model, self.terms)
+        if self.world is not None and any(key.split(".")[0] in common for key in values):
+            key = next(key for key in values if key.split(".")[0] in common)
+            raise SandboxError(f"control {key} is one for all worlds of this simulation; set it with sim.controls.set")
+        apply(self.model, self.terms, values, self.world)

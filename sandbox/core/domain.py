@@ -6,13 +6,14 @@ import taichi as ti
 
 from . import transfer
 from .oriented import data_oriented
+from .worlds import add_at, per_world
 
 
 @data_oriented
 class Domain:
     """Box lo..hi. Walls push a particle back to one radius from the wall; periodic boxes wrap positions."""
 
-    def __init__(self, lo, hi, periodic: bool, restitution: float, friction: float):
+    def __init__(self, lo, hi, periodic: bool, restitution: float, friction: float, worlds: int = 1):
         self.dim = len(lo)
         self.periodic = periodic
         self.lo = ti.Vector(list(lo))
@@ -22,8 +23,8 @@ class Domain:
         self.restitution = ti.field(float, shape=())  # normal speed kept after a wall hit, in [0, 1]
         self.friction = ti.field(float, shape=())  # Coulomb coefficient: tangential impulse <= mu * normal impulse
         transfer.upload([(self.restitution, restitution), (self.friction, friction)])  # in the build's one copy
-        # momentum the walls have taken (sum of m (1 + e) |v_n| over hits) since the gauge was last zeroed
-        self.impulse = ti.field(float, shape=())
+        # momentum the walls have taken (sum of m (1 + e) |v_n| over hits) since the gauge was last zeroed, per world
+        self.impulse = per_world(worlds, float)
         self.wall_area = self._wall_area(lo, hi) if not periodic else 0.0
 
     @staticmethod
@@ -61,9 +62,10 @@ class Domain:
         return inside
 
     @ti.func
-    def enforce(self, x, v, radius, mass):
-        """Position and velocity after the walls (or the periodic wrap) act on a particle of the given radius; a hit
-        adds its momentum, mass times the normal velocity change, to the walls' gauge (mass 0: not counted)."""
+    def enforce(self, x, v, radius, mass, w):
+        """Position and velocity after the walls (or the periodic wrap) act on a particle of the given radius in world
+        w; a hit adds its momentum, mass times the normal velocity change, to that world's gauge (mass 0: not
+        counted)."""
         if ti.static(self.periodic):
             x -= self.box * ti.floor((x - self.lo) / self.box)
         else:
@@ -83,7 +85,7 @@ class Domain:
                     impulse = -(1.0 + e) * vn
                     v[a] = -e * v[a]
                     if mass > 0.0:
-                        self.impulse[None] += mass * impulse
+                        add_at(self.impulse, w, mass * impulse)
                     vt2 = 0.0
                     for b in ti.static(range(self.dim)):
                         if b != a:

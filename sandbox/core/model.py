@@ -11,6 +11,7 @@ from ..config.schema import key_check
 from . import transfer
 from .oriented import data_oriented
 from .transfer import real_fields
+from .worlds import per_world, set_world_entry, world_entry
 
 
 def material_column(materials: list[Material], material: np.ndarray, name: str) -> np.ndarray:
@@ -60,13 +61,19 @@ class Model:
     read it, nothing steps it. Live controls (gravity, linear drag) are 0-d fields, so changing one recompiles no
     kernel; `controls()` and `apply_controls()` carry them through state files."""
 
-    def __init__(self, scene, arch: str, built, capacity: int, materials: list, table, phase, loops, domain, threads):
+    world_controls = True  # gravity and drag are each world's own (core/worlds.py)
+
+    def __init__(
+        self, scene, arch: str, built, capacity: int, materials: list, table, phase, loops, domain, threads, worlds=1
+    ):
         """`materials`: the scene's used Material records (config), by material id; `table`: their MaterialTable;
-        `phase`: the enthalpy law over it (physics/phase.py), None without heat."""
+        `phase`: the enthalpy law over it (physics/phase.py), None without heat; `worlds`: copies of the scene held
+        (core/worlds.py)."""
         self.scene = scene
         self.arch = arch
         self.dim = scene.dim
-        self.built = built  # the particles and springs as built from the scene (config/build.py), NumPy
+        self.built = built  # the particles and springs of one world as built from the scene (config/build.py), NumPy
+        self.worlds = worlds  # copies of the scene held, each with its own particles and controls (core/worlds.py)
         self.capacity = capacity  # particle slots
         self.threads = threads  # the CPU backend's worker threads (1 elsewhere)
         self.material_names = scene.used_materials()
@@ -74,13 +81,19 @@ class Model:
         self.materials = table
         self.phase = phase
         self.loops = loops  # LoopPolicy: which loops run in parallel
+        self.lone_loops = loops  # ... and how one world alone would run them (assembly.py sets it for many worlds)
         self.domain = domain  # the box: separations, walls or periodic wrap
-        self.gravity = ti.Vector.field(self.dim, float, shape=())  # acceleration (length / time^2)
-        self.drag = ti.field(float, shape=())  # linear drag rate (1 / time)
-        transfer.upload([(self.gravity, np.asarray(scene.world.gravity, float)), (self.drag, scene.world.drag)])
+        self.gravity = per_world(worlds, float, self.dim)  # acceleration (length / time^2), per world
+        self.drag = per_world(worlds, float)  # linear drag rate (1 / time), per world
+        gravity = np.tile(np.asarray(scene.world.gravity, float), (worlds, 1)) if worlds > 1 else scene.world.gravity
+        drag = np.full(worlds, float(scene.world.drag)) if worlds > 1 else scene.world.drag
+        transfer.upload([(self.gravity, np.asarray(gravity, float)), (self.drag, drag)])
 
-    def controls(self) -> dict:
-        """The live controls as plain numbers (for state files)."""
+    def controls(self, world: int = 0) -> dict:
+        """The live controls of world `world` as plain numbers (for state files)."""
+        if self.worlds > 1:
+            gravity, drag = (world_entry(field, self.worlds, world) for field in (self.gravity, self.drag))
+            return {"gravity": gravity, "drag": drag}
         gravity, drag = transfer.download([self.gravity, self.drag])
         return {"gravity": [float(g) for g in gravity], "drag": float(drag)}
 
@@ -92,8 +105,13 @@ class Model:
         """Gravity and drag keep the checks of the scene's keys (core/controls.problem)."""
         return {"gravity": key_check(World, "gravity"), "drag": key_check(World, "drag")}
 
-    def apply_controls(self, values: dict) -> None:
-        """Set the live controls from `controls()`'s numbers."""
+    def apply_controls(self, values: dict, world: int | None = None) -> None:
+        """Set the live controls from `controls()`'s numbers: world `world`'s, or every world's (None)."""
+        if self.worlds > 1:
+            for name in ("gravity", "drag"):
+                if name in values:
+                    set_world_entry(getattr(self, name), self.worlds, world, np.asarray(values[name], float))
+            return
         pairs = [(self.gravity, np.asarray(values["gravity"], float))] if "gravity" in values else []
         pairs += [(self.drag, values["drag"])] if "drag" in values else []
         transfer.upload(pairs)

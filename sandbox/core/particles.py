@@ -18,6 +18,7 @@ import taichi as ti
 from . import transfer
 from .oriented import data_oriented
 from .ranges import ANY, COUNT, POSITIVE, Range
+from .worlds import per_world
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,7 @@ PER_PARTICLE = (
     PerParticle("age", "real", "lifetimes", 0.0, COUNT, "time since birth, (C,)"),
     PerParticle("lifetime", "real", "lifetimes", 0.0, COUNT, "retired when age reaches it; 0: for ever, (C,)"),
     PerParticle("kind", "int", "structure", 0, ANY, "phase from structure: 0 gas, 1 liquid, 2 solid, (C,)"),
+    PerParticle("world", "int", "worlds", 0, Range(lo=0, below="worlds"), "the world it belongs to (core/worlds.py)"),
 )
 
 
@@ -69,8 +71,11 @@ class Particles:
         refreeze: bool = False,
         lifetimes: bool = False,
         structure: bool = False,
+        worlds: int = 1,
     ):
         self.dim = dim
+        self.world_count = worlds  # worlds held (core/worlds.py); the `world` field only where more than one
+        self.worlds = worlds > 1
         self.capacity = capacity
         self.heat = heat
         self.refreeze = refreeze
@@ -153,9 +158,10 @@ class SpringState:
 
     Slots [0, span) hold every spring that was ever alive: per-spring loops stop there, not at `count`."""
 
-    def __init__(self, built, capacity: int, spare: int = 0, max_bonds: int = 0):
-        """`built`: the scene's particles and springs (config/build.py); `capacity`: particle slots; `spare`: extra
-        spring slots for refreezing; `max_bonds`: bond-list width (at least the built one)."""
+    def __init__(self, built, capacity: int, spare: int = 0, max_bonds: int = 0, worlds: int = 1):
+        """`built`: the scene's particles and springs (config/build.py; every world's, one world after the other);
+        `capacity`: particle slots; `spare`: extra spring slots for refreezing; `max_bonds`: bond-list width (at
+        least the built one); `worlds`: the worlds they are shared among (`created` is counted per world)."""
         self.built_count = built.spring_count
         self.count = built.spring_count + spare  # spring slots
         self.max_bonds = max(built.max_bonds(), max_bonds, 1)
@@ -168,7 +174,7 @@ class SpringState:
         self.factor = ti.field(float, shape=s)  # thermoelastic factor s(T) in [0, 1]
         self.alive = ti.field(ti.i32, shape=s)  # 1 while the spring holds, 0 once broken (for good)
         self.bonds = ti.field(ti.i32, shape=(capacity, self.max_bonds))  # spring ids at each particle, -1 padded
-        self.created = ti.field(ti.i32, shape=())  # springs ever made (built + refrozen): broken = created - alive
+        self.created = per_world(worlds, ti.i32)  # springs ever made (built + refrozen): broken = created - alive
         self.span = ti.field(ti.i32, shape=())
         pad = np.zeros(s - self.built_count)
         table = np.full((capacity, self.max_bonds), -1, dtype=np.int32)
@@ -185,7 +191,7 @@ class SpringState:
                 (self.factor, np.ones(s)),
                 (self.alive, alive),
                 (self.bonds, table),
-                (self.created, self.built_count),
+                (self.created, self.built_count if worlds == 1 else np.full(worlds, self.built_count // worlds)),
                 (self.span, self.built_count),
             ]
         )

@@ -5,7 +5,9 @@ particle's pairs into 0-d fields: Taichi accumulates a 0-d field per thread and 
 end, where `field[k] += ...` on one field of many is one contended atomic per item. The kernel copies them into
 host arrays it is given as arguments (reading fields back would compile a copy kernel each). The motion's own
 measures (kinetic energy, mass, the largest speed, non-finite particles: `Motion`) are always there; the pairs' (the
-costliest: a scan of the cell grid) may be skipped and the last values kept.
+costliest: a scan of the cell grid) may be skipped and the last values kept. A simulation of many worlds
+(core/worlds.py) is measured a world at a time: the kernel sums that world's particles, springs and pairs, in the
+order a lone run sums them.
 """
 
 import numpy as np
@@ -14,6 +16,7 @@ import taichi as ti
 from ..config.quantities import check_measures
 from ..core import runtime
 from ..core.oriented import data_oriented
+from ..core.worlds import world_of
 from ..physics.term import TERMS, Measure
 
 
@@ -59,6 +62,8 @@ class Diagnostics:
         self.state, self.hood, self.loops, self.dim = state, hood, model.loops, model.dim
         self.p = state.particles
         self.springs = state.springs
+        self.worlds = model.worlds
+        self.members = ti.field(ti.i32, shape=())  # the measured world's particles (with many worlds)
         real = ti.f64 if model.arch in ("cpu", "cuda") else ti.f32
         self.owners = [Motion(self.p, self.dim)] + [t for t in terms if t.measures]
         self.real_names, self.int_names = [], []
@@ -74,7 +79,7 @@ class Diagnostics:
         self._int = np.zeros(self.n_counts + 1, np.int32)  # the counts, then the particle count
         self.has_springs = self.springs is not None and self._over("springs")
         self.has_pairs = self._over("pairs")
-        self._last_pairs: dict | None = None  # the pair measures last taken (stats(pairs=False) reuses them)
+        self._last_pairs: dict[int, dict] = {}  # by world: the pair measures last taken (pairs=False reuses them)
 
     def _over(self, over: str) -> list:
         """(term, [(measure, slot)]) for each measuring term with measures over `over`; slot indexes acc or count."""
@@ -88,23 +93,23 @@ class Diagnostics:
     def _slot(self, m: Measure) -> int:
         return self.int_names.index(m.name) if m.kind == "count" else self.real_names.index(m.name)
 
-    def measure(self, pairs: bool = True) -> dict:
-        """Every measure now, by name (and `n`: the particle count). `pairs` False skips the pair measures' scan and
-        reports the last ones taken."""
+    def measure(self, pairs: bool = True, world: int = 0) -> dict:
+        """Every measure of world `world` now, by name (and `n`: its particle count). `pairs` False skips the pair
+        measures' scan and reports the last ones taken."""
         self.state.refresh_derived()
-        pairs = pairs or self._last_pairs is None
+        pairs = pairs or world not in self._last_pairs
         if pairs and self.has_pairs and self.hood is not None:
             self.hood.grid.rebuild()
         with runtime.without_cfg_pass():  # run at most once a frame: see core/transfer.py's docstring
-            self._measure(pairs, self._real, self._int)
+            self._measure(pairs, self._real, self._int, world)
         values = {name: float(v) for name, v in zip(self.real_names, self._real)}
         values.update({name: int(v) for name, v in zip(self.int_names, self._int)})
         values["n"] = int(self._int[-1])
         pair_names = [m.name for _, picked in self._over("pairs") for m, _ in picked]
         if pairs:
-            self._last_pairs = {name: values[name] for name in pair_names}
+            self._last_pairs[world] = {name: values[name] for name in pair_names}
         else:
-            values.update(self._last_pairs)
+            values.update(self._last_pairs[world])
         return values
 
     @ti.func
@@ -118,29 +123,44 @@ class Diagnostics:
             else:
                 self.count[picked[k][1]][None] += values[k]
 
+    @ti.func
+    def _in(self, i, world):
+        """Whether particle i is of the world measured (always, with one world)."""
+        inside = True
+        if ti.static(self.worlds > 1):
+            inside = world_of(self.p, i) == world
+        return inside
+
     @ti.kernel
-    def _measure(self, pairs: ti.template(), real_out: ti.types.ndarray(), int_out: ti.types.ndarray()):
+    def _measure(self, pairs: ti.template(), real_out: ti.types.ndarray(), int_out: ti.types.ndarray(), world: ti.i32):
         for is_count, slot, start in ti.static(self.starts):
             if ti.static(is_count):
                 self.count[slot][None] = 0
             else:
                 self.acc[slot][None] = start
+        if ti.static(self.worlds > 1):
+            self.members[None] = 0
         self.loops.light()
         for i in range(self.p.n[None]):
-            for term, picked in ti.static(self._over("particles")):
-                self._add(picked, term.measure_particle(i))
+            if self._in(i, world):
+                if ti.static(self.worlds > 1):
+                    self.members[None] += 1
+                for term, picked in ti.static(self._over("particles")):
+                    self._add(picked, term.measure_particle(i))
         if ti.static(self.has_springs):
             self.loops.light()
             for s in range(self.springs.span[None]):
-                for term, picked in ti.static(self._over("springs")):
-                    self._add(picked, term.measure_spring(s))
+                if self._in(self.springs.i[s], world):
+                    for term, picked in ti.static(self._over("springs")):
+                        self._add(picked, term.measure_spring(s))
         if ti.static(pairs and self.has_pairs):
             self.loops.pairs()
             for i in range(self.p.n[None]):
-                for term, picked in ti.static(self._over("pairs")):
-                    self._add(picked, term.measure_pairs(i))
+                if self._in(i, world):
+                    for term, picked in ti.static(self._over("pairs")):
+                        self._add(picked, term.measure_pairs(i))
         for term, picked in ti.static(self._over("value")):
-            values = term.measure_value()
+            values = term.measure_value(world)
             for k in ti.static(range(len(picked))):
                 if ti.static(picked[k][0].kind == "count"):
                     self.count[picked[k][1]][None] = values[k]
@@ -150,4 +170,7 @@ class Diagnostics:
             real_out[k] = self.acc[k][None]
         for k in ti.static(range(len(self.int_names))):
             int_out[k] = self.count[k][None]
-        int_out[self.n_counts] = self.p.n[None]
+        if ti.static(self.worlds > 1):
+            int_out[self.n_counts] = self.members[None]
+        else:
+            int_out[self.n_counts] = self.p.n[None]

@@ -174,7 +174,7 @@ class Agitation(Term):
             self.wsum[i] = 0.0
             self.visc_sum[i] = 0.0
             if self.is_free[i]:
-                acc = grid.fold(self.p.x[i], ti.Vector.zero(float, self.dim + 3), self._add_flow, (i,))
+                acc = grid.fold(i, self.p.x[i], ti.Vector.zero(float, self.dim + 3), self._add_flow, (i,))
                 # a particle with few free neighbours (a gas) is measured about rest: its flow shrinks toward zero
                 self.flow[i] = ti.Vector([acc[k] for k in ti.static(range(self.dim))]) / ti.max(acc[self.dim], 1.0)
                 self.weight[i] = acc[self.dim + 1]
@@ -204,7 +204,7 @@ class Agitation(Term):
         for i in range(p.n[None]):
             self.v_new[i] = p.v[i]
             if self.is_free[i]:
-                impulse = grid.fold(p.x[i], ti.Vector.zero(float, self.dim), self._add_kick, (i, share, step, dt))
+                impulse = grid.fold(i, p.x[i], ti.Vector.zero(float, self.dim), self._add_kick, (i, share, step, dt))
                 self.v_new[i] = p.v[i] + impulse / p.mass[i]
 
     @ti.func

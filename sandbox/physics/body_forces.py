@@ -7,6 +7,7 @@ import taichi as ti
 
 from ..config.scene_tables import COUPLINGS
 from ..core.oriented import data_oriented
+from ..core.worlds import at, world_of
 from .term import Measure, Term, register
 
 DRAG = COUPLINGS.index("drag")
@@ -16,7 +17,8 @@ DRAG = COUPLINGS.index("drag")
 @data_oriented
 class GravityAndDrag(Term):
     """Uniform gravity g and linear drag at rate c: F = m (g - c v). The fields are the model's live controls
-    (model.gravity, model.drag), which the window changes while it runs. Measures the gravitational energy -m g.x."""
+    (model.gravity, model.drag, each world's own), which the window changes while it runs. Measures the
+    gravitational energy -m g.x."""
 
     key = "gravity"
     stage = "forces"
@@ -41,12 +43,13 @@ class GravityAndDrag(Term):
     @ti.func
     def force(self, i):
         p = self.particles
-        return p.mass[i] * (self.gravity[None] - self.drag[None] * p.v[i])
+        w = world_of(p, i)
+        return p.mass[i] * (at(self.gravity, w) - at(self.drag, w) * p.v[i])
 
     @ti.func
     def measure_particle(self, i):
         p = self.particles
-        return (-p.mass[i] * self.gravity[None].dot(p.x[i]),)
+        return (-p.mass[i] * at(self.gravity, world_of(p, i)).dot(p.x[i]),)
 
 
 @register

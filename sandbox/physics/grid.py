@@ -5,6 +5,9 @@ Cells are at least `reach` wide, and 1 / ROW_SPAN of it along the last axis, so 
 Build: count particles per cell with an integer atomic (the returned old count is the particle's slot in its cell),
 a prefix sum over cells (serial on the CPU, in blocks on a GPU: see CellGrid.prefix_sum), then a scatter of particle
 ids into `sorted_ids` in cell order.
+
+A simulation of many worlds (core/worlds.py) has a grid of the box's cells for each world, one after the other in
+cell order: a particle's cell is its world's, and every scan stays in it, so nothing is ever found across worlds.
 """
 
 import math
@@ -13,6 +16,7 @@ import numpy as np
 import taichi as ti
 
 from ..core.oriented import data_oriented
+from ..core.worlds import world_of
 
 ROW_SPAN = 3  # cells per reach along the last axis (one along the others)
 SCAN_BLOCK = 512  # cells a GPU thread sums in the blocked prefix sum (CellGrid.prefix_sum)
@@ -24,11 +28,25 @@ class CellGrid:
     """Neighbour grid over the box lo..hi for particles x (a Vector field), interaction radius `reach`."""
 
     def __init__(
-        self, x, n_active, lo, hi, reach: float, periodic: bool, capacity: int, loops, cells_per_particle: int = 4
+        self,
+        x,
+        n_active,
+        lo,
+        hi,
+        reach: float,
+        periodic: bool,
+        capacity: int,
+        loops,
+        cells_per_particle: int = 4,
+        particles=None,
     ):
         """Grid for positions `x` (first n_active[None] entries) in the box lo..hi; cells at least `reach` wide, at
         most `cells_per_particle` per particle slot (at least 65,536) in a box with walls. `loops`: the LoopPolicy
-        that decides which loops run in parallel."""
+        that decides which loops run in parallel; `particles`: their fields, whose `world` keys a grid per world
+        where there are several (module docstring)."""
+        self.p = particles
+        self.worlds = particles.world_count if particles is not None and particles.worlds else 1
+        capacity = capacity // self.worlds  # each world's grid is its lone run's
         self.loops = loops
         self.dim = len(lo)
         self.periodic = periodic
@@ -53,7 +71,8 @@ class CellGrid:
             counts = np.maximum(counts // 2, 1)
         self.counts = tuple(int(c) for c in counts)
         self.cell_size = tuple(float(e / c) for e, c in zip(extent, counts))
-        self.n_cells = int(np.prod(counts))
+        self.world_cells = int(np.prod(counts))  # the cells of one world's box
+        self.n_cells = self.world_cells * self.worlds
         self.reach = reach
         self.x = x
         self.n = n_active
@@ -62,10 +81,11 @@ class CellGrid:
         self.scan_blocks = -(-self.n_cells // SCAN_BLOCK)
         if loops.gpu:
             self.block_start = ti.field(ti.i32, shape=self.scan_blocks)  # the blocked sum's first entry of a block
-        self.particle_cell = ti.field(ti.i32, shape=capacity)  # flat cell index of each particle
-        self.slot = ti.field(ti.i32, shape=capacity)  # position of the particle within its cell
-        self.sorted_ids = ti.field(ti.i32, shape=capacity)  # particle ids in cell order
-        self.x_sorted = ti.Vector.field(self.dim, x.dtype, shape=capacity)  # positions in cell order (contiguous)
+        slots = capacity * self.worlds
+        self.particle_cell = ti.field(ti.i32, shape=slots)  # flat cell index of each particle
+        self.slot = ti.field(ti.i32, shape=slots)  # position of the particle within its cell
+        self.sorted_ids = ti.field(ti.i32, shape=slots)  # particle ids in cell order
+        self.x_sorted = ti.Vector.field(self.dim, x.dtype, shape=slots)  # positions in cell order (contiguous)
         self._lo = ti.Vector(list(self.lo))
         self._inv = ti.Vector([1.0 / c for c in self.cell_size])
         self._ncell = ti.Vector(list(self.counts))
@@ -92,7 +112,7 @@ class CellGrid:
             self.cell_count[c] = 0
         self.loops.light()
         for i in range(self.n[None]):
-            c = self.flat(self.cell_of(self.x[i]))
+            c = self.flat(self.cell_of(self.x[i])) + self.world_base(i)
             self.particle_cell[i] = c
             self.slot[i] = ti.atomic_add(self.cell_count[c], 1)
         self.prefix_sum()
@@ -140,6 +160,14 @@ class CellGrid:
         return ti.math.clamp(c, 0, self._ncell - 1)
 
     @ti.func
+    def world_base(self, i):
+        """The flat index of particle i's world's first cell (0 with one world)."""
+        base = 0
+        if ti.static(self.worlds > 1):
+            base = world_of(self.p, i) * self.world_cells
+        return base
+
+    @ti.func
     def flat(self, c):
         idx = 0
         for k in ti.static(range(self.dim)):
@@ -180,16 +208,18 @@ class CellGrid:
         return wrapped, shift, inside
 
     @ti.func
-    def fold(self, xi, acc, visit: ti.template(), extra: ti.template()):
-        """The one scan of the cells around position xi: acc = visit(acc, j, d, k, extra) for each particle j stored
-        there (k: its place in cell order), d = x_j - xi to the image of j nearest xi; returns acc. The particle at
-        xi itself is visited too (visitors skip it by id). `extra`: what the visitor reads besides, a tuple passed as
-        it is (visitors take it as a template and read fields and flags in it through ti.static). Half lists are
-        built by NeighbourList's own scan, a row of cells at a time."""
+    def fold(self, i, xi, acc, visit: ti.template(), extra: ti.template()):
+        """The one scan of the cells around position xi of particle i's world: acc = visit(acc, j, d, k, extra) for
+        each particle j stored there (k: its place in cell order), d = x_j - xi to the image of j nearest xi; returns
+        acc. The particle at xi itself is visited too (visitors skip it by id). `extra`: what the visitor reads
+        besides, a tuple passed as it is (visitors take it as a template and read fields and flags in it through
+        ti.static). Half lists are built by NeighbourList's own scan, a row of cells at a time."""
         cell = self.cell_of(xi)
+        base = self.world_base(i)
         for o in range(self.n_offsets):
             nc, shift = self.neighbour_cell(cell, self.offset(o))
             if nc >= 0:
+                nc += base
                 xs = xi - shift
                 for k in range(self.cell_start[nc], self.cell_start[nc] + self.cell_count[nc]):
                     acc = visit(acc, self.sorted_ids[k], self.x_sorted[k] - xs, k, extra)
@@ -273,6 +303,7 @@ class CellGrid:
         ranges = ti.Vector.zero(ti.i32, 4)
         wrap = ti.cast(0.0, self.x.dtype)
         base, shift, inside, gap2 = self.row_base(cell, r, place)
+        base += self.world_base(i)
         if inside and gap2 < r2max:
             lowest, highest = self.row_cells(place, r2max - gap2)
             lo = cell[last] if own_row else cell[last] + lowest

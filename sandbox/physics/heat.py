@@ -27,6 +27,7 @@ from ..config.scene_tables import Heat as HeatTable
 from ..config.schema import key_check, out_of_range
 from ..core.oriented import data_oriented
 from ..core.transfer import real_fields
+from ..core.worlds import world_entry
 from .heat_sources import HeatSources
 from .phase import LIQUID, NEVER_BONDS
 from .term import Measure, Slider, Term, register
@@ -148,14 +149,17 @@ class Heat(Term):
     def after_restore(self, state) -> None:
         self.sources.set_time(state.time)
 
-    def controls(self) -> dict:
+    world_controls = True  # the air's and the sources' temperatures are each world's own (core/worlds.py)
+
+    def controls(self, world: int = 0) -> dict:
         """The air's temperature; with heat sources, each one's temperature or power now and whether it was set by
-        hand (1: its schedule no longer applies), so a slider's value survives a save and load."""
-        out = {"ambient": float(self.sources.ambient[None])}
-        n = len(self.sources.specs)
+        hand (1: its schedule no longer applies), so a slider's value survives a save and load; world `world`'s."""
+        sources = self.sources
+        out = {"ambient": world_entry(sources.ambient, sources.worlds, world)}
+        n = len(sources.specs)
         if n:
-            out["sources"] = [self.sources.value(k) for k in range(n)]
-            out["by_hand"] = [1.0 if k in self.sources.by_hand else 0.0 for k in range(n)]
+            out["sources"] = [sources.value(k, world) for k in range(n)]
+            out["by_hand"] = [1.0 if k in sources.by_hands[world] else 0.0 for k in range(n)]
         return out
 
     def sliders(self) -> list[Slider]:
@@ -173,20 +177,22 @@ class Heat(Term):
         flags = lambda v: next((f"expected 0 or 1 each, got {x:g}" for x in v if x not in (0.0, 1.0)), None)  # noqa: E731
         return {"ambient": key_check(HeatTable, "ambient"), "sources": out_of_range, "by_hand": flags}
 
-    def apply_controls(self, values: dict) -> None:
+    def apply_controls(self, values: dict, world: int | None = None) -> None:
+        """Set world `world`'s controls from `controls()`'s numbers (None: every world's)."""
+        sources = self.sources
         if "ambient" in values:
-            self.sources.ambient[None] = values["ambient"]
-        if "sources" in values:  # held by hand: kept; scheduled: its schedule sets it again (after_restore)
-            now = [self.sources.value(k) for k in range(len(values["sources"]))]
-            changed = [
-                1.0 if k in self.sources.by_hand or v != now[k] else 0.0 for k, v in enumerate(values["sources"])
-            ]
-            held = values.get("by_hand", changed)  # without the flags (a slider): those set now are held by hand
-            for k, (value, by_hand) in enumerate(zip(values["sources"], held)):
-                if by_hand:
-                    self.sources.hold(k, float(value))
-                else:
-                    self.sources.release(k, float(value))
+            sources.set_ambient(values["ambient"], world)
+        for w in range(sources.worlds) if world is None else (world,):
+            if "sources" in values:  # held by hand: kept; scheduled: its schedule sets it again (after_restore)
+                now = [sources.value(k, w) for k in range(len(values["sources"]))]
+                hand = sources.by_hands[w]
+                changed = [1.0 if k in hand or v != now[k] else 0.0 for k, v in enumerate(values["sources"])]
+                held = values.get("by_hand", changed)  # without the flags (a slider): those set now are held by hand
+                for k, (value, by_hand) in enumerate(zip(values["sources"], held)):
+                    if by_hand:
+                        sources.hold(k, float(value), w)
+                    else:
+                        sources.release(k, float(value), w)
 
     @ti.func
     def flow(self, i, j, r2):

@@ -96,7 +96,7 @@ class ImplicitHeat(Term):
                 j = ids[row + k]
                 acc = self._add_neighbour(acc, j, self.domain.separation(xi, self.p.x[j]), k, (i, y))
         else:
-            acc = self.parts.neighbours.grid.fold(xi, acc, self._add_neighbour, (i, y))
+            acc = self.parts.neighbours.grid.fold(i, xi, acc, self._add_neighbour, (i, y))
         return acc[0], acc[1]
 
     @ti.func

@@ -2,7 +2,8 @@
 "exchange" (each receives G (T_source - T_i)), "fixed" (held at T_source after every step: a Dirichlet boundary) or
 "power" (a total heat rate P shared in proportion to mass among the particles inside). A source's temperature or
 power may follow a schedule (piecewise constant in time, optionally repeating). Every particle also exchanges
-G_amb (T_ambient - T_i) with the ambient, a live control (the window's slider).
+G_amb (T_ambient - T_i) with the ambient, a live control (the window's slider). With many worlds (core/worlds.py)
+each world has its own ambient and its own sources' temperatures or powers (its sliders), on the one clock they share.
 """
 
 import numpy as np
@@ -11,6 +12,7 @@ import taichi as ti
 from ..config.scene_tables import SOURCE_MODES
 from ..core import transfer
 from ..core.oriented import data_oriented
+from ..core.worlds import at, per_world, set_world_entry, world_of
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
 
@@ -21,6 +23,7 @@ class HeatSources:
 
     def __init__(self, heat_scene, dim: int, particles, phase, loops):
         self.dim, self.p, self.phase, self.loops = dim, particles, phase, loops
+        self.worlds = particles.world_count if particles.worlds else 1
         self.specs = list(heat_scene.sources)
         self.n_sources = len(self.specs)
         ns = max(self.n_sources, 1)
@@ -30,26 +33,35 @@ class HeatSources:
         self.src_lo = ti.Vector.field(dim, float, shape=ns)  # source region lower corner, widened by its reach
         self.src_hi = ti.Vector.field(dim, float, shape=ns)  # source region upper corner, widened by its reach
         self.src_mode = ti.field(ti.i32, shape=ns)  # index into SOURCE_MODES
-        self.src_value = ti.field(float, shape=ns)  # temperature (degrees) or, for power sources, heat / time
+        # temperature (degrees) or, for power sources, heat / time: (sources,), or (worlds, sources) with many worlds
+        self.src_value = ti.field(float, shape=ns if self.worlds == 1 else (self.worlds, ns))
         self.src_conductance = ti.field(float, shape=ns)  # heat per time per degree, per particle
         self.src_mass = ti.field(float, shape=ns)  # power sources: mass inside the region (summed each step)
-        self.ambient = ti.field(float, shape=())  # degrees
+        self.ambient = per_world(self.worlds, float)  # degrees, per world
         self.ambient_exchange = ti.field(float, shape=())  # heat per time per degree, per particle
         values = [source_value(src, 0.0) for src in self.specs]
+        worlds = self.worlds
+        every = (lambda v: np.full(worlds, v)) if worlds > 1 else (lambda v: v)  # noqa: E731
         # in the build's one copy (a host write of a field element compiles a writer kernel of its own)
         transfer.upload(
             [
-                (self.ambient, heat_scene.ambient),
+                (self.ambient, every(heat_scene.ambient)),
                 (self.ambient_exchange, heat_scene.ambient_exchange),
                 (self.src_lo, np.array([np.asarray(src.lo) - src.reach for src in self.specs]).reshape(-1, dim)),
                 (self.src_hi, np.array([np.asarray(src.hi) + src.reach for src in self.specs]).reshape(-1, dim)),
                 (self.src_mode, np.array(modes, np.int32)),
                 (self.src_conductance, np.array([src.conductance for src in self.specs], float)),
-                (self.src_value, np.array(values, float)),
+                (self.src_value, np.array(values, float) if worlds == 1 else _every_world(values, worlds, ns)),
             ]
         )
-        self._values: list[float | None] = values  # the values last written to src_value
-        self.by_hand: set[int] = set()  # sources set by hand (the window's sliders): their schedules no longer apply
+        self._values: list[list[float]] = [list(values) for _ in range(worlds)]  # by world: last written to src_value
+        # by world: the sources set by hand (the window's sliders), whose schedules no longer apply
+        self.by_hands: list[set[int]] = [set() for _ in range(worlds)]
+
+    @property
+    def by_hand(self) -> set[int]:
+        """The sources set by hand in a lone run (world 0's)."""
+        return self.by_hands[0]
 
     @property
     def scheduled(self) -> bool:
@@ -57,28 +69,46 @@ class HeatSources:
 
     def set_time(self, t: float) -> None:
         """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""
-        for k, src in enumerate(self.specs):
-            if k not in self.by_hand:
-                self._write(k, source_value(src, t))
+        for w in range(self.worlds):
+            for k, src in enumerate(self.specs):
+                if k not in self.by_hands[w]:
+                    self._write(k, source_value(src, t), w)
 
-    def value(self, k: int) -> float:
-        """Source k's temperature (degrees) or power (heat / time) now."""
-        return float(self._values[k])
+    def value(self, k: int, world: int = 0) -> float:
+        """Source k's temperature (degrees) or power (heat / time) now, in world `world`."""
+        return float(self._values[world][k])
 
-    def hold(self, k: int, value: float) -> None:
-        """Set source k's temperature or power by hand; its schedule no longer applies."""
-        self.by_hand.add(k)
-        self._write(k, float(value))
+    def hold(self, k: int, value: float, world: int = 0) -> None:
+        """Set source k's temperature or power by hand in world `world`; its schedule no longer applies there."""
+        self.by_hands[world].add(k)
+        self._write(k, float(value), world)
 
-    def release(self, k: int, value: float) -> None:
-        """Set source k's value as its schedule (or the scene) has it, no longer held by hand."""
-        self.by_hand.discard(k)
-        self._write(k, float(value))
+    def release(self, k: int, value: float, world: int = 0) -> None:
+        """Set source k's value in world `world` as its schedule (or the scene) has it, no longer held by hand."""
+        self.by_hands[world].discard(k)
+        self._write(k, float(value), world)
 
-    def _write(self, k: int, value: float) -> None:
-        if value != self._values[k]:
-            self.src_value[k] = value
-            self._values[k] = value
+    def _write(self, k: int, value: float, world: int) -> None:
+        if value != self._values[world][k]:
+            if self.worlds > 1:
+                self.src_value[world, k] = value
+            else:
+                self.src_value[k] = value
+            self._values[world][k] = value
+
+    def set_ambient(self, value: float, world: int | None = None) -> None:
+        """The air's temperature (degrees) in world `world` (None: in every world)."""
+        set_world_entry(self.ambient, self.worlds, world, float(value))
+
+    @ti.func
+    def source_value(self, k, i):
+        """Source k's temperature or power as particle i's world sets it."""
+        value = ti.cast(0.0, float)
+        if ti.static(self.worlds > 1):
+            value = self.src_value[world_of(self.p, i), k]
+        else:
+            value = self.src_value[k]
+        return value
 
     @ti.func
     def inside(self, k, xi):
@@ -105,7 +135,7 @@ class HeatSources:
         """Specific enthalpy of particle i after fixed sources: their temperature's enthalpy inside them, else h."""
         for k in range(self.n_sources):
             if self.src_mode[k] == FIXED and self.inside(k, self.p.x[i]):
-                h = self.phase.enthalpy(self.src_value[k], self.p.material[i])
+                h = self.phase.enthalpy(self.source_value(k, i), self.p.material[i])
         return h
 
     @ti.func
@@ -120,15 +150,22 @@ class HeatSources:
         (a power source adds its share of power to the second term)."""
         xi = self.p.x[i]
         g = self.ambient_exchange[None]
-        gt = g * self.ambient[None]
+        gt = g * at(self.ambient, world_of(self.p, i))
         for k in range(self.n_sources):
             if self.inside(k, xi):
                 if self.src_mode[k] == EXCHANGE:
                     g += self.src_conductance[k]
-                    gt += self.src_conductance[k] * self.src_value[k]
+                    gt += self.src_conductance[k] * self.source_value(k, i)
                 elif self.src_mode[k] == POWER:
-                    gt += self.src_value[k] * self.p.mass[i] / ti.max(self.src_mass[k], 1e-30)
+                    gt += self.source_value(k, i) * self.p.mass[i] / ti.max(self.src_mass[k], 1e-30)
         return g, gt
+
+
+def _every_world(values: list[float], worlds: int, slots: int) -> np.ndarray:
+    """The sources' `values` for each of `worlds` worlds, (worlds, slots) (slots: at least one, used or not)."""
+    table = np.zeros((worlds, slots))
+    table[:, : len(values)] = values
+    return table
 
 
 def source_value(src, t: float) -> float:

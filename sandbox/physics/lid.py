@@ -145,5 +145,5 @@ class Lid(Term):
             p.x[i], p.v[i] = x, v
 
     @ti.func
-    def measure_value(self):
+    def measure_value(self, w):
         return self.height[None], self.gauge[None], self.since[None]

@@ -10,6 +10,10 @@ a Taichi ndarray, which kernels take as an argument of fixed type and any shape,
 grow). Past MAX_BYTES of lists (say, a thousand particles crushed into one cell) the step falls back to scanning the
 cell grid directly: no interaction is ever dropped.
 
+Worlds (core/worlds.py): a build rebuilds the rows of the worlds where some particle has moved half the skin (all of
+them where the particles were added, removed or moved in storage), so each world's lists are built on the steps its
+lone run's are, and its forces are summed in the same order.
+
 Bonded pairs (half lists given `springs`): a pair joined by a live spring at the build is stored as -(s + 1), s the
 spring, so the pair pass can skip its pair force (a bonded pair feels its spring instead) without searching the bond
 table, and apply the pair force again once the spring breaks. Spring slots are only reused by new springs, and the code
@@ -26,6 +30,7 @@ from ..core import runtime
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
 from ..core.ranges import COUNT, Range
+from ..core.worlds import world_of
 
 MAX_BYTES = 1 << 30  # lists wider than this in total are not allocated; the cell-grid scan is used instead
 # The type of the lists as a kernel argument (see the docstring): one flat array, row i of width w at [i w, (i + 1) w).
@@ -89,6 +94,11 @@ class NeighbourList:
         self.loops = loops if loops is not None else grid.loops
         self.grid, self.domain, self.state = grid, domain, state
         self.x, self.n = state.particles.x, state.particles.n
+        self.p = state.particles
+        self.worlds = self.p.world_count if self.p.worlds else 1
+        if self.worlds > 1:
+            self.world_stale = ti.field(ti.i32, shape=self.worlds)  # the worlds whose rows the next build rebuilds
+            self.every_row = ti.field(ti.i32, shape=())  # 1: the next build rebuilds every world's rows
         self.half = half
         self.springs = springs
         self.marks_bonds = half and springs is not None
@@ -149,6 +159,12 @@ class NeighbourList:
             f"{self.width}), rebuilt from a counting-sort {grid.describe()} when a particle has moved half the skin"
         )
 
+    def rebuild_every_row(self) -> None:
+        """With many worlds: the next build rebuilds every world's rows, moved or not (the layout changed, or the
+        lists were widened); nothing with one world, whose builds rebuild every row."""
+        if self.worlds > 1:
+            self.every_row[None] = 1
+
     def _allocate(self, width: int) -> None:
         self.width = width
         self.flat = runtime.ndarray(ti.i32, (self.capacity * width,))  # neighbour ids, first count[i] of row i valid
@@ -183,6 +199,8 @@ class NeighbourList:
         if moved is None:
             moved = self._moved_too_far()
         if self.must_rebuild() or moved:  # no host read of the count or the overflow flag on steps without a rebuild
+            if self.must_rebuild():
+                self.rebuild_every_row()
             self._sort_and_fill(self.flat)
             if self.overflow[None] and self.grow():
                 self._fill(self.flat)
@@ -205,6 +223,7 @@ class NeighbourList:
         if self.capacity * wider * 4 > MAX_BYTES:
             return False
         self._allocate(wider)
+        self.rebuild_every_row()
         self.grown += 1
         return True
 
@@ -276,14 +295,32 @@ class NeighbourList:
 
     @ti.func
     def begin_fill(self):
-        """Before a build: clear the overflow flag and record the particle count listed."""
+        """Before a build: clear the overflow flag and record the particle count listed; with many worlds, mark
+        those whose rows it rebuilds (module docstring; a serial pass, on the steps that build)."""
+        if ti.static(self.worlds > 1):
+            every = self.every_row[None] != 0 or self.n[None] != self.n_listed[None]
+            for w in range(self.worlds):
+                self.world_stale[w] = 1 if every else 0
+            self.every_row[None] = 0
+            ti.loop_config(serialize=True)
+            for i in range(self.n[None]):
+                if self.moved_far(i):
+                    self.world_stale[world_of(self.p, i)] = 1
         self.overflow[None] = 0
         self.n_listed[None] = self.n[None]
 
     @ti.func
     def fill_one(self, i, ids: ti.template()):
         """Build particle i's list into row i of `ids` (its count, its position at the build; bonded pairs marked);
-        set `overflow` when it does not fit."""
+        set `overflow` when it does not fit. With many worlds, only the rows of the worlds begin_fill marked."""
+        rebuild = True
+        if ti.static(self.worlds > 1):
+            rebuild = self.world_stale[world_of(self.p, i)] != 0
+        if rebuild:
+            self._fill_row(i, ids)
+
+    @ti.func
+    def _fill_row(self, i, ids: ti.template()):
         width = self.width_of(ids)
         c = self._visit(i, (self.reach + self.skin) ** 2, True, ids, self.half)
         self.count[i] = c

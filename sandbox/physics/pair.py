@@ -319,7 +319,7 @@ class PairForce(Term):
         joined by a live spring (they feel the spring instead)."""
         xi = self.x[i]
         grid = self.parts.neighbours.grid
-        acc = grid.fold(xi, ti.Vector([0.0, 0.0]), self._measure_one, (i,))
+        acc = grid.fold(i, xi, ti.Vector([0.0, 0.0]), self._measure_one, (i,))
         if ti.static(self.has_springs):
             acc = fold_bonds(self.springs, i, acc, self._unmeasure_bond, (xi,))
         return acc[0], acc[1]

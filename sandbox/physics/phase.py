@@ -28,6 +28,7 @@ from ..core import runtime
 from ..core.model import material_column
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
+from ..core.worlds import add_at, world_of
 from .term import Term, register
 
 LIQUID = 1  # flag values of Particles.liquid: molten since it last froze
@@ -349,7 +350,7 @@ class Refreeze(Term):
         ti.loop_config(serialize=True)
         for i in range(p.n[None]):
             if p.liquid[i] == FREEZING:
-                cursor = grid.fold(p.x[i], cursor, self._bond_to, (i, p.material[i]))
+                cursor = grid.fold(i, p.x[i], cursor, self._bond_to, (i, p.material[i]))
         for i in range(p.n[None]):
             if p.liquid[i] == FREEZING:
                 p.liquid[i] = LIQUID
@@ -379,7 +380,7 @@ class Refreeze(Term):
                     s.alive[cursor] = 1
                     s.bonds[i, ni] = cursor
                     s.bonds[j, nj] = cursor
-                    s.created[None] += 1
+                    add_at(s.created, world_of(p, i), 1)
                     s.span[None] = ti.max(s.span[None], cursor + 1)
                     self.made[None] += 1
                 else:

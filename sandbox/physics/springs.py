@@ -26,6 +26,7 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
+from ..core.worlds import at
 from .term import Measure, Term, register
 
 
@@ -169,8 +170,8 @@ class Springs(Term):
         return self.energy(s), alive, virial
 
     @ti.func
-    def measure_value(self):
-        return (self.s.created[None],)
+    def measure_value(self, w):
+        return (at(self.s.created, w),)
 
     # ------------------------------------------------------------------ its stability
     def omega_max(self) -> float:

@@ -173,7 +173,7 @@ class Structure(Term):
     @ti.kernel
     def _order(self, grid: ti.template()):
         for i in range(self.p.n[None]):
-            acc = grid.fold(self.p.x[i], ti.Vector.zero(float, self.width + 1), self._add_bond, (i,))
+            acc = grid.fold(i, self.p.x[i], ti.Vector.zero(float, self.width + 1), self._add_bond, (i,))
             q = ti.Vector([acc[a] for a in ti.static(range(self.width))])
             norm = q.norm()
             self.order[i] = q / norm if norm > 0.0 else ti.Vector.zero(float, self.width)

@@ -108,7 +108,7 @@ class ThermalWalls(Term):
         return self.hits.shape[0] * 4
 
     @ti.func
-    def measure_value(self):
+    def measure_value(self, w):
         total = ti.cast(0.0, ti.f64)
         for w in ti.static(range(len(self.sides))):
             total += self.moved[w]

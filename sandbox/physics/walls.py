@@ -4,6 +4,7 @@ the walls' momentum gauge (the pressure they feel)."""
 import taichi as ti
 
 from ..core.oriented import data_oriented
+from ..core.worlds import at, world_of
 from .term import Measure, Term, register
 
 
@@ -30,7 +31,7 @@ class Walls(Term):
 
     def restart_gauge(self, time: float) -> None:
         """Zero the momentum gauge: pressure() averages from `time` on (advance_frame restarts it every frame)."""
-        self.domain.impulse[None] = 0.0
+        self.domain.impulse.fill(0.0)
         self.gauge_since = time
 
     def pressure(self, impulse: float, time: float) -> float:
@@ -51,8 +52,8 @@ class Walls(Term):
     @ti.func
     def finish(self, i, dt, rates: ti.template()):
         p = self.p
-        p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i], p.mass[i])
+        p.x[i], p.v[i] = self.domain.enforce(p.x[i], p.v[i], p.radius[i], p.mass[i], world_of(p, i))
 
     @ti.func
-    def measure_value(self):
-        return (self.domain.impulse[None],)
+    def measure_value(self, w):
+        return (at(self.domain.impulse, w),)

@@ -68,6 +68,7 @@ class Rates:
         self.blocked_rows = (
             self.dim == 3 and not self.heat_pair_terms and not self.marks_bonds and runtime.vector_gathers_pay()
         )
+        self.worlds = model.worlds  # worlds held, each a contiguous block of ids (half_rows_of_chunk)
         if self.has_lists:
             # a listed pair is at most reach + skin apart at the build and each has moved under half the skin since
             self.seam_margin = hood.lists.reach + 2.0 * hood.lists.skin
@@ -78,6 +79,10 @@ class Rates:
             # balances two a thread.
             self.n_chunks = (1 if self.loops.team else CHUNKS_PER_THREAD) * max(1, model.threads)
             self.n_pair_rows = 1 if self.loops.serial_pairs else self.n_chunks  # rows the pair pass writes
+            if self.worlds > 1:  # each world's chunks are its lone run's (world_chunk_rows)
+                lone = model.lone_loops
+                self.n_chunks = 1 if lone.serial_pairs else (1 if lone.team else CHUNKS_PER_THREAD) * model.threads
+                self.n_pair_rows = self.n_chunks
             self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_pair_rows, capacity))
             if self.heat_pair_terms:
                 self.pair_q = ti.field(float, shape=(self.n_pair_rows, capacity))
@@ -126,6 +131,18 @@ class Rates:
         """The half-list rows of chunk t of the n particles (a contiguous block of ids), into buffer row t."""
         width = self.hood.lists.width_of(ids)  # once: after a store the compiler reloads the shape and divides again
         for i in range(t * n // self.n_chunks, (t + 1) * n // self.n_chunks):
+            self._half_row(t, i, ids, i * width)
+
+    @ti.func
+    def world_chunk_rows(self, item, n, ids: ti.template()):
+        """With many worlds, item k n_chunks + t: the rows of chunk t of world k (each world a contiguous block of n /
+        worlds ids, chunked as its lone run chunks its particles), into buffer row t. No two worlds share a particle,
+        so their chunks t share buffer row t without a conflict, and each world's forces are summed in the order of
+        its lone run."""
+        width = self.hood.lists.width_of(ids)
+        each = n // self.worlds
+        k, t = item // self.n_chunks, item % self.n_chunks
+        for i in range(k * each + t * each // self.n_chunks, k * each + (t + 1) * each // self.n_chunks):
             self._half_row(t, i, ids, i * width)
 
     @ti.func
@@ -260,7 +277,15 @@ class Rates:
         `update_here` (allowed when updates_in_gather): the per-particle pass also updates each particle by `dt` with
         `integrator`'s `stage` once its rates are in."""
         p = self.state.particles
-        if ti.static(use_list and self.half):
+        if ti.static(use_list and self.half and self.worlds > 1):
+            # each world's chunks on the thread pool, serial or not: a serialized loop of items compiled to sums in
+            # another order than the lone run's (measured: an ulp on a few particles a step)
+            n = p.n[None]
+            for u in range(self.worlds * self.n_chunks * SPREAD_STRIDE):
+                item = spread_item(u)
+                if item >= 0:
+                    self.world_chunk_rows(item, n, ids)
+        elif ti.static(use_list and self.half):
             n = p.n[None]
             if ti.static(self.loops.serial_pairs):
                 width = self.hood.lists.width_of(ids)
@@ -320,7 +345,7 @@ class Rates:
                     j = ids[row + k]
                     pairs = self._add_pair(pairs, j, self.domain.separation(xi, p.x[j]), k, (i, rows))
             else:
-                pairs = self.hood.grid.fold(xi, pairs, self._add_pair, (i, rows))
+                pairs = self.hood.grid.fold(i, xi, pairs, self._add_pair, (i, rows))
             for a in ti.static(range(self.dim)):
                 f[a] += pairs[a]
             q += pairs[self.dim]

@@ -1,0 +1,54 @@
+"""One world of a simulation that holds many (core/worlds.py): `sim.world(k)` reads and steers world k as a lone
+simulation of its scene is read and steered, while the simulation steps every world at once."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .core import controls as live_controls
+from .measure.stats import Stats
+
+
+class WorldView:
+    """World k of `sim`: its readouts (stats), its particles (by id, as a lone run numbers them) and its live
+    controls. The clock is the simulation's: every world steps together."""
+
+    def __init__(self, sim, k: int) -> None:
+        self.sim, self.index = sim, k
+
+    time = property(lambda self: self.sim.time, doc="simulated time (every world's)")
+    step_count = property(lambda self: self.sim.step_count, doc="steps taken (every world's)")
+
+    @property
+    def controls(self) -> live_controls.Controls:
+        """This world's live controls by namespaced name (values(), set({...})); a control that is one for all
+        worlds (the pair force's scale) is set on sim.controls instead."""
+        return live_controls.Controls(self.sim.model, self.sim.terms, self.index)
+
+    def stats(self, pair_energy: bool = True) -> Stats:
+        """This world's energies, temperatures and counts now (Simulation.stats)."""
+        return self.sim.stats(pair_energy, world=self.index)
+
+    def _rows(self) -> np.ndarray:
+        """The storage slots of this world's live particles, ordered by particle id."""
+        p, n = self.sim.particles, self.sim.state.live_count()
+        world, ident = p.world.to_numpy()[:n], p.ident.to_numpy()[:n]
+        mine = np.flatnonzero(world == self.index)
+        return mine[np.argsort(ident[mine], kind="stable")]
+
+    def field(self, name: str) -> np.ndarray:
+        """Per-particle field `name` ("x", "v", "T", "mass", ...) of this world's live particles, by id: (N,) or
+        (N, D)."""
+        return getattr(self.sim.particles, name).to_numpy()[self._rows()]
+
+    def positions(self) -> np.ndarray:
+        """Live positions, (N, D), by particle id."""
+        return self.field("x")
+
+    def velocities(self) -> np.ndarray:
+        """Live velocities, (N, D), by particle id."""
+        return self.field("v")
+
+    def temperatures(self) -> np.ndarray:
+        """Live temperatures (degrees), (N,), by particle id."""
+        return self.field("T")
