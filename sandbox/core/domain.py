@@ -65,7 +65,7 @@ class Domain:
     def enforce(self, x, v, radius, mass, w):
         """Position and velocity after the walls (or the periodic wrap) act on a particle of the given radius in world
         w; a hit adds its momentum, mass times the normal velocity change, to that world's gauge (mass 0: not
-        counted)."""
+        counted, whatever w)."""
         if ti.static(self.periodic):
             x -= self.box * ti.floor((x - self.lo) / self.box)
         else:

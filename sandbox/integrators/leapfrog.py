@@ -139,7 +139,7 @@ class PositionVerlet(Leapfrog):
     @ti.func
     def _wrap(self, i):
         if ti.static(self.periodic):  # a half drift back may leave a periodic box: wrap (walls stay as they act)
-            self.p.x[i], self.p.v[i] = self.domain.enforce(self.p.x[i], self.p.v[i], self.p.radius[i], 0.0)
+            self.p.x[i], self.p.v[i] = self.domain.enforce(self.p.x[i], self.p.v[i], self.p.radius[i], 0.0, 0)
 
     @ti.kernel
     def _drift(self, h: float, hold: ti.template()):

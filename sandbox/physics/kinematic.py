@@ -90,6 +90,6 @@ class Kinematic(Term):
             if self.coupling[p.group[i]] == KINEMATIC:
                 x = self.x_start[i] + dt * self.v_field[i]
                 if ti.static(final):
-                    p.x[i], p.v[i] = self.domain.enforce(x, self.v_field[i], p.radius[i], 0.0)
+                    p.x[i], p.v[i] = self.domain.enforce(x, self.v_field[i], p.radius[i], 0.0, 0)
                 else:
                     p.x[i] = x
