@@ -53,8 +53,9 @@ def world_of(particles: ti.template(), i):
 
 def host_values(field, count: int) -> np.ndarray:
     """Every world's value of a `per_world` field as a NumPy array of `count` rows ((count,) or (count, dim))."""
-    data = field.to_numpy()
-    return data[None] if count == 1 else data
+    if count == 1:
+        return np.asarray(field[None].to_numpy() if hasattr(field[None], "to_numpy") else field[None])[None]
+    return field.to_numpy()
 
 
 def world_entry(field, count: int, k: int):
@@ -65,12 +66,15 @@ def world_entry(field, count: int, k: int):
 
 def set_world_entry(field, count: int, k: int | None, value) -> None:
     """Set world k's value of a `per_world` field (k None: every world's)."""
-    data = host_values(field, count).copy()
+    if count == 1:  # the lone run's 0-d field: one element written
+        field[None] = value.tolist() if isinstance(value, np.ndarray) else value
+        return
+    data = field.to_numpy()
     if k is None:
         data[:] = value
     else:
         data[k] = value
-    field.from_numpy(data[0] if count == 1 else data)
+    field.from_numpy(data)
 
 
 def check_count(worlds) -> int:
