@@ -393,6 +393,14 @@ def _bench_arguments(sub) -> None:
         metavar="NAME",
         help="with --serve: the shipped scene every tab opens (default melting_block)",
     )
+    bench.add_argument(
+        "--worlds",
+        nargs=2,
+        metavar=("K", "SCENE"),
+        default=None,
+        help="only worlds: K worlds of the shipped scene SCENE in one simulation against K separate simulations of it "
+        "stepped in turn (particle-steps a second, time to ready, memory; docs/worlds.md)",
+    )
     draw_argument(bench, "with --serve: who draws the particles (as sandbox serve --draw)")
     bench.set_defaults(func=cmd_bench)
 

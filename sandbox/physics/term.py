@@ -28,9 +28,10 @@ update after the walls have moved a particle), and within a stage in registratio
 
 Its other parts: `start(state)` (once the simulation is built), `stable_dt(integrator)`, `auto_dt(integrator)` (its
 bounds on the step), `measures` with `measure_particle(i)`, `measure_spring(s)`, `measure_pairs(i)`,
-`measure_value()` (its readouts), `declare(state)` (what it carries from step to step), `controls()` and
-`apply_controls()` (values a user may change while it runs), `after_restore(state)`, `words(where)` (what it does
-where in a step, for `sandbox check`).
+`measure_value(w)` (its readouts, of world w: core/worlds.py), `declare(state)` (what it carries from step to
+step), `controls()` and `apply_controls()` (values a user may change while it runs; with `world_controls`, each
+world's own: `controls(world=k)`, `apply_controls(values, world=k)`), `after_restore(state)`, `words(where)` (what
+it does where in a step, for `sandbox check`).
 """
 
 from __future__ import annotations
@@ -96,7 +97,7 @@ class Measure:
 
     name: str
     kind: str  # "sum", "max", "count"
-    over: str  # "particles", "springs", "pairs", or "value" (measure_value(): read as it is)
+    over: str  # "particles", "springs", "pairs", or "value" (measure_value(w): read as it is, world w's)
     start: float = 0.0  # where a sum or maximum starts (a maximum of temperatures: below any)
 
 
