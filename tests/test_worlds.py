@@ -1,0 +1,115 @@
+"""Worlds (core/worlds.py): K copies of a scene in one simulation, each the trajectory of the scene run alone.
+
+Every world starts on the same coordinates as the others, so a pair, a heat flow or a neighbour found across two
+worlds would put two particles at distance 0 (a blow-up, not a rounding): bit-for-bit equality with the lone run is
+also the proof that nothing crosses worlds.
+"""
+
+import numpy as np
+import pytest
+
+import sandbox
+from sandbox.errors import SandboxError
+
+pytestmark = pytest.mark.xdist_group("worlds")
+
+# a 12 x 12 wax block near its melting point on a 400-degree plate: it melts, its bonds break and (refreeze) new ones
+# form within the steps run here; springs, the pair force, heat, a heat source, walls and refreezing all act
+SMALL_BLOCK = {
+    "bodies.0.lo": [44.0, 0.0],
+    "bodies.0.hi": [56.0, 12.0],
+    "bodies.0.temperature": 52.0,
+    "heat.sources.0.temperature": 400.0,
+}
+# a periodic Lennard-Jones box of 20 x 20 atoms at density 0.8: pairs across its seams
+SMALL_LJ = {"world.hi": [22.36067977, 22.36067977], "bodies.0.hi": [22.36067977, 22.36067977]}
+
+
+def _state(view) -> tuple:
+    return view.positions(), view.velocities()
+
+
+def _assert_same(lone, world) -> None:
+    for a, b in zip(_state(lone), _state(world)):
+        assert a.shape == b.shape
+        assert np.array_equal(a, b)
+
+
+def test_each_world_of_a_melting_block_is_its_lone_run_to_the_bit():
+    lone = sandbox.load("melting_block", set=SMALL_BLOCK)
+    batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=3)
+    assert batch.worlds == 3 and batch.state.live_count() == 3 * lone.state.live_count()
+    for _ in range(16):
+        lone.advance_frame()
+        batch.advance_frame()
+    alone = lone.stats()
+    assert alone.molten_fraction > 0.05 and alone.broken_springs > 0  # the run melts, breaks bonds
+    for k in range(3):
+        world = batch.world(k)
+        _assert_same(lone, world)
+        assert np.array_equal(lone.temperatures(), world.temperatures())
+        stats = world.stats()
+        # each world's readouts are its own sums, as the lone run's (a count over all worlds would be 3 times)
+        assert stats == alone
+
+
+def test_each_world_of_a_periodic_lj_box_is_its_lone_run_to_the_bit():
+    """World 1 is heated hard (its atoms sped up 3 times), so its neighbour lists are rebuilt on other steps than
+    world 0's: world 0 still sums its forces in the lone run's order (its rows rebuilt only when its own atoms have
+    moved half the skin), and world 1 is the lone run given the same kick."""
+    lone = sandbox.load("lj_box", set=SMALL_LJ)
+    kicked = sandbox.load("lj_box", set=SMALL_LJ)
+    batch = sandbox.load("lj_box", set=SMALL_LJ, worlds=2)
+    v = batch.particles.v.to_numpy()
+    n = lone.state.live_count()
+    v[n : 2 * n] *= 3.0
+    batch.particles.v.from_numpy(v)
+    kicked.particles.v.from_numpy(kicked.particles.v.to_numpy() * 3.0)
+    for _ in range(6):
+        for sim in (lone, kicked, batch):
+            sim.advance_frame()
+    assert batch.hood.lists.builds > lone.hood.lists.builds  # world 1 rebuilt more often than world 0 would
+    start = sandbox.load("lj_box", set=SMALL_LJ).positions()
+    assert np.abs(lone.positions() - start).max() > 5.0  # some atom wrapped across a seam
+    for k, alone in enumerate((lone, kicked)):
+        _assert_same(alone, batch.world(k))
+        assert batch.world(k).stats().pair_energy == alone.stats().pair_energy
+
+
+def test_a_control_set_in_one_world_is_that_worlds_alone():
+    """World 1's gravity and world 2's hot plate are set halfway: world 0 stays the unchanged lone run, and worlds 1
+    and 2 are the lone runs given the same change at the same step; a control set for all applies to every world."""
+    plain = sandbox.load("melting_block", set=SMALL_BLOCK)
+    tilted = sandbox.load("melting_block", set=SMALL_BLOCK)
+    cooler = sandbox.load("melting_block", set=SMALL_BLOCK)
+    batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=3)
+    for frame in range(8):
+        if frame == 3:
+            tilted.controls.set({"world.gravity": [2.0, -5.0]})
+            batch.world(1).controls.set({"world.gravity": [2.0, -5.0]})
+            cooler.controls.set({"heat.sources": [60.0], "heat.ambient": 10.0})
+            batch.world(2).controls.set({"heat.sources": [60.0], "heat.ambient": 10.0})
+        for sim in (plain, tilted, cooler, batch):
+            sim.advance_frame()
+    for k, lone in enumerate((plain, tilted, cooler)):
+        _assert_same(lone, batch.world(k))
+        assert np.array_equal(lone.temperatures(), batch.world(k).temperatures())
+        assert batch.world(k).controls.values() == lone.controls.values()
+    assert not np.array_equal(plain.positions(), tilted.positions())
+    batch.controls.set({"world.drag": 0.5})
+    assert [batch.world(k).controls.values()["world.drag"] for k in range(3)] == [0.5] * 3
+
+
+def test_worlds_refuse_what_they_cannot_do_in_one_line():
+    for bad in (0, -1, True, 2.5, "3", 10**6):
+        with pytest.raises(SandboxError, match="worlds = .*expected a whole number from 1 to 4096"):
+            sandbox.load("lj_box", set=SMALL_LJ, worlds=bad)
+    with pytest.raises(SandboxError, match="fireworks: worlds = 2 is for .* this one has .*emitters"):
+        sandbox.load("fireworks", worlds=2)
+    batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=2)
+    with pytest.raises(SandboxError, match="world 2: expected a whole number from 0 to 1"):
+        batch.world(2)
+    with pytest.raises(SandboxError, match="control pair.scale is one for all worlds"):
+        batch.world(0).controls.set({"pair.scale": [2.0, 1.0]})
+    with pytest.raises(SandboxError, match="a state file holds one world; this simulation has 2"):
+        batch.save("never.npz")
