@@ -63,7 +63,6 @@ class Diagnostics:
         self.p = state.particles
         self.springs = state.springs
         self.worlds = model.worlds
-        self.members = ti.field(ti.i32, shape=())  # the measured world's particles (with many worlds)
         real = ti.f64 if model.arch in ("cpu", "cuda") else ti.f32
         self.owners = [Motion(self.p, self.dim)] + [t for t in terms if t.measures]
         self.real_names, self.int_names = [], []
@@ -124,6 +123,15 @@ class Diagnostics:
                 self.count[picked[k][1]][None] += values[k]
 
     @ti.func
+    def world_block(self, world):
+        """(first, last + 1): the slots of world `world`'s live particles (every live one, with one world)."""
+        first, last = 0, self.p.n[None]
+        if ti.static(self.worlds > 1):
+            each = last // self.worlds
+            first, last = world * each, (world + 1) * each
+        return first, last
+
+    @ti.func
     def _in(self, i, world):
         """Whether particle i is of the world measured (always, with one world)."""
         inside = True
@@ -138,15 +146,14 @@ class Diagnostics:
                 self.count[slot][None] = 0
             else:
                 self.acc[slot][None] = start
-        if ti.static(self.worlds > 1):
-            self.members[None] = 0
+        # a world's particles are one block of n / worlds slots (core/worlds.py): a loop over that block alone sums
+        # them as the lone run's loop does (a loop over every slot that skipped the others' grouped the sums in
+        # other vector lanes: an ulp off where a world's block did not start on a multiple of the lanes)
+        first, last = self.world_block(world)
         self.loops.light()
-        for i in range(self.p.n[None]):
-            if self._in(i, world):
-                if ti.static(self.worlds > 1):
-                    self.members[None] += 1
-                for term, picked in ti.static(self._over("particles")):
-                    self._add(picked, term.measure_particle(i))
+        for i in range(first, last):
+            for term, picked in ti.static(self._over("particles")):
+                self._add(picked, term.measure_particle(i))
         if ti.static(self.has_springs):
             self.loops.light()
             for s in range(self.springs.span[None]):
@@ -155,10 +162,9 @@ class Diagnostics:
                         self._add(picked, term.measure_spring(s))
         if ti.static(pairs and self.has_pairs):
             self.loops.pairs()
-            for i in range(self.p.n[None]):
-                if self._in(i, world):
-                    for term, picked in ti.static(self._over("pairs")):
-                        self._add(picked, term.measure_pairs(i))
+            for i in range(first, last):
+                for term, picked in ti.static(self._over("pairs")):
+                    self._add(picked, term.measure_pairs(i))
         for term, picked in ti.static(self._over("value")):
             values = term.measure_value(world)
             for k in ti.static(range(len(picked))):
@@ -170,7 +176,4 @@ class Diagnostics:
             real_out[k] = self.acc[k][None]
         for k in ti.static(range(len(self.int_names))):
             int_out[k] = self.count[k][None]
-        if ti.static(self.worlds > 1):
-            int_out[self.n_counts] = self.members[None]
-        else:
-            int_out[self.n_counts] = self.p.n[None]
+        int_out[self.n_counts] = last - first

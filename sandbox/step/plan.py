@@ -70,10 +70,10 @@ class StepPlan:
             LoadWatch(model.threads) if self.team is not None and os.environ.get("SANDBOX_TEAM") != "always" else None
         )
         one_launch = loops.serial_pairs and loops.serial_light or self.team is not None
-        # many worlds whose lone runs chunk their pair pass step the long way: fused, their chunks' sums came out an
-        # ulp away from the lone run's on a few particles a step (measured on melting_block, two threads)
-        chunked_worlds = model.worlds > 1 and getattr(rates, "n_chunks", 1) > 1
-        self.fuses = one_launch and not self.reasons and not chunked_worlds
+        # many worlds step the long way (a launch a pass, for all of them): fused into one serial kernel, a world's
+        # pair sums came out an ulp away from its lone run's on a few particles a step (freeze_thaw, melting_block
+        # on two threads: the compiler contracts the inlined pair pass differently there)
+        self.fuses = one_launch and not self.reasons and model.worlds == 1
         lone = Team(rates, 1) if self.team is not None else None  # the crowded machine's one-thread way
         self.fused = FusedSteps(rates, state, self.team, lone)
         self.long_way = LongWay(self)

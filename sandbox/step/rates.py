@@ -68,7 +68,10 @@ class Rates:
         self.blocked_rows = (
             self.dim == 3 and not self.heat_pair_terms and not self.marks_bonds and runtime.vector_gathers_pay()
         )
-        self.worlds = model.worlds  # worlds held, each a contiguous block of ids (half_rows_of_chunk)
+        self.worlds = model.worlds  # worlds held, each a contiguous block of ids (world_chunk_rows)
+        lone = model.lone_loops  # how one world alone loops
+        self.serial_rows = self.loops.serial_pairs if self.worlds == 1 else lone.serial_pairs
+        self.world_chunks = self.worlds > 1 and not lone.serial_pairs
         if self.has_lists:
             # a listed pair is at most reach + skin apart at the build and each has moved under half the skin since
             self.seam_margin = hood.lists.reach + 2.0 * hood.lists.skin
@@ -79,10 +82,13 @@ class Rates:
             # balances two a thread.
             self.n_chunks = (1 if self.loops.team else CHUNKS_PER_THREAD) * max(1, model.threads)
             self.n_pair_rows = 1 if self.loops.serial_pairs else self.n_chunks  # rows the pair pass writes
-            if self.worlds > 1:  # each world's chunks are its lone run's (world_chunk_rows)
-                lone = model.lone_loops
-                self.n_chunks = 1 if lone.serial_pairs else (1 if lone.team else CHUNKS_PER_THREAD) * model.threads
-                self.n_pair_rows = self.n_chunks
+            # With many worlds, each world's rows are summed as its lone run sums them: where that run's pair pass is
+            # serial, by the same serial pass over every world's rows in turn (the same compiled loop: another shape
+            # of loop was compiled to sums an ulp away, on ice_cube); else in the lone run's chunks of each world
+            # (world_chunk_rows)
+            if self.worlds > 1:
+                self.n_chunks = (1 if lone.team else CHUNKS_PER_THREAD) * max(1, model.threads)
+                self.n_pair_rows = 1 if lone.serial_pairs else self.n_chunks
             self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_pair_rows, capacity))
             if self.heat_pair_terms:
                 self.pair_q = ti.field(float, shape=(self.n_pair_rows, capacity))
@@ -277,7 +283,7 @@ class Rates:
         `update_here` (allowed when updates_in_gather): the per-particle pass also updates each particle by `dt` with
         `integrator`'s `stage` once its rates are in."""
         p = self.state.particles
-        if ti.static(use_list and self.half and self.worlds > 1):
+        if ti.static(use_list and self.half and self.world_chunks):
             # each world's chunks on the thread pool, serial or not: a serialized loop of items compiled to sums in
             # another order than the lone run's (measured: an ulp on a few particles a step)
             n = p.n[None]
@@ -287,7 +293,7 @@ class Rates:
                     self.world_chunk_rows(item, n, ids)
         elif ti.static(use_list and self.half):
             n = p.n[None]
-            if ti.static(self.loops.serial_pairs):
+            if ti.static(self.serial_rows):  # the lone run's serial pass: every world's rows, a world after another
                 width = self.hood.lists.width_of(ids)
                 ti.loop_config(serialize=True)
                 for i in range(n):
