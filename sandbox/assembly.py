@@ -40,9 +40,18 @@ class Assembly:
     terms: list
 
 
-def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None, worlds: int = 1) -> Assembly:
+def assemble(
+    scene: Scene,
+    arch: str = "cpu",
+    half_lists: bool | None = None,
+    worlds: int = 1,
+    starts: list | None = None,
+    alone_threads: int | None = None,
+) -> Assembly:
     """Build `scene` on Taichi backend `arch` (see Simulation for `half_lists`), `worlds` copies of it side by side
-    (core/worlds.py; SandboxError where the scene has a part that cannot yet run as worlds)."""
+    (core/worlds.py; SandboxError where the scene has a part that cannot yet run as worlds); `starts`: the scene of
+    each world where they start from other particles (their temperatures and velocities: Simulation);
+    `alone_threads`: the CPU threads of the lone run each world is to equal (default: this simulation's)."""
     running = runtime.init(arch, scene.world.precision)
     built = build_particles(scene)
     world = scene.world
@@ -56,7 +65,8 @@ def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None, wo
     pair_only, team_ok = not (scene.heat or built.spring_count), can_step_as_a_team(scene) and worlds == 1
     loops = LoopPolicy(running, capacity, pair_only, threads, team_ok)
     # how a lone run of one world would loop: the pair pass sums each world's rows as it would (step/rates.py)
-    lone_loops = LoopPolicy(running, capacity // worlds, pair_only, threads, can_step_as_a_team(scene))
+    alone = threads if alone_threads is None or running != "cpu" else alone_threads
+    lone_loops = LoopPolicy(running, capacity // worlds, pair_only, alone, can_step_as_a_team(scene))
     materials = [scene.materials[name] for name in scene.used_materials()]
     heat = scene.heat
     can_refreeze = bool(heat and heat.refreeze and any(m.melts for m in materials))
@@ -65,7 +75,7 @@ def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None, wo
         domain = Domain(world.lo, world.hi, world.periodic, world.restitution, world.friction, worlds)
         phase = Phase(table) if heat else None
         model = Model(scene, running, built, capacity, materials, table, phase, loops, domain, threads, worlds)
-        model.lone_loops = lone_loops
+        model.lone_loops, model.lone_threads = lone_loops, alone
         lifetimes = any(e.lifetime > 0 for e in scene.emitters)
         particles = Particles(
             scene.dim,
@@ -76,7 +86,12 @@ def assemble(scene: Scene, arch: str = "cpu", half_lists: bool | None = None, wo
             structure=scene.molecular is not None,
             worlds=worlds,
         )
-        every_world = built.replicated(worlds)
+        try:
+            every_world = (
+                built.side_by_side([build_particles(s) for s in starts]) if starts else built.replicated(worlds)
+            )
+        except ValueError as exc:
+            raise SandboxError(f"{scene.name}: {exc}") from None
         _load_particles(particles, every_world, table.colors, materials)
         springs = None
         if built.spring_count or can_refreeze:

@@ -37,7 +37,7 @@ from .physics import TermList
 from .physics.springs import Springs
 from .step.plan import StepPlan
 from .step.rates import Rates
-from .world_view import WorldView
+from .world_view import WorldView, world_controls
 
 
 class ParticleView:
@@ -59,12 +59,24 @@ class ParticleView:
 class Simulation:
     """A running scene: its model, state and terms, stepped by a plan, measured by its diagnostics."""
 
-    def __init__(self, scene: Scene, arch: str = "cpu", half_lists: bool | None = None, worlds: int = 1):
+    def __init__(
+        self,
+        scene: Scene,
+        arch: str = "cpu",
+        half_lists: bool | None = None,
+        worlds: int = 1,
+        starts: list[Scene] | None = None,
+        alone_threads: int | None = None,
+    ):
         """Build what `scene` names on Taichi backend `arch`. `half_lists`: apply each neighbour pair once to both
         particles from a half list (None: on the CPU backend, where it halves the pair work; a GPU gathers from
         full lists instead, which needs no write conflicts). `worlds`: copies of the scene held and stepped together
-        (core/worlds.py; each is `world(k)`)."""
-        built = assemble(scene, arch, half_lists, worlds)
+        (core/worlds.py; each is `world(k)`); `starts`: instead, one scene per world, each the scene but for what a
+        world may hold of its own (world_view.WORLD_KEYS: its bodies' temperatures and velocities, its gravity,
+        drag, air and heat sources), so that each world is that scene run alone (on `alone_threads` CPU threads:
+        a run's forces are summed in chunks of its threads; default, this simulation's)."""
+        worlds = len(starts) if starts else worlds
+        built = assemble(scene, arch, half_lists, worlds, starts, alone_threads)
         self.model, self.state, self.hood = built.model, built.state, built.hood
         self.terms = TermList(built.terms)
         self.runtime_generation = runtime.generation()
@@ -77,6 +89,8 @@ class Simulation:
         self.parts = list(self.terms) + ([self.hood] if self.hood is not None else [])  # what a restore refreshes
         for term in self.terms:
             term.start(self.state)
+        for k, start in enumerate(starts or []):
+            self.world(k).controls.set(world_controls(start, self.controls.values()))
         self.mark_initial()
 
     # ------------------------------------------------------------------ what it is

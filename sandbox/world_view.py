@@ -7,6 +7,29 @@ import numpy as np
 
 from .core import controls as live_controls
 from .measure.stats import Stats
+from .physics.heat_sources import source_value
+
+# The scene keys a world of a simulation may hold of its own (Simulation's `starts`, `sandbox sweep`'s batches):
+# what its particles start from and its live controls. Every other key is one for all its worlds.
+WORLD_KEYS = (
+    r"bodies\.\d+\.temperature",
+    r"bodies\.\d+\.velocity",
+    r"world\.gravity",
+    r"world\.drag",
+    r"heat\.ambient",
+    r"heat\.sources\.\d+\.temperature",
+)
+
+
+def world_controls(scene, controls: dict) -> dict:
+    """The live controls (by namespaced name, those among `controls`) that a world started from `scene` takes: its
+    gravity, drag, air temperature and heat sources' temperatures (a power source's power)."""
+    out = {"world.gravity": [float(g) for g in scene.world.gravity], "world.drag": float(scene.world.drag)}
+    if scene.heat:
+        out["heat.ambient"] = float(scene.heat.ambient)
+        if scene.heat.sources:
+            out["heat.sources"] = [float(source_value(src, 0.0)) for src in scene.heat.sources]
+    return {key: value for key, value in out.items() if key in controls}
 
 
 class WorldView:

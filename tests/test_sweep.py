@@ -51,12 +51,23 @@ def test_a_local_cluster_sweep_equals_the_runs_one_by_one_and_resumes(tmp_path, 
         for m in ("wax", "chocolate")
     ]
     scene = SCENES / "melting_block.toml"
-    serial = run_sweep(scene, base, tmp_path / "serial", frames=4, scheduler="serial", threads=1, log=lambda s: None)
+    serial = run_sweep(
+        scene, base, tmp_path / "serial", frames=4, scheduler="serial", threads=1, log=lambda s: None, batch=False
+    )
     marker = tmp_path / "crashed"
     monkeypatch.setenv(CRASH_HOOK, str(marker))  # the first run to reach mid-run kills its worker process
     said = []
-    spread = run_sweep(
-        scene, base, tmp_path / "dask", frames=4, scheduler="local", workers=2, threads=1, log=said.append
+    spread = run_sweep(  # each run alone on a worker (batch=False: else the runs, which differ in a world's keys
+        # and their material, would run as two batches of two worlds in this process)
+        scene,
+        base,
+        tmp_path / "dask",
+        frames=4,
+        scheduler="local",
+        workers=2,
+        threads=1,
+        log=said.append,
+        batch=False,
     )
     assert marker.exists()  # a worker did die ...
     assert [r["outcome"] for r in spread] == ["done"] * 4  # ... and its run was retried to completion
@@ -72,7 +83,9 @@ def test_a_local_cluster_sweep_equals_the_runs_one_by_one_and_resumes(tmp_path, 
     assert molten[(250.0, "wax")] > molten[(150.0, "wax")]  # a hotter plate melts more
     records = {p: p.stat().st_mtime_ns for p in (tmp_path / "dask").glob("*/run.json")}
     said.clear()
-    again = run_sweep(scene, base, tmp_path / "dask", frames=4, scheduler="local", workers=2, log=said.append)
+    again = run_sweep(
+        scene, base, tmp_path / "dask", frames=4, scheduler="local", workers=2, log=said.append, batch=False
+    )
     assert said[0] == "4 of 4 runs already complete: skipped"
     assert {p: p.stat().st_mtime_ns for p in records} == records  # nothing ran again
     assert [r["outcome"] for r in again] == ["done"] * 4
@@ -80,6 +93,45 @@ def test_a_local_cluster_sweep_equals_the_runs_one_by_one_and_resumes(tmp_path, 
         manifest = list(csv.DictReader(f))
     assert [m["bodies.0.material"] for m in manifest] == ["wax", "chocolate", "wax", "chocolate"]
     assert manifest[0]["stats"] == "000_lo=-56.0--0.0-_hi=-64.0--6.0-_temperature=150_material=wax/stats.csv"
+
+
+SUMMED_OVER_SPRINGS = ("spring_energy", "potential_energy", "total_energy", "pressure")
+
+
+def test_runs_that_differ_in_a_worlds_keys_run_as_worlds_and_equal_their_runs_alone(tmp_path):
+    """Eight runs (two materials x two plate temperatures x two starting temperatures): the four of each material
+    differ only in what a world holds of its own, so they run as two simulations of four worlds; every run's
+    readouts equal its run alone (a run of the same sweep with batch=False), each frame, to the printed digit (the
+    sums over springs, which a world adds up in another order, to the rounding of their ninth digit)."""
+    runs = [
+        {**SMALL, "bodies.0.material": m, "heat.sources.0.temperature": t, "bodies.0.temperature": start}
+        for m in ("wax", "chocolate")
+        for t in (150.0, 300.0)
+        for start in (20.0, 50.0)
+    ]
+    scene, said = SCENES / "melting_block.toml", []
+    batched = run_sweep(scene, runs, tmp_path / "b", frames=6, scheduler="serial", threads=1, log=said.append)
+    alone = run_sweep(
+        scene, runs, tmp_path / "a", frames=6, scheduler="serial", threads=1, log=lambda s: None, batch=False
+    )
+    assert "runs 0 1 2 3: batched as 4 worlds of one simulation" in said
+    assert "runs 4 5 6 7: batched as 4 worlds of one simulation" in said
+    assert [r["batch"] for r in batched] == [[0, 1, 2, 3]] * 4 + [[4, 5, 6, 7]] * 4
+    assert all("batch" not in r for r in alone)
+    for b, a in zip(batched, alone):
+        assert b["outcome"] == a["outcome"] == "done" and b["overrides"] == a["overrides"]
+        rows_b, rows_a = _rows(b["stats"]), _rows(a["stats"])
+        assert len(rows_b) == len(rows_a) == 6
+        for row_b, row_a in zip(rows_b, rows_a):
+            for column, value in row_a.items():
+                if column in SUMMED_OVER_SPRINGS and value:
+                    assert float(row_b[column]) == pytest.approx(float(value), rel=1e-7), column
+                else:
+                    assert row_b[column] == value, column
+    finals = {tuple(r["overrides"][k] for k in ("bodies.0.material", "heat.sources.0.temperature")): r for r in batched}
+    assert finals[("wax", 300.0)]["final_mean_temperature"] > finals[("wax", 150.0)]["final_mean_temperature"]
+    with open(tmp_path / "b" / "manifest.csv", newline="") as f:
+        assert [row["batch"] for row in csv.DictReader(f)] == ["0 1 2 3"] * 4 + ["4 5 6 7"] * 4
 
 
 def test_an_invalid_value_is_recorded_and_the_rest_complete(tmp_path):

@@ -129,3 +129,21 @@ def test_worlds_refuse_what_they_cannot_do_in_one_line():
         batch.world(0).controls.set({"pair.scale": [2.0, 1.0]})
     with pytest.raises(SandboxError, match="a state file holds one world; this simulation has 2"):
         batch.save("never.npz")
+
+
+def test_a_sweep_batches_the_runs_that_differ_only_in_a_worlds_keys():
+    from sandbox.app.sweep_batch import MAX_BATCH, batches, world_key
+
+    assert world_key("heat.sources.2.temperature") and world_key("bodies.0.velocity") and world_key("world.gravity")
+    assert not world_key("bodies.0.material") and not world_key("world.dt") and not world_key("heat.sources.0.lo")
+    jobs = [
+        (k, {"bodies.0.material": m, "heat.ambient": a}, f"f{k}", {})
+        for k, (m, a) in enumerate((m, a) for m in ("wax", "ice") for a in (10.0, 20.0, 30.0))
+    ]
+    lone = (6, {"bodies.0.material": "gel", "heat.ambient": 10.0}, "f6", {})
+    groups, alone = batches([*jobs, lone], video=False)
+    assert [[job[0] for job in group] for group in groups] == [[0, 1, 2], [3, 4, 5]] and alone == [lone]
+    assert batches(jobs, video=True) == ([], jobs)  # a video is drawn from one world: every run alone
+    many = [(k, {"heat.ambient": float(k)}, f"f{k}", {}) for k in range(MAX_BATCH + 2)]
+    groups, alone = batches(many, video=False)
+    assert [len(g) for g in groups] == [MAX_BATCH, 2] and alone == []

@@ -184,6 +184,7 @@ def cmd_sweep(args) -> int:
                 threads=args.threads,
                 log=lambda line: print(line, file=sys.stderr),
                 redo=args.redo,
+                batch=not args.no_batch,
             )
     except KeyboardInterrupt as exc:
         name = signal.Signals(exit_code(exc) - 128).name
@@ -321,6 +322,12 @@ def _sweep_arguments(sub) -> None:
     sweep.add_argument("--height", type=int, help="video height in pixels (default: render.height)")
     pool_arguments(sweep, "run")
     sweep.add_argument("--metric", default="final_molten_fraction", help="what sweep.png plots")
+    sweep.add_argument(
+        "--no-batch",
+        action="store_true",
+        help="run every run alone (by default, runs that differ only in what a world may hold of its own run as the "
+        "worlds of one simulation: docs/sweeps.md)",
+    )
     sweep.set_defaults(func=cmd_sweep, set=[], arch="cpu")
 
 

@@ -33,6 +33,7 @@ from ..config.scene import apply_override, parse_override, read_scene_table, sce
 from ..errors import SandboxError, SceneError
 from ..research.dask_pool import choose_scheduler, dask_client, local_shape
 from ..research.figures import key_label, legend_beside, metric_label, pyplot, save
+from .sweep_batch import batches, execute_batch
 from .sweep_run import RECORD, execute_run, identity
 
 METRICS = (
@@ -165,6 +166,7 @@ def run_sweep(
     threads: int | None = None,
     log=print,
     redo: bool = False,
+    batch: bool = True,
 ) -> list[dict]:
     """Run every override set in `runs` and write the manifest; returns the records in plan order.
 
@@ -172,7 +174,9 @@ def run_sweep(
     (one by one in this process) or a Dask scheduler address. `workers`, `threads`: local worker processes and Taichi
     threads per run (default: one worker per core, up to the runs, and the cores shared among them). A run whose
     folder holds a record of the same settings is skipped; one of other settings stops the sweep before anything
-    runs (a SandboxError saying what differs), unless `redo`, which runs it again."""
+    runs (a SandboxError saying what differs), unless `redo`, which runs it again. `batch`: runs that differ only
+    in what a world may hold of its own run as the worlds of one simulation, in this process (sweep_batch.py),
+    before the rest."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scene_path = str(Path(scene_path).resolve())
@@ -191,11 +195,20 @@ def run_sweep(
             todo.append((k, o, f, wanted))
     if len(todo) < len(jobs):
         log(f"{len(jobs) - len(todo)} of {len(jobs)} runs already complete: skipped")
-    workers, threads = local_shape(len(todo), workers, threads)
-    scheduler = choose_scheduler(scheduler, len(todo), log, "sweep")
+    groups, alone = batches(todo, video) if batch else ([], todo)
+    workers, threads = local_shape(len(todo), workers, threads)  # as if none were batched: the runs' threads
+    if alone:
+        scheduler = choose_scheduler(scheduler, len(alone), log, "sweep")
+    todo = alone
     args = (frames, video, width, height, threads)
     try:
-        if scheduler == "serial":
+        for group in groups:
+            log(f"runs {' '.join(str(job[0]) for job in group)}: batched as {len(group)} worlds of one simulation")
+            for record in execute_batch(scene_path, group, frames, threads, log):
+                log(f"run {record['run']}: {record['outcome']} {record.get('message', '')}".rstrip())
+        if not todo:
+            pass
+        elif scheduler == "serial":
             for k, overrides, folder, wanted in todo:
                 record = execute_run(scene_path, overrides, str(folder), *args, settings=wanted)
                 log(f"run {k}: {record['outcome']} {record.get('message', '')}".rstrip())
@@ -243,7 +256,7 @@ def write_manifest(out: Path, jobs: list) -> list[dict]:
         record["run"] = k
         records.append(record)
     keys = list(jobs[0][1]) if jobs else []
-    columns = ["run", *keys, "outcome", "message", "frames", *METRICS, "stats", "video", "folder"]
+    columns = ["run", *keys, "outcome", "message", "frames", *METRICS, "batch", "stats", "video", "folder"]
     partial = out / ".manifest.csv.partial"
     with open(partial, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
@@ -254,6 +267,8 @@ def write_manifest(out: Path, jobs: list) -> list[dict]:
                 if row[name]:
                     row[name] = os.path.relpath(row[name], out)
             row.update(record["overrides"])
+            if record.get("batch"):  # the runs stepped as the worlds of one simulation with it
+                row["batch"] = " ".join(str(k) for k in record["batch"])
             writer.writerow({c: ("" if v is None else v) for c, v in row.items()})
     os.replace(partial, out / "manifest.csv")
     return records

@@ -57,6 +57,30 @@ class Particles:
         deg = np.bincount(np.concatenate([self.spring_i, self.spring_j]), minlength=self.count)
         return int(deg.max())
 
+    @staticmethod
+    def side_by_side(builds: list[Particles]) -> Particles:
+        """The builds of a scene's worlds one after the other (world k's particle i at k N + i), each world's springs
+        joining its own particles; ValueError where they differ in particle count or springs (what a world may vary:
+        its bodies' temperatures and velocities, not its structure)."""
+        first = builds[0]
+        for k, other in enumerate(builds[1:], 1):
+            same = other.count == first.count and np.array_equal(other.spring_i, first.spring_i)
+            if not same or not np.array_equal(other.spring_j, first.spring_j):
+                raise ValueError(f"world {k} is built of other particles or springs than world 0; expected the same")
+        shifts = np.repeat(np.arange(len(builds), dtype=np.int32) * first.count, first.spring_count)
+        per_particle = ("x", "v", "mass", "radius", "temperature", "material", "body", "solid")
+        joined = {name: np.concatenate([getattr(b, name) for b in builds]) for name in per_particle}
+        joined.update(
+            {name: np.concatenate([getattr(b, name) for b in builds]) + shifts for name in ("spring_i", "spring_j")}
+        )
+        joined.update(
+            {
+                name: np.concatenate([getattr(b, name) for b in builds])
+                for name in ("rest_length", "stiffness", "damping")
+            }
+        )
+        return Particles(**joined)
+
     def replicated(self, worlds: int) -> Particles:
         """`worlds` copies of these particles one after the other (world k's particle i at k N + i), each copy's
         springs joining its own particles: the particles of a simulation of that many worlds (core/worlds.py)."""

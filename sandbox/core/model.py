@@ -82,6 +82,7 @@ class Model:
         self.phase = phase
         self.loops = loops  # LoopPolicy: which loops run in parallel
         self.lone_loops = loops  # ... and how one world alone would run them (assembly.py sets it for many worlds)
+        self.lone_threads = threads  # ... on this many CPU threads
         self.domain = domain  # the box: separations, walls or periodic wrap
         self.gravity = per_world(worlds, float, self.dim)  # acceleration (length / time^2), per world
         self.drag = per_world(worlds, float)  # linear drag rate (1 / time), per world

@@ -87,7 +87,7 @@ class Rates:
             # of loop was compiled to sums an ulp away, on ice_cube); else in the lone run's chunks of each world
             # (world_chunk_rows)
             if self.worlds > 1:
-                self.n_chunks = (1 if lone.team else CHUNKS_PER_THREAD) * max(1, model.threads)
+                self.n_chunks = (1 if lone.team else CHUNKS_PER_THREAD) * max(1, model.lone_threads)
                 self.n_pair_rows = 1 if lone.serial_pairs else self.n_chunks
             self.pair_f = ti.Vector.field(self.dim, float, shape=(self.n_pair_rows, capacity))
             if self.heat_pair_terms:
