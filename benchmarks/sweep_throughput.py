@@ -1,10 +1,11 @@
-"""Sweep throughput: the same sweep one run at a time in one process (all cores to each run) against a local Dask
-cluster (one worker process per core, one Taichi thread each); runs per hour and memory per worker.
+"""Sweep throughput: the same sweep one run at a time in one process (all cores to each run), on a local Dask
+cluster (one worker process per core, one Taichi thread each) and as worlds (the runs of each material as the worlds
+of one simulation, sandbox/app/sweep_batch.py); runs per hour and memory per worker.
 
-    python benchmarks/sweep_throughput.py [--frames 60] [--out /tmp/sweep-bench]
+    python benchmarks/sweep_throughput.py [--frames 60] [--plates 4] [--out /tmp/sweep-bench]
 
-The sweep: the melting block at 4 plate temperatures x 2 materials (8 runs of `--frames` frames). Both orders start
-with the kernel cache as the first run left it, so the cluster's first runs compile as the serial's do.
+The sweep: the melting block at `--plates` plate temperatures x 2 materials (runs of `--frames` frames). Every way
+starts with the kernel cache as the first run left it, so the later ways' first runs compile as the first's do.
 """
 
 import argparse
@@ -23,18 +24,23 @@ from sandbox.config.resources import shipped_scene
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--frames", type=int, default=60)
+    parser.add_argument("--plates", type=int, default=4)
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     out = Path(args.out or tempfile.mkdtemp(prefix="sweep-bench-"))
     runs = plan_runs(
-        [parse_vary("heat.sources.0.temperature=120:240:4"), parse_vary("bodies.0.material=wax,chocolate")]
+        [
+            parse_vary(f"heat.sources.0.temperature=120:240:{args.plates}"),
+            parse_vary("bodies.0.material=wax,chocolate"),
+        ]
     )
     scene = shipped_scene("melting_block")
     cores = os.cpu_count() or 1
     results = {}
     for name, kwargs in (
-        ("one by one", dict(scheduler="serial", threads=cores)),
-        ("local cluster", dict(scheduler="local", workers=cores, threads=1)),
+        ("one by one", dict(scheduler="serial", threads=cores, batch=False)),
+        ("local cluster", dict(scheduler="local", workers=cores, threads=1, batch=False)),
+        ("as worlds", dict(scheduler="serial", threads=1)),
     ):
         folder = out / name.replace(" ", "-")
         shutil.rmtree(folder, ignore_errors=True)
@@ -48,6 +54,7 @@ def main() -> None:
             "runs/hour"
         )
     print(f"speed-up of the local cluster ({cores} workers): {results['one by one'] / results['local cluster']:.2f}")
+    print(f"speed-up as worlds: {results['one by one'] / results['as worlds']:.2f}")
     from distributed import Client, LocalCluster
 
     with LocalCluster(n_workers=cores, threads_per_worker=1, dashboard_address=None, silence_logs=40) as cluster:
