@@ -129,6 +129,9 @@ def test_worlds_refuse_what_they_cannot_do_in_one_line():
         batch.world(0).controls.set({"pair.scale": [2.0, 1.0]})
     with pytest.raises(SandboxError, match="a state file holds one world; this simulation has 2"):
         batch.save("never.npz")
+    for draw in (batch.picture, batch.particles, lambda: batch.write_cache("never.vtp", 1)):
+        with pytest.raises(SandboxError, match="of a simulation of 2 worlds would draw them over each other"):
+            draw()
 
 
 def test_a_sweep_batches_the_runs_that_differ_only_in_a_worlds_keys():
