@@ -222,10 +222,11 @@ class Simulation:
         if problem:
             self.broken = explain_blowup(self.state, self.terms, self.integrator, *problem)
             raise SimulationError(self.broken)
-        world = self.scene.world
-        volume = float(np.prod(np.subtract(world.hi, world.lo)))  # the pressure's V (area in 2D)
+        box = self.scene.world
+        volume = float(np.prod(np.subtract(box.hi, box.lo)))  # the pressure's V (area in 2D)
         walls = self.terms.walls.pressure(m["impulse"], self.time)
-        return Stats.from_sums(m, self.time, self.dim, volume, walls, heat, self.state.springs is not None)
+        now = self.state.world_times()[world]  # a world's own clock: since it (re)started
+        return Stats.from_sums(m, now, self.dim, volume, walls, heat, self.state.springs is not None)
 
     # ------------------------------------------------------------------ the state
     def snapshot(self) -> dict:

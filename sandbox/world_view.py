@@ -8,6 +8,7 @@ import numpy as np
 from .core import controls as live_controls
 from .measure.stats import Stats
 from .physics.heat_sources import source_value
+from .world_reset import reset_world
 
 # The scene keys a world of a simulation may hold of its own (Simulation's `starts`, `sandbox sweep`'s batches):
 # what its particles start from and its live controls. Every other key is one for all its worlds.
@@ -33,14 +34,21 @@ def world_controls(scene, controls: dict) -> dict:
 
 
 class WorldView:
-    """World k of `sim`: its readouts (stats), its particles (by id, as a lone run numbers them) and its live
-    controls. The clock is the simulation's: every world steps together."""
+    """World k of `sim`: its readouts (stats), its particles (by id, as a lone run numbers them), its live controls
+    and its clock. Every world steps together; a world started again (reset) counts its time from then."""
 
     def __init__(self, sim, k: int) -> None:
         self.sim, self.index = sim, k
 
-    time = property(lambda self: self.sim.time, doc="simulated time (every world's)")
-    step_count = property(lambda self: self.sim.step_count, doc="steps taken (every world's)")
+    time = property(
+        lambda self: self.sim.state.world_times()[self.index], doc="simulated time since the world (re)started"
+    )
+    step_count = property(lambda self: self.sim.step_count, doc="steps the simulation has taken (every world's)")
+
+    def reset(self) -> None:
+        """Start this world again from the scene's initial state, its clock from 0; the other worlds run on as they
+        were, and the live controls stay as they are (world_reset.py)."""
+        reset_world(self.sim, self.index)
 
     @property
     def controls(self) -> live_controls.Controls:

@@ -59,6 +59,7 @@ def _assert_readouts_alike(stats, alone) -> None:
     the particles' sums to the bit, those over springs (a world's refrozen bonds sit in other slots than its lone
     run's) and the walls' gauge (added up atomically per world) to the rounding of their sums."""
     rounded = {"spring_energy", "potential_energy", "total_energy", "pressure", "wall_pressure"}
+    rounded.add("time")  # a restarted world's clock: the time now less the time it started
     for name, value in dataclasses.asdict(alone).items():
         mine = getattr(stats, name)
         if isinstance(value, float) and math.isnan(value):
@@ -150,3 +151,32 @@ def test_a_sweep_batches_the_runs_that_differ_only_in_a_worlds_keys():
     many = [(k, {"heat.ambient": float(k)}, f"f{k}", {}) for k in range(MAX_BATCH + 2)]
     groups, alone = batches(many, video=False)
     assert [len(g) for g in groups] == [MAX_BATCH, 2] and alone == []
+
+
+def test_a_world_started_again_is_a_fresh_lone_run_and_the_others_run_on():
+    """World 1 starts again after 5 frames (40 steps: the refreezing pass, every 10 steps, keeps its phase): 10
+    frames later it equals a lone run of 10 frames, its own plate schedule (hot for 0.25 s, then off) timed from its
+    restart, while worlds 0 and 2 equal the uninterrupted lone run, whose plate went off at 0.25 s."""
+    scheduled = {
+        **SMALL_BLOCK,
+        "heat.sources.0.schedule_times": [0.0, 0.25],
+        "heat.sources.0.schedule_values": [400.0, 0.0],
+    }
+    lone = sandbox.load("melting_block", set=scheduled)
+    batch = sandbox.load("melting_block", set=scheduled, worlds=3)
+    for _ in range(5):
+        lone.advance_frame()
+        batch.advance_frame()
+    batch.world(1).reset()
+    assert batch.world(1).time == 0.0 and batch.world(0).time == lone.time
+    fresh = sandbox.load("melting_block", set=scheduled)
+    for _ in range(10):
+        for sim in (lone, batch, fresh):
+            sim.advance_frame()
+    assert batch.world(1).controls.values()["heat.sources"] == [400.0]  # its plate still on at its own 0.2 s ...
+    assert batch.world(0).controls.values()["heat.sources"] == [0.0]  # ... the others' off since 0.25 s
+    for k, alone in ((0, lone), (1, fresh), (2, lone)):
+        _assert_same(alone, batch.world(k))
+        assert np.array_equal(alone.temperatures(), batch.world(k).temperatures())
+        _assert_readouts_alike(batch.world(k).stats(), alone.stats())
+    assert fresh.stats().broken_springs != lone.stats().broken_springs  # the restarted world is really younger

@@ -68,6 +68,9 @@ class State:
         self.declare("clock", self, ("time", "step", "frames"), kind=VALUE, valid=COUNT)
         self.declare("clock", self, ("dt",), kind=VALUE, valid=STEP)
         self.declare("state", self, ("layout",), kind=VALUE, physical=False)  # the lists compare theirs with it
+        if particles.worlds:  # each world's clock starts at the simulated time it started at (world_reset.py)
+            self.world_started = [0.0] * particles.world_count
+            self.declare("clock", self, ("world_started",), kind=VALUE, valid=COUNT)
         self.declare("particles", particles, ("n",), valid=Range(lo=0, atmost="capacity"))
         self._declare_particles(particles)
         self.declare("particles", particles, ("next_ident",), kind=VALUE, valid=COUNT)
@@ -176,6 +179,10 @@ class State:
         """Bring the fields derived from the state up to date (each refresher does nothing when it is)."""
         for refresh in self.refreshers:
             refresh()
+
+    def world_times(self) -> list[float]:
+        """Each world's own clock (simulated time since it started); the one clock of a lone run."""
+        return [self.time - start for start in getattr(self, "world_started", [0.0])]
 
     def live_count(self) -> int:
         """The number of live particles (a host read)."""

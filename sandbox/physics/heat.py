@@ -144,10 +144,10 @@ class Heat(Term):
 
     def before_step(self, state) -> None:
         if self.sources.scheduled:
-            self.sources.set_time(state.time)
+            self.sources.set_time(state.world_times())
 
     def after_restore(self, state) -> None:
-        self.sources.set_time(state.time)
+        self.sources.set_time(state.world_times())
 
     world_controls = True  # the air's and the sources' temperatures are each world's own (core/worlds.py)
 

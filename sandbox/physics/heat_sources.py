@@ -67,12 +67,13 @@ class HeatSources:
     def scheduled(self) -> bool:
         return any(src.schedule_times for src in self.specs)
 
-    def set_time(self, t: float) -> None:
-        """Apply the sources' schedules at simulated time t (a host-side write of the values that changed)."""
+    def set_time(self, times: list[float]) -> None:
+        """Apply the sources' schedules at each world's simulated time `times[w]` (a host-side write of the values
+        that changed)."""
         for w in range(self.worlds):
             for k, src in enumerate(self.specs):
                 if k not in self.by_hands[w]:
-                    self._write(k, source_value(src, t), w)
+                    self._write(k, source_value(src, times[w]), w)
 
     def value(self, k: int, world: int = 0) -> float:
         """Source k's temperature (degrees) or power (heat / time) now, in world `world`."""
