@@ -113,8 +113,8 @@ def assemble(
 
 
 # The terms a simulation of many worlds can hold so far: their controls, gauges and passes are kept per world. The
-# others (emitters, tools' host work, the lid, the smoke grid, molecular terms ...) still read one world's values.
-WORLD_TERMS = frozenset({"gravity", "pair", "springs", "heat", "walls", "refreeze"})
+# others (emitters, the lid and heater, the smoke grid, the molecular terms ...) still keep one value for all worlds.
+WORLD_TERMS = frozenset({"gravity", "pair", "springs", "heat", "walls", "refreeze", "agitation"})
 
 
 def refuse_worlds(scene: Scene, worlds: int, terms: list) -> None:

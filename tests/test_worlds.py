@@ -93,6 +93,22 @@ def test_each_world_of_a_periodic_lj_box_is_its_lone_run_to_the_bit():
         assert batch.world(k).stats().pair_energy == alone.stats().pair_energy
 
 
+def test_each_world_of_a_thermostatted_melt_is_its_lone_run_to_the_bit():
+    """boiling_pot's agitation kicks each free particle with noise hashed from its id and the step: a world's ids are
+    its lone run's, so it draws the same noise, and its thermostat's gauge is its own."""
+    lone = sandbox.load("boiling_pot")
+    batch = sandbox.load("boiling_pot", worlds=2)
+    for _ in range(3):
+        lone.advance_frame()
+        batch.advance_frame()
+    thermostat = lone.terms.agitation
+    assert thermostat.moved[None] != 0.0  # the noise acted
+    for k in range(2):
+        _assert_same(lone, batch.world(k))
+        assert np.array_equal(lone.temperatures(), batch.world(k).temperatures())
+        assert batch.terms.agitation.moved[k] == pytest.approx(thermostat.moved[None], rel=1e-9)
+
+
 def test_a_control_set_in_one_world_is_that_worlds_alone():
     """World 1's gravity and world 2's hot plate are set halfway: world 0 stays the unchanged lone run, and worlds 1
     and 2 are the lone runs given the same change at the same step; a control set for all applies to every world."""

@@ -46,6 +46,7 @@ import taichi as ti
 
 from ..core.oriented import data_oriented
 from ..core.transfer import real_fields
+from ..core.worlds import add_at, per_world, world_of
 from .fields import random_uniform
 from .term import Measure, Term, register
 
@@ -117,7 +118,8 @@ class Agitation(Term):
         self.visc_np = 0.5 * (visc[:, None] + visc[None, :]) if pair is not None else np.zeros((1, 1))
         (self.visc,) = real_fields(self.visc_np)
         self.viscous = bool(np.any(self.visc_np > 0))
-        self.moved = ti.field(ti.f64, shape=())  # energy given to the motion so far (pJ; taken from the heat)
+        # energy given to the motion so far (pJ; taken from the heat), per world (core/worlds.py)
+        self.moved = per_world(parts.model.worlds, ti.f64)
 
     def words(self, where: str) -> list[str]:
         if where != "after":
@@ -263,4 +265,4 @@ class Agitation(Term):
                 gained = 0.5 * p.mass[i] * (v.dot(v) - p.v[i].dot(p.v[i]))  # pJ
                 p.v[i] = v
                 p.h[i] -= gained / p.mass[i] * KJ_PER_KG_PER_PJ_PER_MG
-                self.moved[None] += ti.cast(gained, ti.f64)
+                add_at(self.moved, world_of(p, i), ti.cast(gained, ti.f64))
