@@ -128,8 +128,6 @@ def refuse_worlds(scene: Scene, worlds: int, terms: list) -> None:
     heat = scene.heat
     if heat and heat.stepper != "explicit":  # one conjugate-gradient solve would couple the worlds' iterations
         raise SandboxError(f'{scene.name}: worlds = {worlds} needs heat.stepper = "explicit", not {heat.stepper!r}')
-    if heat and any(src.mode == "power" for src in heat.sources):  # a power source shares its power by mass
-        raise SandboxError(f'{scene.name}: worlds = {worlds} cannot yet share a heat source of mode "power"')
     if scene.world.integrator == "implicit_euler":
         raise SandboxError(f"{scene.name}: worlds = {worlds} needs an explicit integrator, not implicit_euler")
     if scene.world.substeps == "auto":  # one step size for all: a world's own stable step would change the others'

@@ -36,7 +36,8 @@ class HeatSources:
         # temperature (degrees) or, for power sources, heat / time: (sources,), or (worlds, sources) with many worlds
         self.src_value = ti.field(float, shape=ns if self.worlds == 1 else (self.worlds, ns))
         self.src_conductance = ti.field(float, shape=ns)  # heat per time per degree, per particle
-        self.src_mass = ti.field(float, shape=ns)  # power sources: mass inside the region (summed each step)
+        # power sources: mass inside the region (summed each step), (sources,) or (worlds, sources)
+        self.src_mass = ti.field(float, shape=ns if self.worlds == 1 else (self.worlds, ns))
         self.ambient = per_world(self.worlds, float)  # degrees, per world
         self.ambient_exchange = ti.field(float, shape=())  # heat per time per degree, per particle
         values = [source_value(src, 0.0) for src in self.specs]
@@ -123,13 +124,32 @@ class HeatSources:
     @ti.func
     def sum_masses(self):
         """The mass inside each power source (they share their power by mass)."""
-        for k in range(self.n_sources):
-            self.src_mass[k] = 0.0
-        self.loops.light()
-        for i in range(self.p.n[None]):
+        if ti.static(self.worlds == 1):
             for k in range(self.n_sources):
-                if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
-                    self.src_mass[k] += self.p.mass[i]
+                self.src_mass[k] = 0.0
+            self.loops.light()
+            for i in range(self.p.n[None]):
+                for k in range(self.n_sources):
+                    if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
+                        self.src_mass[k] += self.p.mass[i]
+        else:  # each world's mass inside its own sources
+            for w, k in ti.ndrange(self.worlds, self.n_sources):
+                self.src_mass[w, k] = 0.0
+            self.loops.light()
+            for i in range(self.p.n[None]):
+                for k in range(self.n_sources):
+                    if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
+                        self.src_mass[world_of(self.p, i), k] += self.p.mass[i]
+
+    @ti.func
+    def mass_inside(self, k, i):
+        """The mass inside power source k of particle i's world (sum_masses)."""
+        mass = ti.cast(0.0, float)
+        if ti.static(self.worlds > 1):
+            mass = self.src_mass[world_of(self.p, i), k]
+        else:
+            mass = self.src_mass[k]
+        return mass
 
     @ti.func
     def held(self, i, h):
@@ -158,7 +178,7 @@ class HeatSources:
                     g += self.src_conductance[k]
                     gt += self.src_conductance[k] * self.source_value(k, i)
                 elif self.src_mode[k] == POWER:
-                    gt += self.source_value(k, i) * self.p.mass[i] / ti.max(self.src_mass[k], 1e-30)
+                    gt += self.source_value(k, i) * self.p.mass[i] / ti.max(self.mass_inside(k, i), 1e-30)
         return g, gt
 
 
