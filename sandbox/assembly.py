@@ -114,7 +114,9 @@ def assemble(
 
 # The terms a simulation of many worlds can hold so far: their controls, gauges and passes are kept per world. The
 # others (emitters, the lid and heater, the smoke grid, the molecular terms ...) still keep one value for all worlds.
-WORLD_TERMS = frozenset({"gravity", "pair", "springs", "heat", "walls", "refreeze", "agitation"})
+WORLD_TERMS = frozenset(
+    {"gravity", "pair", "springs", "heat", "walls", "refreeze", "agitation", "structure", "thermal_walls"}
+)
 
 
 def refuse_worlds(scene: Scene, worlds: int, terms: list) -> None:

@@ -112,6 +112,23 @@ def test_each_world_of_a_thermostatted_melt_is_its_lone_run_to_the_bit(scene):
         assert batch.terms.agitation.moved[k] == pytest.approx(thermostat.moved[None], rel=1e-9)
 
 
+def test_each_world_of_atoms_on_a_thermal_floor_is_its_lone_run_and_keeps_its_own_floor():
+    """atoms: phases from structure (a cell grid of its own, per world too) over a thermal floor whose noise is hashed
+    from each atom's id and hit count; world 1's floor is made hotter, as a lone run's is."""
+    plain, hot = sandbox.load("atoms"), sandbox.load("atoms")
+    batch = sandbox.load("atoms", worlds=2)
+    hot.controls.set({"thermal_walls.floor": 0.6})
+    batch.world(1).controls.set({"thermal_walls.floor": 0.6})
+    for _ in range(6):  # the solid's bottom reaches the floor in its fifth frame
+        for sim in (plain, hot, batch):
+            sim.advance_frame()
+    assert hot.stats().kinetic_energy > plain.stats().kinetic_energy  # the hotter floor gave the atoms more
+    for k, alone in enumerate((plain, hot)):
+        _assert_same(alone, batch.world(k))
+        assert batch.world(k).stats() == alone.stats()  # no springs: every readout to the bit
+        assert batch.world(k).controls.values() == alone.controls.values()
+
+
 def test_a_control_set_in_one_world_is_that_worlds_alone():
     """World 1's gravity and world 2's hot plate are set halfway: world 0 stays the unchanged lone run, and worlds 1
     and 2 are the lone runs given the same change at the same step; a control set for all applies to every world."""

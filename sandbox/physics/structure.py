@@ -101,7 +101,7 @@ class Structure(Term):
         self.state = parts.state
         parts.state.refreshers.append(self.refresh)
         self.grid = CellGrid(self.p.x, self.p.n, world.lo, world.hi, self.radius, world.periodic, capacity,
-                             parts.model.loops, cells_per_particle=16)  # fmt: skip
+                             parts.model.loops, cells_per_particle=16, particles=self.p)  # fmt: skip
 
     def nbytes(self) -> int:
         grid = self.grid.n_cells * 8 + self.count.shape[0] * (12 + 8 * self.dim)  # cells; ids, slots, sorted x

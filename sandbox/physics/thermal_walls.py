@@ -25,6 +25,7 @@ from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.ranges import COUNT
+from ..core.worlds import add_at, world_of
 from .agitation import normal
 from .fields import random_uniform
 from .term import Measure, Slider, Term, register
@@ -54,8 +55,10 @@ class ThermalWalls(Term):
         self.domain = parts.model.domain
         self.dim = parts.model.dim
         count = len(self.walls)
-        self.kT = ti.field(float, shape=count)  # each wall's temperature as kT (energy)
-        self.moved = ti.field(ti.f64, shape=count)  # energy each wall has given the atoms (energy)
+        self.worlds = parts.model.worlds  # each world's walls have their own temperatures and gauges
+        shape = count if self.worlds == 1 else (self.worlds, count)
+        self.kT = ti.field(float, shape=shape)  # each wall's temperature as kT (energy), (walls,) or (worlds, walls)
+        self.moved = ti.field(ti.f64, shape=shape)  # energy each wall has given the atoms (energy), as kT
         self.hits = ti.field(ti.i32, shape=parts.model.capacity)  # each atom's thermal-wall hits: its noise counter
         parts.state.carry((self.hits,))
         self.set_temperatures([w.temperature for w in self.walls])
@@ -64,23 +67,34 @@ class ThermalWalls(Term):
         state.declare("thermal_walls", self, ("hits",), rows="particles", valid=COUNT)
         state.declare("thermal_walls", self, ("moved",))
 
-    def set_temperatures(self, values: list[float]) -> None:
-        """Set each wall's temperature (kT, energy units), in the order of [[molecular.walls]]."""
+    def set_temperatures(self, values: list[float], world: int | None = None) -> None:
+        """Set each wall's temperature (kT, energy units), in the order of [[molecular.walls]], in world `world`
+        (None: in every world)."""
         for k, value in enumerate(values):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"thermal wall {self.names[k]!r}: temperature {value!r}; expected a number above 0")
-        transfer.upload([(self.kT, np.array(values, dtype=float))])  # one copy, not a kernel per element
+        if self.worlds == 1:
+            transfer.upload([(self.kT, np.array(values, dtype=float))])  # one copy, not a kernel per element
+            return
+        table = self.kT.to_numpy()
+        table[slice(None) if world is None else world] = values
+        self.kT.from_numpy(table)
 
-    def temperatures(self) -> list[float]:
-        """Each wall's temperature (kT, energy units)."""
-        return [float(t) for t in self.kT.to_numpy()]
+    def temperatures(self, world: int = 0) -> list[float]:
+        """Each wall's temperature (kT, energy units), in world `world`."""
+        table = self.kT.to_numpy()
+        return [float(t) for t in (table if self.worlds == 1 else table[world])]
 
-    def energy_moved(self) -> list[float]:
-        """The energy each wall has given the atoms so far (negative: taken), in [[molecular.walls]] order."""
-        return [float(e) for e in self.moved.to_numpy()]
+    def energy_moved(self, world: int = 0) -> list[float]:
+        """The energy each wall has given the atoms so far (negative: taken), in [[molecular.walls]] order, in world
+        `world`."""
+        table = self.moved.to_numpy()
+        return [float(e) for e in (table if self.worlds == 1 else table[world])]
 
-    def controls(self) -> dict:
-        return dict(zip(self.names, self.temperatures()))
+    world_controls = True  # each world's walls have their own temperatures (core/worlds.py)
+
+    def controls(self, world: int = 0) -> dict:
+        return dict(zip(self.names, self.temperatures(world)))
 
     def sliders(self) -> list[Slider]:
         """The first two walls' temperatures (kT), up to twice the scene's (2 at least)."""
@@ -92,12 +106,13 @@ class ThermalWalls(Term):
     def control_checks(self) -> dict:
         return {name: key_check(ThermalWall, "temperature") for name in self.names}
 
-    def apply_controls(self, values: dict) -> None:
-        temps = self.temperatures()
-        for k, name in enumerate(self.names):
-            if name in values:
-                temps[k] = float(values[name])
-        self.set_temperatures(temps)
+    def apply_controls(self, values: dict, world: int | None = None) -> None:
+        for w in range(self.worlds) if world is None else (world,):
+            temps = self.temperatures(w)
+            for k, name in enumerate(self.names):
+                if name in values:
+                    temps[k] = float(values[name])
+            self.set_temperatures(temps, w if self.worlds > 1 else None)
 
     def words(self, where: str) -> list[str]:
         if where != "finish":
@@ -108,11 +123,19 @@ class ThermalWalls(Term):
         return self.hits.shape[0] * 4
 
     @ti.func
-    def measure_value(self, w):
+    def measure_value(self, world):
         total = ti.cast(0.0, ti.f64)
         for w in ti.static(range(len(self.sides))):
-            total += self.moved[w]
+            total += self._of(self.moved, world, w)
         return (total,)
+
+    @ti.func
+    def _of(self, table: ti.template(), world, w):
+        """Wall w's entry of a (walls,) or (worlds, walls) table, in world `world`."""
+        if ti.static(self.worlds == 1):
+            return table[w]
+        else:
+            return table[world, w]
 
     @ti.func
     def finish(self, i, dt, rates: ti.template()):
@@ -128,9 +151,10 @@ class ThermalWalls(Term):
                 beyond = x[axis] > wall
             if beyond and m > 0.0:
                 k = p.ident[i]
+                world = world_of(p, i)
                 count = self.hits[i]
                 self.hits[i] = count + 1
-                s = ti.sqrt(self.kT[w] / m)
+                s = ti.sqrt(self._of(self.kT, world, w) / m)
                 u = 1.0 - random_uniform(ti.cast(count, ti.u32), ti.cast(k, ti.u32), ti.cast(2 * self.dim + 1, ti.u32))
                 new = v
                 for b in ti.static(range(self.dim)):
@@ -138,7 +162,11 @@ class ThermalWalls(Term):
                         new[b] = s * normal(k, count, b)
                 new[axis] = -end * s * ti.sqrt(-2.0 * ti.log(u))  # away from the wall
                 x[axis] = ti.min(ti.max(2.0 * wall - x[axis], self.domain.lo[axis] + r), self.domain.hi[axis] - r)
-                self.moved[w] += ti.cast(0.5 * m * (new.dot(new) - v.dot(v)), ti.f64)
-                self.domain.impulse[None] += m * ti.abs(new[axis] - v[axis])
+                gained = ti.cast(0.5 * m * (new.dot(new) - v.dot(v)), ti.f64)
+                if ti.static(self.worlds == 1):
+                    self.moved[w] += gained
+                else:
+                    self.moved[world, w] += gained
+                add_at(self.domain.impulse, world, m * ti.abs(new[axis] - v[axis]))
                 v = new
         p.x[i], p.v[i] = x, v
