@@ -1,5 +1,7 @@
 """The coexistence study's measurements (research/coexistence.py) against the engine's own, and its command line."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -38,6 +40,20 @@ def test_the_slab_analysis_agrees_with_the_engine_and_the_rescaler_holds_the_tem
     assert energy.sum() == pytest.approx(s.pair_energy, rel=1e-9)  # the same pairs and the same force-shifted law
     assert np.all(np.abs(z) <= box[2] / 2)
     assert np.isfinite(p_zz) and np.isfinite(p_vapour)
+
+
+def test_the_slabs_as_worlds_are_the_slabs_run_alone():
+    """run_slabs runs its temperatures as the worlds of one simulation: every measured number equals the lone run's."""
+    from sandbox.core import runtime
+    from sandbox.research.coexistence import run_slab, run_slabs
+
+    temperatures = [0.7, 0.85]
+    together = run_slabs(temperatures, equilibrate=200, produce=600, every=100, dim=2)
+    for temperature, point in zip(temperatures, together):
+        runtime.reset()
+        alone = run_slab(temperature, equilibrate=200, produce=600, every=100, dim=2)
+        assert dataclasses.replace(point, seconds=0.0) == dataclasses.replace(alone, seconds=0.0)
+    assert together[0].rho_vapour < together[1].rho_vapour  # the hotter slab's vapour is denser
 
 
 def test_argon_units_and_the_nist_table():

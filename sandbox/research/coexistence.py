@@ -32,11 +32,12 @@ from pathlib import Path
 import numpy as np
 
 from ..config.scene import scene_from_dict
+from ..core.cores import usable_cores
 from ..errors import SandboxError
 from ..measure.coexistence_curve import BETA, CoexistenceCurve, fit_curve
 from ..measure.units import REAL_SUBSTANCES, shown
 from ..simulation import Simulation
-from .dask_pool import run_jobs
+from .dask_pool import fresh_job, run_jobs
 from .figures import pyplot, save
 from .study_runs import STUDY_PATH
 
@@ -110,20 +111,26 @@ def slab_scene(temperature: float, width: float, rho: float = 0.8, thickness: fl
 
 
 class Rescaler:
-    """Bussi-Donadio-Parrinello stochastic velocity rescaling of `sim`'s atoms toward kT = `temperature` with
-    coupling time `tau`, about the centre of mass (so momentum is kept)."""
+    """Bussi-Donadio-Parrinello stochastic velocity rescaling of `sim`'s atoms (those in slots `rows`: a world's, or
+    every live one) toward kT = `temperature` with coupling time `tau`, about the centre of mass (so momentum is
+    kept)."""
 
-    def __init__(self, sim: Simulation, temperature: float, tau: float, seed: int) -> None:
+    def __init__(self, sim: Simulation, temperature: float, tau: float, seed: int, rows: slice | None = None) -> None:
         self.sim, self.kt, self.tau = sim, temperature, tau
         self.rng = np.random.default_rng(seed)
-        self.dof = sim.dim * (sim.state.live_count() - 1)
+        self.rows = rows if rows is not None else slice(0, sim.state.live_count())
+        self.dof = sim.dim * (self.rows.stop - self.rows.start - 1)
 
     def apply(self, elapsed: float) -> None:
         """Rescale after `elapsed` time units of dynamics."""
         field = self.sim.state.particles.v
         full = field.to_numpy()
-        n = self.sim.state.live_count()
-        v = full[:n]
+        self.apply_to(full, elapsed)
+        field.from_numpy(full)
+
+    def apply_to(self, full: np.ndarray, elapsed: float) -> None:
+        """Rescale this rescaler's rows of the velocities `full` (every slot's, (C, D)) in place."""
+        v = full[self.rows]
         drift = v.mean(axis=0)
         ke = 0.5 * ((v - drift) ** 2).sum()
         target = 0.5 * self.dof * self.kt
@@ -135,8 +142,7 @@ class Rescaler:
             + target / self.dof * (1 - c) * (r1 * r1 + chi)
             + 2 * r1 * math.sqrt(c * (1 - c) * ke * target / self.dof)
         )
-        full[:n] = drift + (v - drift) * math.sqrt(max(new, 0.0) / ke)
-        field.from_numpy(full)
+        full[self.rows] = drift + (v - drift) * math.sqrt(max(new, 0.0) / ke)
 
 
 def slab_coordinate(x: np.ndarray, box: np.ndarray) -> np.ndarray:
@@ -192,51 +198,82 @@ def run_slab(temperature: float, width: float | None = None, equilibrate: int = 
              every: int = 100, log=None, dim: int = 3) -> SlabPoint:  # fmt: skip
     """One slab run at reduced temperature `temperature` in `dim` dimensions (steps of dt 0.005; a snapshot every
     `every` steps); `width` across the slab (default 9 sigma in 3D, 30 in 2D)."""
+    return run_slabs([temperature], width, equilibrate, produce, every, log, dim)[0]
+
+
+def run_slabs(temperatures: list[float], width: float | None = None, equilibrate: int = 20000, produce: int = 40000,
+              every: int = 100, log=None, dim: int = 3) -> list[SlabPoint]:  # fmt: skip
+    """run_slab at each of `temperatures`, the slabs as the worlds of one simulation (core/worlds.py: each world the
+    slab run alone, bit for bit, so each point is the lone run's); the points in the temperatures' order."""
     started = time.perf_counter()
     width = width or (9.0 if dim == 3 else 30.0)
-    sim = Simulation(scene_from_dict(slab_scene(temperature, width, dim=dim), STUDY_PATH))
+    scenes = [scene_from_dict(slab_scene(t, width, dim=dim), STUDY_PATH) for t in temperatures]
+    sim = Simulation(scenes[0], starts=scenes if len(scenes) > 1 else None)
     box = np.array(sim.scene.world.hi) - np.array(sim.scene.world.lo)
-    rescale = Rescaler(sim, temperature, tau=0.5, seed=int(1000 * temperature))
+    n = sim.state.live_count() // len(temperatures)
+    rows = [slice(k * n, (k + 1) * n) for k in range(len(temperatures))]
+    rescalers = [Rescaler(sim, t, tau=0.5, seed=int(1000 * t), rows=r) for t, r in zip(temperatures, rows)]
     batch = 10
     dt = sim.state.dt
+
+    def steps() -> None:
+        sim.step(batch)
+        field = sim.state.particles.v
+        full = field.to_numpy()
+        for rescaler in rescalers:
+            rescaler.apply_to(full, batch * dt)
+        field.from_numpy(full)
+
     for _ in range(equilibrate // batch):
-        sim.step(batch)
-        rescale.apply(batch * dt)
-    rows = []  # per snapshot: (kT, rho_l, rho_v, p_vapour, u_l, u_v, p_zz)
-    thickness = None
-    n = sim.state.live_count()
+        steps()
+    snapshots = [[] for _ in temperatures]  # per slab, per snapshot: (kT, rho_l, rho_v, p_vapour, u_l, u_v, p_zz)
+    thickness = [None] * len(temperatures)
     for k in range(produce // batch):
-        sim.step(batch)
-        rescale.apply(batch * dt)
+        steps()
         if (k + 1) * batch % every:
             continue
-        x, v = sim.positions(), sim.velocities()
-        axis = dim - 1
-        area = box[:axis].prod()
-        if thickness is None:  # the slab's width from its own density profile at the start of production
-            z = slab_coordinate(x, box)
-            hist, edges = np.histogram(z, bins=int(box[axis] / 0.5), range=(-0.5 * box[axis], 0.5 * box[axis]))
-            dens = hist / (area * 0.5)
-            dense = edges[:-1][dens > 0.5 * dens.max()]
-            thickness = float(dense.max() - dense.min() + 0.5)
-        z, energy, p_zz, p_vapour = measure_snapshot(x, v, box, 0.5 * thickness + 3.0)
-        liquid = np.abs(z) < 0.25 * thickness
-        vapour = np.abs(z) > 0.5 * thickness + 3.0
-        vapour_volume = area * (box[axis] - 2 * (0.5 * thickness + 3.0))
-        drift = v.mean(axis=0)
-        kt = ((v - drift) ** 2).sum() / (dim * (n - 1))
-        rows.append(
-            (
-                kt,
-                liquid.sum() / (area * 0.5 * thickness),
-                vapour.sum() / vapour_volume,
-                p_vapour,
-                energy[liquid].mean(),
-                energy[vapour].mean() if vapour.any() else np.nan,
-                p_zz,
-            )
-        )
-    data = np.array(rows)
+        x_all, v_all = sim.particles.x.to_numpy(), sim.particles.v.to_numpy()
+        for w, r in enumerate(rows):
+            row, thickness[w] = _snapshot(x_all[r], v_all[r], box, dim, thickness[w])
+            snapshots[w].append(row)
+    seconds = (time.perf_counter() - started) / len(temperatures)
+    points = [_point(np.array(data), n, equilibrate + produce, seconds) for data in snapshots]
+    for point in points if log else ():
+        log(said(point))
+    return points
+
+
+def _snapshot(x: np.ndarray, v: np.ndarray, box: np.ndarray, dim: int, thickness: float | None) -> tuple:
+    """One snapshot's row (kT, rho_l, rho_v, p_vapour, u_l, u_v, p_zz) of a slab's atoms at x, v, and the slab's
+    width (measured from its own density profile at the first snapshot, where `thickness` is None)."""
+    axis = dim - 1
+    area = box[:axis].prod()
+    if thickness is None:
+        z = slab_coordinate(x, box)
+        hist, edges = np.histogram(z, bins=int(box[axis] / 0.5), range=(-0.5 * box[axis], 0.5 * box[axis]))
+        dens = hist / (area * 0.5)
+        dense = edges[:-1][dens > 0.5 * dens.max()]
+        thickness = float(dense.max() - dense.min() + 0.5)
+    z, energy, p_zz, p_vapour = measure_snapshot(x, v, box, 0.5 * thickness + 3.0)
+    liquid = np.abs(z) < 0.25 * thickness
+    vapour = np.abs(z) > 0.5 * thickness + 3.0
+    vapour_volume = area * (box[axis] - 2 * (0.5 * thickness + 3.0))
+    drift = v.mean(axis=0)
+    kt = ((v - drift) ** 2).sum() / (dim * (len(x) - 1))
+    row = (
+        kt,
+        liquid.sum() / (area * 0.5 * thickness),
+        vapour.sum() / vapour_volume,
+        p_vapour,
+        energy[liquid].mean(),
+        energy[vapour].mean() if vapour.any() else np.nan,
+        p_zz,
+    )
+    return row, thickness
+
+
+def _point(data: np.ndarray, atoms: int, steps: int, seconds: float) -> SlabPoint:
+    """The SlabPoint of a slab's snapshot rows (_snapshot), block-averaged."""
     kt, kt_err = block_average(data[:, 0])
     rho_l, rho_l_err = block_average(data[:, 1])
     rho_v, rho_v_err = block_average(data[:, 2])
@@ -247,11 +284,8 @@ def run_slab(temperature: float, width: float | None = None, equilibrate: int = 
     u_v, u_v_err = block_average(u_v_all) if len(u_v_all) >= 5 else (float("nan"), float("nan"))
     dh = (u_v - u_l) + p * (1.0 / rho_v - 1.0 / rho_l)
     dh_err = math.sqrt(u_v_err**2 + u_l_err**2 + (p_err / rho_v) ** 2 + (p * rho_v_err / rho_v**2) ** 2)
-    point = SlabPoint(kt, kt_err, rho_l, rho_l_err, rho_v, rho_v_err, p, p_err, p_zz, p_zz_err, dh, dh_err, n,
-                      equilibrate + produce, time.perf_counter() - started)  # fmt: skip
-    if log:
-        log(said(point))
-    return point
+    return SlabPoint(kt, kt_err, rho_l, rho_l_err, rho_v, rho_v_err, p, p_err, p_zz, p_zz_err, dh, dh_err, atoms,
+                     steps, seconds)  # fmt: skip
 
 
 def said(point: SlabPoint) -> str:
@@ -295,10 +329,17 @@ def run_coexistence(
 ) -> list[SlabPoint]:  # fmt: skip
     """Slab runs at `temperatures` (reduced) in `dim` dimensions, written to out/coexistence.csv and
     out/coexistence.md (3D: beside NIST's saturation pressures and in argon's units); `quick`: short runs (under a
-    minute each, wide error bars). The runs go to a Dask cluster where there is one (research/dask_pool.py)."""
+    minute each, wide error bars). With `scheduler` "auto" the slabs run as the worlds of one simulation in this
+    process, on every usable core (run_slabs: each the lone run, bit for bit); given another ("serial", "local" or
+    a Dask scheduler's address), each runs alone there (research/dask_pool.py)."""
     steps = (4000, 6000) if quick else (20000, 60000)
-    jobs = [(t, None, steps[0], steps[1], 100, None, dim) for t in temperatures]
-    points = run_jobs(run_slab, jobs, scheduler, workers, threads, log, "coexistence study")
+    if scheduler == "auto" and len(temperatures) > 1:
+        log(f"the {len(temperatures)} temperatures as the worlds of one simulation (--scheduler: each alone)")
+        job = (temperatures, None, steps[0], steps[1], 100, None, dim)
+        points = fresh_job(run_slabs, threads or usable_cores(), job)
+    else:
+        jobs = [(t, None, steps[0], steps[1], 100, None, dim) for t in temperatures]
+        points = run_jobs(run_slab, jobs, scheduler, workers, threads, log, "coexistence study")
     for point in points:
         log(said(point))
     out.mkdir(parents=True, exist_ok=True)
