@@ -19,6 +19,7 @@ from .render.colormaps import TEMPERATURE_STOPS, ramp_np_many
 from .render.style import LID_COLOR, WALL_GAIN, WALL_LIFT
 from .render.surface import reconstruct
 from .scripting import particle_table, run_frames, spring_pairs
+from .world_view import one_world
 
 
 def particle_phases(sim, table: dict[str, np.ndarray]) -> np.ndarray:
@@ -187,6 +188,7 @@ class Cache:
 
 def write_cache(sim, path: str | Path, frames: int, every: int = 1, surface: bool = False, fps: float = 30.0) -> Path:
     """Run `frames` frames, caching the state before them and after every `every`-th (see Cache); the index path."""
+    one_world(sim, f"{path}: a particle cache")
     with Cache(path, fps) as cache:
         cache.write(sim, surface)
         run_frames(sim, frames, after=lambda k: (k + 1) % every == 0 and cache.write(sim, surface))

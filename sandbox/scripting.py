@@ -19,6 +19,7 @@ from .files.table import FrameTable
 from .physics.phase import ENTHALPY_LAW, temperature_np
 from .render.notebook import Movie, png_html
 from .render.raster import Renderer
+from .world_view import one_world
 
 
 def run_frames(sim, frames: int, progress: bool = False, after=None) -> FrameTable:
@@ -47,6 +48,7 @@ def run_frames(sim, frames: int, progress: bool = False, after=None) -> FrameTab
 def movie(sim, frames: int, width: int = 480, height: int = 270, every: int = 1, progress: bool = False) -> Movie:
     """Run `frames` frames, drawing every `every`-th as a `width` x `height` picture (even sizes, for MP4); returns
     a notebook Movie (it plays inline in Jupyter; .save(path) writes it; .table holds the run's measurements)."""
+    one_world(sim, "a movie")
     if width % 2 or height % 2:
         raise ValueError(f"a movie needs an even width and height, got {width}x{height}")
     pictures: list[np.ndarray] = []
@@ -63,6 +65,7 @@ def picture(sim, width: int | None = None, height: int | None = None, **render) 
     """The scene drawn now as a new (height, width, 3) uint8 RGB array, top row first. `width`, `height`: pixels
     (default: the scene's render size); `render`: [render] settings to change for this picture (color_by="temperature",
     legend=False, ...). The renderer is kept between calls of the same settings."""
+    one_world(sim, "a picture")
     cfg = sim.scene.render
     if render:  # checked as the scene's [render] table is: a SceneError naming the setting
         given = {k: list(v) if isinstance(v, tuple) else v for k, v in render.items()}
@@ -86,8 +89,10 @@ def picture(sim, width: int | None = None, height: int | None = None, **render) 
 
 
 def html(sim) -> str:
-    """Jupyter's view of a simulation: its picture now, and where it stands."""
+    """Jupyter's view of a simulation: its picture now, and where it stands (of many worlds: where it stands)."""
     n = sim.state.live_count()
+    if sim.worlds > 1:
+        return f"<p>{sim.scene.name}: {sim.worlds} worlds of {n // sim.worlds:,} particles, t = {sim.time:.3g} s</p>"
     caption = f"{sim.scene.name}: {n:,} particles, t = {sim.time:.3g} s after {sim.frames_done} frames"
     return png_html(picture(sim, 480, 270), caption)
 
@@ -99,6 +104,7 @@ def particle_table(sim) -> dict[str, np.ndarray]:
     length; `velocity` (N, D) length/time; `temperature` (N,) degrees (NaN without heat); `melt_fraction` (N,) in
     [0, 1]; `material` (N,) index into `material_names`; `body` (N,) index into scene.groups (bodies, then emitters,
     then the spawn tool). Each call returns new arrays; a RuntimeWarning says when the state is past a blow-up."""
+    one_world(sim, "the particle table")
     sim.check_alive()
     if sim.broken:
         warnings.warn(f"the state is past a blow-up ({sim.broken}); its values are not physical", stacklevel=3)
@@ -141,6 +147,7 @@ def spring_pairs(sim) -> np.ndarray:
 def extxyz_text(sim, bonds: bool = False) -> str:
     """The particles as one extended-XYZ frame (ASE, OVITO); `bonds`: the live springs as a Bonds key of particle-id
     pairs."""
+    one_world(sim, "an extended-XYZ frame")
     world = sim.scene.world
     pairs = spring_pairs(sim) if bonds and sim.state.springs is not None else None
     return frame_text(

@@ -108,7 +108,7 @@ class Simulation:
         return WorldView(self, k)
 
     particles = property(
-        lambda self: ParticleView(self.state.particles, self._particle_table),
+        lambda self: ParticleView(self.state.particles, lambda: scripting.particle_table(self)),
         doc="the particle fields (sim.particles.x, ...); calling it, sim.particles(): scripting.particle_table",
     )
     time = property(lambda self: self.state.time, doc="simulated time")
@@ -278,31 +278,15 @@ class Simulation:
 
     def movie(self, frames: int, width: int = 480, height: int = 270, every: int = 1, progress: bool = False):
         """Run `frames` frames drawing every `every`-th (a notebook Movie: plays inline, .save(path), .table)."""
-        self._one_world("a movie")
         return scripting.movie(self, frames, width, height, every, progress)
 
     def picture(self, width: int | None = None, height: int | None = None, **render) -> np.ndarray:
         """The scene drawn now as a new (height, width, 3) uint8 RGB array (see scripting.picture)."""
-        self._one_world("a picture")
         return scripting.picture(self, width, height, **render)
 
     def write_extxyz(self, path: str | Path, append: bool = True, bonds: bool = False) -> None:
         """Write the particles as one extended-XYZ frame (ASE, OVITO) to `path` (see scripting.write_extxyz)."""
-        self._one_world(f"{path}: an extended-XYZ frame")
         scripting.write_extxyz(self, path, append, bonds)
-
-    def _particle_table(self) -> dict:
-        self._one_world("the particle table")
-        return scripting.particle_table(self)
-
-    def _one_world(self, what: str) -> None:
-        """SandboxError where this simulation holds several worlds: `what` would draw or write them over each other
-        (each world keeps the scene's own box)."""
-        if self.worlds > 1:
-            raise SandboxError(
-                f"{what} of a simulation of {self.worlds} worlds would draw them over each other; expected one world "
-                "(sim.world(k) reads one world's particles)"
-            )
 
     def write_cache(
         self, path: str | Path, frames: int, every: int = 1, surface: bool = False, fps: float = 30.0
@@ -310,7 +294,6 @@ class Simulation:
         """Run `frames` frames into a particle cache for Blender, Houdini or ParaView (PATH.usd, .vtp or .ply; see
         caching.write_cache and docs/export.md): the state now and after every `every`-th frame; `surface`: a
         surface mesh of the bodies and melts with each. Returns the path to open."""
-        self._one_world(f"{path}: a particle cache")
         return caching.write_cache(self, path, frames, every, surface, fps)
 
     def _repr_html_(self) -> str:

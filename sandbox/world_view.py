@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .core import controls as live_controls
+from .errors import SandboxError
 from .measure.stats import Stats
 from .physics.heat_sources import source_value
 from .world_reset import reset_world
@@ -31,6 +32,16 @@ def world_controls(scene, controls: dict) -> dict:
         if scene.heat.sources:
             out["heat.sources"] = [float(source_value(src, 0.0)) for src in scene.heat.sources]
     return {key: value for key, value in out.items() if key in controls}
+
+
+def one_world(sim, what: str) -> None:
+    """SandboxError where `sim` holds several worlds: `what` (a picture, a cache, ...) would draw or write them over
+    each other (each world keeps the scene's own box)."""
+    if sim.worlds > 1:
+        raise SandboxError(
+            f"{what} of a simulation of {sim.worlds} worlds would draw them over each other; expected one world "
+            "(sim.world(k) reads one world's particles)"
+        )
 
 
 class WorldView:
