@@ -33,6 +33,30 @@ def at(field: ti.template(), w):
         return field[w]
 
 
+def per_world_table(count: int, dtype, entries: int):
+    """A control or gauge of `entries` items (heat sources, walls) for `count` worlds: shape (entries,) where count
+    is 1 (the lone run's), else (count, entries)."""
+    return ti.field(dtype, shape=entries if count == 1 else (count, entries))
+
+
+@ti.func
+def entry(table: ti.template(), w, k):
+    """Item k of world w in a `per_world_table` (item k of a lone run's, whatever w)."""
+    if ti.static(len(table.shape) == 1):
+        return table[k]
+    else:
+        return table[w, k]
+
+
+@ti.func
+def add_to_entry(table: ti.template(), w, k, value):
+    """Add `value` to item k of world w in a `per_world_table`."""
+    if ti.static(len(table.shape) == 1):
+        table[k] += value
+    else:
+        table[w, k] += value
+
+
 @ti.func
 def add_at(field: ti.template(), w, value):
     """Add `value` to world w's entry of a `per_world` field (a lone run's 0-d field: summed per thread)."""

@@ -12,7 +12,7 @@ import taichi as ti
 from ..config.scene_tables import SOURCE_MODES
 from ..core import transfer
 from ..core.oriented import data_oriented
-from ..core.worlds import at, per_world, set_world_entry, world_of
+from ..core.worlds import add_to_entry, at, entry, per_world, per_world_table, set_world_entry, world_of
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
 
@@ -34,10 +34,9 @@ class HeatSources:
         self.src_hi = ti.Vector.field(dim, float, shape=ns)  # source region upper corner, widened by its reach
         self.src_mode = ti.field(ti.i32, shape=ns)  # index into SOURCE_MODES
         # temperature (degrees) or, for power sources, heat / time: (sources,), or (worlds, sources) with many worlds
-        self.src_value = ti.field(float, shape=ns if self.worlds == 1 else (self.worlds, ns))
+        self.src_value = per_world_table(self.worlds, float, ns)
         self.src_conductance = ti.field(float, shape=ns)  # heat per time per degree, per particle
-        # power sources: mass inside the region (summed each step), (sources,) or (worlds, sources)
-        self.src_mass = ti.field(float, shape=ns if self.worlds == 1 else (self.worlds, ns))
+        self.src_mass = per_world_table(self.worlds, float, ns)  # power sources: mass inside, summed each step
         self.ambient = per_world(self.worlds, float)  # degrees, per world
         self.ambient_exchange = ti.field(float, shape=())  # heat per time per degree, per particle
         values = [source_value(src, 0.0) for src in self.specs]
@@ -103,16 +102,6 @@ class HeatSources:
         set_world_entry(self.ambient, self.worlds, world, float(value))
 
     @ti.func
-    def source_value(self, k, i):
-        """Source k's temperature or power as particle i's world sets it."""
-        value = ti.cast(0.0, float)
-        if ti.static(self.worlds > 1):
-            value = self.src_value[world_of(self.p, i), k]
-        else:
-            value = self.src_value[k]
-        return value
-
-    @ti.func
     def inside(self, k, xi):
         """Is position xi within the (reach-widened) region of source k?"""
         result = True
@@ -124,39 +113,20 @@ class HeatSources:
     @ti.func
     def sum_masses(self):
         """The mass inside each power source (they share their power by mass)."""
-        if ti.static(self.worlds == 1):
+        for e in ti.grouped(self.src_mass):
+            self.src_mass[e] = 0.0
+        self.loops.light()
+        for i in range(self.p.n[None]):
             for k in range(self.n_sources):
-                self.src_mass[k] = 0.0
-            self.loops.light()
-            for i in range(self.p.n[None]):
-                for k in range(self.n_sources):
-                    if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
-                        self.src_mass[k] += self.p.mass[i]
-        else:  # each world's mass inside its own sources
-            for w, k in ti.ndrange(self.worlds, self.n_sources):
-                self.src_mass[w, k] = 0.0
-            self.loops.light()
-            for i in range(self.p.n[None]):
-                for k in range(self.n_sources):
-                    if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
-                        self.src_mass[world_of(self.p, i), k] += self.p.mass[i]
-
-    @ti.func
-    def mass_inside(self, k, i):
-        """The mass inside power source k of particle i's world (sum_masses)."""
-        mass = ti.cast(0.0, float)
-        if ti.static(self.worlds > 1):
-            mass = self.src_mass[world_of(self.p, i), k]
-        else:
-            mass = self.src_mass[k]
-        return mass
+                if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
+                    add_to_entry(self.src_mass, world_of(self.p, i), k, self.p.mass[i])
 
     @ti.func
     def held(self, i, h):
         """Specific enthalpy of particle i after fixed sources: their temperature's enthalpy inside them, else h."""
         for k in range(self.n_sources):
             if self.src_mode[k] == FIXED and self.inside(k, self.p.x[i]):
-                h = self.phase.enthalpy(self.source_value(k, i), self.p.material[i])
+                h = self.phase.enthalpy(entry(self.src_value, world_of(self.p, i), k), self.p.material[i])
         return h
 
     @ti.func
@@ -170,15 +140,16 @@ class HeatSources:
         """(G, G T_s summed) over the ambient and the sources particle i touches: their flow is G T_s - G T_i
         (a power source adds its share of power to the second term)."""
         xi = self.p.x[i]
+        w = world_of(self.p, i)
         g = self.ambient_exchange[None]
-        gt = g * at(self.ambient, world_of(self.p, i))
+        gt = g * at(self.ambient, w)
         for k in range(self.n_sources):
             if self.inside(k, xi):
                 if self.src_mode[k] == EXCHANGE:
                     g += self.src_conductance[k]
-                    gt += self.src_conductance[k] * self.source_value(k, i)
+                    gt += self.src_conductance[k] * entry(self.src_value, w, k)
                 elif self.src_mode[k] == POWER:
-                    gt += self.source_value(k, i) * self.p.mass[i] / ti.max(self.mass_inside(k, i), 1e-30)
+                    gt += entry(self.src_value, w, k) * self.p.mass[i] / ti.max(entry(self.src_mass, w, k), 1e-30)
         return g, gt
 
 

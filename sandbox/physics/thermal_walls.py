@@ -25,7 +25,7 @@ from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.ranges import COUNT
-from ..core.worlds import add_at, world_of
+from ..core.worlds import add_at, add_to_entry, entry, per_world_table, world_of
 from .agitation import normal
 from .fields import random_uniform
 from .term import Measure, Slider, Term, register
@@ -56,9 +56,8 @@ class ThermalWalls(Term):
         self.dim = parts.model.dim
         count = len(self.walls)
         self.worlds = parts.model.worlds  # each world's walls have their own temperatures and gauges
-        shape = count if self.worlds == 1 else (self.worlds, count)
-        self.kT = ti.field(float, shape=shape)  # each wall's temperature as kT (energy), (walls,) or (worlds, walls)
-        self.moved = ti.field(ti.f64, shape=shape)  # energy each wall has given the atoms (energy), as kT
+        self.kT = per_world_table(self.worlds, float, count)  # each wall's temperature as kT (energy)
+        self.moved = per_world_table(self.worlds, ti.f64, count)  # energy each wall has given the atoms (energy)
         self.hits = ti.field(ti.i32, shape=parts.model.capacity)  # each atom's thermal-wall hits: its noise counter
         parts.state.carry((self.hits,))
         self.set_temperatures([w.temperature for w in self.walls])
@@ -126,16 +125,8 @@ class ThermalWalls(Term):
     def measure_value(self, world):
         total = ti.cast(0.0, ti.f64)
         for w in ti.static(range(len(self.sides))):
-            total += self._of(self.moved, world, w)
+            total += entry(self.moved, world, w)
         return (total,)
-
-    @ti.func
-    def _of(self, table: ti.template(), world, w):
-        """Wall w's entry of a (walls,) or (worlds, walls) table, in world `world`."""
-        if ti.static(self.worlds == 1):
-            return table[w]
-        else:
-            return table[world, w]
 
     @ti.func
     def finish(self, i, dt, rates: ti.template()):
@@ -154,7 +145,7 @@ class ThermalWalls(Term):
                 world = world_of(p, i)
                 count = self.hits[i]
                 self.hits[i] = count + 1
-                s = ti.sqrt(self._of(self.kT, world, w) / m)
+                s = ti.sqrt(entry(self.kT, world, w) / m)
                 u = 1.0 - random_uniform(ti.cast(count, ti.u32), ti.cast(k, ti.u32), ti.cast(2 * self.dim + 1, ti.u32))
                 new = v
                 for b in ti.static(range(self.dim)):
@@ -162,11 +153,7 @@ class ThermalWalls(Term):
                         new[b] = s * normal(k, count, b)
                 new[axis] = -end * s * ti.sqrt(-2.0 * ti.log(u))  # away from the wall
                 x[axis] = ti.min(ti.max(2.0 * wall - x[axis], self.domain.lo[axis] + r), self.domain.hi[axis] - r)
-                gained = ti.cast(0.5 * m * (new.dot(new) - v.dot(v)), ti.f64)
-                if ti.static(self.worlds == 1):
-                    self.moved[w] += gained
-                else:
-                    self.moved[world, w] += gained
+                add_to_entry(self.moved, world, w, ti.cast(0.5 * m * (new.dot(new) - v.dot(v)), ti.f64))
                 add_at(self.domain.impulse, world, m * ti.abs(new[axis] - v[axis]))
                 v = new
         p.x[i], p.v[i] = x, v
