@@ -70,6 +70,7 @@ def _assert_readouts_alike(stats, alone) -> None:
             assert mine == value, name
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_each_world_of_a_periodic_lj_box_is_its_lone_run_to_the_bit():
     """World 1 is heated hard (its atoms sped up 3 times), so its neighbour lists are rebuilt on other steps than
     world 0's: world 0 still sums its forces in the lone run's order (its rows rebuilt only when its own atoms have
@@ -93,6 +94,7 @@ def test_each_world_of_a_periodic_lj_box_is_its_lone_run_to_the_bit():
         assert batch.world(k).stats().pair_energy == alone.stats().pair_energy
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("scene", ["boiling_pot", "states_of_matter"])
 def test_each_world_of_a_thermostatted_melt_is_its_lone_run_to_the_bit(scene):
     """The agitation kicks each free particle with noise hashed from its id and the step: a world's ids are its lone
@@ -112,6 +114,7 @@ def test_each_world_of_a_thermostatted_melt_is_its_lone_run_to_the_bit(scene):
         assert batch.terms.agitation.moved[k] == pytest.approx(thermostat.moved[None], rel=1e-9)
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_each_world_of_atoms_on_a_thermal_floor_is_its_lone_run_and_keeps_its_own_floor():
     """atoms: phases from structure (a cell grid of its own, per world too) over a thermal floor whose noise is hashed
     from each atom's id and hit count; world 1's floor is made hotter, as a lone run's is."""
@@ -129,6 +132,7 @@ def test_each_world_of_atoms_on_a_thermal_floor_is_its_lone_run_and_keeps_its_ow
         assert batch.world(k).controls.values() == alone.controls.values()
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_control_set_in_one_world_is_that_worlds_alone():
     """World 1's gravity and world 2's hot plate are set halfway: world 0 stays the unchanged lone run, and worlds 1
     and 2 are the lone runs given the same change at the same step; a control set for all applies to every world."""

@@ -49,6 +49,17 @@ def entry(table: ti.template(), w, k):
 
 
 @ti.func
+def clear_table(table: ti.template()):
+    """Every item of every world of a `per_world_table` to 0 (range loops: it runs nested in fused steps too)."""
+    if ti.static(len(table.shape) == 1):
+        for k in range(table.shape[0]):
+            table[k] = 0
+    else:
+        for w, k in ti.ndrange(table.shape[0], table.shape[1]):
+            table[w, k] = 0
+
+
+@ti.func
 def add_to_entry(table: ti.template(), w, k, value):
     """Add `value` to item k of world w in a `per_world_table`."""
     if ti.static(len(table.shape) == 1):

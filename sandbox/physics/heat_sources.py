@@ -12,7 +12,7 @@ import taichi as ti
 from ..config.scene_tables import SOURCE_MODES
 from ..core import transfer
 from ..core.oriented import data_oriented
-from ..core.worlds import add_to_entry, at, entry, per_world, per_world_table, set_world_entry, world_of
+from ..core.worlds import add_to_entry, at, clear_table, entry, per_world, per_world_table, set_world_entry, world_of
 
 EXCHANGE, FIXED, POWER = (SOURCE_MODES.index(m) for m in ("exchange", "fixed", "power"))
 
@@ -113,8 +113,7 @@ class HeatSources:
     @ti.func
     def sum_masses(self):
         """The mass inside each power source (they share their power by mass)."""
-        for e in ti.grouped(self.src_mass):
-            self.src_mass[e] = 0.0
+        clear_table(self.src_mass)
         self.loops.light()
         for i in range(self.p.n[None]):
             for k in range(self.n_sources):
