@@ -220,3 +220,16 @@ def test_a_world_started_again_is_a_fresh_lone_run_and_the_others_run_on():
         assert np.array_equal(alone.temperatures(), batch.world(k).temperatures())
         _assert_readouts_alike(batch.world(k).stats(), alone.stats())
     assert fresh.stats().broken_springs != lone.stats().broken_springs  # the restarted world is really younger
+
+
+def test_bench_worlds_refuses_bad_arguments_in_one_line(capsys):
+    from sandbox.app.cli import main
+
+    for args, said in (
+        (["0", "melting_block"], "--worlds: expected a number of worlds from 1 to 4096, got '0'"),
+        (["many", "melting_block"], "--worlds: expected a number of worlds from 1 to 4096, got 'many'"),
+        (["3", "no_such_scene"], "--worlds: no shipped scene 'no_such_scene'; expected one of"),
+    ):
+        assert main(["bench", "--worlds", *args]) == 2
+        err = capsys.readouterr().err
+        assert said in err and "Traceback" not in err
