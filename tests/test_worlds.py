@@ -193,6 +193,7 @@ def test_a_sweep_batches_the_runs_that_differ_only_in_a_worlds_keys():
     assert [len(g) for g in groups] == [MAX_BATCH, 2] and alone == []
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_world_started_again_is_a_fresh_lone_run_and_the_others_run_on():
     """World 1 starts again after 5 frames (40 steps: the refreezing pass, every 10 steps, keeps its phase): 10
     frames later it equals a lone run of 10 frames, its own plate schedule (hot for 0.25 s, then off) timed from its
