@@ -87,9 +87,7 @@ def assemble(
             worlds=worlds,
         )
         try:
-            every_world = (
-                built.side_by_side([build_particles(s) for s in starts]) if starts else built.replicated(worlds)
-            )
+            every_world = built.side_by_side([build_particles(s) for s in starts] if starts else [built] * worlds)
         except ValueError as exc:
             raise SandboxError(f"{scene.name}: {exc}") from None
         _load_particles(particles, every_world, table.colors, materials)
@@ -152,7 +150,7 @@ def _load_particles(particles: Particles, built, colors: np.ndarray, materials: 
         (p.group, built.body),
         (p.ident, np.arange(n, dtype=np.int32)),
     ]
-    if p.worlds:  # world k's particles are the built ones again (config/build.py's replicated), ids as in a lone run
+    if p.worlds:  # world k's particles are one world's build (config/build.py's side_by_side), ids as in a lone run
         each = n // p.world_count
         pairs[-1] = (p.ident, np.tile(np.arange(each, dtype=np.int32), p.world_count))
         pairs.append((p.world, np.repeat(np.arange(p.world_count, dtype=np.int32), each)))
@@ -184,6 +182,6 @@ def _neighbourhood(scene: Scene, model: Model, state: State, half_lists: bool | 
         springs = state.springs if has_pair else None  # half rows mark bonded pairs, which the pair force skips
         lists = NeighbourList(grid, model.domain, state, reach, skin, capacity, half, springs, model.loops)
     every = world.reorder if world.reorder != "auto" else (20 if model.built.count >= 5000 else 0)
-    every = every if model.worlds == 1 else 0  # sorting the storage would mix the worlds' slots: see WORLD_TERMS
+    every = every if model.worlds == 1 else 0  # a world owns one block of slots (core/worlds.py): no sort of storage
     order = CellOrder(state, grid, lists, every) if every and lists is not None else None
     return Neighbourhood(grid, lists, order, half)

@@ -14,6 +14,7 @@ import numpy as np
 
 from .core import transfer
 from .core.state import FIELD
+from .core.worlds import set_world_entry
 from .errors import SandboxError
 
 FAR = 1e30  # a reference position no particle is within half a skin of
@@ -46,7 +47,7 @@ def reset_world(sim, k: int) -> None:
         x_ref = hood.lists.x_ref.to_numpy()
         x_ref[rows] = FAR
         hood.lists.x_ref.from_numpy(x_ref)
-    sim.model.domain.impulse.from_numpy(_zeroed_at(sim.model.domain.impulse.to_numpy(), k))
+    set_world_entry(sim.model.domain.impulse, worlds, k, 0.0)
     state.world_started[k] = state.time
     sim.broken = None
 
@@ -69,9 +70,3 @@ def _springs_back(springs, initial: dict, k: int, worlds: int, each: int) -> lis
     created = springs.created.to_numpy()
     created[k] = initial["springs.created"][k]
     return [(getattr(springs, name), now[name]) for name in names] + [(springs.created, created)]
-
-
-def _zeroed_at(values: np.ndarray, k: int) -> np.ndarray:
-    values = values.copy()
-    values[k] = 0
-    return values

@@ -6,6 +6,7 @@ they are found by index offsets on the lattice, so building is exact and linear 
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -60,38 +61,20 @@ class Particles:
     @staticmethod
     def side_by_side(builds: list[Particles]) -> Particles:
         """The builds of a scene's worlds one after the other (world k's particle i at k N + i), each world's springs
-        joining its own particles; ValueError where they differ in particle count or springs (what a world may vary:
-        its bodies' temperatures and velocities, not its structure)."""
+        joining its own particles (`[built] * K`: K copies); ValueError where they differ in particle count or springs
+        (what a world may vary: its bodies' temperatures and velocities, not its structure)."""
         first = builds[0]
+        if len(builds) == 1:
+            return first
         for k, other in enumerate(builds[1:], 1):
             same = other.count == first.count and np.array_equal(other.spring_i, first.spring_i)
             if not same or not np.array_equal(other.spring_j, first.spring_j):
                 raise ValueError(f"world {k} is built of other particles or springs than world 0; expected the same")
+        joined = {f.name: np.concatenate([getattr(b, f.name) for b in builds]) for f in dataclasses.fields(Particles)}
         shifts = np.repeat(np.arange(len(builds), dtype=np.int32) * first.count, first.spring_count)
-        per_particle = ("x", "v", "mass", "radius", "temperature", "material", "body", "solid")
-        joined = {name: np.concatenate([getattr(b, name) for b in builds]) for name in per_particle}
-        joined.update(
-            {name: np.concatenate([getattr(b, name) for b in builds]) + shifts for name in ("spring_i", "spring_j")}
-        )
-        joined.update(
-            {
-                name: np.concatenate([getattr(b, name) for b in builds])
-                for name in ("rest_length", "stiffness", "damping")
-            }
-        )
+        for name in ("spring_i", "spring_j"):
+            joined[name] = joined[name] + shifts
         return Particles(**joined)
-
-    def replicated(self, worlds: int) -> Particles:
-        """`worlds` copies of these particles one after the other (world k's particle i at k N + i), each copy's
-        springs joining its own particles: the particles of a simulation of that many worlds (core/worlds.py)."""
-        if worlds == 1:
-            return self
-        per_particle = ("x", "v", "mass", "radius", "temperature", "material", "body", "solid")
-        copies = {name: np.concatenate([getattr(self, name)] * worlds) for name in per_particle}
-        shifts = np.repeat(np.arange(worlds, dtype=np.int32) * self.count, self.spring_count)
-        ends = {name: np.tile(getattr(self, name), worlds) + shifts for name in ("spring_i", "spring_j")}
-        per_spring = ("rest_length", "stiffness", "damping")
-        return Particles(**copies, **ends, **{name: np.tile(getattr(self, name), worlds) for name in per_spring})
 
 
 def lattice_sites(body: Body, dim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

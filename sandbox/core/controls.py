@@ -97,8 +97,8 @@ class Controls:
         said = problem(self.model, self.terms, values)
         if said:
             raise SandboxError(said)
-        common = shared(self.model, self.terms)
-        if self.world is not None and any(key.split(".")[0] in common for key in values):
-            key = next(key for key in values if key.split(".")[0] in common)
+        common = shared(self.model, self.terms) if self.world is not None else set()
+        key = next((key for key in values if key.split(".")[0] in common), None)
+        if key is not None:
             raise SandboxError(f"control {key} is one for all worlds of this simulation; set it with sim.controls.set")
         apply(self.model, self.terms, values, self.world)
