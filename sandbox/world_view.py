@@ -3,13 +3,16 @@ simulation of its scene is read and steered, while the simulation steps every wo
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from .core import controls as live_controls
 from .errors import SandboxError
 from .measure.stats import Stats
 from .physics.heat_sources import source_value
-from .world_reset import reset_world
+from .world_file import load_world, save_world
+from .world_state import put_world, reset_world, world_snapshot
 
 # The scene keys a world of a simulation may hold of its own (Simulation's `starts`, `sandbox sweep`'s batches):
 # what its particles start from and its live controls. Every other key is one for all its worlds.
@@ -58,8 +61,25 @@ class WorldView:
 
     def reset(self) -> None:
         """Start this world again from the scene's initial state, its clock from 0; the other worlds run on as they
-        were, and the live controls stay as they are (world_reset.py)."""
+        were, and the live controls stay as they are (world_state.py)."""
         reset_world(self.sim, self.index)
+
+    def snapshot(self) -> dict:
+        """This world's state now, as a lone run of its scene holds it (world_state.py): for restore()."""
+        return world_snapshot(self.sim, self.index)
+
+    def restore(self, snap: dict) -> None:
+        """Put this world back as snapshot() saw it (its clock too); the other worlds run on untouched."""
+        put_world(self.sim, self.index, snap)
+
+    def save(self, path) -> Path:
+        """Write this world's state file (a lone run's format: `sandbox.resume` opens it); returns the path written."""
+        return save_world(self.sim, self.index, path)
+
+    def load(self, path) -> None:
+        """Put a state file of this scene (a lone run's or a world's) into this world alone, its live controls too;
+        SandboxError (one line) where it does not fit, before anything changes."""
+        load_world(self.sim, self.index, path)
 
     @property
     def controls(self) -> live_controls.Controls:

@@ -27,6 +27,7 @@ from .particles import Mover, Particles, SpringState
 from .ranges import ANY, COUNT, STEP, Range
 
 FIELD, NDARRAY, VALUE = "field", "ndarray", "value"
+WORLDS = "worlds"  # the rows of a per-world gauge (core/worlds.py): world k's is row k
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,7 @@ class Entry:
     attribute: str  # its attribute on the owner
     kind: str  # FIELD, NDARRAY or VALUE
     physical: bool  # in snapshots (reset, undo); else kept only for a bit-for-bit resume
-    rows: str = ""  # what its first axis counts ("particles", "springs"), or "": checked when a state file is read
+    rows: str = ""  # what its first axis counts ("particles", "springs", WORLDS), or "": checked when a file is read
     valid: Range = ANY  # the values it may hold there
 
     def get(self):
@@ -68,7 +69,7 @@ class State:
         self.declare("clock", self, ("time", "step", "frames"), kind=VALUE, valid=COUNT)
         self.declare("clock", self, ("dt",), kind=VALUE, valid=STEP)
         self.declare("state", self, ("layout",), kind=VALUE, physical=False)  # the lists compare theirs with it
-        if particles.worlds:  # each world's clock starts at the simulated time it started at (world_reset.py)
+        if particles.worlds:  # each world's clock starts at the simulated time it started at (world_state.py)
             self.world_started = [0.0] * particles.world_count
             self.declare("clock", self, ("world_started",), kind=VALUE, valid=COUNT)
         self.declare("particles", particles, ("n",), valid=Range(lo=0, atmost="capacity"))
@@ -80,7 +81,9 @@ class State:
             self.declare(each, springs, ("rest", "ks", "kd", "factor"), rows=each, valid=COUNT)
             self.declare(each, springs, ("alive",), rows=each, valid=Range(lo=0, hi=1))
             self.declare(each, springs, ("bonds",), rows="particles", valid=Range(lo=-1, below="springs"))
-            self.declare(each, springs, ("created", "span"), valid=Range(lo=0, atmost="springs"))
+            gauge = WORLDS if particles.worlds else ""  # counted per world where there are several
+            self.declare(each, springs, ("created",), rows=gauge, valid=Range(lo=0, atmost="springs"))
+            self.declare(each, springs, ("span",), valid=Range(lo=0, atmost="springs"))
 
     def _declare_particles(self, p: Particles) -> None:
         """The per-particle fields, each with the values it may hold (core/particles.py declares both)."""

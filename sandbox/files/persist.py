@@ -76,19 +76,29 @@ def controls(sim: Saveable) -> dict:
 
 
 def save_state(sim: Saveable, path: str | Path, frame: int | None = None, outputs: dict | None = None) -> Path:
-    """Write `sim`'s whole state to `path` (.npz added when missing) atomically: written under a temporary name in
-    the same folder and renamed, so a crash while writing never leaves a broken file under `path`. `frame`: the
+    """Write `sim`'s whole state to `path` (.npz added when missing) atomically (write_state_file). `frame`: the
     frame count to record (default: the frames the simulation has advanced); `outputs`: what a headless run's files
     held at this checkpoint (app/run_outputs.py), for its resume to continue them. Returns the path written."""
-    path = Path(path)
-    if path.suffix != ".npz":
-        path = path.with_name(path.name + ".npz")
     entries = sim.state.entries()
     arrays = {f"field:{k}": v for k, v in _download([e for e in entries if e.kind == FIELD]).items()}
     arrays.update({f"ndarray:{e.name}": e.get().to_numpy() for e in entries if e.kind == NDARRAY})
     host = {e.name: e.get() for e in entries if e.kind == VALUE}
-    scene, state = sim.scene, sim.state
-    meta = {
+    state = sim.state
+    meta = state_meta(sim, state.frames if frame is None else frame, state.time, state.live_count(), controls(sim))
+    if outputs is not None:
+        meta["outputs"] = outputs
+    try:
+        check_state(sim.model, sim.state, arrays, host, path)  # what would not load back is not written
+    except SandboxError as exc:
+        raise SimulationError(f"not saved: {exc}") from None
+    return write_state_file(path, meta, arrays, host)
+
+
+def state_meta(sim: Saveable, frame: int, time: float, particles: int, live: dict) -> dict:
+    """A state file's meta table for `sim`'s scene at `frame` and simulated `time` (s), with `particles` live and the
+    live controls `live`."""
+    scene = sim.scene
+    return {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "sandbox": __version__,
@@ -100,18 +110,21 @@ def save_state(sim: Saveable, path: str | Path, frame: int | None = None, output
         "precision": scene.world.precision,
         "threads": _threads(sim.arch),
         "integrator": sim.integrator.name,
-        "frame": state.frames if frame is None else frame,
-        "time": state.time,
-        "step": state.step,
-        "particles": state.live_count(),
-        "controls": controls(sim),
+        "frame": frame,
+        "time": time,
+        "step": sim.state.step,
+        "particles": particles,
+        "controls": live,
     }
-    if outputs is not None:
-        meta["outputs"] = outputs
-    try:
-        check_state(sim.model, sim.state, arrays, host, path)  # what would not load back is not written
-    except SandboxError as exc:
-        raise SimulationError(f"not saved: {exc}") from None
+
+
+def write_state_file(path: str | Path, meta: dict, arrays: dict, host: dict) -> Path:
+    """Write a state file (.npz added to `path` when missing) atomically: under a temporary name in the same folder,
+    then renamed, so a crash while writing never leaves a broken file under `path`. Returns the path written;
+    OutputError (one line) where it cannot be written."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        path = path.with_name(path.name + ".npz")
     partial = partial_name(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -169,7 +182,7 @@ def saved_scene(meta: dict, path: str | Path):
         raise SandboxError(f"{path}: the saved scene does not load: {exc}") from exc
 
 
-def _check_controls(saved: dict, current: dict, path: Path) -> None:
+def check_controls(saved: dict, current: dict, path: Path) -> None:
     """The file's live controls are those of this scene (the same names, each of the same shape)."""
     if set(saved) != set(current):
         raise SandboxError(f"{path}: the saved controls are {sorted(saved)}; expected this scene's {sorted(current)}")
@@ -189,23 +202,16 @@ def load_into(sim: Saveable, path: str | Path, meta: dict | None = None) -> None
             f"{path}: saved from the scene {meta.get('scene_name')!r} as it was then; expected one saved from this "
             f"{sim.scene.name!r}"
         )
+    whole = not meta.get("physical_only", False)  # a world's file holds what a step reads, not its lists
     threads = _threads(sim.arch)
-    if sim.arch != meta["arch"] or threads != meta["threads"]:
+    if whole and (sim.arch != meta["arch"] or threads != meta["threads"]):
         raise SandboxError(
             f"{path}: saved on {meta['arch']} with {meta['threads']} thread(s), resumed on {sim.arch} with {threads}: "
             f"the sums run in another order there; expected the same backend and thread count "
             f"(SANDBOX_CPU_THREADS={meta['threads']})"
         )
-    try:
-        saved = read_arrays(path, limit=_archive_limit(sim.state))
-        host = json.loads(str(saved["host"]))
-    except ArchiveError as exc:
-        raise SandboxError(f"{path}: {exc}") from None
-    except (OSError, ValueError, KeyError, RecursionError) as exc:
-        raise SandboxError(f"{path}: the state file is damaged ({type(exc).__name__})") from exc
-    if not isinstance(host, dict):
-        raise SandboxError(f"{path}: the state file's host values are not a table; expected one written by save()")
-    _check_controls(meta["controls"], controls(sim), path)
+    saved, host = read_state_file(path, sim.state)
+    check_controls(meta["controls"], controls(sim), path)
     said = live_controls.problem(sim.model, sim.terms, meta["controls"])
     if said:
         raise SandboxError(f"{path}: {said}")
@@ -214,14 +220,31 @@ def load_into(sim: Saveable, path: str | Path, meta: dict | None = None) -> None
     before = sim.integrator.name
     sim.set_integrator(meta["integrator"])  # before checking: its own entries are part of the state
     try:
-        check_state(sim.model, sim.state, saved, host, path)
+        check_state(sim.model, sim.state, saved, host, path, physical_only=not whole)
     except SandboxError:
         sim.set_integrator(before)  # nothing of the file reached the simulation
         raise
-    _put_back(sim.state, saved, host)
+    _put_back(sim.state, saved, host, physical_only=not whole)
+    if not whole:  # what was built over the old state (the neighbour lists) is built again
+        sim.state.particles_moved()
     live_controls.apply(sim.model, sim.terms, meta["controls"])
     for part in sim.parts:
         part.after_restore(sim.state)
+
+
+def read_state_file(path: Path, state) -> tuple[dict, dict]:
+    """A state file's arrays (by "field:name" and "ndarray:name") and host values, read within the bytes a file of
+    `state`'s scene may hold; SandboxError (one line) for a damaged one. Nothing is checked against the state."""
+    try:
+        saved = read_arrays(path, limit=_archive_limit(state))
+        host = json.loads(str(saved["host"]))
+    except ArchiveError as exc:
+        raise SandboxError(f"{path}: {exc}") from None
+    except (OSError, ValueError, KeyError, RecursionError) as exc:
+        raise SandboxError(f"{path}: the state file is damaged ({type(exc).__name__})") from exc
+    if not isinstance(host, dict):
+        raise SandboxError(f"{path}: the state file's host values are not a table; expected one written by save()")
+    return saved, host
 
 
 def _archive_limit(state) -> int:
@@ -236,9 +259,10 @@ def _archive_limit(state) -> int:
     return 4 * now + 2 * MAX_META_BYTES
 
 
-def _put_back(state, saved: dict, host: dict) -> None:
-    """Every entry of `state` from the file's (checked) arrays and host values."""
-    entries = state.entries()
+def _put_back(state, saved: dict, host: dict, physical_only: bool = False) -> None:
+    """Every entry of `state` (the physical ones with `physical_only`) from the file's (checked) arrays and host
+    values."""
+    entries = state.entries(physical_only)
     pairs = [(e.get(), saved[f"{FIELD}:{e.name}"]) for e in entries if e.kind == FIELD]
     with _quiet_unrolling():
         transfer.upload_all(pairs)

@@ -14,7 +14,7 @@ import taichi as ti
 
 from ..core.ranges import Range
 from ..core.runtime import ARCHES, PRECISIONS
-from ..core.state import FIELD, NDARRAY, VALUE
+from ..core.state import FIELD, NDARRAY, VALUE, WORLDS
 from ..errors import SandboxError
 
 _NUMPY = {ti.f32: np.float32, ti.f64: np.float64, ti.i32: np.int32, ti.u32: np.uint32, ti.i8: np.int8, ti.u8: np.uint8}
@@ -52,6 +52,8 @@ def check_meta(meta: dict, path: Path) -> None:
             f"{path}: meta arch {meta['arch']!r}, precision {meta['precision']!r}, threads {meta['threads']}; expected "
             f"one of {', '.join(ARCHES)}, one of {', '.join(PRECISIONS)} and at least one thread"
         )
+    if not isinstance(meta.get("physical_only", False), bool):
+        raise SandboxError(f"{path}: meta physical_only is {meta['physical_only']!r}; expected true or false")
     if not isinstance(meta.get("outputs", {}), dict):
         raise SandboxError(f"{path}: meta outputs is {meta['outputs']!r}; expected the table of a run's outputs")
     for key, value in meta["controls"].items():
@@ -60,27 +62,38 @@ def check_meta(meta: dict, path: Path) -> None:
             raise SandboxError(f"{path}: control {key} is {value!r}; expected finite numbers")
 
 
-def check_state(model, state, saved: dict, host: dict, path: Path) -> None:
-    """Every declared entry of `state` (of `model`'s scene) in the file's arrays `saved` and host values `host`:
-    raise SandboxError for the first one that is missing or does not fit."""
-    entries = state.entries()
+def check_state(model, state, saved: dict, host: dict, path: Path, physical_only: bool = False) -> None:
+    """Every declared entry of `state` (of `model`'s scene; the physical ones with `physical_only`: a world's file)
+    in the file's arrays `saved` and host values `host`: raise SandboxError for the first one that is missing or does
+    not fit."""
     springs = state.springs
-    env = {
-        "capacity": model.capacity,
-        "materials": len(model.material_names),
-        "groups": len(model.scene.groups) + 1,
-        "springs": springs.count if springs is not None else 0,
-    }
+    env = {"capacity": model.capacity, "springs": springs.count if springs is not None else 0}
+    _check_entries(model, state.entries(physical_only), lambda e: e.get(), env, saved, host, path)
+
+
+def check_world_state(model, entries: list, like: dict, saved: dict, host: dict, path: Path) -> None:
+    """A state file put into one world of a simulation of many (world_state.py): each of `entries` present and
+    shaped like its value in `like` (the world's state as a lone run holds it), then checked as check_state checks
+    a lone run's; SandboxError for the first that is missing or does not fit."""
+    env = {"capacity": len(like["particles.x"]), "springs": len(like.get("springs.alive", ()))}
+    _check_entries(model, entries, lambda e: like[e.name], env, saved, host, path)
+
+
+def _check_entries(model, entries: list, current, env: dict, saved: dict, host: dict, path: Path) -> None:
+    """check_state's checks of `entries`, each against `current(entry)` (a field, an array or a host value); `env`
+    holds the capacity and spring slots they are checked within."""
+    env.update(materials=len(model.material_names), groups=len(model.scene.groups) + 1)
     for e in entries:
         if e.kind == VALUE:
-            _check_value(e, host, path)
+            _check_value(e, current(e), host, path)
         else:
-            _check_array(e, saved, path)
+            _check_array(e, current(e), saved, path)
     env["n"] = int(saved["field:particles.n"])
     _in_range("particles.n", np.asarray(env["n"]), Range(lo=0, atmost="capacity"), env, path)
     env["next_ident"] = host["particles.next_ident"]
-    span = int(saved["field:springs.span"]) if springs is not None else 0
-    live = {"particles": env["n"], "springs": span, "": None}
+    has_springs = "field:springs.span" in saved and any(e.name == "springs.span" for e in entries)
+    span = int(saved["field:springs.span"]) if has_springs else 0
+    live = {"particles": env["n"], "springs": span, WORLDS: None, "": None}
     for e in entries:
         if e.kind == VALUE:
             _in_range(e.name, np.asarray(host[e.name], dtype=float), e.valid, env, path)
@@ -88,16 +101,16 @@ def check_state(model, state, saved: dict, host: dict, path: Path) -> None:
             values = saved[f"{e.kind}:{e.name}"]
             rows = live[e.rows]
             _in_range(e.name, values if rows is None else values[:rows], e.valid, env, path)
-    if springs is not None:
+    if has_springs:
         _check_springs(saved, env["n"], span, path)
-    if "ndarray:neighbours.ids" in saved:
+    if "ndarray:neighbours.ids" in saved and any(e.name == "neighbours.ids" for e in entries):
         _check_lists(saved, host, env, path)
 
 
-def _check_value(e, host: dict, path: Path) -> None:
+def _check_value(e, current, host: dict, path: Path) -> None:
     if e.name not in host:
         raise SandboxError(f"{path}: the state file has no {e.name}; expected one saved with it")
-    current, value = e.get(), host[e.name]
+    value = host[e.name]
     if isinstance(current, bool):
         ok = isinstance(value, bool)
     elif isinstance(current, int | float):
@@ -119,12 +132,15 @@ def _same_kind(value, current) -> bool:
     return isinstance(value, int) or not isinstance(current, int)
 
 
-def _check_array(e, saved: dict, path: Path) -> None:
+def _check_array(e, current, saved: dict, path: Path) -> None:
+    """The file's array of entry `e` shaped and typed as `current` (a Taichi field, or a NumPy array)."""
     key = f"{e.kind}:{e.name}"
     if key not in saved:
         raise SandboxError(f"{path}: the state file has no {e.name}; expected one saved with this scene")
-    values, current = saved[key], e.get()
-    if e.kind == FIELD:
+    values = saved[key]
+    if isinstance(current, np.ndarray):
+        want, dtype = current.shape, current.dtype
+    elif e.kind == FIELD:
         want = tuple(current.shape) + ((current.n,) if isinstance(current, ti.MatrixField) else ())
         dtype = _NUMPY.get(current.dtype)
     else:  # NDARRAY: as many rows as the current one; its width may have grown

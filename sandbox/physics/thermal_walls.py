@@ -25,6 +25,7 @@ from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.ranges import COUNT
+from ..core.state import WORLDS
 from ..core.worlds import add_at, add_to_entry, entry, per_world_table, world_of
 from .agitation import normal
 from .fields import random_uniform
@@ -64,7 +65,7 @@ class ThermalWalls(Term):
 
     def declare(self, state) -> None:
         state.declare("thermal_walls", self, ("hits",), rows="particles", valid=COUNT)
-        state.declare("thermal_walls", self, ("moved",))
+        state.declare("thermal_walls", self, ("moved",), rows=WORLDS if self.worlds > 1 else "")
 
     def set_temperatures(self, values: list[float], world: int | None = None) -> None:
         """Set each wall's temperature (kT, energy units), in the order of [[molecular.walls]], in world `world`

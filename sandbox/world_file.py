@@ -1,0 +1,91 @@
+"""One world's state file (`sim.world(k).save(path)`, `sim.world(k).load(path)`): the world's state as a lone run
+of its scene holds it (world_state.py), in the state-file format (files/persist.py), so a world's file opens with
+`sandbox.resume` like any other, and a lone run's state file, or another world's, loads into any world of a
+simulation of the scene.
+
+A world's file holds what a step reads (`physical_only`: positions, velocities, heat, bonds, clock, gauges, live
+controls), not the neighbour lists of the batch it came from: they are built again where it is loaded, so the run
+from it is that state's, its first sums in the rebuilt lists' order.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .core import controls as live_controls
+from .core.state import FIELD, NDARRAY, VALUE
+from .errors import SandboxError, SimulationError
+from .files.persist import check_controls, read_meta, read_state_file, state_meta, write_state_file
+from .files.state_check import check_world_state
+from .world_state import IMPULSE, OWN, put_world, world_snapshot
+
+
+def _world_entries(sim) -> list:
+    """The entries a world's file holds: the physical ones less the batch's own (world_state.OWN)."""
+    return [e for e in sim.state.entries(physical_only=True) if e.name not in OWN]
+
+
+def save_world(sim, k: int, path: str | Path) -> Path:
+    """Write world k's state to `path` (.npz added when missing) atomically; returns the path written (OutputError,
+    SimulationError: one line)."""
+    part = world_snapshot(sim, k)
+    part.pop(IMPULSE)
+    entries = _world_entries(sim)
+    arrays = {f"{e.kind}:{e.name}": part[e.name] for e in entries if e.kind in (FIELD, NDARRAY)}
+    host = {e.name: part[e.name] for e in entries if e.kind == VALUE}
+    live = live_controls.Controls(sim.model, sim.terms, k).values()
+    meta = state_meta(sim, sim.state.frames, float(part["clock.time"]), int(part["particles.n"]), live)
+    meta.update(physical_only=True, world=k, worlds=sim.worlds)
+    try:
+        check_world_state(sim.model, entries, part, arrays, host, Path(path))  # what would not load is not written
+    except SandboxError as exc:
+        raise SimulationError(f"not saved: {exc}") from None
+    return write_state_file(path, meta, arrays, host)
+
+
+def load_world(sim, k: int, path: str | Path) -> None:
+    """Put a state file of this scene (a lone run's, or a world's) into world k: checked before anything changes
+    (SandboxError, one line, naming the file); its state and its own live controls go into world k alone."""
+    path = Path(path)
+    meta = read_meta(path)
+    if meta["scene"] != sim.scene.source:
+        raise SandboxError(
+            f"{path}: saved from the scene {meta.get('scene_name')!r} as it was then; expected one saved from this "
+            f"{sim.scene.name!r}"
+        )
+    if meta["integrator"] != sim.integrator.name:
+        raise SandboxError(
+            f"{path}: saved stepping with {meta['integrator']}; expected {sim.integrator.name}, which every world of "
+            "this simulation steps with"
+        )
+    saved, host = read_state_file(path, sim.state)
+    world = live_controls.Controls(sim.model, sim.terms, k)
+    _check_world_controls(sim, world.values(), meta["controls"], path)
+    entries = _world_entries(sim)
+    like = world_snapshot(sim, k)
+    check_world_state(sim.model, entries, like, saved, host, path)
+    part = {e.name: saved[f"{e.kind}:{e.name}"] for e in entries if e.kind in (FIELD, NDARRAY)}
+    part.update({e.name: host[e.name] for e in entries if e.kind == VALUE})
+    put_world(sim, k, part)
+    own = live_controls.shared(sim.model, sim.terms)
+    live_controls.apply(
+        sim.model, sim.terms, {key: v for key, v in meta["controls"].items() if key.split(".")[0] not in own}, k
+    )
+
+
+def _check_world_controls(sim, current: dict, saved: dict, path: Path) -> None:
+    """The file's live controls are this scene's, each shaped as world k's, passing their owners' checks; a control
+    that is one for all worlds (the pair force's scale) holds the value it has here."""
+    check_controls(saved, current, path)
+    said = live_controls.problem(sim.model, sim.terms, saved)
+    if said:
+        raise SandboxError(f"{path}: {said}")
+    common = live_controls.shared(sim.model, sim.terms)
+    for key, value in current.items():
+        if key.split(".")[0] in common and not np.allclose(saved[key], value, rtol=0, atol=0):
+            raise SandboxError(
+                f"{path}: control {key} = {saved[key]!r}; this simulation's worlds share {key} = {value!r} (set it "
+                "with sim.controls.set before loading)"
+            )

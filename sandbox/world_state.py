@@ -1,0 +1,209 @@
+"""One world's state out of a simulation of many worlds, and back into it, while the other worlds run on untouched:
+undo in one world, a world started again, a world's state file (`sim.world(k).snapshot()`, `restore()`, `reset()`,
+`save()`, `load()`).
+
+A world's state is held as a lone run of its scene holds its own (`sim.snapshot()`'s names and shapes): its block of
+particle slots (core/worlds.py: world k's particle i at k N + i) as slots 0 .. N - 1, its springs as a lone run's
+(the built block, then the bonds it made by refreezing), each bond list pointing at them, its own row of each
+per-world gauge, its own clock. So a world's state file is a lone run's, read by `sandbox.resume` and by any world
+of a simulation of the scene, and a lone run's state file loads into a world.
+
+Springs are where the layouts differ: refreezing puts a world's new bonds in any free slot of the shared spring
+table (another world's broken built bond's among them). Putting a world back kills every bond its particles hold
+now, then places its saved ones: a built bond in its own slot where that slot is free, any other bond (and a built
+one whose slot another world has taken) in a free slot. A bond list is packed to its live bonds as it goes in (as
+refreezing packs every list before it bonds): a force sums a particle's bonds in its list's order, so the order,
+not the slots, is what a step reads, and the world steps on as its lone run would. Its neighbour-list rows are
+rebuilt at the next step (their reference positions put far away: only this world is found stale).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .core import transfer
+from .core.state import FIELD, NDARRAY, VALUE
+from .core.worlds import set_world_entry
+from .errors import SandboxError
+
+FAR = 1e30  # a reference position no particle is within half a skin of
+SPRING_ROWS = ("i", "j", "rest", "ks", "kd", "factor", "alive")  # the springs' per-slot fields
+OWN = ("particles.world", "clock.world_started")  # what a world's state has no entry for (the batch's own)
+IMPULSE = "walls.impulse"  # the walls' momentum gauge (the model's, not the state's): in memory only
+
+
+def _layout(sim, n: int) -> tuple[int, int, int]:
+    """(worlds, particles a world, lone capacity) of `sim` holding `n` live particles."""
+    worlds = sim.worlds
+    return worlds, n // worlds, sim.model.capacity // worlds
+
+
+def refuse_kept_integrator(sim, k: int, what: str) -> None:
+    """SandboxError where the integrator keeps values of its own between steps (the leapfrog family's synchronised
+    velocities): they are one for all worlds and not put back per world."""
+    if any(e.name.startswith("integrator.") for e in sim.state.entries()):
+        raise SandboxError(
+            f"world {k}: a world of a {sim.integrator.name} simulation cannot yet {what}; expected an integrator "
+            "that keeps nothing between steps (symplectic_euler, forward_euler, midpoint, rk4)"
+        )
+
+
+def world_part(sim, whole: dict, k: int) -> dict:
+    """World k's state, as a lone run of the scene holds it (module docstring), out of `whole`: a snapshot of every
+    world (Simulation.snapshot()'s names: NumPy arrays and host values)."""
+    state = sim.state
+    worlds, each, lone_capacity = _layout(sim, int(whole["particles.n"]))
+    rows = slice(k * each, (k + 1) * each)
+    out = {}
+    for e in state.entries(physical_only=True):
+        if e.name in OWN or e.name.startswith("springs."):
+            continue
+        value = whole[e.name]
+        if e.rows == "particles":
+            out[e.name] = _lone_rows(value[rows], lone_capacity)
+        elif e.rows == "worlds":
+            out[e.name] = np.array(value[k])
+        elif e.kind == VALUE:
+            out[e.name] = value.copy() if isinstance(value, list) else value
+        else:
+            out[e.name] = np.array(value)
+    out["particles.n"] = np.array(each, dtype=whole["particles.n"].dtype)
+    out["clock.time"] = whole["clock.time"] - whole["clock.world_started"][k]
+    if "particles.next_ident" in out:  # a world's ids are its lone run's: 0 .. N - 1 (no tool adds to a world)
+        out["particles.next_ident"] = each
+    if state.springs is not None:
+        out.update(_springs_out(sim, whole, k, each, lone_capacity))
+    return out
+
+
+def _lone_rows(block: np.ndarray, capacity: int) -> np.ndarray:
+    """A lone run's field of `capacity` rows holding `block` first (the rows past its live ones are zero)."""
+    out = np.zeros((capacity, *block.shape[1:]), dtype=block.dtype)
+    out[: len(block)] = block
+    return out
+
+
+def _springs_out(sim, whole: dict, k: int, each: int, lone_capacity: int) -> dict:
+    """World k's springs in a lone run's slots: its built block where it was built, its other live bonds after it."""
+    springs = sim.state.springs
+    built = springs.built_count // sim.worlds
+    lone_count = springs.count // sim.worlds
+    ends = whole["springs.i"]
+    mine = np.flatnonzero((whole["springs.alive"] != 0) & (ends >= k * each) & (ends < (k + 1) * each))
+    in_block = (mine >= k * built) & (mine < (k + 1) * built)
+    lone_slot = np.empty(len(mine), dtype=np.int64)
+    lone_slot[in_block] = mine[in_block] - k * built
+    lone_slot[~in_block] = built + np.arange(int((~in_block).sum()))
+    if len(mine) and lone_slot.max() >= lone_count:
+        raise SandboxError(
+            f"world {k} holds {len(mine)} bonds, more than the {lone_count} spring slots of a lone run of its scene"
+        )
+    out = {f"springs.{name}": np.zeros(lone_count, dtype=whole[f"springs.{name}"].dtype) for name in SPRING_ROWS}
+    for name in SPRING_ROWS:
+        out[f"springs.{name}"][lone_slot] = whole[f"springs.{name}"][mine]
+    for end in ("i", "j"):
+        out[f"springs.{end}"][lone_slot] -= k * each
+    slot_map = np.full(springs.count, -1, dtype=np.int64)
+    slot_map[mine] = lone_slot
+    bonds = whole["springs.bonds"][k * each : (k + 1) * each]
+    out["springs.bonds"] = _lone_rows(_packed(np.where(bonds >= 0, slot_map[np.maximum(bonds, 0)], -1)), lone_capacity)
+    out["springs.created"] = np.array(whole["springs.created"][k])
+    out["springs.span"] = np.array(max(built, int(lone_slot.max()) + 1 if len(mine) else 0), dtype=np.int32)
+    return out
+
+
+def _packed(bonds: np.ndarray) -> np.ndarray:
+    """Bond lists (rows of slots, -1 for none) with their live entries first, in their order, -1 after."""
+    keep = bonds >= 0
+    order = np.argsort(~keep, axis=1, kind="stable")
+    return np.where(np.take_along_axis(keep, order, axis=1), np.take_along_axis(bonds, order, axis=1), -1).astype(
+        np.int32
+    )
+
+
+def world_snapshot(sim, k: int) -> dict:
+    """World k's state now (module docstring), with its walls' gauge: for undo in one world."""
+    refuse_kept_integrator(sim, k, "be kept and put back alone")
+    part = world_part(sim, sim.state.snapshot(), k)
+    part[IMPULSE] = _world_impulse(sim, k)
+    return part
+
+
+def _world_impulse(sim, k: int) -> float:
+    from .core.worlds import world_entry
+
+    return world_entry(sim.model.domain.impulse, sim.worlds, k)
+
+
+def put_world(sim, k: int, part: dict) -> None:
+    """Put `part` (world_part's: a world's state as a lone run holds it) into world k of `sim`; the other worlds
+    are untouched, bit for bit. SandboxError where it does not fit (another particle count, no free spring slots)."""
+    state = sim.state
+    refuse_kept_integrator(sim, k, "be put back alone")
+    worlds, each, _ = _layout(sim, state.live_count())
+    if int(part["particles.n"]) != each:
+        raise SandboxError(f"world {k} holds {each} particles; the state put into it holds {int(part['particles.n'])}")
+    rows = slice(k * each, (k + 1) * each)
+    entries = [e for e in state.entries(physical_only=True) if e.kind == FIELD and e.rows in ("particles", "worlds")]
+    entries = [e for e in entries if e.name not in OWN and e.name != "springs.bonds"]
+    now = transfer.download_all([e.get() for e in entries])
+    for e, data in zip(entries, now):
+        if e.rows == "particles":
+            data[rows] = part[e.name][:each]
+        else:
+            data[k] = part[e.name]
+    writes = [(e.get(), data) for e, data in zip(entries, now)]
+    if state.springs is not None:
+        writes += _springs_in(sim, part, k, each)
+    transfer.upload_all(writes)
+    for e in state.entries(physical_only=True):
+        if e.kind == NDARRAY and e.rows == "particles":  # none is declared so far: say so rather than skip it
+            raise SandboxError(f"world {k}: {e.name} is not yet put back per world")
+    hood = sim.hood
+    if hood is not None and hood.lists is not None:  # its rows alone rebuilt at the next step
+        x_ref = hood.lists.x_ref.to_numpy()
+        x_ref[rows] = FAR
+        hood.lists.x_ref.from_numpy(x_ref)
+    set_world_entry(sim.model.domain.impulse, worlds, k, float(part.get(IMPULSE, 0.0)))
+    state.world_started[k] = state.time - float(part["clock.time"])
+    sim.broken = None
+
+
+def _springs_in(sim, part: dict, k: int, each: int) -> list:
+    """(field, values) writes that kill world k's bonds and place the part's (module docstring)."""
+    springs = sim.state.springs
+    built = springs.built_count // sim.worlds
+    fields = [getattr(springs, name) for name in SPRING_ROWS]
+    now = dict(zip(SPRING_ROWS, transfer.download_all(fields)))
+    ends = now["i"]
+    now["alive"][(ends >= k * each) & (ends < (k + 1) * each)] = 0  # every bond the world holds now
+    lone_alive = np.flatnonzero(part["springs.alive"][: int(part["springs.span"])] != 0)
+    home = np.where(lone_alive < built, k * built + lone_alive, -1)
+    placed = np.where((home >= 0) & (now["alive"][np.maximum(home, 0)] == 0), home, -1)
+    free = np.setdiff1d(np.flatnonzero(now["alive"] == 0), placed[placed >= 0], assume_unique=True)
+    homeless = np.flatnonzero(placed < 0)
+    if len(homeless) > len(free):
+        raise SandboxError(f"world {k}: no room for its {len(lone_alive)} bonds among the simulation's spring slots")
+    placed[homeless] = free[: len(homeless)]
+    for name in SPRING_ROWS:
+        now[name][placed] = part[f"springs.{name}"][lone_alive]
+    for end in ("i", "j"):
+        now[end][placed] += k * each
+    slot_map = np.full(len(part["springs.alive"]), -1, dtype=np.int64)
+    slot_map[lone_alive] = placed
+    lone_bonds = part["springs.bonds"][:each]
+    mapped = np.where(lone_bonds >= 0, slot_map[np.maximum(lone_bonds, 0)], -1)
+    bonds = springs.bonds.to_numpy()
+    bonds[k * each : (k + 1) * each] = _packed(mapped)
+    created = springs.created.to_numpy()
+    created[k] = int(part["springs.created"])
+    span = max(int(springs.span[None]), int(placed.max()) + 1 if len(placed) else 0)
+    writes = [(springs.bonds, bonds), (springs.created, created), (springs.span, np.array(span, dtype=np.int32))]
+    return [(getattr(springs, name), now[name]) for name in SPRING_ROWS] + writes
+
+
+def reset_world(sim, k: int) -> None:
+    """Put world k back to the scene's initial state, its clock from 0 (`sim.world(k).reset()`): the others run on
+    as they were, and the live controls stay as they are, as Simulation.reset leaves them."""
+    refuse_kept_integrator(sim, k, "start again alone")
+    put_world(sim, k, world_part(sim, sim._initial, k))
