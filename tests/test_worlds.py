@@ -234,3 +234,113 @@ def test_bench_worlds_refuses_bad_arguments_in_one_line(capsys):
         assert main(["bench", "--worlds", *args]) == 2
         err = capsys.readouterr().err
         assert said in err and "Traceback" not in err
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_a_stroke_a_slider_undo_and_a_load_in_one_world_change_nothing_in_the_others(tmp_path):
+    """World 1's controller (a classroom tab's) heats its block, cools its plate and undoes the stroke; world 2's
+    loads world 0's state file: world 0 stays the uninterrupted lone run to the bit all along, world 1 is back to
+    the state before its stroke, and world 2 becomes world 0 and steps on as it does."""
+    from sandbox.app.controller import Controller
+
+    plain = sandbox.load("melting_block", set=SMALL_BLOCK)
+    batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=3)
+    tab, other = Controller(batch, world=1), Controller(batch, world=2)
+    assert "erase" not in tab.tool_names() and "spawn" not in tab.tool_names()  # a world keeps its particle count
+    assert "dt_scale" not in {s.key for s in tab.settings()}  # one step size for all worlds
+    for _ in range(4):
+        plain.advance_frame()
+        batch.advance_frame()
+    before = (batch.world(1).positions(), batch.world(1).temperatures(), batch.world(1).time)
+    tab.press("heat", (50.0, 6.0), 4.0)
+    for _ in range(2):
+        assert tab.advance() == 0  # the stroke acts; the simulation's holder steps the worlds
+        plain.advance_frame()
+        batch.advance_frame()
+    tab.release()
+    tab.set("source0", 20.0)
+    assert batch.world(1).controls.values()["heat.sources"] == [20.0]
+    assert [batch.world(k).controls.values()["heat.sources"] for k in (0, 2)] == [[400.0], [400.0]]
+    n = plain.state.live_count()
+    warmer = batch.world(1).field("h") - plain.particles.h.to_numpy()[:n]  # its heat: a melt holds its temperature
+    assert warmer.max() > 20.0 and warmer.sum() > 300.0  # the stroke heated world 1 ...
+    for k in (0, 2):  # ... and nothing else
+        _assert_same(plain, batch.world(k))
+        assert np.array_equal(plain.temperatures(), batch.world(k).temperatures())
+    assert tab.undo().key == "undone"
+    after = (batch.world(1).positions(), batch.world(1).temperatures(), batch.world(1).time)
+    for was, now in zip(before, after):
+        assert np.array_equal(was, now)
+    saved = batch.world(0).save(tmp_path / "world0")
+    other.load(saved)
+    _assert_same(batch.world(0), batch.world(2))
+    for _ in range(3):
+        plain.advance_frame()
+        batch.advance_frame()
+    for k in (0, 2):
+        _assert_same(plain, batch.world(k))
+        assert np.array_equal(plain.temperatures(), batch.world(k).temperatures())
+    with pytest.raises(SandboxError, match="this scene has no erase tool"):
+        tab.press("erase", (50.0, 6.0), 4.0)
+    with pytest.raises(SandboxError, match="erase changes a world's particle count"):
+        tab.tools.erase((50.0, 6.0), 4.0)
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_a_worlds_state_file_resumes_alone_and_a_bad_one_is_refused_in_one_line(tmp_path):
+    """World 1's file opens as a lone run that steps on as world 1 does; a lone run's file loads into a world; a file
+    of another scene, or one whose shared pair scale differs, is refused before anything changes."""
+    batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=2)
+    batch.world(1).controls.set({"heat.sources": [300.0]})
+    for _ in range(4):
+        batch.advance_frame()
+    alone = sandbox.resume(batch.world(1).save(tmp_path / "w1.npz"))
+    assert alone.time == batch.world(1).time and alone.controls.values()["heat.sources"] == [300.0]
+    for _ in range(3):
+        alone.advance_frame()
+        batch.advance_frame()
+    _assert_same(alone, batch.world(1))
+    assert np.array_equal(alone.temperatures(), batch.world(1).temperatures())
+    batch.world(0).load(alone.save(tmp_path / "lone.npz"))  # a lone run's whole file: its lists are not taken
+    _assert_same(alone, batch.world(0))
+    scaled = sandbox.load("melting_block", set=SMALL_BLOCK)
+    scaled.controls.set({"pair.scale": [2.0, 1.0]})
+    other = sandbox.load("lj_box", set=SMALL_LJ)
+    before = batch.world(0).positions()
+    for sim, said in (
+        (scaled, r"control pair.scale = \[2.0, 1.0\]; this simulation's worlds share pair.scale"),
+        (other, "saved from the scene 'lj_box' as it was then; expected one saved from this 'melting_block'"),
+    ):
+        with pytest.raises(SandboxError, match=said):
+            batch.world(0).load(sim.save(tmp_path / "bad.npz"))
+        assert np.array_equal(before, batch.world(0).positions())
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_a_world_started_again_keeps_the_bonds_another_world_made_in_its_slots():
+    """World 1's plate is made cold, so its melt refreezes into the first free spring slots, among them the slots of
+    world 0's broken built bonds. World 0 starting again puts its built bonds back elsewhere: world 1 steps on as in
+    a simulation where world 0 was not started again, and world 0 as a fresh lone run."""
+
+    def history():
+        batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=2)
+        for frame in range(14):
+            if frame == 12:
+                batch.world(1).controls.set({"heat.sources": [-100.0], "heat.ambient": -100.0})
+            batch.advance_frame()
+        return batch
+
+    restarted, kept = history(), history()
+    springs, each = restarted.state.springs, restarted.state.live_count() // 2
+    block = springs.built_count // 2
+    ends, alive = springs.i.to_numpy()[:block], springs.alive.to_numpy()[:block]
+    assert np.count_nonzero((alive == 1) & (ends >= each)) > 0  # world 1's new bonds sit in world 0's slots
+    restarted.world(0).reset()
+    fresh = sandbox.load("melting_block", set=SMALL_BLOCK)
+    for _ in range(6):
+        for sim in (restarted, kept, fresh):
+            sim.advance_frame()
+    _assert_same(kept.world(1), restarted.world(1))
+    assert np.array_equal(kept.world(1).temperatures(), restarted.world(1).temperatures())
+    assert kept.world(1).stats().broken_springs == restarted.world(1).stats().broken_springs
+    _assert_same(fresh, restarted.world(0))

@@ -22,6 +22,7 @@ from ..config.resources import shipped_scene
 from ..config.scene import load_scene
 from ..core import runtime
 from ..core.controls import owners as controls_owners
+from ..core.controls import shared as controls_shared
 from ..errors import SandboxError
 from ..files.persist import load_into, save_state
 from ..measure.units import shown
@@ -76,15 +77,21 @@ class Stroke:
 class Controller:
     """The run controls, tools, undo ring, live settings and readouts of one simulation (module docstring)."""
 
-    def __init__(self, sim) -> None:
+    def __init__(self, sim, world: int | None = None) -> None:
+        """The controller of `sim`, or of its world `world` alone (a simulation of many worlds, core/worlds.py: its
+        tools, undo, slider settings, reset and state files act in that world; whoever holds the simulation steps
+        it, so `advance` applies the held stroke only)."""
         self.paused = False
         self.pending_steps = 0  # single steps asked for while paused
+        self.world = world
         self.bind(sim)
 
     def bind(self, sim) -> None:
         """Control `sim` from now on (a new scene): a fresh undo ring, no stroke, gravity as the scene sets it."""
         self.sim = sim
-        self.tools = Tools(sim)
+        # what the controls, undo, reset and state files act on: the simulation, or its one world (world_view.py)
+        self.target = sim if self.world is None else sim.world(self.world)
+        self.tools = Tools(sim, self.world)
         self.history = UndoRing()
         self.stroke: Stroke | None = None
         self.trend = panel.Trend(SUMMARY_EVERY)
@@ -127,7 +134,7 @@ class Controller:
 
     def reset(self) -> None:
         """The scene as it started (the undo ring emptied: its states are of another history)."""
-        self.sim.reset()
+        self.target.reset()
         self.history = UndoRing()
         self.stroke = None
         self.apply_gravity()
@@ -141,6 +148,8 @@ class Controller:
         if self.stroke is not None:
             s = self.stroke
             self.tools.apply(s.tool, s.centre, s.radius, self.sim.dt * n, material=s.material)
+        if self.world is not None:  # the simulation's holder steps every world
+            return 0
         if not self.paused:
             return self.sim.advance_frame(substeps, midway)
         if self.pending_steps:
@@ -158,7 +167,7 @@ class Controller:
         if material is not None and material not in self.sim.material_names:
             raise SandboxError(f"this scene has no material {material!r}")
         if self.stroke is None:
-            self.history.push(self.sim)
+            self.history.push(self.target)
         self.stroke = Stroke(tool, tuple(float(c) for c in centre), float(radius), material)
 
     def release(self) -> None:
@@ -168,7 +177,7 @@ class Controller:
     def undo(self) -> Notice:
         """Put back the state before the last stroke."""
         self.stroke = None
-        if self.history.undo(self.sim):
+        if self.history.undo(self.target):
             return Notice("undone", "undone")
         return Notice("nothing_to_undo", "nothing to undo")
 
@@ -178,10 +187,12 @@ class Controller:
         controls: the air, the heat sources, the walls, the heater, the lid, the pair law), then the controller's
         (gravity's strength and, in 2D, direction; the time step's scale). The window, the page and the teacher's
         broadcast all offer these; a new one is a declaration in its term and its words in the catalogues."""
-        values = self.sim.controls.values()
+        values = self.target.controls.values()
+        common = controls_shared(self.sim.model, self.sim.terms) if self.world is not None else set()
         out = [
             self._from_slider(f"{space}.{s.control}", values, s)
             for space, owner in controls_owners(self.sim.model, self.sim.terms)
+            if space not in common  # one for all worlds: not a world's to move
             for s in owner.sliders()
         ]
         out += self._own_settings()
@@ -197,11 +208,11 @@ class Controller:
 
         def apply(value: float) -> None:
             if s.index is None:
-                self.sim.controls.set({control: value})
+                self.target.controls.set({control: value})
             else:
-                vector = list(self.sim.controls.values()[control])
+                vector = list(self.target.controls.values()[control])
                 vector[s.index] = value
-                self.sim.controls.set({control: vector})
+                self.target.controls.set({control: vector})
 
         value = now if s.index is None else now[s.index]
         return self._shown(s.key, s.words, float(value), s.lo, s.hi, s.kind, s.step, apply)
@@ -223,7 +234,7 @@ class Controller:
                         "gravity_angle", "gravity angle", self.gravity_angle, -180.0, 180.0, "deg", 1.0, angle
                     )
                 )
-        if self.sim.scene.world.substeps != "auto":
+        if self.sim.scene.world.substeps != "auto" and self.world is None:  # one step size for all worlds
             out.append(panel.Setting("dt_scale", "time step", self.dt_scale, 0.1, 2.0, "x", 0.05, self.set_dt_scale))
         return out
 
@@ -264,7 +275,7 @@ class Controller:
             g[np.abs(g) < 1e-9 * self.gravity_strength] = 0.0  # cos(90 deg)'s round-off is no pull
         else:
             g = scene_gravity * (self.gravity_strength / norm) if norm > 0 else scene_gravity
-        self.sim.controls.set({"world.gravity": [float(c) for c in (g if self.gravity_on else 0.0 * g)]})
+        self.target.controls.set({"world.gravity": [float(c) for c in (g if self.gravity_on else 0.0 * g)]})
 
     def set_dt_scale(self, scale: float) -> None:
         """The time step as `scale` times the scene's (scenes with fixed substeps; "auto" picks its own)."""
@@ -294,15 +305,19 @@ class Controller:
 
     # ------------------------------------------------------------------ state files
     def save(self, path: Path) -> Path:
-        """Write the state to `path`; returns the path written (OutputError, SimulationError: one line)."""
-        return save_state(self.sim, path)
+        """Write the state (the world's, for a world's controller) to `path`; returns the path written
+        (OutputError, SimulationError: one line)."""
+        return save_state(self.sim, path) if self.world is None else self.target.save(path)
 
     def load(self, path: Path) -> None:
         """Put back a state file of this scene (checked before anything changes; SandboxError with one line); the
         gravity controls follow the file's gravity."""
-        load_into(self.sim, path)
+        if self.world is None:
+            load_into(self.sim, path)
+        else:
+            self.target.load(path)
         self.stroke = None
-        g = self.sim.model.gravity.to_numpy().astype(float)
+        g = np.asarray(self.target.controls.values()["world.gravity"], dtype=float)
         if np.any(g):
             self.gravity_on, self.gravity_strength = True, float(np.linalg.norm(g))
             self.gravity_angle = self._angle_of(g)

@@ -19,11 +19,13 @@ Use = Callable[..., object]
 
 @dataclass(frozen=True)
 class Tool:
-    """A tool: its `name`, what it does while held (`use`), and whether it is offered only in scenes with heat."""
+    """A tool: its `name`, what it does while held (`use`), whether it is offered only in scenes with heat, and
+    whether it changes the particle count (not offered in a simulation of several worlds: each keeps its count)."""
 
     name: str
     use: Use
     needs_heat: bool = False
+    counts: bool = False
 
 
 TOOL_TABLE: list[Tool] = [
@@ -33,8 +35,8 @@ TOOL_TABLE: list[Tool] = [
     Tool("attract", lambda t, c, r, dt, k, m: t.push(c, r, 60.0 * k, dt)),
     Tool("repel", lambda t, c, r, dt, k, m: t.push(c, r, -60.0 * k, dt)),
     Tool("impulse", lambda t, c, r, dt, k, m: t.impulse(c, r, 30.0 * k)),
-    Tool("erase", lambda t, c, r, dt, k, m: t.erase(c, r)),
-    Tool("spawn", lambda t, c, r, dt, k, m: t.spawn(m, c, r)),
+    Tool("erase", lambda t, c, r, dt, k, m: t.erase(c, r), counts=True),
+    Tool("spawn", lambda t, c, r, dt, k, m: t.spawn(m, c, r), counts=True),
 ]
 
 
@@ -64,6 +66,7 @@ def by_name(name: str) -> Tool:
     raise KeyError(name)
 
 
-def offered(has_heat: bool) -> list[str]:
-    """The tools a scene offers: all, less those that need heat where it has none."""
-    return [t.name for t in TOOL_TABLE if has_heat or not t.needs_heat]
+def offered(has_heat: bool, worlds: int = 1) -> list[str]:
+    """The tools a scene offers: all, less those that need heat where it has none, and those that change the
+    particle count where it runs as several `worlds`."""
+    return [t.name for t in TOOL_TABLE if (has_heat or not t.needs_heat) and (worlds == 1 or not t.counts)]

@@ -10,6 +10,8 @@ spawn           add particles of a material on a lattice within the brush, where
 
 Brush kernels act on every active particle (only those inside the brush change); erase and spawn change the
 particle count and run on the host (they are interactive, not per step), then tell the state its layout changed.
+In a simulation of many worlds (core/worlds.py) a brush acts in one world (`world`), and erase and spawn are
+refused: a world keeps its scene's particle count.
 """
 
 import numpy as np
@@ -26,11 +28,23 @@ from . import tool_table
 class Tools:
     """The brush tools bound to a simulation."""
 
-    def __init__(self, sim):
+    def __init__(self, sim, world: int | None = None):
+        """The brushes of `sim`; where it holds several worlds, they act in world `world` alone (None: in all)."""
         self.sim = sim
         self.p = sim.state.particles
         self.dim = sim.dim
         self.centre = ti.Vector.field(sim.dim, float, shape=())  # the brush centre (a field: no recompiles)
+        if self.p.worlds:  # the world a brush acts in, -1 for every world (a lone run's kernels read nothing)
+            self.only = ti.field(ti.i32, shape=())
+            self.only[None] = -1 if world is None else int(world)
+
+    @ti.func
+    def _reaches(self, i):
+        """Whether particle i is in the world the brush acts in (always, in a lone run)."""
+        yes = True
+        if ti.static(self.p.worlds):
+            yes = self.only[None] < 0 or self.p.world[i] == self.only[None]
+        return yes
 
     def _at(self, centre) -> None:
         self.centre[None] = [float(c) for c in centre]
@@ -49,7 +63,9 @@ class Tools:
         c = self.centre[None]
         for i in range(self.p.n[None]):
             w = 1.0 - (self.p.x[i] - c).norm() / radius
-            if w > 0.0:  # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
+            if w > 0.0 and self._reaches(
+                i
+            ):  # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
                 m = self.p.material[i]
                 cap = self.sim.model.phase.capacity(self.p.h[i], m)
                 coldest = self.sim.model.phase.enthalpy(ABSOLUTE_ZERO, m)
@@ -67,7 +83,7 @@ class Tools:
             d = c - self.p.x[i]
             r = d.norm()
             w = 1.0 - r / radius
-            if w > 0.0 and r > 1e-9:
+            if w > 0.0 and r > 1e-9 and self._reaches(i):
                 self.p.v[i] += dv * w * d / r
 
     def drag(self, centre, radius: float, stiffness: float, dt: float) -> None:
@@ -81,7 +97,7 @@ class Tools:
         for i in range(self.p.n[None]):
             d = c - self.p.x[i]
             w = 1.0 - d.norm() / radius
-            if w > 0.0:
+            if w > 0.0 and self._reaches(i):
                 self.p.v[i] += dt * w * (k * d - 2.0 * ti.sqrt(k) * self.p.v[i])
 
     def impulse(self, centre, radius: float, speed: float) -> None:
@@ -92,6 +108,7 @@ class Tools:
     # ------------------------------------------------------------------ count-changing tools (host side)
     def erase(self, centre, radius: float) -> int:
         """Remove the particles within `radius` of `centre` and the springs attached to them; returns how many."""
+        self._one_count("erase")
         p = self.p
         n = int(p.n[None])
         x = p.x.to_numpy()[:n]
@@ -129,6 +146,7 @@ class Tools:
         """Add particles of `material` (one of the scene's) on a square/cubic lattice filling the brush, skipping
         sites closer than 0.9 spacing to an existing particle; they spawn as liquid (no springs). The spacing (length)
         defaults to the scene's particle spacing. Returns how many were added (limited by world.capacity)."""
+        self._one_count("spawn")
         sim = self.sim
         if material not in sim.material_names:
             raise SandboxError(
@@ -176,6 +194,14 @@ class Tools:
         self.p.next_ident += m
         self._changed()
         return m
+
+    def _one_count(self, tool: str) -> None:
+        """SandboxError for a tool that changes the particle count in a simulation of several worlds."""
+        if self.p.worlds:
+            raise SandboxError(
+                f"{tool} changes a world's particle count; each world of a simulation of {self.p.world_count} keeps "
+                "its scene's (expected heat, cool, drag, attract, repel or impulse)"
+            )
 
     def _changed(self) -> None:
         self.sim.state.particles_moved()  # what was built over the old layout (neighbour lists) rebuilds

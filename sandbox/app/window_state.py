@@ -158,8 +158,8 @@ class WindowState:
 
 def tools_for(sim) -> list[str]:
     """The tools that make sense in this scene: no heat tools without heat (in 3D they act with shift held, at the
-    depth of the particle under the cursor)."""
-    return tool_table.offered(sim.terms.heat is not None)
+    depth of the particle under the cursor; none that changes the particle count in a simulation of worlds)."""
+    return tool_table.offered(sim.terms.heat is not None, sim.worlds)
 
 
 def first_tool(scene) -> str:
