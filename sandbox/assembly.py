@@ -151,7 +151,7 @@ def _load_particles(particles: Particles, built, colors: np.ndarray, materials: 
         (p.ident, np.arange(n, dtype=np.int32)),
     ]
     if p.worlds:  # world k's particles are one world's build (config/build.py's side_by_side), ids as in a lone run
-        each = n // p.world_count
+        each = p.world_size = n // p.world_count
         pairs[-1] = (p.ident, np.tile(np.arange(each, dtype=np.int32), p.world_count))
         pairs.append((p.world, np.repeat(np.arange(p.world_count, dtype=np.int32), each)))
     if p.heat:

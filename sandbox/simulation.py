@@ -37,7 +37,8 @@ from .physics import TermList
 from .physics.springs import Springs
 from .step.plan import StepPlan
 from .step.rates import Rates
-from .world_view import WorldView, world_controls
+from .world_state import add_world, live_worlds, world_controls
+from .world_view import WorldView
 
 
 class ParticleView:
@@ -101,11 +102,18 @@ class Simulation:
     material_names = property(lambda self: self.model.material_names)
     worlds = property(lambda self: self.model.worlds, doc="copies of the scene held (core/worlds.py)")
 
+    live_worlds = property(lambda self: live_worlds(self), doc="worlds in use: the first ones (add_world adds one)")
+
     def world(self, k: int) -> WorldView:
-        """World k of the worlds this simulation holds: its readouts, particles and controls (world_view.py)."""
-        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < self.worlds:
-            raise SandboxError(f"world {k!r}: expected a whole number from 0 to {self.worlds - 1}")
+        """World k of the worlds in use: its readouts, particles, controls, state and files (world_view.py)."""
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < self.live_worlds:
+            raise SandboxError(f"world {k!r}: expected a whole number from 0 to {self.live_worlds - 1}")
         return WorldView(self, k)
+
+    def add_world(self) -> WorldView:
+        """Take one more of the worlds this simulation holds into use, started as the scene starts (world_state.py);
+        the worlds in use step on untouched. SandboxError where all are in use."""
+        return WorldView(self, add_world(self))
 
     particles = property(
         lambda self: ParticleView(self.state.particles, lambda: scripting.particle_table(self)),

@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .core import controls as live_controls
 from .core import transfer
 from .core.state import FIELD, NDARRAY, VALUE
 from .core.worlds import set_world_entry
 from .errors import SandboxError
+from .physics.heat_sources import source_value
 
 FAR = 1e30  # a reference position no particle is within half a skin of
 SPRING_ROWS = ("i", "j", "rest", "ks", "kd", "factor", "alive")  # the springs' per-slot fields
@@ -32,10 +34,10 @@ OWN = ("particles.world", "clock.world_started")  # what a world's state has no 
 IMPULSE = "walls.impulse"  # the walls' momentum gauge (the model's, not the state's): in memory only
 
 
-def _layout(sim, n: int) -> tuple[int, int, int]:
-    """(worlds, particles a world, lone capacity) of `sim` holding `n` live particles."""
+def _layout(sim) -> tuple[int, int, int]:
+    """(worlds held, particles a world, a lone run's capacity) of `sim`."""
     worlds = sim.worlds
-    return worlds, n // worlds, sim.model.capacity // worlds
+    return worlds, sim.state.particles.world_size, sim.model.capacity // worlds
 
 
 def refuse_kept_integrator(sim, k: int, what: str) -> None:
@@ -52,7 +54,7 @@ def world_part(sim, whole: dict, k: int) -> dict:
     """World k's state, as a lone run of the scene holds it (module docstring), out of `whole`: a snapshot of every
     world (Simulation.snapshot()'s names: NumPy arrays and host values)."""
     state = sim.state
-    worlds, each, lone_capacity = _layout(sim, int(whole["particles.n"]))
+    worlds, each, lone_capacity = _layout(sim)
     rows = slice(k * each, (k + 1) * each)
     out = {}
     for e in state.entries(physical_only=True):
@@ -140,7 +142,7 @@ def put_world(sim, k: int, part: dict) -> None:
     are untouched, bit for bit. SandboxError where it does not fit (another particle count, no free spring slots)."""
     state = sim.state
     refuse_kept_integrator(sim, k, "be put back alone")
-    worlds, each, _ = _layout(sim, state.live_count())
+    worlds, each, _ = _layout(sim)
     if int(part["particles.n"]) != each:
         raise SandboxError(f"world {k} holds {each} particles; the state put into it holds {int(part['particles.n'])}")
     rows = slice(k * each, (k + 1) * each)
@@ -207,3 +209,71 @@ def reset_world(sim, k: int) -> None:
     as they were, and the live controls stay as they are, as Simulation.reset leaves them."""
     refuse_kept_integrator(sim, k, "start again alone")
     put_world(sim, k, world_part(sim, sim._initial, k))
+
+
+def world_controls(scene, controls: dict) -> dict:
+    """The live controls (by namespaced name, those among `controls`) that a world started from `scene` takes: its
+    gravity, drag, air temperature and heat sources' temperatures (a power source's power)."""
+    out = {"world.gravity": [float(g) for g in scene.world.gravity], "world.drag": float(scene.world.drag)}
+    if scene.heat:
+        out["heat.ambient"] = float(scene.heat.ambient)
+        if scene.heat.sources:
+            out["heat.sources"] = [float(source_value(src, 0.0)) for src in scene.heat.sources]
+    return {key: value for key, value in out.items() if key in controls}
+
+
+def live_worlds(sim) -> int:
+    """The worlds of `sim` in use: the first live_count / world_size (the others wait for add_world)."""
+    return sim.state.live_count() // sim.state.particles.world_size if sim.worlds > 1 else 1
+
+
+def add_world(sim) -> int:
+    """Take the next world of `sim` into use, started as world 0 started, with the scene's live controls; returns
+    its index. The worlds in use step on untouched (the count's change rebuilds no list row of theirs).
+    SandboxError where every world the simulation holds is in use."""
+    k = live_worlds(sim)
+    if sim.worlds == 1:
+        raise SandboxError("this simulation holds one world; expected one built with room for more (worlds=K)")
+    if k >= sim.worlds:
+        raise SandboxError(
+            f"all {sim.worlds} worlds of this simulation are in use; expected one built with more "
+            "(sandbox.load(scene, worlds=K))"
+        )
+    _set_live(sim, k + 1)
+    put_world(sim, k, world_part(sim, sim._initial, 0))
+    controls = live_controls.Controls(sim.model, sim.terms, k)
+    controls.set(world_controls(sim.scene, controls.values()))
+    return k
+
+
+def remove_world(sim, k: int) -> None:
+    """Take world k out of use: the last world in use moves into its place (state, clock and live controls: its
+    index becomes k; its neighbour rows are built again, so it steps on within round-off of its own run), and the
+    live count drops by a world. SandboxError for the only world in use."""
+    last = live_worlds(sim) - 1
+    if last == 0:
+        raise SandboxError("world 0 is the only world in use; a simulation keeps at least one")
+    if k != last:
+        moved = live_controls.Controls(sim.model, sim.terms, last).values()
+        own = live_controls.shared(sim.model, sim.terms)
+        put_world(sim, k, world_snapshot(sim, last))
+        live_controls.Controls(sim.model, sim.terms, k).set(
+            {key: value for key, value in moved.items() if key.split(".")[0] not in own}
+        )
+    springs = sim.state.springs
+    if springs is not None:  # the bonds of the world out of use: none acts on slots past the live count
+        each = sim.state.particles.world_size
+        alive, ends = transfer.download_all([springs.alive, springs.i])
+        alive[(ends >= last * each) & (ends < (last + 1) * each)] = 0
+        transfer.upload_all([(springs.alive, alive)])
+    _set_live(sim, last)
+
+
+def _set_live(sim, worlds: int) -> None:
+    """Make the first `worlds` worlds live: the particle count, and the count the neighbour lists were built for
+    (so the change alone rebuilds no row: a world taken into use has its rows rebuilt by put_world)."""
+    n = worlds * sim.state.particles.world_size
+    sim.state.particles.n[None] = n
+    hood = sim.hood
+    if hood is not None and hood.lists is not None:
+        hood.lists.n_listed[None] = n

@@ -10,9 +10,8 @@ import numpy as np
 from .core import controls as live_controls
 from .errors import SandboxError
 from .measure.stats import Stats
-from .physics.heat_sources import source_value
 from .world_file import load_world, save_world
-from .world_state import put_world, reset_world, world_snapshot
+from .world_state import put_world, remove_world, reset_world, world_snapshot
 
 # The scene keys a world of a simulation may hold of its own (Simulation's `starts`, `sandbox sweep`'s batches):
 # what its particles start from and its live controls. Every other key is one for all its worlds.
@@ -24,17 +23,6 @@ WORLD_KEYS = (
     r"heat\.ambient",
     r"heat\.sources\.\d+\.temperature",
 )
-
-
-def world_controls(scene, controls: dict) -> dict:
-    """The live controls (by namespaced name, those among `controls`) that a world started from `scene` takes: its
-    gravity, drag, air temperature and heat sources' temperatures (a power source's power)."""
-    out = {"world.gravity": [float(g) for g in scene.world.gravity], "world.drag": float(scene.world.drag)}
-    if scene.heat:
-        out["heat.ambient"] = float(scene.heat.ambient)
-        if scene.heat.sources:
-            out["heat.sources"] = [float(source_value(src, 0.0)) for src in scene.heat.sources]
-    return {key: value for key, value in out.items() if key in controls}
 
 
 def one_world(sim, what: str) -> None:
@@ -63,6 +51,11 @@ class WorldView:
         """Start this world again from the scene's initial state, its clock from 0; the other worlds run on as they
         were, and the live controls stay as they are (world_state.py)."""
         reset_world(self.sim, self.index)
+
+    def remove(self) -> None:
+        """Take this world out of use: the last world in use moves into its index (world_state.remove_world), so a
+        holder of world views asks for them again by index."""
+        remove_world(self.sim, self.index)
 
     def snapshot(self) -> dict:
         """This world's state now, as a lone run of its scene holds it (world_state.py): for restore()."""

@@ -344,3 +344,44 @@ def test_a_world_started_again_keeps_the_bonds_another_world_made_in_its_slots()
     assert np.array_equal(kept.world(1).temperatures(), restarted.world(1).temperatures())
     assert kept.world(1).stats().broken_springs == restarted.world(1).stats().broken_springs
     _assert_same(fresh, restarted.world(0))
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_worlds_added_and_removed_while_running_leave_the_others_as_they_were():
+    """A simulation holding 4 worlds runs 2 of them; a third is taken into use after 5 frames and is then a fresh
+    lone run, while the first two stay the uninterrupted one; world 0 is taken out and the last world (the young
+    one) takes its index, its state and clock moved with it."""
+    plain = sandbox.load("melting_block", set=SMALL_BLOCK)
+    batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=4)
+    batch.world(3).remove()
+    batch.world(2).remove()
+    assert batch.live_worlds == 2 and batch.state.live_count() == 2 * plain.state.live_count()
+    with pytest.raises(SandboxError, match="world 2: expected a whole number from 0 to 1"):
+        batch.world(2)
+    for _ in range(5):
+        plain.advance_frame()
+        batch.advance_frame()
+    young = batch.add_world()
+    assert young.index == 2 and young.time == 0.0
+    fresh = sandbox.load("melting_block", set=SMALL_BLOCK)
+    for _ in range(5):
+        for sim in (plain, batch, fresh):
+            sim.advance_frame()
+    for k, alone in ((0, plain), (1, plain), (2, fresh)):
+        _assert_same(alone, batch.world(k))
+        assert np.array_equal(alone.temperatures(), batch.world(k).temperatures())
+        assert batch.world(k).stats().broken_springs == alone.stats().broken_springs
+    batch.world(0).remove()
+    assert batch.live_worlds == 2 and batch.world(0).time == pytest.approx(fresh.time)
+    for _ in range(3):
+        for sim in (plain, batch, fresh):
+            sim.advance_frame()
+    _assert_same(fresh, batch.world(0))
+    _assert_same(plain, batch.world(1))
+    batch.add_world()
+    batch.add_world()
+    with pytest.raises(SandboxError, match="all 4 worlds of this simulation are in use"):
+        batch.add_world()
+    lone = sandbox.load("melting_block", set=SMALL_BLOCK)
+    with pytest.raises(SandboxError, match="this simulation holds one world; expected one built with room for more"):
+        lone.add_world()

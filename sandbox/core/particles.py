@@ -76,6 +76,7 @@ class Particles:
         self.dim = dim
         self.world_count = worlds  # worlds held (core/worlds.py); the `world` field only where more than one
         self.worlds = worlds > 1
+        self.world_size = 0  # particles a world: world k's are slots k * world_size .. (set as they are loaded)
         self.capacity = capacity
         self.heat = heat
         self.refreeze = refreeze

@@ -127,7 +127,7 @@ class Diagnostics:
         """(first, last + 1): the slots of world `world`'s live particles (every live one, with one world)."""
         first, last = 0, self.p.n[None]
         if ti.static(self.worlds > 1):
-            each = last // self.worlds
+            each = self.p.world_size
             first, last = world * each, (world + 1) * each
         return first, last
 

@@ -69,6 +69,7 @@ class Rates:
             self.dim == 3 and not self.heat_pair_terms and not self.marks_bonds and runtime.vector_gathers_pay()
         )
         self.worlds = model.worlds  # worlds held, each a contiguous block of ids (world_chunk_rows)
+        self.world_size = state.particles.world_size  # ... of this many (the first n / world_size are live)
         lone = model.lone_loops  # how one world alone loops
         self.serial_rows = self.loops.serial_pairs if self.worlds == 1 else lone.serial_pairs
         self.world_chunks = self.worlds > 1 and not lone.serial_pairs
@@ -146,10 +147,11 @@ class Rates:
         so their chunks t share buffer row t without a conflict, and each world's forces are summed in the order of
         its lone run."""
         width = self.hood.lists.width_of(ids)
-        each = n // self.worlds
+        each = self.world_size
         k, t = item // self.n_chunks, item % self.n_chunks
-        for i in range(k * each + t * each // self.n_chunks, k * each + (t + 1) * each // self.n_chunks):
-            self._half_row(t, i, ids, i * width)
+        if k < n // each:  # a live world (those past the live count wait to be added: Simulation.add_world)
+            for i in range(k * each + t * each // self.n_chunks, k * each + (t + 1) * each // self.n_chunks):
+                self._half_row(t, i, ids, i * width)
 
     @ti.func
     def _half_row(self, t, i, ids: ti.template(), row):
