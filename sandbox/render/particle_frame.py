@@ -51,8 +51,8 @@ def unsupported(renderer) -> str | None:
 
 class FramePacker:
     """What the frames a page draws share (ParticleFrame here, sphere_frame.SphereFrame): the renderer and its
-    particles, three u32 words a particle that the subclass's `_pack(n, records)` kernel writes, and HEADER with the
-    subclass's `kind` byte first."""
+    particles, three u32 words a particle that the subclass's `_pack(first, n, records)` kernel writes (particles
+    first .. first + n - 1), and HEADER with the subclass's `kind` byte first."""
 
     kind = b"?"
 
@@ -62,15 +62,23 @@ class FramePacker:
             raise ValueError(f"page frames: this scene's picture has {why}; expected {expected}")
         self.renderer = renderer
         self.look, self.p = renderer.look, renderer.state.particles
+        self.world: int | None = None  # the world whose particles are packed (core/worlds.py), None: every live one
         # on the CPU the kernel writes straight into this host array (no copy; elsewhere Taichi copies it back)
         self.records = np.zeros((max(renderer.model.capacity, 1), 3), np.uint32)
 
+    def rows(self) -> tuple[int, int]:
+        """(first slot, count) of the particles packed: every live one, or the block of world `self.world`."""
+        if self.world is None:
+            return 0, min(int(self.p.n[None]), len(self.records))
+        size = self.p.world_size
+        return self.world * size, size
+
     def pack(self) -> np.ndarray:
-        """The live particles' records now, (n, 3) uint32 (the subclass module's layout): a view of this packer's
-        array, valid until the next pack."""
+        """The live particles' records now (those of `self.world` alone where it is set), (n, 3) uint32 (the
+        subclass module's layout): a view of this packer's array, valid until the next pack."""
         self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
-        n = min(int(self.p.n[None]), len(self.records))
-        self._pack(n, self.records)  # even for none: compiled where a session warms up (serve_session.warm_up)
+        first, n = self.rows()
+        self._pack(first, n, self.records)  # even for none: compiled where a session warms up (Session.warm_up)
         return self.records[:n]
 
     def header(self, frame: int, seq: int, time: float, n: int) -> bytes:
@@ -97,9 +105,10 @@ class ParticleFrame(FramePacker):
         self.light = LightFrame(renderer) if glows(renderer) else None  # the glowing particles' light, sent before
 
     @ti.kernel
-    def _pack(self, n: ti.i32, records: ti.types.ndarray()):
+    def _pack(self, first: ti.i32, n: ti.i32, records: ti.types.ndarray()):
         look, p = self.look, self.p
-        for i in range(n):
+        for row in range(n):
+            i = first + row
             head = ti.cast(p.x[i], ti.f32) * self.scale + self.offset
             r_true = look.drawn_radius(i) * self.scale
             if look.g_draw[p.group[i]] == 0:  # a dot: one pixel
@@ -117,9 +126,9 @@ class ParticleFrame(FramePacker):
             a = ti.cast(ti.math.clamp(alpha, 0.0, 1.0) * 255.0 + 0.5, ti.u32)
             x = ti.cast(ti.math.clamp(head[0] * FIXED + 0.5, 0.0, 65535.0), ti.u32)
             y = ti.cast(ti.math.clamp((self.height - head[1]) * FIXED + 0.5, 0.0, 65535.0), ti.u32)
-            records[i, 0] = x | (y << 16)
-            records[i, 1] = ti.cast(ti.min(r * FIXED + 0.5, 65535.0), ti.u32) | (ti.cast(kind, ti.u32) << 16)
-            records[i, 2] = col[0] | (col[1] << 8) | (col[2] << 16) | (a << 24)
+            records[row, 0] = x | (y << 16)
+            records[row, 1] = ti.cast(ti.min(r * FIXED + 0.5, 65535.0), ti.u32) | (ti.cast(kind, ti.u32) << 16)
+            records[row, 2] = col[0] | (col[1] << 8) | (col[2] << 16) | (a << 24)
 
     def backdrop(self) -> np.ndarray:
         """The picture without its particles or text, (H, W, 3) uint8 (backdrop_picture)."""
@@ -130,20 +139,21 @@ class ParticleFrame(FramePacker):
         records = self.pack()
         lines = b""
         if self.springs is not None:
-            m = self._pack_springs(self.pairs)
+            m = self._pack_springs(*self.rows(), self.pairs)
             lines = struct.pack("<I", m) + SPRING_RGBA + self.pairs[:m].tobytes()
         return self.header(frame, seq, time, len(records)) + records.tobytes() + lines
 
     @ti.kernel
-    def _pack_springs(self, pairs: ti.types.ndarray()) -> ti.i32:
-        """The live springs' ends into `pairs`; returns how many."""
+    def _pack_springs(self, first: ti.i32, n: ti.i32, pairs: ti.types.ndarray()) -> ti.i32:
+        """The ends of the live springs of particles first .. first + n - 1 into `pairs`, as records (from first);
+        returns how many."""
         s = self.springs
         self.n_pairs[None] = 0
         for k in range(s.span[None]):
-            if s.alive[k]:
+            if s.alive[k] and first <= s.i[k] < first + n:
                 slot = ti.atomic_add(self.n_pairs[None], 1)  # in any order: lines of one colour composite alike
-                pairs[slot, 0] = ti.cast(s.i[k], ti.u32)
-                pairs[slot, 1] = ti.cast(s.j[k], ti.u32)
+                pairs[slot, 0] = ti.cast(s.i[k] - first, ti.u32)
+                pairs[slot, 1] = ti.cast(s.j[k] - first, ti.u32)
         return self.n_pairs[None]
 
 

@@ -70,16 +70,17 @@ class SphereFrame(FramePacker):
         self._span_lo, self._inv_span = ti.Vector(list(self.span_lo)), ti.Vector(list(STEPS / self.span))
 
     @ti.kernel
-    def _pack(self, n: ti.i32, records: ti.types.ndarray()):
+    def _pack(self, first: ti.i32, n: ti.i32, records: ti.types.ndarray()):
         look, p = self.look, self.p
-        for i in range(n):
+        for row in range(n):
+            i = first + row
             q = ti.cast(ti.math.clamp((p.x[i] - self._span_lo) * self._inv_span + 0.5, 0.0, STEPS), ti.u32)
             r = ti.cast(ti.math.clamp(look.drawn_radius(i) * (STEPS / self.r_max) + 0.5, 0.0, STEPS), ti.u32)
             shaded = ti.cast(look.g_draw[p.group[i]] == 2, ti.u32) * 255  # render/spheres.py shades draw mode 2 only
             c = ti.cast(ti.math.clamp(look.color(i), 0.0, 1.0) * 255.0 + 0.5, ti.u32)
-            records[i, 0] = q[0] | (q[1] << 16)
-            records[i, 1] = q[2] | (r << 16)
-            records[i, 2] = c[0] | (c[1] << 8) | (c[2] << 16) | (shaded << 24)
+            records[row, 0] = q[0] | (q[1] << 16)
+            records[row, 1] = q[2] | (r << 16)
+            records[row, 2] = c[0] | (c[1] << 8) | (c[2] << 16) | (shaded << 24)
 
     def camera(self) -> bytes:
         """The camera block of a frame (module docstring)."""
