@@ -19,7 +19,7 @@ from .core.state import FIELD, NDARRAY, VALUE
 from .errors import SandboxError, SimulationError
 from .files.persist import check_controls, read_meta, read_state_file, state_meta, write_state_file
 from .files.state_check import check_world_state
-from .world_state import IMPULSE, OWN, put_world, world_snapshot
+from .world_state import OWN, put_world, world_snapshot
 
 
 def _world_entries(sim) -> list:
@@ -30,14 +30,17 @@ def _world_entries(sim) -> list:
 def save_world(sim, k: int, path: str | Path) -> Path:
     """Write world k's state to `path` (.npz added when missing) atomically; returns the path written (OutputError,
     SimulationError: one line)."""
-    part = world_snapshot(sim, k)
-    part.pop(IMPULSE)
+    return save_part(sim, world_snapshot(sim, k), live_controls.Controls(sim.model, sim.terms, k).values(), path)
+
+
+def save_part(sim, part: dict, controls: dict, path: str | Path) -> Path:
+    """Write a world's state `part` (world_state.world_part's) with its live `controls` (by namespaced name) to
+    `path` as a world's state file; returns the path written."""
     entries = _world_entries(sim)
     arrays = {f"{e.kind}:{e.name}": part[e.name] for e in entries if e.kind in (FIELD, NDARRAY)}
     host = {e.name: part[e.name] for e in entries if e.kind == VALUE}
-    live = live_controls.Controls(sim.model, sim.terms, k).values()
-    meta = state_meta(sim, sim.state.frames, float(part["clock.time"]), int(part["particles.n"]), live)
-    meta.update(physical_only=True, world=k, worlds=sim.worlds)
+    meta = state_meta(sim, sim.state.frames, float(part["clock.time"]), int(part["particles.n"]), controls)
+    meta.update(physical_only=True)
     try:
         check_world_state(sim.model, entries, part, arrays, host, Path(path))  # what would not load is not written
     except SandboxError as exc:
@@ -48,6 +51,16 @@ def save_world(sim, k: int, path: str | Path) -> Path:
 def load_world(sim, k: int, path: str | Path) -> None:
     """Put a state file of this scene (a lone run's, or a world's) into world k: checked before anything changes
     (SandboxError, one line, naming the file); its state and its own live controls go into world k alone."""
+    world = live_controls.Controls(sim.model, sim.terms, k)
+    part, controls = read_world_file(sim, path, world_snapshot(sim, k), world.values())
+    put_world(sim, k, part)
+    live_controls.apply(sim.model, sim.terms, controls, k)
+
+
+def read_world_file(sim, path: str | Path, like: dict, current: dict) -> tuple[dict, dict]:
+    """A state file of `sim`'s scene read as one world's state: (the part, as world_state.world_part gives it; the
+    world's own live controls by namespaced name), checked against `like` (a world's part now) and the world's
+    controls `current`; SandboxError (one line, naming the file) for anything that does not fit."""
     path = Path(path)
     meta = read_meta(path)
     if meta["scene"] != sim.scene.source:
@@ -61,18 +74,13 @@ def load_world(sim, k: int, path: str | Path) -> None:
             "this simulation steps with"
         )
     saved, host = read_state_file(path, sim.state)
-    world = live_controls.Controls(sim.model, sim.terms, k)
-    _check_world_controls(sim, world.values(), meta["controls"], path)
+    _check_world_controls(sim, current, meta["controls"], path)
     entries = _world_entries(sim)
-    like = world_snapshot(sim, k)
     check_world_state(sim.model, entries, like, saved, host, path)
     part = {e.name: saved[f"{e.kind}:{e.name}"] for e in entries if e.kind in (FIELD, NDARRAY)}
     part.update({e.name: host[e.name] for e in entries if e.kind == VALUE})
-    put_world(sim, k, part)
     own = live_controls.shared(sim.model, sim.terms)
-    live_controls.apply(
-        sim.model, sim.terms, {key: v for key, v in meta["controls"].items() if key.split(".")[0] not in own}, k
-    )
+    return part, {key: v for key, v in meta["controls"].items() if key.split(".")[0] not in own}
 
 
 def _check_world_controls(sim, current: dict, saved: dict, path: Path) -> None:

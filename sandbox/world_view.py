@@ -10,8 +10,8 @@ import numpy as np
 from .core import controls as live_controls
 from .errors import SandboxError
 from .measure.stats import Stats
-from .world_file import load_world, save_world
-from .world_state import put_world, remove_world, reset_world, world_snapshot
+from .world_file import load_world, read_world_file, save_part, save_world
+from .world_state import put_world, remove_world, reset_world, world_part, world_snapshot
 
 # The scene keys a world of a simulation may hold of its own (Simulation's `starts`, `sandbox sweep`'s batches):
 # what its particles start from and its live controls. Every other key is one for all its worlds.
@@ -107,3 +107,51 @@ class WorldView:
     def temperatures(self) -> np.ndarray:
         """Live temperatures (degrees), (N,), by particle id."""
         return self.field("T")
+
+
+class HeldWorld:
+    """A world held out of its simulation (a paused classroom tab: the simulation steps its other worlds on): its
+    state as a lone run holds it (world_state.world_part) and its live controls, read and changed as a WorldView's
+    are (controls, reset, snapshot and restore for undo, save and load); `put(k)` puts it back as world k."""
+
+    index = None
+
+    def __init__(self, sim, part: dict, controls: dict) -> None:
+        self.sim, self.part = sim, part
+        self.controls = live_controls.HeldControls(sim.model, sim.terms, 0, controls)
+
+    @classmethod
+    def take(cls, sim, k: int) -> HeldWorld:
+        """World k's state and controls now (the world stays in the simulation: the caller takes it out)."""
+        return cls(sim, world_snapshot(sim, k), live_controls.Controls(sim.model, sim.terms, k).values())
+
+    time = property(lambda self: float(self.part["clock.time"]), doc="simulated time since the world (re)started")
+
+    def put(self, k: int) -> None:
+        """Put this state and its own controls into world k of the simulation (world_state.put_world)."""
+        put_world(self.sim, k, self.part)
+        own = live_controls.shared(self.sim.model, self.sim.terms)
+        values = self.controls.values()
+        live_controls.Controls(self.sim.model, self.sim.terms, k).set(
+            {key: v for key, v in values.items() if key.split(".")[0] not in own}
+        )
+
+    def reset(self) -> None:
+        """The scene's initial state, clock from 0; the controls stay (as WorldView.reset leaves them)."""
+        self.part = world_part(self.sim, self.sim._initial, 0)
+
+    def snapshot(self) -> dict:
+        return {key: value.copy() if hasattr(value, "copy") else value for key, value in self.part.items()}
+
+    def restore(self, snap: dict) -> None:
+        self.part = {key: value.copy() if hasattr(value, "copy") else value for key, value in snap.items()}
+
+    def save(self, path) -> Path:
+        """Write the held state as a world's state file; returns the path written."""
+        return save_part(self.sim, self.part, self.controls.values(), path)
+
+    def load(self, path) -> None:
+        """Hold a state file of this scene instead (checked as WorldView.load checks it)."""
+        part, controls = read_world_file(self.sim, path, self.part, self.controls.values())
+        self.part = part
+        self.controls.held.update(controls)

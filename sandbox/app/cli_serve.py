@@ -44,6 +44,13 @@ def serve_arguments(sub) -> None:
         "--idle", type=float, default=300.0, metavar="SECONDS", help="a tab silent this long loses its session (60+)"
     )
     serve.add_argument("--max-fps", type=float, default=30.0, help="pictures a second a tab gets at most (1 to 60)")
+    serve.add_argument(
+        "--no-worlds",
+        dest="worlds",
+        action="store_false",
+        help="give every tab a simulation of its own (hosts of sessions), even where its scene can run as the worlds "
+        "of one simulation (the default: a scene's tabs are its worlds)",
+    )
     draw_argument(
         serve, "who draws a 2D scene's particles: the page (particle frames: light on the server) or the server (JPEG)"
     )
@@ -93,4 +100,5 @@ def cmd_serve(args) -> int:
         args.draw,
         args.per_client,
         args.idle,
+        args.worlds,
     )

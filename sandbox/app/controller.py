@@ -77,13 +77,15 @@ class Stroke:
 class Controller:
     """The run controls, tools, undo ring, live settings and readouts of one simulation (module docstring)."""
 
-    def __init__(self, sim, world: int | None = None) -> None:
+    def __init__(self, sim, world: int | None = None, tools: Tools | None = None) -> None:
         """The controller of `sim`, or of its world `world` alone (a simulation of many worlds, core/worlds.py: its
         tools, undo, slider settings, reset and state files act in that world; whoever holds the simulation steps
-        it, so `advance` applies the held stroke only)."""
+        it, so `advance` applies the held stroke only). `tools`: brushes of `sim` shared with other controllers of
+        its worlds (each Tools compiles its own kernels), set to this one's world as they act."""
         self.paused = False
         self.pending_steps = 0  # single steps asked for while paused
         self.world = world
+        self.shared_tools = tools
         self.bind(sim)
 
     def bind(self, sim) -> None:
@@ -91,7 +93,7 @@ class Controller:
         self.sim = sim
         # what the controls, undo, reset and state files act on: the simulation, or its one world (world_view.py)
         self.target = sim if self.world is None else sim.world(self.world)
-        self.tools = Tools(sim, self.world)
+        self.tools = self.shared_tools if self.shared_tools is not None else Tools(sim, self.world)
         self.history = UndoRing()
         self.stroke: Stroke | None = None
         self.trend = panel.Trend(SUMMARY_EVERY)
@@ -101,6 +103,18 @@ class Controller:
         self.gravity_strength = float(np.linalg.norm(scene_gravity))
         self.gravity_on = True
         self.gravity_angle = 0.0  # degrees from the scene's direction (2D: turning it, as the window's slider does)
+
+    def move_to(self, world: int) -> None:
+        """Control world `world` from now on: the world this controller held was moved there (a world taken out of
+        use before it: world_state.remove_world); its undo ring, stroke and settings go with it."""
+        self.world = world
+        self.target = self.sim.world(world)
+
+    def hold(self, held) -> None:
+        """Control `held` (world_view.HeldWorld: this controller's world taken out of its simulation while paused)
+        until move_to() puts it back: sliders, undo, reset and state files act on it; no tool does."""
+        self.stroke = None
+        self.target = held
 
     @classmethod
     def open(cls, name: str, arch: str = "cpu", restart: bool = True) -> Controller:
@@ -147,6 +161,7 @@ class Controller:
         n = substeps if substeps is not None else self.sim.frame_substeps()[0]
         if self.stroke is not None:
             s = self.stroke
+            self.tools.set_world(self.world)
             self.tools.apply(s.tool, s.centre, s.radius, self.sim.dt * n, material=s.material)
         if self.world is not None:  # the simulation's holder steps every world
             return 0
@@ -295,7 +310,7 @@ class Controller:
     # ------------------------------------------------------------------ readouts
     def readouts(self, stats, fps: float | None = None) -> list[panel.Readout]:
         """The panel's measurements now (`stats`: the simulation's Stats; `fps`: frames a wall second, if shown)."""
-        return panel.readouts(self.sim, stats, fps)
+        return panel.readouts(self.sim, stats, fps, self.world)
 
     def summary(self, stats) -> dict:
         """What the scene is doing, for a screen reader (panel.summary), with its temperature's trend."""

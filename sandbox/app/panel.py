@@ -52,14 +52,19 @@ class Setting:
     apply: Callable[[float], None] | None = field(default=None, compare=False, repr=False)
 
 
-def thermometers(sim) -> list[tuple[str, float]]:
-    """(name, mean temperature) of each body and emitter that has particles now."""
+def thermometers(sim, world: int | None = None) -> list[tuple[str, float]]:
+    """(name, mean temperature) of each body and emitter that has particles now (in world `world` alone where the
+    simulation holds several, core/worlds.py)."""
     if sim.terms.heat is None:
         return []
     n = int(sim.particles.n[None])
+    rows = slice(0, n)
+    if world is not None and sim.worlds > 1:
+        size = sim.state.particles.world_size
+        rows = slice(world * size, (world + 1) * size)
     # one copy of both fields, whole: a copy of the live rows only compiles a kernel for every count of them (a
     # scene whose emitters add and retire particles compiled one at every readout)
-    groups, temps = (values[:n] for values in download([sim.particles.group, sim.particles.T]))
+    groups, temps = (values[rows] for values in download([sim.particles.group, sim.particles.T]))
     names = [g.name for g in sim.scene.groups] + ["spawned"]
     sums = np.bincount(groups, weights=temps, minlength=len(names))
     counts = np.bincount(groups, minlength=len(names))
@@ -85,8 +90,9 @@ def marks_sources(items: list[Readout]) -> bool:
     return any(item.source == "rule" for item in items)
 
 
-def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
-    """The panel's measurements of `sim` now (`stats`: its Stats; `fps`: frames drawn per wall second)."""
+def readouts(sim, stats, fps: float | None = None, world: int | None = None) -> list[Readout]:
+    """The panel's measurements of `sim` now (`stats`: its Stats, of world `world` where it holds several; `fps`:
+    frames drawn per wall second)."""
     out = [measured("time", "time", sim, stats, 2)]
     if fps is not None:
         out.append(Readout("fps", "frames per second", fps, "", 0))
@@ -95,7 +101,7 @@ def readouts(sim, stats, fps: float | None = None) -> list[Readout]:
         out.append(measured("broken", "broken_springs", sim, stats, 0))
     if sim.terms.heat is not None:
         out.append(measured("temperature", "mean_temperature", sim, stats))
-        groups = thermometers(sim)
+        groups = thermometers(sim, world)
         if len(groups) > 1:  # a temperature per body: a candle's flame and wax are not averaged into one number
             out += [Readout("temperature_of", name.replace("_", " "), t, "C", 1, "rule") for name, t in groups[:4]]
         if any(material.boils for material in sim.model.material_list):

@@ -40,7 +40,7 @@ from urllib.parse import urlsplit
 
 from ..config.resources import shipped_scenes
 from ..core.cores import usable_cores
-from .serve_host import HOST, SLOT
+from .serve_pipe import HOST, SLOT
 from .serve_session import FRAMES, PICTURES, scratch_dir
 from .serve_slots import HostProcess, Hosts
 
@@ -123,7 +123,10 @@ class Classroom:
         draw: str = "page",
         per_client: int = PER_CLIENT,
         per_host: int | None = None,
+        worlds: bool = True,
     ):
+        """`worlds`: a scene that can run as worlds is held as the worlds of one simulation (serve_worlds.py), its
+        tabs each a world, where the page draws (else every scene's tabs are sessions, per_host to a host)."""
         self.per_client = per_client  # sessions a client may hold at once (0: no limit)
         self.in_flight = 0  # bytes of uploads being taken now, over every session
         self.draw = draw  # who draws a 2D scene's particles (serve_session.DRAWS)
@@ -135,7 +138,8 @@ class Classroom:
         # a host per core holds the class's sessions of a scene (one Taichi thread each), unless told otherwise
         per_host = per_host or math.ceil(max_sessions / usable_cores())
         context = multiprocessing.get_context("spawn")
-        self.hosts = Hosts(context, PICTURE, max_fps, draw, per_host, self._readable, usable_cores())
+        world_tabs = max_sessions if worlds and draw == "page" else 0
+        self.hosts = Hosts(context, PICTURE, max_fps, draw, per_host, self._readable, usable_cores(), world_tabs)
         self.scratch = scratch_dir()
 
     # ------------------------------------------------------------------ sessions
@@ -262,6 +266,7 @@ class Classroom:
         handle = slot.handle
         if message["t"] == "built":
             slot.built = True
+            self.hosts.built(host, int(message.get("capacity", host.capacity)))
             if handle is not None:
                 handle.started = time.monotonic()  # its first picture is due START_SECONDS from now
                 slot.attach()

@@ -29,33 +29,19 @@ import json
 import math
 import os
 import signal
-import struct
 import sys
 import time
 from pathlib import Path
 
 from .pacing import Turns
+from .serve_pipe import HOST, SLOT, SlotConn
 from .serve_session import MAX_FPS, SMOOTH_FPS, Session
 
-SLOT = struct.Struct("<H")  # the slot index before every message, both ways
-HOST = 0xFFFF  # ... and the index of the host's own messages
 # Taichi's offline cache for hosts where TI_OFFLINE_CACHE_FILE_PATH is not set: a class of 30 melting_block tabs
 # compiles about 11 MB of kernels; many scenes' worth fit in CLASSROOM_CACHE_BYTES
 CLASSROOM_CACHE = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "taichi-sandbox-classroom"
 CLASSROOM_CACHE_BYTES = 512 << 20
 ROTATE_SECONDS = 1.0  # how long a host stays on one core before the next (Pinning)
-
-
-class SlotConn:
-    """A session's end of the host's pipe: what it sends goes out after its slot's index, and nothing while no tab
-    has the session (`muted`: while it is built, and after its tab has gone)."""
-
-    def __init__(self, conn, slot: int) -> None:
-        self.conn, self.prefix, self.muted = conn, SLOT.pack(slot), True
-
-    def send_bytes(self, data: bytes) -> None:
-        if not self.muted:
-            self.conn.send_bytes(self.prefix + data)
 
 
 def host_main(
@@ -67,13 +53,14 @@ def host_main(
     draw: str = "page",
     core: int | None = None,
     cores: tuple[int, ...] = (),
+    worlds: int = 0,
+    per_host: int = 1,
 ) -> None:
     """Hold the sessions of the shipped scene `scene` the server asks for (module docstring), with `width` x
     `height` pictures at most `max_fps` a second, until the server closes the pipe. One Taichi thread: the server
-    starts a host per core, and pins it to `core` of `cores`, the next one every ROTATE_SECONDS (Pinning)."""
-    pinning = Pinning(core, cores)
-    pinning.pin()
-    os.environ.setdefault("SANDBOX_CPU_THREADS", "1")
+    starts a host per core, and pins it to `core` of `cores`, the next one every ROTATE_SECONDS (Pinning).
+    `worlds` > 0: hold up to that many tabs as the worlds of one simulation on every core (serve_worlds.py), or,
+    where the scene cannot run as worlds, `per_host` sessions as above (the "built" answers say which)."""
     os.environ.setdefault("TI_LOG_LEVEL", "error")
     os.environ.setdefault("TI_OFFLINE_CACHE_FILE_PATH", str(CLASSROOM_CACHE))
     os.environ.setdefault("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES", str(CLASSROOM_CACHE_BYTES))
@@ -82,9 +69,29 @@ def host_main(
 
     runtime.own_process()  # the sandbox's own process: kernels compile the lighter way (a host compiles many)
     try:
-        Host(conn, scene, width, height, max_fps, draw, pinning).loop()
+        host = _world_host(conn, scene, width, height, max_fps, worlds) if worlds > 0 else None
+        if host is None:
+            os.environ.setdefault("SANDBOX_CPU_THREADS", "1")
+            pinning = Pinning(core, cores)
+            pinning.pin()
+            host = Host(conn, scene, width, height, max_fps, draw, pinning, per_host)
+        host.loop()
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
+
+
+def _world_host(conn, scene: str, width: int, height: int, max_fps: float, worlds: int):
+    """A WorldHost of `worlds` tabs (every core's Taichi threads), or None where the scene cannot run as worlds or
+    be drawn by the page (Taichi is started again for a host of sessions)."""
+    from ..core import runtime
+    from ..errors import SandboxError
+    from .serve_worlds import WorldHost
+
+    try:
+        return WorldHost(conn, scene, width, height, max_fps, worlds)
+    except SandboxError:
+        runtime.reset()
+        return None
 
 
 class Pinning:
@@ -118,9 +125,19 @@ class Host:
     """The sessions of one scene in one process (module docstring)."""
 
     def __init__(
-        self, conn, scene: str, width: int, height: int, max_fps: float, draw: str, pinning: Pinning | None = None
+        self,
+        conn,
+        scene: str,
+        width: int,
+        height: int,
+        max_fps: float,
+        draw: str,
+        pinning: Pinning | None = None,
+        capacity: int = 1,
     ) -> None:
+        """`capacity`: the sessions the server gives it at most (said with each "built")."""
         self.conn, self.scene, self.size, self.max_fps, self.draw = conn, scene, (width, height), max_fps, draw
+        self.capacity = capacity
         self.pinning = pinning or Pinning(None, ())
         self.sessions: list[Session | None] = []  # by slot; None where one failed
         self.due: dict[int, float] = {}  # attached slots: when each one's next frame is due (perf_counter s)
@@ -176,7 +193,7 @@ class Host:
         session.turns = self.turns
         self.sessions.append(session)
         self.canvas = session.renderer.canvas  # the next sessions draw in it too (17 MB each at 960 x 540)
-        self.tell({"t": "built", "slot": slot})
+        self.tell({"t": "built", "slot": slot, "capacity": self.capacity})
 
     def attach(self, slot: int) -> None:
         session = self.sessions[slot] if 0 <= slot < len(self.sessions) else None

@@ -329,6 +329,7 @@ def serve(
     draw: str = "page",
     per_client: int = PER_CLIENT,
     idle: float = IDLE_SECONDS,
+    worlds: bool = True,
 ) -> int:
     """Run the classroom server until Ctrl-C; prints the address to open (with the token where one is needed) and
     the teacher's (with the teacher's secret, made up when not given)."""
@@ -337,7 +338,16 @@ def serve(
     if token is None and not is_loopback(host):
         token = secrets.token_urlsafe(12)
     classroom = Classroom(
-        scene, token, max_sessions, idle, max_fps, teacher=teacher, warm=warm, draw=draw, per_client=per_client
+        scene,
+        token,
+        max_sessions,
+        idle,
+        max_fps,
+        teacher=teacher,
+        warm=warm,
+        draw=draw,
+        per_client=per_client,
+        worlds=worlds,
     )
     query = f"?token={token}" if token else ""
     shown = lan_address() if host in ("0.0.0.0", "::") else host

@@ -13,7 +13,8 @@ import threading
 from dataclasses import dataclass, field
 
 from ..core.cores import pinnable_cores
-from .serve_host import HOST, SLOT, host_main
+from .serve_host import host_main
+from .serve_pipe import HOST, SLOT
 
 LEAVE_SECONDS = 5.0  # how long an ended host may take to write its kernels to Taichi's cache (0.2 s for two sessions)
 
@@ -72,6 +73,7 @@ class HostProcess:
     capacity: int
     slots: list[Slot] = field(default_factory=list)
     core: int | None = None  # the core its process runs on first (Hosts.cores, serve_host.Pinning)
+    worlds: bool = False  # its tabs are the worlds of one simulation (serve_worlds.py): slots are built at once
 
     def order(self, message: dict) -> None:
         self.conn.send_bytes(SLOT.pack(HOST) + json.dumps(message).encode())
@@ -98,11 +100,22 @@ class Hosts:
     sessions; `receive(host)` is called when a host's pipe has something to read."""
 
     def __init__(
-        self, context, picture: tuple[int, int], max_fps: float, draw: str, per_host: int, receive, side_by_side: int
+        self,
+        context,
+        picture: tuple[int, int],
+        max_fps: float,
+        draw: str,
+        per_host: int,
+        receive,
+        side_by_side: int,
+        worlds: int = 0,
     ) -> None:
-        """`side_by_side`: hosts of a scene that build at once (a build is one busy core)."""
+        """`side_by_side`: hosts of a scene that build at once (a build is one busy core); `worlds`: the tabs a host
+        of a scene that runs as worlds holds (serve_worlds.py; 0: every host holds sessions)."""
         self.context, self.picture, self.max_fps, self.draw = context, picture, max_fps, draw
         self.per_host, self.receive, self.side_by_side = max(per_host, 1), receive, max(side_by_side, 1)
+        self.worlds = worlds
+        self.sessions_only: set[str] = set()  # scenes whose world host said they cannot run as worlds
         self.hosts: list[HostProcess] = []
         # Each host is one thread, always busy while a class is on: it is pinned to a core, each in turn
         # (serve_host.Pinning). Left to the scheduler, two hosts and another busy program on two cores stayed as two
@@ -130,6 +143,8 @@ class Hosts:
         core (and no host is started for the last few slots while a host with room is still building)."""
         hosts = [h for h in self.hosts if h.scene == scene and h.process.is_alive()]
         roomy = [h for h in hosts if len(h.live()) < h.capacity]
+        if any(h.worlds for h in roomy):  # its slots are ready once its simulation is: no second build beside it
+            return next(h for h in roomy if h.worlds).grow()
         idle = [h for h in roomy if h.building() == 0]
         if not roomy or (not idle and len(hosts) < self.side_by_side):
             return self.start(scene).grow()
@@ -138,12 +153,13 @@ class Hosts:
     def start(self, scene: str) -> HostProcess:
         """A new host process of `scene`, its pipe read by the event loop."""
         parent, child = self.context.Pipe()
-        core = next_core(self.cores, [h.core for h in self.hosts])
-        args = (child, scene, *self.picture, self.max_fps, self.draw, core, tuple(self.cores))
+        worlds = self.worlds if scene not in self.sessions_only else 0
+        core = None if worlds else next_core(self.cores, [h.core for h in self.hosts if not h.worlds])
+        args = (child, scene, *self.picture, self.max_fps, self.draw, core, tuple(self.cores), worlds, self.per_host)
         process = self.context.Process(target=host_main, args=args, daemon=True)
         process.start()
         child.close()
-        host = HostProcess(scene, process, parent, self.per_host, core=core)
+        host = HostProcess(scene, process, parent, worlds or self.per_host, core=core, worlds=bool(worlds))
         self.hosts.append(host)
         asyncio.get_running_loop().add_reader(parent.fileno(), self.receive, host)
         return host
@@ -164,6 +180,14 @@ class Hosts:
         reaper = threading.Thread(target=_reap, args=(host.process,), daemon=True)
         reaper.start()
         return reaper
+
+    def built(self, host: HostProcess, capacity: int) -> None:
+        """`host` built a slot and says how many it holds: a world host of a scene that cannot run as worlds holds
+        sessions (its scene's next hosts start as hosts of sessions)."""
+        if host.worlds and capacity != host.capacity:
+            host.worlds = False
+            self.sessions_only.add(host.scene)
+        host.capacity = capacity
 
     def unneeded(self, scene: str, warm_target: int) -> list[HostProcess]:
         """Hosts no tab uses and the warm pool (`warm_target` free slots of the default `scene`) can do without."""

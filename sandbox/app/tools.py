@@ -38,6 +38,11 @@ class Tools:
             self.only = ti.field(ti.i32, shape=())
             self.only[None] = -1 if world is None else int(world)
 
+    def set_world(self, world: int | None) -> None:
+        """Act in world `world` alone from now on (None: in every world; nothing in a simulation of one world)."""
+        if self.p.worlds:
+            self.only[None] = -1 if world is None else int(world)
+
     @ti.func
     def _reaches(self, i):
         """Whether particle i is in the world the brush acts in (always, in a lone run)."""

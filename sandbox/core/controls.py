@@ -88,6 +88,12 @@ class Controls:
     def set(self, values: dict) -> None:
         """Set some live controls by name (as values() names them); SandboxError naming an unknown one or a value
         of the wrong shape, before anything changes."""
+        self.check(values)
+        apply(self.model, self.terms, values, self.world)
+
+    def check(self, values: dict) -> None:
+        """SandboxError (one line) for the first of `values` that set() would refuse: a name this scene has not, a
+        value of another shape or out of its owner's range, or (for one world) a control that is one for all."""
         current = self.values()
         for key, value in values.items():
             if key not in current:
@@ -101,4 +107,19 @@ class Controls:
         key = next((key for key in values if key.split(".")[0] in common), None)
         if key is not None:
             raise SandboxError(f"control {key} is one for all worlds of this simulation; set it with sim.controls.set")
-        apply(self.model, self.terms, values, self.world)
+
+
+class HeldControls(Controls):
+    """The live controls of a world held out of its simulation (world_view.HeldWorld): checked as world `world`'s
+    are, kept in a table until the world goes back."""
+
+    def __init__(self, model, terms, world: int, values: dict) -> None:
+        super().__init__(model, terms, world)
+        self.held = dict(values)
+
+    def values(self) -> dict:
+        return {key: list(v) if isinstance(v, list) else v for key, v in self.held.items()}
+
+    def set(self, values: dict) -> None:
+        self.check(values)
+        self.held.update(values)

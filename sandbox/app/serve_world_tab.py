@@ -1,0 +1,288 @@
+"""One tab of a classroom world host (serve_worlds.py): its world of the host's simulation, its controller (tools,
+undo, sliders and state files of its world alone), its charts and language, its credits of pictures, and what the
+page is sent, as serve_session.Session sends it: the scene message, the backdrop, page frames of its world, its
+readouts and settings. A paused tab's world is held out of the simulation (world_view.HeldWorld) until play."""
+
+from __future__ import annotations
+
+import json
+import struct
+import time
+from pathlib import Path
+
+from .serve_drawing import PageDrawing, jpeg
+from .serve_session import CHART_EVERY, FIRST_CREDITS, READOUT_SECONDS
+from .serve_words import chart_words, legend, page_lesson
+
+SEQ_AT = 5  # where a page frame's header holds the last setting's number (particle_frame.HEADER: kind, frame, seq)
+
+
+class WorldTab:
+    """One tab's world of a WorldHost: its controller (tools, undo, sliders, state files of its world), charts,
+    credits and clock of pictures, and what the page is sent (serve_session.Session's messages)."""
+
+    def __init__(self, host, conn, slot: int) -> None:
+        """`host`: the serve_worlds.WorldHost whose simulation holds its world; `conn`: its slot's pipe end."""
+        self.host, self.conn, self.slot = host, conn, slot
+        self.attached, self.world, self.held, self.step_held = False, None, None, False
+        self.control = None
+        self.orbit = None
+
+    sim = property(lambda self: self.host.sim)
+
+    def start(self, world: int) -> None:
+        """The tab's scene as it opens, in world `world` (taken into use for it)."""
+        from ..render.overlays import Overlays
+        from .controller import Controller
+        from .window_parts import OrbitCamera
+
+        host, renderer = self.host, self.host.renderer
+        self.attached, self.world, self.held, self.step_held = True, world, None, False
+        self.control = Controller(self.sim, world, tools=host.tools)
+        self.credits, self.watched, self.frames, self.seq = FIRST_CREDITS, False, 0, 0
+        self.pointer, self.lang, self.last_readouts, self.last_frame = None, "en", -1e9, b""
+        renderer.words = chart_words(self.lang)
+        renderer.set_chart(tuple(renderer.cfg.chart), keep_history=False)
+        self.plots = (renderer.chart, renderer.phase_plot)
+        self.orbit = None
+        if host.initial_camera is not None:
+            eye, target, _ = host.initial_camera
+            self.orbit = OrbitCamera(eye, target)
+        scene, sim = self.sim.scene, self.sim
+        self.legend_source = Overlays(scene.render, renderer.overlays.layout, sim.state, sim.model, host.scene_name)
+        self.page = PageDrawing(self.conn, renderer, host.packer)
+        self.tell(
+            {
+                "t": "scene",
+                "scene": host.scene_name,
+                "lesson": page_lesson(scene.lesson),
+                "tools": self.control.tool_names(),
+                "tool": self.control.first_tool() if self.sim.dim == 2 else "none",
+                "materials": list(self.sim.material_names),
+                "dim": self.sim.dim,
+                "draw": "page",
+            }
+        )
+        with host.drawing_for(self):
+            self.page.send_backdrop(time.perf_counter())
+
+    def moved_to(self, world: int) -> None:
+        """Another tab's world left: this one's moved into index `world`."""
+        self.world = world
+        self.control.move_to(world)
+
+    def tell(self, message: dict) -> None:
+        self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
+
+    @property
+    def time(self) -> float:
+        """The tab's scene's clock: its world's, or the held world's while paused."""
+        return self.held.time if self.held is not None else self.sim.world(self.world).time
+
+    # ------------------------------------------------------------------ pictures
+    def after_frame(self, now: float) -> None:
+        """The host has stepped its worlds: the tab's frame, if it has asked for one (a credit)."""
+        if self.step_held:  # a single step while paused: the world ran this frame, and is held again
+            self.step_held = False
+            self.pause()
+        if self.credits <= 0:
+            return
+        self.credits -= 1
+        self.frames += 1
+        if self.held is not None and self.last_frame:  # held: its last frame again, with the newest setting's number
+            frame = bytearray(self.last_frame)
+            struct.pack_into("<I", frame, SEQ_AT, self.seq & 0xFFFFFFFF)
+            if now - self.last_readouts >= READOUT_SECONDS:
+                self.last_readouts = now
+                self.tell({"t": "info", "time": self.time, "frame": self.frames, "seq": self.seq, **self.settings()})
+            self.conn.send_bytes(bytes(frame))
+            return
+        with self.host.drawing_for(self) as renderer:
+            if renderer.plots() and self.frames % CHART_EVERY == 0:
+                renderer.record(self.sim.stats(pair_energy=False, world=self.world))
+            if now - self.last_readouts >= READOUT_SECONDS:
+                self.last_readouts = now
+                self.tell({"t": "info", "time": self.time, "frame": self.frames, "seq": self.seq, **self.readouts()})
+            sent = _Capture(self.conn)
+            self.page.conn = sent
+            self.page.send(now, self.frames, self.seq, self.time)
+            self.page.conn = self.conn
+            self.last_frame = sent.last
+
+    def settings(self) -> dict:
+        from . import panel
+
+        return {"settings": panel.as_json(self.control.settings())}
+
+    def readouts(self) -> dict:
+        """The panel's description of the tab's world now, and the sentence for screen readers."""
+        from . import panel
+
+        stats = self.sim.stats(pair_energy=False, world=self.world)
+        return {
+            "legend": legend(self.legend_source),
+            "readouts": panel.as_json(self.control.readouts(stats)),
+            "settings": panel.as_json(self.control.settings()),
+            "summary": self.control.summary(stats),
+            "probe": self.probe(),
+        }
+
+    def probe(self) -> dict | None:
+        """What the particle under the pointer is doing (its world's), or None."""
+        from .probe import probe
+
+        if self.pointer is None or self.world is None:
+            return None
+        point = self.world_at(*self.pointer)
+        if point is None:
+            return None
+        view = self.sim.world(self.world)
+        x = view.positions()
+        d2 = ((x - point) ** 2).sum(axis=1)
+        j = int(d2.argmin())
+        first = self.world * self.sim.state.particles.world_size
+        reach = 1.5 * float(self.sim.particles.radius[first + j])
+        return probe(self.sim, first + j).fields() if d2[j] <= reach * reach else None
+
+    def world_at(self, fx: float, fy: float):
+        """The scene point under the picture fraction (fx, fy) (serve_session.Session.world_at)."""
+        import numpy as np
+
+        renderer = self.host.renderer
+        if self.sim.dim == 3:
+            with self.host.drawing_for(self):
+                picked = renderer.pick(fx, 1.0 - fy)
+            return None if picked is None else np.asarray(picked)
+        scale, offset = renderer.plan.view
+        return np.array([(fx * renderer.width - offset[0]) / scale, ((1.0 - fy) * renderer.height - offset[1]) / scale])
+
+    # ------------------------------------------------------------------ the page's messages
+    def handle(self, msg: dict) -> None:
+        kind = msg["t"]
+        if kind == "ready":
+            self.credits = min(self.credits + 1, FIRST_CREDITS + 1)
+            self.watched = True
+        elif kind == "tool":
+            self.tool(msg)
+        elif kind == "pointer":
+            self.pointer = (msg["x"], msg["y"])
+        elif kind == "set":
+            self.seq = msg.get("seq", self.seq)
+            try:
+                self.control.set(msg["key"], msg["value"])
+            except ValueError as exc:
+                self.tell({"t": "error", "text": str(exc)})
+        elif kind == "action":
+            self.action(msg["name"])
+        elif kind == "view":
+            self.view(msg["move"], msg["dx"], msg["dy"])
+        elif kind == "nogl" and self.sim.dim == 3:  # a world is drawn by the page alone
+            self.tell({"t": "error", "key": "nogl", "text": "this 3D scene needs a browser with WebGL2"})
+        elif kind == "lang":
+            self.lang = msg["lang"]
+            with self.host.drawing_for(self) as renderer:
+                renderer.set_chart(tuple(renderer.cfg.chart), keep_history=True)
+                self.plots = (renderer.chart, renderer.phase_plot)
+            self.page.band_due = True
+        elif kind == "save":
+            saved = self.control.save(Path(msg["path"]))
+            self.tell({"t": "saved", "path": str(saved)})
+        elif kind == "upload":
+            self.upload(Path(msg["path"]))
+        elif kind == "thumb":
+            self.conn.send_bytes(b"T" + jpeg(self.thumbnail(), 70))
+
+    def tool(self, msg: dict) -> None:
+        from ..errors import SandboxError
+
+        if msg["tool"] not in self.control.tool_names():
+            self.tell({"t": "error", "text": f"this scene has no {msg['tool']} tool"})
+            return
+        centre = self.world_at(msg["x"], msg["y"]) if self.held is None else None
+        if not msg["down"] or centre is None:  # (a held world takes no stroke: it is out of the simulation)
+            self.control.release()
+            return
+        try:
+            self.control.press(msg["tool"], centre, float(msg["radius"]), msg.get("material"))
+        except SandboxError as exc:
+            self.tell({"t": "error", "text": str(exc)})
+
+    def action(self, name: str) -> None:
+        if name == "pause":
+            self.pause()
+        elif name == "play":
+            self.play()
+        elif name == "step" and self.held is not None:
+            self.play()
+            self.step_held = True
+        elif name == "reset":
+            self.control.reset()
+        elif name == "undo":
+            self.tell({"t": "notice", "key": self.control.undo().key})
+        self.tell({"t": "paused", "paused": self.held is not None})
+
+    def pause(self) -> None:
+        """Hold the tab's world out of the simulation (module docstring); the others step on."""
+        from ..world_view import HeldWorld
+
+        if self.held is not None:
+            return
+        self.held = HeldWorld.take(self.sim, self.world)
+        self.host.give_back(self.world)
+        self.world = None
+        self.control.hold(self.held)
+
+    def play(self) -> None:
+        """Put the held world back into use, as it was held."""
+        if self.held is None:
+            return
+        k = self.host.take_world(self)
+        self.held.put(k)
+        self.world, self.held = k, None
+        self.control.move_to(k)
+
+    def view(self, move: str, dx: float, dy: float) -> None:
+        """Turn, zoom or pan the tab's own 3D camera (nothing in 2D)."""
+        if self.orbit is None:
+            return
+        self.orbit.drag([move == "orbit", move == "zoom", move == "pan"], dx, dy)
+        self.page.camera_moved()
+
+    def upload(self, path: Path) -> None:
+        """A state file the page uploaded (the server wrote it to `path`), into the tab's world alone."""
+        from ..errors import SandboxError
+
+        try:
+            self.control.load(path)
+        except (SandboxError, OSError, ValueError, KeyError) as exc:
+            said = str(exc).replace(str(path), "the uploaded file")
+            self.tell({"t": "error", "key": "upload_refused", "text": said})
+        else:
+            self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.time:.2f} s"})
+        finally:
+            path.unlink(missing_ok=True)
+            self.tell({"t": "upload_done"})
+
+    def thumbnail(self):
+        """The teacher's small picture of this tab's world (240 x 135): from its page frame in 2D, else the picture
+        under its particles made small."""
+        import numpy as np
+        from PIL import Image
+
+        if self.world is not None and self.page.under is not None and self.sim.dim == 2:
+            with self.host.drawing_for(self):
+                return self.page.thumbnail(240, 135)
+        base = self.page.under if self.page.under is not None else np.zeros((135, 240, 3), np.uint8)
+        return np.asarray(Image.fromarray(base).resize((240, 135), Image.Resampling.BILINEAR))
+
+
+class _Capture:
+    """A pipe end that passes everything on and keeps the last frame sent (a held tab's picture)."""
+
+    def __init__(self, conn) -> None:
+        self.conn, self.last = conn, b""
+
+    def send_bytes(self, data: bytes) -> None:
+        if data[:1] in (b"P", b"S"):
+            self.last = data
+        self.conn.send_bytes(data)
