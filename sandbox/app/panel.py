@@ -101,7 +101,8 @@ def readouts(sim, stats, fps: float | None = None, world: int | None = None) -> 
         out.append(measured("broken", "broken_springs", sim, stats, 0))
     if sim.terms.heat is not None:
         out.append(measured("temperature", "mean_temperature", sim, stats))
-        groups = thermometers(sim, world)
+        # a world's groups are its scene's (no tool adds one): one group has no thermometers but the mean's
+        groups = thermometers(sim, world) if sim.worlds == 1 or len(sim.scene.groups) > 1 else []
         if len(groups) > 1:  # a temperature per body: a candle's flame and wax are not averaged into one number
             out += [Readout("temperature_of", name.replace("_", " "), t, "C", 1, "rule") for name, t in groups[:4]]
         if any(material.boils for material in sim.model.material_list):

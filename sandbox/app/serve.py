@@ -138,8 +138,8 @@ class Classroom:
         # a host per core holds the class's sessions of a scene (one Taichi thread each), unless told otherwise
         per_host = per_host or math.ceil(max_sessions / usable_cores())
         context = multiprocessing.get_context("spawn")
-        world_tabs = max_sessions if worlds and draw == "page" else 0
-        self.hosts = Hosts(context, PICTURE, max_fps, draw, per_host, self._readable, usable_cores(), world_tabs)
+        worlds = worlds and draw == "page"
+        self.hosts = Hosts(context, PICTURE, max_fps, draw, per_host, self._readable, usable_cores(), worlds)
         self.scratch = scratch_dir()
 
     # ------------------------------------------------------------------ sessions
@@ -228,7 +228,9 @@ class Classroom:
                 self.hosts.end(host)
             free = len(self.hosts.free(self.scene))
             room = self.max_sessions - self.hosts.slots()
-            if free < self.warm_target and room > 0 and self.hosts.building() < at_once:
+            for _ in range(min(self.warm_target - free, room)):  # a world host's slots at once: nothing to build
+                if self.hosts.building() >= at_once and not self.hosts.has_world_host(self.scene):
+                    break
                 self.hosts.new_slot(self.scene)
             await asyncio.sleep(0.25)
 
@@ -266,7 +268,7 @@ class Classroom:
         handle = slot.handle
         if message["t"] == "built":
             slot.built = True
-            self.hosts.built(host, int(message.get("capacity", host.capacity)))
+            self.hosts.built(host, bool(message.get("worlds", False)))
             if handle is not None:
                 handle.started = time.monotonic()  # its first picture is due START_SECONDS from now
                 slot.attach()

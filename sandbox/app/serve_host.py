@@ -54,13 +54,16 @@ def host_main(
     core: int | None = None,
     cores: tuple[int, ...] = (),
     worlds: int = 0,
-    per_host: int = 1,
 ) -> None:
     """Hold the sessions of the shipped scene `scene` the server asks for (module docstring), with `width` x
     `height` pictures at most `max_fps` a second, until the server closes the pipe. One Taichi thread: the server
     starts a host per core, and pins it to `core` of `cores`, the next one every ROTATE_SECONDS (Pinning).
-    `worlds` > 0: hold up to that many tabs as the worlds of one simulation on every core (serve_worlds.py), or,
-    where the scene cannot run as worlds, `per_host` sessions as above (the "built" answers say which)."""
+    `worlds` > 0: hold up to that many tabs as the worlds of one simulation (serve_worlds.py), or, where the scene
+    cannot run as worlds, sessions (the "built" answers say which)."""
+    pinning = Pinning(core, cores)
+    pinning.pin()
+    os.environ.setdefault("SANDBOX_CPU_THREADS", "1")  # measured: two one-thread batches of 15 worlds step 1.5x
+    # the particles a second of one two-thread batch of 30 (a small scene's step does not share well between threads)
     os.environ.setdefault("TI_LOG_LEVEL", "error")
     os.environ.setdefault("TI_OFFLINE_CACHE_FILE_PATH", str(CLASSROOM_CACHE))
     os.environ.setdefault("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES", str(CLASSROOM_CACHE_BYTES))
@@ -69,26 +72,23 @@ def host_main(
 
     runtime.own_process()  # the sandbox's own process: kernels compile the lighter way (a host compiles many)
     try:
-        host = _world_host(conn, scene, width, height, max_fps, worlds) if worlds > 0 else None
+        host = _world_host(conn, scene, width, height, max_fps, worlds, pinning) if worlds > 0 else None
         if host is None:
-            os.environ.setdefault("SANDBOX_CPU_THREADS", "1")
-            pinning = Pinning(core, cores)
-            pinning.pin()
-            host = Host(conn, scene, width, height, max_fps, draw, pinning, per_host)
+            host = Host(conn, scene, width, height, max_fps, draw, pinning)
         host.loop()
     except (EOFError, BrokenPipeError, KeyboardInterrupt):
         pass
 
 
-def _world_host(conn, scene: str, width: int, height: int, max_fps: float, worlds: int):
-    """A WorldHost of `worlds` tabs (every core's Taichi threads), or None where the scene cannot run as worlds or
-    be drawn by the page (Taichi is started again for a host of sessions)."""
+def _world_host(conn, scene: str, width: int, height: int, max_fps: float, worlds: int, pinning: Pinning):
+    """A WorldHost of `worlds` tabs, or None where the scene cannot run as worlds or be drawn by the page (Taichi
+    is started again for a host of sessions)."""
     from ..core import runtime
     from ..errors import SandboxError
     from .serve_worlds import WorldHost
 
     try:
-        return WorldHost(conn, scene, width, height, max_fps, worlds)
+        return WorldHost(conn, scene, width, height, max_fps, worlds, pinning)
     except SandboxError:
         runtime.reset()
         return None
@@ -133,11 +133,8 @@ class Host:
         max_fps: float,
         draw: str,
         pinning: Pinning | None = None,
-        capacity: int = 1,
     ) -> None:
-        """`capacity`: the sessions the server gives it at most (said with each "built")."""
         self.conn, self.scene, self.size, self.max_fps, self.draw = conn, scene, (width, height), max_fps, draw
-        self.capacity = capacity
         self.pinning = pinning or Pinning(None, ())
         self.sessions: list[Session | None] = []  # by slot; None where one failed
         self.due: dict[int, float] = {}  # attached slots: when each one's next frame is due (perf_counter s)
@@ -193,7 +190,7 @@ class Host:
         session.turns = self.turns
         self.sessions.append(session)
         self.canvas = session.renderer.canvas  # the next sessions draw in it too (17 MB each at 960 x 540)
-        self.tell({"t": "built", "slot": slot, "capacity": self.capacity})
+        self.tell({"t": "built", "slot": slot})
 
     def attach(self, slot: int) -> None:
         session = self.sessions[slot] if 0 <= slot < len(self.sessions) else None

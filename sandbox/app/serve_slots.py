@@ -108,10 +108,10 @@ class Hosts:
         per_host: int,
         receive,
         side_by_side: int,
-        worlds: int = 0,
+        worlds: bool = False,
     ) -> None:
-        """`side_by_side`: hosts of a scene that build at once (a build is one busy core); `worlds`: the tabs a host
-        of a scene that runs as worlds holds (serve_worlds.py; 0: every host holds sessions)."""
+        """`side_by_side`: hosts of a scene that build at once (a build is one busy core); `worlds`: a scene that can
+        run as worlds is held by world hosts (serve_worlds.py: `per_host` tabs each, the worlds of one simulation)."""
         self.context, self.picture, self.max_fps, self.draw = context, picture, max_fps, draw
         self.per_host, self.receive, self.side_by_side = max(per_host, 1), receive, max(side_by_side, 1)
         self.worlds = worlds
@@ -126,7 +126,7 @@ class Hosts:
     def free(self, scene: str) -> list[Slot]:
         """The slots of `scene` no tab has, built ones first."""
         slots = [s for h in self.hosts if h.scene == scene for s in h.live() if s.handle is None]
-        return sorted(slots, key=lambda s: not s.built)
+        return sorted(slots, key=lambda s: (not s.built, s.host.tabs()))  # a class shared among its scene's hosts
 
     def slots(self) -> int:
         """Every live slot, built or being built."""
@@ -143,8 +143,9 @@ class Hosts:
         core (and no host is started for the last few slots while a host with room is still building)."""
         hosts = [h for h in self.hosts if h.scene == scene and h.process.is_alive()]
         roomy = [h for h in hosts if len(h.live()) < h.capacity]
-        if any(h.worlds for h in roomy):  # its slots are ready once its simulation is: no second build beside it
-            return next(h for h in roomy if h.worlds).grow()
+        worlds = [h for h in roomy if h.worlds]
+        if worlds:  # its slots are ready once its simulation is: no second build beside it
+            return min(worlds, key=lambda h: len(h.live())).grow()
         idle = [h for h in roomy if h.building() == 0]
         if not roomy or (not idle and len(hosts) < self.side_by_side):
             return self.start(scene).grow()
@@ -153,13 +154,13 @@ class Hosts:
     def start(self, scene: str) -> HostProcess:
         """A new host process of `scene`, its pipe read by the event loop."""
         parent, child = self.context.Pipe()
-        worlds = self.worlds if scene not in self.sessions_only else 0
-        core = None if worlds else next_core(self.cores, [h.core for h in self.hosts if not h.worlds])
-        args = (child, scene, *self.picture, self.max_fps, self.draw, core, tuple(self.cores), worlds, self.per_host)
+        worlds = self.per_host if self.worlds and scene not in self.sessions_only else 0
+        core = next_core(self.cores, [h.core for h in self.hosts])
+        args = (child, scene, *self.picture, self.max_fps, self.draw, core, tuple(self.cores), worlds)
         process = self.context.Process(target=host_main, args=args, daemon=True)
         process.start()
         child.close()
-        host = HostProcess(scene, process, parent, worlds or self.per_host, core=core, worlds=bool(worlds))
+        host = HostProcess(scene, process, parent, self.per_host, core=core, worlds=bool(worlds))
         self.hosts.append(host)
         asyncio.get_running_loop().add_reader(parent.fileno(), self.receive, host)
         return host
@@ -181,13 +182,16 @@ class Hosts:
         reaper.start()
         return reaper
 
-    def built(self, host: HostProcess, capacity: int) -> None:
-        """`host` built a slot and says how many it holds: a world host of a scene that cannot run as worlds holds
-        sessions (its scene's next hosts start as hosts of sessions)."""
-        if host.worlds and capacity != host.capacity:
+    def has_world_host(self, scene: str) -> bool:
+        """Whether a host of `scene` holds its tabs as worlds and has room (a slot there is ready with the host)."""
+        return any(h.scene == scene and h.worlds and len(h.live()) < h.capacity for h in self.hosts)
+
+    def built(self, host: HostProcess, worlds: bool) -> None:
+        """`host` built a slot and says whether its tabs are worlds: a world host of a scene that cannot run as
+        worlds holds sessions (its scene's next hosts start as hosts of sessions)."""
+        if host.worlds and not worlds:
             host.worlds = False
             self.sessions_only.add(host.scene)
-        host.capacity = capacity
 
     def unneeded(self, scene: str, warm_target: int) -> list[HostProcess]:
         """Hosts no tab uses and the warm pool (`warm_target` free slots of the default `scene`) can do without."""

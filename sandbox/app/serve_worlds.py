@@ -58,12 +58,13 @@ def build_batch(scene_name: str, capacity: int):
 class WorldHost:
     """The tabs of one scene as the worlds of one simulation (module docstring); `conn`: the pipe to the server."""
 
-    def __init__(self, conn, scene: str, width: int, height: int, max_fps: float, capacity: int) -> None:
+    def __init__(self, conn, scene: str, width: int, height: int, max_fps: float, capacity: int, pinning=None) -> None:
+        """`capacity`: the tabs (worlds) it holds at most; `pinning`: serve_host.Pinning, its core in turn."""
         from ..errors import SandboxError
         from ..render.raster import Renderer
         from .tools import Tools
 
-        self.conn, self.scene_name, self.capacity = conn, scene, capacity
+        self.conn, self.scene_name, self.capacity, self.pinning = conn, scene, capacity, pinning
         self.sim = sim = build_batch(scene, capacity)
         words_off = dataclasses.replace(sim.scene.render, title=False, clock=False, legend=False)
         self.renderer = Renderer(sim.model, sim.state, width, height, words_off, output="picture")
@@ -104,6 +105,8 @@ class WorldHost:
             while self.conn.poll(0):
                 self.receive(self.conn.recv_bytes())
             attached = [tab for tab in self.tabs if tab.attached]
+            if attached and self.pinning is not None:
+                self.pinning.pin()
             now = time.perf_counter()
             if attached and self.due <= now:
                 self.frame(now)
@@ -136,7 +139,7 @@ class WorldHost:
             self.tell({"t": "failed", "slot": slot, "text": f"the {self.sim.worlds} worlds of this host are taken"})
             return
         self.tabs.append(WorldTab(self, SlotConn(self.conn, slot), slot))
-        self.tell({"t": "built", "slot": slot, "capacity": self.sim.worlds})
+        self.tell({"t": "built", "slot": slot, "worlds": True})
 
     def guarded(self, tab: WorldTab, act) -> None:
         """act(); where it raises, the tab ends (the server tells it) and the others run on."""
@@ -215,9 +218,13 @@ class WorldHost:
         else:
             self.clock.wait()
         wall = time.perf_counter()
-        for tab in list(self.tabs):
-            if tab.attached:
-                self.guarded(tab, lambda tab=tab: tab.after_frame(wall))
+        self.packer.pack_every_world()  # one launch for every tab's frame
+        try:
+            for tab in list(self.tabs):
+                if tab.attached:
+                    self.guarded(tab, lambda tab=tab: tab.after_frame(wall))
+        finally:
+            self.packer.batch = None
 
     @contextlib.contextmanager
     def drawing_for(self, tab: WorldTab):

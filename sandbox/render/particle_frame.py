@@ -63,6 +63,7 @@ class FramePacker:
         self.renderer = renderer
         self.look, self.p = renderer.look, renderer.state.particles
         self.world: int | None = None  # the world whose particles are packed (core/worlds.py), None: every live one
+        self.batch: np.ndarray | None = None  # every world's records packed at once (pack_every_world), until cleared
         # on the CPU the kernel writes straight into this host array (no copy; elsewhere Taichi copies it back)
         self.records = np.zeros((max(renderer.model.capacity, 1), 3), np.uint32)
 
@@ -76,10 +77,18 @@ class FramePacker:
     def pack(self) -> np.ndarray:
         """The live particles' records now (those of `self.world` alone where it is set), (n, 3) uint32 (the
         subclass module's layout): a view of this packer's array, valid until the next pack."""
-        self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
         first, n = self.rows()
+        if self.batch is not None and self.world is not None:
+            return self.batch[first : first + n]
+        self.renderer.state.refresh_derived()  # the atoms' phases, when drawn by phase
         self._pack(first, n, self.records)  # even for none: compiled where a session warms up (Session.warm_up)
         return self.records[:n]
+
+    def pack_every_world(self) -> None:
+        """Pack every live particle in one launch and keep the records (`batch`): each world's pack() is its slice
+        of them until `batch` is cleared (a classroom world host's frame: one launch instead of one a tab)."""
+        self.world, self.batch = None, None
+        self.batch = self.pack()
 
     def header(self, frame: int, seq: int, time: float, n: int) -> bytes:
         """HEADER of a frame of n particles: the `frame` count, the last setting's `seq`, the simulated `time`."""
