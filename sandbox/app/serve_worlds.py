@@ -48,6 +48,8 @@ def build_batch(scene_name: str, capacity: int):
     if path is None:
         raise SandboxError(f"no shipped scene {scene_name!r}")
     scene = load_scene(path)
+    if not scene.bodies:  # what a tab does there is spawn particles, which changes a world's particle count
+        raise SandboxError(f"{scene_name}: an empty scene; its tabs spawn particles, which worlds cannot")
     runtime.require("cpu", scene.world.precision)
     sim = Simulation(scene, worlds=max(capacity, 2))
     for k in range(sim.worlds - 1, 0, -1):  # the last world each time: nothing moves
