@@ -1,0 +1,161 @@
+"""Issue 74: the classroom on worlds. A world host (serve_worlds.py) holds a scene's tabs as the worlds of one
+simulation; here one runs in this process over a stand-in pipe. Each tab is its own world: what one tab does
+(sliders, a tool, undo, a load, pause) changes nothing in another's, a tab that asks for few pictures keeps its
+scene's pace, tabs come and go while the others run on, and every tab is sent frames of its own world alone."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("starlette")
+
+from sandbox.app.serve_pipe import HOST, SLOT  # noqa: E402
+from sandbox.render.particle_frame import decode  # noqa: E402
+
+pytestmark = [pytest.mark.xdist_group("serve"), pytest.mark.long]  # a host's build: `python3 -m pytest -m long`
+
+
+class Collect:
+    """The host's pipe end as the host sees it: what it and its tabs send, by slot."""
+
+    def __init__(self) -> None:
+        self.sent: list[tuple[int, bytes]] = []
+
+    def send_bytes(self, data: bytes) -> None:
+        (slot,) = SLOT.unpack_from(data)
+        self.sent.append((slot, data[SLOT.size :]))
+
+    def said(self, slot: int) -> list[dict]:
+        return [json.loads(b[1:]) for s, b in self.sent if s == slot and b[:1] == b"J"]
+
+    def frames(self, slot: int) -> list[dict]:
+        return [decode(b) for s, b in self.sent if s == slot and b[:1] == b"P"]
+
+
+def order(host, slot: int, message: dict) -> None:
+    host.receive(SLOT.pack(slot) + json.dumps(message).encode())
+
+
+@pytest.fixture
+def host():
+    """A world host of melting_block holding up to 4 tabs, three slots given out (each test its own: every test
+    gets a fresh Taichi runtime, tests/conftest.py)."""
+    from sandbox.app.serve_worlds import WorldHost
+
+    host = WorldHost(Collect(), "melting_block", 320, 180, 30.0, 4)
+    for _ in range(3):
+        order(host, HOST, {"t": "grow"})
+    return host
+
+
+def frames(host, count: int, asking=(0, 1, 2)) -> list[int]:
+    """`count` frames of the host, each of the scene's own steps (the wall clock's would follow this machine), the
+    tabs in `asking` asking for a picture before each; the steps each frame took."""
+    taken = []
+    for _ in range(count):
+        for slot in asking:
+            order(host, slot, {"t": "ready"})
+        before = host.sim.step_count
+        host.clock.owed = 0.0
+        host.turns.allowed = float("inf")
+        host.frame(None)
+        taken.append(host.sim.step_count - before)
+    return taken
+
+
+def lone_run(steps: list[int], changes=()):
+    """The scene alone, stepped as the host stepped (`steps` a frame), `changes`: (frame, function of the lone
+    controller) applied before that frame."""
+    from sandbox.app.controller import Controller, open_scene
+
+    lone = Controller(open_scene("melting_block", restart=False))
+    todo = dict(changes)
+    for frame, n in enumerate(steps):
+        if frame in todo:
+            todo[frame](lone)
+        lone.advance(n)
+    return lone.sim
+
+
+def test_a_tabs_world_is_its_own_and_keeps_its_pace_however_few_pictures_it_asks_for(host):
+    """Two tabs attached: each is told its scene and sent frames of its world alone (its particle count, its clock);
+    one moves the air slider and holds the heat tool, then undoes the stroke; the other tab's world runs on as the
+    scene alone, to the bit. A third tab asking for a picture every fourth frame sees its world at the same pace."""
+    conn = host.conn
+    for slot in (0, 1, 2):
+        order(host, HOST, {"t": "attach", "slot": slot})
+    assert [host.tabs[s].world for s in (0, 1, 2)] == [0, 1, 2] and host.sim.live_worlds == 3
+    assert conn.said(1)[0]["t"] == "scene" and "erase" not in conn.said(1)[0]["tools"]
+    steps = frames(host, 3)
+    order(host, 0, {"t": "set", "key": "air", "value": 60.0, "seq": 4})
+    order(host, 0, {"t": "tool", "tool": "heat", "x": 0.5, "y": 0.8, "radius": 1.0, "down": True})
+    steps += frames(host, 2)
+    order(host, 0, {"t": "tool", "tool": "heat", "x": 0.5, "y": 0.8, "radius": 1.0, "down": False})
+    order(host, 0, {"t": "action", "name": "undo"})
+    steps += frames(host, 2, asking=(0, 1))
+    for _ in range(2):  # the slow tab asks every fourth frame
+        steps += frames(host, 3, asking=(0, 1))
+        steps += frames(host, 1, asking=(0, 1, 2))
+    assert host.sim.world(0).controls.values()["heat.ambient"] == 60.0
+    assert host.sim.world(1).controls.values()["heat.ambient"] == 20.0
+    alone = lone_run(steps)
+    quiet = host.sim.world(1)
+    assert quiet.time == pytest.approx(alone.time, rel=1e-12) and alone.time > 0
+    assert np.array_equal(quiet.positions(), alone.positions())
+    assert np.array_equal(quiet.temperatures(), alone.temperatures())
+    fast, slow = conn.frames(1), conn.frames(2)
+    assert len(slow) <= len(fast) - 5  # the slow tab was sent fewer pictures of a world at the same pace
+    assert slow[-1]["time"] == fast[-1]["time"] == pytest.approx(alone.time, rel=1e-12)
+    assert fast[-1]["n"] == alone.state.live_count()  # its own world's particles, not the simulation's
+    heated = [m for m in conn.said(0) if m.get("t") == "notice"]
+    assert heated and heated[-1]["key"] == "undone"
+
+
+def test_a_paused_tab_holds_its_world_while_the_others_run_and_plays_on_from_it(host):
+    """Pause takes tab 0's world out of the simulation (the others run on, the simulation steps fewer worlds); a
+    slider moved while paused applies when it plays; play puts its world back as it was paused."""
+    for slot in (0, 1, 2):
+        order(host, HOST, {"t": "attach", "slot": slot})
+    tab = host.tabs[0]
+    frames(host, 2)
+    held = host.sim.world(tab.world)
+    at_pause = (held.positions(), held.time)
+    order(host, 0, {"t": "action", "name": "pause"})
+    assert tab.world is None and host.sim.live_worlds == len([t for t in host.tabs if t.world is not None])
+    others = {s: host.sim.world(host.tabs[s].world).time for s in (1, 2) if host.tabs[s].world is not None}
+    frames(host, 3)
+    assert all(host.sim.world(host.tabs[s].world).time > t for s, t in others.items())
+    order(host, 0, {"t": "set", "key": "air", "value": 35.0, "seq": 9})
+    assert host.conn.said(0)[-1]["t"] != "error"
+    order(host, 0, {"t": "action", "name": "play"})
+    back = host.sim.world(tab.world)
+    assert back.time == at_pause[1] and np.array_equal(back.positions(), at_pause[0])
+    assert back.controls.values()["heat.ambient"] == 35.0
+    said = [m for m in host.conn.said(0) if m.get("t") == "paused"]
+    assert [m["paused"] for m in said[-2:]] == [True, False]
+
+
+def test_a_tab_that_leaves_gives_its_world_back_and_the_last_world_moves_into_its_place(host):
+    """Tab 0 leaves: the last world in use moves into its index and its tab follows it (the same state, clock and
+    settings); a tab attached later gets a fresh world, its scene as it starts."""
+    for slot in (0, 1, 2):
+        order(host, HOST, {"t": "attach", "slot": slot})
+    order(host, 2, {"t": "set", "key": "air", "value": 5.0, "seq": 1})
+    frames(host, 1)
+    last = host.tabs[2]
+    k = last.world
+    state = (host.sim.world(k).positions(), host.sim.world(k).time)
+    leaving = host.tabs[0].world
+    mover = next(t for t in host.tabs if t.world == host.sim.live_worlds - 1)
+    order(host, HOST, {"t": "detach", "slot": 0})
+    assert mover is host.tabs[0] or mover.world == leaving  # the last world took the leaving tab's index
+    now = host.sim.world(last.world)
+    assert now.time == state[1] and np.array_equal(now.positions(), state[0])
+    assert now.controls.values()["heat.ambient"] == 5.0
+    order(host, HOST, {"t": "attach", "slot": 0})
+    fresh = host.sim.world(host.tabs[0].world)
+    assert fresh.time == 0.0 and fresh.controls.values()["heat.ambient"] == 20.0
+    assert [m["t"] for m in host.conn.said(0)][-1] == "scene"
