@@ -401,6 +401,11 @@ def _bench_arguments(sub) -> None:
         help="with --serve: the shipped scene every tab opens (default melting_block)",
     )
     bench.add_argument(
+        "--serve-sessions",
+        action="store_true",
+        help="with --serve: the server started with --no-worlds (every tab a simulation of its own)",
+    )
+    bench.add_argument(
         "--worlds",
         nargs=2,
         metavar=("K", "SCENE"),

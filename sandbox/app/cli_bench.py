@@ -81,7 +81,8 @@ def run_bench(args) -> int:
             raise SandboxError(
                 f"--serve-scene: no shipped scene {args.serve_scene!r}; expected one of {', '.join(names)}"
             )
-        result = bench_serve(args.serve, args.serve_scene, draw=args.draw, hogs=args.contended or 0)
+        worlds = not args.serve_sessions
+        result = bench_serve(args.serve, args.serve_scene, draw=args.draw, hogs=args.contended or 0, worlds=worlds)
         print(report(result))
         write_json(args.json, result)
         return 0

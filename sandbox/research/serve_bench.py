@@ -72,10 +72,13 @@ async def _client(url: str, stop: float, out: dict) -> None:
     out.update(pictures=pictures, latencies=latencies, clock=clock)
 
 
-def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", hogs: int = 0) -> dict:
-    """Run the server with `clients` tabs of `scene` (`draw`: who draws the particles, serve_session.DRAWS) for
-    WARMUP + MEASURE seconds quiet, then (with `hogs`) MEASURE more beside that many CPU-bound processes; the
-    figures described in the module docstring, per condition."""
+def bench_serve(
+    clients: int, scene: str = "melting_block", draw: str = "page", hogs: int = 0, worlds: bool = True
+) -> dict:
+    """Run the server with `clients` tabs of `scene` (`draw`: who draws the particles, serve_session.DRAWS; `worlds`
+    False: `--no-worlds`, every tab a session of its own) for WARMUP + MEASURE seconds quiet, then (with `hogs`)
+    MEASURE more beside that many CPU-bound processes; the figures described in the module docstring, per
+    condition."""
     import psutil
 
     from ..config.resources import shipped_scene
@@ -86,7 +89,8 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
     launched = time.monotonic()
     server = subprocess.Popen(
         [sys.executable, "-m", "sandbox", "serve", scene, "--port", str(port), "--max-sessions", str(clients)]
-        + [f"--teacher-token={teacher}", "--draw", draw, "--per-client", "0"],  # "=": a token may begin with "-"
+        + [f"--teacher-token={teacher}", "--draw", draw, "--per-client", "0"]  # "=": a token may begin with "-"
+        + ([] if worlds else ["--no-worlds"]),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -143,6 +147,7 @@ def bench_serve(clients: int, scene: str = "melting_block", draw: str = "page", 
         "scene": scene,
         "picture": "frames drawn by the page (where it can)" if draw == "page" else "960 x 540 JPEG",
         "draw": draw,
+        "tabs_as": "worlds" if worlds else "sessions",
         "conditions": conditions,
         "ready_seconds": ready_seconds,  # from the server's launch until every tab's session had drawn a picture
         **conditions[0],  # the quiet figures, under their names of old
@@ -232,7 +237,8 @@ class _Sampler:
 def report(result: dict) -> str:
     """The benchmark's lines for the terminal."""
     lines = [
-        f"serve: {result['clients']} sessions of {result['scene']} over loopback, {result['picture']}",
+        f"serve: {result['clients']} tabs of {result['scene']} over loopback, {result['picture']}, the tabs as "
+        f"{result.get('tabs_as', 'worlds')}",
         f"  ready: every session drew its first picture {result['ready_seconds']:.1f} s after the server started",
     ]
     quiet = result["conditions"][0]
