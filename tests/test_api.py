@@ -186,7 +186,7 @@ def test_a_crash_while_saving_leaves_the_last_checkpoint_whole(tmp_path, monkeyp
     assert path.read_bytes() == saved and sorted(p.name for p in tmp_path.iterdir()) == ["ckpt.npz"]
 
 
-@pytest.mark.slow  # three sandbox processes, each compiling its kernels
+@pytest.mark.long  # three sandbox processes, each compiling its kernels: `python3 -m pytest -m long`
 def test_cli_checkpoints_resume_and_dump(tmp_path):
     sets = [f"--set={k}={v}" for k, v in SMALL_BLOCK.items()]
     base = ["run", "melting_block", "--headless", "--quiet", "--arch", "cpu", "--width", "64", "--height", "36"]

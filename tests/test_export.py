@@ -219,6 +219,7 @@ def run(folder: Path, *extra: str, frames: int = 8) -> int:
         os.chdir(cwd)
 
 
+@pytest.mark.long  # `python3 -m pytest -m long`
 def test_a_cache_resumes_like_every_output(tmp_path):
     """8 frames with checkpoints, then resumed to 12: the PLY files are byte for byte those of one run of 12."""
     whole, resumed = tmp_path / "whole", tmp_path / "resumed"

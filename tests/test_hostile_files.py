@@ -253,6 +253,7 @@ def test_a_killed_runs_partial_frame_file_is_removed_by_the_resume(tmp_path, cap
     assert not [p for p in tmp_path.rglob(".*") if ".partial" in p.name]
 
 
+@pytest.mark.long  # two runs to 40 frames: `python3 -m pytest -m long`
 def test_a_resumed_gif_keeps_the_frames_the_uninterrupted_gif_keeps(tmp_path, monkeypatch, capsys):
     """A GIF keeps every k-th frame, k planned from the run's length: planned from the frames left after the
     checkpoint, the resumed part kept other frames (151 where the uninterrupted run kept 150). A small size budget

@@ -1,6 +1,7 @@
 """Phase change: the enthalpy law, the heating curve, the Stefan problem, conservation and the freeze-thaw cycle."""
 
 import numpy as np
+import pytest
 
 from sandbox.app.tools import Tools
 from sandbox.config.materials import load_library
@@ -83,6 +84,7 @@ def test_heating_curve_plateau_lasts_latent_heat_times_mass_over_power():
     assert melting.sum() > 100 and np.all(np.abs(T[melting] - curve.melt_temperature) < 1e-9)
 
 
+@pytest.mark.long  # a convergence study: `python3 -m pytest -m long`
 def test_stefan_front_follows_the_neumann_solution_and_converges():
     assert abs(stefan_lambda(1.0) - 0.6201) < 1e-4  # tabulated: St = 1 gives lambda = 0.620
     runtime.reset()

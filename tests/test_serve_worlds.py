@@ -9,6 +9,7 @@ import json
 
 import numpy as np
 import pytest
+from PIL import Image
 
 pytest.importorskip("starlette")
 
@@ -125,6 +126,9 @@ def test_a_paused_tab_holds_its_world_while_the_others_run_and_plays_on_from_it(
     at_pause = (held.positions(), held.time)
     order(host, 0, {"t": "action", "name": "pause"})
     assert tab.world is None and host.sim.live_worlds == len([t for t in host.tabs if t.world is not None])
+    small = tab.thumbnail()  # the teacher's picture of a paused tab: its last frame's particles over its backdrop
+    bare = np.asarray(Image.fromarray(tab.page.under).resize((240, 135), Image.Resampling.BILINEAR))
+    assert small.shape == bare.shape == (135, 240, 3) and np.abs(small.astype(int) - bare).max() > 50
     others = {s: host.sim.world(host.tabs[s].world).time for s in (1, 2) if host.tabs[s].world is not None}
     frames(host, 3)
     assert all(host.sim.world(host.tabs[s].world).time > t for s, t in others.items())

@@ -151,6 +151,7 @@ HOSTILE = [0, -1, -(2**31), 2**31 - 1, 10**9, math.nan, math.inf, -math.inf, 1e3
 HOSTILE_JSON = [None, -1, 0, 10**12, -1.5, "x", [], {}, [1e30], True, 3.0]
 
 
+@pytest.mark.long  # a fuzz campaign's worth of state files: `python3 -m pytest -m long`
 @settings(
     max_examples=3000 if CAMPAIGN else 20,
     deadline=None,

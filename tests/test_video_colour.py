@@ -104,6 +104,7 @@ def test_every_codec_is_what_was_asked_and_tagged_bt709(tmp_path, capsys, out, a
     assert all(word in stream for word in says), stream
 
 
+@pytest.mark.long  # `python3 -m pytest -m long`
 def test_png_is_lossless_and_alpha_makes_the_background_transparent(tmp_path, capsys):
     """A PNG video's frame is the still picture of that frame exactly; H.264 --lossless within the YUV rounding; with
     --alpha the backdrop is transparent and the particles opaque in their colours."""

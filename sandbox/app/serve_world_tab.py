@@ -269,9 +269,15 @@ class WorldTab:
         import numpy as np
         from PIL import Image
 
+        from ..render.particle_frame import HEADER, small_picture
+
         if self.world is not None and self.page.under is not None and self.sim.dim == 2:
             with self.host.drawing_for(self):
                 return self.page.thumbnail(240, 135)
+        if self.held is not None and self.last_frame[:1] == b"P" and self.page.under is not None:  # its last frame
+            n = HEADER.unpack_from(self.last_frame)[4]
+            records = np.frombuffer(self.last_frame, np.uint32, count=3 * n, offset=HEADER.size).reshape(n, 3)
+            return small_picture(self.page.under, records, 240, 135)
         base = self.page.under if self.page.under is not None else np.zeros((135, 240, 3), np.uint8)
         return np.asarray(Image.fromarray(base).resize((240, 135), Image.Resampling.BILINEAR))
 
