@@ -16,20 +16,15 @@ pytest.importorskip("starlette")
 from sandbox.app.serve_pipe import HOST, SLOT  # noqa: E402
 from sandbox.render.particle_frame import decode  # noqa: E402
 
+from . import test_serve_hosts  # noqa: E402
+
 pytestmark = [pytest.mark.xdist_group("serve"), pytest.mark.long]  # a host's build: `python3 -m pytest -m long`
 
 
-class Collect:
-    """The host's pipe end as the host sees it: what it and its tabs send, by slot."""
+class Collect(test_serve_hosts.Collect):
+    """The host's pipe end as the host sees it (test_serve_hosts.Collect), read by slot."""
 
-    def __init__(self) -> None:
-        self.sent: list[tuple[int, bytes]] = []
-
-    def send_bytes(self, data: bytes) -> None:
-        (slot,) = SLOT.unpack_from(data)
-        self.sent.append((slot, data[SLOT.size :]))
-
-    def said(self, slot: int) -> list[dict]:
+    def said(self, slot: int = HOST) -> list[dict]:
         return [json.loads(b[1:]) for s, b in self.sent if s == slot and b[:1] == b"J"]
 
     def frames(self, slot: int) -> list[dict]:

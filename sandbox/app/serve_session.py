@@ -27,7 +27,6 @@ backlog).
 from __future__ import annotations
 
 import dataclasses
-import json
 import tempfile
 import time
 from pathlib import Path
@@ -36,9 +35,9 @@ import numpy as np
 
 from .pacing import SceneClock, Turns
 from .serve_drawing import PageDrawing, jpeg, page_packer
-from .serve_words import chart_words, legend, page_lesson
+from .serve_messages import FIRST_CREDITS, PageMessages
+from .serve_words import chart_words, page_lesson
 
-FIRST_CREDITS = 2  # pictures the session may draw before the page's first "ready"
 MAX_FPS = 30.0  # pictures a second at most (serve --max-fps): more shows a class nothing new, and takes a core
 JPEG_QUALITY = 80
 READOUTS_EVERY = 6  # pictures between the readouts sent with them (JPEG pictures)
@@ -53,7 +52,7 @@ PICTURES = (*FRAMES, b"B", b"C", b"L")  # and the backdrops and bands a page dra
 DRAWS = ("page", "server")  # who draws the particles: the page (particle or sphere frames) or the session (JPEG)
 
 
-class Session:
+class Session(PageMessages):
     """The simulation, its tools and its undo ring, driven by the server's commands (module docstring)."""
 
     def __init__(
@@ -220,9 +219,6 @@ class Session:
         return self.control.first_tool() if self.sim.dim == 2 and self.tool_names() else "none"
 
     # ------------------------------------------------------------------ the pipe
-    def tell(self, message: dict) -> None:
-        self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
-
     def tick(self, now: float, due: float) -> float:
         """At wall time `now` (s): where a frame is `due`, step it, drawn and sent if the page has asked for a
         picture; returns when the next frame is due. A frame late by more than one interval is not made up (the
@@ -238,41 +234,20 @@ class Session:
             self.clock.wait()
         return max(due + self.interval, now - self.interval)
 
-    def handle(self, msg: dict) -> None:
-        kind = msg["t"]
-        if kind == "ready":
-            self.credits = min(self.credits + 1, FIRST_CREDITS + 1)
-            self.watched = True
-        elif kind == "tool":
-            self.tool(msg)
-        elif kind == "pointer":
-            self.pointer = (msg["x"], msg["y"])
-        elif kind == "set":
-            self.seq = msg.get("seq", self.seq)
-            try:
-                self.control.set(msg["key"], msg["value"])
-            except ValueError as exc:
-                self.tell({"t": "error", "text": str(exc)})
-        elif kind == "action":
-            self.action(msg["name"])
-        elif kind == "view":
-            self.view(msg["move"], msg["dx"], msg["dy"])
-        elif kind == "nogl":  # the page has no WebGL2: 3D scenes and light come as pictures from now on
-            self.webgl = False
-            if self.page is not None and (self.sim.dim == 3 or self.page.light is not None):
-                self.page = None
-                self.credits = max(self.credits, 1)  # the frame the page could not draw, again as a picture
-        elif kind == "lang":
-            self.lang = msg["lang"]
-            self.set_words()
-        elif kind == "scene" and not self.shared:  # a host's tab is moved to its new scene's host by the server
-            self.load(msg["name"])
-        elif kind == "save":
-            self.save(Path(msg["path"]))
-        elif kind == "upload":
-            self.upload(Path(msg["path"]))
-        elif kind == "thumb":
-            self.conn.send_bytes(b"T" + jpeg(self.thumbnail(), 70))
+    def no_webgl(self) -> None:
+        """The page has no WebGL2: 3D scenes and light come as pictures from now on."""
+        self.webgl = False
+        if self.page is not None and (self.sim.dim == 3 or self.page.light is not None):
+            self.page = None
+            self.credits = max(self.credits, 1)  # the frame the page could not draw, again as a picture
+
+    def open_scene(self, name: str) -> None:
+        """Open another shipped scene (not in a host: the server moves a host's tab to its new scene's host)."""
+        if not self.shared:
+            self.load(name)
+
+    def scene_time(self) -> float:
+        return self.sim.time
 
     def action(self, name: str) -> None:
         control = self.control
@@ -316,21 +291,6 @@ class Session:
         scale, offset = self.renderer.plan.view
         column, row_up = fx * self.width, (1.0 - fy) * self.height
         return ((column - offset[0]) / scale, (row_up - offset[1]) / scale)
-
-    def tool(self, msg: dict) -> None:
-        from ..errors import SandboxError
-
-        if msg["tool"] not in self.tool_names():
-            self.tell({"t": "error", "text": f"this scene has no {msg['tool']} tool"})
-            return
-        centre = self.world_at(msg["x"], msg["y"])
-        if not msg["down"] or centre is None:
-            self.control.release()
-            return
-        try:
-            self.control.press(msg["tool"], centre, float(msg["radius"]), msg.get("material"))
-        except SandboxError as exc:
-            self.tell({"t": "error", "text": str(exc)})
 
     # ------------------------------------------------------------------ a frame
     def paced(self) -> bool:
@@ -419,18 +379,9 @@ class Session:
             return small
         return np.asarray(Image.fromarray(self.draw()).resize((240, 135), Image.Resampling.BILINEAR))
 
-    def readouts(self) -> dict:
-        """The panel's description now (panel.py) and the sentence for screen readers."""
-        from . import panel
-
-        stats = self.sim.stats(pair_energy=False)
-        return {
-            "legend": legend(self.legend_source),
-            "readouts": panel.as_json(self.control.readouts(stats)),
-            "settings": panel.as_json(self.control.settings()),
-            "summary": self.control.summary(stats),
-            "probe": self.probe(),
-        }
+    def stats_now(self):
+        """The readouts' measurements now."""
+        return self.sim.stats(pair_energy=False)
 
     def probe(self) -> dict | None:
         from .probe import particle_at, probe
@@ -442,27 +393,6 @@ class Session:
             return None
         i = particle_at(self.sim, point)
         return None if i is None else probe(self.sim, i).fields()
-
-    # ------------------------------------------------------------------ state files
-    def save(self, path: Path) -> None:
-        saved = self.control.save(path)
-        self.tell({"t": "saved", "path": str(saved)})
-
-    def upload(self, path: Path) -> None:
-        """Load a state file the page uploaded (the server wrote it to `path`): checked before anything changes;
-        refused with the checker's one line, the session running on."""
-        from ..errors import SandboxError
-
-        try:
-            self.control.load(path)
-        except (SandboxError, OSError, ValueError, KeyError) as exc:
-            said = str(exc).replace(str(path), "the uploaded file")  # the server's folders are not the page's news
-            self.tell({"t": "error", "key": "upload_refused", "text": said})
-        else:
-            self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.sim.time:.2f} s"})
-        finally:
-            path.unlink(missing_ok=True)
-            self.tell({"t": "upload_done"})  # the server takes this session's next upload only now
 
 
 def scratch_dir() -> Path:

@@ -5,19 +5,18 @@ readouts and settings. A paused tab's world is held out of the simulation (world
 
 from __future__ import annotations
 
-import json
 import struct
 import time
-from pathlib import Path
 
-from .serve_drawing import PageDrawing, jpeg
-from .serve_session import CHART_EVERY, FIRST_CREDITS, READOUT_SECONDS
-from .serve_words import chart_words, legend, page_lesson
+from .serve_drawing import PageDrawing
+from .serve_messages import FIRST_CREDITS, PageMessages
+from .serve_session import CHART_EVERY, READOUT_SECONDS
+from .serve_words import chart_words, page_lesson
 
 SEQ_AT = 5  # where a page frame's header holds the last setting's number (particle_frame.HEADER: kind, frame, seq)
 
 
-class WorldTab:
+class WorldTab(PageMessages):
     """One tab's world of a WorldHost: its controller (tools, undo, sliders, state files of its world), charts,
     credits and clock of pictures, and what the page is sent (serve_session.Session's messages)."""
 
@@ -71,9 +70,6 @@ class WorldTab:
         self.world = world
         self.control.move_to(world)
 
-    def tell(self, message: dict) -> None:
-        self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
-
     @property
     def time(self) -> float:
         """The tab's scene's clock: its world's, or the held world's while paused."""
@@ -114,18 +110,9 @@ class WorldTab:
 
         return {"settings": panel.as_json(self.control.settings())}
 
-    def readouts(self) -> dict:
-        """The panel's description of the tab's world now, and the sentence for screen readers."""
-        from . import panel
-
-        stats = self.sim.stats(pair_energy=False, world=self.world)
-        return {
-            "legend": legend(self.legend_source),
-            "readouts": panel.as_json(self.control.readouts(stats)),
-            "settings": panel.as_json(self.control.settings()),
-            "summary": self.control.summary(stats),
-            "probe": self.probe(),
-        }
+    def stats_now(self):
+        """The readouts' measurements now."""
+        return self.sim.stats(pair_energy=False, world=self.world)
 
     def probe(self) -> dict | None:
         """What the particle under the pointer is doing (its world's), or None."""
@@ -145,9 +132,12 @@ class WorldTab:
         return probe(self.sim, first + j).fields() if d2[j] <= reach * reach else None
 
     def world_at(self, fx: float, fy: float):
-        """The scene point under the picture fraction (fx, fy) (serve_session.Session.world_at)."""
+        """The scene point under the picture fraction (fx, fy) (serve_session.Session.world_at); None while the
+        world is held (paused: out of the simulation, so no tool acts on it)."""
         import numpy as np
 
+        if self.held is not None:
+            return None
         renderer = self.host.renderer
         if self.sim.dim == 3:
             with self.host.drawing_for(self):
@@ -156,56 +146,23 @@ class WorldTab:
         scale, offset = renderer.plan.view
         return np.array([(fx * renderer.width - offset[0]) / scale, ((1.0 - fy) * renderer.height - offset[1]) / scale])
 
-    # ------------------------------------------------------------------ the page's messages
-    def handle(self, msg: dict) -> None:
-        kind = msg["t"]
-        if kind == "ready":
-            self.credits = min(self.credits + 1, FIRST_CREDITS + 1)
-            self.watched = True
-        elif kind == "tool":
-            self.tool(msg)
-        elif kind == "pointer":
-            self.pointer = (msg["x"], msg["y"])
-        elif kind == "set":
-            self.seq = msg.get("seq", self.seq)
-            try:
-                self.control.set(msg["key"], msg["value"])
-            except ValueError as exc:
-                self.tell({"t": "error", "text": str(exc)})
-        elif kind == "action":
-            self.action(msg["name"])
-        elif kind == "view":
-            self.view(msg["move"], msg["dx"], msg["dy"])
-        elif kind == "nogl" and self.sim.dim == 3:  # a world is drawn by the page alone
+    # ------------------------------------------------------------------ the page's messages (serve_messages.py)
+    def no_webgl(self) -> None:
+        if self.sim.dim == 3:  # a world is drawn by the page alone
             self.tell({"t": "error", "key": "nogl", "text": "this 3D scene needs a browser with WebGL2"})
-        elif kind == "lang":
-            self.lang = msg["lang"]
-            with self.host.drawing_for(self) as renderer:
-                renderer.set_chart(tuple(renderer.cfg.chart), keep_history=True)
-                self.plots = (renderer.chart, renderer.phase_plot)
-            self.page.band_due = True
-        elif kind == "save":
-            saved = self.control.save(Path(msg["path"]))
-            self.tell({"t": "saved", "path": str(saved)})
-        elif kind == "upload":
-            self.upload(Path(msg["path"]))
-        elif kind == "thumb":
-            self.conn.send_bytes(b"T" + jpeg(self.thumbnail(), 70))
 
-    def tool(self, msg: dict) -> None:
-        from ..errors import SandboxError
+    def set_words(self) -> None:
+        """The charts' words in the tab's language, their history kept."""
+        with self.host.drawing_for(self) as renderer:
+            renderer.set_chart(tuple(renderer.cfg.chart), keep_history=True)
+            self.plots = (renderer.chart, renderer.phase_plot)
+        self.page.band_due = True
 
-        if msg["tool"] not in self.control.tool_names():
-            self.tell({"t": "error", "text": f"this scene has no {msg['tool']} tool"})
-            return
-        centre = self.world_at(msg["x"], msg["y"]) if self.held is None else None
-        if not msg["down"] or centre is None:  # (a held world takes no stroke: it is out of the simulation)
-            self.control.release()
-            return
-        try:
-            self.control.press(msg["tool"], centre, float(msg["radius"]), msg.get("material"))
-        except SandboxError as exc:
-            self.tell({"t": "error", "text": str(exc)})
+    def open_scene(self, name: str) -> None:
+        """Nothing: the server moves a tab that asks for another scene to that scene's host."""
+
+    def scene_time(self) -> float:
+        return self.time
 
     def action(self, name: str) -> None:
         if name == "pause":
@@ -247,21 +204,6 @@ class WorldTab:
             return
         self.orbit.drag([move == "orbit", move == "zoom", move == "pan"], dx, dy)
         self.page.camera_moved()
-
-    def upload(self, path: Path) -> None:
-        """A state file the page uploaded (the server wrote it to `path`), into the tab's world alone."""
-        from ..errors import SandboxError
-
-        try:
-            self.control.load(path)
-        except (SandboxError, OSError, ValueError, KeyError) as exc:
-            said = str(exc).replace(str(path), "the uploaded file")
-            self.tell({"t": "error", "key": "upload_refused", "text": said})
-        else:
-            self.tell({"t": "notice", "key": "uploaded", "text": f"t = {self.time:.2f} s"})
-        finally:
-            path.unlink(missing_ok=True)
-            self.tell({"t": "upload_done"})
 
     def thumbnail(self):
         """The teacher's small picture of this tab's world (240 x 135): from its page frame in 2D, else the picture
