@@ -205,8 +205,9 @@ class WorldHost:
             substeps = int(self.sim.scene.world.substeps)
             owed, elapsed = self.clock.owes(now, substeps)
             steps = self.turns.limit(owed, substeps)
-            for tab in running:
-                tab.control.advance()  # its stroke (the simulation's steps are this host's)
+            for tab in running:  # each tab's stroke (the simulation's steps are this host's); one that fails ends alone
+                self.guarded(tab, tab.control.advance)
+            running = [tab for tab in self.owners if tab is not None]
             stepping = time.perf_counter()
             try:
                 self.sim.advance_frame(steps)
