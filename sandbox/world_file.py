@@ -79,8 +79,7 @@ def read_world_file(sim, path: str | Path, like: dict, current: dict) -> tuple[d
     check_world_state(sim.model, entries, like, saved, host, path)
     part = {e.name: saved[f"{e.kind}:{e.name}"] for e in entries if e.kind in (FIELD, NDARRAY)}
     part.update({e.name: host[e.name] for e in entries if e.kind == VALUE})
-    own = live_controls.shared(sim.model, sim.terms)
-    return part, {key: v for key, v in meta["controls"].items() if key.split(".")[0] not in own}
+    return part, live_controls.world_owned(sim.model, sim.terms, meta["controls"])
 
 
 def _check_world_controls(sim, current: dict, saved: dict, path: Path) -> None:

@@ -23,8 +23,8 @@ import numpy as np
 
 from .core import controls as live_controls
 from .core import transfer
-from .core.state import FIELD, NDARRAY, VALUE
-from .core.worlds import set_world_entry
+from .core.state import FIELD, NDARRAY, VALUE, WORLDS
+from .core.worlds import set_world_entry, world_entry
 from .errors import SandboxError
 from .physics.heat_sources import source_value
 
@@ -63,7 +63,7 @@ def world_part(sim, whole: dict, k: int) -> dict:
         value = whole[e.name]
         if e.rows == "particles":
             out[e.name] = _lone_rows(value[rows], lone_capacity)
-        elif e.rows == "worlds":
+        elif e.rows == WORLDS:
             out[e.name] = np.array(value[k])
         elif e.kind == VALUE:
             out[e.name] = value.copy() if isinstance(value, list) else value
@@ -127,14 +127,8 @@ def world_snapshot(sim, k: int) -> dict:
     """World k's state now (module docstring), with its walls' gauge: for undo in one world."""
     refuse_kept_integrator(sim, k, "be kept and put back alone")
     part = world_part(sim, sim.state.snapshot(), k)
-    part[IMPULSE] = _world_impulse(sim, k)
+    part[IMPULSE] = world_entry(sim.model.domain.impulse, sim.worlds, k)
     return part
-
-
-def _world_impulse(sim, k: int) -> float:
-    from .core.worlds import world_entry
-
-    return world_entry(sim.model.domain.impulse, sim.worlds, k)
 
 
 def put_world(sim, k: int, part: dict) -> None:
@@ -145,8 +139,11 @@ def put_world(sim, k: int, part: dict) -> None:
     worlds, each, _ = _layout(sim)
     if int(part["particles.n"]) != each:
         raise SandboxError(f"world {k} holds {each} particles; the state put into it holds {int(part['particles.n'])}")
+    for e in state.entries(physical_only=True):
+        if e.kind == NDARRAY and e.rows == "particles":  # none is declared so far: say so rather than skip it
+            raise SandboxError(f"world {k}: {e.name} is not yet put back per world")
     rows = slice(k * each, (k + 1) * each)
-    entries = [e for e in state.entries(physical_only=True) if e.kind == FIELD and e.rows in ("particles", "worlds")]
+    entries = [e for e in state.entries(physical_only=True) if e.kind == FIELD and e.rows in ("particles", WORLDS)]
     entries = [e for e in entries if e.name not in OWN and e.name != "springs.bonds"]
     now = transfer.download_all([e.get() for e in entries])
     for e, data in zip(entries, now):
@@ -158,9 +155,6 @@ def put_world(sim, k: int, part: dict) -> None:
     if state.springs is not None:
         writes += _springs_in(sim, part, k, each)
     transfer.upload_all(writes)
-    for e in state.entries(physical_only=True):
-        if e.kind == NDARRAY and e.rows == "particles":  # none is declared so far: say so rather than skip it
-            raise SandboxError(f"world {k}: {e.name} is not yet put back per world")
     hood = sim.hood
     if hood is not None and hood.lists is not None:  # its rows alone rebuilt at the next step
         x_ref = hood.lists.x_ref.to_numpy()
@@ -240,10 +234,16 @@ def add_world(sim) -> int:
             "(sandbox.load(scene, worlds=K))"
         )
     _set_live(sim, k + 1)
+    start_world(sim, k)
+    return k
+
+
+def start_world(sim, k: int) -> None:
+    """World k (in use) as a new world starts: world 0's initial state, its clock from 0, the scene's live
+    controls (a classroom tab's world as the tab opens the scene)."""
     put_world(sim, k, world_part(sim, sim._initial, 0))
     controls = live_controls.Controls(sim.model, sim.terms, k)
     controls.set(world_controls(sim.scene, controls.values()))
-    return k
 
 
 def remove_world(sim, k: int) -> None:
@@ -255,11 +255,8 @@ def remove_world(sim, k: int) -> None:
         raise SandboxError("world 0 is the only world in use; a simulation keeps at least one")
     if k != last:
         moved = live_controls.Controls(sim.model, sim.terms, last).values()
-        own = live_controls.shared(sim.model, sim.terms)
         put_world(sim, k, world_snapshot(sim, last))
-        live_controls.Controls(sim.model, sim.terms, k).set(
-            {key: value for key, value in moved.items() if key.split(".")[0] not in own}
-        )
+        live_controls.Controls(sim.model, sim.terms, k).set(live_controls.world_owned(sim.model, sim.terms, moved))
     springs = sim.state.springs
     if springs is not None:  # the bonds of the world out of use: none acts on slots past the live count
         each = sim.state.particles.world_size

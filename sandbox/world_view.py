@@ -130,11 +130,8 @@ class HeldWorld:
     def put(self, k: int) -> None:
         """Put this state and its own controls into world k of the simulation (world_state.put_world)."""
         put_world(self.sim, k, self.part)
-        own = live_controls.shared(self.sim.model, self.sim.terms)
-        values = self.controls.values()
-        live_controls.Controls(self.sim.model, self.sim.terms, k).set(
-            {key: v for key, v in values.items() if key.split(".")[0] not in own}
-        )
+        own = live_controls.world_owned(self.sim.model, self.sim.terms, self.controls.values())
+        live_controls.Controls(self.sim.model, self.sim.terms, k).set(own)
 
     def reset(self) -> None:
         """The scene's initial state, clock from 0; the controls stay (as WorldView.reset leaves them)."""

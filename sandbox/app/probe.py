@@ -44,17 +44,19 @@ class ProbeReading:
         }
 
 
-def particle_at(sim, point, reach: float | None = None) -> int | None:
+def particle_at(sim, point, reach: float | None = None, world: int | None = None) -> int | None:
     """2D (or 3D with a world point): the particle whose centre is nearest `point` (length units, (D,)) within
-    `reach` (default: 1.5 particle radii), or None."""
-    x = sim.positions()
+    `reach` (default: 1.5 particle radii), or None; of world `world` alone where given (a simulation of many,
+    core/worlds.py; its storage slot is returned)."""
+    x = sim.positions() if world is None else sim.world(world).positions()
     if len(x) == 0:
         return None
     d2 = ((x - np.asarray(point, dtype=float)) ** 2).sum(axis=1)
-    i = int(np.argmin(d2))
+    j = int(np.argmin(d2))
+    i = j if world is None else world * sim.state.particles.world_size + j  # a world's, by id: its block's order
     if reach is None:
         reach = 1.5 * float(sim.particles.radius[i])
-    return i if d2[i] <= reach * reach else None
+    return i if d2[j] <= reach * reach else None
 
 
 def probe(sim, i: int) -> ProbeReading:

@@ -59,9 +59,10 @@ class PageDrawing:
         """A 3D camera turned: the floor is seen from elsewhere, so the backdrop goes again with a coming frame."""
         self.backdrop_due = self.renderer.dim == 3
 
-    def send(self, now: float, frame: int, seq: int, time: float) -> None:
+    def send(self, now: float, frame: int, seq: int, time: float) -> bytes:
         """The frame of the particles now (it carries the `frame` count, the last setting's `seq` and the simulated
-        `time`), after the backdrop or the charts' band where one is due at wall time `now` (seconds)."""
+        `time`), after the backdrop or the charts' band where one is due at wall time `now` (seconds); returns the
+        frame sent (a paused world's tab sends it again)."""
         if self.backdrop_due and now - self.last_backdrop >= BACKDROP_SECONDS:
             self.send_backdrop(now)  # with the charts drawn on it: the band is in it
         elif self.band_due or (now - self.last_band >= BAND_SECONDS and self.renderer.plots()):
@@ -69,7 +70,9 @@ class PageDrawing:
             self.send_band()
         if self.light is not None:  # the light of the frame that follows (the page adds it to that frame)
             self.conn.send_bytes(self.light.encode())
-        self.conn.send_bytes(self.packer.encode(frame, seq, time))
+        encoded = self.packer.encode(frame, seq, time)
+        self.conn.send_bytes(encoded)
+        return encoded
 
     def draw_under(self) -> np.ndarray:
         """The picture under the particles now: the backdrop with the charts drawn on it, kept as `under` (the
@@ -98,6 +101,16 @@ class PageDrawing:
         if self.renderer.dim != 2:
             return None
         return small_picture(self.under, self.packer.pack(), width, height)
+
+
+def picture_point(renderer, fx: float, fy: float):
+    """The scene point under the picture fraction (fx, fy) of `renderer`'s picture, rows from the top: in 2D the
+    view's point, in 3D the nearest particle drawn within a few pixels of it (None where there is none)."""
+    if renderer.dim == 3:
+        return renderer.pick(fx, 1.0 - fy)
+    scale, offset = renderer.plan.view
+    column, row_up = fx * renderer.width, (1.0 - fy) * renderer.height
+    return ((column - offset[0]) / scale, (row_up - offset[1]) / scale)
 
 
 def png(picture) -> bytes:

@@ -13,10 +13,12 @@ FIRST_CREDITS = 2  # pictures a tab may be sent before the page's first "ready"
 
 
 class PageMessages:
-    """The page's messages (`handle`), its tools, state files and the pipe's JSON, over what the class keeps:
-    `conn`, `control` (app/controller.Controller), `credits`, `watched`, `pointer`, `seq`, `lang`, and the hooks
-    `world_at`, `action`, `view`, `no_webgl`, `set_words`, `open_scene`, `thumbnail`, `scene_time`, `stats_now`, `probe`
-    and `legend_source`."""
+    """The page's messages (`handle`), its tools, readouts, state files and the pipe's JSON, over what the class
+    keeps: `conn`, `sim`, `control` (app/controller.Controller), `credits`, `watched`, `pointer`, `seq`, `lang`,
+    `legend_source`, and the hooks `world_at`, `action`, `view`, `no_webgl`, `set_words`, `open_scene`,
+    `thumbnail`, `scene_time` and `stats_now`."""
+
+    world: int | None = None  # the world of its simulation the tab is (serve_world_tab.py); None: all of its own
 
     def tell(self, message: dict) -> None:
         self.conn.send_bytes(b"J" + json.dumps(message, allow_nan=False, default=str).encode())
@@ -85,6 +87,14 @@ class PageMessages:
             "summary": self.control.summary(stats),
             "probe": self.probe(),
         }
+
+    def probe(self) -> dict | None:
+        """The probe's reading of the particle under the page's pointer (of the tab's world), or None."""
+        from .probe import particle_at, probe
+
+        point = None if self.pointer is None else self.world_at(*self.pointer)
+        i = None if point is None else particle_at(self.sim, point, world=self.world)
+        return None if i is None else probe(self.sim, i).fields()
 
     def upload(self, path: Path) -> None:
         """Load a state file the page uploaded (the server wrote it to `path`): checked before anything changes;

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .pacing import SceneClock, Turns
-from .serve_drawing import PageDrawing, jpeg, page_packer
+from .serve_drawing import PageDrawing, jpeg, page_packer, picture_point
 from .serve_messages import FIRST_CREDITS, PageMessages
 from .serve_words import chart_words, page_lesson
 
@@ -286,11 +286,7 @@ class Session(PageMessages):
     def world_at(self, fx: float, fy: float):
         """The world point under the picture fraction (fx, fy), rows from the top: in 2D the view's point, in 3D the
         nearest particle drawn within a few pixels of it (None where there is none)."""
-        if self.sim.dim == 3:
-            return self.renderer.pick(fx, 1.0 - fy)
-        scale, offset = self.renderer.plan.view
-        column, row_up = fx * self.width, (1.0 - fy) * self.height
-        return ((column - offset[0]) / scale, (row_up - offset[1]) / scale)
+        return picture_point(self.renderer, fx, fy)
 
     # ------------------------------------------------------------------ a frame
     def paced(self) -> bool:
@@ -382,17 +378,6 @@ class Session(PageMessages):
     def stats_now(self):
         """The readouts' measurements now."""
         return self.sim.stats(pair_energy=False)
-
-    def probe(self) -> dict | None:
-        from .probe import particle_at, probe
-
-        if self.pointer is None:
-            return None
-        point = self.world_at(*self.pointer)
-        if point is None:
-            return None
-        i = particle_at(self.sim, point)
-        return None if i is None else probe(self.sim, i).fields()
 
 
 def scratch_dir() -> Path:

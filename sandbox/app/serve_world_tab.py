@@ -8,12 +8,12 @@ from __future__ import annotations
 import struct
 import time
 
-from .serve_drawing import PageDrawing
+from .serve_drawing import PageDrawing, picture_point
 from .serve_messages import FIRST_CREDITS, PageMessages
 from .serve_session import CHART_EVERY, READOUT_SECONDS
 from .serve_words import chart_words, page_lesson
 
-SEQ_AT = 5  # where a page frame's header holds the last setting's number (particle_frame.HEADER: kind, frame, seq)
+SEQ_AT = struct.calcsize("<cI")  # where a page frame's header (particle_frame.HEADER: kind, frame, seq ...) holds seq
 
 
 class WorldTab(PageMessages):
@@ -62,8 +62,8 @@ class WorldTab(PageMessages):
                 "draw": "page",
             }
         )
-        with host.drawing_for(self):
-            self.page.send_backdrop(time.perf_counter())
+        host.draw_for(self)
+        self.page.send_backdrop(time.perf_counter())
 
     def moved_to(self, world: int) -> None:
         """Another tab's world left: this one's moved into index `world`."""
@@ -93,17 +93,13 @@ class WorldTab(PageMessages):
                 self.tell({"t": "info", "time": self.time, "frame": self.frames, "seq": self.seq, **self.settings()})
             self.conn.send_bytes(bytes(frame))
             return
-        with self.host.drawing_for(self) as renderer:
-            if renderer.plots() and self.frames % CHART_EVERY == 0:
-                renderer.record(self.sim.stats(pair_energy=False, world=self.world))
-            if now - self.last_readouts >= READOUT_SECONDS:
-                self.last_readouts = now
-                self.tell({"t": "info", "time": self.time, "frame": self.frames, "seq": self.seq, **self.readouts()})
-            sent = _Capture(self.conn)
-            self.page.conn = sent
-            self.page.send(now, self.frames, self.seq, self.time)
-            self.page.conn = self.conn
-            self.last_frame = sent.last
+        renderer = self.host.draw_for(self)
+        if renderer.plots() and self.frames % CHART_EVERY == 0:
+            renderer.record(self.stats_now())
+        if now - self.last_readouts >= READOUT_SECONDS:
+            self.last_readouts = now
+            self.tell({"t": "info", "time": self.time, "frame": self.frames, "seq": self.seq, **self.readouts()})
+        self.last_frame = self.page.send(now, self.frames, self.seq, self.time)
 
     def settings(self) -> dict:
         from . import panel
@@ -114,37 +110,12 @@ class WorldTab(PageMessages):
         """The readouts' measurements now."""
         return self.sim.stats(pair_energy=False, world=self.world)
 
-    def probe(self) -> dict | None:
-        """What the particle under the pointer is doing (its world's), or None."""
-        from .probe import probe
-
-        if self.pointer is None or self.world is None:
-            return None
-        point = self.world_at(*self.pointer)
-        if point is None:
-            return None
-        view = self.sim.world(self.world)
-        x = view.positions()
-        d2 = ((x - point) ** 2).sum(axis=1)
-        j = int(d2.argmin())
-        first = self.world * self.sim.state.particles.world_size
-        reach = 1.5 * float(self.sim.particles.radius[first + j])
-        return probe(self.sim, first + j).fields() if d2[j] <= reach * reach else None
-
     def world_at(self, fx: float, fy: float):
-        """The scene point under the picture fraction (fx, fy) (serve_session.Session.world_at); None while the
-        world is held (paused: out of the simulation, so no tool acts on it)."""
-        import numpy as np
-
+        """The scene point under the picture fraction (fx, fy) (serve_drawing.picture_point, its 3D camera the
+        tab's); None while the world is held (paused: out of the simulation, so no tool acts on it)."""
         if self.held is not None:
             return None
-        renderer = self.host.renderer
-        if self.sim.dim == 3:
-            with self.host.drawing_for(self):
-                picked = renderer.pick(fx, 1.0 - fy)
-            return None if picked is None else np.asarray(picked)
-        scale, offset = renderer.plan.view
-        return np.array([(fx * renderer.width - offset[0]) / scale, ((1.0 - fy) * renderer.height - offset[1]) / scale])
+        return picture_point(self.host.draw_for(self), fx, fy)
 
     # ------------------------------------------------------------------ the page's messages (serve_messages.py)
     def no_webgl(self) -> None:
@@ -153,9 +124,9 @@ class WorldTab(PageMessages):
 
     def set_words(self) -> None:
         """The charts' words in the tab's language, their history kept."""
-        with self.host.drawing_for(self) as renderer:
-            renderer.set_chart(tuple(renderer.cfg.chart), keep_history=True)
-            self.plots = (renderer.chart, renderer.phase_plot)
+        renderer = self.host.draw_for(self)
+        renderer.set_chart(tuple(renderer.cfg.chart), keep_history=True)
+        self.plots = (renderer.chart, renderer.phase_plot)
         self.page.band_due = True
 
     def open_scene(self, name: str) -> None:
@@ -211,26 +182,12 @@ class WorldTab(PageMessages):
         import numpy as np
         from PIL import Image
 
-        from ..render.particle_frame import HEADER, small_picture
+        from ..render.particle_frame import frame_records, small_picture
 
         if self.world is not None and self.page.under is not None and self.sim.dim == 2:
-            with self.host.drawing_for(self):
-                return self.page.thumbnail(240, 135)
+            self.host.draw_for(self)
+            return self.page.thumbnail(240, 135)
         if self.held is not None and self.last_frame[:1] == b"P" and self.page.under is not None:  # its last frame
-            n = HEADER.unpack_from(self.last_frame)[4]
-            records = np.frombuffer(self.last_frame, np.uint32, count=3 * n, offset=HEADER.size).reshape(n, 3)
-            return small_picture(self.page.under, records, 240, 135)
+            return small_picture(self.page.under, frame_records(self.last_frame), 240, 135)
         base = self.page.under if self.page.under is not None else np.zeros((135, 240, 3), np.uint8)
         return np.asarray(Image.fromarray(base).resize((240, 135), Image.Resampling.BILINEAR))
-
-
-class _Capture:
-    """A pipe end that passes everything on and keeps the last frame sent (a held tab's picture)."""
-
-    def __init__(self, conn) -> None:
-        self.conn, self.last = conn, b""
-
-    def send_bytes(self, data: bytes) -> None:
-        if data[:1] in (b"P", b"S"):
-            self.last = data
-        self.conn.send_bytes(data)

@@ -27,6 +27,7 @@ import dataclasses
 import json
 import time
 
+from ..world_state import start_world
 from .pacing import SceneClock, Turns
 from .serve_drawing import page_packer
 from .serve_pipe import HOST, SLOT, SlotConn
@@ -66,7 +67,7 @@ class WorldHost:
         from ..render.raster import Renderer
         from .tools import Tools
 
-        self.conn, self.scene_name, self.capacity, self.pinning = conn, scene, capacity, pinning
+        self.conn, self.scene_name, self.pinning = conn, scene, pinning
         self.sim = sim = build_batch(scene, capacity)
         words_off = dataclasses.replace(sim.scene.render, title=False, clock=False, legend=False)
         self.renderer = Renderer(sim.model, sim.state, width, height, words_off, output="picture")
@@ -162,11 +163,7 @@ class WorldHost:
         """A world in use for `tab`: world 0 where it is in use by no tab, else the next one (the scene as it
         starts)."""
         if len(self.owners) == 1 and self.owners[0] is None:
-            self.sim.world(0).reset()
-            from ..world_state import world_controls
-
-            controls = self.sim.world(0).controls
-            controls.set(world_controls(self.sim.scene, controls.values()))
+            start_world(self.sim, 0)
             self.owners[0] = tab
             return 0
         k = self.sim.add_world().index
@@ -229,16 +226,16 @@ class WorldHost:
         finally:
             self.packer.batch = None
 
-    @contextlib.contextmanager
-    def drawing_for(self, tab: WorldTab):
-        """The host's renderer and packer set to `tab`'s world, charts, language and camera."""
+    def draw_for(self, tab: WorldTab):
+        """The host's renderer, set with its packer to `tab`'s world, charts, language and camera (each tab's turn
+        in one thread: what it draws next is that tab's)."""
         renderer = self.renderer
         renderer.words = chart_words(tab.lang)
         renderer.chart, renderer.phase_plot = tab.plots
         self.packer.world = tab.world
         if tab.orbit is not None:
             renderer.set_camera(tab.orbit.eye(), tab.orbit.target, renderer.painter.fov)
-        yield renderer
+        return renderer
 
 
 class _Nowhere:

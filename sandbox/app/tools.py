@@ -36,7 +36,7 @@ class Tools:
         self.centre = ti.Vector.field(sim.dim, float, shape=())  # the brush centre (a field: no recompiles)
         if self.p.worlds:  # the world a brush acts in, -1 for every world (a lone run's kernels read nothing)
             self.only = ti.field(ti.i32, shape=())
-            self.only[None] = -1 if world is None else int(world)
+            self.set_world(world)
 
     def set_world(self, world: int | None) -> None:
         """Act in world `world` alone from now on (None: in every world; nothing in a simulation of one world)."""
@@ -68,9 +68,8 @@ class Tools:
         c = self.centre[None]
         for i in range(self.p.n[None]):
             w = 1.0 - (self.p.x[i] - c).norm() / radius
-            if w > 0.0 and self._reaches(
-                i
-            ):  # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
+            # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
+            if w > 0.0 and self._reaches(i):
                 m = self.p.material[i]
                 cap = self.sim.model.phase.capacity(self.p.h[i], m)
                 coldest = self.sim.model.phase.enthalpy(ABSOLUTE_ZERO, m)

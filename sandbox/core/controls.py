@@ -33,6 +33,13 @@ def gather(model, terms, world: int = 0) -> dict:
     return values
 
 
+def world_owned(model, terms, values: dict) -> dict:
+    """Of `values` (controls by namespaced name), those each world holds of its own: less the controls that are one
+    for all worlds (shared())."""
+    common = shared(model, terms)
+    return {key: value for key, value in values.items() if key.split(".")[0] not in common}
+
+
 def problem(model, terms, values: dict) -> str | None:
     """What is wrong with the first of `values` (controls by namespaced name, of this simulation's names and shapes)
     that its owner's check refuses, as "control KEY = VALUE: expected ...", or None. Each owner's `control_checks()`

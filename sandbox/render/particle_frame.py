@@ -178,11 +178,17 @@ def unpack(records: np.ndarray) -> dict:
     }
 
 
+def frame_records(data: bytes) -> np.ndarray:
+    """The records ((n, 3) uint32) of a particle frame (the module docstring's layout), without a copy."""
+    n = HEADER.unpack_from(data)[4]
+    return np.frombuffer(data, np.uint32, count=3 * n, offset=HEADER.size).reshape(n, 3)
+
+
 def decode(data: bytes) -> dict:
     """A particle frame read back: frame, seq, time and unpack()'s fields. For tests and tools; the page reads the
     same layout."""
     _, frame, seq, time, n = HEADER.unpack_from(data)
-    records = np.frombuffer(data, np.uint32, count=3 * n, offset=HEADER.size).reshape(n, 3)
+    records = frame_records(data)
     out = {"frame": frame, "seq": seq, "time": time, "n": n, **unpack(records)}
     end = HEADER.size + 12 * n
     if len(data) > end:  # the springs' lines
