@@ -197,6 +197,7 @@ def run(folder, *extra: str, frames: int) -> int:
     return run_candle(folder, "--no-video", *extra, frames=frames)
 
 
+@pytest.mark.long  # two command-line runs, each compiling its kernels: `python3 -m pytest -m long`
 def test_the_command_line_caches_frame_0_and_from_a_chosen_frame(tmp_path):
     """`--cache-every 3` caches frames 0, 3, 6 (frame 0 the scene as loaded); `--cache-from 4 --cache-every 3`
     frames 4 and 7 of 8; each file holds that frame's time."""

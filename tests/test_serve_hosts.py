@@ -312,7 +312,7 @@ STROKES = ("heat", "impulse", "drag")  # a tool each scene below has, held where
 @pytest.mark.parametrize(
     "scene",
     [
-        "melting_block",
+        pytest.param("melting_block", marks=pytest.mark.long),  # the classroom's default holds it as worlds now
         pytest.param("lj_box", marks=pytest.mark.long),  # periodic
         pytest.param("atoms", marks=pytest.mark.long),  # molecular
         pytest.param("candle", marks=pytest.mark.long),  # an emitter
