@@ -111,9 +111,21 @@ def assemble(
 
 
 # The terms a simulation of many worlds can hold so far: their controls, gauges and passes are kept per world. The
-# others (emitters, the lid and heater, the smoke grid, the molecular terms ...) still keep one value for all worlds.
+# others (emitters, the velocity field, the smoke grid ...) still keep one value for all worlds.
 WORLD_TERMS = frozenset(
-    {"gravity", "pair", "springs", "heat", "walls", "refreeze", "agitation", "structure", "thermal_walls"}
+    {
+        "gravity",
+        "pair",
+        "springs",
+        "heat",
+        "walls",
+        "refreeze",
+        "agitation",
+        "structure",
+        "thermal_walls",
+        "lid",
+        "heater",
+    }
 )
 
 

@@ -150,7 +150,7 @@ def scene_parts(sim) -> list[Part]:
         parts.append(Part(f"plate_{k}", *box(source.lo, source.hi), color, float(temperature)))
     lid = sim.terms.lid
     if lid is not None:
-        height = float(lid.height[None])
+        height = lid.height_of()
         bottom, top = np.array(scene.world.lo, float), np.array(scene.world.hi, float)
         bottom[1] = min(height, top[1])
         parts.append(Part("lid", *box(bottom, top), srgb_bytes(LID_COLOR)))

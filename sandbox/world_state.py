@@ -26,7 +26,7 @@ from .core import transfer
 from .core.state import FIELD, NDARRAY, VALUE, WORLDS
 from .core.worlds import set_world_entry, world_entry
 from .errors import SandboxError
-from .physics.heat_sources import source_value
+from .physics.heat_sources import scheduled_value, source_value
 
 FAR = 1e30  # a reference position no particle is within half a skin of
 SPRING_ROWS = ("i", "j", "rest", "ks", "kd", "factor", "alive")  # the springs' per-slot fields
@@ -38,16 +38,6 @@ def _layout(sim) -> tuple[int, int, int]:
     """(worlds held, particles a world, a lone run's capacity) of `sim`."""
     worlds = sim.worlds
     return worlds, sim.state.particles.world_size, sim.model.capacity // worlds
-
-
-def refuse_kept_integrator(sim, k: int, what: str) -> None:
-    """SandboxError where the integrator keeps values of its own between steps (the leapfrog family's synchronised
-    velocities): they are one for all worlds and not put back per world."""
-    if any(e.name.startswith("integrator.") for e in sim.state.entries()):
-        raise SandboxError(
-            f"world {k}: a world of a {sim.integrator.name} simulation cannot yet {what}; expected an integrator "
-            "that keeps nothing between steps (symplectic_euler, forward_euler, midpoint, rk4)"
-        )
 
 
 def world_part(sim, whole: dict, k: int) -> dict:
@@ -125,7 +115,6 @@ def _packed(bonds: np.ndarray) -> np.ndarray:
 
 def world_snapshot(sim, k: int) -> dict:
     """World k's state now (module docstring), with its walls' gauge: for undo in one world."""
-    refuse_kept_integrator(sim, k, "be kept and put back alone")
     part = world_part(sim, sim.state.snapshot(), k)
     part[IMPULSE] = world_entry(sim.model.domain.impulse, sim.worlds, k)
     return part
@@ -135,7 +124,6 @@ def put_world(sim, k: int, part: dict) -> None:
     """Put `part` (world_part's: a world's state as a lone run holds it) into world k of `sim`; the other worlds
     are untouched, bit for bit. SandboxError where it does not fit (another particle count, no free spring slots)."""
     state = sim.state
-    refuse_kept_integrator(sim, k, "be put back alone")
     worlds, each, _ = _layout(sim)
     if int(part["particles.n"]) != each:
         raise SandboxError(f"world {k} holds {each} particles; the state put into it holds {int(part['particles.n'])}")
@@ -201,18 +189,26 @@ def _springs_in(sim, part: dict, k: int, each: int) -> list:
 def reset_world(sim, k: int) -> None:
     """Put world k back to the scene's initial state, its clock from 0 (`sim.world(k).reset()`): the others run on
     as they were, and the live controls stay as they are, as Simulation.reset leaves them."""
-    refuse_kept_integrator(sim, k, "start again alone")
     put_world(sim, k, world_part(sim, sim._initial, k))
 
 
 def world_controls(scene, controls: dict) -> dict:
     """The live controls (by namespaced name, those among `controls`) that a world started from `scene` takes: its
-    gravity, drag, air temperature and heat sources' temperatures (a power source's power)."""
+    gravity, drag, air temperature and heat sources' temperatures (a power source's power), the molecular heater's
+    power and lid's pressure (following their schedules where the scene gives them one)."""
     out = {"world.gravity": [float(g) for g in scene.world.gravity], "world.drag": float(scene.world.drag)}
     if scene.heat:
         out["heat.ambient"] = float(scene.heat.ambient)
         if scene.heat.sources:
             out["heat.sources"] = [float(source_value(src, 0.0)) for src in scene.heat.sources]
+    molecular = scene.molecular
+    for name, spec, base in (
+        ("heater.power", molecular and molecular.heater, "power"),
+        ("lid.pressure", molecular and molecular.lid, "pressure"),
+    ):
+        if spec:
+            out[name] = scheduled_value(spec, getattr(spec, base), 0.0)
+            out[f"{name.split('.')[0]}.scheduled"] = 1.0 if spec.schedule_times else 0.0
     return {key: value for key, value in out.items() if key in controls}
 
 

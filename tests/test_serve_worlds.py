@@ -158,3 +158,37 @@ def test_a_tab_that_leaves_gives_its_world_back_and_the_last_world_moves_into_it
     fresh = host.sim.world(host.tabs[0].world)
     assert fresh.time == 0.0 and fresh.controls.values()["heat.ambient"] == 20.0
     assert [m["t"] for m in host.conn.said(0)][-1] == "scene"
+
+
+def test_a_molecular_scene_runs_as_worlds_each_tab_with_its_own_lid_and_heater():
+    """states_of_matter_atoms (3D, velocity Verlet, a lid and a heater) is held as worlds, not sessions: a tab's
+    heavier lid is its world's alone, each tab's sphere frames carry its own world's atoms and its own lid's height
+    (the page draws the lid), and the other tab's world is the scene run alone, stepped as the host stepped it."""
+    from sandbox.app.controller import Controller, open_scene
+    from sandbox.app.serve_worlds import WorldHost
+    from sandbox.render.sphere_frame import decode as decode_spheres
+
+    pipe = Collect()
+    host = WorldHost(pipe, "states_of_matter_atoms", 320, 180, 30.0, 2)
+    for slot in (0, 1):
+        order(host, HOST, {"t": "grow"})
+        order(host, HOST, {"t": "attach", "slot": slot})
+    order(host, 1, {"t": "set", "key": "lid", "value": 0.6, "seq": 3})
+    steps = frames(host, 6, asking=(0, 1))
+    sim = host.sim
+    assert sim.world(1).controls.values()["lid.pressure"] == 0.6 and sim.world(0).controls.values()["lid.pressure"] < 0.6
+    each = sim.state.particles.world_size
+    heights = []
+    for slot in (0, 1):
+        last = decode_spheres([b for s, b in pipe.sent if s == slot and b[:1] == b"S"][-1])
+        world = host.tabs[slot].world
+        assert len(last["x"]) == each
+        assert last["camera"][20] == 1.0 and last["camera"][21] == pytest.approx(sim.terms.lid.height_of(world))
+        heights.append(last["camera"][21])
+    assert heights[1] < heights[0]  # the heavier lid sits lower
+    lone = Controller(open_scene("states_of_matter_atoms", restart=False))
+    for n in steps:
+        lone.advance(n)
+    world = sim.world(host.tabs[0].world)
+    assert np.array_equal(world.positions(), lone.sim.positions())
+    assert np.array_equal(world.velocities(), lone.sim.velocities())

@@ -237,6 +237,42 @@ def test_bench_worlds_refuses_bad_arguments_in_one_line(capsys):
 
 
 @pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_each_world_of_a_pressure_cooker_has_its_own_lid_and_heater_and_is_its_lone_run():
+    """pressure_cooker (3D): a lid the atoms push up and a heater sharing its power among them, both following the
+    scene's schedules. World 1's lid is made heavier and its heater weaker, as a second lone run's are: each world is
+    its lone run to the bit (the lid's momentum summed in the atoms' order, the heater's sums over its own atoms),
+    also after world 0's lists were widened (world 1's rows kept, not rebuilt on a step its lone run does not). World
+    1 taken out and back in starts as a fresh run, its schedules on its own clock."""
+    soon = {"molecular.heater.schedule_times": [0.0, 5.0], "molecular.heater.schedule_values": [2.4, -1.0]}
+    light, heavy = sandbox.load("pressure_cooker", set=soon), sandbox.load("pressure_cooker", set=soon)
+    batch = sandbox.load("pressure_cooker", set=soon, worlds=2)
+    weights = {"lid.pressure": 0.3, "heater.power": 2.0}
+    heavy.controls.set(weights)
+    batch.world(1).controls.set(weights)
+    for _ in range(3):
+        for sim in (light, heavy, batch):
+            sim.advance_frame()
+    assert batch.hood.lists.grown > heavy.hood.lists.grown  # world 0's rows widened the table
+    assert light.stats().lid_height > heavy.stats().lid_height + 2.0  # the light lid rose higher
+    for k, alone in enumerate((light, heavy)):
+        world = batch.world(k)
+        _assert_same(alone, world)
+        assert world.stats() == alone.stats()  # its lid's height and gauge, the heat its heater gave
+        assert world.controls.values() == alone.controls.values()
+    assert batch.world(1).controls.values()["lid.scheduled"] == 0.0  # set by hand: its schedule stopped
+    batch.world(1).remove()
+    assert batch.add_world().index == 1
+    fresh = sandbox.load("pressure_cooker", set=soon)
+    for sim in (light, batch, fresh):
+        sim.advance_frame()
+    for k, alone in enumerate((light, fresh)):
+        _assert_same(alone, batch.world(k))
+        assert batch.world(k).controls.values() == alone.controls.values()  # its schedules, on its own clock
+    assert light.controls.values()["heater.power"] == -1.0  # the first world cools since its 5th time unit ...
+    assert batch.world(1).controls.values()["heater.power"] == 2.4  # ... the young one heats, 2 time units old
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_stroke_a_slider_undo_and_a_load_in_one_world_change_nothing_in_the_others(tmp_path):
     """World 1's controller (a classroom tab's) heats its block, cools its plate and undoes the stroke; world 2's
     loads world 0's state file: world 0 stays the uninterrupted lone run to the bit all along, world 1 is back to

@@ -33,6 +33,15 @@ def at(field: ti.template(), w):
         return field[w]
 
 
+@ti.func
+def put_at(field: ti.template(), w, value):
+    """Set world w's entry of a `per_world` field (the one entry of a lone run's, whatever w)."""
+    if ti.static(len(field.shape) == 0):
+        field[None] = value
+    else:
+        field[w] = value
+
+
 def per_world_table(count: int, dtype, entries: int):
     """A control or gauge of `entries` items (heat sources, walls) for `count` worlds: shape (entries,) where count
     is 1 (the lone run's), else (count, entries)."""

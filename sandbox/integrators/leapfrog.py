@@ -12,10 +12,15 @@ between, so the trajectory does not depend on how the steps are split into calls
 (positions, velocities or temperatures written by a tool, a reset, a restore, a particle added or removed) is
 staggered afresh. Forces that depend on velocity see v_{n-1/2} (velocity Verlet) or v_n (position Verlet), as in the
 textbook steps; walls act at the end of each kick-drift, on the staggered state.
+
+With many worlds (core/worlds.py) the check is made world by world: the worlds whose state changed between calls (a
+world put back, started again or moved: world_state.py; a tool used in it) are staggered afresh, the others restore
+their staggered values, so each world steps as its lone run would, given what was done to it alone.
 """
 
 import taichi as ti
 
+from ..core.worlds import world_of
 from .base import register
 from .explicit import SymplecticEuler
 
@@ -39,6 +44,9 @@ class Leapfrog(SymplecticEuler):
         self.moving = getattr(self.p, self.staggered)  # the field that holds the staggered state
         self.synced_count = -1  # particles when last synchronised; -1: never
         self.synced_dt = 0.0
+        self.worlds = self.p.world_count if self.p.worlds else 1
+        if self.worlds > 1:
+            self.world_changed = ti.field(ti.i32, shape=self.worlds)  # 1: world w is staggered afresh
         # What the last synchronisation left, saved with a state: a resumed run restores the staggered values exactly
         state.declare("integrator", self, ("held", "x_synced", "v_synced", "ident_synced", "t_synced"), physical=False)
         state.declare("integrator", self, ("synced_count", "synced_dt"), kind="value", physical=False)
@@ -46,7 +54,12 @@ class Leapfrog(SymplecticEuler):
     def begin(self, dt: float) -> None:
         """Stagger the synchronised state before a run of steps of `dt`: restore what the last sync held when
         nothing changed since, else stagger afresh."""
-        if self.synced_count == int(self.p.n[None]) and self.synced_dt == dt and self._changed() == 0:
+        if self.worlds > 1 and self.synced_count >= 0 and self.synced_dt == dt:
+            if self._changed_worlds(self.synced_count) == 0:
+                self._restore()
+            else:
+                self._stagger(dt, True)
+        elif self.synced_count == int(self.p.n[None]) and self.synced_dt == dt and self._changed() == 0:
             self._restore()
         else:
             self._stagger(dt)
@@ -57,7 +70,9 @@ class Leapfrog(SymplecticEuler):
         self._record()
         self.synced_count, self.synced_dt = int(self.p.n[None]), dt
 
-    def _stagger(self, dt: float) -> None:
+    def _stagger(self, dt: float, some: bool = False) -> None:
+        """Stagger the state for steps of `dt`; `some`: only the worlds marked in `world_changed`, the others'
+        staggered values restored."""
         raise NotImplementedError
 
     def _synchronise(self, dt: float) -> None:
@@ -86,14 +101,41 @@ class Leapfrog(SymplecticEuler):
         changed = 0
         self.loops.light()
         for i in range(self.p.n[None]):
-            same = self.p.ident[i] == self.ident_synced[i]
-            if ti.static(self.has_heat):
-                same = same and self.p.T[i] == self.t_synced[i]
-            for a in ti.static(range(self.p.dim)):
-                same = same and self.p.x[i][a] == self.x_synced[i][a] and self.p.v[i][a] == self.v_synced[i][a]
-            if not same:
+            if not self._same(i):
                 changed += 1
         return changed
+
+    @ti.kernel
+    def _changed_worlds(self, synced: ti.i32) -> ti.i32:
+        """Mark in `world_changed` the worlds with a particle whose state is not what the last synchronisation
+        (of `synced` particles) left; returns how many."""
+        for w in range(self.worlds):
+            self.world_changed[w] = 0
+        for i in range(self.p.n[None]):
+            if i >= synced or not self._same(i):
+                self.world_changed[world_of(self.p, i)] = 1
+        changed = 0
+        for w in range(self.worlds):
+            changed += self.world_changed[w]
+        return changed
+
+    @ti.func
+    def _same(self, i):
+        """Particle i's position, velocity, temperature and id are those the last synchronisation left."""
+        same = self.p.ident[i] == self.ident_synced[i]
+        if ti.static(self.has_heat):
+            same = same and self.p.T[i] == self.t_synced[i]
+        for a in ti.static(range(self.p.dim)):
+            same = same and self.p.x[i][a] == self.x_synced[i][a] and self.p.v[i][a] == self.v_synced[i][a]
+        return same
+
+    @ti.func
+    def _afresh(self, i, some: ti.template()):
+        """Whether particle i is staggered afresh (True unless `some`, then where its world is marked changed)."""
+        fresh = True
+        if ti.static(some):
+            fresh = self.world_changed[world_of(self.p, i)] != 0
+        return fresh
 
 
 @register("velocity_verlet")
@@ -104,22 +146,26 @@ class VelocityVerlet(Leapfrog):
 
     staggered = "v"
 
-    def _stagger(self, dt: float) -> None:
+    def _stagger(self, dt: float, some: bool = False) -> None:
         self.rates.evaluate()
-        self._kick(-0.5 * dt, False)
+        self._kick(-0.5 * dt, False, some)
 
     def _synchronise(self, dt: float) -> None:
         self.rates.evaluate()
-        self._kick(0.5 * dt, True)
+        self._kick(0.5 * dt, True, False)
 
     @ti.kernel
-    def _kick(self, h: float, hold: ti.template()):
-        """v += h a, keeping the velocity before the kick in `held` when `hold`."""
+    def _kick(self, h: float, hold: ti.template(), some: ti.template()):
+        """v += h a, keeping the velocity before the kick in `held` when `hold`; with `some`, only in the worlds
+        marked changed (the others' staggered velocities restored)."""
         self.loops.light()
         for i in range(self.p.n[None]):
             if ti.static(hold):
                 self.held[i] = self.p.v[i]
-            self.p.v[i] = self.p.v[i] + h * self.f[i] / self.p.mass[i]
+            if self._afresh(i, some):
+                self.p.v[i] = self.p.v[i] + h * self.f[i] / self.p.mass[i]
+            else:
+                self.p.v[i] = self.held[i]
 
 
 @register("verlet")
@@ -130,11 +176,11 @@ class PositionVerlet(Leapfrog):
 
     staggered = "x"
 
-    def _stagger(self, dt: float) -> None:
-        self._drift(0.5 * dt, False)
+    def _stagger(self, dt: float, some: bool = False) -> None:
+        self._drift(0.5 * dt, False, some)
 
     def _synchronise(self, dt: float) -> None:
-        self._drift(-0.5 * dt, True)
+        self._drift(-0.5 * dt, True, False)
 
     @ti.func
     def _wrap(self, i):
@@ -142,11 +188,15 @@ class PositionVerlet(Leapfrog):
             self.p.x[i], self.p.v[i] = self.domain.enforce(self.p.x[i], self.p.v[i], self.p.radius[i], 0.0, 0)
 
     @ti.kernel
-    def _drift(self, h: float, hold: ti.template()):
-        """x += h v, keeping the position before the drift in `held` when `hold`."""
+    def _drift(self, h: float, hold: ti.template(), some: ti.template()):
+        """x += h v, keeping the position before the drift in `held` when `hold`; with `some`, only in the worlds
+        marked changed (the others' staggered positions restored)."""
         self.loops.light()
         for i in range(self.p.n[None]):
             if ti.static(hold):
                 self.held[i] = self.p.x[i]
-            self.p.x[i] = self.p.x[i] + h * self.p.v[i]
-            self._wrap(i)
+            if self._afresh(i, some):
+                self.p.x[i] = self.p.x[i] + h * self.p.v[i]
+                self._wrap(i)
+            else:
+                self.p.x[i] = self.held[i]

@@ -13,15 +13,20 @@ lambda is 0 and only K is taken (the sum records what was taken). The sums run i
 order, so a run repeats bit for bit in any thread order. The power is a live setting (`heater.power`, the heater
 slider); it may follow a schedule (`schedule_times`, `schedule_values`, `schedule_period`, as a heat source's) until
 it is set by hand. PhET's States of Matter heats the same way (by scaling velocities), without keeping momentum.
+With many worlds (core/worlds.py) each world has its own power (its slider; its schedule on the world's own clock)
+and shares it among its own atoms, its sums taken in its lone run's order.
 """
 
 import math
 
+import numpy as np
 import taichi as ti
 
 from ..config.molecular_table import Heater as HeaterTable
 from ..config.schema import key_check
 from ..core.oriented import data_oriented
+from ..core.state import WORLDS
+from ..core.worlds import at, per_world, put_at, world_of
 from .heat_sources import schedule_flag, scheduled_value, set_by_hand
 from .term import Measure, Slider, Term, register
 
@@ -50,18 +55,26 @@ class Heater(Term):
         self.p = parts.state.particles
         self.dim = parts.model.dim
         self.spec = parts.scene.molecular.heater
-        self.power = scheduled_value(self.spec, self.spec.power, 0.0)
-        self.by_hand = not self.spec.schedule_times  # set by hand (or never scheduled): the schedule no longer applies
-        self.moved = ti.field(ti.f64, shape=())  # energy the heater has given the atoms (energy)
-        self.centre = ti.Vector.field(self.dim, ti.f64, shape=())  # u of the last step (length / time)
-        self.scale = ti.field(ti.f64, shape=())  # lambda of the last step
+        self.worlds = worlds = parts.model.worlds
+        # each world's power, and whether it was set by hand (or never scheduled): then the schedule no longer applies
+        self.powers = [scheduled_value(self.spec, self.spec.power, 0.0)] * worlds
+        self.by_hands = [not self.spec.schedule_times] * worlds
+        self.moved = per_world(worlds, ti.f64)  # energy the heater has given the atoms (energy), per world
+        self.centre = per_world(worlds, ti.f64, self.dim)  # u of the last step (length / time)
+        self.scale = per_world(worlds, ti.f64)  # lambda of the last step
+        self.energy = per_world(worlds, ti.f64) if worlds > 1 else None  # P dt of each world this step
+
+    power = property(lambda self: self.powers[0], doc="the power of a lone run (world 0's)")
 
     def declare(self, state) -> None:
-        state.declare("heater", self, ("moved",))
+        state.declare("heater", self, ("moved",), rows=WORLDS if self.worlds > 1 else "")
 
-    def controls(self) -> dict:
-        """The power, and whether it still follows the scene's schedule (1) or was set by hand (0)."""
-        return {"power": self.power, "scheduled": 0.0 if self.by_hand else 1.0}
+    world_controls = True  # each world's heater has its own power (core/worlds.py)
+
+    def controls(self, world: int = 0) -> dict:
+        """The power, and whether it still follows the scene's schedule (1) or was set by hand (0), in world
+        `world`."""
+        return {"power": self.powers[world], "scheduled": 0.0 if self.by_hands[world] else 1.0}
 
     def sliders(self) -> list[Slider]:
         """The power: positive heats, negative cools, up to twice the scene's (1 at least)."""
@@ -71,14 +84,17 @@ class Heater(Term):
     def control_checks(self) -> dict:
         return {"power": key_check(HeaterTable, "power"), "scheduled": schedule_flag}
 
-    def apply_controls(self, values: dict) -> None:
-        """Set the power; without "scheduled": 1 (a state file's record) it is set by hand and the schedule stops."""
+    def apply_controls(self, values: dict, world: int | None = None) -> None:
+        """Set the power in world `world` (None: every world); without "scheduled": 1 (a state file's record) it is
+        set by hand and the schedule stops."""
         if "power" in values:
             value = float(values["power"])
             if not math.isfinite(value):
                 raise ValueError(f"heater power {value!r}; expected a finite number (negative cools)")
-            self.power = value
-        self.by_hand = set_by_hand(self.spec, values)
+        for w in range(self.worlds) if world is None else (world,):
+            if "power" in values:
+                self.powers[w] = float(values["power"])
+            self.by_hands[w] = set_by_hand(self.spec, values)
 
     def words(self, where: str) -> list[str]:
         if where == "after":
@@ -86,39 +102,71 @@ class Heater(Term):
         return []
 
     def after_step(self, state) -> None:
-        if not self.by_hand:  # the power in force at the start of the step just taken (the clock moves on after)
-            self.power = scheduled_value(self.spec, self.spec.power, state.time)
-        if self.power != 0.0:
-            self._heat(self.power * state.dt)
+        times = state.world_times()
+        for w, by_hand in enumerate(self.by_hands):
+            if not by_hand:  # the power in force at the start of the step just taken (the clock moves on after)
+                self.powers[w] = scheduled_value(self.spec, self.spec.power, times[w])
+        if self.worlds == 1:
+            if self.power != 0.0:
+                self._heat(self.power * state.dt)
+        elif any(self.powers):
+            self.energy.from_numpy(np.array(self.powers) * state.dt)
+            self._heat_worlds(self.p.world_size)
 
     @ti.func
     def measure_value(self, w):
-        return (self.moved[None],)
+        return (at(self.moved, w),)
 
     @ti.kernel
     def _heat(self, energy: ti.f64):
-        p = self.p
-        n = p.n[None]
+        n = self.p.n[None]
         for _ in range(1):  # the sums in one fixed order (double precision): repeatable in any thread order
-            mass = ti.cast(0.0, ti.f64)
-            momentum = ti.Vector.zero(ti.f64, self.dim)
-            for i in range(n):
-                if p.mass[i] > 0.0:
-                    mass += ti.cast(p.mass[i], ti.f64)
-                    momentum += ti.cast(p.mass[i], ti.f64) * ti.cast(p.v[i], ti.f64)
-            u = momentum / ti.max(mass, 1e-300)
-            kinetic = ti.cast(0.0, ti.f64)
-            for i in range(n):
-                if p.mass[i] > 0.0:
-                    d = ti.cast(p.v[i], ti.f64) - u
-                    kinetic += 0.5 * ti.cast(p.mass[i], ti.f64) * d.dot(d)
-            gain = ti.max(energy, -kinetic)  # cooling stops at rest
-            scale = ti.cast(1.0, ti.f64)
-            if kinetic > 0.0:
-                scale = ti.sqrt(1.0 + gain / kinetic)
-                self.moved[None] += gain
-            self.centre[None], self.scale[None] = u, scale
+            self._share(0, 0, n, energy)
         for i in range(n):
+            self._scale(i, 0)
+
+    @ti.kernel
+    def _heat_worlds(self, each: ti.i32):
+        """Each world's P dt (`energy`) shared among its own atoms (slots w each .. (w + 1) each - 1); a world
+        given none is left untouched."""
+        worlds = self.p.n[None] // each
+        for w in range(worlds):  # a world to a thread; its sums in its lone run's order
+            if self.energy[w] != 0.0:
+                self._share(w, w * each, (w + 1) * each, self.energy[w])
+        for i in range(worlds * each):
+            w = world_of(self.p, i)
+            if self.energy[w] != 0.0:
+                self._scale(i, w)
+
+    @ti.func
+    def _share(self, w, first, last, energy):
+        """World w's centre-of-mass velocity u and scale lambda for `energy` shared among particles first .. last - 1
+        (serial sums in double precision), and the energy moved added to its gauge."""
+        p = self.p
+        mass = ti.cast(0.0, ti.f64)
+        momentum = ti.Vector.zero(ti.f64, self.dim)
+        for i in range(first, last):
             if p.mass[i] > 0.0:
-                u = self.centre[None]
-                p.v[i] = ti.cast(u + self.scale[None] * (ti.cast(p.v[i], ti.f64) - u), p.v.dtype)
+                mass += ti.cast(p.mass[i], ti.f64)
+                momentum += ti.cast(p.mass[i], ti.f64) * ti.cast(p.v[i], ti.f64)
+        u = momentum / ti.max(mass, 1e-300)
+        kinetic = ti.cast(0.0, ti.f64)
+        for i in range(first, last):
+            if p.mass[i] > 0.0:
+                d = ti.cast(p.v[i], ti.f64) - u
+                kinetic += 0.5 * ti.cast(p.mass[i], ti.f64) * d.dot(d)
+        gain = ti.max(energy, -kinetic)  # cooling stops at rest
+        scale = ti.cast(1.0, ti.f64)
+        if kinetic > 0.0:
+            scale = ti.sqrt(1.0 + gain / kinetic)
+            put_at(self.moved, w, at(self.moved, w) + gain)
+        put_at(self.centre, w, u)
+        put_at(self.scale, w, scale)
+
+    @ti.func
+    def _scale(self, i, w):
+        """Particle i's velocity scaled about its world's centre-of-mass velocity (world w's u and lambda)."""
+        p = self.p
+        if p.mass[i] > 0.0:
+            u = at(self.centre, w)
+            p.v[i] = ti.cast(u + at(self.scale, w) * (ti.cast(p.v[i], ti.f64) - u), p.v.dtype)

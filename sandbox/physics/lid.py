@@ -4,8 +4,9 @@ schedule, as the heater's power does, until a slider sets it by hand).
 
 An atom that crosses the lid bounces off it as in an elastic collision of masses m and M (the relative speed
 v_y - u reverses about their centre of mass, u the lid's speed at the step's start), and the momentum it gives the
-lid, J_i = 2 m M / (m + M) (v_y - u), is summed over the step; with at most one hit a step this keeps the energy of
-atoms and lid exactly. After each step the lid moves by the symplectic Euler step of
+lid, J_i = 2 m M / (m + M) (v_y - u), is summed over the step (each atom's J kept, then added in the atoms' storage
+order: the same sum in any thread order); with at most one hit a step this keeps the energy of atoms and lid
+exactly. After each step the lid moves by the symplectic Euler step of
 
     M du/dt = J / dt - P A - M g,    dh/dt = u
 
@@ -13,14 +14,18 @@ atoms and lid exactly. After each step the lid moves by the symplectic Euler ste
 scene's gravity along y). At rest on average, the atoms press on it with exactly P: a sealed pot is a lid held in
 place, an open pot a light lid at one atmosphere, a pressure cooker a heavy one. The lid stops at the top of the box
 and cannot go below a tenth of the box's height. Its height and speed are part of the state (saved, undone, reset).
-The lid's update runs between steps (the long way)."""
+The lid's update runs between steps (the long way). With many worlds (core/worlds.py) each world has its own lid:
+its height, speed and gauge, and its outside pressure (its slider; its schedule on the world's own clock)."""
 
+import numpy as np
 import taichi as ti
 
 from ..config.molecular_table import Lid as LidTable
 from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
+from ..core.state import WORLDS
+from ..core.worlds import add_at, at, per_world, put_at, set_world_entry, world_entry, world_of
 from .heat_sources import schedule_flag, scheduled_value, set_by_hand
 from .term import Measure, Slider, Term, register
 
@@ -61,32 +66,55 @@ class Lid(Term):
         self.gravity = float(world.gravity[1]) if world.gravity else 0.0
         self.lowest = world.lo[1] + 0.1 * box[1]
         self.highest = float(world.hi[1])
-        self.height = ti.field(float, shape=())  # h (length)
-        self.speed = ti.field(float, shape=())  # u (length / time)
-        self.pushed = ti.field(float, shape=())  # momentum the atoms gave the lid this step
-        self.gauge = ti.field(ti.f64, shape=())  # momentum per area the atoms gave it since the gauge restarted
-        self.since = ti.field(ti.f64, shape=())  # ... and when it restarted (time)
+        self.state = parts.state
+        self.worlds = worlds = parts.model.worlds
+        self.height = per_world(worlds, float)  # h (length), per world
+        self.speed = per_world(worlds, float)  # u (length / time)
+        self.hit = ti.field(float, shape=parts.model.capacity)  # the momentum each atom gave the lid this step
+        self.gauge = per_world(worlds, ti.f64)  # momentum per area the atoms gave it since the gauge restarted
+        self.since = per_world(worlds, ti.f64)  # ... and when it restarted (the world's own time)
+        self.load = per_world(worlds, float) if worlds > 1 else None  # P A of each world this step (force)
         self.spec = spec
-        self.pressure = scheduled_value(spec, spec.pressure, 0.0)
-        self.by_hand = not spec.schedule_times  # set by hand (or never scheduled): the schedule no longer applies
+        # the outside pressure of each world, and whether it was set by hand (or never scheduled): then the schedule
+        # no longer applies there
+        self.pressures = [scheduled_value(spec, spec.pressure, 0.0)] * worlds
+        self.by_hands = [not spec.schedule_times] * worlds
         # the scene's: the slider's range follows it, not the value it sets
         self.scene_pressure = max([float(spec.pressure), *map(float, spec.schedule_values)])
-        transfer.upload([(self.height, float(spec.height))])
+        set_world_entry(self.height, worlds, None, float(spec.height))
+
+    pressure = property(lambda self: self.pressures[0], doc="the outside pressure of a lone run (world 0's)")
+
+    def height_of(self, world: int = 0) -> float:
+        """The lid's height (length) in world `world` now (a host read)."""
+        return float(world_entry(self.height, self.worlds, world))
 
     def declare(self, state) -> None:
-        state.declare("lid", self, ("height", "speed"))
-        state.declare("lid", self, ("pushed", "gauge", "since"), physical=False)
+        rows = WORLDS if self.worlds > 1 else ""
+        state.declare("lid", self, ("height", "speed"), rows=rows)
+        state.declare("lid", self, ("gauge", "since"), physical=False, rows=rows)
 
-    def restart_gauge(self, time: float) -> None:
-        """Zero the lid's pressure gauge at `time` (Simulation.advance_frame restarts it every frame)."""
-        transfer.upload([(self.gauge, 0.0), (self.since, float(time))])
+    def restart_gauge(self, time: float, world: int | None = None) -> None:
+        """Zero the lid's pressure gauge at `time` (the simulation's clock; each world's gauge restarts at its own
+        time) in world `world` (None: every world). Simulation.advance_frame restarts it every frame."""
+        if self.worlds == 1:
+            transfer.upload([(self.gauge, 0.0), (self.since, float(time))])
+            return
+        gauge, since = self.gauge.to_numpy(), self.since.to_numpy()
+        started = np.asarray(self.state.world_started, dtype=float)
+        rows = slice(None) if world is None else world
+        gauge[rows], since[rows] = 0.0, (time - started)[rows]
+        transfer.upload([(self.gauge, gauge), (self.since, since)])
 
     def after_restore(self, state) -> None:
         self.restart_gauge(state.time)
 
-    def controls(self) -> dict:
-        """The outside pressure, and whether it still follows the scene's schedule (1) or was set by hand (0)."""
-        return {"pressure": self.pressure, "scheduled": 0.0 if self.by_hand else 1.0}
+    world_controls = True  # each world's lid has its own outside pressure (core/worlds.py)
+
+    def controls(self, world: int = 0) -> dict:
+        """The outside pressure, and whether it still follows the scene's schedule (1) or was set by hand (0), in
+        world `world`."""
+        return {"pressure": self.pressures[world], "scheduled": 0.0 if self.by_hands[world] else 1.0}
 
     def sliders(self) -> list[Slider]:
         """The weight on the lid, as the outside pressure: up to four times the scene's (0.2 at least)."""
@@ -96,15 +124,17 @@ class Lid(Term):
     def control_checks(self) -> dict:
         return {"pressure": key_check(LidTable, "pressure"), "scheduled": schedule_flag}
 
-    def apply_controls(self, values: dict) -> None:
-        """Set the pressure; without "scheduled": 1 (a state file's record) it is set by hand and the schedule
-        stops."""
+    def apply_controls(self, values: dict, world: int | None = None) -> None:
+        """Set the pressure in world `world` (None: every world); without "scheduled": 1 (a state file's record) it
+        is set by hand and the schedule stops."""
         if "pressure" in values:
             value = float(values["pressure"])
             if not value >= 0.0:
                 raise ValueError(f"lid pressure {value!r}; expected a number of at least 0")
-            self.pressure = value
-        self.by_hand = set_by_hand(self.spec, values)
+        for w in range(self.worlds) if world is None else (world,):
+            if "pressure" in values:
+                self.pressures[w] = float(values["pressure"])
+            self.by_hands[w] = set_by_hand(self.spec, values)
 
     def words(self, where: str) -> list[str]:
         if where == "finish":
@@ -114,36 +144,59 @@ class Lid(Term):
         return []
 
     def after_step(self, state) -> None:
-        if not self.by_hand:  # the pressure in force at the start of the step just taken (the clock moves on after)
-            self.pressure = scheduled_value(self.spec, self.spec.pressure, state.time)
-        self._move(state.dt, self.pressure * self.area)
+        times = state.world_times()
+        for w, by_hand in enumerate(self.by_hands):
+            if not by_hand:  # the pressure in force at the start of the step just taken (the clock moves on after)
+                self.pressures[w] = scheduled_value(self.spec, self.spec.pressure, times[w])
+        if self.worlds == 1:
+            self._move(state.dt, self.pressure * self.area)
+            return
+        self.load.from_numpy(np.array(self.pressures) * self.area)
+        self._move_worlds(state.dt, self.p.world_size)
 
     @ti.kernel
     def _move(self, dt: float, load: float):
         for _ in range(1):
-            u = self.speed[None] + (self.pushed[None] - (load + self.mass * -self.gravity) * dt) / self.mass
-            h = self.height[None] + u * dt
-            if h > self.highest:
-                h, u = self.highest, ti.min(u, 0.0)
-            elif h < self.lowest:
-                h, u = self.lowest, ti.max(u, 0.0)
-            self.gauge[None] += ti.cast(self.pushed[None] / self.area, ti.f64)
-            self.height[None], self.speed[None], self.pushed[None] = h, u, 0.0
+            self._move_one(0, 0, self.p.n[None], dt, load)
+
+    @ti.kernel
+    def _move_worlds(self, dt: float, each: ti.i32):
+        for w in range(self.p.n[None] // each):  # the worlds in use, a world to a thread
+            self._move_one(w, w * each, (w + 1) * each, dt, self.load[w])
+
+    @ti.func
+    def _move_one(self, w, first, last, dt, load):
+        """World w's lid moved by a step: the momentum its atoms (first .. last - 1) gave it, summed in their order,
+        against the load `load` (P A) and gravity."""
+        pushed = 0.0
+        for i in range(first, last):
+            pushed += self.hit[i]
+        u = at(self.speed, w) + (pushed - (load + self.mass * -self.gravity) * dt) / self.mass
+        h = at(self.height, w) + u * dt
+        if h > self.highest:
+            h, u = self.highest, ti.min(u, 0.0)
+        elif h < self.lowest:
+            h, u = self.lowest, ti.max(u, 0.0)
+        add_at(self.gauge, w, ti.cast(pushed / self.area, ti.f64))
+        put_at(self.height, w, h)
+        put_at(self.speed, w, u)
 
     @ti.func
     def finish(self, i, dt, rates: ti.template()):
         p = self.p
-        top = self.height[None] - p.radius[i]
+        w = world_of(p, i)
+        top = at(self.height, w) - p.radius[i]
+        hit = 0.0
         if p.x[i][1] > top and p.mass[i] > 0.0:
-            u = self.speed[None]
+            u = at(self.speed, w)
             x, v = p.x[i], p.v[i]
             x[1] = ti.max(2.0 * top - x[1], top - 1.0)
             if v[1] > u:  # an elastic hit of masses m and M: the relative speed reverses about their centre of mass
                 hit = 2.0 * p.mass[i] * self.mass / (p.mass[i] + self.mass) * (v[1] - u)
-                self.pushed[None] += hit
                 v[1] -= hit / p.mass[i]
             p.x[i], p.v[i] = x, v
+        self.hit[i] = hit
 
     @ti.func
     def measure_value(self, w):
-        return self.height[None], self.gauge[None], self.since[None]
+        return at(self.height, w), at(self.gauge, w), at(self.since, w)

@@ -99,6 +99,7 @@ class NeighbourList:
         if self.worlds > 1:
             self.world_stale = ti.field(ti.i32, shape=self.worlds)  # the worlds whose rows the next build rebuilds
             self.every_row = ti.field(ti.i32, shape=())  # 1: the next build rebuilds every world's rows
+            self.kept = ti.field(ti.i32, shape=())  # 1: the next build rebuilds the worlds the last one marked
         self.half = half
         self.springs = springs
         self.marks_bonds = half and springs is not None
@@ -160,8 +161,8 @@ class NeighbourList:
         )
 
     def rebuild_every_row(self) -> None:
-        """With many worlds: the next build rebuilds every world's rows, moved or not (the layout changed, or the
-        lists were widened); nothing with one world, whose builds rebuild every row."""
+        """With many worlds: the next build rebuilds every world's rows, moved or not (the layout changed);
+        nothing with one world, whose builds rebuild every row."""
         if self.worlds > 1:
             self.every_row[None] = 1
 
@@ -222,8 +223,16 @@ class NeighbourList:
         wider = list_width(widest)
         if self.capacity * wider * 4 > MAX_BYTES:
             return False
-        self._allocate(wider)
-        self.rebuild_every_row()
+        if self.worlds == 1:
+            self._allocate(wider)
+        else:  # the rows of the worlds the build left alone are kept (moved into the wider table), not rebuilt: a
+            # world's rows are built on its lone run's steps, its forces summed in its order (module docstring)
+            old = self.ids.to_numpy()
+            self._allocate(wider)
+            table = np.zeros((self.capacity, wider), np.int32)
+            table[:, : old.shape[1]] = old
+            self.ids.from_numpy(table)
+            self.kept[None] = 1
         self.grown += 1
         return True
 
@@ -299,13 +308,14 @@ class NeighbourList:
         those whose rows it rebuilds (module docstring; a serial pass, on the steps that build)."""
         if ti.static(self.worlds > 1):
             every = self.every_row[None] != 0 or self.n[None] != self.n_listed[None]
-            for w in range(self.worlds):
-                self.world_stale[w] = 1 if every else 0
+            if every or self.kept[None] == 0:  # kept: the build after a widening redoes the last one's worlds
+                for w in range(self.worlds):
+                    self.world_stale[w] = 1 if every else 0
+                for i in range(self.n[None]):  # (serial: nested in the branch)
+                    if self.moved_far(i):
+                        self.world_stale[world_of(self.p, i)] = 1
             self.every_row[None] = 0
-            ti.loop_config(serialize=True)
-            for i in range(self.n[None]):
-                if self.moved_far(i):
-                    self.world_stale[world_of(self.p, i)] = 1
+            self.kept[None] = 0
         self.overflow[None] = 0
         self.n_listed[None] = self.n[None]
 

@@ -15,6 +15,7 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
+from ..core.worlds import at
 from .colormaps import temperature_map
 from .pixels import get_pixel, put_pixel
 from .strips import StripBins
@@ -82,7 +83,7 @@ class Flat2D:
         # it moves (the backdrop is not static there)
         lid = state.entry("lid.height")
         self.has_lid = lid is not None
-        self.lid_height = lid.owner.height if lid is not None else None
+        self.lid = lid.owner if lid is not None else None  # its height: world 0's where there are many
         self.backdrop_moves = self.has_lid
         # the walls and heat sources do not move: painted once (refresh_backdrop() after changing a source)
         self.backdrop = canvas.layer(3)
@@ -303,7 +304,7 @@ class Flat2D:
     def _lid(self, x, y, c):
         """Pixel (x, y) of the lid: its underside a light line at its height across the box, the box above it
         tinted (the weight that presses on the atoms)."""
-        under = self.offset[1] + self.px_per_unit * ti.cast(self.lid_height[None], ti.f32)
+        under = self.offset[1] + self.px_per_unit * ti.cast(at(self.lid.height, 0), ti.f32)
         py = y + 0.5
         if x + 0.5 >= self.px_lo[0] and x + 0.5 <= self.px_hi[0] and py >= under and py <= self.px_hi[1]:
             c = c * 0.85 + 0.1

@@ -90,7 +90,7 @@ class SphereFrame(FramePacker):
         values = [*eye, *right, *up, *forward, focal, painter.cx, painter.cy, *painter.light_np]
         lid = [0.0] * 9
         if painter.has_lid:
-            lid = [1.0, float(painter.lid_height[None]), *painter.floor_box, *LID_COLOR]
+            lid = [1.0, painter.lid.height_of(self.world or 0), *painter.floor_box, *LID_COLOR]
         return CAMERA.pack(*values, painter.specular, R_MIN, *lid, *self.span_lo, *self.span, self.r_max)
 
     def backdrop(self) -> np.ndarray:

@@ -15,6 +15,7 @@ import taichi as ti
 
 from ..core import transfer
 from ..core.oriented import data_oriented
+from ..core.worlds import at
 from .camera import default_eye, look_at
 from .colormaps import temperature_map
 from .flat import source_table
@@ -59,7 +60,7 @@ class Spheres3D:
         transfer.upload(table)
         # the molecular model's lid (physics/lid.py): its outline drawn at its height, in front of what lies behind it
         lid = state.entry("lid.height")
-        self.lid_height = lid.owner.height if lid is not None else None
+        self.lid = lid.owner if lid is not None else None  # its height: world 0's where there are many
         self.has_lid = lid is not None
         if canvas.has_alpha:
             self.order = ti.field(ti.i32, shape=model.capacity)  # translucent particles, back to front
@@ -170,7 +171,7 @@ class Spheres3D:
             + self.camera[1] * (x + 0.5 - self.cx)
             + self.camera[2] * (y + 0.5 - self.cy)
         ).normalized()
-        height = ti.cast(self.lid_height[None], ti.f32)
+        height = ti.cast(at(self.lid.height, 0), ti.f32)
         if ti.abs(ray[1]) > 1e-6:
             s = (height - self.camera[0][1]) / ray[1]
             if s > 0.0:
