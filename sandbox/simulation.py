@@ -74,8 +74,9 @@ class Simulation:
         full lists instead, which needs no write conflicts). `worlds`: copies of the scene held and stepped together
         (core/worlds.py; each is `world(k)`); `starts`: instead, one scene per world, each the scene but for what a
         world may hold of its own (world_view.WORLD_KEYS: its bodies' temperatures and velocities, its gravity,
-        drag, air and heat sources), so that each world is that scene run alone (on `alone_threads` CPU threads:
-        a run's forces are summed in chunks of its threads; default, this simulation's)."""
+        drag, air, heat sources, thermal walls, heater and lid), so that each world is that scene run alone (on
+        `alone_threads` CPU threads: a run's forces are summed in chunks of its threads; default, this
+        simulation's)."""
         worlds = len(starts) if starts else worlds
         built = assemble(scene, arch, half_lists, worlds, starts, alone_threads)
         self.model, self.state, self.hood = built.model, built.state, built.hood

@@ -84,7 +84,7 @@ def read_world_file(sim, path: str | Path, like: dict, current: dict) -> tuple[d
 
 def _check_world_controls(sim, current: dict, saved: dict, path: Path) -> None:
     """The file's live controls are this scene's, each shaped as world k's, passing their owners' checks; a control
-    that is one for all worlds (the pair force's scale) holds the value it has here."""
+    that is one for all worlds (its owner keeps no `world_controls`) holds the value it has here."""
     check_controls(saved, current, path)
     said = live_controls.problem(sim.model, sim.terms, saved)
     if said:

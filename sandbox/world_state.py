@@ -202,14 +202,19 @@ def world_controls(scene, controls: dict) -> dict:
         if scene.heat.sources:
             out["heat.sources"] = [float(source_value(src, 0.0)) for src in scene.heat.sources]
     molecular = scene.molecular
-    for name, spec, base in (
-        ("heater.power", molecular and molecular.heater, "power"),
-        ("lid.pressure", molecular and molecular.lid, "pressure"),
-    ):
-        if spec:
-            out[name] = scheduled_value(spec, getattr(spec, base), 0.0)
-            out[f"{name.split('.')[0]}.scheduled"] = 1.0 if spec.schedule_times else 0.0
+    for name, spec, base in _scheduled(scene):
+        out[f"{name}.{base}"] = scheduled_value(spec, getattr(spec, base), 0.0)
+        out[f"{name}.scheduled"] = 1.0 if spec.schedule_times else 0.0
+    for wall in molecular.walls if molecular else []:
+        out[f"thermal_walls.{wall.name}"] = float(wall.temperature)
     return {key: value for key, value in out.items() if key in controls}
+
+
+def _scheduled(scene) -> list[tuple]:
+    """(control namespace, scene table, its base key) of `scene`'s molecular heater and lid, where it has them."""
+    molecular = scene.molecular
+    tables = [("heater", molecular and molecular.heater, "power"), ("lid", molecular and molecular.lid, "pressure")]
+    return [(name, spec, base) for name, spec, base in tables if spec]
 
 
 def live_worlds(sim) -> int:

@@ -22,6 +22,9 @@ WORLD_KEYS = (
     r"world\.drag",
     r"heat\.ambient",
     r"heat\.sources\.\d+\.temperature",
+    r"molecular\.walls\.\d+\.temperature",
+    r"molecular\.heater\.power",
+    r"molecular\.lid\.pressure",
 )
 
 

@@ -134,8 +134,9 @@ def test_each_world_of_atoms_on_a_thermal_floor_is_its_lone_run_and_keeps_its_ow
 
 @pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_control_set_in_one_world_is_that_worlds_alone():
-    """World 1's gravity and world 2's hot plate are set halfway: world 0 stays the unchanged lone run, and worlds 1
-    and 2 are the lone runs given the same change at the same step; a control set for all applies to every world."""
+    """World 1's gravity and world 2's hot plate, air and pair law are set halfway: world 0 stays the unchanged lone
+    run, and worlds 1 and 2 are the lone runs given the same change at the same step; a control set for all applies
+    to every world."""
     plain = sandbox.load("melting_block", set=SMALL_BLOCK)
     tilted = sandbox.load("melting_block", set=SMALL_BLOCK)
     cooler = sandbox.load("melting_block", set=SMALL_BLOCK)
@@ -144,8 +145,8 @@ def test_a_control_set_in_one_world_is_that_worlds_alone():
         if frame == 3:
             tilted.controls.set({"world.gravity": [2.0, -5.0]})
             batch.world(1).controls.set({"world.gravity": [2.0, -5.0]})
-            cooler.controls.set({"heat.sources": [60.0], "heat.ambient": 10.0})
-            batch.world(2).controls.set({"heat.sources": [60.0], "heat.ambient": 10.0})
+            cooler.controls.set({"heat.sources": [60.0], "heat.ambient": 10.0, "pair.scale": [1.5, 0.8]})
+            batch.world(2).controls.set({"heat.sources": [60.0], "heat.ambient": 10.0, "pair.scale": [1.5, 0.8]})
         for sim in (plain, tilted, cooler, batch):
             sim.advance_frame()
     for k, lone in enumerate((plain, tilted, cooler)):
@@ -166,8 +167,6 @@ def test_worlds_refuse_what_they_cannot_do_in_one_line():
     batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=2)
     with pytest.raises(SandboxError, match="world 2: expected a whole number from 0 to 1"):
         batch.world(2)
-    with pytest.raises(SandboxError, match="control pair.scale is one for all worlds"):
-        batch.world(0).controls.set({"pair.scale": [2.0, 1.0]})
     with pytest.raises(SandboxError, match="a state file holds one world; this simulation has 2"):
         batch.save("never.npz")
     for draw in (batch.picture, batch.particles, lambda: batch.write_cache("never.vtp", 1)):
@@ -179,6 +178,7 @@ def test_a_sweep_batches_the_runs_that_differ_only_in_a_worlds_keys():
     from sandbox.app.sweep_batch import MAX_BATCH, batches, world_key
 
     assert world_key("heat.sources.2.temperature") and world_key("bodies.0.velocity") and world_key("world.gravity")
+    assert world_key("molecular.lid.pressure") and world_key("molecular.walls.1.temperature")
     assert not world_key("bodies.0.material") and not world_key("world.dt") and not world_key("heat.sources.0.lo")
     jobs = [
         (k, {"bodies.0.material": m, "heat.ambient": a}, f"f{k}", {})
@@ -191,6 +191,32 @@ def test_a_sweep_batches_the_runs_that_differ_only_in_a_worlds_keys():
     many = [(k, {"heat.ambient": float(k)}, f"f{k}", {}) for k in range(MAX_BATCH + 2)]
     groups, alone = batches(many, video=False)
     assert [len(g) for g in groups] == [MAX_BATCH, 2] and alone == []
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_worlds_started_from_other_scenes_take_their_lid_heater_and_wall_settings():
+    """A sweep's worlds start from their runs' scenes: a lid pressure, a heater power and a thermal wall's
+    temperature are a world's own (world 1 is its run alone; the heater's schedule, which starts at 0, is one for
+    all worlds)."""
+    from sandbox.config.resources import shipped_scene
+    from sandbox.config.scene import load_scene
+    from sandbox.simulation import Simulation
+
+    path = shipped_scene("states_of_matter_atoms")
+    weights = ["molecular.lid.pressure=0.1", "molecular.heater.power=1.5"]
+    starts = [load_scene(path), load_scene(path, weights)]
+    batch = Simulation(starts[0], starts=starts)
+    heavy = Simulation(starts[1])
+    for sim in (batch, heavy):
+        sim.advance_frame()
+    assert batch.world(1).controls.values() == heavy.controls.values()
+    assert batch.world(1).controls.values()["lid.pressure"] == 0.1 != batch.world(0).controls.values()["lid.pressure"]
+    _assert_same(heavy, batch.world(1))
+    floor = shipped_scene("atoms")
+    warm = Simulation(
+        load_scene(floor), starts=[load_scene(floor), load_scene(floor, ["molecular.walls.0.temperature=0.6"])]
+    )
+    assert [warm.world(k).controls.values()["thermal_walls.floor"] for k in (0, 1)] == pytest.approx([0.25, 0.6])
 
 
 @pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
@@ -325,31 +351,40 @@ def test_a_stroke_a_slider_undo_and_a_load_in_one_world_change_nothing_in_the_ot
 @pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_worlds_state_file_resumes_alone_and_a_bad_one_is_refused_in_one_line(tmp_path):
     """World 1's file opens as a lone run that steps on as world 1 does; a lone run's file loads into a world; a file
-    of another scene, or one whose shared pair scale differs, is refused before anything changes."""
+    of another scene is refused before anything changes; a file's pair scale is the world's own."""
     batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=2)
     batch.world(1).controls.set({"heat.sources": [300.0]})
+    scaled = sandbox.load("melting_block", set=SMALL_BLOCK)
+    scaled.controls.set({"pair.scale": [2.0, 1.0]})
     for _ in range(4):
         batch.advance_frame()
+        scaled.advance_frame()
     alone = sandbox.resume(batch.world(1).save(tmp_path / "w1.npz"))
     assert alone.time == batch.world(1).time and alone.controls.values()["heat.sources"] == [300.0]
     for _ in range(3):
         alone.advance_frame()
         batch.advance_frame()
+        scaled.advance_frame()
     _assert_same(alone, batch.world(1))
     assert np.array_equal(alone.temperatures(), batch.world(1).temperatures())
     batch.world(0).load(alone.save(tmp_path / "lone.npz"))  # a lone run's whole file: its lists are not taken
     _assert_same(alone, batch.world(0))
-    scaled = sandbox.load("melting_block", set=SMALL_BLOCK)
-    scaled.controls.set({"pair.scale": [2.0, 1.0]})
     other = sandbox.load("lj_box", set=SMALL_LJ)
     before = batch.world(0).positions()
-    for sim, said in (
-        (scaled, r"control pair.scale = \[2.0, 1.0\]; this simulation's worlds share pair.scale"),
-        (other, "saved from the scene 'lj_box' as it was then; expected one saved from this 'melting_block'"),
-    ):
-        with pytest.raises(SandboxError, match=said):
-            batch.world(0).load(sim.save(tmp_path / "bad.npz"))
-        assert np.array_equal(before, batch.world(0).positions())
+    said = "saved from the scene 'lj_box' as it was then; expected one saved from this 'melting_block'"
+    with pytest.raises(SandboxError, match=said):
+        batch.world(0).load(other.save(tmp_path / "bad.npz"))
+    assert np.array_equal(before, batch.world(0).positions())
+    batch.world(0).load(scaled.save(tmp_path / "scaled.npz"))
+    assert [batch.world(k).controls.values()["pair.scale"] for k in (0, 1)] == [[2.0, 1.0], [1.0, 1.0]]
+    _assert_same(scaled, batch.world(0))
+    again = sandbox.resume(batch.world(0).save(tmp_path / "w0.npz"))  # its lists built again, as the world's are
+    assert again.controls.values()["pair.scale"] == [2.0, 1.0]
+    for _ in range(2):
+        for sim in (again, alone, batch):
+            sim.advance_frame()
+    _assert_same(again, batch.world(0))
+    _assert_same(alone, batch.world(1))
 
 
 @pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)

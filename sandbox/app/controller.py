@@ -305,7 +305,7 @@ class Controller:
     def set_pair_scale(self, attraction: float, repulsion: float) -> None:
         """Scale every pair's attraction and repulsion from the materials' values (scenes with a pair force)."""
         if self.sim.terms.pair is not None:
-            self.sim.controls.set({"pair.scale": [float(attraction), float(repulsion)]})
+            self.target.controls.set({"pair.scale": [float(attraction), float(repulsion)]})
 
     # ------------------------------------------------------------------ readouts
     def readouts(self, stats, fps: float | None = None) -> list[panel.Readout]:

@@ -1,7 +1,8 @@
 """A sweep's runs that differ only in what a world may hold of its own, run as the worlds of one simulation.
 
 Runs whose overrides change only world_view.WORLD_KEYS (their bodies' temperatures and velocities, gravity, drag,
-the air's and the heat sources' temperatures) share everything else: `batches` groups them, and `execute_batch`
+the air's and the heat sources' temperatures, the thermal walls' temperatures, the heater's power and the lid's
+pressure) share everything else: `batches` groups them, and `execute_batch`
 steps each group as one simulation of as many worlds (core/worlds.py), world k started from run k's scene, so that
 each world is its run alone, bit for bit. Each run still gets its own folder: stats.csv (its world's readouts,
 written through the same claimed, partial-then-renamed files as a lone run's) and run.json (its record, with the

@@ -29,6 +29,7 @@ from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.particles import fold_bonds
 from ..core.transfer import real_fields
+from ..core.worlds import world_of
 from .pair_laws import NUMPY, TAICHI, PowerLaw, law_for
 from .term import Measure, Slider, Term, register
 
@@ -95,10 +96,14 @@ class PairForce(Term):
         self.base_np = self.pair_law.coefficients(materials, pair)  # the law's three (n, n) coefficient tables
         self.visc_np = 0.5 * (visc[:, None] + visc[None, :])
         (self.visc,) = real_fields(self.visc_np)  # the law's coefficients and what follows from them: set_scale
-        self.alpha, self.beta, self.eps = (ti.field(float, shape=(n, n)) for _ in range(3))  # coefficients 0, 1, 2
-        self.r_core, self.shift, self.f_core = (ti.field(float, shape=(n, n)) for _ in range(3))
-        self.f_cut = ti.field(float, shape=(n, n))  # g(cutoff) cutoff: the force shift (zero without it)
-        self.shift_att = ti.field(float, shape=(n, n))  # the attraction's part of the shift (vapour scales it)
+        # The scaled tables: materials p, q of world w at row w n + p (core/worlds.py: each world its own scales)
+        self.worlds = model.worlds
+        rows = (self.worlds * n, n)
+        self.alpha, self.beta, self.eps = (ti.field(float, shape=rows) for _ in range(3))  # coefficients 0, 1, 2
+        self.r_core, self.shift, self.f_core = (ti.field(float, shape=rows) for _ in range(3))
+        self.f_cut = ti.field(float, shape=rows)  # g(cutoff) cutoff: the force shift (zero without it)
+        self.shift_att = ti.field(float, shape=rows)  # the attraction's part of the shift (vapour scales it)
+        self.scales = [(1.0, 1.0)] * self.worlds
         self.set_scale(1.0, 1.0)
         self.single_material = n == 1
         self.has_viscosity = bool(np.any(self.visc_np > 0))
@@ -110,8 +115,12 @@ class PairForce(Term):
     def words(self, where: str) -> list[str]:
         return [f"pair force ({self.pair_law.words()}, cutoff {self.cutoff:g})"] if where == "rates" else []
 
-    def controls(self) -> dict:
-        return {"scale": list(self.scale)}
+    world_controls = True  # each world's pairs have their own scales (core/worlds.py)
+
+    scale = property(lambda self: self.scales[0], doc="(attraction, repulsion) scales of a lone run (world 0's)")
+
+    def controls(self, world: int = 0) -> dict:
+        return {"scale": list(self.scales[world])}
 
     def sliders(self) -> list[Slider]:
         """Every pair's attraction and repulsion as multiples of the materials' (the pair-force panel's law)."""
@@ -124,48 +133,64 @@ class PairForce(Term):
         """The potential sliders' scales: numbers of the scene's range, not negative."""
         return {"scale": lambda v: out_of_range(v) or next((non_negative(x) for x in v if non_negative(x)), None)}
 
-    def apply_controls(self, values: dict) -> None:
+    def apply_controls(self, values: dict, world: int | None = None) -> None:
         if "scale" in values:
-            self.set_scale(*values["scale"])
+            self.set_scale(*values["scale"], world=world)
 
-    def set_scale(self, attraction: float, repulsion: float) -> None:
+    def set_scale(self, attraction: float, repulsion: float, world: int | None = None) -> None:
         """Scale every pair's attraction and repulsion (the law's `scaled` coefficients: the power law's alpha and
-        beta) from the materials' values, live (the window's potential sliders): the equilibrium distance, core cap and
-        energy shift follow; no kernel recompiles."""
-        self.scale = (float(attraction), float(repulsion))
+        beta) from the materials' values, live (the window's potential sliders), in world `world` (None: in every
+        world): the equilibrium distance, core cap and energy shift follow; no kernel recompiles. The host tables
+        (coef_np, r_eq_np ...: the window's panel) are world 0's."""
+        worlds = range(self.worlds) if world is None else (world,)
+        for w in worlds:
+            self.scales[w] = (float(attraction), float(repulsion))
+        host = self._scaled_tables(attraction, repulsion)
+        if 0 in worlds:
+            for name, table in host.items():
+                setattr(self, name, table)
+        fields = (self.alpha, self.beta, self.eps, self.r_core, self.shift, self.shift_att, self.f_core, self.f_cut)
+        c = host["coef_np"]
+        values = [c[0], c[1], c[2], host["r_core_np"], host["shift_np"], host["shift_att_np"], host["f_core_np"]]
+        values.append(host["f_cut_np"])
+        if self.worlds == 1:
+            transfer.upload(list(zip(fields, values)))
+            return
+        n = self.n_materials
+        tables = transfer.download_all(list(fields))
+        for table, mine in zip(tables, values):
+            for w in worlds:
+                table[w * n : (w + 1) * n] = mine
+        transfer.upload_all(list(zip(fields, tables)))
+
+    def _scaled_tables(self, attraction: float, repulsion: float) -> dict:
+        """The (n, n) tables of the law scaled so, by the name the host keeps them under (coef_np: its three
+        coefficient tables; r_eq_np, r_core_np, shift_np, shift_att_np, f_core_np, f_cut_np)."""
         law, n = self.pair_law, self.n_materials
         factors = {"attraction": attraction, "repulsion": repulsion}
-        self.coef_np = [base * next((factors[k] for k, i in law.scaled.items() if i == j), 1.0) for j, base in
-                        enumerate(self.base_np)]  # fmt: skip
-        c = self.coef_np
-        self.r_eq_np = np.array([[law.equilibrium([t[p, q] for t in c]) for q in range(n)] for p in range(n)])
-        finite_req = np.where(np.isfinite(self.r_eq_np), self.r_eq_np, 1.0)
-        self.r_core_np = np.maximum(self.core * finite_req, 1e-6)
+        c = [base * next((factors[k] for k, i in law.scaled.items() if i == j), 1.0) for j, base in
+             enumerate(self.base_np)]  # fmt: skip
+        r_eq = np.array([[law.equilibrium([t[p, q] for t in c]) for q in range(n)] for p in range(n)])
+        r_core = np.maximum(self.core * np.where(np.isfinite(r_eq), r_eq, 1.0), 1e-6)
         # Energy shift so that U(cutoff) = 0 (zero with pair.shift = false), and its attraction's part (what a vapour
         # share does not feel, for a law that boils); the force at the core radius (held below it) and at the cutoff.
-        cut, rc = self.cutoff, self.r_core_np
-        self.shift_np = law.u(np.full((n, n), cut), c, NUMPY)
-        self.shift_att_np = np.zeros((n, n))
+        cut = self.cutoff
+        shift = law.u(np.full((n, n), cut), c, NUMPY)
+        shift_att = np.zeros((n, n))
         if law.attraction is not None:
-            self.shift_att_np = law.u(np.full((n, n), cut), law.attracting(c), NUMPY)
+            shift_att = law.u(np.full((n, n), cut), law.attracting(c), NUMPY)
         if not self.shifted:
-            self.shift_np = np.zeros_like(self.shift_np)
-            self.shift_att_np = np.zeros_like(self.shift_att_np)
-        g_core = law.g(rc * rc, c, NUMPY)
+            shift, shift_att = np.zeros_like(shift), np.zeros_like(shift_att)
         g_cut = law.g(np.full((n, n), cut * cut), c, NUMPY)
-        self.f_cut_np = g_cut * cut if self.force_shifted else np.zeros_like(g_cut)
-        transfer.upload(
-            [
-                (self.alpha, c[0]),
-                (self.beta, c[1]),
-                (self.eps, c[2]),
-                (self.r_core, self.r_core_np),
-                (self.shift, self.shift_np),
-                (self.shift_att, self.shift_att_np),
-                (self.f_core, g_core * rc),
-                (self.f_cut, self.f_cut_np),
-            ]
-        )
+        return {
+            "coef_np": c,
+            "r_eq_np": r_eq,
+            "r_core_np": r_core,
+            "shift_np": shift,
+            "shift_att_np": shift_att,
+            "f_core_np": law.g(r_core * r_core, c, NUMPY) * r_core,
+            "f_cut_np": g_cut * cut if self.force_shifted else np.zeros_like(g_cut),
+        }
 
     @property
     def alpha_np(self) -> np.ndarray:
@@ -200,29 +225,35 @@ class PairForce(Term):
         return p, q
 
     @ti.func
+    def row_base(self, i):
+        """Where particle i's world's rows of the scaled tables start (material p's row: base + p); 0 in a lone run
+        (a constant: its tables are read as they always were). Loaded once per particle by the callers."""
+        base = 0
+        if ti.static(self.worlds > 1):
+            base = world_of(self.parts.state.particles, i) * self.n_materials
+        return base
+
+    @ti.func
     def coefficients(self, p, q):
-        """The pair law of materials p and q as one vector: (alpha, beta, eps, r_core, f_core)."""
+        """The pair law of table row p (material p, in its world: _row) and material q as one vector: (alpha, beta,
+        eps, r_core, f_core)."""
         return ti.Vector([self.alpha[p, q], self.beta[p, q], self.eps[p, q], self.r_core[p, q], self.f_core[p, q]])
 
     @ti.func
-    def shared_coefficients(self):
-        """The coefficients when every pair has the same law (one material), else unused: a loop over many pairs
-        loads them once instead of once per pair (the compiler cannot keep them in registers across field stores)."""
-        return self.coefficients(0, 0)
-
-    @ti.func
-    def pair_coefficients(self, shared, i, j):
-        """Coefficients of the pair (i, j): `shared` (from shared_coefficients) with one material."""
+    def pair_coefficients(self, shared, base, i, j):
+        """Coefficients of the pair (i, j): `shared` (row()'s) with one material; `base`: i's
+        row_base."""
         c = shared
         if ti.static(not self.single_material):
-            c = self.coefficients(self.material[i], self.material[j])
+            c = self.coefficients(base + self.material[i], self.material[j])
         return c
 
     @ti.func
-    def scaled_force(self, i, j, d, r2):
-        """Pair-law force on i from j divided by m_i (i.e. m_j g(r) d), with the core cap; r2 < cutoff^2."""
+    def scaled_force(self, i, j, d, r2, base):
+        """Pair-law force on i from j divided by m_i (i.e. m_j g(r) d), with the core cap; r2 < cutoff^2; `base`:
+        i's row_base."""
         p, q = self._pair_ids(i, j)
-        return self.mass[j] * self.law(self.coefficients(p, q), i, j, d, r2)
+        return self.mass[j] * self.law(self.coefficients(base + p, q), i, j, d, r2, base)
 
     @ti.func
     def liquid_share(self, i, j):
@@ -231,7 +262,7 @@ class PairForce(Term):
         return (1.0 - self.phase.gas(self.h[i], self.material[i])) * (1.0 - self.phase.gas(self.h[j], self.material[j]))
 
     @ti.func
-    def law(self, c, i, j, d, r2):
+    def law(self, c, i, j, d, r2, base):
         """g(r) d per unit mass product for coefficients c (see coefficients), with the core cap: finite at any r."""
         k0, k1, k2, rc, f_core = c[0], c[1], c[2], c[3], c[4]
         if ti.static(self.boils):  # vapour does not stick: attraction (the power law's alpha) only between liquid
@@ -248,7 +279,7 @@ class PairForce(Term):
             f = f_core * n
         if ti.static(self.force_shifted):  # the force at the cutoff subtracted: continuous to zero there
             p, q = self._pair_ids(i, j)
-            f -= self.f_cut[p, q] / ti.max(ti.sqrt(r2), 1e-12) * d
+            f -= self.f_cut[base + p, q] / ti.max(ti.sqrt(r2), 1e-12) * d
         return f
 
     @ti.func
@@ -263,21 +294,23 @@ class PairForce(Term):
         return f
 
     @ti.func
-    def force(self, i, j, d, r2):
-        """Total pair force on particle i from particle j, d = x_j - x_i, r2 = |d|^2 < cutoff^2."""
-        return self.mass[i] * self.scaled_force(i, j, d, r2) + self.viscous_force(i, j, d, r2)
+    def force(self, i, j, d, r2, base):
+        """Total pair force on particle i from particle j, d = x_j - x_i, r2 = |d|^2 < cutoff^2; `base`: i's
+        row_base."""
+        return self.mass[i] * self.scaled_force(i, j, d, r2, base) + self.viscous_force(i, j, d, r2)
 
     @ti.func
-    def force_with(self, c, m_i, i, j, d, r2):
-        """force(i, j, d, r2) given the pair's coefficients c and m_i (both loaded by the caller); finite at any r,
-        so a caller may evaluate it beyond the cutoff and discard the result (no branch)."""
-        return (m_i * self.mass[j]) * self.law(c, i, j, d, r2) + self.viscous_force(i, j, d, r2)
+    def force_with(self, c, m_i, base, i, j, d, r2):
+        """force(i, j, d, r2, base) given the pair's coefficients c, m_i and i's row_base (loaded by the caller);
+        finite at any r, so a caller may evaluate it beyond the cutoff and discard the result (no branch)."""
+        return (m_i * self.mass[j]) * self.law(c, i, j, d, r2, base) + self.viscous_force(i, j, d, r2)
 
     @ti.func
-    def energy(self, i, j, r2):
+    def energy(self, i, j, r2, base):
         """Potential energy of the pair (i, j) at squared distance r2 (< cutoff^2), shifted to zero at the cutoff
-        unless pair.shift is false, continued linearly inside the core (dU/dr stays the capped force)."""
-        p, q = self.material[i], self.material[j]
+        unless pair.shift is false, continued linearly inside the core (dU/dr stays the capped force); `base`: i's
+        row_base."""
+        p, q = base + self.material[i], self.material[j]
         r = ti.sqrt(r2)
         rc = self.r_core[p, q]
         re = ti.max(r, rc)
@@ -299,16 +332,17 @@ class PairForce(Term):
     @ti.func
     def row(self, i):
         """What the pairs of particle i read of i, loaded once per row: the coefficients when every pair has the same
-        law (the compiler cannot keep them in registers across the row's field stores), and m_i."""
-        return self.shared_coefficients(), self.mass[i]
+        law (the compiler cannot keep them in registers across the row's field stores), m_i and its row_base."""
+        base = self.row_base(i)
+        return self.coefficients(base, 0), self.mass[i], base
 
     @ti.func
     def pair(self, ctx, i, j, d, r2, bonded):
         """Force on i from j (d = x_j - x_i, r2 = |d|^2): evaluated for any listed pair and masked beyond the cutoff
         and for bonded pairs rather than branched around (a listed pair lies within reach + skin, where the law is
         finite, and a branch taken for 80% of pairs mispredicts often)."""
-        shared, m_i = ctx
-        fij = self.force_with(self.pair_coefficients(shared, i, j), m_i, i, j, d, r2)
+        shared, m_i, base = ctx
+        fij = self.force_with(self.pair_coefficients(shared, base, i, j), m_i, base, i, j, d, r2)
         fij *= ti.select((r2 < self.cutoff**2) and not bonded, 1.0, 0.0)
         return fij
 
@@ -319,17 +353,18 @@ class PairForce(Term):
         joined by a live spring (they feel the spring instead)."""
         xi = self.x[i]
         grid = self.parts.neighbours.grid
-        acc = grid.fold(i, xi, ti.Vector([0.0, 0.0]), self._measure_one, (i,))
+        base = self.row_base(i)
+        acc = grid.fold(i, xi, ti.Vector([0.0, 0.0]), self._measure_one, (i, base))
         if ti.static(self.has_springs):
-            acc = fold_bonds(self.springs, i, acc, self._unmeasure_bond, (xi,))
+            acc = fold_bonds(self.springs, i, acc, self._unmeasure_bond, (xi, base))
         return acc[0], acc[1]
 
     @ti.func
     def _measure_one(self, acc, j, d, k, extra: ti.template()):
-        i = extra[0]
+        i, base = extra[0], extra[1]
         r2 = d.dot(d)
         if j > i and r2 < self.cutoff**2:
-            acc += ti.Vector([self.energy(i, j, r2), -d.dot(self.force(i, j, d, r2))])
+            acc += ti.Vector([self.energy(i, j, r2, base), -d.dot(self.force(i, j, d, r2, base))])
         return acc
 
     @ti.func
@@ -338,5 +373,5 @@ class PairForce(Term):
             d = self.domain.separation(extra[0], self.x[j])
             r2 = d.dot(d)
             if r2 < self.cutoff**2:
-                acc -= ti.Vector([self.energy(i, j, r2), -d.dot(self.force(i, j, d, r2))])
+                acc -= ti.Vector([self.energy(i, j, r2, extra[1]), -d.dot(self.force(i, j, d, r2, extra[1]))])
         return acc
