@@ -69,8 +69,9 @@ class State:
         self.declare("clock", self, ("time", "step", "frames"), kind=VALUE, valid=COUNT)
         self.declare("clock", self, ("dt",), kind=VALUE, valid=STEP)
         self.declare("state", self, ("layout",), kind=VALUE, physical=False)  # the lists compare theirs with it
-        if particles.worlds:  # each world's clock starts at the simulated time it started at (world_state.py)
-            self.world_started = [0.0] * particles.world_count
+        # each world's clock starts at the simulated time it started at (world_state.py); a lone run's at 0
+        self.world_started = [0.0] * (particles.world_count if particles.worlds else 1)
+        if particles.worlds:
             self.declare("clock", self, ("world_started",), kind=VALUE, valid=COUNT)
         self.declare("particles", particles, ("n",), valid=Range(lo=0, atmost="capacity"))
         self._declare_particles(particles)
@@ -185,7 +186,7 @@ class State:
 
     def world_times(self) -> list[float]:
         """Each world's own clock (simulated time since it started); the one clock of a lone run."""
-        return [self.time - start for start in getattr(self, "world_started", [0.0])]
+        return [self.time - start for start in self.world_started]
 
     def live_count(self) -> int:
         """The number of live particles (a host read)."""

@@ -52,7 +52,7 @@ class Heater(Term):
         return None
 
     def __init__(self, parts):
-        self.p = parts.state.particles
+        self.p, self.loops = parts.state.particles, parts.model.loops
         self.dim = parts.model.dim
         self.spec = parts.scene.molecular.heater
         self.worlds = worlds = parts.model.worlds
@@ -120,8 +120,10 @@ class Heater(Term):
     @ti.kernel
     def _heat(self, energy: ti.f64):
         n = self.p.n[None]
+        ti.loop_config(serialize=True)  # one item: waking the thread pool would cost more than the sums
         for _ in range(1):  # the sums in one fixed order (double precision): repeatable in any thread order
             self._share(0, 0, n, energy)
+        self.loops.light()
         for i in range(n):
             self._scale(i, 0)
 
@@ -130,9 +132,11 @@ class Heater(Term):
         """Each world's P dt (`energy`) shared among its own atoms (slots w each .. (w + 1) each - 1); a world
         given none is left untouched."""
         worlds = self.p.n[None] // each
+        self.loops.light()
         for w in range(worlds):  # a world to a thread; its sums in its lone run's order
             if self.energy[w] != 0.0:
                 self._share(w, w * each, (w + 1) * each, self.energy[w])
+        self.loops.light()
         for i in range(worlds * each):
             w = world_of(self.p, i)
             if self.energy[w] != 0.0:

@@ -66,7 +66,7 @@ class Lid(Term):
         self.gravity = float(world.gravity[1]) if world.gravity else 0.0
         self.lowest = world.lo[1] + 0.1 * box[1]
         self.highest = float(world.hi[1])
-        self.state = parts.state
+        self.state, self.loops = parts.state, parts.model.loops
         self.worlds = worlds = parts.model.worlds
         self.height = per_world(worlds, float)  # h (length), per world
         self.speed = per_world(worlds, float)  # u (length / time)
@@ -156,11 +156,13 @@ class Lid(Term):
 
     @ti.kernel
     def _move(self, dt: float, load: float):
+        ti.loop_config(serialize=True)  # one item: waking the thread pool would cost more than the step itself
         for _ in range(1):
             self._move_one(0, 0, self.p.n[None], dt, load)
 
     @ti.kernel
     def _move_worlds(self, dt: float, each: ti.i32):
+        self.loops.light()
         for w in range(self.p.n[None] // each):  # the worlds in use, a world to a thread
             self._move_one(w, w * each, (w + 1) * each, dt, self.load[w])
 
