@@ -97,6 +97,10 @@ class FramePacer:
 
 TURN_SMOOTHING = 0.25  # weight of the newest time between frames, and of a step's newest cost, in Turns' averages
 TURN_GAIN = 0.5  # the part of what the last turn was short of or over that Turns' allowed steps take up
+# at most this many 1 / fps of stepping a frame (shared among the views): where a scene's steps cost more than the
+# core has, the allowance starts there, not at CATCH_UP frames' worth creeping down a few steps a turn (a 3D lid
+# scene's class took minutes to come down from 1,600 steps a frame, at 1.5 s a picture)
+STEP_BUDGET = 4.0
 CATCH_UP = 4.0  # frames of the scene's steps a late frame may take at most (the rest is slow motion, no backlog)
 STALL = 2.0  # turns longer than this many 1 / fps count as this long in Turns' average (one stall cuts no steps)
 FEWEST = 0.5  # frames of the scene's steps a frame takes at least, where it is owed them (a core too short for fps
@@ -169,4 +173,5 @@ class Turns:
         # views reports once a turn, so each report moves the allowance by a share of that
         share = max(self.share, 1)
         spare = (self.aim - self.turn) / share
-        self.allowed = min(max(self.allowed + TURN_GAIN * spare / share / self.per_step, FEWEST), self.most)
+        budget = STEP_BUDGET * self.aim / share / self.per_step
+        self.allowed = min(max(self.allowed + TURN_GAIN * spare / share / self.per_step, FEWEST), self.most, budget)
