@@ -380,6 +380,7 @@ def test_a_still_opaque_sphere_is_identical_with_and_without_motion_blur_3d():
     assert np.array_equal(moved_sphere_3d(True, 0.0)[1], moved_sphere_3d(False, 0.0)[1])
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_chart_or_colour_bar_too_big_for_the_picture_is_left_out(tmp_path):
     """A 48 x 48 picture cannot hold the chart box (64 x 40 and its margins) or the colour bar: they are not drawn
     (drawing them wrote out of bounds and crashed the process), and the picture is the one without them."""

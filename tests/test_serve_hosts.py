@@ -391,7 +391,8 @@ def test_what_one_tab_does_changes_nothing_in_another_session_of_its_host(tmp_pa
         assert np.array_equal(other[key], alone[key]), key
 
 
-@pytest.mark.parametrize("scene", ["melting_block", pytest.param("melting_block_3d", marks=pytest.mark.long)])
+@pytest.mark.long  # a host of sessions (melting_block's class runs as worlds now): `python3 -m pytest -m long`
+@pytest.mark.parametrize("scene", ["melting_block", "melting_block_3d"])
 def test_a_hosts_sessions_share_one_canvas_and_each_picture_is_its_own(scene):
     """A host's sessions draw in one canvas (17 MB each at 960 x 540 saved): a session's picture drawn after
     another session drew a different state (its heat source hotter, wax spawned where the first has nothing), and

@@ -25,7 +25,7 @@ from ..config.schema import key_check
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.state import WORLDS
-from ..core.worlds import add_at, at, per_world, put_at, set_world_entry, world_entry, world_of
+from ..core.worlds import add_at, at, per_world, put_at, world_entry, world_of
 from .heat_sources import schedule_flag, scheduled_value, set_by_hand
 from .term import Measure, Slider, Term, register
 
@@ -82,7 +82,8 @@ class Lid(Term):
         self.by_hands = [not spec.schedule_times] * worlds
         # the scene's: the slider's range follows it, not the value it sets
         self.scene_pressure = max([float(spec.pressure), *map(float, spec.schedule_values)])
-        set_world_entry(self.height, worlds, None, float(spec.height))
+        height = float(spec.height)
+        transfer.upload([(self.height, height if worlds == 1 else np.full(worlds, height))])  # a copy, not a kernel
 
     pressure = property(lambda self: self.pressures[0], doc="the outside pressure of a lone run (world 0's)")
 
