@@ -16,13 +16,15 @@ from sandbox.simulation import STAT_COLUMNS, Simulation
 from .conftest import SCENES
 
 SHIPPED = sorted(p.stem for p in SCENES.glob("*.toml"))
+# the six slowest scenes' ten frames in the long tier (`python3 -m pytest -m long`), every other scene's here
+HEAVY = {"candle", "boiling_pot", "states_of_matter", "crystal_3d", "smoke_vortex", "evaporation"}
 
 
 def test_the_four_core_scenes_ship():
     assert {"melting_block", "melting_block_3d", "lj_box", "spring_lattice"} <= set(SHIPPED)
 
 
-@pytest.mark.parametrize("name", SHIPPED)
+@pytest.mark.parametrize("name", [pytest.param(s, marks=pytest.mark.long) if s in HEAVY else s for s in SHIPPED])
 def test_every_shipped_scene_runs_ten_frames_headless(name, tmp_path, monkeypatch):
     # field[i] from Python compiles a reader or writer kernel for that field (about 20 ms each, at every start):
     # building a scene copies its tables in batches instead

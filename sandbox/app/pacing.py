@@ -101,6 +101,8 @@ TURN_GAIN = 0.5  # the part of what the last turn was short of or over that Turn
 # core has, the allowance starts there, not at CATCH_UP frames' worth creeping down a few steps a turn (a 3D lid
 # scene's class took minutes to come down from 1,600 steps a frame, at 1.5 s a picture)
 STEP_BUDGET = 4.0
+CHEAPEST_RISE = 1.02  # the cheapest step seen (what STEP_BUDGET reads) may rise by this much a frame: a stall is one
+# dear frame and moves it not at all, steps that grow dearer for good move it within a few dozen frames
 CATCH_UP = 4.0  # frames of the scene's steps a late frame may take at most (the rest is slow motion, no backlog)
 STALL = 2.0  # turns longer than this many 1 / fps count as this long in Turns' average (one stall cuts no steps)
 FEWEST = 0.5  # frames of the scene's steps a frame takes at least, where it is owed them (a core too short for fps
@@ -150,16 +152,19 @@ class Turns:
         self.aim = 1.0 / fps  # seconds a turn may take
         self.allowed = math.inf  # steps a frame may take (nothing measured yet: all that are owed)
         self.per_step = 0.0  # seconds a step costs, smoothed
+        self.cheapest = math.inf  # seconds the cheapest recent step cost (the first frame's, compiling, not counted)
+        self.frames = 0  # frames recorded with steps
+        self.budget = math.inf  # the most steps a frame may take by STEP_BUDGET
         self.turn = 0.0  # seconds between a view's frames, smoothed over every view's
         self.share = 1  # views taking turns on the core (the host says)
         self.most = math.inf  # the most a frame is ever owed (CATCH_UP frames' worth)
 
     def limit(self, owed: int, substeps: int) -> int:
-        """The steps a frame owed `owed` (of a scene of `substeps` a frame interval) takes now: as many as allowed,
-        but at least FEWEST frames' worth (and 1) where owed."""
+        """The steps a frame owed `owed` (of a scene of `substeps` a frame interval) takes now: as many as allowed
+        (and as STEP_BUDGET allows), but at least FEWEST frames' worth (and 1) where owed."""
         self.most = CATCH_UP * substeps
         fewest = max(1, math.ceil(FEWEST * substeps))
-        return max(min(owed, fewest), min(owed, int(min(self.allowed, self.most))), 1)
+        return max(min(owed, fewest), min(owed, int(min(self.allowed, self.most, self.budget))), 1)
 
     def record(self, elapsed: float, steps: int, seconds: float) -> None:
         """A view's frame came `elapsed` (s) after its last and took `steps` in `seconds` (s; none where paused)."""
@@ -173,5 +178,8 @@ class Turns:
         # views reports once a turn, so each report moves the allowance by a share of that
         share = max(self.share, 1)
         spare = (self.aim - self.turn) / share
-        budget = STEP_BUDGET * self.aim / share / self.per_step
-        self.allowed = min(max(self.allowed + TURN_GAIN * spare / share / self.per_step, FEWEST), self.most, budget)
+        self.allowed = min(max(self.allowed + TURN_GAIN * spare / share / self.per_step, FEWEST), self.most)
+        if self.frames:
+            self.cheapest = min(per_step, self.cheapest * CHEAPEST_RISE)
+            self.budget = STEP_BUDGET * self.aim / share / self.cheapest
+        self.frames += 1
