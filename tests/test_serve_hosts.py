@@ -506,3 +506,27 @@ def test_a_glowing_emitter_scenes_session_compiles_in_its_warm_up_not_in_the_cla
         counts.add(session.sim.state.live_count())
         now += session.interval
     assert len(counts) > 10 and compiled_kernels[before:] == []
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="reads a process's signal mask from /proc")
+def test_a_host_process_starts_with_ctrl_c_ignored_and_the_server_keeps_its_own():
+    """Ctrl-C reaches the server's whole process group; a host still importing took it as a KeyboardInterrupt and
+    printed a traceback (the clean-clone run's flood test). A host now starts with SIGINT ignored, and the server's
+    own handler is as it was."""
+    import multiprocessing
+    import signal
+
+    from sandbox.app.serve_slots import _keyboard_interrupt_ignored
+
+    before = signal.getsignal(signal.SIGINT)
+    with _keyboard_interrupt_ignored():
+        process = multiprocessing.get_context("spawn").Process(target=time.sleep, args=(30,), daemon=True)
+        process.start()
+    try:
+        with open(f"/proc/{process.pid}/status") as status:
+            ignored = int(next(line for line in status if line.startswith("SigIgn:")).split()[1], 16)
+        assert ignored & (1 << (signal.SIGINT - 1))
+        assert signal.getsignal(signal.SIGINT) is before
+    finally:
+        process.kill()
+        process.join()

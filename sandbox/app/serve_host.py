@@ -68,6 +68,8 @@ def host_main(
     os.environ.setdefault("TI_OFFLINE_CACHE_FILE_PATH", str(CLASSROOM_CACHE))
     os.environ.setdefault("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES", str(CLASSROOM_CACHE_BYTES))
     signal.signal(signal.SIGTERM, _leave)  # ended by the server: leave the normal way (module docstring)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the server's whole process group: the server ends
+    # its hosts itself (a host that took it while importing printed a traceback)
     from ..core import runtime
 
     runtime.own_process()  # the sandbox's own process: kernels compile the lighter way (a host compiles many)

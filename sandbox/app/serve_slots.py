@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import signal
 import threading
 from dataclasses import dataclass, field
 
@@ -158,7 +159,8 @@ class Hosts:
         core = next_core(self.cores, [h.core for h in self.hosts])
         args = (child, scene, *self.picture, self.max_fps, self.draw, core, tuple(self.cores), worlds)
         process = self.context.Process(target=host_main, args=args, daemon=True)
-        process.start()
+        with _keyboard_interrupt_ignored():  # the host starts with Ctrl-C ignored (host_main says so too, later)
+            process.start()
         child.close()
         host = HostProcess(scene, process, parent, self.per_host, core=core, worlds=bool(worlds))
         self.hosts.append(host)
@@ -206,3 +208,19 @@ class Hosts:
                 spare -= len(host.live())
             out.append(host)
         return out
+
+
+@contextlib.contextmanager
+def _keyboard_interrupt_ignored():
+    """SIGINT ignored while a host process starts, so that it starts ignoring it (an ignored signal stays ignored in
+    the process spawned, and Python installs no KeyboardInterrupt where it starts ignored): a Ctrl-C, which reaches
+    the whole process group, is the server's to handle, not a half-started host's. Only the main thread sets
+    signal handlers; elsewhere (a test's server in a thread) nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
