@@ -22,7 +22,14 @@ def frames_of(folder: Path, prefix: str) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(folder.glob(f"{prefix}.*")) if p.name != prefix}
 
 
-@pytest.mark.parametrize("first, second", [("a.usd", "a.usda"), ("a.usd", "a.usdc"), ("a.usda", "a.usdc")])
+@pytest.mark.parametrize(
+    "first, second",  # two of the three pairs in the long tier (`python3 -m pytest -m long`)
+    [
+        ("a.usd", "a.usda"),
+        pytest.param("a.usd", "a.usdc", marks=pytest.mark.long),
+        pytest.param("a.usda", "a.usdc", marks=pytest.mark.long),
+    ],
+)
 def test_caches_of_different_names_never_share_a_frame_file(tmp_path, capsys, first, second):
     """`--cache a.usd` then `--cache a.usda` wrote the same a.NNNNN.usdc frames: the second run replaced the
     first's (a.usd's frames then showed the other run's particles, or nothing)."""

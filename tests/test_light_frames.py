@@ -53,10 +53,8 @@ def page_picture(chromium: str, backdrop: np.ndarray, light: bytes, frame: bytes
     return np.array(Image.open(io.BytesIO(base64.b64decode(data.split(",", 1)[1]))).convert("RGB"))
 
 
-@pytest.mark.parametrize(
-    "scene, frames",
-    [pytest.param("candle", 30, marks=pytest.mark.long), ("fireworks", 45)],  # candle: `-m long`
-)
+@pytest.mark.long  # a browser's picture of each glowing scene: `python3 -m pytest -m long` (README)
+@pytest.mark.parametrize("scene, frames", [("candle", 30), ("fireworks", 45)])
 def test_the_page_adds_the_glowing_particles_light_as_the_renderer_does(scene, frames):
     """A glowing scene's session sends a light frame, then a particle frame whose glowing particles the page does
     not draw as discs; the page's picture is the renderer's: on average within a level, 99% of pixels within a few,
