@@ -39,8 +39,11 @@ def _everything(sim) -> dict:
     return out
 
 
-# freeze_thaw (refrozen springs across the save) in the long tier, `python3 -m pytest -m long` (README)
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.long) if n == "freeze_thaw" else n for n in CASES])
+# freeze_thaw (refrozen springs across the save) and candle (emitted and retired particles) in the long tier,
+# `python3 -m pytest -m long` (README)
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=pytest.mark.long) if n in ("freeze_thaw", "candle") else n for n in CASES]
+)
 def test_a_resumed_run_continues_bit_for_bit(name, tmp_path):
     overrides, before, after = CASES[name]
     sim = sandbox.load(name, set=overrides, arch="cpu")

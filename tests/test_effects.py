@@ -247,7 +247,7 @@ def smoke_scene(dim: int) -> dict:
 
 
 @pytest.mark.parametrize("one_launch", [True, False], ids=["one_launch", "host_driven_cg"])
-@pytest.mark.parametrize("dim", [2, pytest.param(3, marks=pytest.mark.slow)])  # 3D: the grid kernels of 3D
+@pytest.mark.parametrize("dim", [2, pytest.param(3, marks=[pytest.mark.slow, pytest.mark.long])])  # 3D: `-m long`
 def test_smoke_grid_projects_to_divergence_free_and_hot_air_rises(dim, one_launch, monkeypatch):
     """Both ways of projecting: the whole solve in one launch on one thread (small grids on the CPU) and CG driven
     from the host, a launch per stage (large grids, GPUs)."""

@@ -315,7 +315,9 @@ def test_a_png_folder_holds_only_this_runs_frames(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    "name", ["-it's a:b.mp4", "concat:" + "x" * 243 + ".mp4"], ids=["quote-colon-dash", "concat-long"]
+    "name",  # the long name in the long tier (`python3 -m pytest -m long`)
+    ["-it's a:b.mp4", pytest.param("concat:" + "x" * 243 + ".mp4", marks=pytest.mark.long)],
+    ids=["quote-colon-dash", "concat-long"],
 )
 def test_output_names_that_ffmpeg_could_misread_are_written_and_resumed(tmp_path, capsys, name):
     """Quotes, a leading dash, colons and the longest name the file system takes: written in pieces and joined."""

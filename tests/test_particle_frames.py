@@ -90,7 +90,8 @@ def test_a_2d_session_sends_particle_frames_that_make_the_renderers_picture(sess
     assert np.allclose(frame["r"], frame["r"][0]) and 4.0 < frame["r"][0] < 6.0  # half a spacing, in pixels
 
 
-@pytest.mark.parametrize("scene", ["melting_block", pytest.param("freeze_thaw", marks=pytest.mark.long)])
+@pytest.mark.long  # a picture of each compared pixel by pixel: `python3 -m pytest -m long` (README)
+@pytest.mark.parametrize("scene", ["melting_block", "freeze_thaw"])
 def test_the_page_draws_a_particle_frame_as_the_renderer_draws_the_picture(scene):
     """The page's own drawing code (discs.js, in Chromium) turns the session's backdrop, band and particle frame into
     the renderer's picture: the same colours at every particle's centre, and on average within a level where the
