@@ -26,7 +26,7 @@ from .core import transfer
 from .core.state import FIELD, NDARRAY, VALUE, WORLDS
 from .core.worlds import set_world_entry, world_entry
 from .errors import SandboxError
-from .physics.heat_sources import scheduled_value, source_value
+from .physics.heat_sources import scheduled_start, source_value
 
 FAR = 1e30  # a reference position no particle is within half a skin of
 SPRING_ROWS = ("i", "j", "rest", "ks", "kd", "factor", "alive")  # the springs' per-slot fields
@@ -194,17 +194,21 @@ def reset_world(sim, k: int) -> None:
 
 def world_controls(scene, controls: dict) -> dict:
     """The live controls (by namespaced name, those among `controls`) that a world started from `scene` takes: its
-    gravity, drag, air temperature and heat sources' temperatures (a power source's power), the molecular heater's
-    power and lid's pressure (following their schedules where the scene gives them one)."""
-    out = {"world.gravity": [float(g) for g in scene.world.gravity], "world.drag": float(scene.world.drag)}
+    gravity, drag, air temperature and heat sources' temperatures (a power source's power), the pair law's scales
+    (the materials' own), the thermal walls' temperatures, the molecular heater's power and lid's pressure
+    (following their schedules where the scene gives them one)."""
+    out = {
+        "world.gravity": [float(g) for g in scene.world.gravity],
+        "world.drag": float(scene.world.drag),
+        "pair.scale": [1.0, 1.0],
+    }
     if scene.heat:
         out["heat.ambient"] = float(scene.heat.ambient)
         if scene.heat.sources:
             out["heat.sources"] = [float(source_value(src, 0.0)) for src in scene.heat.sources]
-    molecular = scene.molecular
     for name, spec, base in _scheduled(scene):
-        out[f"{name}.{base}"] = scheduled_value(spec, getattr(spec, base), 0.0)
-        out[f"{name}.scheduled"] = 1.0 if spec.schedule_times else 0.0
+        out.update({f"{name}.{key}": value for key, value in scheduled_start(spec, base).items()})
+    molecular = scene.molecular
     for wall in molecular.walls if molecular else []:
         out[f"thermal_walls.{wall.name}"] = float(wall.temperature)
     return {key: value for key, value in out.items() if key in controls}

@@ -272,7 +272,7 @@ def test_each_world_of_a_pressure_cooker_has_its_own_lid_and_heater_and_is_its_l
     soon = {"molecular.heater.schedule_times": [0.0, 5.0], "molecular.heater.schedule_values": [2.4, -1.0]}
     light, heavy = sandbox.load("pressure_cooker", set=soon), sandbox.load("pressure_cooker", set=soon)
     batch = sandbox.load("pressure_cooker", set=soon, worlds=2)
-    weights = {"lid.pressure": 0.3, "heater.power": 2.0}
+    weights = {"lid.pressure": 0.3, "heater.power": 2.0, "pair.scale": [1.1, 1.0]}
     heavy.controls.set(weights)
     batch.world(1).controls.set(weights)
     for _ in range(3):
@@ -286,6 +286,7 @@ def test_each_world_of_a_pressure_cooker_has_its_own_lid_and_heater_and_is_its_l
         assert world.stats() == alone.stats()  # its lid's height and gauge, the heat its heater gave
         assert world.controls.values() == alone.controls.values()
     assert batch.world(1).controls.values()["lid.scheduled"] == 0.0  # set by hand: its schedule stopped
+    # taken out and back in, world 1 starts with the scene's controls, its pair law's scales among them
     batch.world(1).remove()
     assert batch.add_world().index == 1
     fresh = sandbox.load("pressure_cooker", set=soon)

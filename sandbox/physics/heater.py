@@ -19,7 +19,6 @@ and shares it among its own atoms, its sums taken in its lone run's order.
 
 import math
 
-import numpy as np
 import taichi as ti
 
 from ..config.molecular_table import Heater as HeaterTable
@@ -27,7 +26,7 @@ from ..config.schema import key_check
 from ..core.oriented import data_oriented
 from ..core.state import WORLDS
 from ..core.worlds import at, per_world, put_at, world_of
-from .heat_sources import schedule_flag, scheduled_value, set_by_hand
+from .heat_sources import ScheduledSetting, schedule_flag
 from .term import Measure, Slider, Term, register
 
 
@@ -56,16 +55,13 @@ class Heater(Term):
         self.dim = parts.model.dim
         self.spec = parts.scene.molecular.heater
         self.worlds = worlds = parts.model.worlds
-        # each world's power, and whether it was set by hand (or never scheduled): then the schedule no longer applies
-        self.powers = [scheduled_value(self.spec, self.spec.power, 0.0)] * worlds
-        self.by_hands = [not self.spec.schedule_times] * worlds
+        self.setting = ScheduledSetting(self.spec, "power", worlds)  # each world's power, on its schedule or by hand
         self.moved = per_world(worlds, ti.f64)  # energy the heater has given the atoms (energy), per world
         self.centre = per_world(worlds, ti.f64, self.dim)  # u of the last step (length / time)
         self.scale = per_world(worlds, ti.f64)  # lambda of the last step
         self.energy = per_world(worlds, ti.f64) if worlds > 1 else None  # P dt of each world this step
-        self.charged: tuple | None = None  # the powers and step `energy` was last written from (0.2 ms a copy)
 
-    power = property(lambda self: self.powers[0], doc="the power of a lone run (world 0's)")
+    power = property(lambda self: self.setting.values[0], doc="the power of a lone run (world 0's)")
 
     def declare(self, state) -> None:
         state.declare("heater", self, ("moved",), rows=WORLDS if self.worlds > 1 else "")
@@ -75,7 +71,7 @@ class Heater(Term):
     def controls(self, world: int = 0) -> dict:
         """The power, and whether it still follows the scene's schedule (1) or was set by hand (0), in world
         `world`."""
-        return {"power": self.powers[world], "scheduled": 0.0 if self.by_hands[world] else 1.0}
+        return self.setting.controls(world)
 
     def sliders(self) -> list[Slider]:
         """The power: positive heats, negative cools, up to twice the scene's (1 at least)."""
@@ -92,10 +88,7 @@ class Heater(Term):
             value = float(values["power"])
             if not math.isfinite(value):
                 raise ValueError(f"heater power {value!r}; expected a finite number (negative cools)")
-        for w in range(self.worlds) if world is None else (world,):
-            if "power" in values:
-                self.powers[w] = float(values["power"])
-            self.by_hands[w] = set_by_hand(self.spec, values)
+        self.setting.apply(values, world)
 
     def words(self, where: str) -> list[str]:
         if where == "after":
@@ -103,17 +96,12 @@ class Heater(Term):
         return []
 
     def after_step(self, state) -> None:
-        times = state.world_times()
-        for w, by_hand in enumerate(self.by_hands):
-            if not by_hand:  # the power in force at the start of the step just taken (the clock moves on after)
-                self.powers[w] = scheduled_value(self.spec, self.spec.power, times[w])
+        self.setting.follow(state.world_times())  # the power in force at the start of the step just taken
         if self.worlds == 1:
             if self.power != 0.0:
                 self._heat(self.power * state.dt)
-        elif any(self.powers):
-            if (self.powers, state.dt) != self.charged:
-                self.energy.from_numpy(np.array(self.powers) * state.dt)
-                self.charged = (list(self.powers), state.dt)
+        elif any(self.setting.values):
+            self.setting.write(self.energy, state.dt)
             self._heat_worlds(self.p.world_size)
 
     @ti.func

@@ -26,7 +26,7 @@ from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.state import WORLDS
 from ..core.worlds import add_at, at, per_world, put_at, world_entry, world_of
-from .heat_sources import schedule_flag, scheduled_value, set_by_hand
+from .heat_sources import ScheduledSetting, schedule_flag
 from .term import Measure, Slider, Term, register
 
 
@@ -74,18 +74,13 @@ class Lid(Term):
         self.gauge = per_world(worlds, ti.f64)  # momentum per area the atoms gave it since the gauge restarted
         self.since = per_world(worlds, ti.f64)  # ... and when it restarted (the world's own time)
         self.load = per_world(worlds, float) if worlds > 1 else None  # P A of each world this step (force)
-        self.loaded: list | None = None  # the pressures `load` was last written from (a copy a step costs 0.2 ms)
-        self.spec = spec
-        # the outside pressure of each world, and whether it was set by hand (or never scheduled): then the schedule
-        # no longer applies there
-        self.pressures = [scheduled_value(spec, spec.pressure, 0.0)] * worlds
-        self.by_hands = [not spec.schedule_times] * worlds
+        self.setting = ScheduledSetting(spec, "pressure", worlds)  # each world's outside pressure
         # the scene's: the slider's range follows it, not the value it sets
         self.scene_pressure = max([float(spec.pressure), *map(float, spec.schedule_values)])
         height = float(spec.height)
         transfer.upload([(self.height, height if worlds == 1 else np.full(worlds, height))])  # a copy, not a kernel
 
-    pressure = property(lambda self: self.pressures[0], doc="the outside pressure of a lone run (world 0's)")
+    pressure = property(lambda self: self.setting.values[0], doc="the outside pressure of a lone run (world 0's)")
 
     def height_of(self, world: int = 0) -> float:
         """The lid's height (length) in world `world` now (a host read)."""
@@ -116,7 +111,7 @@ class Lid(Term):
     def controls(self, world: int = 0) -> dict:
         """The outside pressure, and whether it still follows the scene's schedule (1) or was set by hand (0), in
         world `world`."""
-        return {"pressure": self.pressures[world], "scheduled": 0.0 if self.by_hands[world] else 1.0}
+        return self.setting.controls(world)
 
     def sliders(self) -> list[Slider]:
         """The weight on the lid, as the outside pressure: up to four times the scene's (0.2 at least)."""
@@ -133,10 +128,7 @@ class Lid(Term):
             value = float(values["pressure"])
             if not value >= 0.0:
                 raise ValueError(f"lid pressure {value!r}; expected a number of at least 0")
-        for w in range(self.worlds) if world is None else (world,):
-            if "pressure" in values:
-                self.pressures[w] = float(values["pressure"])
-            self.by_hands[w] = set_by_hand(self.spec, values)
+        self.setting.apply(values, world)
 
     def words(self, where: str) -> list[str]:
         if where == "finish":
@@ -146,16 +138,11 @@ class Lid(Term):
         return []
 
     def after_step(self, state) -> None:
-        times = state.world_times()
-        for w, by_hand in enumerate(self.by_hands):
-            if not by_hand:  # the pressure in force at the start of the step just taken (the clock moves on after)
-                self.pressures[w] = scheduled_value(self.spec, self.spec.pressure, times[w])
+        self.setting.follow(state.world_times())  # the pressure in force at the start of the step just taken
         if self.worlds == 1:
             self._move(state.dt, self.pressure * self.area)
             return
-        if self.pressures != self.loaded:
-            self.load.from_numpy(np.array(self.pressures) * self.area)
-            self.loaded = list(self.pressures)
+        self.setting.write(self.load, self.area)
         self._move_worlds(state.dt, self.p.world_size)
 
     @ti.kernel

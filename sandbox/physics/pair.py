@@ -151,8 +151,7 @@ class PairForce(Term):
                 setattr(self, name, table)
         fields = (self.alpha, self.beta, self.eps, self.r_core, self.shift, self.shift_att, self.f_core, self.f_cut)
         c = host["coef_np"]
-        values = [c[0], c[1], c[2], host["r_core_np"], host["shift_np"], host["shift_att_np"], host["f_core_np"]]
-        values.append(host["f_cut_np"])
+        values = [*c, *(host[f"{name}_np"] for name in ("r_core", "shift", "shift_att", "f_core", "f_cut"))]
         if self.worlds == 1:
             transfer.upload(list(zip(fields, values)))
             return
@@ -235,14 +234,13 @@ class PairForce(Term):
 
     @ti.func
     def coefficients(self, p, q):
-        """The pair law of table row p (material p, in its world: _row) and material q as one vector: (alpha, beta,
-        eps, r_core, f_core)."""
+        """The pair law of table row p (material p's in its world: row_base + p) and material q as one vector: (alpha,
+        beta, eps, r_core, f_core)."""
         return ti.Vector([self.alpha[p, q], self.beta[p, q], self.eps[p, q], self.r_core[p, q], self.f_core[p, q]])
 
     @ti.func
     def pair_coefficients(self, shared, base, i, j):
-        """Coefficients of the pair (i, j): `shared` (row()'s) with one material; `base`: i's
-        row_base."""
+        """Coefficients of the pair (i, j): `shared` (row()'s) with one material; `base`: i's row_base."""
         c = shared
         if ti.static(not self.single_material):
             c = self.coefficients(base + self.material[i], self.material[j])
