@@ -85,12 +85,16 @@ def assemble(
             lifetimes=lifetimes,
             structure=scene.molecular is not None,
             worlds=worlds,
+            gaps=bool(scene.emitters),
         )
+        # with gaps (counts that change), world k's particles start at k times a lone run's capacity
+        stride = capacity // worlds if particles.gaps else 0
         try:
-            every_world = built.side_by_side([build_particles(s) for s in starts] if starts else [built] * worlds)
+            builds = [build_particles(s) for s in starts] if starts else [built] * worlds
+            every_world = built.side_by_side(builds, stride)
         except ValueError as exc:
             raise SandboxError(f"{scene.name}: {exc}") from None
-        _load_particles(particles, every_world, table.colors, materials)
+        _load_particles(particles, every_world, table.colors, materials, built.count)
         springs = None
         if built.spring_count or can_refreeze:
             bonds = (heat.refreeze_max_bonds or (8 if scene.dim == 2 else 12)) if can_refreeze else 0
@@ -111,9 +115,14 @@ def assemble(
 
 
 # The terms a simulation of many worlds can hold so far: their controls, gauges and passes are kept per world. The
-# others (emitters, the velocity field, the smoke grid ...) still keep one value for all worlds.
+# others (the smoke grid) still keep one value for all worlds.
+LEAPFROGS = ("velocity_verlet", "position_verlet")  # whose synchronised values are kept per world block
 WORLD_TERMS = frozenset(
     {
+        "emitters",
+        "lifetimes",
+        "fields",
+        "kinematic",
         "gravity",
         "pair",
         "springs",
@@ -137,6 +146,10 @@ def refuse_worlds(scene: Scene, worlds: int, terms: list) -> None:
             f"{scene.name}: worlds = {worlds} is for scenes whose parts are all {', '.join(sorted(WORLD_TERMS))}; "
             f"this one has {', '.join(other)}"
         )
+    keys = {term.key for term in terms}
+    counted = sorted(keys & {"lid", "heater"}) + [scene.world.integrator] * (scene.world.integrator in LEAPFROGS)
+    if scene.emitters and counted:  # these read each world's block as full (core/worlds.py: gaps)
+        raise SandboxError(f"{scene.name}: worlds = {worlds} with emitters cannot yet hold {', '.join(counted)}")
     heat = scene.heat
     if heat and heat.stepper != "explicit":  # one conjugate-gradient solve would couple the worlds' iterations
         raise SandboxError(f'{scene.name}: worlds = {worlds} needs heat.stepper = "explicit", not {heat.stepper!r}')
@@ -146,8 +159,9 @@ def refuse_worlds(scene: Scene, worlds: int, terms: list) -> None:
         raise SandboxError(f'{scene.name}: worlds = {worlds} needs whole world.substeps, not "auto"')
 
 
-def _load_particles(particles: Particles, built, colors: np.ndarray, materials: list) -> None:
-    """Copy the built particles in: positions, velocities, ..., and with heat the enthalpy of their temperature."""
+def _load_particles(particles: Particles, built, colors: np.ndarray, materials: list, each_built: int) -> None:
+    """Copy the built particles in: positions, velocities, ..., and with heat the enthalpy of their temperature
+    (`built`: every world's, `each_built` particles a world)."""
     n = built.count
     particles.next_ident = n
     p = particles
@@ -166,6 +180,9 @@ def _load_particles(particles: Particles, built, colors: np.ndarray, materials: 
         each = p.world_size = n // p.world_count
         pairs[-1] = (p.ident, np.tile(np.arange(each, dtype=np.int32), p.world_count))
         pairs.append((p.world, np.repeat(np.arange(p.world_count, dtype=np.int32), each)))
+        if p.gaps:  # each world's ids go on from its own build's (emitters number theirs per world)
+            particles.next_ident = [each_built] * p.world_count
+            pairs.append((p.counts, np.full(p.world_count, each_built, dtype=np.int32)))
     if p.heat:
         h, phi = initial_enthalpy(built.temperature, built.material, materials)
         pairs += [(p.h, h), (p.T, built.temperature)]

@@ -92,7 +92,9 @@ def html(sim) -> str:
     """Jupyter's view of a simulation: its picture now, and where it stands (of many worlds: where it stands)."""
     n = sim.state.live_count()
     if sim.worlds > 1:
-        return f"<p>{sim.scene.name}: {sim.worlds} worlds of {n // sim.worlds:,} particles, t = {sim.time:.3g} s</p>"
+        counts = [sim.state.particles.block(k)[1] for k in range(sim.live_worlds)]
+        each = f"{counts[0]:,}" if len(set(counts)) == 1 else f"{min(counts):,} to {max(counts):,}"
+        return f"<p>{sim.scene.name}: {sim.live_worlds} worlds of {each} particles, t = {sim.time:.3g} s</p>"
     caption = f"{sim.scene.name}: {n:,} particles, t = {sim.time:.3g} s after {sim.frames_done} frames"
     return png_html(picture(sim, 480, 270), caption)
 
@@ -126,12 +128,12 @@ def particle_table(sim) -> dict[str, np.ndarray]:
 def melt_fractions(sim) -> np.ndarray:
     """Melt fraction in [0, 1] of the live particles, (N,) (0 without heat)."""
     p = sim.particles
-    n = sim.state.live_count()
+    rows = sim.state.live_rows()
     if not p.heat:
-        return np.zeros(n)
-    ids = p.material.to_numpy()[:n]
+        return np.zeros(rows.stop if isinstance(rows, slice) else len(rows))
+    ids = p.material.to_numpy()[rows]
     law = [sim.model.column(name, ids) for name in ENTHALPY_LAW]
-    return temperature_np(p.h.to_numpy()[:n], *law)[1]
+    return temperature_np(p.h.to_numpy()[rows], *law)[1]
 
 
 def spring_pairs(sim) -> np.ndarray:

@@ -309,18 +309,18 @@ class Simulation:
         return scripting.html(self)
 
     def positions(self) -> np.ndarray:
-        """Live positions, (N, D) NumPy copy."""
-        return self.particles.x.to_numpy()[: self.state.live_count()]
+        """Live positions, (N, D) NumPy copy (with worlds, every world's in turn: sim.world(k) for one's)."""
+        return self.particles.x.to_numpy()[self.state.live_rows()]
 
     def velocities(self) -> np.ndarray:
-        return self.particles.v.to_numpy()[: self.state.live_count()]
+        return self.particles.v.to_numpy()[self.state.live_rows()]
 
     def temperatures(self) -> np.ndarray:
-        return self.particles.T.to_numpy()[: self.state.live_count()]
+        return self.particles.T.to_numpy()[self.state.live_rows()]
 
     def forces(self) -> np.ndarray:
         """Forces of the last evaluation, (N, D)."""
-        return self.rates.force.to_numpy()[: self.state.live_count()]
+        return self.rates.force.to_numpy()[self.state.live_rows()]
 
     def melt_fractions(self) -> np.ndarray:
         """Melt fraction in [0, 1] of the live particles, (N,) (0 without heat)."""

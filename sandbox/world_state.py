@@ -30,22 +30,29 @@ from .physics.heat_sources import scheduled_start, source_value
 
 FAR = 1e30  # a reference position no particle is within half a skin of
 SPRING_ROWS = ("i", "j", "rest", "ks", "kd", "factor", "alive")  # the springs' per-slot fields
-OWN = ("particles.world", "clock.world_started")  # what a world's state has no entry for (the batch's own)
+OWN = ("particles.world", "particles.counts", "clock.world_started")  # what a world's state has none of (the batch's)
 IMPULSE = "walls.impulse"  # the walls' momentum gauge (the model's, not the state's): in memory only
 
 
 def _layout(sim) -> tuple[int, int, int]:
-    """(worlds held, particles a world, a lone run's capacity) of `sim`."""
+    """(worlds held, slots a world: world k's start at k times it, a lone run's capacity) of `sim`."""
     worlds = sim.worlds
     return worlds, sim.state.particles.world_size, sim.model.capacity // worlds
+
+
+def _live(sim, whole: dict, k: int) -> int:
+    """World k's live particles in `whole` (a snapshot): its block, or with gaps its count."""
+    p = sim.state.particles
+    return int(whole["particles.counts"][k]) if p.gaps else p.world_size
 
 
 def world_part(sim, whole: dict, k: int) -> dict:
     """World k's state, as a lone run of the scene holds it (module docstring), out of `whole`: a snapshot of every
     world (Simulation.snapshot()'s names: NumPy arrays and host values)."""
     state = sim.state
-    worlds, each, lone_capacity = _layout(sim)
-    rows = slice(k * each, (k + 1) * each)
+    worlds, block, lone_capacity = _layout(sim)
+    each = _live(sim, whole, k)
+    rows = slice(k * block, k * block + each)
     out = {}
     for e in state.entries(physical_only=True):
         if e.name in OWN or e.name.startswith("springs."):
@@ -53,6 +60,8 @@ def world_part(sim, whole: dict, k: int) -> dict:
         value = whole[e.name]
         if e.rows == "particles":
             out[e.name] = _lone_rows(value[rows], lone_capacity)
+        elif e.rows == WORLDS and e.kind == VALUE:  # a host list a world (the emitters' counters)
+            out[e.name] = _copy(value[k])
         elif e.rows == WORLDS:
             out[e.name] = np.array(value[k])
         elif e.kind == VALUE:
@@ -61,11 +70,17 @@ def world_part(sim, whole: dict, k: int) -> dict:
             out[e.name] = np.array(value)
     out["particles.n"] = np.array(each, dtype=whole["particles.n"].dtype)
     out["clock.time"] = whole["clock.time"] - whole["clock.world_started"][k]
-    if "particles.next_ident" in out:  # a world's ids are its lone run's: 0 .. N - 1 (no tool adds to a world)
+    if state.particles.gaps:  # ids numbered on per world, by its emitters
+        out["particles.next_ident"] = int(whole["particles.next_ident"][k])
+    elif "particles.next_ident" in out:  # a world's ids are its lone run's: 0 .. N - 1 (no tool adds to a world)
         out["particles.next_ident"] = each
     if state.springs is not None:
-        out.update(_springs_out(sim, whole, k, each, lone_capacity))
+        out.update(_springs_out(sim, whole, k, block, lone_capacity))
     return out
+
+
+def _copy(value):
+    return list(value) if isinstance(value, list) else value
 
 
 def _lone_rows(block: np.ndarray, capacity: int) -> np.ndarray:
@@ -76,7 +91,8 @@ def _lone_rows(block: np.ndarray, capacity: int) -> np.ndarray:
 
 
 def _springs_out(sim, whole: dict, k: int, each: int, lone_capacity: int) -> dict:
-    """World k's springs in a lone run's slots: its built block where it was built, its other live bonds after it."""
+    """World k's springs in a lone run's slots: its built block where it was built, its other live bonds after it
+    (`each`: the particle slots a world, world k's from k each)."""
     springs = sim.state.springs
     built = springs.built_count // sim.worlds
     lone_count = springs.count // sim.worlds
@@ -124,9 +140,12 @@ def put_world(sim, k: int, part: dict) -> None:
     """Put `part` (world_part's: a world's state as a lone run holds it) into world k of `sim`; the other worlds
     are untouched, bit for bit. SandboxError where it does not fit (another particle count, no free spring slots)."""
     state = sim.state
+    p = state.particles
     worlds, each, _ = _layout(sim)
-    if int(part["particles.n"]) != each:
-        raise SandboxError(f"world {k} holds {each} particles; the state put into it holds {int(part['particles.n'])}")
+    n = int(part["particles.n"])
+    if n > each if p.gaps else n != each:
+        room = f"room for {each}" if p.gaps else f"{each}"
+        raise SandboxError(f"world {k} holds {room} particles; the state put into it holds {n}")
     for e in state.entries(physical_only=True):
         if e.kind == NDARRAY and e.rows == "particles":  # none is declared so far: say so rather than skip it
             raise SandboxError(f"world {k}: {e.name} is not yet put back per world")
@@ -140,6 +159,8 @@ def put_world(sim, k: int, part: dict) -> None:
         else:
             data[k] = part[e.name]
     writes = [(e.get(), data) for e, data in zip(entries, now)]
+    if p.gaps:  # its count, its ids' next, its emitters' counters, its particles' world
+        writes += _gaps_in(sim, part, k, n)
     if state.springs is not None:
         writes += _springs_in(sim, part, k, each)
     transfer.upload_all(writes)
@@ -151,6 +172,21 @@ def put_world(sim, k: int, part: dict) -> None:
     set_world_entry(sim.model.domain.impulse, worlds, k, float(part.get(IMPULSE, 0.0)))
     state.world_started[k] = state.time - float(part["clock.time"])
     sim.broken = None
+
+
+def _gaps_in(sim, part: dict, k: int, n: int) -> list:
+    """(field, values) writes that give world k (of a simulation with gaps) the part's count, and the host values
+    a world keeps for itself set to the part's."""
+    p, state = sim.state.particles, sim.state
+    counts = p.counts.to_numpy()
+    counts[k] = n
+    world = p.world.to_numpy()
+    world[k * p.world_size : (k + 1) * p.world_size] = k
+    p.next_ident[k] = int(part["particles.next_ident"])
+    for e in state.entries(physical_only=True):
+        if e.kind == VALUE and e.rows == WORLDS:
+            e.get()[k] = _copy(part[e.name])
+    return [(p.counts, counts), (p.world, world)]
 
 
 def _springs_in(sim, part: dict, k: int, each: int) -> list:

@@ -87,17 +87,16 @@ class WorldView:
         """This world's energies, temperatures and counts now (Simulation.stats)."""
         return self.sim.stats(pair_energy, world=self.index)
 
-    def _rows(self) -> np.ndarray:
-        """The storage slots of this world's live particles, ordered by particle id."""
-        p, n = self.sim.particles, self.sim.state.live_count()
-        world, ident = p.world.to_numpy()[:n], p.ident.to_numpy()[:n]
-        mine = np.flatnonzero(world == self.index)
-        return mine[np.argsort(ident[mine], kind="stable")]
+    def slots(self) -> np.ndarray:
+        """The storage slots of this world's live particles (its block's live ones), ordered by particle id."""
+        first, n = self.sim.state.particles.block(self.index)
+        ident = self.sim.particles.ident.to_numpy()[first : first + n]
+        return first + np.argsort(ident, kind="stable")
 
     def field(self, name: str) -> np.ndarray:
         """Per-particle field `name` ("x", "v", "T", "mass", ...) of this world's live particles, by id: (N,) or
         (N, D)."""
-        return getattr(self.sim.particles, name).to_numpy()[self._rows()]
+        return getattr(self.sim.particles, name).to_numpy()[self.slots()]
 
     def positions(self) -> np.ndarray:
         """Live positions, (N, D), by particle id."""

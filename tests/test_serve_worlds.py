@@ -5,6 +5,7 @@ scene's pace, tabs come and go while the others run on, and every tab is sent fr
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -196,3 +197,38 @@ def test_a_molecular_scene_runs_as_worlds_each_tab_with_its_own_lid_and_heater()
     world = sim.world(host.tabs[0].world)
     assert np.array_equal(world.positions(), lone.sim.positions())
     assert np.array_equal(world.velocities(), lone.sim.velocities())
+
+
+def test_a_scene_with_emitters_runs_as_worlds_each_tab_seeing_its_own_sparks():
+    """fireworks (emitters, lifetimes, additive light, motion blur) is held as worlds, not sessions: each tab's
+    light frame carries its own world's sparks alone (a tab whose world started again has none until its own first
+    burst), and the other tab's world is the scene run alone, stepped as the host stepped it."""
+    from sandbox.app.controller import Controller, open_scene
+    from sandbox.app.serve_worlds import WorldHost
+    from sandbox.render.light_frame import LightFrame, decode_light
+    from sandbox.render.raster import Renderer
+
+    pipe = Collect()
+    host = WorldHost(pipe, "fireworks", 320, 180, 30.0, 2)
+    for slot in (0, 1):
+        order(host, HOST, {"t": "grow"})
+        order(host, HOST, {"t": "attach", "slot": slot})
+    steps = frames(host, 12, asking=(0, 1))  # past the first burst (0.1 s): 700 sparks in each world
+    order(host, 1, {"t": "action", "name": "reset"})
+    steps += frames(host, 2, asking=(0, 1))
+    sim = host.sim
+    lights = {slot: [decode_light(b) for s, b in pipe.sent if s == slot and b[:1] == b"L"][-1] for slot in (0, 1)}
+    assert sim.state.particles.block(host.tabs[0].world)[1] >= 700 and len(lights[0]["intensity"]) > 600
+    assert len(lights[1]["intensity"]) == 0  # tab 1's world started again 2 frames ago: no burst yet on its clock
+    lone = Controller(open_scene("fireworks", restart=False))
+    look = dataclasses.replace(lone.sim.scene.render, title=False, clock=False, legend=False)  # the host's
+    drawn = Renderer(lone.sim.model, lone.sim.state, 320, 180, look, output="picture")
+    for count in steps:
+        drawn.begin_frame()
+        lone.advance(count, drawn.mid_frame)
+    world = sim.world(host.tabs[0].world)
+    n = lone.sim.state.live_count()
+    order_by_id = np.argsort(lone.sim.particles.ident.to_numpy()[:n], kind="stable")
+    assert np.array_equal(world.positions(), lone.sim.positions()[order_by_id])
+    alone = decode_light(LightFrame(drawn).encode())  # the lone run's light, as a session would send it
+    assert np.array_equal(np.sort(lights[0]["intensity"]), np.sort(alone["intensity"]))

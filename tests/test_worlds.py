@@ -162,8 +162,6 @@ def test_worlds_refuse_what_they_cannot_do_in_one_line():
     for bad in (0, -1, True, 2.5, "3", 10**6):
         with pytest.raises(SandboxError, match="worlds = .*expected a whole number from 1 to 4096"):
             sandbox.load("lj_box", set=SMALL_LJ, worlds=bad)
-    with pytest.raises(SandboxError, match="fireworks: worlds = 2 is for .* this one has .*emitters"):
-        sandbox.load("fireworks", worlds=2)
     batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=2)
     with pytest.raises(SandboxError, match="world 2: expected a whole number from 0 to 1"):
         batch.world(2)

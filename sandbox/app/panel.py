@@ -57,11 +57,8 @@ def thermometers(sim, world: int | None = None) -> list[tuple[str, float]]:
     simulation holds several, core/worlds.py)."""
     if sim.terms.heat is None:
         return []
-    n = int(sim.particles.n[None])
-    rows = slice(0, n)
-    if world is not None and sim.worlds > 1:
-        size = sim.state.particles.world_size
-        rows = slice(world * size, (world + 1) * size)
+    first, n = sim.state.particles.block(world)
+    rows = slice(first, first + n)
     # one copy of both fields, whole: a copy of the live rows only compiles a kernel for every count of them (a
     # scene whose emitters add and retire particles compiled one at every readout)
     groups, temps = (values[rows] for values in download([sim.particles.group, sim.particles.T]))

@@ -53,7 +53,7 @@ def particle_at(sim, point, reach: float | None = None, world: int | None = None
         return None
     d2 = ((x - np.asarray(point, dtype=float)) ** 2).sum(axis=1)
     j = int(np.argmin(d2))
-    i = j if world is None else world * sim.state.particles.world_size + j  # a world's, by id: its block's order
+    i = j if world is None else int(sim.world(world).slots()[j])  # a world's positions are by id
     if reach is None:
         reach = 1.5 * float(sim.particles.radius[i])
     return i if d2[j] <= reach * reach else None

@@ -49,7 +49,7 @@ def build_batch(scene_name: str, capacity: int):
     if path is None:
         raise SandboxError(f"no shipped scene {scene_name!r}")
     scene = load_scene(path)
-    if not scene.bodies:  # what a tab does there is spawn particles, which changes a world's particle count
+    if not scene.bodies and not scene.emitters:  # what a tab does there is spawn particles: a tool worlds lack
         raise SandboxError(f"{scene_name}: an empty scene; its tabs spawn particles, which worlds cannot")
     runtime.require("cpu", scene.world.precision)
     sim = Simulation(scene, worlds=max(capacity, 2))
@@ -72,8 +72,9 @@ class WorldHost:
         words_off = dataclasses.replace(sim.scene.render, title=False, clock=False, legend=False)
         self.renderer = Renderer(sim.model, sim.state, width, height, words_off, output="picture")
         self.packer = page_packer(self.renderer, webgl=True)
-        if self.packer is None or getattr(self.packer, "light", None) is not None:
+        if self.packer is None:
             raise SandboxError(f"{scene}: the page cannot draw its particles as the renderer does")
+        self.light = getattr(self.packer, "light", None)  # where particles glow, the light frames (each tab's world)
         self.tools = Tools(sim)  # one set of brushes for every tab (each Tools compiles its kernels)
         self.interval = 1.0 / max_fps
         self.tabs: list[WorldTab] = []  # by slot
@@ -207,7 +208,9 @@ class WorldHost:
             running = [tab for tab in self.owners if tab is not None]
             stepping = time.perf_counter()
             try:
-                self.sim.advance_frame(steps)
+                self.renderer.begin_frame()  # the tails of motion-blur streaks: where the particles were before
+                blurred = self.sim.scene.render.motion_blur  # (the bend of a curved streak)
+                self.sim.advance_frame(steps, self.renderer.mid_frame if blurred else None)
             except SimulationError as exc:
                 for tab in running:
                     tab.tell({"t": "error", "text": f"{exc} - the scene starts again"})
@@ -233,6 +236,8 @@ class WorldHost:
         renderer.words = chart_words(tab.lang)
         renderer.chart, renderer.phase_plot = tab.plots
         self.packer.world = tab.world
+        if self.light is not None:
+            self.light.world = tab.world
         if tab.orbit is not None:
             renderer.set_camera(tab.orbit.eye(), tab.orbit.target, renderer.painter.fov)
         return renderer

@@ -67,6 +67,8 @@ class Tools:
     def _heat(self, radius: float, amount: float):
         c = self.centre[None]
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             w = 1.0 - (self.p.x[i] - c).norm() / radius
             # heat c dT per unit mass: melting then holds the temperature while latent heat goes in
             if w > 0.0 and self._reaches(i):
@@ -84,6 +86,8 @@ class Tools:
     def _push(self, radius: float, dv: float):
         c = self.centre[None]
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             d = c - self.p.x[i]
             r = d.norm()
             w = 1.0 - r / radius
@@ -99,6 +103,8 @@ class Tools:
     def _drag(self, radius: float, k: float, dt: float):
         c = self.centre[None]
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             d = c - self.p.x[i]
             w = 1.0 - d.norm() / radius
             if w > 0.0 and self._reaches(i):

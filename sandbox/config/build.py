@@ -59,10 +59,11 @@ class Particles:
         return int(deg.max())
 
     @staticmethod
-    def side_by_side(builds: list[Particles]) -> Particles:
-        """The builds of a scene's worlds one after the other (world k's particle i at k N + i), each world's springs
-        joining its own particles (`[built] * K`: K copies); ValueError where they differ in particle count or springs
-        (what a world may vary: its bodies' temperatures and velocities, not its structure)."""
+    def side_by_side(builds: list[Particles], stride: int = 0) -> Particles:
+        """The builds of a scene's worlds one after the other (world k's particle i at k N + i, or at k stride + i
+        with a `stride`: each world's rows padded with zeros to it), each world's springs joining its own particles
+        (`[built] * K`: K copies); ValueError where they differ in particle count or springs (what a world may vary:
+        its bodies' temperatures and velocities, not its structure)."""
         first = builds[0]
         if len(builds) == 1:
             return first
@@ -70,8 +71,19 @@ class Particles:
             same = other.count == first.count and np.array_equal(other.spring_i, first.spring_i)
             if not same or not np.array_equal(other.spring_j, first.spring_j):
                 raise ValueError(f"world {k} is built of other particles or springs than world 0; expected the same")
-        joined = {f.name: np.concatenate([getattr(b, f.name) for b in builds]) for f in dataclasses.fields(Particles)}
-        shifts = np.repeat(np.arange(len(builds), dtype=np.int32) * first.count, first.spring_count)
+        stride = stride or first.count
+        per_particle = [f.name for f in dataclasses.fields(Particles) if not f.name.startswith(("spring_", "rest_"))]
+        per_particle = [name for name in per_particle if name not in ("stiffness", "damping")]
+
+        def padded(b: Particles, name: str) -> np.ndarray:
+            rows = getattr(b, name)
+            return np.concatenate([rows, np.zeros((stride - len(rows), *rows.shape[1:]), rows.dtype)])
+
+        def rows(b: Particles, name: str) -> np.ndarray:
+            return padded(b, name) if name in per_particle else getattr(b, name)
+
+        joined = {f.name: np.concatenate([rows(b, f.name) for b in builds]) for f in dataclasses.fields(Particles)}
+        shifts = np.repeat(np.arange(len(builds), dtype=np.int32) * stride, first.spring_count)
         for name in ("spring_i", "spring_j"):
             joined[name] = joined[name] + shifts
         return Particles(**joined)

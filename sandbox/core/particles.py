@@ -72,11 +72,17 @@ class Particles:
         lifetimes: bool = False,
         structure: bool = False,
         worlds: int = 1,
+        gaps: bool = False,
     ):
         self.dim = dim
         self.world_count = worlds  # worlds held (core/worlds.py); the `world` field only where more than one
         self.worlds = worlds > 1
         self.world_size = 0  # particles a world: world k's are slots k * world_size .. (set as they are loaded)
+        # worlds whose particle counts change (emitters, lifetimes): each world a block of world_size slots, its
+        # live particles first (`counts`), the slots after them idle until it spawns into them (core/worlds.py)
+        self.gaps = gaps and self.worlds
+        if self.gaps:
+            self.counts = ti.field(ti.i32, shape=worlds)  # each world's live particles
         self.capacity = capacity
         self.heat = heat
         self.refreeze = refreeze
@@ -111,6 +117,22 @@ class Particles:
         real = 8 if self.x.dtype == ti.f64 else 4
         size = {"vector": self.dim * real, "real": real, "int": 4, "colour": 12}
         return self.capacity * sum(size[f.kind] for f in self.declared())
+
+    @ti.func
+    def idle(self, i):
+        """Whether slot i (below n) holds no particle: a slot past its world's live ones in worlds with gaps (never
+        in a lone run or in worlds of fixed counts, where the first n slots are all live: no load compiled)."""
+        if ti.static(self.gaps):
+            return i % self.world_size >= self.counts[i // self.world_size]
+        else:
+            return False
+
+    def block(self, world: int | None) -> tuple[int, int]:
+        """(first slot, live count) of world `world`'s particles (a host read); every live particle's where
+        `world` is None or there is one world."""
+        if world is None or not self.worlds:
+            return 0, int(self.n[None])
+        return world * self.world_size, int(self.counts[world]) if self.gaps else self.world_size
 
     def put(self, first: int, values: dict[str, np.ndarray]) -> None:
         """Write slots [first, first + m) of every field: `values` (name -> (m,) or (m, k) array) where given, the

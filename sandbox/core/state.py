@@ -75,7 +75,10 @@ class State:
             self.declare("clock", self, ("world_started",), kind=VALUE, valid=COUNT)
         self.declare("particles", particles, ("n",), valid=Range(lo=0, atmost="capacity"))
         self._declare_particles(particles)
+        # the next id: with gaps (core/worlds.py) a list, a world each
         self.declare("particles", particles, ("next_ident",), kind=VALUE, valid=COUNT)
+        if particles.gaps:
+            self.declare("particles", particles, ("counts",), rows=WORLDS, valid=Range(lo=0, atmost="capacity"))
         if springs is not None:
             each = "springs"
             self.declare(each, springs, ("i", "j"), rows=each, valid=Range(lo=0, below="capacity"))
@@ -189,8 +192,17 @@ class State:
         return [self.time - start for start in self.world_started]
 
     def live_count(self) -> int:
-        """The number of live particles (a host read)."""
+        """The number of slots in use (a host read): the live particles, and with worlds whose counts change (core/
+        worlds.py: gaps) every block in use, its idle slots too."""
         return int(self.particles.n[None])
+
+    def live_rows(self) -> slice | np.ndarray:
+        """The slots of the live particles: the first live_count(), or with gaps each world's live ones in turn."""
+        p, n = self.particles, self.live_count()
+        if not p.gaps:
+            return slice(0, n)
+        blocks = [p.world_size * k + np.arange(c) for k, c in enumerate(p.counts.to_numpy()[: n // p.world_size])]
+        return np.concatenate(blocks) if blocks else np.zeros(0, dtype=np.int64)
 
 
 def _copy_value(value):

@@ -73,6 +73,8 @@ class ImplicitEuler(Integrator):
                     self.kmat[s], self.block[s] = self._spring_blocks(s, h)
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             b = h * self.f[i]
             diag = self.p.mass[i]
             if ti.static(self.has_springs):
@@ -115,6 +117,8 @@ class ImplicitEuler(Integrator):
         self.sums.p_ap[None] = 0.0
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             ap = self.p.mass[i] * self.d[i]
             if ti.static(self.has_springs):
                 ap = fold_bonds(self.springs, i, ap, self._add_bond_product, ())
@@ -126,6 +130,8 @@ class ImplicitEuler(Integrator):
         self.sums.clear_for_update()
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.dv[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.Ap[i]
             self.z[i] = self.r[i] / self.diag[i]
@@ -136,12 +142,16 @@ class ImplicitEuler(Integrator):
     def _direction(self, beta: ti.f64):
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.d[i] = self.z[i] + beta * self.d[i]
 
     @ti.kernel
     def _finish(self, h: float):
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.p.v[i] = self.p.v[i] + self.dv[i]
             self.p.x[i] = self.p.x[i] + h * self.p.v[i]
             self.rates.finish_particle(i, h)

@@ -83,12 +83,16 @@ class Leapfrog(SymplecticEuler):
         """Put back the staggered values the last synchronisation held."""
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.moving[i] = self.held[i]
 
     @ti.kernel
     def _record(self):
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.v_synced[i] = self.p.v[i]
             self.x_synced[i] = self.p.x[i]
             self.ident_synced[i] = self.p.ident[i]
@@ -101,6 +105,8 @@ class Leapfrog(SymplecticEuler):
         changed = 0
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             if not self._same(i):
                 changed += 1
         return changed
@@ -112,6 +118,8 @@ class Leapfrog(SymplecticEuler):
         for w in range(self.worlds):
             self.world_changed[w] = 0
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             if i >= synced or not self._same(i):
                 self.world_changed[world_of(self.p, i)] = 1
         changed = 0
@@ -160,6 +168,8 @@ class VelocityVerlet(Leapfrog):
         marked changed (the others' staggered velocities restored)."""
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             if ti.static(hold):
                 self.held[i] = self.p.v[i]
             if self._afresh(i, some):
@@ -193,6 +203,8 @@ class PositionVerlet(Leapfrog):
         marked changed (the others' staggered positions restored)."""
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             if ti.static(hold):
                 self.held[i] = self.p.x[i]
             if self._afresh(i, some):

@@ -129,6 +129,8 @@ class Diagnostics:
         if ti.static(self.worlds > 1):
             each = self.p.world_size
             first, last = world * each, (world + 1) * each
+            if ti.static(self.p.gaps):
+                last = first + self.p.counts[world]
         return first, last
 
     @ti.func

@@ -168,10 +168,14 @@ class Agitation(Term):
     @ti.kernel
     def _flow_near(self, grid: ti.template()):
         for i in range(self.p.n[None]):  # once per particle, not once per pair the scan visits
+            if self.p.idle(i):
+                continue
             t, phi = self.phase.state(self.p.h[i], self.p.material[i])
             self.is_free[i] = int(phi >= FREE)
             self.kt[i] = self.scale * ti.max(t + KELVIN, 0.0)
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.weight[i] = 0.0
             self.wsum[i] = 0.0
             self.visc_sum[i] = 0.0
@@ -204,6 +208,8 @@ class Agitation(Term):
         p = self.p
         share = ti.min(1.0 - ti.exp(-self.dim * dt / self.tau), MAX_SHARE)  # of the relative motion damped a step
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             self.v_new[i] = p.v[i]
             if self.is_free[i]:
                 impulse = grid.fold(i, p.x[i], ti.Vector.zero(float, self.dim), self._add_kick, (i, share, step, dt))
@@ -246,6 +252,8 @@ class Agitation(Term):
         neighbours it lacks; its gain in kinetic energy taken from its heat."""
         p = self.p
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             if self.free(i):
                 t, _ = self.phase.state(p.h[i], p.material[i])
                 kt = self.scale * ti.max(t + KELVIN, 0.0)

@@ -19,7 +19,8 @@ from ..config.build import load_mask
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.ranges import COUNT, Range
-from ..errors import SceneError
+from ..core.state import WORLDS
+from ..errors import SandboxError, SceneError
 from .fields import random_uniform
 from .phase import NEVER_BONDS
 from .term import Term, register
@@ -90,11 +91,16 @@ class Emitters(Term):
         mask_pairs = self._mask_pixels(emitters)
         if rows:  # one copy kernel for the whole table: each of _row()'s names is a field of this object
             transfer.upload([(getattr(self, name), np.array([r[name] for r in rows])) for name in rows[0]] + mask_pairs)
-        self.serial = [0] * self.count  # particles emitted so far, per emitter (the random-number index)
-        self.carry = [0.0] * self.count  # fractional particles owed by the rate
-        self.emitted = [0] * self.count
+        # with worlds (core/worlds.py) each world counts its own, as its lone run does: a list of these a world
+        self.worlds = self.p.world_count if self.p.gaps else 1
+        self.block = self.p.world_size if self.p.gaps else 0  # world w's slots start at w block
+        self.serial = self._per_world(0)  # particles emitted so far, per emitter (the random-number index)
+        self.carry = self._per_world(0.0)  # fractional particles owed by the rate
+        self.emitted = self._per_world(0)
         self._warned_full = False
         self.refills = [k for k, e in enumerate(self.specs) if e.refill_density > 0]
+        if self.refills and self.p.gaps:
+            raise SandboxError(f"{scene.name}: an emitter's refill_density cannot yet run as worlds; expected 1 world")
         self.refill_grids = {}
         for k in self.refills:
             self.refill_grids[k] = self._refill_grid(self.specs[k])
@@ -103,20 +109,41 @@ class Emitters(Term):
     def words(self, where: str) -> list[str]:
         return [f"emitters: {', '.join(e.name for e in self.specs)} (rate, bursts)"] if where == "before" else []
 
+    def _per_world(self, value) -> list:
+        """A counter per emitter, or with worlds a list of them a world."""
+        counters = [value] * self.count
+        return [list(counters) for _ in range(self.worlds)] if self.p.gaps else counters
+
+    def counters(self, w: int) -> tuple[list, list, list]:
+        """World w's (serial, carry, emitted) lists, an entry per emitter (a lone run's own, whatever w)."""
+        if self.p.gaps:
+            return self.serial[w], self.carry[w], self.emitted[w]
+        return self.serial, self.carry, self.emitted
+
     def declare(self, state) -> None:
         """Particles emitted so far (the random-number index), the rate's carried fraction, the counts."""
-        state.declare("emitters", self, ("serial", "emitted"), kind="value", valid=COUNT)
+        rows = WORLDS if self.p.gaps else ""
+        state.declare("emitters", self, ("serial", "emitted"), kind="value", valid=COUNT, rows=rows)
         # the carried fraction may sit a rounding below zero: a particle is due 1e-9 before a whole one is owed
-        state.declare("emitters", self, ("carry",), kind="value", valid=Range(lo=-1e-6, hi=2**31 - 1))
+        state.declare("emitters", self, ("carry",), kind="value", valid=Range(lo=-1e-6, hi=2**31 - 1), rows=rows)
 
     def start(self, state) -> None:
-        self.emit_initial()
+        for w in range(self.worlds):
+            self.emit_initial(w)
 
     def before_step(self, state) -> None:
-        """Emit what is due in the step [t, t + dt), then top up the refill regions."""
+        """Emit what is due in the step [t, t + dt) (each world's on its own clock), then top up the refill
+        regions."""
+        if self.p.gaps:
+            for w, t in enumerate(state.world_times()[: self._live_worlds()]):
+                self.emit_due(t, state.dt, w)
+            return
         self.emit_due(state.time, state.dt)
         if self.refills:
             self.refill(state.time)
+
+    def _live_worlds(self) -> int:
+        return int(self.p.n[None]) // self.block
 
     def _row(self, k: int, e, scene, material_names: list, ambient: float) -> dict:
         """Emitter k's parameters (spec e), by the name of the field that holds each: the values of its row."""
@@ -180,23 +207,26 @@ class Emitters(Term):
         return [(self.mask_start, starts), (self.mask_count, counts), (self.pixel_size, sizes), *pixels]
 
     # ------------------------------------------------------------------ emission (host decides counts)
-    def emit_initial(self) -> None:
+    def emit_initial(self, w: int = 0) -> None:
+        """The emitters' starting particles (`count`), in world w."""
         for k, e in enumerate(self.specs):
             if e.count:
-                self._emit(k, e.count, 0.0)
+                self._emit(k, e.count, 0.0, w)
 
-    def emit_due(self, t: float, dt: float) -> None:
-        """Emit what is due in the step [t, t + dt): the rate's share (with carry) and bursts falling in it."""
+    def emit_due(self, t: float, dt: float, w: int = 0) -> None:
+        """Emit what is due in the step [t, t + dt) of world w's clock: the rate's share (with carry) and bursts
+        falling in it."""
+        _, carry, _ = self.counters(w)
         for k, e in enumerate(self.specs):
             due = 0
             if e.rate > 0:
                 overlap = max(0.0, min(t + dt, e.stop) - max(t, e.start))
-                self.carry[k] += e.rate * overlap
-                due = int(math.floor(self.carry[k] + 1e-9))
-                self.carry[k] -= due
+                carry[k] += e.rate * overlap
+                due = int(math.floor(carry[k] + 1e-9))
+                carry[k] -= due
             due += e.burst_count * sum(1 for b in e.bursts if t <= b < t + dt)
             if due:
-                self._emit(k, due, t)
+                self._emit(k, due, t, w)
 
     # ------------------------------------------------------------------ refilling to a target density
     PER_CELL = 4  # refill cells are sized to hold this many particles at the target density
@@ -252,6 +282,8 @@ class Emitters(Term):
         for I in ti.grouped(count):
             count[I] = 0
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             c, inside = self._cell_of(self.p.x[i], lo, cell, count.shape)
             if inside:
                 count[c] += 1
@@ -284,9 +316,16 @@ class Emitters(Term):
                         u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
                         self._init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t)
 
-    def _emit(self, k: int, count: int, t: float) -> None:
-        n = int(self.p.n[None])
-        room = self.capacity - n
+    def _emit(self, k: int, count: int, t: float, w: int = 0) -> None:
+        """`count` particles from emitter k into world w, born at time t of its clock (as many as it has room for)."""
+        serial, _, emitted = self.counters(w)
+        if self.p.gaps:
+            n = int(self.p.counts[w])
+            room = self.block - n
+            n += w * self.block
+        else:
+            n = int(self.p.n[None])
+            room = self.capacity - n
         if count > room:
             if not self._warned_full:
                 self._warned_full = True
@@ -298,11 +337,16 @@ class Emitters(Term):
             count = room
         if count <= 0:
             return
-        self._spawn(k, count, n, self.serial[k], t, self.p.next_ident)
-        self.p.next_ident += count
-        self.serial[k] += count
-        self.emitted[k] += count
-        self.p.n[None] = n + count
+        ident = self.p.next_ident[w] if self.p.gaps else self.p.next_ident
+        self._spawn(k, count, n, serial[k], t, ident, w)
+        if self.p.gaps:
+            self.p.next_ident[w] += count
+            self.p.counts[w] += count
+        else:
+            self.p.next_ident += count
+            self.p.n[None] = n + count
+        serial[k] += count
+        emitted[k] += count
         self.state.particles_moved()
 
     @ti.func
@@ -408,11 +452,13 @@ class Emitters(Term):
         return v
 
     @ti.kernel
-    def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float, ident0: ti.i32):
+    def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float, ident0: ti.i32, w: ti.i32):
         for e in range(count):
             serial = serial0 + e
             self._init_particle(k, first + e, serial, self.sample_position(k, serial), t)
             self.p.ident[first + e] = ident0 + e
+            if ti.static(self.p.worlds):
+                self.p.world[first + e] = w
 
     @ti.func
     def _init_particle(self, k, i, serial, pos, t):

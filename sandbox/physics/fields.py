@@ -115,6 +115,9 @@ class VelocityField(Term):
         self.has_kinematic = "kinematic" in couplings
         self.has_drag = "drag" in couplings
         self.p = parts.state.particles
+        self.state = parts.state
+        if self.p.gaps:  # each world's clock, as the particles sample the field
+            self.world_time = ti.field(float, shape=self.p.world_count)
         # per group (every body, every emitter, then the spawn tool's particles):
         self.coupling = ti.field(ti.i32, shape=len(groups) + 1)  # index into COUPLINGS
         self.drag_rate = ti.field(float, shape=len(groups) + 1)  # field = drag: relaxation rate (1/time)
@@ -127,13 +130,24 @@ class VelocityField(Term):
         if self.has_kinematic or self.has_drag:
             self.v_field = ti.Vector.field(self.dim, float, shape=parts.model.capacity)  # v(x, t) at coupled particles
 
+    def sample_at_particles(self, t: float) -> None:
+        """v_field[i] = v(x_i, t) at every particle coupled to the field (kinematic or drag); t is the simulation's
+        time, and with worlds each world's particles sample at its own clock's (t less the time it started)."""
+        if self.p.gaps:
+            self.world_time.from_numpy(np.array([t - start for start in self.state.world_started]))
+        self._sample_particles(t)
+
     @ti.kernel
-    def sample_at_particles(self, t: float):
-        """v_field[i] = v(x_i, t) at every particle coupled to the field (kinematic or drag)."""
+    def _sample_particles(self, t: float):
         p = self.p
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             if self.coupling[p.group[i]] != NO_COUPLING:
-                self.v_field[i] = self.velocity(p.x[i], t)
+                if ti.static(p.gaps):
+                    self.v_field[i] = self.velocity(p.x[i], self.world_time[p.world[i]])
+                else:
+                    self.v_field[i] = self.velocity(p.x[i], t)
 
     def _build(self, dim: int, elements: list, grid=None):
         """The element tables; `grid`: a SmokeGrid whose velocity is added to the elements' (None: elements only)."""

@@ -73,6 +73,9 @@ class CellGrid:
         self.cell_size = tuple(float(e / c) for e, c in zip(extent, counts))
         self.world_cells = int(np.prod(counts))  # the cells of one world's box
         self.n_cells = self.world_cells * self.worlds
+        self.parks = particles is not None and particles.gaps  # the worlds' idle slots are sorted into a cell of their
+        if self.parks:  # own, past every world's: no scan visits it (core/particles.py's idle)
+            self.n_cells += 1
         self.reach = reach
         self.x = x
         self.n = n_active
@@ -113,6 +116,9 @@ class CellGrid:
         self.loops.light()
         for i in range(self.n[None]):
             c = self.flat(self.cell_of(self.x[i])) + self.world_base(i)
+            if ti.static(self.parks):
+                if self.p.idle(i):
+                    c = self.n_cells - 1
             self.particle_cell[i] = c
             self.slot[i] = ti.atomic_add(self.cell_count[c], 1)
         self.prefix_sum()

@@ -274,6 +274,8 @@ class Heat(Term):
     def sync_temperatures(self):
         """Recompute every particle's enthalpy from its temperature (after temperatures were set directly)."""
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.p.h[i] = self.phase.enthalpy(self.p.T[i], self.p.material[i])
             self.set_enthalpy(i, self.p.h[i])
 

@@ -114,6 +114,8 @@ class ImplicitHeat(Term):
     def _assemble(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
         self.sums.clear_for_assembly()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             cap = self.p.mass[i] * self.phase.capacity(self.p.h[i], self.p.material[i])
             g, gt = self.heat.sources.terms(i)
             gsum, lap = self._laplacian(i, self.p.T, use_list, ids)
@@ -132,6 +134,8 @@ class ImplicitHeat(Term):
     def _matvec(self, h: float, use_list: ti.template(), ids: LIST_ARRAY):
         self.sums.p_ap[None] = 0.0
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             cap = self.p.mass[i] * self.phase.capacity(self.p.h[i], self.p.material[i])
             g, _ = self.heat.sources.terms(i)
             _, lap = self._laplacian(i, self.d, use_list, ids)
@@ -142,6 +146,8 @@ class ImplicitHeat(Term):
     def _update(self, alpha: ti.f64):
         self.sums.clear_for_update()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.dT[i] += alpha * self.d[i]
             self.r[i] -= alpha * self.ad[i]
             self.z[i] = self.r[i] / self.diag[i]
@@ -151,11 +157,15 @@ class ImplicitHeat(Term):
     @ti.kernel
     def _direction(self, beta: ti.f64):
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.d[i] = self.z[i] + beta * self.d[i]
 
     @ti.kernel
     def apply(self):
         """h += c dT (dT accumulated by the solve); T follows from h."""
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             c = self.phase.capacity(self.p.h[i], self.p.material[i])
             self.heat.set_enthalpy(i, self.p.h[i] + c * self.dT[i])

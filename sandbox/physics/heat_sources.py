@@ -116,6 +116,8 @@ class HeatSources:
         clear_table(self.src_mass)
         self.loops.light()
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             for k in range(self.n_sources):
                 if self.src_mode[k] == POWER and self.inside(k, self.p.x[i]):
                     add_to_entry(self.src_mass, world_of(self.p, i), k, self.p.mass[i])

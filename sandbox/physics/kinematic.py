@@ -56,6 +56,8 @@ class Kinematic(Term):
         p = self.p
         self.loops.light()
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             if self.coupling[p.group[i]] == KINEMATIC:
                 self.x_start[i] = p.x[i]
                 self.v_start[i] = p.v[i]
@@ -87,6 +89,8 @@ class Kinematic(Term):
         p = self.p
         self.loops.light()
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             if self.coupling[p.group[i]] == KINEMATIC:
                 x = self.x_start[i] + dt * self.v_field[i]
                 if ti.static(final):

@@ -5,6 +5,7 @@ from the tail of the storage fill the holes (the State moves everything that rid
 the live count stays the number alive and memory stays bounded however many particles were ever emitted.
 """
 
+import numpy as np
 import taichi as ti
 
 from ..core.oriented import data_oriented
@@ -31,6 +32,8 @@ class Lifetimes(Term):
         self.hole = ti.field(ti.i32, shape=capacity)  # compaction: slots of the dead below the new count
         self.filler = ti.field(ti.i32, shape=capacity)  # ... and the live particles above it that move into them
         self.moves = ti.field(ti.i32, shape=2)  # [holes found, fillers found]
+        if self.p.gaps:
+            self.dead_in = ti.field(ti.i32, shape=self.p.world_count)  # each world's dead
 
     def words(self, where: str) -> list[str]:
         return ["ageing; the dead retired by compaction after each step() call"] if where == "after" else []
@@ -48,15 +51,33 @@ class Lifetimes(Term):
             self.p.age[i] += dt
 
     def retire(self) -> int:
-        """Remove the dead (age >= lifetime > 0) by compaction; returns how many were removed."""
+        """Remove the dead (age >= lifetime > 0) by compaction; returns how many were removed. With worlds, each
+        world's block is compacted as its lone run compacts its particles."""
+        if self.p.gaps:
+            return self._retire_worlds()
         dead = int(self._count_dead())
         if dead == 0:
             return 0
         n = int(self.p.n[None])
-        self._find_moves(n - dead)
+        self._find_moves(0, n - dead, n)
+        self.p.n[None] = n - dead
         self.state.fill_holes(self.hole, self.filler, int(self.moves[0]))
         self.p.clear(n - dead, n)  # the slots left hold nothing of the dead: the next born start fresh
         return dead
+
+    def _retire_worlds(self) -> int:
+        p = self.p
+        block = p.world_size
+        self._count_dead_worlds()
+        dead, counts = self.dead_in.to_numpy(), p.counts.to_numpy()
+        for w in np.flatnonzero(dead):
+            first, n = int(w) * block, int(counts[w])
+            self._find_moves(first, n - int(dead[w]), n)
+            self.state.fill_holes(self.hole, self.filler, int(self.moves[0]))
+            p.clear(first + n - int(dead[w]), first + n)
+        if dead.any():
+            p.counts.from_numpy((counts - dead).astype(np.int32))
+        return int(dead.sum())
 
     @ti.func
     def dead(self, i):
@@ -71,15 +92,29 @@ class Lifetimes(Term):
         return total
 
     @ti.kernel
-    def _find_moves(self, n_new: ti.i32):
-        """The dead below the new count (holes) and the live above it (fillers), as many of each; the count drops."""
-        p = self.p
+    def _count_dead_worlds(self):
+        """dead_in[w]: world w's dead (worlds with gaps)."""
+        for w in self.dead_in:
+            self.dead_in[w] = 0
+        for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
+            if self.dead(i):
+                ti.atomic_add(self.dead_in[self.p.world[i]], 1)
+
+    @ti.kernel
+    def _find_moves(self, first: ti.i32, keep: ti.i32, live: ti.i32):
+        """Of the `live` particles from slot `first`: the dead among the first `keep` (holes) and the live after them
+        (fillers), as many of each, both in slot order (serial: the same moves whatever the threads)."""
         self.moves[0] = 0
         self.moves[1] = 0
-        for i in range(n_new):
+        ti.loop_config(serialize=True)
+        for i in range(first, first + keep):
             if self.dead(i):
-                self.hole[ti.atomic_add(self.moves[0], 1)] = i
-        for i in range(n_new, p.n[None]):
+                self.hole[self.moves[0]] = i
+                self.moves[0] += 1
+        ti.loop_config(serialize=True)
+        for i in range(first + keep, first + live):
             if not self.dead(i):
-                self.filler[ti.atomic_add(self.moves[1], 1)] = i
-        p.n[None] = n_new
+                self.filler[self.moves[1]] = i
+                self.moves[1] += 1

@@ -250,6 +250,8 @@ class NeighbourList:
         self.check_count()
         self.loops.light()
         for i in range(self.n[None]):
+            if self.p.idle(i):
+                continue
             self.check_one(i)
 
     @ti.func
@@ -279,6 +281,8 @@ class NeighbourList:
         self.widest[None] = 0
         self.loops.pairs()
         for i in range(self.n[None]):
+            if self.p.idle(i):
+                continue
             self.count[i] = self._visit(i, r2max, False, self.count, self.half)
             ti.atomic_max(self.widest[None], self.count[i])
         return self.widest[None]
@@ -300,6 +304,8 @@ class NeighbourList:
         self.begin_fill()
         self.loops.pairs()
         for i in range(self.n[None]):
+            if self.p.idle(i):
+                continue
             self.fill_one(i, ids)
 
     @ti.func
@@ -312,6 +318,8 @@ class NeighbourList:
                 for w in range(self.worlds):
                     self.world_stale[w] = 1 if every else 0
                 for i in range(self.n[None]):  # (serial: nested in the branch)
+                    if self.p.idle(i):
+                        continue
                     if self.moved_far(i):
                         self.world_stale[world_of(self.p, i)] = 1
             self.every_row[None] = 0

@@ -310,6 +310,8 @@ class Refreeze(Term):
         """Drop broken springs from every bond list (keeping each list packed) and mark cold liquid particles."""
         s = self.springs
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             kept = 0
             for k in range(s.max_bonds):
                 b = s.bonds[i, k]
@@ -349,9 +351,13 @@ class Refreeze(Term):
         cursor = 0
         ti.loop_config(serialize=True)
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             if p.liquid[i] == FREEZING:
                 cursor = grid.fold(i, p.x[i], cursor, self._bond_to, (i, p.material[i]))
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             if p.liquid[i] == FREEZING:
                 p.liquid[i] = LIQUID
                 if self.bond_count(i) > 0:

@@ -35,7 +35,8 @@ def omega_bound(ks, factor, alive, i, j, mass, n: int) -> float:
     s at stiffness ks * factor, for the first n particles (host arrays, one entry per spring or particle)."""
     k = ks * factor * alive
     ksum = np.bincount(i, weights=k, minlength=n)[:n] + np.bincount(j, weights=k, minlength=n)[:n]
-    return float(math.sqrt(np.max(2 * ksum / mass[:n]))) if n else 0.0
+    m = mass[:n]  # (a slot of no particle among them, a world's idle one, has no mass and no spring)
+    return float(math.sqrt(np.max(np.divide(2 * ksum, m, out=np.zeros(n), where=m > 0)))) if n else 0.0
 
 
 @register

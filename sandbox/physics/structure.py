@@ -173,6 +173,8 @@ class Structure(Term):
     @ti.kernel
     def _order(self, grid: ti.template()):
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             acc = grid.fold(i, self.p.x[i], ti.Vector.zero(float, self.width + 1), self._add_bond, (i,))
             q = ti.Vector([acc[a] for a in ti.static(range(self.width))])
             norm = q.norm()
@@ -182,6 +184,8 @@ class Structure(Term):
     @ti.kernel
     def _kind(self):
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             kind = GAS
             if self.count[i] >= self.gas_below:
                 bonds = 0

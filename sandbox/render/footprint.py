@@ -58,11 +58,15 @@ class Footprint:
     @ti.kernel
     def _remember(self, into: ti.template()):
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             into[i] = ti.cast(self.p.x[i], ti.f32)
 
     @ti.kernel
     def _straight_mids(self):
         for i in range(self.p.n[None]):
+            if self.p.idle(i):
+                continue
             self.x_mid[i] = 0.5 * (self.x_prev[i] + ti.cast(self.p.x[i], ti.f32))
 
     @ti.func

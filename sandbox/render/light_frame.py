@@ -52,6 +52,7 @@ class LightFrame:
         self.height = renderer.height
         self.flags = CURVED if self.footprint.spline else 0
         self.exposure = float(renderer.canvas.exposure)
+        self.world: int | None = None  # the world whose light is packed (core/worlds.py), None: every live particle's
         # on the CPU the kernel writes straight into this host array (no copy)
         self.records = np.zeros((max(renderer.model.capacity, 1), RECORD_WORDS), np.uint32)
         self.count = ti.field(ti.i32, shape=())
@@ -60,15 +61,15 @@ class LightFrame:
         """The light frame of the state now (the module docstring's layout); the renderer's tails must be those of
         the frame just stepped (Renderer.begin_frame before its steps)."""
         self.footprint.before_drawing()  # no middle position this frame: curved streaks drawn straight
-        n = int(self.p.n[None])
-        m = self._pack(n, self.records)  # even for none: compiled where a session warms up
+        first, n = self.p.block(self.world)
+        m = self._pack(first, n, self.records)  # even for none: compiled where a session warms up
         return LIGHT_HEADER.pack(b"L", m, self.exposure, self.flags) + self.records[:m].tobytes()
 
     @ti.kernel
-    def _pack(self, n: ti.i32, records: ti.types.ndarray()) -> ti.i32:
+    def _pack(self, first: ti.i32, n: ti.i32, records: ti.types.ndarray()) -> ti.i32:
         look, p, fp = self.look, self.p, self.footprint
         self.count[None] = 0
-        for i in range(n):
+        for i in range(first, first + n):
             if look.g_blend[p.group[i]] == BLEND["additive"]:
                 tail, ctrl, head, r, r_true, blurred = self.painter.splat_shape(i)
                 x0, x1, y0, y1 = self.canvas.box(tail, head, r, ctrl)
@@ -95,7 +96,7 @@ def decode_light(data: bytes) -> dict:
     """A light frame read back (for tests and tools; the page reads the same layout): exposure, curved, and per
     glowing particle head, tail, ctrl ((m, 2) pixels, rows from the top), r (pixels), blurred, intensity, rgb."""
     _, m, exposure, flags = LIGHT_HEADER.unpack_from(data)
-    records = np.frombuffer(data, np.uint32, count=RECORD_WORDS * m, offset=LIGHT_HEADER.size).reshape(m, -1)
+    records = np.frombuffer(data, np.uint32, count=RECORD_WORDS * m, offset=LIGHT_HEADER.size).reshape(m, RECORD_WORDS)
     points = records[:, :6].copy().view(np.float32)
 
     def place(c):

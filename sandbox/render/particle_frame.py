@@ -71,8 +71,7 @@ class FramePacker:
         """(first slot, count) of the particles packed: every live one, or the block of world `self.world`."""
         if self.world is None:
             return 0, min(int(self.p.n[None]), len(self.records))
-        size = self.p.world_size
-        return self.world * size, size
+        return self.p.block(self.world)
 
     def pack(self) -> np.ndarray:
         """The live particles' records now (those of `self.world` alone where it is set), (n, 3) uint32 (the

@@ -209,6 +209,8 @@ class Spheres3D:
     def _depth_3d(self):
         p = self.p
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             if self.look.g_blend[p.group[i]] == 0:
                 centre, z = self._project(p.x[i])
                 if z > 1e-3:
@@ -224,6 +226,8 @@ class Spheres3D:
     def _shade_3d(self):
         p = self.p
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             g = p.group[i]
             if self.look.g_blend[g] == 0:
                 centre, z = self._project(p.x[i])
@@ -275,6 +279,8 @@ class Spheres3D:
         streak's head, stays solid, and nearer spheres hide it)."""
         p = self.p
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             g = p.group[i]
             if self.look.g_blend[g] == 0:
                 tail, ctrl, head, z_tail, z, blurred = self._streak_3d(i)
@@ -338,6 +344,8 @@ class Spheres3D:
     def _light_3d(self):
         p = self.p
         for i in range(p.n[None]):
+            if p.idle(i):
+                continue
             g = p.group[i]
             if self.look.g_blend[g] == 2:
                 tail, ctrl, head, _, z, blurred = self._streak_3d(i)

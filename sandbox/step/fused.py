@@ -84,6 +84,8 @@ class FusedSteps:
                     rates.rate_loops(self.has_lists, ids, integrator, dt, stage, merged)
                     if ti.static(not merged):
                         for i in range(self.state.particles.n[None]):
+                            if self.state.particles.idle(i):
+                                continue
                             integrator.update_particle(i, dt, stage)
                     stage += 1
             if not stopped:

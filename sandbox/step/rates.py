@@ -130,6 +130,8 @@ class Rates:
             lists.check_count()
             self.loops.light()
             for i in range(self.state.particles.n[None]):
+                if self.state.particles.idle(i):
+                    continue
                 lists.check_one(i)
 
     # ------------------------------------------------------------------ the pair pass over half lists
@@ -147,10 +149,13 @@ class Rates:
         so their chunks t share buffer row t without a conflict, and each world's forces are summed in the order of
         its lone run."""
         width = self.hood.lists.width_of(ids)
-        each = self.world_size
+        size = self.world_size
         k, t = item // self.n_chunks, item % self.n_chunks
-        if k < n // each:  # a live world (those past the live count wait to be added: Simulation.add_world)
-            for i in range(k * each + t * each // self.n_chunks, k * each + (t + 1) * each // self.n_chunks):
+        if k < n // size:  # a live world (those past the live count wait to be added: Simulation.add_world)
+            each = size  # its live particles: its block, or with gaps the first counts[k] of it
+            if ti.static(self.state.particles.gaps):
+                each = self.state.particles.counts[k]
+            for i in range(k * size + t * each // self.n_chunks, k * size + (t + 1) * each // self.n_chunks):
                 self._half_row(t, i, ids, i * width)
 
     @ti.func
@@ -261,6 +266,8 @@ class Rates:
         if ti.static(not merged):
             self.loops.light()
             for i in range(self.state.particles.n[None]):
+                if self.state.particles.idle(i):
+                    continue
                 integrator.update_particle(i, dt, stage)
 
     def updates_in_gather(self, use_list: bool) -> bool:
@@ -313,6 +320,8 @@ class Rates:
             i = ks
             if ti.static(self.has_grid):
                 i = self.hood.grid.sorted_ids[ks]  # visit particles cell by cell: neighbours stay in cache
+            if p.idle(i):
+                continue
             self.gather_particle(i, use_list, ids, integrator, dt, stage, update_here)
 
     @ti.func

@@ -1,0 +1,109 @@
+"""Worlds of scenes whose particle counts change (core/worlds.py, gaps): emitters seed each world on its own clock and
+with its own random stream, lifetimes retire each world's dead by compacting its own block, and each world is the
+scene run alone, bit for bit.
+
+A world's particles are compared by id (`sim.world(k).positions()` is by id; a lone run's storage is reordered by
+its compaction, so the lone run's are sorted by id here).
+"""
+
+import numpy as np
+import pytest
+
+import sandbox
+from sandbox.errors import SandboxError
+
+pytestmark = pytest.mark.xdist_group("worlds")
+
+
+def _by_id(sim, name: str = "x") -> np.ndarray:
+    """A lone run's per-particle field `name` of its live particles, by id."""
+    n = sim.state.live_count()
+    order = np.argsort(sim.particles.ident.to_numpy()[:n], kind="stable")
+    return getattr(sim.particles, name).to_numpy()[:n][order]
+
+
+def _assert_world_is(lone, world, fields=("x", "v")) -> None:
+    for name in fields:
+        mine, alone = world.field(name), _by_id(lone, name)
+        assert mine.shape == alone.shape, name
+        assert np.array_equal(mine, alone), name
+
+
+def test_each_world_of_fireworks_is_its_lone_run_through_bursts_and_retirements():
+    """Three emitters' bursts (at 0.1, 0.6 and 1.2 s) and sparks of 1.8-2.2 s lifetimes (spread 40%): by frame 70
+    (1.4 s) the first burst's sparks have begun to die, so each world has emitted into its block and compacted it."""
+    lone = sandbox.load("fireworks")
+    batch = sandbox.load("fireworks", worlds=3)
+    assert batch.state.live_count() == 3 * batch.state.particles.world_size  # every world's block, none live yet
+    for _ in range(70):
+        lone.advance_frame()
+        batch.advance_frame()
+    emitted = sum(lone.terms.emitters.emitted)
+    assert 0 < lone.state.live_count() < emitted  # sparks were born and some retired
+    for k in range(3):
+        world = batch.world(k)
+        _assert_world_is(lone, world)
+        assert world.stats() == lone.stats()
+        assert batch.terms.emitters.emitted[k] == lone.terms.emitters.emitted
+
+
+def test_a_fireworks_world_started_again_bursts_on_its_own_clock_and_the_others_run_on(tmp_path):
+    """World 1 starts again at 0.5 s: its first burst comes at its own 0.1 s, and it equals a lone run started then;
+    worlds 0 and 2 equal the uninterrupted run. A world's state file resumes alone as that run; a world taken out
+    has the last one move into its place."""
+    lone = sandbox.load("fireworks")
+    batch = sandbox.load("fireworks", worlds=3)
+    for _ in range(25):
+        lone.advance_frame()
+        batch.advance_frame()
+    batch.world(1).reset()
+    assert batch.world(1).positions().shape == (0, 2) and batch.world(1).time == 0.0
+    fresh = sandbox.load("fireworks")
+    for _ in range(20):
+        for sim in (lone, batch, fresh):
+            sim.advance_frame()
+    for k, alone in ((0, lone), (1, fresh), (2, lone)):
+        _assert_world_is(alone, batch.world(k))
+    assert lone.state.live_count() != fresh.state.live_count()  # the restarted world is really younger
+    path = batch.world(1).save(tmp_path / "world1.npz")
+    resumed = sandbox.resume(path)
+    batch.world(0).remove()  # world 2 (the uninterrupted run) moves into index 0
+    for _ in range(10):
+        for sim in (lone, batch, fresh, resumed):
+            sim.advance_frame()
+    _assert_world_is(lone, batch.world(0))
+    _assert_world_is(fresh, batch.world(1))
+    _assert_world_is(fresh, type("View", (), {"field": lambda self, name: _by_id(resumed, name)})())
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_each_world_of_a_candle_is_its_lone_run_to_the_bit():
+    """The candle: a flame emitter (300 a second, 0.7 s lifetimes) carried by a wind and curl noise that drifts in
+    time (kinematic particles, sampled at each world's clock), over wax that melts, breaks its bonds and refreezes
+    (springs, the pair force, heat, a heat source): positions, velocities and temperatures equal the lone run's."""
+    lone = sandbox.load("candle")
+    batch = sandbox.load("candle", worlds=2)
+    for _ in range(50):
+        lone.advance_frame()
+        batch.advance_frame()
+    alone = lone.stats()
+    assert alone.broken_springs > 0 and sum(lone.terms.emitters.emitted) > lone.state.live_count() - 336
+    for k in range(2):
+        _assert_world_is(lone, batch.world(k), ("x", "v", "T"))
+        mine = batch.world(k).stats()
+        assert (mine.particles, mine.broken_springs, mine.molten_fraction) == (
+            alone.particles,
+            alone.broken_springs,
+            alone.molten_fraction,
+        )
+        assert mine.kinetic_energy == alone.kinetic_energy
+        # summed over springs: a world's refrozen bonds sit in other slots than its lone run's
+        assert mine.spring_energy == pytest.approx(alone.spring_energy, rel=1e-6)
+
+
+def test_worlds_with_emitters_refuse_what_they_cannot_hold_in_one_line():
+    with pytest.raises(SandboxError, match="smoke_vortex: worlds = 2 is for .* this one has smoke"):
+        sandbox.load("smoke_vortex", worlds=2)
+    refill = {"emitters.0.refill_density": 0.5}
+    with pytest.raises(SandboxError, match="candle: an emitter's refill_density cannot yet run as worlds"):
+        sandbox.load("candle", set=refill, worlds=2)
