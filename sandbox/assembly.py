@@ -146,6 +146,9 @@ def refuse_worlds(scene: Scene, worlds: int, terms: list) -> None:
             f"{scene.name}: worlds = {worlds} is for scenes whose parts are all {', '.join(sorted(WORLD_TERMS))}; "
             f"this one has {', '.join(other)}"
         )
+    common = sorted(t.key for t in terms if not getattr(t, "world_controls", False) and t.controls())
+    if common:  # a live control of one value for all worlds: a tab's slider would move every tab's
+        raise SandboxError(f"{scene.name}: worlds = {worlds} cannot yet hold {', '.join(common)}: one control for all")
     keys = {term.key for term in terms}
     counted = sorted(keys & {"lid", "heater"}) + [scene.world.integrator] * (scene.world.integrator in LEAPFROGS)
     if scene.emitters and counted:  # these read each world's block as full (core/worlds.py: gaps)

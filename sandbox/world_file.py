@@ -12,8 +12,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from .core import controls as live_controls
 from .core.state import FIELD, NDARRAY, VALUE
 from .errors import SandboxError, SimulationError
@@ -79,20 +77,12 @@ def read_world_file(sim, path: str | Path, like: dict, current: dict) -> tuple[d
     check_world_state(sim.model, entries, like, saved, host, path)
     part = {e.name: saved[f"{e.kind}:{e.name}"] for e in entries if e.kind in (FIELD, NDARRAY)}
     part.update({e.name: host[e.name] for e in entries if e.kind == VALUE})
-    return part, live_controls.world_owned(sim.model, sim.terms, meta["controls"])
+    return part, meta["controls"]
 
 
 def _check_world_controls(sim, current: dict, saved: dict, path: Path) -> None:
-    """The file's live controls are this scene's, each shaped as world k's, passing their owners' checks; a control
-    that is one for all worlds (its owner keeps no `world_controls`) holds the value it has here."""
+    """The file's live controls are this scene's, each shaped as world k's, passing their owners' checks."""
     check_controls(saved, current, path)
     said = live_controls.problem(sim.model, sim.terms, saved)
     if said:
         raise SandboxError(f"{path}: {said}")
-    common = live_controls.shared(sim.model, sim.terms)
-    for key, value in current.items():
-        if key.split(".")[0] in common and not np.allclose(saved[key], value, rtol=0, atol=0):
-            raise SandboxError(
-                f"{path}: control {key} = {saved[key]!r}; this simulation's worlds share {key} = {value!r} (set it "
-                "with sim.controls.set before loading)"
-            )

@@ -297,7 +297,7 @@ def remove_world(sim, k: int) -> None:
     if k != last:
         moved = live_controls.Controls(sim.model, sim.terms, last).values()
         put_world(sim, k, world_snapshot(sim, last))
-        live_controls.Controls(sim.model, sim.terms, k).set(live_controls.world_owned(sim.model, sim.terms, moved))
+        live_controls.Controls(sim.model, sim.terms, k).set(moved)
     springs = sim.state.springs
     if springs is not None:  # the bonds of the world out of use: none acts on slots past the live count
         each = sim.state.particles.world_size

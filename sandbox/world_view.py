@@ -79,8 +79,8 @@ class WorldView:
 
     @property
     def controls(self) -> live_controls.Controls:
-        """This world's live controls by namespaced name (values(), set({...})); a control that is one for all
-        worlds (the pair force's scale) is set on sim.controls instead."""
+        """This world's live controls by namespaced name (values(), set({...})): each world holds its own (the owners
+        a simulation of worlds may hold all keep them per world: assembly.refuse_worlds)."""
         return live_controls.Controls(self.sim.model, self.sim.terms, self.index)
 
     def stats(self, pair_energy: bool = True) -> Stats:
@@ -132,8 +132,7 @@ class HeldWorld:
     def put(self, k: int) -> None:
         """Put this state and its own controls into world k of the simulation (world_state.put_world)."""
         put_world(self.sim, k, self.part)
-        own = live_controls.world_owned(self.sim.model, self.sim.terms, self.controls.values())
-        live_controls.Controls(self.sim.model, self.sim.terms, k).set(own)
+        live_controls.Controls(self.sim.model, self.sim.terms, k).set(self.controls.values())
 
     def reset(self) -> None:
         """The scene's initial state, clock from 0; the controls stay (as WorldView.reset leaves them)."""

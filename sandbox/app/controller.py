@@ -22,7 +22,6 @@ from ..config.resources import shipped_scene
 from ..config.scene import load_scene
 from ..core import runtime
 from ..core.controls import owners as controls_owners
-from ..core.controls import shared as controls_shared
 from ..errors import SandboxError
 from ..files.persist import load_into, save_state
 from ..measure.units import shown
@@ -203,11 +202,9 @@ class Controller:
         (gravity's strength and, in 2D, direction; the time step's scale). The window, the page and the teacher's
         broadcast all offer these; a new one is a declaration in its term and its words in the catalogues."""
         values = self.target.controls.values()
-        common = controls_shared(self.sim.model, self.sim.terms) if self.world is not None else set()
         out = [
             self._from_slider(f"{space}.{s.control}", values, s)
             for space, owner in controls_owners(self.sim.model, self.sim.terms)
-            if space not in common  # one for all worlds: not a world's to move
             for s in owner.sliders()
         ]
         out += self._own_settings()

@@ -23,21 +23,14 @@ def owners(model, terms) -> list[tuple[str, object]]:
 
 
 def gather(model, terms, world: int = 0) -> dict:
-    """Every live control as plain numbers, by its namespaced name: world `world`'s where each world has its own
-    (an owner's `world_controls`, core/worlds.py), the one value of all worlds elsewhere."""
+    """Every live control as plain numbers, by its namespaced name: world `world`'s (an owner with `world_controls`
+    keeps them per world, core/worlds.py; a simulation of worlds holds no other owner of controls)."""
     values = {}
     for space, owner in owners(model, terms):
         own = owner.controls(world=world) if getattr(owner, "world_controls", False) else owner.controls()
         for name, value in own.items():
             values[f"{space}.{name}"] = value
     return values
-
-
-def world_owned(model, terms, values: dict) -> dict:
-    """Of `values` (controls by namespaced name), those each world holds of its own: less the controls that are one
-    for all worlds (shared())."""
-    common = shared(model, terms)
-    return {key: value for key, value in values.items() if key.split(".")[0] not in common}
 
 
 def problem(model, terms, values: dict) -> str | None:
@@ -71,13 +64,6 @@ def apply(model, terms, values: dict, world: int | None = None) -> None:
             owner.apply_controls(mine)
 
 
-def shared(model, terms) -> set[str]:
-    """The namespaces whose controls are one for all worlds (their owners keep no `world_controls`)."""
-    if getattr(model, "worlds", 1) == 1:
-        return set()
-    return {space for space, owner in owners(model, terms) if not getattr(owner, "world_controls", False)}
-
-
 class Controls:
     """The live controls of a model and its terms (`sim.controls`): `values()` reads them all by namespaced name,
     `set(values)` changes some, each name and shape checked before anything changes."""
@@ -100,7 +86,7 @@ class Controls:
 
     def check(self, values: dict) -> None:
         """SandboxError (one line) for the first of `values` that set() would refuse: a name this scene has not, a
-        value of another shape or out of its owner's range, or (for one world) a control that is one for all."""
+        value of another shape or out of its owner's range."""
         current = self.values()
         for key, value in values.items():
             if key not in current:
@@ -110,10 +96,6 @@ class Controls:
         said = problem(self.model, self.terms, values)
         if said:
             raise SandboxError(said)
-        common = shared(self.model, self.terms) if self.world is not None else set()
-        key = next((key for key in values if key.split(".")[0] in common), None)
-        if key is not None:
-            raise SandboxError(f"control {key} is one for all worlds of this simulation; set it with sim.controls.set")
 
 
 class HeldControls(Controls):
