@@ -94,3 +94,29 @@ def test_the_page_adds_the_glowing_particles_light_as_the_renderer_does(scene, f
     lit = np.any(drawn.astype(int) - without_light > 8, axis=2)  # where the page's light shows
     assert lit.sum() > 200 and difference[lit].mean() < 2.0, (lit.sum(), difference[lit].mean())
     assert np.abs(without_light.astype(int) - picture.astype(int))[lit].mean() > 20.0  # and it is the light that does
+
+
+def test_a_spark_born_this_frame_is_drawn_still_not_streaked_from_a_stale_tail():
+    """fireworks' gold shell goes off again at 2.5 s (in the 79th frame), its 700 sparks born into slots that the
+    dead sparks' compaction freed: the frame they are born in has no tail for them, so each is drawn still where it
+    is. Before, each took the tail left in its slot (where another spark had been a frame ago): 539 of them were
+    drawn as streaks up to 160 pixels long, from nowhere to the shell."""
+    import sandbox
+    from sandbox.render.light_frame import LightFrame
+    from sandbox.render.raster import Renderer
+
+    sim = sandbox.load("fireworks")
+    renderer = Renderer(sim.model, sim.state, 320, 180, sim.scene.render, output="picture")
+    sim.state.carry(renderer.tails)
+    light = LightFrame(renderer)
+    for _ in range(79):
+        renderer.begin_frame()
+        sim.advance_frame(None, renderer.mid_frame)
+    assert sum(sim.terms.emitters.emitted) > sim.state.live_count() + 700  # sparks died before this burst
+    drawn = decode_light(light.encode())
+    painter = renderer.painter
+    shell = np.array([50.0, 60.0]) * painter.px_per_unit + painter.offset.to_numpy()
+    shell[1] = renderer.height - shell[1]  # rows from the top
+    near = np.linalg.norm(drawn["head"] - shell, axis=1) < 1.5 * painter.px_per_unit  # the newborn, and any passing
+    streaks = np.linalg.norm(drawn["head"] - drawn["tail"], axis=1)[near]
+    assert near.sum() >= 700 and drawn["blurred"][near].sum() <= 2 and streaks.max() < 2.0

@@ -71,6 +71,7 @@ class WorldHost:
         self.sim = sim = build_batch(scene, capacity)
         words_off = dataclasses.replace(sim.scene.render, title=False, clock=False, legend=False)
         self.renderer = Renderer(sim.model, sim.state, width, height, words_off, output="picture")
+        sim.state.carry(self.renderer.tails)  # motion-blur tails move with the particles an emitter's world compacts
         self.packer = page_packer(self.renderer, webgl=True)
         if self.packer is None:
             raise SandboxError(f"{scene}: the page cannot draw its particles as the renderer does")

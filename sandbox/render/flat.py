@@ -207,6 +207,7 @@ class Flat2D:
             tail, ctrl, head = fp.streak(prev, mid, head)
             span = ti.max((tail - head).norm(), (mid - head).norm())
             blurred = (tail - head).norm() > 1e-3 and span < 0.5 * self.canvas.width  # not a periodic wrap
+            blurred = blurred and fp.has_tail(i)
             if not blurred:
                 tail, ctrl = head, head
         r_true = self.look.drawn_radius(i) * self.px_per_unit

@@ -31,7 +31,12 @@ class Footprint:
         self.tails = []  # per-particle drawing state that moves with the particles
         if self.motion_blur:
             self.x_prev = ti.Vector.field(dim, ti.f32, shape=capacity)  # positions a frame ago
-            self.tails.append(self.x_prev)
+            # ... and the id of the particle each was: a particle born since (an emitter's, into a slot whose tail
+            # is another's or none) has no tail yet, and is drawn still (its stale tail drew a streak from where a
+            # dead spark had been, or from the corner: up to half the picture long, and costly to draw)
+            self.id_prev = ti.field(ti.i32, shape=capacity)
+            self.id_prev.fill(-1)
+            self.tails += [self.x_prev, self.id_prev]
         if self.spline:
             self.x_mid = ti.Vector.field(dim, ti.f32, shape=capacity)  # positions at the frame's middle
             self.tails.append(self.x_mid)
@@ -40,13 +45,13 @@ class Footprint:
     def begin_frame(self) -> None:
         """Remember positions before the simulation advances a frame (the tails of motion-blur streaks)."""
         if self.motion_blur:
-            self._remember(self.x_prev)
+            self._remember(self.x_prev, True)
             self.mid_captured = False
 
     def mid_frame(self) -> None:
         """Remember positions half-way through the frame's substeps (the bend of spline streaks)."""
         if self.spline:
-            self._remember(self.x_mid)
+            self._remember(self.x_mid, False)
             self.mid_captured = True
 
     def before_drawing(self) -> None:
@@ -56,11 +61,18 @@ class Footprint:
             self.mid_captured = True
 
     @ti.kernel
-    def _remember(self, into: ti.template()):
+    def _remember(self, into: ti.template(), ids: ti.template()):
         for i in range(self.p.n[None]):
             if self.p.idle(i):
                 continue
             into[i] = ti.cast(self.p.x[i], ti.f32)
+            if ti.static(ids):
+                self.id_prev[i] = self.p.ident[i]
+
+    @ti.func
+    def has_tail(self, i):
+        """Whether particle i was where its tail is a frame ago (it is not one born since)."""
+        return self.id_prev[i] == self.p.ident[i]
 
     @ti.kernel
     def _straight_mids(self):

@@ -264,7 +264,7 @@ class Spheres3D:
             mid, zm = 0.5 * (prev + head), zp
             if ti.static(self.footprint.spline):
                 mid, zm = self._project(self.footprint.x_mid[i])
-            if z > 1e-3 and zp > 1e-3 and zm > 1e-3:
+            if z > 1e-3 and zp > 1e-3 and zm > 1e-3 and self.footprint.has_tail(i):
                 t, c, _ = self.footprint.streak(prev, mid, head)
                 span = ti.max((t - head).norm(), (mid - head).norm())
                 if (t - head).norm() > 1e-3 and span < 0.5 * self.canvas.width:
