@@ -155,8 +155,25 @@ class Particles:
     @ti.kernel
     def _clear(self, first: ti.i32, last: ti.i32, fields: ti.template(), defaults: ti.template()):
         for i in range(first, last):
-            for k in ti.static(range(len(fields))):
-                fields[k][i] = ti.zero(fields[k][i]) + ti.static(defaults[k])
+            self._clear_slot(i, fields, defaults)
+
+    @ti.func
+    def _clear_slot(self, i, fields: ti.template(), defaults: ti.template()):
+        for k in ti.static(range(len(fields))):
+            fields[k][i] = ti.zero(fields[k][i]) + ti.static(defaults[k])
+
+    def clear_freed(self, was) -> None:
+        """With gaps: each world's slots from its live count up to was[w] (its count before: a field of a count a
+        world) back to their declared defaults, in one launch."""
+        self._clear_freed(was, tuple(self.fields()), tuple(f.default for f in self.declared()))
+
+    @ti.kernel
+    def _clear_freed(self, was: ti.template(), fields: ti.template(), defaults: ti.template()):
+        block = ti.static(self.world_size)
+        for i in range(self.n[None]):
+            w, r = i // block, i % block
+            if self.counts[w] <= r < was[w]:
+                self._clear_slot(i, fields, defaults)
 
 
 def bond_table(

@@ -5,7 +5,6 @@ from the tail of the storage fill the holes (the State moves everything that rid
 the live count stays the number alive and memory stays bounded however many particles were ever emitted.
 """
 
-import numpy as np
 import taichi as ti
 
 from ..core.oriented import data_oriented
@@ -33,7 +32,7 @@ class Lifetimes(Term):
         self.filler = ti.field(ti.i32, shape=capacity)  # ... and the live particles above it that move into them
         self.moves = ti.field(ti.i32, shape=2)  # [holes found, fillers found]
         if self.p.gaps:
-            self.dead_in = ti.field(ti.i32, shape=self.p.world_count)  # each world's dead
+            self.was = ti.field(ti.i32, shape=self.p.world_count)  # each world's count before the dead left
 
     def words(self, where: str) -> list[str]:
         return ["ageing; the dead retired by compaction after each step() call"] if where == "after" else []
@@ -66,18 +65,12 @@ class Lifetimes(Term):
         return dead
 
     def _retire_worlds(self) -> int:
-        p = self.p
-        block = p.world_size
-        self._count_dead_worlds()
-        dead, counts = self.dead_in.to_numpy(), p.counts.to_numpy()
-        for w in np.flatnonzero(dead):
-            first, n = int(w) * block, int(counts[w])
-            self._find_moves(first, n - int(dead[w]), n)
+        """Every world's dead retired at once (three launches, one where none died)."""
+        dead = int(self._find_moves_worlds())
+        if dead:
             self.state.fill_holes(self.hole, self.filler, int(self.moves[0]))
-            p.clear(first + n - int(dead[w]), first + n)
-        if dead.any():
-            p.counts.from_numpy((counts - dead).astype(np.int32))
-        return int(dead.sum())
+            self.p.clear_freed(self.was)
+        return dead
 
     @ti.func
     def dead(self, i):
@@ -92,15 +85,35 @@ class Lifetimes(Term):
         return total
 
     @ti.kernel
-    def _count_dead_worlds(self):
-        """dead_in[w]: world w's dead (worlds with gaps)."""
-        for w in self.dead_in:
-            self.dead_in[w] = 0
-        for i in range(self.p.n[None]):
-            if self.p.idle(i):
-                continue
-            if self.dead(i):
-                ti.atomic_add(self.dead_in[self.p.world[i]], 1)
+    def _find_moves_worlds(self) -> ti.i32:
+        """Each world's moves as _find_moves finds a lone run's, in its own block, all in one list (world by world:
+        hole m and filler m are of one world); each world's count lowered (its count before kept in `was`).
+        Returns the dead in all."""
+        p = self.p
+        block = ti.static(p.world_size)
+        self.moves[0] = 0
+        self.moves[1] = 0
+        total = 0
+        ti.loop_config(serialize=True)
+        for w in range(p.n[None] // block):
+            first, live = w * block, p.counts[w]
+            dead = 0
+            for i in range(first, first + live):
+                if self.dead(i):
+                    dead += 1
+            keep = live - dead
+            for i in range(first, first + keep):
+                if self.dead(i):
+                    self.hole[self.moves[0]] = i
+                    self.moves[0] += 1
+            for i in range(first + keep, first + live):
+                if not self.dead(i):
+                    self.filler[self.moves[1]] = i
+                    self.moves[1] += 1
+            self.was[w] = live
+            p.counts[w] = keep
+            total += dead
+        return total
 
     @ti.kernel
     def _find_moves(self, first: ti.i32, keep: ti.i32, live: ti.i32):
