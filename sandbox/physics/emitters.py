@@ -21,6 +21,7 @@ from ..core.oriented import data_oriented
 from ..core.ranges import COUNT, Range
 from ..core.state import WORLDS
 from ..errors import SandboxError, SceneError
+from .emitter_worlds import WorldSeeding
 from .fields import random_uniform
 from .phase import NEVER_BONDS
 from .term import Term, register
@@ -105,6 +106,7 @@ class Emitters(Term):
         for k in self.refills:
             self.refill_grids[k] = self._refill_grid(self.specs[k])
         self.reserved = ti.field(ti.i32, shape=())  # refill: slots taken by the last pass
+        self.seeding = WorldSeeding(self) if self.p.gaps else None  # every world's due particles in one launch
 
     def words(self, where: str) -> list[str]:
         return [f"emitters: {', '.join(e.name for e in self.specs)} (rate, bursts)"] if where == "before" else []
@@ -135,8 +137,7 @@ class Emitters(Term):
         """Emit what is due in the step [t, t + dt) (each world's on its own clock), then top up the refill
         regions."""
         if self.p.gaps:
-            for w, t in enumerate(state.world_times()[: self._live_worlds()]):
-                self.emit_due(t, state.dt, w)
+            self.seeding.seed(state.world_times()[: self._live_worlds()], state.dt)
             return
         self.emit_due(state.time, state.dt)
         if self.refills:
@@ -217,16 +218,33 @@ class Emitters(Term):
         """Emit what is due in the step [t, t + dt) of world w's clock: the rate's share (with carry) and bursts
         falling in it."""
         _, carry, _ = self.counters(w)
-        for k, e in enumerate(self.specs):
-            due = 0
-            if e.rate > 0:
-                overlap = max(0.0, min(t + dt, e.stop) - max(t, e.start))
-                carry[k] += e.rate * overlap
-                due = int(math.floor(carry[k] + 1e-9))
-                carry[k] -= due
-            due += e.burst_count * sum(1 for b in e.bursts if t <= b < t + dt)
+        for k in range(self.count):
+            due = self.due(k, t, dt, carry)
             if due:
                 self._emit(k, due, t, w)
+
+    def due(self, k: int, t: float, dt: float, carry: list) -> int:
+        """Emitter k's particles due in the step [t, t + dt): its rate's share (the fraction left over carried in
+        `carry`, a world's list) and its bursts falling in the step."""
+        e = self.specs[k]
+        due = 0
+        if e.rate > 0:
+            overlap = max(0.0, min(t + dt, e.stop) - max(t, e.start))
+            carry[k] += e.rate * overlap
+            due = int(math.floor(carry[k] + 1e-9))
+            carry[k] -= due
+        return due + e.burst_count * sum(1 for b in e.bursts if t <= b < t + dt)
+
+    def room_for(self, k: int, count: int, room: int) -> int:
+        """Of `count` particles due from emitter k, as many as `room` allows (said once where it cuts them)."""
+        if count > room and not self._warned_full:
+            self._warned_full = True
+            warnings.warn(
+                f"emitter {self.specs[k].name!r}: particle capacity {self.capacity} reached; "
+                "set world.capacity higher (or shorten lifetimes)",
+                stacklevel=4,
+            )
+        return max(min(count, room), 0)
 
     # ------------------------------------------------------------------ refilling to a target density
     PER_CELL = 4  # refill cells are sized to hold this many particles at the target density
@@ -314,7 +332,7 @@ class Emitters(Term):
                     if i < self.capacity:
                         serial = serial0 + slot
                         u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
-                        self._init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t)
+                        self.init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t)
 
     def _emit(self, k: int, count: int, t: float, w: int = 0) -> None:
         """`count` particles from emitter k into world w, born at time t of its clock (as many as it has room for)."""
@@ -326,15 +344,7 @@ class Emitters(Term):
         else:
             n = int(self.p.n[None])
             room = self.capacity - n
-        if count > room:
-            if not self._warned_full:
-                self._warned_full = True
-                warnings.warn(
-                    f"emitter {self.specs[k].name!r}: particle capacity {self.capacity} reached; "
-                    "set world.capacity higher (or shorten lifetimes)",
-                    stacklevel=3,
-                )
-            count = room
+        count = self.room_for(k, count, room)
         if count <= 0:
             return
         ident = self.p.next_ident[w] if self.p.gaps else self.p.next_ident
@@ -455,13 +465,13 @@ class Emitters(Term):
     def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float, ident0: ti.i32, w: ti.i32):
         for e in range(count):
             serial = serial0 + e
-            self._init_particle(k, first + e, serial, self.sample_position(k, serial), t)
+            self.init_particle(k, first + e, serial, self.sample_position(k, serial), t)
             self.p.ident[first + e] = ident0 + e
             if ti.static(self.p.worlds):
                 self.p.world[first + e] = w
 
     @ti.func
-    def _init_particle(self, k, i, serial, pos, t):
+    def init_particle(self, k, i, serial, pos, t):
         """Every attribute of new particle i from emitter k, born at pos."""
         p = self.p
         p.x[i] = pos
