@@ -114,11 +114,12 @@ def assemble(
     return Assembly(model, state, hood, terms)
 
 
-# The terms a simulation of many worlds can hold so far: their controls, gauges and passes are kept per world. The
-# others (the smoke grid) still keep one value for all worlds.
 LEAPFROGS = ("velocity_verlet", "position_verlet")  # whose synchronised values are kept per world block
+# The terms a simulation of many worlds can hold: their controls, gauges, grids and passes are kept per world (a
+# term not named here would keep one for all worlds, and is refused).
 WORLD_TERMS = frozenset(
     {
+        "smoke",
         "emitters",
         "lifetimes",
         "fields",

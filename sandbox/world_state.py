@@ -30,7 +30,8 @@ from .physics.heat_sources import scheduled_start, source_value
 
 FAR = 1e30  # a reference position no particle is within half a skin of
 SPRING_ROWS = ("i", "j", "rest", "ks", "kd", "factor", "alive")  # the springs' per-slot fields
-OWN = ("particles.world", "particles.counts", "clock.world_started")  # what a world's state has none of (the batch's)
+# what a world's state has none of (the batch's own)
+OWN = ("particles.world", "particles.counts", "clock.world_started", "clock.world_steps_started")
 IMPULSE = "walls.impulse"  # the walls' momentum gauge (the model's, not the state's): in memory only
 
 
@@ -70,6 +71,7 @@ def world_part(sim, whole: dict, k: int) -> dict:
             out[e.name] = np.array(value)
     out["particles.n"] = np.array(each, dtype=whole["particles.n"].dtype)
     out["clock.time"] = whole["clock.time"] - whole["clock.world_started"][k]
+    out["clock.step"] = whole["clock.step"] - whole["clock.world_steps_started"][k]
     if state.particles.gaps:  # ids numbered on per world, by its emitters
         out["particles.next_ident"] = int(whole["particles.next_ident"][k])
     elif "particles.next_ident" in out:  # a world's ids are its lone run's: 0 .. N - 1 (no tool adds to a world)
@@ -171,6 +173,7 @@ def put_world(sim, k: int, part: dict) -> None:
         hood.lists.x_ref.from_numpy(x_ref)
     set_world_entry(sim.model.domain.impulse, worlds, k, float(part.get(IMPULSE, 0.0)))
     state.world_started[k] = state.time - float(part["clock.time"])
+    state.world_steps_started[k] = state.step - int(part["clock.step"])
     sim.broken = None
 
 

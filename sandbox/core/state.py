@@ -71,8 +71,9 @@ class State:
         self.declare("state", self, ("layout",), kind=VALUE, physical=False)  # the lists compare theirs with it
         # each world's clock starts at the simulated time it started at (world_state.py); a lone run's at 0
         self.world_started = [0.0] * (particles.world_count if particles.worlds else 1)
+        self.world_steps_started = [0] * len(self.world_started)  # ... and the step it started at
         if particles.worlds:
-            self.declare("clock", self, ("world_started",), kind=VALUE, valid=COUNT)
+            self.declare("clock", self, ("world_started", "world_steps_started"), kind=VALUE, valid=COUNT)
         self.declare("particles", particles, ("n",), valid=Range(lo=0, atmost="capacity"))
         self._declare_particles(particles)
         # the next id: with gaps (core/worlds.py) a list, a world each
@@ -190,6 +191,10 @@ class State:
     def world_times(self) -> list[float]:
         """Each world's own clock (simulated time since it started); the one clock of a lone run."""
         return [self.time - start for start in self.world_started]
+
+    def world_steps(self) -> list[int]:
+        """Each world's own step count (steps since it started); the one count of a lone run."""
+        return [self.step - start for start in self.world_steps_started]
 
     def live_count(self) -> int:
         """The number of slots in use (a host read): the live particles, and with worlds whose counts change (core/

@@ -60,6 +60,7 @@ class WorldSeeding:
             k, first, serial0, t = self.emitter[r], self.first[r], self.serial[r], self.t[r]
             for m in range(self.count[r]):
                 serial = serial0 + m
-                emitters.init_particle(k, first + m, serial, emitters.sample_position(k, serial), t)
+                w = self.world[r]
+                emitters.init_particle(k, first + m, serial, emitters.sample_position(k, serial), t, w)
                 p.ident[first + m] = self.ident[r] + m
-                p.world[first + m] = self.world[r]
+                p.world[first + m] = w

@@ -332,7 +332,7 @@ class Emitters(Term):
                     if i < self.capacity:
                         serial = serial0 + slot
                         u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
-                        self.init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t)
+                        self.init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t, 0)
 
     def _emit(self, k: int, count: int, t: float, w: int = 0) -> None:
         """`count` particles from emitter k into world w, born at time t of its clock (as many as it has room for)."""
@@ -430,7 +430,7 @@ class Emitters(Term):
         return pos
 
     @ti.func
-    def sample_velocity(self, k, serial, pos, t):
+    def sample_velocity(self, k, serial, pos, t, w):
         base = self.velocity[k]
         factor = 1.0 + self.speed_spread[k] * (2.0 * self._u(k, serial, 30) - 1.0)  # spreads both speeds
         speed = base.norm() * factor
@@ -458,24 +458,25 @@ class Emitters(Term):
             v += factor * self.radial_speed[k] * self._unit_vector(k, serial, 33)
         if ti.static(self.has_fields):
             if self.inherit[k]:
-                v += self.fields.velocity(pos, t)
+                v += self.fields.velocity(pos, t, w)
         return v
 
     @ti.kernel
     def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float, ident0: ti.i32, w: ti.i32):
         for e in range(count):
             serial = serial0 + e
-            self.init_particle(k, first + e, serial, self.sample_position(k, serial), t)
+            self.init_particle(k, first + e, serial, self.sample_position(k, serial), t, w)
             self.p.ident[first + e] = ident0 + e
             if ti.static(self.p.worlds):
                 self.p.world[first + e] = w
 
     @ti.func
-    def init_particle(self, k, i, serial, pos, t):
-        """Every attribute of new particle i from emitter k, born at pos."""
+    def init_particle(self, k, i, serial, pos, t, w):
+        """Every attribute of new particle i from emitter k, born at pos in world w (0: a lone run) at time t of its
+        clock."""
         p = self.p
         p.x[i] = pos
-        p.v[i] = self.sample_velocity(k, serial, pos, t)
+        p.v[i] = self.sample_velocity(k, serial, pos, t, w)
         p.mass[i] = self.mass[k]
         p.radius[i] = self.radius[k]
         mat = self.material[k]

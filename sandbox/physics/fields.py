@@ -145,9 +145,10 @@ class VelocityField(Term):
                 continue
             if self.coupling[p.group[i]] != NO_COUPLING:
                 if ti.static(p.gaps):
-                    self.v_field[i] = self.velocity(p.x[i], self.world_time[p.world[i]])
+                    w = p.world[i]
+                    self.v_field[i] = self.velocity(p.x[i], self.world_time[w], w)
                 else:
-                    self.v_field[i] = self.velocity(p.x[i], t)
+                    self.v_field[i] = self.velocity(p.x[i], t, 0)
 
     def _build(self, dim: int, elements: list, grid=None):
         """The element tables; `grid`: a SmokeGrid whose velocity is added to the elements' (None: elements only)."""
@@ -188,8 +189,9 @@ class VelocityField(Term):
         self.query_x = None
 
     @ti.func
-    def velocity(self, x, t):
-        """v(x, t): the sum of every element at position x (a dim-vector) and time t."""
+    def velocity(self, x, t, w):
+        """v(x, t): the sum of every element at position x (a dim-vector) and time t, with world w's smoke grid (0:
+        a lone run's)."""
         v = ti.Vector.zero(float, self.dim)
         for k in range(self.count):
             kind = self.kind[k]
@@ -200,7 +202,7 @@ class VelocityField(Term):
             else:
                 v += self._radial_element(k, kind, x, t)
         if ti.static(self.has_grid):
-            v += self.grid.sample(x)
+            v += self.grid.sample(x, w)
         return v
 
     @ti.func
@@ -295,4 +297,4 @@ class VelocityField(Term):
     @ti.kernel
     def _sample(self, k: ti.i32, t: float):
         for i in range(k):
-            self.query_v[i] = self.velocity(self.query_x[i], t)
+            self.query_v[i] = self.velocity(self.query_x[i], t, 0)

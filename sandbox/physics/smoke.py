@@ -22,6 +22,7 @@ import taichi as ti
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.solvers import CGResult
+from ..core.state import WORLDS
 from .smoke_projection import PressureProjection
 from .term import Term, register
 
@@ -36,9 +37,12 @@ ONE_LAUNCH_CELLS = 50_000
 class SmokeGrid:
     """MAC-grid smoke: face velocities, cell temperature, and a CG pressure projection."""
 
-    def __init__(self, dim: int, lo, hi, cfg, gravity, on_cpu: bool = True):
-        """`on_cpu`: Taichi runs on the CPU backend (a small grid is then projected in one launch: ONE_LAUNCH_CELLS)."""
+    def __init__(self, dim: int, lo, hi, cfg, gravity, on_cpu: bool = True, worlds: int = 1):
+        """`on_cpu`: Taichi runs on the CPU backend (a small grid is then projected in one launch: ONE_LAUNCH_CELLS);
+        `worlds`: a grid for each world of a simulation of worlds (core/worlds.py), each field a leading axis of
+        them, each stepped alone (`w`, its index, in every kernel and lookup; one grid: its lone run's fields)."""
         self.dim = dim
+        self.worlds = worlds
         self.lo_np = np.asarray(lo, dtype=float)
         extent = np.asarray(hi, dtype=float) - self.lo_np
         self.h = float(extent.max() / cfg.resolution)
@@ -50,13 +54,15 @@ class SmokeGrid:
         self.up_sign = -float(np.sign(g[self.up_axis])) if np.any(g) else 1.0
         self.u = []
         self.u_new = []
+        self.face_res = []  # the faces across each axis, one grid's
         for a in range(dim):
             shape = tuple(r + (1 if b == a else 0) for b, r in enumerate(self.res))
-            self.u.append(ti.field(float, shape=shape))  # velocity normal to faces across axis a
-            self.u_new.append(ti.field(float, shape=shape))
+            self.face_res.append(shape)
+            self.u.append(self.grid_field(shape))  # velocity normal to faces across axis a
+            self.u_new.append(self.grid_field(shape))
             setattr(self, f"u{a}", self.u[a])  # by name too: the state declares them
-        self.T = ti.field(float, shape=self.res)  # cell temperature (degrees)
-        self.T_new = ti.field(float, shape=self.res)
+        self.T = self.grid_field(self.res)  # cell temperature (degrees)
+        self.T_new = self.grid_field(self.res)
         self.projection = PressureProjection(self)
         n_src = max(len(cfg.sources), 1)
         self.src_lo = ti.Vector.field(dim, float, shape=n_src)
@@ -78,13 +84,26 @@ class SmokeGrid:
         self.last = CGResult(0, 0.0)
         self.divergence_before = 0.0
 
+    def grid_field(self, shape: tuple):
+        """A real field of one grid's `shape`, with a leading axis of the worlds where there are several."""
+        return ti.field(float, shape=shape if self.worlds == 1 else (self.worlds, *shape))
+
+    @ti.func
+    def at(self, I, w):
+        """The index of one grid's cell I in world w's grid (I itself for a lone run)."""
+        if ti.static(self.worlds == 1):
+            return I
+        else:
+            return ti.Vector([w] + [I[a] for a in ti.static(range(self.dim))])
+
     def describe(self) -> str:
         return f"{'x'.join(map(str, self.res))} MAC grid, cell {self.h:.3g}"
 
     # ------------------------------------------------------------------ lookups
     @ti.func
-    def _lerp(self, f: ti.template(), g, shape):
-        """Multilinear interpolation of field f at grid coordinate g (index space), clamped to its shape."""
+    def _lerp(self, f: ti.template(), g, shape, world):
+        """Multilinear interpolation of world `world`'s grid of field f at grid coordinate g (index space), clamped
+        to one grid's shape."""
         base = ti.floor(g)
         frac = g - base
         total = 0.0
@@ -97,27 +116,27 @@ class SmokeGrid:
                 bit = (c >> a) & 1
                 w *= ti.select(bit, frac[a], 1.0 - frac[a])
                 idx[a] = ti.min(ti.max(ti.cast(base[a], ti.i32) + bit, 0), shape[a] - 1)
-            total += w * f[idx]
+            total += w * f[self.at(idx, world)]
         return total
 
     @ti.func
-    def face_value(self, a: ti.template(), x):
-        """Velocity component a at position x (faces across axis a sit at integer index along a)."""
+    def face_value(self, a: ti.template(), x, w):
+        """Velocity component a at position x in world w's grid (faces across axis a sit at integer index along a)."""
         g = (x - self._lo) / self.h - 0.5
         g[a] += 0.5
-        return self._lerp(self.u[a], g, self.u[a].shape)
+        return self._lerp(self.u[a], g, self.face_res[a], w)
 
     @ti.func
-    def sample(self, x):
-        """Velocity at position x (a dim-vector)."""
+    def sample(self, x, w):
+        """Velocity at position x (a dim-vector) in world w's grid (0: a lone run's)."""
         v = ti.Vector.zero(float, self.dim)
         for a in ti.static(range(self.dim)):
-            v[a] = self.face_value(a, x)
+            v[a] = self.face_value(a, x, w)
         return v
 
     @ti.func
-    def temperature_at(self, x):
-        return self._lerp(self.T, (x - self._lo) / self.h - 0.5, self.T.shape)
+    def temperature_at(self, x, w):
+        return self._lerp(self.T, (x - self._lo) / self.h - 0.5, self.res, w)
 
     @ti.func
     def face_position(self, a: ti.template(), I):
@@ -126,21 +145,21 @@ class SmokeGrid:
         return x
 
     # ------------------------------------------------------------------ step
-    def step(self, dt: float) -> None:
-        """Advance the smoke by dt (simulated seconds)."""
-        self._sources_and_forces(dt)
+    def step(self, dt: float, w: int = 0) -> None:
+        """Advance the smoke of world w's grid (0: a lone run's) by dt (simulated seconds)."""
+        self._sources_and_forces(dt, w)
         for a in range(self.dim):
-            self._advect_face(a, dt)
-        self._advect_temperature(dt)
+            self._advect_face(a, dt, w)
+        self._advect_temperature(dt, w)
         for a in range(self.dim):
-            self._copy(self.u_new[a], self.u[a])
-        self._copy(self.T_new, self.T)
-        self.project()
+            self._copy(self.u_new[a], self.u[a], self.face_res[a], w)
+        self._copy(self.T_new, self.T, self.res, w)
+        self.project(w)
 
     @ti.kernel
-    def _copy(self, src: ti.template(), dst: ti.template()):
-        for I in ti.grouped(src):
-            dst[I] = src[I]
+    def _copy(self, src: ti.template(), dst: ti.template(), shape: ti.template(), w: ti.i32):
+        for I in ti.grouped(ti.ndrange(*shape)):
+            dst[self.at(I, w)] = src[self.at(I, w)]
 
     @ti.func
     def _inside(self, k, x):
@@ -151,70 +170,71 @@ class SmokeGrid:
         return ok
 
     @ti.kernel
-    def _sources_and_forces(self, dt: float):
-        for I in ti.grouped(self.T):
+    def _sources_and_forces(self, dt: float, w: ti.i32):
+        for I in ti.grouped(ti.ndrange(*self.res)):
             x = self._lo + (ti.cast(I, float) + 0.5) * self.h
-            self.T[I] += dt * self.cfg.cooling * (self.cfg.ambient - self.T[I])
+            c = self.at(I, w)
+            self.T[c] += dt * self.cfg.cooling * (self.cfg.ambient - self.T[c])
             for k in range(self.n_sources):
                 if self._inside(k, x):
-                    self.T[I] = self.src_T[k]
+                    self.T[c] = self.src_T[k]
         up = ti.static(self.up_axis)
-        for I in ti.grouped(self.u[up]):
+        for I in ti.grouped(ti.ndrange(*self.face_res[up])):
             if 0 < I[up] < self.res[up]:
                 below = I
                 below[up] -= 1
-                t_face = 0.5 * (self.T[I] + self.T[below])
-                self.u[up][I] += dt * self.cfg.buoyancy * self.up_sign * (t_face - self.cfg.ambient)
+                t_face = 0.5 * (self.T[self.at(I, w)] + self.T[self.at(below, w)])
+                self.u[up][self.at(I, w)] += dt * self.cfg.buoyancy * self.up_sign * (t_face - self.cfg.ambient)
         for a in ti.static(range(self.dim)):
-            for I in ti.grouped(self.u[a]):
+            for I in ti.grouped(ti.ndrange(*self.face_res[a])):
                 x = self.face_position(a, I)
                 for k in range(self.n_sources):
                     if self._inside(k, x) and self.src_v[k].norm() > 0:
-                        self.u[a][I] = self.src_v[k][a]
+                        self.u[a][self.at(I, w)] = self.src_v[k][a]
 
     @ti.kernel
-    def _advect_face(self, a: ti.template(), dt: float):
-        for I in ti.grouped(self.u[a]):
+    def _advect_face(self, a: ti.template(), dt: float, w: ti.i32):
+        for I in ti.grouped(ti.ndrange(*self.face_res[a])):
             x = self.face_position(a, I)
-            mid = x - 0.5 * dt * self.sample(x)
-            back = x - dt * self.sample(mid)
-            value = self.face_value(a, back)
+            mid = x - 0.5 * dt * self.sample(x, w)
+            back = x - dt * self.sample(mid, w)
+            value = self.face_value(a, back, w)
             if I[a] == 0 or I[a] == self.res[a]:
                 value = 0.0  # solid walls
-            self.u_new[a][I] = value
+            self.u_new[a][self.at(I, w)] = value
 
     @ti.kernel
-    def _advect_temperature(self, dt: float):
-        for I in ti.grouped(self.T):
+    def _advect_temperature(self, dt: float, w: ti.i32):
+        for I in ti.grouped(ti.ndrange(*self.res)):
             x = self._lo + (ti.cast(I, float) + 0.5) * self.h
-            mid = x - 0.5 * dt * self.sample(x)
-            back = x - dt * self.sample(mid)
-            self.T_new[I] = self.temperature_at(back)
+            mid = x - 0.5 * dt * self.sample(x, w)
+            back = x - dt * self.sample(mid, w)
+            self.T_new[self.at(I, w)] = self.temperature_at(back, w)
 
     # ------------------------------------------------------------------ projection (physics/smoke_projection.py)
-    def project(self) -> CGResult:
-        """Make the face velocities discretely divergence-free (to the CG tolerance)."""
-        self.last = self.projection.project()
+    def project(self, w: int = 0) -> CGResult:
+        """Make world w's face velocities discretely divergence-free (to the CG tolerance)."""
+        self.last = self.projection.project(w)
         self.divergence_before = self.projection.divergence_before
         return self.last
 
     @ti.func
-    def divergence(self, I):
+    def divergence(self, I, w):
         s = 0.0
         for a in ti.static(range(self.dim)):
             e = ti.Vector.unit(self.dim, a, ti.i32)
-            s += self.u[a][I + e] - self.u[a][I]
+            s += self.u[a][self.at(I + e, w)] - self.u[a][self.at(I, w)]
         return s / self.h
 
-    def divergence_norm(self) -> float:
-        """L2 norm of the discrete divergence now (after a projection: the solver's residual / h^2)."""
-        return float(self._divergence_norm()) ** 0.5
+    def divergence_norm(self, w: int = 0) -> float:
+        """L2 norm of world w's discrete divergence now (after a projection: the solver's residual / h^2)."""
+        return float(self._divergence_norm(w)) ** 0.5
 
     @ti.kernel
-    def _divergence_norm(self) -> ti.f64:
+    def _divergence_norm(self, w: ti.i32) -> ti.f64:
         total = ti.f64(0.0)
-        for I in ti.grouped(self.T):
-            d = self.divergence(I)
+        for I in ti.grouped(ti.ndrange(*self.res)):
+            d = self.divergence(I, w)
             total += d * d
         return total
 
@@ -236,7 +256,10 @@ class Smoke(Term):
 
     def __init__(self, parts):
         world, cfg = parts.scene.world, parts.scene.smoke
-        self.grid = SmokeGrid(parts.model.dim, world.lo, world.hi, cfg, world.gravity, parts.model.arch == "cpu")
+        self.p = parts.state.particles
+        worlds = self.p.world_count if self.p.worlds else 1
+        on_cpu = parts.model.arch == "cpu"
+        self.grid = SmokeGrid(parts.model.dim, world.lo, world.hi, cfg, world.gravity, on_cpu, worlds)
         self.every = cfg.interval
 
     def words(self, where: str) -> list[str]:
@@ -245,11 +268,20 @@ class Smoke(Term):
         return [f"smoke: stable fluids on a {self.grid.describe()} (buoyancy, advection, CG projection)"]
 
     def before_step(self, state) -> None:
-        if state.step % self.every == 0:
-            self.grid.step(state.dt * self.every)
+        """The grid steps every `interval` particle steps, a world's counted from its own start."""
+        if self.grid.worlds == 1:
+            if state.step % self.every == 0:
+                self.grid.step(state.dt * self.every)
+            return
+        live = state.live_count() // self.p.world_size
+        for w, steps in enumerate(state.world_steps()[:live]):
+            if steps % self.every == 0:
+                self.grid.step(state.dt * self.every, w)
 
     def declare(self, state) -> None:
-        """The grid's velocities, temperatures and pressure (the warm start of the next projection)."""
+        """The grid's velocities, temperatures and pressure (the warm start of the next projection): with worlds, a
+        row of each a world."""
         grid = self.grid
-        state.declare("smoke", grid, tuple(f"u{a}" for a in range(grid.dim)) + ("T",))
-        state.declare("smoke", grid.projection, ("p",))
+        rows = WORLDS if grid.worlds > 1 else ""
+        state.declare("smoke", grid, tuple(f"u{a}" for a in range(grid.dim)) + ("T",), rows=rows)
+        state.declare("smoke", grid.projection, ("p",), rows=rows)

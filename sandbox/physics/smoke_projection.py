@@ -20,32 +20,32 @@ class PressureProjection:
     def __init__(self, grid):
         self.grid = grid
         res = grid.res
-        self.p = ti.field(float, shape=res)  # pressure (times dt / density)
-        self.r = ti.field(float, shape=res)
-        self.z = ti.field(float, shape=res)
-        self.d = ti.field(float, shape=res)
-        self.ad = ti.field(float, shape=res)
+        self.p = grid.grid_field(res)  # pressure (times dt / density); a grid a world, where there are several
+        self.r = grid.grid_field(res)
+        self.z = grid.grid_field(res)
+        self.d = grid.grid_field(res)
+        self.ad = grid.grid_field(res)
         self.sums = CGSums()
         self.divergence_before = 0.0
 
-    def project(self) -> CGResult:
-        """Make the face velocities discretely divergence-free (to the CG tolerance)."""
+    def project(self, w: int = 0) -> CGResult:
+        """Make world w's face velocities discretely divergence-free (to the CG tolerance)."""
         if self.grid.one_launch:
-            iterations = int(self._project_in_one_launch())
+            iterations = int(self._project_in_one_launch(w))
             bb = float(self.sums.bb[None])
             self.divergence_before = bb**0.5 / self.grid.h**2
             return CGResult(iterations, float(self.sums.rr[None]) ** 0.5 / max(bb**0.5, 1e-300))
-        self._assemble()
+        self._assemble(w)
         self.divergence_before = float(self.sums.bb[None]) ** 0.5 / self.grid.h**2
         last = pcg(
             self.sums,
-            self._matvec,
-            self._update,
-            self._direction,
+            lambda: self._matvec(w),
+            lambda alpha: self._update(alpha, w),
+            lambda beta: self._direction(beta, w),
             self.grid.cfg.tolerance,
             self.grid.cfg.max_iterations,
         )
-        self._subtract_gradient()
+        self._subtract_gradient(w)
         return last
 
     @ti.func
@@ -60,102 +60,108 @@ class PressureProjection:
         return n
 
     @ti.func
-    def _laplace(self, y: ti.template(), I):
-        """sum over inside neighbours n of (y_I - y_n)."""
+    def _laplace(self, y: ti.template(), I, w):
+        """sum over inside neighbours n of (y_I - y_n), in world w's grid."""
         s = 0.0
+        at = ti.static(self.grid.at)
         for a in ti.static(range(self.grid.dim)):
             e = ti.Vector.unit(self.grid.dim, a, ti.i32)
             if I[a] > 0:
-                s += y[I] - y[I - e]
+                s += y[at(I, w)] - y[at(I - e, w)]
             if I[a] < self.grid.res[a] - 1:
-                s += y[I] - y[I + e]
+                s += y[at(I, w)] - y[at(I + e, w)]
         return s
 
     # Each CG stage per cell, shared by the host-driven kernels and the one-launch projection; each returns its
     # cell's terms of the stage's sums.
     @ti.func
-    def _assemble_cell(self, I):
+    def _assemble_cell(self, I, w):
         """r = b - A p (warm start from the last step's pressure: the flow changes little between steps), z = M^-1 r,
         d = z; returns (r.z, r.r, b.b) terms."""
-        b = -self.grid.h * self.grid.h * self.grid.divergence(I)
-        r = b - self._laplace(self.p, I)
+        b = -self.grid.h * self.grid.h * self.grid.divergence(I, w)
+        r = b - self._laplace(self.p, I, w)
         z = r / self._neighbours(I)
-        self.r[I] = r
-        self.z[I] = z
-        self.d[I] = z
+        c = self.grid.at(I, w)
+        self.r[c] = r
+        self.z[c] = z
+        self.d[c] = z
         return r * z, r * r, b * b
 
     @ti.func
-    def _matvec_cell(self, I):
+    def _matvec_cell(self, I, w):
         """ad = A d; returns the d.Ad term."""
-        ad = self._laplace(self.d, I)
-        self.ad[I] = ad
-        return self.d[I] * ad
+        ad = self._laplace(self.d, I, w)
+        c = self.grid.at(I, w)
+        self.ad[c] = ad
+        return self.d[c] * ad
 
     @ti.func
-    def _update_cell(self, I, alpha):
+    def _update_cell(self, I, alpha, w):
         """p += alpha d, r -= alpha Ad, z = M^-1 r; returns (r.z, r.r) terms."""
-        self.p[I] += alpha * self.d[I]
-        r = self.r[I] - alpha * self.ad[I]
+        c = self.grid.at(I, w)
+        self.p[c] += alpha * self.d[c]
+        r = self.r[c] - alpha * self.ad[c]
         z = r / self._neighbours(I)
-        self.r[I] = r
-        self.z[I] = z
+        self.r[c] = r
+        self.z[c] = z
         return r * z, r * r
 
     @ti.func
-    def _direction_cell(self, I, beta):
+    def _direction_cell(self, I, beta, w):
         """d = z + beta d."""
-        self.d[I] = self.z[I] + beta * self.d[I]
+        c = self.grid.at(I, w)
+        self.d[c] = self.z[c] + beta * self.d[c]
 
     @ti.func
-    def _subtract_gradient_face(self, a: ti.template(), I):
+    def _subtract_gradient_face(self, a: ti.template(), I, w):
         if 0 < I[a] < self.grid.res[a]:
             below = I - ti.Vector.unit(self.grid.dim, a, ti.i32)
-            self.grid.u[a][I] -= (self.p[I] - self.p[below]) / self.grid.h
+            at = ti.static(self.grid.at)
+            self.grid.u[a][at(I, w)] -= (self.p[at(I, w)] - self.p[at(below, w)]) / self.grid.h
 
     @ti.kernel
-    def _assemble(self):
+    def _assemble(self, w: ti.i32):
         self.sums.clear_for_assembly()
-        for I in ti.grouped(self.p):
-            rz, rr, bb = self._assemble_cell(I)
+        for I in ti.grouped(ti.ndrange(*self.grid.res)):
+            rz, rr, bb = self._assemble_cell(I, w)
             self.sums.rz[None] += rz
             self.sums.rr[None] += rr
             self.sums.bb[None] += bb
 
     @ti.kernel
-    def _matvec(self):
+    def _matvec(self, w: ti.i32):
         self.sums.p_ap[None] = 0.0
-        for I in ti.grouped(self.d):
-            self.sums.p_ap[None] += self._matvec_cell(I)
+        for I in ti.grouped(ti.ndrange(*self.grid.res)):
+            self.sums.p_ap[None] += self._matvec_cell(I, w)
 
     @ti.kernel
-    def _update(self, alpha: ti.f64):
+    def _update(self, alpha: ti.f64, w: ti.i32):
         self.sums.clear_for_update()
-        for I in ti.grouped(self.p):
-            rz, rr = self._update_cell(I, alpha)
+        for I in ti.grouped(ti.ndrange(*self.grid.res)):
+            rz, rr = self._update_cell(I, alpha, w)
             self.sums.rz[None] += rz
             self.sums.rr[None] += rr
 
     @ti.kernel
-    def _direction(self, beta: ti.f64):
-        for I in ti.grouped(self.d):
-            self._direction_cell(I, beta)
+    def _direction(self, beta: ti.f64, w: ti.i32):
+        for I in ti.grouped(ti.ndrange(*self.grid.res)):
+            self._direction_cell(I, beta, w)
 
     @ti.kernel
-    def _subtract_gradient(self):
+    def _subtract_gradient(self, w: ti.i32):
         for a in ti.static(range(self.grid.dim)):
-            for I in ti.grouped(self.grid.u[a]):
-                self._subtract_gradient_face(a, I)
+            for I in ti.grouped(ti.ndrange(*self.grid.face_res[a])):
+                self._subtract_gradient_face(a, I, w)
 
     @ti.kernel
-    def _project_in_one_launch(self) -> ti.i32:
+    def _project_in_one_launch(self, w: ti.i32) -> ti.i32:
         """The whole projection on one thread (solvers.pcg's iteration, with the sums kept in registers): leaves
         r.r and b.b in the sums; returns the CG iterations."""
         iterations = 0
         for _ in range(1):  # one task: the loops below are nested in it, so they run in order on its thread
             rz, rr, bb = ti.f64(0.0), ti.f64(0.0), ti.f64(0.0)
             for I in ti.grouped(ti.ndrange(*self.grid.res)):
-                c_rz, c_rr, c_bb = self._assemble_cell(I)
+                c_rz, c_rr, c_bb = self._assemble_cell(I, w)
                 rz += c_rz
                 rr += c_rr
                 bb += c_bb
@@ -163,24 +169,24 @@ class PressureProjection:
             while iterations < self.grid.cfg.max_iterations and ti.sqrt(rr) > self.grid.cfg.tolerance * bnorm:
                 p_ap = ti.f64(0.0)
                 for I in ti.grouped(ti.ndrange(*self.grid.res)):
-                    p_ap += self._matvec_cell(I)
+                    p_ap += self._matvec_cell(I, w)
                 if p_ap <= 0.0:  # the search direction vanished (converged to round-off)
                     break
                 alpha = rz / p_ap
                 rz_new = ti.f64(0.0)
                 rr = 0.0
                 for I in ti.grouped(ti.ndrange(*self.grid.res)):
-                    c_rz, c_rr = self._update_cell(I, alpha)
+                    c_rz, c_rr = self._update_cell(I, alpha, w)
                     rz_new += c_rz
                     rr += c_rr
                 beta = rz_new / rz if rz > 0.0 else 0.0
                 for I in ti.grouped(ti.ndrange(*self.grid.res)):
-                    self._direction_cell(I, beta)
+                    self._direction_cell(I, beta, w)
                 rz = rz_new
                 iterations += 1
             for a in ti.static(range(self.grid.dim)):
-                for I in ti.grouped(ti.ndrange(*self.grid.u[a].shape)):
-                    self._subtract_gradient_face(a, I)
+                for I in ti.grouped(ti.ndrange(*self.grid.face_res[a])):
+                    self._subtract_gradient_face(a, I, w)
             self.sums.rr[None] = rr
             self.sums.bb[None] = bb
         return iterations
