@@ -29,6 +29,7 @@ def _assert_world_is(lone, world, fields=("x", "v")) -> None:
         assert np.array_equal(mine, alone), name
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_each_world_of_fireworks_is_its_lone_run_through_bursts_and_retirements():
     """Three emitters' bursts (at 0.1, 0.6 and 1.2 s) and sparks of 1.8-2.2 s lifetimes (spread 40%): by frame 70
     (1.4 s) the first burst's sparks have begun to die, so each world has emitted into its block and compacted it."""
@@ -47,6 +48,7 @@ def test_each_world_of_fireworks_is_its_lone_run_through_bursts_and_retirements(
         assert batch.terms.emitters.emitted[k] == lone.terms.emitters.emitted
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_fireworks_world_started_again_bursts_on_its_own_clock_and_the_others_run_on(tmp_path):
     """World 1 starts again at 0.5 s: its first burst comes at its own 0.1 s, and it equals a lone run started then;
     worlds 0 and 2 equal the uninterrupted run. A world's state file resumes alone as that run; a world taken out
