@@ -22,6 +22,20 @@ def _by_id(sim, name: str = "x") -> np.ndarray:
     return getattr(sim.particles, name).to_numpy()[:n][order]
 
 
+def _restarted(scene: str, worlds: int, frames: int, k: int, steps: int = 0) -> tuple:
+    """(lone run, batch of `worlds`, fresh lone run): the first two run `frames` frames and `steps` steps, then
+    world k of the batch starts again, as the fresh run starts."""
+    lone, batch = sandbox.load(scene), sandbox.load(scene, worlds=worlds)
+    for _ in range(frames):
+        lone.advance_frame()
+        batch.advance_frame()
+    if steps:
+        lone.step(steps)
+        batch.step(steps)
+    batch.world(k).reset()
+    return lone, batch, sandbox.load(scene)
+
+
 def _assert_world_is(lone, world, fields=("x", "v")) -> None:
     for name in fields:
         mine, alone = world.field(name), _by_id(lone, name)
@@ -53,14 +67,8 @@ def test_a_fireworks_world_started_again_bursts_on_its_own_clock_and_the_others_
     """World 1 starts again at 0.5 s: its first burst comes at its own 0.1 s, and it equals a lone run started then;
     worlds 0 and 2 equal the uninterrupted run. A world's state file resumes alone as that run; a world taken out
     has the last one move into its place."""
-    lone = sandbox.load("fireworks")
-    batch = sandbox.load("fireworks", worlds=3)
-    for _ in range(25):
-        lone.advance_frame()
-        batch.advance_frame()
-    batch.world(1).reset()
+    lone, batch, fresh = _restarted("fireworks", 3, 25, 1)
     assert batch.world(1).positions().shape == (0, 2) and batch.world(1).time == 0.0
-    fresh = sandbox.load("fireworks")
     for _ in range(20):
         for sim in (lone, batch, fresh):
             sim.advance_frame()
@@ -86,13 +94,7 @@ def test_each_world_of_a_candle_is_its_lone_run_to_the_bit():
     third world started again after 10 frames is a lone run started then (its noise drifting on its own clock): its
     particles move as that run's to the bit, and their temperatures agree to the rounding of a heat flow's sum (the
     other worlds' emissions rebuild its neighbour lists on steps its lone run does not: docs/worlds.md)."""
-    lone = sandbox.load("candle")
-    batch = sandbox.load("candle", worlds=3)
-    for _ in range(10):
-        lone.advance_frame()
-        batch.advance_frame()
-    batch.world(2).reset()
-    fresh = sandbox.load("candle")
+    lone, batch, fresh = _restarted("candle", 3, 10, 2)
     for _ in range(40):
         for sim in (lone, batch, fresh):
             sim.advance_frame()
@@ -120,15 +122,7 @@ def test_each_world_of_smoke_vortex_has_its_own_smoke_grid_and_is_its_lone_run()
     a vortex and curl noise. Each world has its own grid, stepped every 3 of its own steps: world 1, started again
     one step past a frame (so its grid steps on other steps of the simulation than world 0's), is a lone run started
     then, its grid and puffs to the bit, while world 0 stays the uninterrupted run."""
-    lone = sandbox.load("smoke_vortex")
-    batch = sandbox.load("smoke_vortex", worlds=2)
-    for _ in range(8):
-        lone.advance_frame()
-        batch.advance_frame()
-    lone.step(1)
-    batch.step(1)
-    batch.world(1).reset()
-    fresh = sandbox.load("smoke_vortex")
+    lone, batch, fresh = _restarted("smoke_vortex", 2, 8, 1, steps=1)
     for _ in range(12):
         for sim in (lone, batch, fresh):
             sim.advance_frame()
