@@ -140,3 +140,16 @@ def test_worlds_with_emitters_refuse_what_they_cannot_hold_in_one_line():
     refill = {"emitters.0.refill_density": 0.5}
     with pytest.raises(SandboxError, match="candle: an emitter's refill_density cannot yet run as worlds"):
         sandbox.load("candle", set=refill, worlds=2)
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_bench_worlds_counts_a_scene_with_emitters_by_its_live_particles():
+    """`sandbox bench --worlds K fireworks` counts each world's live sparks, not the slots of its block (4,672 a
+    world, the few hundred thousand particle-steps a second it would have claimed)."""
+    from sandbox.research.worlds_bench import bench_worlds
+
+    result = bench_worlds(2, "fireworks", frames=4, repeats=1)  # 1 + 4 x 2 frames: past the first shell (frame 4)
+    assert result["particles_per_world"] == 700
+    batched = result["batched"]
+    assert batched["per_world"] == pytest.approx(700 * result["steps_per_frame"] * batched["frames_per_second_each"])
+    assert result["speedup"] > 0.0
