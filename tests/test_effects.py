@@ -285,6 +285,7 @@ def test_both_ways_of_projecting_the_smoke_give_the_same_flow(monkeypatch):
         assert np.abs(a - b).max() <= 1e-8 * np.abs(b).max()
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_candle_melts_at_the_top_drips_and_refreezes_under_a_bounded_flame():
     from sandbox.config.scene import load_scene
 

@@ -204,6 +204,7 @@ def test_fuzzed_state_files_are_refused_or_run_sanely(saved, tmp_path_factory, d
     assert np.isfinite(sim.particles()["position"]).all()
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_checked_state_still_resumes_bit_for_bit(saved):
     """The checks read the file; they change nothing of what is put back."""
     _, _, _, path = saved
