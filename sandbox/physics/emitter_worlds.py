@@ -57,10 +57,9 @@ class WorldSeeding:
     def _spawn(self, rows: ti.i32):
         emitters, p = self.emitters, self.p
         for r in range(rows):
-            k, first, serial0, t = self.emitter[r], self.first[r], self.serial[r], self.t[r]
+            k, first, serial0, t, w = self.emitter[r], self.first[r], self.serial[r], self.t[r], self.world[r]
             for m in range(self.count[r]):
                 serial = serial0 + m
-                w = self.world[r]
                 emitters.init_particle(k, first + m, serial, emitters.sample_position(k, serial), t, w)
                 p.ident[first + m] = self.ident[r] + m
                 p.world[first + m] = w

@@ -102,14 +102,7 @@ class Lifetimes(Term):
                 if self.dead(i):
                     dead += 1
             keep = live - dead
-            for i in range(first, first + keep):
-                if self.dead(i):
-                    self.hole[self.moves[0]] = i
-                    self.moves[0] += 1
-            for i in range(first + keep, first + live):
-                if not self.dead(i):
-                    self.filler[self.moves[1]] = i
-                    self.moves[1] += 1
+            self._add_moves(first, keep, live)
             self.was[w] = live
             p.counts[w] = keep
             total += dead
@@ -122,11 +115,17 @@ class Lifetimes(Term):
         self.moves[0] = 0
         self.moves[1] = 0
         ti.loop_config(serialize=True)
+        for _ in range(1):  # one task: the loops of _add_moves run in order on its thread
+            self._add_moves(first, keep, live)
+
+    @ti.func
+    def _add_moves(self, first, keep, live):
+        """Append the holes (the dead among the first `keep` of the `live` particles from slot `first`) and as many
+        fillers (the live after them) to the lists, in slot order (run on one thread)."""
         for i in range(first, first + keep):
             if self.dead(i):
                 self.hole[self.moves[0]] = i
                 self.moves[0] += 1
-        ti.loop_config(serialize=True)
         for i in range(first + keep, first + live):
             if not self.dead(i):
                 self.filler[self.moves[1]] = i
