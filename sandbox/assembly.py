@@ -62,7 +62,7 @@ def assemble(
         capacity += sum(emitter_population(e) for e in scene.emitters)
     capacity = max(capacity, built.count) * worlds
     threads = taichi_compat.cpu_threads() if running == "cpu" else 1
-    pair_only, team_ok = not (scene.heat or built.spring_count), can_step_as_a_team(scene) and worlds == 1
+    pair_only, team_ok = not (scene.heat or built.spring_count), can_step_as_a_team(scene)
     loops = LoopPolicy(running, capacity, pair_only, threads, team_ok)
     # how a lone run of one world would loop: the pair pass sums each world's rows as it would (step/rates.py)
     alone = threads if alone_threads is None or running != "cpu" else alone_threads
@@ -107,7 +107,7 @@ def assemble(
                 parts.terms[cls.key] = cls(parts)
     terms = list(parts.terms.values())
     if worlds > 1:
-        refuse_worlds(scene, worlds, terms)
+        refuse_worlds(scene, worlds, terms, built.count)
     parts.neighbours = hood = _neighbourhood(scene, model, state, half_lists, any(t.key == "pair" for t in terms))
     for part in ([hood] if hood is not None else []) + terms:
         part.declare(state)
@@ -139,8 +139,13 @@ WORLD_TERMS = frozenset(
 )
 
 
-def refuse_worlds(scene: Scene, worlds: int, terms: list) -> None:
-    """SandboxError naming what in `scene` (built as `terms`) cannot yet run as `worlds` worlds (core/worlds.py)."""
+def refuse_worlds(scene: Scene, worlds: int, terms: list, particles: int) -> None:
+    """SandboxError naming what in `scene` (built as `terms`, with `particles` at the start) cannot yet run as
+    `worlds` worlds (core/worlds.py)."""
+    if particles == 0 and not scene.emitters:  # a world keeps its scene's particles: none to keep
+        raise SandboxError(
+            f"{scene.name}: worlds = {worlds} needs a scene with particles or emitters; this one is empty"
+        )
     other = sorted(term.key for term in terms if term.key not in WORLD_TERMS)
     if other:
         raise SandboxError(

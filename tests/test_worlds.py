@@ -95,6 +95,40 @@ def test_each_world_of_a_periodic_lj_box_is_its_lone_run_to_the_bit():
 
 
 @pytest.mark.long
+def test_worlds_step_as_a_team_where_their_lone_runs_do_and_each_is_its_lone_run_to_the_bit():
+    """A whole melting block (1,200 particles) runs alone as a team of threads (step/team.py), and so do its worlds:
+    many steps a launch, every world's pair chunks shared out among the workers. World 0's plate is at 400 C, world
+    1's at 20 C (a block that only settles), and the lists are narrowed so that a build overflows and they widen
+    while running: the rebuild after the widening rebuilds the rows of the worlds that build was for (world 0's),
+    so world 1's lists are still those its lone run built, on its lone run's steps (their reference positions equal
+    the lone run's), and each world is its lone run to the bit."""
+    hot = {"bodies.0.temperature": 52.0, "heat.sources.0.temperature": 400.0}
+    lone = sandbox.load("melting_block", set=hot)
+    if lone.plan.team is None:
+        pytest.skip("one CPU thread here: no team of threads to step as")
+    cold = sandbox.load("melting_block", set={**hot, "heat.sources.0.temperature": 20.0})
+    batch = sandbox.load("melting_block", set=hot, worlds=2)
+    batch.world(1).controls.set({"heat.sources": [20.0]})
+    assert batch.plan.team is not None and batch.plan.fuses
+    sims = (lone, cold, batch)
+    for sim in sims:  # lists narrower than the melt needs, built again from the next step on
+        sim.advance_frame()
+        sim.plan.lists._allocate(19)
+        sim.plan.lists.invalidate()
+    for _ in range(26):
+        for sim in sims:
+            sim.advance_frame()
+    assert [sim.plan.lists.grown for sim in sims] == [1, 0, 1]  # world 0 widened the batch's lists
+    assert batch.plan.fused_batches > 0 and lone.stats().broken_springs > 0
+    n = lone.state.live_count()
+    kept = batch.plan.lists.x_ref.to_numpy()
+    for k, alone in enumerate((lone, cold)):
+        _assert_same(alone, batch.world(k))
+        assert np.array_equal(alone.temperatures(), batch.world(k).temperatures())
+        assert np.array_equal(kept[k * n : (k + 1) * n], alone.plan.lists.x_ref.to_numpy()[:n])
+
+
+@pytest.mark.long
 @pytest.mark.parametrize("scene", ["boiling_pot", "states_of_matter"])
 def test_each_world_of_a_thermostatted_melt_is_its_lone_run_to_the_bit(scene):
     """The agitation kicks each free particle with noise hashed from its id and the step: a world's ids are its lone
@@ -162,6 +196,8 @@ def test_worlds_refuse_what_they_cannot_do_in_one_line():
     for bad in (0, -1, True, 2.5, "3", 10**6):
         with pytest.raises(SandboxError, match="worlds = .*expected a whole number from 1 to 4096"):
             sandbox.load("lj_box", set=SMALL_LJ, worlds=bad)
+    with pytest.raises(SandboxError, match="sandbox: worlds = 2 needs a scene with particles or emitters; this one is"):
+        sandbox.load("sandbox", worlds=2)  # the empty scene: was a ZeroDivisionError
     batch = sandbox.load("melting_block", set=SMALL_BLOCK, worlds=2)
     with pytest.raises(SandboxError, match="world 2: expected a whole number from 0 to 1"):
         batch.world(2)

@@ -113,6 +113,9 @@ class NeighbourList:
         self.n_listed = ti.field(ti.i32, shape=())  # the particle count at the last build
         self.widest = ti.field(ti.i32, shape=())  # the widest row when the lists were sized
         self.forced = True  # rebuild at the next check (invalidate())
+        # build again at the next check, the rows the last build was building: it overflowed and the lists were
+        # widened (grow). Never set between steps (a step goes on until its build fits), so no state file holds it.
+        self.refill = False
         self.built_layout = -1  # the state's layout counter when the lists were last built
         self.usable = False  # the last build fitted every list (no overflow)
         self.host_builds = 0  # builds run by ensure_fresh
@@ -146,11 +149,11 @@ class NeighbourList:
     def must_rebuild(self) -> bool:
         """Whether the next check rebuilds whatever the particles' displacements: invalidated, or the particles were
         added, removed or moved in storage since the build."""
-        return self.forced or self.built_layout != self.state.layout
+        return self.forced or self.refill or self.built_layout != self.state.layout
 
     def mark_built(self) -> None:
         """The lists are (or a launch will have them) built for the current layout."""
-        self.forced = False
+        self.forced = self.refill = False
         self.built_layout = self.state.layout
 
     def describe(self, grid) -> str:
@@ -161,9 +164,10 @@ class NeighbourList:
         )
 
     def rebuild_every_row(self) -> None:
-        """With many worlds: the next build rebuilds every world's rows, moved or not (the layout changed);
-        nothing with one world, whose builds rebuild every row."""
-        if self.worlds > 1:
+        """Before a build that must_rebuild: with many worlds, it rebuilds every world's rows, moved or not, where
+        the lists were invalidated or the layout changed (after a widening alone, the rows of the worlds the
+        overflowed build was building: grow); nothing with one world, whose builds rebuild every row."""
+        if self.worlds > 1 and (self.forced or self.built_layout != self.state.layout):
             self.every_row[None] = 1
 
     def _allocate(self, width: int) -> None:
@@ -223,6 +227,7 @@ class NeighbourList:
         wider = list_width(widest)
         if self.capacity * wider * 4 > MAX_BYTES:
             return False
+        self.refill = True
         if self.worlds == 1:
             self._allocate(wider)
         else:  # the rows of the worlds the build left alone are kept (moved into the wider table), not rebuilt: a

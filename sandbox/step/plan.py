@@ -63,17 +63,19 @@ class StepPlan:
         self.boundary = _hooks(terms, "at_step")
         self.reasons = host_work_reasons(model.scene)
         loops = model.loops
-        self.team = Team(rates, model.threads) if loops.team and rates.half else None  # it steps half lists
+        # a team steps half lists; many worlds, where each world's pair rows are summed in its lone run's chunks
+        teams = rates.half and (model.worlds == 1 or rates.world_chunks)
+        self.team = Team(rates, model.threads) if loops.team and teams else None
         # while other work shares the cores the team's spinning workers wait on each other: step the long way or on
         # one thread, whichever is faster now (step/crowd.py), until it clears; all give the same trajectory
         self.load = (
             LoadWatch(model.threads) if self.team is not None and os.environ.get("SANDBOX_TEAM") != "always" else None
         )
-        one_launch = loops.serial_pairs and loops.serial_light or self.team is not None
-        # many worlds step the long way (a launch a pass, for all of them): fused into one serial kernel, a world's
-        # pair sums came out an ulp away from its lone run's on a few particles a step (freeze_thaw, melting_block
-        # on two threads: the compiler contracts the inlined pair pass differently there)
-        self.fuses = one_launch and not self.reasons and model.worlds == 1
+        # many worlds step as a team or the long way (a launch a pass, for all of them), never fused into one serial
+        # kernel: there a world's pair sums came out an ulp away from its lone run's on a few particles a step
+        # (freeze_thaw, melting_block on two threads: the compiler contracts the inlined pair pass differently there)
+        one_launch = (loops.serial_pairs and loops.serial_light and model.worlds == 1) or self.team is not None
+        self.fuses = one_launch and not self.reasons
         lone = Team(rates, 1) if self.team is not None else None  # the crowded machine's one-thread way
         self.fused = FusedSteps(rates, state, self.team, lone)
         self.long_way = LongWay(self)
@@ -116,7 +118,7 @@ class StepPlan:
             self.order.apply()  # between fused batches (the long way sorts at the start of its step)
         batch = self._fused_batch(n)
         done = self._run_fused(batch, alone) if batch else 0
-        if done < batch and self.lists is not None and self.lists.forced:
+        if done < batch and self.lists is not None and self.lists.refill:
             pass  # a list build overflowed and the lists were widened: the next batch builds them again
         elif done < max(batch, 1):  # not fusable now, or the lists cannot be widened: one step the long way
             self.long_way.step_once()
@@ -180,17 +182,15 @@ class StepPlan:
             lists.fused = True
         done = self.fused.run(batch, forced, self.pending_stage, self.integrator, self.state.dt, alone)
         if done < 0:  # the team's thread pool did not start every worker: nothing ran; step the long way from now on
-            if forced:
-                lists.invalidate()
+            if forced:  # the long way builds first, as this launch would have (every world's rows where it must)
+                lists.refill = True
             self.use_team(None)
             self.fuses = False
             return 0
         self.pending_stage = self.fused.stopped_at() if done < batch else 0
         if lists is not None:
-            if done < batch:  # the build of step `done` overflowed: widen the lists (the next batch rebuilds them)
-                if lists.grow():
-                    lists.invalidate()
-                else:
+            if done < batch:  # the build of step `done` overflowed: widen the lists (the next batch builds them)
+                if not lists.grow():
                     lists.usable = False  # too wide to allocate: the long way scans the grid
             else:
                 lists.usable = True  # every build in the batch fitted (an overflow stops the batch)

@@ -149,8 +149,13 @@ class Team:
                             if w == 0:
                                 stopped_stage[None] = stage
                     if not stopped:
-                        for t in range(w * self.chunks_per_worker, (w + 1) * self.chunks_per_worker):
-                            rates.half_rows_of_chunk(t, n, ids)
+                        if ti.static(rates.world_chunks):  # every live world's chunks, shared out in order
+                            items = n // rates.world_size * rates.n_chunks
+                            for item in range(w * items // self.workers, (w + 1) * items // self.workers):
+                                rates.world_chunk_rows(item, n, ids)
+                        else:
+                            for t in range(w * self.chunks_per_worker, (w + 1) * self.chunks_per_worker):
+                                rates.half_rows_of_chunk(t, n, ids)
                         if w == 0:
                             self.moved[1 - parity] = 0  # every worker has read moved[parity]; next evaluation's flag
                         gen = self.barrier(gen, True)
