@@ -27,6 +27,7 @@ from .particles import Mover, Particles, SpringState
 from .ranges import ANY, COUNT, STEP, Range
 
 FIELD, NDARRAY, VALUE = "field", "ndarray", "value"
+MOVES_KEPT = 64  # moves of the layout whose worlds are remembered (a rebuild between steps reads the last few)
 WORLDS = "worlds"  # the rows of a per-world gauge (core/worlds.py): world k's is row k
 
 
@@ -60,6 +61,9 @@ class State:
         self.frames = 0  # frames advanced
         self.dt = dt  # the step size (changes with substeps = "auto" and the window's slider)
         self.layout = 0  # moves on whenever particles are added, removed or moved in storage
+        # with worlds, which worlds' particles each recent move of the layout was (None: every world's): a world's
+        # lists are rebuilt on its lone run's steps (worlds_moved_since)
+        self.moved_worlds: dict[int, frozenset | None] = {}
         self.passengers: tuple = ()  # per-particle fields others keep, moved with the particles
         # what brings fields derived from the state up to date before they are read (the atoms' phases from their
         # structure): called by refresh_derived(), from the measurements and the renderer
@@ -159,10 +163,24 @@ class State:
         self.particles_moved()
 
     # ------------------------------------------------------------------ moving particles
-    def particles_moved(self) -> None:
+    def particles_moved(self, worlds=None) -> None:
         """Particles were added, removed or moved in storage (or the springs changed): rebuild what was built over
-        the old layout (the neighbour lists compare this counter with the one they were built at)."""
+        the old layout (the neighbour lists compare this counter with the one they were built at). `worlds`: the
+        worlds whose particles alone moved, in a simulation of worlds (None: every world's)."""
         self.layout += 1
+        self.moved_worlds[self.layout] = None if worlds is None else frozenset(int(w) for w in worlds)
+        self.moved_worlds.pop(self.layout - MOVES_KEPT, None)
+
+    def worlds_moved_since(self, layout: int) -> frozenset | None:
+        """The worlds whose particles moved since the layout numbered `layout`; None: every world's (or moves too
+        old to tell, or made before this state was loaded)."""
+        moved: frozenset = frozenset()
+        for number in range(layout + 1, self.layout + 1):
+            worlds = self.moved_worlds.get(number)
+            if worlds is None:
+                return None
+            moved |= worlds
+        return moved
 
     def carry(self, fields) -> None:
         """Attach per-particle fields (capacity rows) that move with the particles from now on."""
@@ -177,11 +195,12 @@ class State:
         self.mover.permute(order, n, self.movable)
         self.particles_moved()
 
-    def fill_holes(self, hole, filler, count: int) -> None:
-        """Move the particle at filler[m] into slot hole[m], m < count (the caller then lowers the count)."""
+    def fill_holes(self, hole, filler, count: int, worlds=None) -> None:
+        """Move the particle at filler[m] into slot hole[m], m < count (the caller then lowers the count); `worlds`:
+        as particles_moved's."""
         if count:
             self.mover.fill_holes(hole, filler, count, self.movable)
-        self.particles_moved()
+        self.particles_moved(worlds)
 
     def refresh_derived(self) -> None:
         """Bring the fields derived from the state up to date (each refresher does nothing when it is)."""

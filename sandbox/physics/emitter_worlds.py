@@ -51,7 +51,7 @@ class WorldSeeding:
         transfer.upload(table + [(self.t, np.array(columns[6]))])
         self._spawn(len(rows))
         p.counts.from_numpy(counts)
-        emitters.state.particles_moved()
+        emitters.state.particles_moved(columns[4])  # the worlds seeded: their lists rebuilt, as their lone runs'
 
     @ti.kernel
     def _spawn(self, rows: ti.i32):

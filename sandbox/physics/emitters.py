@@ -357,7 +357,7 @@ class Emitters(Term):
             self.p.n[None] = n + count
         serial[k] += count
         emitted[k] += count
-        self.state.particles_moved()
+        self.state.particles_moved([w] if self.p.gaps else None)
 
     @ti.func
     def _u(self, k, serial, j):

@@ -5,6 +5,7 @@ from the tail of the storage fill the holes (the State moves everything that rid
 the live count stays the number alive and memory stays bounded however many particles were ever emitted.
 """
 
+import numpy as np
 import taichi as ti
 
 from ..core.oriented import data_oriented
@@ -68,7 +69,9 @@ class Lifetimes(Term):
         """Every world's dead retired at once (three launches, one where none died)."""
         dead = int(self._find_moves_worlds())
         if dead:
-            self.state.fill_holes(self.hole, self.filler, int(self.moves[0]))
+            worlds = self.p.n[None] // self.p.world_size
+            fewer = np.flatnonzero(self.was.to_numpy()[:worlds] != self.p.counts.to_numpy()[:worlds])
+            self.state.fill_holes(self.hole, self.filler, int(self.moves[0]), fewer)  # those worlds' lists rebuilt
             self.p.clear_freed(self.was)
         return dead
 

@@ -98,6 +98,7 @@ class NeighbourList:
         self.worlds = self.p.world_count if self.p.worlds else 1
         if self.worlds > 1:
             self.world_stale = ti.field(ti.i32, shape=self.worlds)  # the worlds whose rows the next build rebuilds
+            self.world_due = ti.field(ti.i32, shape=self.worlds)  # ... whose particles were added, removed or moved
             self.every_row = ti.field(ti.i32, shape=())  # 1: the next build rebuilds every world's rows
             self.kept = ti.field(ti.i32, shape=())  # 1: the next build rebuilds the worlds the last one marked
         self.half = half
@@ -164,11 +165,20 @@ class NeighbourList:
         )
 
     def rebuild_every_row(self) -> None:
-        """Before a build that must_rebuild: with many worlds, it rebuilds every world's rows, moved or not, where
-        the lists were invalidated or the layout changed (after a widening alone, the rows of the worlds the
-        overflowed build was building: grow); nothing with one world, whose builds rebuild every row."""
-        if self.worlds > 1 and (self.forced or self.built_layout != self.state.layout):
+        """Before a build that must_rebuild, with many worlds: where the lists were invalidated, or particles moved
+        in storage for every world (a state put back, a world added), it rebuilds every world's rows, moved or not;
+        where only some worlds' particles were seeded or retired (State.worlds_moved_since), their rows and those of
+        the worlds whose particles moved half the skin; after a widening alone, the rows of the worlds the overflowed
+        build was building (grow). Nothing with one world, whose builds rebuild every row."""
+        if self.worlds == 1 or not (self.forced or self.built_layout != self.state.layout):
+            return
+        moved = None if self.forced else self.state.worlds_moved_since(self.built_layout)
+        if moved is None:
             self.every_row[None] = 1
+        else:  # the worlds whose particles alone were seeded, retired or put back: their rows, as their lone runs'
+            due = self.world_due.to_numpy()
+            due[sorted(moved)] = 1
+            self.world_due.from_numpy(due)
 
     def _allocate(self, width: int) -> None:
         self.width = width
@@ -321,7 +331,8 @@ class NeighbourList:
             every = self.every_row[None] != 0 or self.n[None] != self.n_listed[None]
             if every or self.kept[None] == 0:  # kept: the build after a widening redoes the last one's worlds
                 for w in range(self.worlds):
-                    self.world_stale[w] = 1 if every else 0
+                    self.world_stale[w] = 1 if every or self.world_due[w] != 0 else 0
+                    self.world_due[w] = 0
                 for i in range(self.n[None]):  # (serial: nested in the branch)
                     if self.p.idle(i):
                         continue
