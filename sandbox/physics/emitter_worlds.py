@@ -26,17 +26,26 @@ class WorldSeeding:
         )
         self.t = ti.field(float, shape=rows)  # the birth time: the world's clock at its step's start
 
-    def seed(self, times: list[float], dt: float) -> None:
-        """Seed what is due in the step [t, t + dt) of each live world's clock (`times`: world w's t), as many as
-        each world's block has room for."""
+    def seed_due(self, times: list[float], dt: float) -> None:
+        """Seed what is due in the step [t, t + dt) of each live world's clock (`times`: world w's t)."""
+        emitters = self.emitters
+        wanted = []
+        for w, t in enumerate(times):
+            carry = emitters.counters(w)[1]
+            wanted.append((w, t, [emitters.due(k, t, dt, carry) for k in range(emitters.count)]))
+        self.seed(wanted)
+
+    def seed(self, wanted: list[tuple[int, float, list[int]]]) -> None:
+        """Seed, for each (world w, birth time t on its clock, particles due from each emitter) of `wanted`, as many
+        as world w's block has room for, in one launch."""
         emitters, p = self.emitters, self.p
         counts = p.counts.to_numpy()
         block = p.world_size
         rows = []
-        for w, t in enumerate(times):
-            serial, carry, emitted = emitters.counters(w)
-            for k in range(emitters.count):
-                count = emitters.room_for(k, emitters.due(k, t, dt, carry), block - int(counts[w]))
+        for w, t, due in wanted:
+            serial, _, emitted = emitters.counters(w)
+            for k, wanted_count in enumerate(due):
+                count = emitters.room_for(k, wanted_count, block - int(counts[w]))
                 if count:
                     rows.append((k, w * block + int(counts[w]), serial[k], p.next_ident[w], w, count, t))
                     serial[k] += count

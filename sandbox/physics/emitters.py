@@ -93,8 +93,6 @@ class Emitters(Term):
         if rows:  # one copy kernel for the whole table: each of _row()'s names is a field of this object
             transfer.upload([(getattr(self, name), np.array([r[name] for r in rows])) for name in rows[0]] + mask_pairs)
         # with worlds (core/worlds.py) each world counts its own, as its lone run does: a list of these a world
-        self.worlds = self.p.world_count if self.p.gaps else 1
-        self.block = self.p.world_size if self.p.gaps else 0  # world w's slots start at w block
         self.serial = self._per_world(0)  # particles emitted so far, per emitter (the random-number index)
         self.carry = self._per_world(0.0)  # fractional particles owed by the rate
         self.emitted = self._per_world(0)
@@ -114,7 +112,7 @@ class Emitters(Term):
     def _per_world(self, value) -> list:
         """A counter per emitter, or with worlds a list of them a world."""
         counters = [value] * self.count
-        return [list(counters) for _ in range(self.worlds)] if self.p.gaps else counters
+        return [list(counters) for _ in range(self.p.world_count)] if self.p.gaps else counters
 
     def counters(self, w: int) -> tuple[list, list, list]:
         """World w's (serial, carry, emitted) lists, an entry per emitter (a lone run's own, whatever w)."""
@@ -130,21 +128,21 @@ class Emitters(Term):
         state.declare("emitters", self, ("carry",), kind="value", valid=Range(lo=-1e-6, hi=2**31 - 1), rows=rows)
 
     def start(self, state) -> None:
-        for w in range(self.worlds):
-            self.emit_initial(w)
+        """The emitters' starting particles (`count`): a lone run's, or every world's in one launch."""
+        if self.p.gaps:
+            self.seeding.seed([(w, 0.0, [e.count for e in self.specs]) for w in range(self.p.world_count)])
+        else:
+            self.emit_initial()
 
     def before_step(self, state) -> None:
         """Emit what is due in the step [t, t + dt) (each world's on its own clock), then top up the refill
         regions."""
         if self.p.gaps:
-            self.seeding.seed(state.world_times()[: self._live_worlds()], state.dt)
+            self.seeding.seed_due(state.world_times()[: int(self.p.n[None]) // self.p.world_size], state.dt)
             return
         self.emit_due(state.time, state.dt)
         if self.refills:
             self.refill(state.time)
-
-    def _live_worlds(self) -> int:
-        return int(self.p.n[None]) // self.block
 
     def _row(self, k: int, e, scene, material_names: list, ambient: float) -> dict:
         """Emitter k's parameters (spec e), by the name of the field that holds each: the values of its row."""
@@ -208,20 +206,19 @@ class Emitters(Term):
         return [(self.mask_start, starts), (self.mask_count, counts), (self.pixel_size, sizes), *pixels]
 
     # ------------------------------------------------------------------ emission (host decides counts)
-    def emit_initial(self, w: int = 0) -> None:
-        """The emitters' starting particles (`count`), in world w."""
+    def emit_initial(self) -> None:
+        """A lone run's starting particles from its emitters (`count`); worlds seed theirs through WorldSeeding."""
         for k, e in enumerate(self.specs):
             if e.count:
-                self._emit(k, e.count, 0.0, w)
+                self._emit(k, e.count, 0.0)
 
-    def emit_due(self, t: float, dt: float, w: int = 0) -> None:
-        """Emit what is due in the step [t, t + dt) of world w's clock: the rate's share (with carry) and bursts
-        falling in it."""
-        _, carry, _ = self.counters(w)
+    def emit_due(self, t: float, dt: float) -> None:
+        """Emit what is due in the step [t, t + dt) of a lone run: the rate's share (with carry) and bursts falling in
+        it."""
         for k in range(self.count):
-            due = self.due(k, t, dt, carry)
+            due = self.due(k, t, dt, self.carry)
             if due:
-                self._emit(k, due, t, w)
+                self._emit(k, due, t)
 
     def due(self, k: int, t: float, dt: float, carry: list) -> int:
         """Emitter k's particles due in the step [t, t + dt): its rate's share (the fraction left over carried in
@@ -334,30 +331,18 @@ class Emitters(Term):
                         u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
                         self.init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t, 0)
 
-    def _emit(self, k: int, count: int, t: float, w: int = 0) -> None:
-        """`count` particles from emitter k into world w, born at time t of its clock (as many as it has room for)."""
-        serial, _, emitted = self.counters(w)
-        if self.p.gaps:
-            n = int(self.p.counts[w])
-            room = self.block - n
-            n += w * self.block
-        else:
-            n = int(self.p.n[None])
-            room = self.capacity - n
-        count = self.room_for(k, count, room)
+    def _emit(self, k: int, count: int, t: float) -> None:
+        """`count` particles from emitter k into a lone run, born at time t (as many as it has room for)."""
+        n = int(self.p.n[None])
+        count = self.room_for(k, count, self.capacity - n)
         if count <= 0:
             return
-        ident = self.p.next_ident[w] if self.p.gaps else self.p.next_ident
-        self._spawn(k, count, n, serial[k], t, ident, w)
-        if self.p.gaps:
-            self.p.next_ident[w] += count
-            self.p.counts[w] += count
-        else:
-            self.p.next_ident += count
-            self.p.n[None] = n + count
-        serial[k] += count
-        emitted[k] += count
-        self.state.particles_moved([w] if self.p.gaps else None)
+        self._spawn(k, count, n, self.serial[k], t, self.p.next_ident)
+        self.p.next_ident += count
+        self.p.n[None] = n + count
+        self.serial[k] += count
+        self.emitted[k] += count
+        self.state.particles_moved()
 
     @ti.func
     def _u(self, k, serial, j):
@@ -462,13 +447,11 @@ class Emitters(Term):
         return v
 
     @ti.kernel
-    def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float, ident0: ti.i32, w: ti.i32):
+    def _spawn(self, k: ti.i32, count: ti.i32, first: ti.i32, serial0: ti.i32, t: float, ident0: ti.i32):
         for e in range(count):
             serial = serial0 + e
-            self.init_particle(k, first + e, serial, self.sample_position(k, serial), t, w)
+            self.init_particle(k, first + e, serial, self.sample_position(k, serial), t, 0)
             self.p.ident[first + e] = ident0 + e
-            if ti.static(self.p.worlds):
-                self.p.world[first + e] = w
 
     @ti.func
     def init_particle(self, k, i, serial, pos, t, w):
