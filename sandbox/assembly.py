@@ -23,7 +23,8 @@ from .core.state import State
 from .errors import SandboxError
 from .physics import TERMS, Parts
 from .physics.grid import CellGrid
-from .physics.neighbours import Neighbourhood, NeighbourList
+from .physics.neighbourhood import Neighbourhood
+from .physics.neighbours import NeighbourList
 from .physics.phase import Phase, initial_enthalpy
 from .physics.reorder import CellOrder
 from .physics.term import hook_order

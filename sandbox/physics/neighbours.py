@@ -21,7 +21,6 @@ that makes springs invalidates the list, so an entry never names a slot that now
 """
 
 import math
-import warnings
 
 import numpy as np
 import taichi as ti
@@ -114,8 +113,7 @@ class NeighbourList:
         self.n_listed = ti.field(ti.i32, shape=())  # the particle count at the last build
         self.widest = ti.field(ti.i32, shape=())  # the widest row when the lists were sized
         self.forced = True  # rebuild at the next check (invalidate())
-        # build again at the next check, the rows the last build was building: it overflowed and the lists were
-        # widened (grow). Never set between steps (a step goes on until its build fits), so no state file holds it.
+        # build again the rows the last build was building, which overflowed (grow); never set between steps
         self.refill = False
         self.built_layout = -1  # the state's layout counter when the lists were last built
         self.usable = False  # the last build fitted every list (no overflow)
@@ -165,17 +163,16 @@ class NeighbourList:
         )
 
     def rebuild_every_row(self) -> None:
-        """Before a build that must_rebuild, with many worlds: where the lists were invalidated, or particles moved
-        in storage for every world (a state put back, a world added), it rebuilds every world's rows, moved or not;
-        where only some worlds' particles were seeded or retired (State.worlds_moved_since), their rows and those of
-        the worlds whose particles moved half the skin; after a widening alone, the rows of the worlds the overflowed
-        build was building (grow). Nothing with one world, whose builds rebuild every row."""
+        """Before a build that must_rebuild, with many worlds: every world's rows where the lists were invalidated
+        or every world's particles moved in storage; where only some worlds' were seeded or retired
+        (State.worlds_moved_since), those worlds' rows (and as always those whose particles moved half the skin);
+        after a widening alone, the rows the overflowed build was building (grow). One world: every row anyway."""
         if self.worlds == 1 or not (self.forced or self.built_layout != self.state.layout):
             return
         moved = None if self.forced else self.state.worlds_moved_since(self.built_layout)
         if moved is None:
             self.every_row[None] = 1
-        else:  # the worlds whose particles alone were seeded, retired or put back: their rows, as their lone runs'
+        else:
             due = self.world_due.to_numpy()
             due[sorted(moved)] = 1
             self.world_due.from_numpy(due)
@@ -444,64 +441,3 @@ class NeighbourList:
                     ids[row + c] = j
             c += ti.cast(near, ti.i32)
         return c
-
-
-class Neighbourhood:
-    """What the pair terms are evaluated over: the cell grid, the Verlet lists on it (None: the grid is scanned
-    each step), and the sort of the storage into cell order (None: never). `half`: the lists hold each pair once
-    (the CPU's layout; a GPU gathers from full lists). Built from the reach of the scene's pair terms."""
-
-    def __init__(self, grid, lists, order, half: bool):
-        self.grid, self.lists, self.order = grid, lists, order
-        self.half = half
-        self.marks_bonds = lists is not None and lists.marks_bonds  # half rows flag bonded pairs
-        self.no_lists = no_lists()  # what kernels take for the lists when a step does not use them
-        self._warned_overflow = False
-
-    def ids(self, use_lists: bool):
-        """The lists to hand a kernel: the lists when the step uses them, else the 1 x 1 stand-in."""
-        return self.lists.flat if use_lists else self.no_lists
-
-    def refresh(self, moved: bool) -> bool:
-        """Before an evaluation: rebuild the lists if stale (`moved`: a particle has moved half the skin), else sort
-        the grid for a scan; returns whether the lists are usable (False: scan the grid)."""
-        if self.lists is None:
-            self.grid.rebuild()
-            return False
-        usable = self.lists.ensure_fresh(moved)
-        if not usable:
-            self.grid.rebuild()  # the fallback scans the grid, which must match the current positions
-            if not self._warned_overflow:
-                self._warned_overflow = True
-                warnings.warn(
-                    f"neighbour list overflow: some particle has more than {self.lists.width} neighbours; scanning "
-                    "the cell grid instead (slower)",
-                    stacklevel=3,
-                )
-        return usable
-
-    def declare(self, state) -> None:
-        for part in (self.lists, self.order):
-            if part is not None:
-                part.declare(state)
-
-    def after_restore(self, state) -> None:
-        """A state was put back: sort the grid over its particles (the per-particle pass visits them in the grid's
-        order, so every live particle must be in it; the lists, when restored from a file, stay as saved)."""
-        self.grid.rebuild()
-
-    def describe(self) -> list[str]:
-        if self.lists is None:
-            return [f"neighbour grid: counting sort into a {self.grid.describe()}, every step"]
-        lines = [self.lists.describe(self.grid)]
-        if self.order is not None:
-            lines.append(self.order.describe())
-        return lines
-
-    def nbytes(self, capacity: int, dim: int) -> dict:
-        out = {"grid": self.grid.footprint_bytes(capacity, self.grid.n_cells, dim)}
-        if self.lists is not None:
-            out["neighbour lists"] = self.lists.nbytes()
-        if self.order is not None:
-            out["reorder scratch"] = self.order.nbytes()
-        return out
