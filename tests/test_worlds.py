@@ -94,23 +94,39 @@ def test_each_world_of_a_periodic_lj_box_is_its_lone_run_to_the_bit():
         assert batch.world(k).stats().pair_energy == alone.stats().pair_energy
 
 
+def _crowded(sim, way, tmp_path):
+    """`sim` stepping as on a crowded machine (another program wants a core), by `way` (step/crowd.py)."""
+    from sandbox.core.threads import LoadWatch
+
+    loadavg = tmp_path / f"loadavg-{way}"
+    loadavg.write_text("0.5 0.5 0.5 9/80 1234\n")
+    sim.plan.load = LoadWatch(2, str(loadavg), cores=2, machine=2)
+    sim.plan.load.others, sim.plan.load.last = 9.0, -1.0
+    sim.plan.crowd.choose = lambda: way
+    return sim
+
+
 @pytest.mark.long
-def test_worlds_step_as_a_team_where_their_lone_runs_do_and_each_is_its_lone_run_to_the_bit():
+def test_worlds_step_as_a_team_where_their_lone_runs_do_and_each_is_its_lone_run_to_the_bit(tmp_path):
     """A whole melting block (1,200 particles) runs alone as a team of threads (step/team.py), and so do its worlds:
     many steps a launch, every world's pair chunks shared out among the workers. World 0's plate is at 400 C, world
     1's at 20 C (a block that only settles), and the lists are narrowed so that a build overflows and they widen
     while running: the rebuild after the widening rebuilds the rows of the worlds that build was for (world 0's),
     so world 1's lists are still those its lone run built, on its lone run's steps (their reference positions equal
-    the lone run's), and each world is its lone run to the bit."""
+    the lone run's), and each world is its lone run to the bit; so are the worlds of a crowded machine, stepped on
+    one thread (the team's kernel, one worker) or the long way."""
+    from sandbox.step.crowd import ALONE, LONG
+
     hot = {"bodies.0.temperature": 52.0, "heat.sources.0.temperature": 400.0}
     lone = sandbox.load("melting_block", set=hot)
     if lone.plan.team is None:
         pytest.skip("one CPU thread here: no team of threads to step as")
     cold = sandbox.load("melting_block", set={**hot, "heat.sources.0.temperature": 20.0})
-    batch = sandbox.load("melting_block", set=hot, worlds=2)
-    batch.world(1).controls.set({"heat.sources": [20.0]})
+    batch, alone, long_way = (sandbox.load("melting_block", set=hot, worlds=2) for _ in range(3))
+    for sim in (batch, alone, long_way):
+        sim.world(1).controls.set({"heat.sources": [20.0]})
     assert batch.plan.team is not None and batch.plan.fuses
-    sims = (lone, cold, batch)
+    sims = (lone, cold, batch, _crowded(alone, ALONE, tmp_path), _crowded(long_way, LONG, tmp_path))
     for sim in sims:  # lists narrower than the melt needs, built again from the next step on
         sim.advance_frame()
         sim.plan.lists._allocate(19)
@@ -118,14 +134,16 @@ def test_worlds_step_as_a_team_where_their_lone_runs_do_and_each_is_its_lone_run
     for _ in range(26):
         for sim in sims:
             sim.advance_frame()
-    assert [sim.plan.lists.grown for sim in sims] == [1, 0, 1]  # world 0 widened the batch's lists
+    assert [sim.plan.lists.grown for sim in sims] == [1, 0, 1, 1, 1]  # world 0 widened the batches' lists
     assert batch.plan.fused_batches > 0 and lone.stats().broken_springs > 0
+    assert alone.plan.crowded_steps == long_way.plan.crowded_steps == 27 * 8 and batch.plan.crowded_steps == 0
     n = lone.state.live_count()
-    kept = batch.plan.lists.x_ref.to_numpy()
-    for k, alone in enumerate((lone, cold)):
-        _assert_same(alone, batch.world(k))
-        assert np.array_equal(alone.temperatures(), batch.world(k).temperatures())
-        assert np.array_equal(kept[k * n : (k + 1) * n], alone.plan.lists.x_ref.to_numpy()[:n])
+    for worlds in (batch, alone, long_way):
+        kept = worlds.plan.lists.x_ref.to_numpy()
+        for k, run in enumerate((lone, cold)):
+            _assert_same(run, worlds.world(k))
+            assert np.array_equal(run.temperatures(), worlds.world(k).temperatures())
+            assert np.array_equal(kept[k * n : (k + 1) * n], run.plan.lists.x_ref.to_numpy()[:n])
 
 
 @pytest.mark.long
