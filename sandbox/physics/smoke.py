@@ -147,6 +147,22 @@ class SmokeGrid:
     # ------------------------------------------------------------------ step
     def step(self, dt: float, w: int = 0) -> None:
         """Advance the smoke of world w's grid (0: a lone run's) by dt (simulated seconds)."""
+        self._advance(dt, w)
+        self.project(w)
+
+    def step_worlds(self, dt: float, worlds: list[int]) -> None:
+        """Advance the grids of `worlds` by dt: each world's sources and advection, then (a grid one_launch solves)
+        every world's projection in one launch, each on a thread of its own."""
+        for w in worlds:
+            self._advance(dt, w)
+        if self.one_launch:
+            self.projection.project_worlds(worlds)
+        else:
+            for w in worlds:
+                self.project(w)
+
+    def _advance(self, dt: float, w: int) -> None:
+        """World w's sources, buoyancy and advection (the step before its projection)."""
         self._sources_and_forces(dt, w)
         for a in range(self.dim):
             self._advect_face(a, dt, w)
@@ -154,7 +170,6 @@ class SmokeGrid:
         for a in range(self.dim):
             self._copy(self.u_new[a], self.u[a], self.face_res[a], w)
         self._copy(self.T_new, self.T, self.res, w)
-        self.project(w)
 
     @ti.kernel
     def _copy(self, src: ti.template(), dst: ti.template(), shape: ti.template(), w: ti.i32):
@@ -274,9 +289,9 @@ class Smoke(Term):
                 self.grid.step(state.dt * self.every)
             return
         live = state.live_count() // self.p.world_size
-        for w, steps in enumerate(state.world_steps()[:live]):
-            if steps % self.every == 0:
-                self.grid.step(state.dt * self.every, w)
+        due = [w for w, steps in enumerate(state.world_steps()[:live]) if steps % self.every == 0]
+        if due:
+            self.grid.step_worlds(state.dt * self.every, due)
 
     def declare(self, state) -> None:
         """The grid's velocities, temperatures and pressure (the warm start of the next projection): with worlds, a

@@ -7,8 +7,10 @@ the pressure gradient from interior faces. On the CPU a small grid is solved in 
 (SmokeGrid.one_launch), with the sums in registers; else the host drives the iterations (core/solvers.py).
 """
 
+import numpy as np
 import taichi as ti
 
+from ..core.loops import SPREAD_STRIDE, spread_item
 from ..core.oriented import data_oriented
 from ..core.solvers import CGResult, CGSums, pcg
 
@@ -27,6 +29,8 @@ class PressureProjection:
         self.ad = grid.grid_field(res)
         self.sums = CGSums()
         self.divergence_before = 0.0
+        if grid.worlds > 1:
+            self.due = ti.field(ti.i32, shape=grid.worlds)  # the worlds project_worlds solves
 
     def project(self, w: int = 0) -> CGResult:
         """Make world w's face velocities discretely divergence-free (to the CG tolerance)."""
@@ -153,40 +157,65 @@ class PressureProjection:
             for I in ti.grouped(ti.ndrange(*self.grid.face_res[a])):
                 self._subtract_gradient_face(a, I, w)
 
+    def project_worlds(self, worlds: list[int]) -> None:
+        """Make the face velocities of each world in `worlds` divergence-free, every world's projection on one thread
+        of its own and all of them in one launch (a grid that one_launch solves); each world's sums are its own, in
+        its lone run's order."""
+        due = np.zeros(self.grid.worlds, np.int32)
+        due[worlds] = 1
+        self.due.from_numpy(due)
+        self._project_due_worlds()
+
+    @ti.kernel
+    def _project_due_worlds(self):
+        for u in range(self.grid.worlds * SPREAD_STRIDE):  # the worlds spread over the threads (spread_item)
+            w = spread_item(u)
+            if w >= 0:
+                if self.due[w] != 0:
+                    self._solve(w)  # its sums are its own (the lone run's diagnostics are not kept per world)
+
     @ti.kernel
     def _project_in_one_launch(self, w: ti.i32) -> ti.i32:
         """The whole projection on one thread (solvers.pcg's iteration, with the sums kept in registers): leaves
         r.r and b.b in the sums; returns the CG iterations."""
         iterations = 0
         for _ in range(1):  # one task: the loops below are nested in it, so they run in order on its thread
-            rz, rr, bb = ti.f64(0.0), ti.f64(0.0), ti.f64(0.0)
-            for I in ti.grouped(ti.ndrange(*self.grid.res)):
-                c_rz, c_rr, c_bb = self._assemble_cell(I, w)
-                rz += c_rz
-                rr += c_rr
-                bb += c_bb
-            bnorm = ti.max(ti.sqrt(bb), 1e-300)
-            while iterations < self.grid.cfg.max_iterations and ti.sqrt(rr) > self.grid.cfg.tolerance * bnorm:
-                p_ap = ti.f64(0.0)
-                for I in ti.grouped(ti.ndrange(*self.grid.res)):
-                    p_ap += self._matvec_cell(I, w)
-                if p_ap <= 0.0:  # the search direction vanished (converged to round-off)
-                    break
-                alpha = rz / p_ap
-                rz_new = ti.f64(0.0)
-                rr = 0.0
-                for I in ti.grouped(ti.ndrange(*self.grid.res)):
-                    c_rz, c_rr = self._update_cell(I, alpha, w)
-                    rz_new += c_rz
-                    rr += c_rr
-                beta = rz_new / rz if rz > 0.0 else 0.0
-                for I in ti.grouped(ti.ndrange(*self.grid.res)):
-                    self._direction_cell(I, beta, w)
-                rz = rz_new
-                iterations += 1
-            for a in ti.static(range(self.grid.dim)):
-                for I in ti.grouped(ti.ndrange(*self.grid.face_res[a])):
-                    self._subtract_gradient_face(a, I, w)
+            done, rr, bb = self._solve(w)
             self.sums.rr[None] = rr
             self.sums.bb[None] = bb
+            iterations = done
         return iterations
+
+    @ti.func
+    def _solve(self, w):
+        """World w's projection, its loops in order on the calling thread; returns (CG iterations, r.r, b.b)."""
+        iterations = 0
+        rz, rr, bb = ti.f64(0.0), ti.f64(0.0), ti.f64(0.0)
+        for I in ti.grouped(ti.ndrange(*self.grid.res)):
+            c_rz, c_rr, c_bb = self._assemble_cell(I, w)
+            rz += c_rz
+            rr += c_rr
+            bb += c_bb
+        bnorm = ti.max(ti.sqrt(bb), 1e-300)
+        while iterations < self.grid.cfg.max_iterations and ti.sqrt(rr) > self.grid.cfg.tolerance * bnorm:
+            p_ap = ti.f64(0.0)
+            for I in ti.grouped(ti.ndrange(*self.grid.res)):
+                p_ap += self._matvec_cell(I, w)
+            if p_ap <= 0.0:  # the search direction vanished (converged to round-off)
+                break
+            alpha = rz / p_ap
+            rz_new = ti.f64(0.0)
+            rr = 0.0
+            for I in ti.grouped(ti.ndrange(*self.grid.res)):
+                c_rz, c_rr = self._update_cell(I, alpha, w)
+                rz_new += c_rz
+                rr += c_rr
+            beta = rz_new / rz if rz > 0.0 else 0.0
+            for I in ti.grouped(ti.ndrange(*self.grid.res)):
+                self._direction_cell(I, beta, w)
+            rz = rz_new
+            iterations += 1
+        for a in ti.static(range(self.grid.dim)):
+            for I in ti.grouped(ti.ndrange(*self.grid.face_res[a])):
+                self._subtract_gradient_face(a, I, w)
+        return iterations, rr, bb
