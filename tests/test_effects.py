@@ -323,10 +323,15 @@ def test_refill_tops_up_each_cell_to_the_target_density_and_no_more():
             }
         ]
     )
-    sim = Simulation(make_scene(data))
+    sim, again = Simulation(make_scene(data)), Simulation(make_scene(data))
     sim.step(1)
+    again.step(1)
     n = int(sim.particles.n[None])
     assert n == 200  # 50 cells of 2 x 2, four each: 1 per unit area
+    # each its own id (they were all 0), and the same particles in every run (the cells took their serial numbers,
+    # and so their random places, in the order their threads reached them)
+    assert np.array_equal(np.sort(sim.particles.ident.to_numpy()[:n]), np.arange(n))
+    assert np.array_equal(sim.positions(), again.positions())
     x = sim.positions()
     cells = ((x[:, 0] - 10) // 2).astype(int) * 5 + ((x[:, 1] - 10) // 2).astype(int)
     assert np.all(np.bincount(cells, minlength=50) == 4)
@@ -336,6 +341,8 @@ def test_refill_tops_up_each_cell_to_the_target_density_and_no_more():
     assert removed > 20
     sim.step(1)
     assert sim.particles.n[None] >= 200  # topped up again where the hole was
+    ids = sim.particles.ident.to_numpy()[: int(sim.particles.n[None])]
+    assert len(np.unique(ids)) == len(ids) and ids.max() == 200 + removed - 1  # the new ones numbered on
     x = sim.positions()
     inside = (x[:, 0] >= 10) & (x[:, 0] < 30) & (x[:, 1] >= 10) & (x[:, 1] < 20)
     cells = ((x[inside, 0] - 10) // 2).astype(int) * 5 + ((x[inside, 1] - 10) // 2).astype(int)

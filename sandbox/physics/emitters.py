@@ -271,9 +271,10 @@ class Emitters(Term):
             n = int(self.p.n[None])
             self._count_cells(g["count"], g["lo"], g["cell"])
             self.reserved[None] = 0
-            self._top_up(k, g["count"], g["lo"], g["cell"], g["target"], n, self.serial[k], t)
+            self._top_up(k, g["count"], g["lo"], g["cell"], g["target"], n, self.serial[k], t, self.p.next_ident)
             made = min(int(self.reserved[None]), self.capacity - n)
             self.p.n[None] = n + made
+            self.p.next_ident += made
             self.serial[k] += int(self.reserved[None])
             self.emitted[k] += made
             added += made
@@ -314,7 +315,11 @@ class Emitters(Term):
         first: ti.i32,
         serial0: ti.i32,
         t: float,
+        ident0: ti.i32,
     ):
+        """Each cell's deficit below `target` seeded, the cells in order (serial: which cell takes which serial
+        numbers, and so where its particles land, is the same in every run), ids from ident0 on."""
+        ti.loop_config(serialize=True)
         for I in ti.grouped(count):
             centre = lo + (ti.cast(I, float) + 0.5) * cell
             within = True
@@ -330,6 +335,7 @@ class Emitters(Term):
                         serial = serial0 + slot
                         u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
                         self.init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t, 0)
+                        self.p.ident[i] = ident0 + slot
 
     def _emit(self, k: int, count: int, t: float) -> None:
         """`count` particles from emitter k into a lone run, born at time t (as many as it has room for)."""
