@@ -22,10 +22,10 @@ def _by_id(sim, name: str = "x") -> np.ndarray:
     return getattr(sim.particles, name).to_numpy()[:n][order]
 
 
-def _restarted(scene: str, worlds: int, frames: int, k: int, steps: int = 0) -> tuple:
-    """(lone run, batch of `worlds`, fresh lone run): the first two run `frames` frames and `steps` steps, then
-    world k of the batch starts again, as the fresh run starts."""
-    lone, batch = sandbox.load(scene), sandbox.load(scene, worlds=worlds)
+def _restarted(scene: str, worlds: int, frames: int, k: int, steps: int = 0, values: dict | None = None) -> tuple:
+    """(lone run, batch of `worlds`, fresh lone run) of `scene` (with `values` set): the first two run `frames`
+    frames and `steps` steps, then world k of the batch starts again, as the fresh run starts."""
+    lone, batch = sandbox.load(scene, set=values), sandbox.load(scene, set=values, worlds=worlds)
     for _ in range(frames):
         lone.advance_frame()
         batch.advance_frame()
@@ -33,7 +33,7 @@ def _restarted(scene: str, worlds: int, frames: int, k: int, steps: int = 0) -> 
         lone.step(steps)
         batch.step(steps)
     batch.world(k).reset()
-    return lone, batch, sandbox.load(scene)
+    return lone, batch, sandbox.load(scene, set=values)
 
 
 def _assert_world_is(lone, world, fields=("x", "v")) -> None:
@@ -136,9 +136,29 @@ def test_each_world_of_smoke_vortex_has_its_own_smoke_grid_and_is_its_lone_run()
 
 
 def test_worlds_with_emitters_refuse_what_they_cannot_hold_in_one_line():
-    refill = {"emitters.0.refill_density": 0.5}
-    with pytest.raises(SandboxError, match="candle: an emitter's refill_density cannot yet run as worlds"):
-        sandbox.load("candle", set=refill, worlds=2)
+    leapfrog = {"world.integrator": "velocity_verlet"}
+    with pytest.raises(SandboxError, match="fireworks: worlds = 2 with emitters cannot yet hold velocity_verlet"):
+        sandbox.load("fireworks", set=leapfrog, worlds=2)
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_each_world_of_a_refill_emitter_is_its_lone_run_and_refills_its_own_region():
+    """The candle's flame emitter given a refill density (it keeps its region topped up as the flame rises out of
+    it): each world counts its own particles in the region and seeds its deficit with its own serial numbers and
+    ids, cell by cell in a lone run's order; a world started again after 10 frames is a lone run started then."""
+    refill = {"emitters.0.refill_density": 2.0}
+    lone, batch, fresh = _restarted("candle", 3, 10, 2, values=refill)
+    plain = sandbox.load("candle")  # its rate alone
+    for _ in range(20):
+        for sim in (lone, batch, fresh):
+            sim.advance_frame()
+    for _ in range(30):
+        plain.advance_frame()
+    assert lone.terms.emitters.emitted[0] > plain.terms.emitters.emitted[0] + 30  # the refill seeded too
+    for k, alone in ((0, lone), (1, lone), (2, fresh)):
+        _assert_world_is(alone, batch.world(k), ("x", "v", "T"))
+        assert batch.terms.emitters.emitted[k] == alone.terms.emitters.emitted
+        assert batch.particles.next_ident[k] == alone.particles.next_ident
 
 
 @pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)

@@ -72,3 +72,92 @@ class WorldSeeding:
                 emitters.init_particle(k, first + m, serial, emitters.sample_position(k, serial), t, w)
                 p.ident[first + m] = self.ident[r] + m
                 p.world[first + m] = w
+
+
+@data_oriented
+class WorldRefill:
+    """The refill emitters of a simulation of worlds (`emitters`: an Emitters with gaps): each world's region topped
+    up to the target density from its own particles, serial numbers and ids, into its own block; the worlds in order
+    and each world's cells in a lone run's order, so each world seeds the particles its lone run seeds."""
+
+    def __init__(self, emitters):
+        self.emitters = emitters
+        self.p = emitters.p
+        worlds = self.p.world_count
+        self.counts = {
+            k: ti.field(ti.i32, shape=(worlds, *grid["count"].shape)) for k, grid in emitters.refill_grids.items()
+        }  # each world's particles per refill cell
+        self.first, self.room, self.serial, self.ident, self.reserved = (
+            ti.field(ti.i32, shape=worlds) for _ in range(5)
+        )
+        self.t = ti.field(float, shape=worlds)  # each world's clock
+
+    def refill(self, times: list[float]) -> None:
+        """Top up every refill emitter's region in each live world (`times`: world w's clock, one a live world)."""
+        emitters, p = self.emitters, self.p
+        block, live = p.world_size, len(times)
+        changed = set()
+        for k in emitters.refills:
+            grid = emitters.refill_grids[k]
+            counts = p.counts.to_numpy()
+            serial = np.array([emitters.counters(w)[0][k] for w in range(live)] + [0] * (p.world_count - live))
+            ident = np.array(list(p.next_ident[:live]) + [0] * (p.world_count - live))
+            table = [(self.first, np.arange(p.world_count) * block + counts), (self.room, block - counts)]
+            table += [(self.serial, serial), (self.ident, ident)]
+            clocks = np.zeros(p.world_count)
+            clocks[:live] = times
+            transfer.upload([(f, np.asarray(v, np.int32)) for f, v in table] + [(self.t, clocks)])
+            self._count(self.counts[k], grid["lo"], grid["cell"])
+            self._top_up(k, self.counts[k], grid["lo"], grid["cell"], grid["target"], live)
+            reserved = self.reserved.to_numpy()
+            for w in range(live):
+                made = min(int(reserved[w]), block - int(counts[w]))
+                serials, _, emitted = emitters.counters(w)
+                serials[k] += int(reserved[w])
+                emitted[k] += made
+                p.next_ident[w] += made
+                counts[w] += made
+                if made:
+                    changed.add(w)
+            p.counts.from_numpy(counts)
+        if changed:
+            emitters.state.particles_moved(sorted(changed))  # their lists rebuilt, as their lone runs'
+
+    @ti.kernel
+    def _count(self, count: ti.template(), lo: ti.template(), cell: ti.template()):
+        """count[w, I]: world w's live particles in refill cell I."""
+        p = self.p
+        for J in ti.grouped(count):
+            count[J] = 0
+        for i in range(p.n[None]):
+            if p.idle(i):
+                continue
+            c, inside = self.emitters.cell_of(p.x[i], lo, cell, ti.static(count.shape[1:]))
+            if inside:
+                count[self._at(p.world[i], c)] += 1
+
+    @ti.func
+    def _at(self, w, c):
+        return ti.Vector([w] + [c[a] for a in ti.static(range(self.emitters.dim))])
+
+    @ti.kernel
+    def _top_up(
+        self, k: ti.i32, count: ti.template(), lo: ti.template(), cell: ti.template(), target: ti.i32, live: ti.i32
+    ):
+        """Each live world's cells' deficits below `target` seeded (Emitters._top_up's, world by world)."""
+        emitters, p = self.emitters, self.p
+        ti.loop_config(serialize=True)
+        for w in range(live):
+            self.reserved[w] = 0
+            for I in ti.grouped(ti.ndrange(*count.shape[1:])):
+                deficit = target - count[self._at(w, I)]
+                if emitters.refills_cell(k, lo, cell, I) and deficit > 0:
+                    start = self.reserved[w]
+                    self.reserved[w] = start + deficit
+                    for m in range(deficit):
+                        slot = start + m
+                        if slot < self.room[w]:
+                            i = self.first[w] + slot
+                            emitters.refill_particle(k, i, self.serial[w] + slot, lo, cell, I, self.t[w], w)
+                            p.ident[i] = self.ident[w] + slot
+                            p.world[i] = w

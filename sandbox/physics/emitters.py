@@ -20,8 +20,8 @@ from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.ranges import COUNT, Range
 from ..core.state import WORLDS
-from ..errors import SandboxError, SceneError
-from .emitter_worlds import WorldSeeding
+from ..errors import SceneError
+from .emitter_worlds import WorldRefill, WorldSeeding
 from .fields import random_uniform
 from .phase import NEVER_BONDS
 from .term import Term, register
@@ -98,13 +98,12 @@ class Emitters(Term):
         self.emitted = self._per_world(0)
         self._warned_full = False
         self.refills = [k for k, e in enumerate(self.specs) if e.refill_density > 0]
-        if self.refills and self.p.gaps:
-            raise SandboxError(f"{scene.name}: an emitter's refill_density cannot yet run as worlds; expected 1 world")
         self.refill_grids = {}
         for k in self.refills:
             self.refill_grids[k] = self._refill_grid(self.specs[k])
         self.reserved = ti.field(ti.i32, shape=())  # refill: slots taken by the last pass
         self.seeding = WorldSeeding(self) if self.p.gaps else None  # every world's due particles in one launch
+        self.world_refill = WorldRefill(self) if self.p.gaps and self.refills else None
 
     def words(self, where: str) -> list[str]:
         return [f"emitters: {', '.join(e.name for e in self.specs)} (rate, bursts)"] if where == "before" else []
@@ -138,7 +137,10 @@ class Emitters(Term):
         """Emit what is due in the step [t, t + dt) (each world's on its own clock), then top up the refill
         regions."""
         if self.p.gaps:
-            self.seeding.seed_due(state.world_times()[: int(self.p.n[None]) // self.p.world_size], state.dt)
+            times = state.world_times()[: int(self.p.n[None]) // self.p.world_size]
+            self.seeding.seed_due(times, state.dt)
+            if self.world_refill is not None:
+                self.world_refill.refill(times)
             return
         self.emit_due(state.time, state.dt)
         if self.refills:
@@ -283,7 +285,8 @@ class Emitters(Term):
         return added
 
     @ti.func
-    def _cell_of(self, x, lo, cell, shape):
+    def cell_of(self, x, lo, cell, shape):
+        """(the refill cell of x, whether x is inside the refill lattice at lo of `shape` cells of size `cell`)."""
         c = ti.Vector.zero(ti.i32, self.dim)
         inside = True
         for a in ti.static(range(self.dim)):
@@ -300,7 +303,7 @@ class Emitters(Term):
         for i in range(self.p.n[None]):
             if self.p.idle(i):
                 continue
-            c, inside = self._cell_of(self.p.x[i], lo, cell, count.shape)
+            c, inside = self.cell_of(self.p.x[i], lo, cell, count.shape)
             if inside:
                 count[c] += 1
 
@@ -321,21 +324,31 @@ class Emitters(Term):
         numbers, and so where its particles land, is the same in every run), ids from ident0 on."""
         ti.loop_config(serialize=True)
         for I in ti.grouped(count):
-            centre = lo + (ti.cast(I, float) + 0.5) * cell
-            within = True
-            if self.shape[k] == 2 or self.shape[k] == 3:  # disk, sphere: cells whose centre is inside
-                within = (centre - self.center[k]).norm() <= self.size[k]
             deficit = target - count[I]
-            if within and deficit > 0:
+            if self.refills_cell(k, lo, cell, I) and deficit > 0:
                 start = ti.atomic_add(self.reserved[None], deficit)
                 for m in range(deficit):
                     slot = start + m
                     i = first + slot
                     if i < self.capacity:
-                        serial = serial0 + slot
-                        u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
-                        self.init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t, 0)
+                        self.refill_particle(k, i, serial0 + slot, lo, cell, I, t, 0)
                         self.p.ident[i] = ident0 + slot
+
+    @ti.func
+    def refills_cell(self, k, lo, cell, I):
+        """Whether refill emitter k tops up cell I of its lattice (at lo, cells `cell` wide): every cell of a box,
+        those whose centre is inside a disk or sphere."""
+        within = True
+        if self.shape[k] == 2 or self.shape[k] == 3:
+            within = (lo + (ti.cast(I, float) + 0.5) * cell - self.center[k]).norm() <= self.size[k]
+        return within
+
+    @ti.func
+    def refill_particle(self, k, i, serial, lo, cell, I, t, w):
+        """New particle i (serial number `serial`) from refill emitter k at a random place in cell I, born at time t
+        of world w's clock."""
+        u = ti.Vector([self._u(k, serial, 50 + a) for a in ti.static(range(self.dim))])
+        self.init_particle(k, i, serial, lo + (ti.cast(I, float) + u) * cell, t, w)
 
     def _emit(self, k: int, count: int, t: float) -> None:
         """`count` particles from emitter k into a lone run, born at time t (as many as it has room for)."""
