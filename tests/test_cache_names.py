@@ -75,6 +75,7 @@ def test_a_stats_file_inside_a_png_folder_is_not_one_of_its_frames(tmp_path, cap
     assert code == EXIT_BAD_INPUT and len(lines) == 1 and "one of the numbered files --out" in lines[0], lines
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_usd_cache_past_a_size_limit_exits_4_in_one_line(tmp_path, capsys):
     """A full disk or `ulimit -f` was a traceback (exit 1) for USD, where PLY and VTK exit 4 with one line. The
     candle's frame layers grow as its flame emits: the limit, set between the sizes of its second and third frame

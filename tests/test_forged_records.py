@@ -192,6 +192,7 @@ def test_a_resume_with_another_cache_every_or_surfaces_is_refused(cached, tmp_pa
         assert contents(folder) == before
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_an_honest_checkpoint_still_continues_every_output(finished, cached, tmp_path, capsys):
     """The rules refuse forgeries only: the checkpoint each run ended with continues its files to 12 frames."""
     for source, outputs in ((finished, OUTPUTS), (cached, CACHED)):
