@@ -42,6 +42,7 @@ def test_caches_of_different_names_never_share_a_frame_file(tmp_path, capsys, fi
     assert len(frames_of(tmp_path, second)) == 3
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_surface_named_cache_never_removes_another_caches_surfaces(tmp_path, capsys):
     """`--cache w.surface.ply` beside a finished `w.ply --cache-surface` deleted w.ply's surfaces."""
     assert run(tmp_path, "--cache-surface", frames=2, outputs=[*STILL, "--cache", "w.ply"]) == 0, errors(capsys)

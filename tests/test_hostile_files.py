@@ -240,8 +240,11 @@ def test_a_kill_inside_ffmpegs_join_leaves_no_concat_list_after_the_resume(tmp_p
 
 
 @pytest.mark.parametrize(
-    "output, planted",  # the folder of PNGs in the long tier (`python3 -m pytest -m long`)
-    [pytest.param("frames", "frames/.frame_00005.png", marks=pytest.mark.long), ("w.ply", ".w.ply.00005.ply")],
+    "output, planted",  # both in the long tier (`python3 -m pytest -m long`)
+    [
+        pytest.param("frames", "frames/.frame_00005.png", marks=pytest.mark.long),
+        pytest.param("w.ply", ".w.ply.00005.ply", marks=pytest.mark.long),
+    ],
 )
 def test_a_killed_runs_partial_frame_file_is_removed_by_the_resume(tmp_path, capsys, output, planted):
     """kill -9 while a PNG frame (or a cache frame) is written leaves its hidden partial file in the folder; the
