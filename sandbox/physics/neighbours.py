@@ -162,11 +162,11 @@ class NeighbourList:
             f"{self.width}), rebuilt from a counting-sort {grid.describe()} when a particle has moved half the skin"
         )
 
-    def rebuild_every_row(self) -> None:
-        """Before a build that must_rebuild, with many worlds: every world's rows where the lists were invalidated
-        or every world's particles moved in storage; where only some worlds' were seeded or retired
-        (State.worlds_moved_since), those worlds' rows (and as always those whose particles moved half the skin);
-        after a widening alone, the rows the overflowed build was building (grow). One world: every row anyway."""
+    def mark_rows_to_rebuild(self) -> None:
+        """Before a build, with many worlds, mark the rows it rebuilds besides those of the worlds whose particles
+        moved half the skin: every world's where the lists were invalidated or every world's particles moved in
+        storage; where only some worlds' were seeded or retired (State.worlds_moved_since), those worlds'; after a
+        widening alone, none more (the rows the overflowed build was building: grow). One world: every row anyway."""
         if self.worlds == 1 or not (self.forced or self.built_layout != self.state.layout):
             return
         moved = None if self.forced else self.state.worlds_moved_since(self.built_layout)
@@ -211,8 +211,7 @@ class NeighbourList:
         if moved is None:
             moved = self._moved_too_far()
         if self.must_rebuild() or moved:  # no host read of the count or the overflow flag on steps without a rebuild
-            if self.must_rebuild():
-                self.rebuild_every_row()
+            self.mark_rows_to_rebuild()
             self._sort_and_fill(self.flat)
             if self.overflow[None] and self.grow():
                 self._fill(self.flat)

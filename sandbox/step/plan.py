@@ -176,8 +176,7 @@ class StepPlan:
         forced = 0
         if lists is not None:
             forced = int(lists.must_rebuild())
-            if forced:
-                lists.rebuild_every_row()
+            lists.mark_rows_to_rebuild()
             lists.mark_built()
             lists.fused = True
         done = self.fused.run(batch, forced, self.pending_stage, self.integrator, self.state.dt, alone)
