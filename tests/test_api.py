@@ -42,7 +42,7 @@ def _everything(sim) -> dict:
 # freeze_thaw (refrozen springs across the save) and candle (emitted and retired particles) in the long tier,
 # `python3 -m pytest -m long` (README)
 @pytest.mark.parametrize(
-    "name", [pytest.param(n, marks=pytest.mark.long) if n in ("freeze_thaw", "candle") else n for n in CASES]
+    "name", [pytest.param(n, marks=pytest.mark.long) if n in ("freeze_thaw", "candle", "lj_box") else n for n in CASES]
 )
 def test_a_resumed_run_continues_bit_for_bit(name, tmp_path):
     overrides, before, after = CASES[name]

@@ -101,7 +101,7 @@ def test_a_loaded_state_brings_its_gravity_and_the_readouts_follow(tmp_path):
     assert math.isfinite(summary["temperature"])
 
 
-@pytest.mark.parametrize("scene", ["block", "pressure_cooker"])
+@pytest.mark.parametrize("scene", ["block", pytest.param("pressure_cooker", marks=pytest.mark.long)])
 def test_every_sliders_value_survives_save_then_load(tmp_path, scene):
     """A plate set to 50 C came back at 200 C after save and load, and the gravity slider read 0 degrees after a
     state saved at 30 (issue 73): each slider is moved off its value, the state saved, and a fresh controller that
@@ -215,6 +215,7 @@ def test_a_tool_added_in_one_place_reaches_every_front_end_and_turns_the_fluid()
     assert "stir" not in tool_table.names()
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_the_centre_of_mass_height_falls_as_a_free_body_does():
     """The readout added in one place (config/quantities.py, from the mass-weighted height every simulation sums):
     a springy block falling freely drops by g t^2 / 2 whatever its springs do inside it (velocity Verlet is exact for

@@ -267,6 +267,7 @@ def test_smoke_grid_projects_to_divergence_free_and_hot_air_rises(dim, one_launc
     assert sim.positions()[0, 1] > y0 + 1.0  # ... and carries the particle up with it
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_both_ways_of_projecting_the_smoke_give_the_same_flow(monkeypatch):
     """The one-launch projection iterates as solvers.pcg does: the same iterations and, to round-off (the sums
     are taken in another order), the same velocities after 10 steps."""

@@ -198,6 +198,7 @@ class Killed(BaseException):
     """A stand-in for kill -9 in the middle of joining the pieces: nothing after it runs."""
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_kill_while_the_outputs_are_joined_is_finished_by_resume(tmp_path, monkeypatch, capsys):
     """Killed while the video's pieces are joined (10 frames, checkpoints every 4): the run checkpointed its last
     frame before joining, so the resume with the same frame count finishes every output from the pieces without
@@ -223,6 +224,7 @@ def test_a_kill_while_the_outputs_are_joined_is_finished_by_resume(tmp_path, mon
     assert not [p.name for p in folder.iterdir() if p.name.startswith(".")]
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_kill_inside_ffmpegs_join_leaves_no_concat_list_after_the_resume(tmp_path, monkeypatch, capsys):
     """kill -9 while ffmpeg joins the pieces leaves its concat list (`...partial.mp4.pieces.txt`), which the resume
     left in the folder for good (issue 72); it is removed with the other partial files now."""
@@ -317,9 +319,10 @@ def test_a_png_folder_holds_only_this_runs_frames(tmp_path, capsys):
     assert "removed 19 frame file(s) of an earlier run" in capsys.readouterr().err
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 @pytest.mark.parametrize(
-    "name",  # the long name in the long tier (`python3 -m pytest -m long`)
-    ["-it's a:b.mp4", pytest.param("concat:" + "x" * 243 + ".mp4", marks=pytest.mark.long)],
+    "name",
+    ["-it's a:b.mp4", "concat:" + "x" * 243 + ".mp4"],
     ids=["quote-colon-dash", "concat-long"],
 )
 def test_output_names_that_ffmpeg_could_misread_are_written_and_resumed(tmp_path, capsys, name):
@@ -331,6 +334,7 @@ def test_output_names_that_ffmpeg_could_misread_are_written_and_resumed(tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([name, "c.npz"])
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_nohup_runs_ignore_sighup(tmp_path):
     """A run started with SIGHUP ignored (as `nohup` starts it) keeps running when the terminal closes; SIGTERM
     still stops it."""

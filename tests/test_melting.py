@@ -47,6 +47,7 @@ def test_melting_block_without_heating_stays_solid():
     assert np.ptp(sim.positions()[:, 0]) < np.ptp(x0[:, 0]) + 1.0  # it keeps its shape
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_melting_block_3d_melts():
     sim = Simulation(load_scene(SCENES / "melting_block_3d.toml", SMALL_3D))
     assert sim.dim == 3

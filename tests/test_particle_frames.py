@@ -201,6 +201,7 @@ def b64(data: bytes) -> str:
     return base64.b64encode(data).decode()
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_light_on_a_page_without_webgl2_and_server_drawing_send_jpeg_pictures():
     """A glowing scene (the candle's additive light) on a page that says it has no WebGL2 ("nogl": light.js cannot
     add the light) gets the renderer's JPEG pictures from then on, as a 2D session does when the server draws
@@ -222,6 +223,9 @@ def test_light_on_a_page_without_webgl2_and_server_drawing_send_jpeg_pictures():
         Session(end, "lj_box", 160, 90, draw="browser")
 
 
+STEP_SECONDS = 0.0002  # a step's cost, fixed: the allowance moves by the same steps a turn on a busy machine
+
+
 def test_a_tab_whose_core_is_short_takes_fewer_steps_a_picture_and_all_it_owes_again_with_room(session_2d):
     """Issue 74: a host's tabs share one allowance of steps a frame (pacing.Turns). Where a tab's turn comes every
     80 ms (its 14 neighbours' frames take the core), longer than 1 / SMOOTH_FPS, its frames take fewer steps than
@@ -232,6 +236,8 @@ def test_a_tab_whose_core_is_short_takes_fewer_steps_a_picture_and_all_it_owes_a
 
     session, page = session_2d
     session.turns.share = 15
+    record = session.turns.record  # each step costs STEP_SECONDS: the allowance moves alike on a busy machine
+    session.turns.record = lambda elapsed, steps, seconds: record(elapsed, steps, STEP_SECONDS * steps)
     substeps = int(session.sim.scene.world.substeps)
     now = due = 0.0
 
@@ -287,6 +293,7 @@ def test_a_tabs_motion_blur_streaks_start_where_its_particles_were_when_the_fram
     end.close()
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_sessions_next_tab_compiles_no_page_frame_kernel_again(compiled_kernels):
     """A host's session given to tab after tab (Session.restart) packs its frames with the packers it made for its
     renderer: before, every restart made new ones, which compiled their kernels again (the particle frame's, and a

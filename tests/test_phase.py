@@ -113,6 +113,7 @@ def _wax_scene(**heat):
     }
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_enthalpy_is_conserved_through_melting_and_refreezing():
     runtime.reset()
     data = _wax_scene()
@@ -151,6 +152,7 @@ def _spring_graph(sim):
     return sim.state.springs.i.to_numpy()[alive], sim.state.springs.j.to_numpy()[alive]
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_freeze_thaw_cycles_make_one_solid_each_time_and_lose_nothing():
     runtime.reset()
     data = _wax_scene(

@@ -131,6 +131,7 @@ def arc_streak(motion_path):
     return ren, light[..., 0]
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_spline_streak_bends_through_the_middle_position_with_the_energy_of_a_still_particle():
     spline, curve = arc_streak("spline")
     line, straight = arc_streak("line")
@@ -311,6 +312,7 @@ def test_compositing_only_the_dirty_tiles_gives_the_full_picture(output):
     )  # few tiles drawn
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_splatting_strip_by_strip_without_atomics_gives_the_picture_of_atomic_splatting():
     """Particles binned by screen strip are drawn two strips apart in parallel with plain adds; those reaching
     beyond their strip (a big disc, long motion-blur streaks) and additive light by atomic adds. The picture equals
@@ -357,6 +359,7 @@ def moved_sphere_3d(motion_blur, move_by):
     return ren, ren.frame().astype(int)
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_blurred_opaque_sphere_stays_solid_and_leaves_a_fading_streak_of_its_displacement():
     ren, blurred = moved_sphere_3d(True, 20.0)
     _, sharp = moved_sphere_3d(False, 20.0)

@@ -113,15 +113,8 @@ def page_scripts() -> list[str]:
     return [(WEB / "discs.js").read_text(), (WEB / "spheres.js").read_text(), app]
 
 
-# the molecular scenes compile the molecular model's kernels: with the long validations (README's second command)
-@pytest.mark.parametrize(
-    "scene",
-    [
-        "melting_block_3d",
-        pytest.param("evaporation", marks=pytest.mark.long),
-        pytest.param("states_of_matter_atoms", marks=pytest.mark.long),
-    ],
-)
+@pytest.mark.long  # Chromium drawing each scene (the molecular ones compile the molecular model): the long tier
+@pytest.mark.parametrize("scene", ["melting_block_3d", "evaporation", "states_of_matter_atoms"])
 def test_the_page_draws_a_sphere_frame_as_the_renderer_draws_the_picture(scene):
     """The page's WebGL code (spheres.js in Chromium, on its software GPU) turns the session's backdrop, charts'
     band and sphere frame into the renderer's picture: 99% of the pixels within two levels of the renderer's (the

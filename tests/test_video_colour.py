@@ -95,7 +95,7 @@ def run_video(folder, *args: str, frames: int = 2) -> int:
         ("c.mov", ["--codec", "prores", "--quality", "0"], ["prores (Proxy)"]),
         ("d.mp4", ["--lossless"], ["High 4:4:4 Predictive", "yuv444p(tv, bt709"]),
         ("e.mov", ["--codec", "png"], ["png", "rgb24(pc, gbr/bt709/bt709"]),
-        ("f.mov", ["--alpha"], ["prores (4444)", "yuva444p"]),
+        pytest.param("f.mov", ["--alpha"], ["prores (4444)", "yuva444p"], marks=pytest.mark.long),
     ],
 )
 def test_every_codec_is_what_was_asked_and_tagged_bt709(tmp_path, capsys, out, args, says):
@@ -142,6 +142,7 @@ def test_a_codec_that_does_not_fit_is_one_line(tmp_path, capsys, out, args, says
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
 def test_a_resume_with_another_encoding_is_refused(tmp_path, capsys):
     """A checkpoint's video continues only in the encoding it began with (the pieces are joined packet for packet)."""
     assert run_video(tmp_path, "--out", "m.mp4", "--checkpoint-every", "2", "--checkpoint", "c.npz", frames=4) == 0
