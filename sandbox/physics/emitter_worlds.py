@@ -43,14 +43,12 @@ class WorldSeeding:
         block = p.world_size
         rows = []
         for w, t, due in wanted:
-            serial, _, emitted = emitters.counters(w)
+            serial = emitters.counters(w)[0]
             for k, wanted_count in enumerate(due):
                 count = emitters.room_for(k, wanted_count, block - int(counts[w]))
                 if count:
                     rows.append((k, w * block + int(counts[w]), serial[k], p.next_ident[w], w, count, t))
-                    serial[k] += count
-                    emitted[k] += count
-                    p.next_ident[w] += count
+                    emitters.took(w, k, count, count)
                     counts[w] += count
         if not rows:
             return
@@ -112,10 +110,7 @@ class WorldRefill:
             reserved = self.reserved.to_numpy()
             for w in range(live):
                 made = min(int(reserved[w]), block - int(counts[w]))
-                serials, _, emitted = emitters.counters(w)
-                serials[k] += int(reserved[w])
-                emitted[k] += made
-                p.next_ident[w] += made
+                emitters.took(w, k, int(reserved[w]), made)
                 counts[w] += made
                 if made:
                     changed.add(w)

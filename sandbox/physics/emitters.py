@@ -119,6 +119,18 @@ class Emitters(Term):
             return self.serial[w], self.carry[w], self.emitted[w]
         return self.serial, self.carry, self.emitted
 
+    def took(self, w: int, k: int, serials: int, made: int) -> None:
+        """World w's (a lone run's, whatever w) emitter k drew `serials` serial numbers and made `made` particles of
+        them (a refill draws serials for particles it has no room for): its counters and the ids numbered on. The
+        caller counts the live particles (a lone run's n, a world's count)."""
+        serial, _, emitted = self.counters(w)
+        serial[k] += serials
+        emitted[k] += made
+        if self.p.gaps:
+            self.p.next_ident[w] += made
+        else:
+            self.p.next_ident += made
+
     def declare(self, state) -> None:
         """Particles emitted so far (the random-number index), the rate's carried fraction, the counts."""
         rows = WORLDS if self.p.gaps else ""
@@ -276,9 +288,7 @@ class Emitters(Term):
             self._top_up(k, g["count"], g["lo"], g["cell"], g["target"], n, self.serial[k], t, self.p.next_ident)
             made = min(int(self.reserved[None]), self.capacity - n)
             self.p.n[None] = n + made
-            self.p.next_ident += made
-            self.serial[k] += int(self.reserved[None])
-            self.emitted[k] += made
+            self.took(0, k, int(self.reserved[None]), made)
             added += made
         if added:
             self.state.particles_moved()
@@ -357,10 +367,8 @@ class Emitters(Term):
         if count <= 0:
             return
         self._spawn(k, count, n, self.serial[k], t, self.p.next_ident)
-        self.p.next_ident += count
         self.p.n[None] = n + count
-        self.serial[k] += count
-        self.emitted[k] += count
+        self.took(0, k, count, count)
         self.state.particles_moved()
 
     @ti.func
