@@ -15,12 +15,11 @@ import warnings
 import numpy as np
 import taichi as ti
 
-from ..config.build import load_mask
 from ..core import transfer
 from ..core.oriented import data_oriented
 from ..core.ranges import COUNT, Range
 from ..core.state import WORLDS
-from ..errors import SceneError
+from .emitter_masks import mask_pixel_table
 from .emitter_worlds import WorldRefill, WorldSeeding
 from .fields import random_uniform
 from .phase import NEVER_BONDS
@@ -188,36 +187,19 @@ class Emitters(Term):
         }
 
     def _mask_pixels(self, emitters: list):
-        """Make `mask_pixels`, one (P, 2) int field for every mask emitter's pixels (inside ones, or for `surface` the
-        inside ones with an outside 4-neighbour): each pixel is equally likely, so seeding is uniform by area (by
-        length along the boundary, to within a pixel). Returns the (field, values) pairs to upload: the pixels and
-        each emitter's range of them and pixel size."""
-
-        chunks = []
-        start = 0
-        n = max(len(emitters), 1)
-        starts, counts, sizes = np.zeros(n, np.int32), np.zeros(n, np.int32), np.zeros((n, self.dim))
-        for k, e in enumerate(emitters):
-            if e.shape != "mask":
-                continue
-            image = load_mask(e.mask)
-            if e.surface:
-                padded = np.pad(image, 1)
-                outside_near = ~padded[:-2, 1:-1] | ~padded[2:, 1:-1] | ~padded[1:-1, :-2] | ~padded[1:-1, 2:]
-                image = image & outside_near
-            pixels = np.argwhere(image).astype(np.int32)
-            if len(pixels) == 0:
-                raise SceneError(str(e.mask), "", f"emitter {e.name!r}: the mask has no inside pixels")
-            chunks.append(pixels)
-            starts[k], counts[k] = start, len(pixels)
-            sizes[k] = (np.asarray(e.hi) - np.asarray(e.lo)) / np.asarray(image.shape)
-            start += len(pixels)
-        table = np.concatenate(chunks) if chunks else np.zeros((1, 2), dtype=np.int32)
-        self.mask_pixels = ti.Vector.field(2, ti.i32, shape=len(table))
-        if not chunks:
+        """Make `mask_pixels`, one (P, 2) int field for every mask emitter's pixels (emitter_masks.py). Returns the
+        (field, values) pairs to upload: the pixels and each emitter's range of them and pixel size."""
+        made = mask_pixel_table(emitters, self.dim)
+        self.mask_pixels = ti.Vector.field(2, ti.i32, shape=len(made[0]) if made else 1)
+        if made is None:
             return []
-        pixels = [(self.mask_pixels, table)]
-        return [(self.mask_start, starts), (self.mask_count, counts), (self.pixel_size, sizes), *pixels]
+        table, starts, counts, sizes = made
+        return [
+            (self.mask_start, starts),
+            (self.mask_count, counts),
+            (self.pixel_size, sizes),
+            (self.mask_pixels, table),
+        ]
 
     # ------------------------------------------------------------------ emission (host decides counts)
     def emit_initial(self) -> None:
