@@ -115,7 +115,6 @@ def assemble(
     return Assembly(model, state, hood, terms)
 
 
-LEAPFROGS = ("velocity_verlet", "position_verlet")  # whose synchronised values are kept per world block
 # The terms a simulation of many worlds can hold: their controls, gauges, grids and passes are kept per world (a
 # term not named here would keep one for all worlds, and is refused).
 WORLD_TERMS = frozenset(
@@ -156,10 +155,6 @@ def refuse_worlds(scene: Scene, worlds: int, terms: list, particles: int) -> Non
     common = sorted(t.key for t in terms if not getattr(t, "world_controls", False) and t.controls())
     if common:  # a live control of one value for all worlds: a tab's slider would move every tab's
         raise SandboxError(f"{scene.name}: worlds = {worlds} cannot yet hold {', '.join(common)}: one control for all")
-    keys = {term.key for term in terms}
-    counted = sorted(keys & {"lid", "heater"}) + [scene.world.integrator] * (scene.world.integrator in LEAPFROGS)
-    if scene.emitters and counted:  # these read each world's block as full (core/worlds.py: gaps)
-        raise SandboxError(f"{scene.name}: worlds = {worlds} with emitters cannot yet hold {', '.join(counted)}")
     heat = scene.heat
     if heat and heat.stepper != "explicit":  # one conjugate-gradient solve would couple the worlds' iterations
         raise SandboxError(f'{scene.name}: worlds = {worlds} needs heat.stepper = "explicit", not {heat.stepper!r}')

@@ -6,13 +6,15 @@ A world's particles are compared by id (`sim.world(k).positions()` is by id; a l
 its compaction, so the lone run's are sorted by id here).
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import sandbox
-from sandbox.errors import SandboxError
 
 pytestmark = pytest.mark.xdist_group("worlds")
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def _by_id(sim, name: str = "x") -> np.ndarray:
@@ -135,10 +137,50 @@ def test_each_world_of_smoke_vortex_has_its_own_smoke_grid_and_is_its_lone_run()
     assert not np.array_equal(grids.T.to_numpy()[0], grids.T.to_numpy()[1])  # two grids, each its own
 
 
-def test_worlds_with_emitters_refuse_what_they_cannot_hold_in_one_line():
-    leapfrog = {"world.integrator": "velocity_verlet"}
-    with pytest.raises(SandboxError, match="fireworks: worlds = 2 with emitters cannot yet hold velocity_verlet"):
-        sandbox.load("fireworks", set=leapfrog, worlds=2)
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+@pytest.mark.parametrize("integrator", ["velocity_verlet", "verlet"])
+def test_each_world_of_fireworks_stepped_by_a_leapfrog_is_its_lone_run(integrator):
+    """A leapfrog integrator keeps each particle's staggered state between calls (integrators/leapfrog.py): a world
+    whose particles are seeded and retired in its block steps as its lone run does, to the bit (it was refused)."""
+    values = {"world.integrator": integrator}
+    lone, batch = sandbox.load("fireworks", set=values), sandbox.load("fireworks", set=values, worlds=2)
+    for _ in range(70):
+        lone.advance_frame()
+        batch.advance_frame()
+    assert 0 < lone.state.live_count() < sum(lone.terms.emitters.emitted)  # sparks were born and some retired
+    for k in range(2):
+        _assert_world_is(lone, batch.world(k))
+
+
+def _dripping_cooker(folder) -> str:
+    """pressure_cooker (a lid, a heater, velocity Verlet) at 40 steps a frame, with an emitter dripping atoms from
+    above the lid (20 a time unit, lifetimes 1-2 time units): a scene file in `folder`."""
+    shipped = (ROOT / "scenes" / "pressure_cooker.toml").read_text()
+    world = shipped[shipped.index("[world]") :].replace("substeps = 400 ", "substeps = 40  ")
+    drip = (
+        '[[emitters]]\nname = "drip"\nmaterial = "lj"\nshape = "box"\nlo = [2.0, 20.0, 2.0]\nhi = [13.0, 24.0, 13.0]\n'
+        "rate = 20.0\nvelocity = [0.0, -1.0, 0.0]\nlifetime = 1.5\nlifetime_spread = 0.5\nseed = 3\n"
+    )
+    path = folder / "cooker_drip.toml"
+    path.write_text('[scene]\nname = "cooker_drip"\n\n' + world + "\n" + drip)
+    return str(path)
+
+
+@pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)
+def test_each_world_of_a_lidded_heated_cooker_with_an_emitter_is_its_lone_run(tmp_path):
+    """The lid and the heater of a world whose atoms are seeded and retired sum its live atoms alone (an emitter's
+    world has empty slots after them: Particles.world_slots): atoms, the lid's height and the heater's heat equal
+    the lone run's, and a world started again after 10 frames equals a lone run started then (it was refused)."""
+    lone, batch, fresh = _restarted(_dripping_cooker(tmp_path), 3, 10, 1)
+    for _ in range(15):
+        for sim in (lone, batch, fresh):
+            sim.advance_frame()
+    assert lone.terms.emitters.emitted[0] > lone.state.live_count() - 432 > 0  # dripped atoms were born and retired
+    for k, alone in ((0, lone), (1, fresh), (2, lone)):
+        _assert_world_is(alone, batch.world(k))
+        mine, theirs = batch.world(k).stats(), alone.stats()
+        assert (mine.lid_height, mine.heater_heat) == (theirs.lid_height, theirs.heater_heat)
+    assert lone.stats().lid_height != fresh.stats().lid_height  # the restarted world's lid is its own
 
 
 @pytest.mark.long  # a long validation: `python3 -m pytest -m long` (README)

@@ -14,10 +14,10 @@ A paused tab's world is held out of the simulation (world_view.HeldWorld: its sl
 act on the held state; the others step on) and goes back on play; a single step while paused lets it run one frame.
 
 What a tab is sent is a session's (serve_session.py): the scene message, the backdrop, page frames of its world
-alone (particle_frame.FramePacker.world), its readouts, settings and charts (each tab keeps its charts' history and
-its language; the host's one renderer draws them in turn). Scenes whose particles the page cannot draw (server
-pictures) or that cannot run as worlds (emitters, a lid, a heater: assembly.refuse_worlds) are held by hosts of
-sessions instead.
+alone (particle_frame.FramePacker.world), its readouts, settings and charts (each tab keeps its charts' history and its
+language; the host's one renderer draws them in turn). Scenes whose particles the page cannot draw (server pictures) or
+that cannot run as worlds (the empty canvas, an implicit stepper: assembly.refuse_worlds) are held by hosts of sessions
+instead.
 """
 
 from __future__ import annotations

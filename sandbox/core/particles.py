@@ -127,6 +127,16 @@ class Particles:
         else:
             return False
 
+    @ti.func
+    def world_slots(self, w):
+        """(first, end): the slots of world w's live particles, its block of world_size slots (with gaps: the first
+        counts[w] of it). For a simulation of many worlds."""
+        first = w * self.world_size
+        end = first + self.world_size
+        if ti.static(self.gaps):
+            end = first + self.counts[w]
+        return first, end
+
     def block(self, world: int | None) -> tuple[int, int]:
         """(first slot, live count) of world `world`'s particles (a host read); every live particle's where
         `world` is None or there is one world."""

@@ -127,10 +127,7 @@ class Diagnostics:
         """(first, last + 1): the slots of world `world`'s live particles (every live one, with one world)."""
         first, last = 0, self.p.n[None]
         if ti.static(self.worlds > 1):
-            each = self.p.world_size
-            first, last = world * each, (world + 1) * each
-            if ti.static(self.p.gaps):
-                last = first + self.p.counts[world]
+            first, last = self.p.world_slots(world)
         return first, last
 
     @ti.func

@@ -102,7 +102,7 @@ class Heater(Term):
                 self._heat(self.power * state.dt)
         elif any(self.setting.values):
             self.setting.write(self.energy, state.dt)
-            self._heat_worlds(self.p.world_size)
+            self._heat_worlds()
 
     @ti.func
     def measure_value(self, w):
@@ -119,16 +119,19 @@ class Heater(Term):
             self._scale(i, 0)
 
     @ti.kernel
-    def _heat_worlds(self, each: ti.i32):
-        """Each world's P dt (`energy`) shared among its own atoms (slots w each .. (w + 1) each - 1); a world
-        given none is left untouched."""
-        worlds = self.p.n[None] // each
+    def _heat_worlds(self):
+        """Each world's P dt (`energy`) shared among its own live atoms (Particles.world_slots); a world given none
+        is left untouched."""
+        worlds = self.p.n[None] // self.p.world_size
         self.loops.light()
         for w in range(worlds):  # a world to a thread; its sums in its lone run's order
             if self.energy[w] != 0.0:
-                self._share(w, w * each, (w + 1) * each, self.energy[w])
+                first, end = self.p.world_slots(w)
+                self._share(w, first, end, self.energy[w])
         self.loops.light()
-        for i in range(worlds * each):
+        for i in range(worlds * self.p.world_size):
+            if self.p.idle(i):
+                continue
             w = world_of(self.p, i)
             if self.energy[w] != 0.0:
                 self._scale(i, w)

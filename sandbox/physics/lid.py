@@ -143,7 +143,7 @@ class Lid(Term):
             self._move(state.dt, self.pressure * self.area)
             return
         self.setting.write(self.load, self.area)
-        self._move_worlds(state.dt, self.p.world_size)
+        self._move_worlds(state.dt)
 
     @ti.kernel
     def _move(self, dt: float, load: float):
@@ -152,10 +152,11 @@ class Lid(Term):
             self._move_one(0, 0, self.p.n[None], dt, load)
 
     @ti.kernel
-    def _move_worlds(self, dt: float, each: ti.i32):
+    def _move_worlds(self, dt: float):
         self.loops.light()
-        for w in range(self.p.n[None] // each):  # the worlds in use, a world to a thread
-            self._move_one(w, w * each, (w + 1) * each, dt, self.load[w])
+        for w in range(self.p.n[None] // self.p.world_size):  # the worlds in use, a world to a thread
+            first, end = self.p.world_slots(w)  # its live atoms (an emitter's world has empty slots after them)
+            self._move_one(w, first, end, dt, self.load[w])
 
     @ti.func
     def _move_one(self, w, first, last, dt, load):
