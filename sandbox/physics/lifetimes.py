@@ -99,9 +99,10 @@ class Lifetimes(Term):
         total = 0
         ti.loop_config(serialize=True)
         for w in range(p.n[None] // block):
-            first, live = w * block, p.counts[w]
+            first, end = p.world_slots(w)
+            live = end - first
             dead = 0
-            for i in range(first, first + live):
+            for i in range(first, end):
                 if self.dead(i):
                     dead += 1
             keep = live - dead

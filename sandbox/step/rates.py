@@ -152,10 +152,9 @@ class Rates:
         size = self.world_size
         k, t = item // self.n_chunks, item % self.n_chunks
         if k < n // size:  # a live world (those past the live count wait to be added: Simulation.add_world)
-            each = size  # its live particles: its block, or with gaps the first counts[k] of it
-            if ti.static(self.state.particles.gaps):
-                each = self.state.particles.counts[k]
-            for i in range(k * size + t * each // self.n_chunks, k * size + (t + 1) * each // self.n_chunks):
+            first, end = self.state.particles.world_slots(k)  # its live particles
+            each = end - first
+            for i in range(first + t * each // self.n_chunks, first + (t + 1) * each // self.n_chunks):
                 self._half_row(t, i, ids, i * width)
 
     @ti.func
