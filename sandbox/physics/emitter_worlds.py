@@ -95,15 +95,15 @@ class WorldRefill:
         emitters, p = self.emitters, self.p
         block, live = p.world_size, len(times)
         changed = set()
+        counts = p.counts.to_numpy()  # kept here as each emitter tops up (and uploaded for the next one's kernels)
+        clocks = np.zeros(p.world_count)
+        clocks[:live] = times
         for k in emitters.refills:
             grid = emitters.refill_grids[k]
-            counts = p.counts.to_numpy()
             serial = np.array([emitters.counters(w)[0][k] for w in range(live)] + [0] * (p.world_count - live))
             ident = np.array(list(p.next_ident[:live]) + [0] * (p.world_count - live))
             table = [(self.first, np.arange(p.world_count) * block + counts), (self.room, block - counts)]
             table += [(self.serial, serial), (self.ident, ident)]
-            clocks = np.zeros(p.world_count)
-            clocks[:live] = times
             transfer.upload([(f, np.asarray(v, np.int32)) for f, v in table] + [(self.t, clocks)])
             self._count(self.counts[k], grid["lo"], grid["cell"])
             self._top_up(k, self.counts[k], grid["lo"], grid["cell"], grid["target"], live)
